@@ -1,0 +1,43 @@
+# Every target runs inside the dolfin_rod environment through ./rodenv, which builds
+# that environment on first use (see README.md, "Environment").
+RODENV  := ./rodenv
+PYTEST  := python3 -m pytest
+NP      ?= 2
+
+.PHONY: demo demos test test-serial test-mpi test-long bench work-precision stability env shell clean
+
+demo:            ## the flagship demo; figures and data under results/
+	$(RODENV) python3 demos/torsion_relaxation.py
+	$(RODENV) python3 demos/torsion_creep.py
+
+demos:           ## every demo, serially and under mpirun
+	$(RODENV) $(PYTEST) tests/test_demos.py -m "slow or not slow"
+
+test: test-serial test-mpi   ## the CI suite: serial run, then the MPI run on $(NP) ranks
+
+test-serial:
+	$(RODENV) $(PYTEST) -m "not slow"
+
+test-mpi:
+	$(RODENV) mpirun -n $(NP) $(PYTEST) -m "mpi and not slow"
+
+test-long:       ## long verification runs (convergence studies, long horizons)
+	$(RODENV) $(PYTEST) -m slow
+
+bench:           ## performance benchmarks: JSON and PNG under results/bench/
+	$(RODENV) python3 benchmarks/run_all.py
+
+work-precision:  ## the speed-accuracy chart of the integrators
+	$(RODENV) python3 demos/work_precision.py
+
+stability:       ## the stability study of the integrators (docs/stability.md)
+	$(RODENV) python3 demos/stability_study.py
+
+env:             ## build the environment now (make test/demo do it on first use)
+	$(RODENV) python3 -c "import dolfinx, dolfin_rod; print('DOLFINx', dolfinx.__version__)"
+
+shell:
+	$(RODENV) bash
+
+clean:
+	rm -rf results .pytest_cache

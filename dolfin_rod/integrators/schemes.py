@@ -1,0 +1,94 @@
+"""One-step and two-step schemes as coefficient tables on F(t, y, dy/dt) = 0.
+
+A stage evaluates the residual at
+    Y    = a0 y + a1 y_n + a2 y_{n-1}
+    Ydot = (b0 y + b1 y_n + b2 y_{n-1}) / dt + g ydot_n
+    t    = t_n + c dt
+and a step solves sum_k w_k F(t_k, Y_k, Ydot_k) = 0 for y = y_{n+1}.  After the step
+ydot_{n+1} = (r0 y + r1 y_n + r2 y_{n-1}) / dt + rg ydot_n is stored (diagnostics and
+the schemes that carry the rate).  Constant dt is assumed by the two-step formulas;
+the integrator restarts them with their ``startup`` scheme after a step change.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Stage:
+    w: float
+    c: float
+    a: tuple[float, float, float]
+    b: tuple[float, float, float]
+    g: float = 0.0
+
+
+@dataclass(frozen=True)
+class Scheme:
+    name: str
+    order: int
+    stages: tuple[Stage, ...]
+    rate: tuple[float, float, float, float]  # r0, r1, r2, rg
+    explicit: bool = False
+    l_stable: bool = False
+    startup: str | None = None  # first step (two-step schemes, and those carrying ydot_n)
+
+    @property
+    def steps(self) -> int:
+        """1 for one-step schemes, 2 when y_{n-1} enters."""
+        uses_nm1 = any(s.a[2] or s.b[2] for s in self.stages) or self.rate[2]
+        return 2 if uses_nm1 else 1
+
+    @property
+    def uses_rate(self) -> bool:
+        return any(s.g for s in self.stages)
+
+
+def generalized_alpha(rho_inf: float = 0.5) -> Scheme:
+    """Jansen-Whiting-Hulbert generalized-alpha for first-order systems.
+
+    alpha_m = (3 - rho)/(2(1 + rho)), alpha_f = 1/(1 + rho), gamma = 1/2 + alpha_m -
+    alpha_f: second order, unconditionally stable, high-frequency damping rho_inf.
+    """
+    if not 0.0 <= rho_inf <= 1.0:
+        raise ValueError(f"rho_inf must be in [0, 1], got {rho_inf}")
+    am = (3.0 - rho_inf) / (2.0 * (1.0 + rho_inf))
+    af = 1.0 / (1.0 + rho_inf)
+    gm = 0.5 + am - af
+    k = am / gm
+    return Scheme(
+        name=f"generalized_alpha(rho_inf={rho_inf:g})", order=2,
+        stages=(Stage(1.0, af, (af, 1.0 - af, 0.0), (k, -k, 0.0), 1.0 - k),),
+        rate=(1.0 / gm, -1.0 / gm, 0.0, -(1.0 - gm) / gm),
+        l_stable=rho_inf == 0.0,
+        startup="backward_euler")  # rates start at 0: one BE step makes ydot_1 O(dt)-exact
+
+
+SCHEMES: dict[str, Scheme] = {
+    s.name: s for s in (
+        Scheme("backward_euler", 1, (Stage(1.0, 1.0, (1, 0, 0), (1, -1, 0)),),
+               rate=(1, -1, 0, 0), l_stable=True),
+        Scheme("bdf2", 2, (Stage(1.0, 1.0, (1, 0, 0), (1.5, -2.0, 0.5)),),
+               rate=(1.5, -2.0, 0.5, 0), l_stable=True, startup="backward_euler"),
+        Scheme("implicit_midpoint", 2, (Stage(1.0, 0.5, (0.5, 0.5, 0), (1, -1, 0)),),
+               rate=(2, -2, 0, -1)),
+        Scheme("crank_nicolson", 2, (Stage(0.5, 1.0, (1, 0, 0), (1, -1, 0)),
+                                     Stage(0.5, 0.0, (0, 1, 0), (1, -1, 0))),
+               rate=(2, -2, 0, -1)),
+        Scheme("explicit_euler", 1, (Stage(1.0, 0.0, (0, 1, 0), (1, -1, 0)),),
+               rate=(1, -1, 0, 0), explicit=True),
+    )
+}
+
+
+def get_scheme(name: str) -> Scheme:
+    """A scheme by name; 'generalized_alpha' or 'generalized_alpha:0.3' sets rho_inf."""
+    if name.startswith("generalized_alpha"):
+        _, _, rho = name.partition(":")
+        return generalized_alpha(float(rho) if rho else 0.5)
+    try:
+        return SCHEMES[name]
+    except KeyError:
+        known = ", ".join([*SCHEMES, "generalized_alpha[:rho_inf]"])
+        raise ValueError(f"unknown time scheme '{name}' (known: {known})") from None

@@ -1,0 +1,59 @@
+"""The semi-discrete problem: physics written once as F(t, y, dy/dt; v) = 0.
+
+A model (torsion, 3-D rod) builds a :class:`SemiDiscreteProblem`; an integrator turns
+it into the residual of one time step; a solver solves that.  Three places that meet in
+one line (STYLE.md, after dolfiny): the model never sees dt, the integrator never sees
+the physics, the solver never sees time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import dolfinx.fem as fem
+import numpy as np
+import ufl
+
+
+@dataclass
+class TimeDependentValue:
+    """A fem.Constant in the residual whose value is a function of time (a load)."""
+
+    constant: fem.Constant
+    history: Callable[[float], float | np.ndarray]
+
+    def at(self, t: float) -> np.ndarray:
+        return np.asarray(self.history(t), dtype=float).reshape(self.constant.value.shape)
+
+
+@dataclass
+class SemiDiscreteProblem:
+    """F(t, y, dy/dt; v) = 0 on a blocked (ufl.MixedFunctionSpace-like) space.
+
+    fields:    y, one Function per block: the unknowns, updated in place by integrators.
+    rates:     placeholders for dy/dt in ``residual`` (same spaces as ``fields``).
+    residual:  one UFL form per block, linear in the block's test function.
+    loads:     constants in ``residual`` set from their histories at each evaluation time.
+    bcs:       Dirichlet conditions on the blocks of ``fields``.
+    set_bcs:   sets the prescribed values of ``bcs`` (and their rates) at time t.
+    """
+
+    fields: list[fem.Function]
+    rates: list[fem.Function]
+    residual: list[ufl.Form]
+    loads: list[TimeDependentValue] = field(default_factory=list)
+    bcs: list[fem.DirichletBC] = field(default_factory=list)
+    set_bcs: Callable[[float], None] = lambda t: None
+
+    def __post_init__(self):
+        if not (len(self.fields) == len(self.rates) == len(self.residual)):
+            raise ValueError("fields, rates and residual must have one entry per block")
+
+    @property
+    def comm(self):
+        return self.fields[0].function_space.mesh.comm
+
+    def set_loads(self, t: float) -> None:
+        for load in self.loads:
+            load.constant.value[...] = load.at(t)

@@ -1,0 +1,117 @@
+"""PETSc SNES on blocked forms (DOLFINx 0.9 ``*_block`` assembly), with failure reasons.
+
+Blocks may include scifem real spaces (global scalar unknowns), so the uniform variant's
+natural strains are solved monolithically with the fields, in serial and under MPI.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import dolfinx.fem as fem
+import dolfinx.fem.petsc as fem_petsc
+import numpy as np
+import ufl
+from dolfinx.cpp.la.petsc import scatter_local_vectors
+from petsc4py import PETSc
+
+_REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
+DEFAULT_OPTIONS = {
+    "snes_type": "newtonls",
+    "snes_linesearch_type": "basic",
+    "snes_rtol": 1e-10,
+    "snes_atol": 1e-12,
+    "snes_stol": 0.0,
+    "snes_max_it": 25,
+    "ksp_type": "preonly",
+    "pc_type": "lu",
+    "pc_factor_mat_solver_type": "mumps",
+}
+_ids = itertools.count()
+
+
+class SolverError(RuntimeError):
+    """SNES did not converge; ``reason`` is PETSc's converged-reason name."""
+
+    def __init__(self, reason: str, iterations: int):
+        super().__init__(f"SNES failed: {reason} after {iterations} iterations")
+        self.reason = reason
+        self.iterations = iterations
+
+
+def block_maps(forms):
+    return [(f.function_spaces[0].dofmap.index_map, f.function_spaces[0].dofmap.index_map_bs)
+            for f in forms]
+
+
+def functions_to_vec(functions, x) -> None:
+    """Copy block Functions into a block vector (owned entries, then ghosts)."""
+    maps = [(u.function_space.dofmap.index_map, u.function_space.dofmap.index_map_bs)
+            for u in functions]
+    scatter_local_vectors(x, [u.x.array for u in functions], maps)
+    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+
+
+def vec_to_functions(x, functions) -> None:
+    """Copy the owned entries of a block vector into block Functions and scatter ghosts."""
+    offset = 0
+    xa = x.getArray(readonly=True)
+    for u in functions:
+        n = u.function_space.dofmap.index_map.size_local * u.function_space.dofmap.index_map_bs
+        u.x.array[:n] = xa[offset:offset + n]
+        u.x.scatter_forward()
+        offset += n
+
+
+class BlockSNES:
+    """Solve F_i(y) = 0 (one form per block) for the block Functions ``y`` with SNES.
+
+    ``options`` are PETSc options under a private prefix (defaults: Newton with an exact
+    line search off and MUMPS LU, which suits 1-D rods' banded systems).
+    """
+
+    def __init__(self, F: list[ufl.Form], y: list[fem.Function], bcs=(), options=None,
+                 prefix: str | None = None):
+        self.y = y
+        self.bcs = list(bcs)
+        J = [[ufl.derivative(Fi, yj, ufl.TrialFunction(yj.function_space)) for yj in y]
+             for Fi in F]
+        J = [[None if Jij.empty() else Jij for Jij in row] for row in J]
+        self.F = fem.form(F)
+        self.J = fem.form(J)
+        self.b = fem_petsc.create_vector_block(self.F)
+        self.x = fem_petsc.create_vector_block(self.F)
+        self.A = fem_petsc.create_matrix_block(self.J)
+        self.snes = PETSc.SNES().create(self.x.getComm())
+        self.snes.setFunction(self._residual, self.b)
+        self.snes.setJacobian(self._jacobian, self.A)
+        self.prefix = prefix or f"dolfin_rod_{next(_ids)}_"
+        self.snes.setOptionsPrefix(self.prefix)
+        opts = PETSc.Options()
+        for k, v in {**DEFAULT_OPTIONS, **(options or {})}.items():
+            opts[self.prefix + k] = v
+        self.snes.setFromOptions()
+        self.iterations = 0
+
+    def _residual(self, snes, x, b):
+        vec_to_functions(x, self.y)
+        with b.localForm() as bl:
+            bl.set(0.0)
+        fem_petsc.assemble_vector_block(b, self.F, self.J, bcs=self.bcs, x0=x, alpha=-1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+
+    def _jacobian(self, snes, x, A, P):
+        A.zeroEntries()
+        fem_petsc.assemble_matrix_block(A, self.J, bcs=self.bcs)
+        A.assemble()
+
+    def solve(self) -> int:
+        """Newton from the current ``y``; on success ``y`` holds the solution."""
+        functions_to_vec(self.y, self.x)
+        self.snes.solve(None, self.x)
+        reason = self.snes.getConvergedReason()
+        self.iterations = self.snes.getIterationNumber()
+        if reason <= 0 or not np.isfinite(self.snes.getFunctionNorm()):
+            raise SolverError(_REASONS.get(reason, str(reason)), self.iterations)
+        vec_to_functions(self.x, self.y)
+        return self.iterations
