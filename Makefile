@@ -19,7 +19,7 @@ test-serial:
 	$(RODENV) $(PYTEST) -m "not slow"
 
 test-mpi:
-	$(RODENV) mpirun -n $(NP) $(PYTEST) -m "mpi and not slow"
+	$(RODENV) mpirun -n $(NP) tests/mpi_pytest.sh -m "mpi and not slow"
 
 test-long:       ## long verification runs (convergence studies, long horizons)
 	$(RODENV) $(PYTEST) -m slow

@@ -10,7 +10,9 @@ discontinuous space (|I| = 1, the local law holds cell by cell) or in a real spa
 
 from __future__ import annotations
 
+import scifem
 import ufl
+from mpi4py import MPI
 
 VARIANTS = ("local", "uniform")
 
@@ -30,3 +32,15 @@ def evolution_residual(M_d, natural_rate, dpsi_dnatural, test, variant: str, len
         return (flow + dpsi_dnatural) * test * dx
     flow = scale * ufl.dot(M_d, natural_rate)
     return ufl.inner(flow + dpsi_dnatural, test) * dx
+
+
+def real_space(mesh, shape: tuple[int, ...] = ()):
+    """The space of the uniform variant's global natural strains (scifem real space).
+
+    scifem 0.6 builds it with collectives on MPI.COMM_WORLD, so the mesh must live on
+    MPI.COMM_WORLD (or a congruent communicator): on a sub-communicator it would hang.
+    """
+    if MPI.Comm.Compare(mesh.comm, MPI.COMM_WORLD) not in (MPI.IDENT, MPI.CONGRUENT):
+        raise ValueError("the uniform variant needs a mesh on MPI.COMM_WORLD (scifem 0.6 "
+                         "creates its global unknowns collectively on COMM_WORLD)")
+    return scifem.create_real_functionspace(mesh, shape)

@@ -25,14 +25,13 @@ import dolfinx
 import dolfinx.fem as fem
 import dolfinx.fem.petsc as fem_petsc
 import numpy as np
-import scifem
 import ufl
 from mpi4py import MPI
 
 from . import loads as load_histories
 from .dissipation import dissipation_rate
 from .energy import derivatives, quadratic_energy
-from .evolution import check_variant, evolution_residual
+from .evolution import check_variant, evolution_residual, real_space
 from .problem import SemiDiscreteProblem, TimeDependentValue
 
 Coefficient = float | Callable
@@ -118,7 +117,7 @@ class TorsionModel:
         self.coefficients = coef
 
         V = fem.functionspace(mesh, ("Lagrange", degree))
-        Q = (scifem.create_real_functionspace(mesh) if variant == "uniform"
+        Q = (real_space(mesh) if variant == "uniform"
              else fem.functionspace(mesh, ("DG", degree - 1)))
         spaces = [V, Q] + ([fem.functionspace(mesh, ("Lagrange", degree))]
                            if self.dynamic else [])

@@ -145,9 +145,9 @@ class TimeStepper:
         t, h, cuts = t0, dt, 0
         n_total = math.ceil((t_end - t0) / dt - 1e-9)
         for _ in range(100 * n_total + 10 * self.max_cuts):
-            if t >= t_end - 1e-12 * dt:
+            if t_end - t <= 1e-9 * dt:  # round-off from summing steps
                 return t
-            h_try = min(h, t_end - t)
+            h_try = t_end - t if t_end - t < h * (1 + 1e-9) else h
             try:
                 self.step(t, h_try)
             except SolverError as err:
@@ -160,7 +160,7 @@ class TimeStepper:
                 h = h_try / 2
                 self._history_ok = False
                 continue
-            t += h_try
+            t = t_end if h_try == t_end - t else t + h_try
             if observer:
                 observer(t, self)
             if h < dt and cuts:  # grow back towards the nominal step after a success

@@ -1,0 +1,297 @@
+"""PETSc TS on the same SemiDiscreteProblem: F(t, y, dy/dt) = 0 as an implicit DAE.
+
+TS sees the residual through two callbacks (PETSc's implicit form):
+
+    IFunction:  G(t, y, ydot)      = F(t, y, ydot; v) assembled per block, with the
+                                     Dirichlet rows replaced by y - g(t) (x0 = y, alpha = -1,
+                                     as in solvers.BlockSNES): the conditions are algebraic
+                                     equations of the DAE;
+    IJacobian:  dG/dy + a dG/dydot = sum_j [dF_i/dy_j + a dF_i/dydot_j], a = TS's ``shift``
+                                     (a fem.Constant: the forms are compiled once).
+
+Every model here is therefore a DAE.  The quasi-static Kelvin-Voigt-free torsion rod
+(nu = mu = 0) is of index 1 (phi is algebraic: d/ds[alpha(phi_s - u_d)] = 0 is solvable
+for phi given u_d), so the stiffly accurate / L-stable TS types (bdf, theta = 1, arkimex
+l2, ...) apply to all models, and theta = 1/2, alpha apply with the usual caveat that
+they do not damp the algebraic components (see docs/stability.md).
+
+TS types (``ts_type`` string, parameter after a colon like TimeStepper's
+"generalized_alpha:0.3"):
+
+    bdf[:k]              BDF of order k = 1..6 (default 2), fixed step or adaptive
+    theta[:th]           theta method, endpoint form (th = 1/2: Crank-Nicolson), default 1
+    backward_euler       theta = 1
+    crank_nicolson       theta = 1/2, endpoint form (trapezoidal rule)
+    implicit_midpoint    theta = 1/2, midpoint form
+    alpha[:rho_inf]      TSALPHA, Jansen-Whiting-Hulbert generalized-alpha (default 0.5)
+    arkimex[:type]       ARKIMEX treated as fully implicit DIRK (no explicit part), type
+                         one of ARKIMEX_ORDERS (default l2, L-stable, 2nd order)
+
+Step rejection: a SNES failure rejects the step and TS retries with dt scaled by
+``ts_adapt_scale_solve_failed`` (0.25); ``max_rejections`` consecutive rejections of one
+step end the run with IntegrationError, the accepted history staying with the observer
+and the last accepted state in ``problem.fields``.  In fixed-step mode the step grows
+back to the nominal dt (doubling) after a cut, like TimeStepper.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import dolfinx.fem as fem
+import dolfinx.fem.petsc as fem_petsc
+import numpy as np
+import ufl
+from petsc4py import PETSc
+
+from ..problem import SemiDiscreteProblem
+from ..solvers import DEFAULT_OPTIONS, functions_to_vec, vec_to_functions
+from .stepper import IntegrationError
+
+# Design orders of the ARKIMEX tableaux (implicit part), PETSc's TSARKIMEX names.
+# (ars122 is left out: PETSc refuses it without an explicit part, error 56.)
+ARKIMEX_ORDERS = {"1bee": 1, "a2": 2, "l2": 2, "2c": 2, "2d": 2, "2e": 2, "prssp2": 2,
+                  "3": 3, "bpr3": 3, "ars443": 3, "4": 4, "5": 5}
+TS_TYPES = ("bdf[:order]", "theta[:theta]", "backward_euler", "crank_nicolson",
+            "implicit_midpoint", "alpha[:rho_inf]", "arkimex[:type]")
+_ids = itertools.count()
+_REASONS = {v: k for k, v in vars(PETSc.TS.ConvergedReason).items() if isinstance(v, int)}
+
+
+@dataclass(frozen=True)
+class TSMethod:
+    """A parsed ``ts_type``: PETSc type, its options and the design order."""
+
+    name: str
+    petsc_type: str
+    order: int
+    options: dict
+
+
+def parse_ts_type(ts_type: str) -> TSMethod:
+    """'bdf:3' -> TSMethod('bdf:3', 'bdf', 3, {...}); ValueError for unknown names."""
+    if not isinstance(ts_type, str):
+        raise ValueError(f"ts_type must be a string, got {ts_type!r}")
+    name, _, arg = ts_type.partition(":")
+
+    def number(kind, cast, low, high):
+        try:
+            value = cast(arg)
+        except ValueError:
+            raise ValueError(f"ts_type '{ts_type}': {kind} must be a number, got '{arg}'") from None
+        if not low <= value <= high:
+            raise ValueError(f"ts_type '{ts_type}': {kind} must be in [{low}, {high}]")
+        return value
+
+    if name == "bdf":
+        k = number("order", int, 1, 6) if arg else 2
+        return TSMethod(f"bdf:{k}", "bdf", k, {"ts_bdf_order": k})
+    if name in ("theta", "backward_euler", "crank_nicolson", "implicit_midpoint") and (
+            not arg or name == "theta"):
+        theta = {"backward_euler": 1.0, "crank_nicolson": 0.5, "implicit_midpoint": 0.5}.get(
+            name, number("theta", float, 0.5, 1.0) if arg else 1.0)
+        endpoint = name != "implicit_midpoint"
+        return TSMethod(name if name != "theta" else f"theta:{theta:g}", "theta",
+                        2 if theta == 0.5 else 1,
+                        {"ts_theta_theta": theta, "ts_theta_endpoint": endpoint})
+    if name == "alpha":
+        rho = number("rho_inf", float, 0.0, 1.0) if arg else 0.5
+        return TSMethod(f"alpha:{rho:g}", "alpha", 2, {"ts_alpha_radius": rho})
+    if name == "arkimex":
+        kind = arg or "l2"
+        if kind not in ARKIMEX_ORDERS:
+            raise ValueError(f"unknown ARKIMEX type '{kind}' (known: {', '.join(ARKIMEX_ORDERS)})")
+        return TSMethod(f"arkimex:{kind}", "arkimex", ARKIMEX_ORDERS[kind],
+                        {"ts_arkimex_type": kind, "ts_arkimex_fully_implicit": True})
+    if name in ("euler", "rk", "ssp", "fe"):
+        raise ValueError(f"ts_type '{ts_type}' is explicit and needs an RHS function; a "
+                         "SemiDiscreteProblem is implicit (DAE): use TimeStepper("
+                         "problem, 'explicit_euler') for an explicit scheme")
+    raise ValueError(f"unknown ts_type '{ts_type}' (known: {', '.join(TS_TYPES)})")
+
+
+@dataclass
+class TSStats:
+    steps: int = 0
+    rejected: int = 0
+    snes_failures: int = 0
+    newton_iterations: int = 0
+
+
+class TSIntegrator:
+    """Advance a SemiDiscreteProblem with PETSc TS.
+
+    adaptive:  False: fixed nominal step dt (ts_adapt_type none);  True: TS's error
+               control with ``rtol``, ``atol`` (ts_adapt_type basic), dt = first step.
+    observer(t, integrator) is called at t0 and after every accepted step; the state is
+    in ``problem.fields``, ``problem.rates`` holds the backward difference of the last
+    accepted step (a first-order rate estimate, for diagnostics only).
+    dt_min:    a step that had to be cut below dt_min ends the run with IntegrationError
+               (default: fixed step dt 4^-max_rejections, adaptive: no floor).
+    ``solver_options`` are SNES/KSP options, ``ts_options`` further TS options (both
+    without prefix).
+    """
+
+    def __init__(self, problem: SemiDiscreteProblem, ts_type: str = "bdf", *,
+                 adaptive: bool = False, rtol: float = 1e-6, atol: float = 1e-8,
+                 solver_options: dict | None = None, ts_options: dict | None = None,
+                 max_rejections: int = 10, dt_min: float | None = None):
+        self.method = parse_ts_type(ts_type)
+        for name, value in (("rtol", rtol), ("atol", atol)):
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {value}")
+        if not (isinstance(max_rejections, int) and max_rejections >= 0):
+            raise ValueError(f"max_rejections must be an integer >= 0, got {max_rejections!r}")
+        self.problem, self.adaptive, self.dt_min = problem, adaptive, dt_min
+        self.max_rejections = max_rejections
+        y, ydot = problem.fields, problem.rates
+        mesh = y[0].function_space.mesh
+        self.shift = fem.Constant(mesh, 1.0)
+
+        def d(Fi, u, v):
+            return ufl.derivative(Fi, u, ufl.TrialFunction(v.function_space))
+
+        J = []
+        for Fi in problem.residual:
+            row = []
+            for yj, rj in zip(y, ydot):
+                Jij = d(Fi, yj, yj) + self.shift * d(Fi, rj, yj)
+                row.append(None if Jij.empty() else Jij)
+            J.append(row)
+        self.F = fem.form(problem.residual)
+        self.J = fem.form(J)
+        self.b = fem_petsc.create_vector_block(self.F)
+        self.x = fem_petsc.create_vector_block(self.F)
+        self.A = fem_petsc.create_matrix_block(self.J)
+        self._x_prev = self.x.duplicate()
+
+        self.ts = PETSc.TS().create(mesh.comm)
+        self.prefix = f"dolfin_rod_ts_{next(_ids)}_"
+        self.ts.setOptionsPrefix(self.prefix)
+        self.ts.setProblemType(PETSc.TS.ProblemType.NONLINEAR)
+        self.ts.setEquationType(PETSc.TS.EquationType.DAE_IMPLICIT_INDEX1)
+        self.ts.setType(self.method.petsc_type)
+        self.ts.setIFunction(self._ifunction, self.b)
+        self.ts.setIJacobian(self._ijacobian, self.A)
+        # the last step is clipped in _post_step (TS's MATCHSTEP trips on round-off)
+        self.ts.setExactFinalTime(PETSc.TS.ExactFinalTime.STEPOVER)
+        self.ts.setMaxSNESFailures(-1)            # every SNES failure: reject, cut, retry
+        self.ts.setMaxStepRejections(max_rejections)
+        self.ts.setErrorIfStepFails(False)
+        self.ts.setTolerances(rtol=rtol, atol=atol)
+        opts = PETSc.Options()
+        settings = {**DEFAULT_OPTIONS, **(solver_options or {}),
+                    "ts_adapt_type": "basic" if adaptive else "none",
+                    **self.method.options, **(ts_options or {})}
+        self._option_keys = [self.prefix + k for k in settings]
+        for k, v in settings.items():
+            opts[self.prefix + k] = v
+        self.ts.setFromOptions()
+        self.ts.setMonitor(self._monitor)
+        self.ts.setPostStep(self._post_step)
+        self.stats = TSStats()
+        self._observer = None
+        self._t_accepted = None
+        self._dt_nominal = None
+
+    # -- the DAE ----------------------------------------------------------------------
+    def _set_time(self, t: float, x, xdot) -> None:
+        vec_to_functions(x, self.problem.fields)
+        vec_to_functions(xdot, self.problem.rates)
+        self.problem.set_loads(t)
+        self.problem.set_bcs(t)
+
+    def _ifunction(self, ts, t, x, xdot, b):
+        self._set_time(t, x, xdot)
+        with b.localForm() as bl:
+            bl.set(0.0)
+        fem_petsc.assemble_vector_block(b, self.F, self.J, bcs=self.problem.bcs, x0=x,
+                                        alpha=-1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+
+    def _ijacobian(self, ts, t, x, xdot, shift, A, P):
+        self._set_time(t, x, xdot)
+        self.shift.value = shift
+        A.zeroEntries()
+        fem_petsc.assemble_matrix_block(A, self.J, bcs=self.problem.bcs)
+        A.assemble()
+
+    # -- accepted steps ---------------------------------------------------------------
+    def _monitor(self, ts, step, t, x):
+        vec_to_functions(x, self.problem.fields)
+        h = t - self._t_accepted if self._t_accepted is not None else 0.0
+        if h > 0:  # backward-difference rate of the accepted step
+            rate = x.copy()
+            rate.axpy(-1.0, self._x_prev)
+            rate.scale(1.0 / h)
+            vec_to_functions(rate, self.problem.rates)
+            rate.destroy()
+        x.copy(self._x_prev)
+        self._t_accepted = t
+        if step > 0:
+            self.stats.steps += 1
+        if self._observer:
+            self._observer(t, self)
+
+    def _post_step(self, ts):
+        dt, t = ts.getTimeStep(), ts.getTime()
+        if not self.adaptive and dt < self._dt_nominal:  # grow back after a cut
+            dt = min(2.0 * dt, self._dt_nominal)
+        remaining = self._t_end - t
+        if remaining <= 1e-10 * self._dt_nominal:
+            ts.setConvergedReason(PETSc.TS.ConvergedReason.CONVERGED_TIME)
+        elif dt >= remaining * (1.0 - 1e-10):
+            dt = remaining
+        elif self._dt_floor > 0 and dt < self._dt_floor:
+            ts.setConvergedReason(PETSc.TS.ConvergedReason.DIVERGED_STEP_REJECTED)
+        ts.setTimeStep(dt)
+
+    # -- driver -----------------------------------------------------------------------
+    def run(self, t0: float, t_end: float, dt: float,
+            observer: Callable[[float, "TSIntegrator"], None] | None = None) -> float:
+        """Integrate from t0 to t_end (dt: the fixed step, or the first adaptive one).
+
+        Returns the final time; raises IntegrationError when a step is rejected
+        ``max_rejections`` times in a row (state: the last accepted step).
+        """
+        if not dt > 0:
+            raise ValueError(f"dt must be > 0, got {dt}")
+        if not t_end > t0:
+            raise ValueError(f"t_end must be > t0 = {t0}, got {t_end}")
+        self._observer, self._t_accepted, self._dt_nominal = observer, None, dt
+        self._t_end = t_end
+        # smallest accepted step before giving up: dt_min, else (fixed step) dt 4^-rejections
+        self._dt_floor = (self.dt_min if self.dt_min is not None else
+                          0.0 if self.adaptive else dt * 0.25 ** self.max_rejections)
+        # initial rates: whatever the problem holds (used only by diagnostics at t0)
+        functions_to_vec(self.problem.fields, self.x)
+        self.ts.setTime(t0)
+        self.ts.setTimeStep(min(dt, t_end - t0))
+        self.ts.setStepNumber(0)
+        self.ts.setMaxTime(t_end)
+        self.ts.setConvergedReason(PETSc.TS.ConvergedReason.CONVERGED_ITERATING)
+        self.ts.setMaxSteps(max(10 * math.ceil((t_end - t0) / dt), 10**6 if self.adaptive else 0))
+        self.ts.solve(self.x)
+        reason = self.ts.getConvergedReason()
+        self.stats.rejected = self.ts.getStepRejections()
+        self.stats.snes_failures = self.ts.getSNESFailures()
+        self.stats.newton_iterations = self.ts.getSNESIterations()
+        t = self._t_accepted
+        if reason < 0 or t < t_end - 1e-10 * dt:
+            vec_to_functions(self._x_prev, self.problem.fields)
+            raise IntegrationError(
+                f"TS {self.method.name} stopped at t = {t:.6g} ({_REASONS.get(reason, reason)}"
+                f", {self.stats.rejected} rejected steps, last dt = {self.ts.getTimeStep():.3g})",
+                t)
+        return t
+
+    def __del__(self):
+        try:
+            opts = PETSc.Options()
+            for k in self._option_keys:
+                opts.delValue(k)
+        except Exception:
+            pass

@@ -1,0 +1,201 @@
+"""Load histories t -> value for end torsions, end rotations and forces.
+
+A load history is right-continuous, ``f(t) = f(t+)``, so an idealised step ``v H(t - t0)``
+already has its new value at ``t0`` (H(0) = 1, as in Section 5). Each history knows its
+jumps, so a solver can tell the idealised step of eqs. ``stressrelax`` and ``creepform``
+(a jump at t = 0, i.e. an impulse for a Kelvin-Voigt dashpot) from the smooth
+regularisations ``u_n``, ``m_n`` that the paper uses to define it.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "LoadHistory",
+    "PiecewiseSmoothLoad",
+    "constant",
+    "from_callable",
+    "jump_at",
+    "ramp",
+    "smooth_step",
+    "step",
+    "table",
+]
+
+FloatOrArray = float | NDArray[np.float64]
+
+
+@runtime_checkable
+class LoadHistory(Protocol):
+    """A right-continuous load history ``t -> value``, vectorised on numpy arrays."""
+
+    def __call__(self, t: ArrayLike) -> FloatOrArray:
+        """Value ``f(t) = f(t+)``: a float for a scalar t, an array of t's shape otherwise."""
+        ...
+
+    def left_limit(self, t: ArrayLike) -> FloatOrArray:
+        """Value just before t, ``f(t-)``."""
+        ...
+
+    @property
+    def start_limits(self) -> tuple[float, float]:
+        """Values ``(f(0-), f(0+))`` just before and just after t = 0."""
+        ...
+
+    @property
+    def is_step(self) -> bool:
+        """True if the history jumps at t = 0 (an idealised step), False if continuous there."""
+        ...
+
+
+def _finite(name: str, value: float) -> float:
+    """Return ``value`` as a float, or raise ValueError if it is not a finite real number."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a real number, got {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be finite, got {x}")
+    return x
+
+
+def _positive(name: str, value: float) -> float:
+    """Return ``value`` as a float, or raise ValueError unless it is finite and > 0."""
+    x = _finite(name, value)
+    if not x > 0.0:
+        raise ValueError(f"{name} must be > 0, got {x}")
+    return x
+
+
+def _times(t: ArrayLike) -> NDArray[np.float64]:
+    """Return the times ``t`` as a float array (+-inf allowed), or raise ValueError on NaN."""
+    times = np.asarray(t, dtype=float)
+    if np.any(np.isnan(times)):
+        raise ValueError("load time t must not be NaN")
+    return times
+
+
+@dataclass(frozen=True)
+class PiecewiseSmoothLoad:
+    """A load history given by its right-continuous values and its list of jumps.
+
+    ``values`` maps a float array of times to an array of the same shape; ``jumps`` holds
+    the pairs ``(time, f(time+) - f(time-))``. Build one with the constructors below.
+    """
+
+    values: Callable[[NDArray[np.float64]], NDArray[np.float64]]
+    jumps: tuple[tuple[float, float], ...] = ()
+    description: str = "load history"
+
+    def __call__(self, t: ArrayLike) -> FloatOrArray:
+        times = _times(t)
+        out = np.broadcast_to(np.asarray(self.values(times), dtype=float), times.shape).copy()
+        return float(out) if out.ndim == 0 else out
+
+    def left_limit(self, t: ArrayLike) -> FloatOrArray:
+        times = _times(t)
+        out = np.asarray(self(times), dtype=float)
+        for time, size in self.jumps:
+            out = out - size * (times == time)
+        return float(out) if out.ndim == 0 else out
+
+    @property
+    def start_limits(self) -> tuple[float, float]:
+        return float(self.left_limit(0.0)), float(self(0.0))
+
+    @property
+    def is_step(self) -> bool:
+        before, after = self.start_limits
+        return before != after
+
+    def __repr__(self) -> str:
+        return f"<{self.description}>"
+
+
+def jump_at(history: LoadHistory, t: ArrayLike) -> FloatOrArray:
+    """Jump ``f(t+) - f(t-)`` of a load history at time(s) t (0 where it is continuous)."""
+    return history(t) - history.left_limit(t)
+
+
+def constant(v: float) -> PiecewiseSmoothLoad:
+    """The constant history ``f(t) = v`` for all t (also before t = 0: no jump)."""
+    v = _finite("v", v)
+    return PiecewiseSmoothLoad(lambda t: np.full_like(t, v), (), f"constant {v}")
+
+
+def step(v: float, t0: float = 0.0) -> PiecewiseSmoothLoad:
+    """The idealised step ``f(t) = v H(t - t0)`` with H(0) = 1 (a jump v at t0)."""
+    v = _finite("v", v)
+    t0 = _finite("t0", t0)
+    return PiecewiseSmoothLoad(lambda t: np.where(t >= t0, v, 0.0), ((t0, v),) if v != 0.0 else (), f"step {v} at t = {t0}")
+
+
+def ramp(v: float, t_ramp: float) -> PiecewiseSmoothLoad:
+    """The linear ramp: 0 for t < 0, ``v t / t_ramp`` on [0, t_ramp], v afterwards (continuous)."""
+    v = _finite("v", v)
+    t_ramp = _positive("t_ramp", t_ramp)
+    return PiecewiseSmoothLoad(lambda t: v * np.clip(t / t_ramp, 0.0, 1.0), (), f"ramp to {v} over {t_ramp}")
+
+
+def smooth_step(v: float, width: float) -> PiecewiseSmoothLoad:
+    """A C^1 regularisation of the step ``v H(t)``, like the paper's ``u_n``, ``m_n`` (width 1/n).
+
+    ``f(t) = v S(t / width)`` with the cubic Hermite "smoothstep" ``S(x) = x^2 (3 - 2x)``
+    on [0, 1], S = 0 for x < 0 and S = 1 for x > 1: S(0) = S'(0) = S'(1) = 0, S(1) = 1 and
+    S' >= 0, so f is continuously differentiable and monotone (non-decreasing for v >= 0).
+    """
+    v = _finite("v", v)
+    width = _positive("width", width)
+
+    def values(t: NDArray[np.float64]) -> NDArray[np.float64]:
+        x = np.clip(t / width, 0.0, 1.0)
+        return v * x * x * (3.0 - 2.0 * x)
+
+    return PiecewiseSmoothLoad(values, (), f"smooth step to {v} over {width}")
+
+
+def table(times: ArrayLike, values: ArrayLike) -> PiecewiseSmoothLoad:
+    """Piecewise-linear interpolation of ``(times, values)``, constant beyond both ends."""
+    knots = np.array(times, dtype=float)
+    heights = np.array(values, dtype=float)
+    if knots.ndim != 1 or heights.ndim != 1:
+        raise ValueError("load table times and values must be one-dimensional")
+    if knots.size != heights.size:
+        raise ValueError(f"load table times and values must have the same length, got {knots.size} and {heights.size}")
+    if knots.size == 0:
+        raise ValueError("load table needs at least one point")
+    if not (np.all(np.isfinite(knots)) and np.all(np.isfinite(heights))):
+        raise ValueError("load table times and values must be finite")
+    if np.any(np.diff(knots) <= 0.0):
+        raise ValueError("load table times must be strictly increasing")
+    return PiecewiseSmoothLoad(lambda t: np.interp(t, knots, heights), (), f"table of {knots.size} points")
+
+
+def from_callable(f: Callable[[float], float], jumps: Mapping[float, float] | None = None) -> PiecewiseSmoothLoad:
+    """Wrap a right-continuous function ``f(t)`` as a load history.
+
+    ``f`` may be vectorised (numpy in, numpy out) or scalar only (``math.sin``); it is
+    then evaluated point by point. It is taken as continuous except at the times given in
+    ``jumps`` (``{time: f(time+) - f(time-)}``), which cannot be detected numerically.
+    """
+    if not callable(f):
+        raise TypeError(f"f must be callable, got {f!r}")
+    jump_list = tuple((_finite("jump time", time), _finite("jump size", size)) for time, size in (jumps or {}).items())
+
+    def values(t: NDArray[np.float64]) -> NDArray[np.float64]:
+        try:
+            out = np.asarray(f(t), dtype=float)
+        except (TypeError, ValueError):
+            out = None
+        if out is None or out.shape != t.shape:                    # scalar-only f: point by point
+            out = np.array([float(f(float(time))) for time in t.ravel()]).reshape(t.shape)
+        return out
+
+    return PiecewiseSmoothLoad(values, jump_list, f"callable {getattr(f, '__name__', repr(f))}")

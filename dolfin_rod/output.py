@@ -1,0 +1,295 @@
+"""Run outputs: one folder per run, written as the run goes.
+
+    <run>/scene.toml        the scene, copied verbatim
+    <run>/timeseries.csv    one row per output time, appended and flushed every step
+    <run>/timeseries.json   the same columns, written at the end (also if interrupted)
+    <run>/summary.json      model and why, status, end values, impulse, versions
+    <run>/timings.json      wall-clock seconds of setup, integration, output
+    <run>/histories.png     end torsion, end rotation, natural twist, energies, balance
+    <run>/fields/*.bp       ParaView fields (dolfinx.io.VTXWriter) of FE models
+    <run>/checkpoint/       adios4dolfinx state + meta.json, for ``resume``
+
+Columns: the model's diagnostics (TorsionModel.diagnostics keys) plus
+``total_dissipation`` = int_0^t int xi ds dt (trapezoidal rule) and ``power_residual`` =
+d/dt(K + Psi) + D - P on each interval [t_{k-1}, t_k]: the difference quotient of the
+stored energy plus the trapezoidal means of dissipation rate D and load power P (the
+power balance of ERRATA.md).  It is O(dt^2) for smooth histories; an idealised step at
+t = 0 makes the first interval's value O(1) (the 0+ rates are not known to the FE model).
+
+Only rank 0 writes files; VTX and adios4dolfinx writes are collective.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+COLUMNS = ["step", "time", "<the model's diagnostics>", "total_dissipation",
+           "power_residual"]   # torsion models: end_torsion, end_rotation, ... (see models)
+
+
+def versions() -> dict[str, str]:
+    from . import __version__
+    out = {"dolfin_rod": __version__, "python": sys.version.split()[0]}
+    for name in ("dolfinx", "petsc4py", "numpy", "scipy", "adios4dolfinx"):
+        try:
+            mod = __import__(name)
+            out[name] = str(getattr(mod, "__version__", "?"))
+        except Exception:
+            pass
+    try:
+        from petsc4py import PETSc
+        out["petsc"] = ".".join(str(v) for v in PETSc.Sys.getVersion())
+    except Exception:
+        pass
+    return out
+
+
+def show_progress(enabled: bool, rank: int) -> bool:
+    """A progress bar only on rank 0, on a terminal, outside CI."""
+    return enabled and rank == 0 and sys.stdout.isatty() and not os.environ.get("CI")
+
+
+class PowerBalance:
+    """Running total dissipation and the finite-difference power-balance residual."""
+
+    def __init__(self):
+        self.previous: dict | None = None
+        self.total_dissipation = 0.0
+
+    def update(self, d: dict) -> tuple[float, float]:
+        residual = float("nan")
+        if self.previous is not None:
+            p = self.previous
+            h = d["time"] - p["time"]
+            energy = lambda x: x["free_energy"] + x["kinetic_energy"]   # noqa: E731
+            mean_d = 0.5 * (d["dissipation_rate"] + p["dissipation_rate"])
+            self.total_dissipation += h * mean_d
+            residual = ((energy(d) - energy(p)) / h + mean_d
+                        - 0.5 * (d["load_power"] + p["load_power"]))
+        self.previous = dict(d)
+        return self.total_dissipation, residual
+
+    def state(self) -> dict:
+        return {"previous": self.previous, "total_dissipation": self.total_dissipation}
+
+    def restore(self, state: dict) -> None:
+        self.previous, self.total_dissipation = state["previous"], state["total_dissipation"]
+
+
+class RunWriter:
+    """Everything a run writes; rank 0 writes files, collective writes on all ranks."""
+
+    def __init__(self, folder: Path, scene, choice, sim, comm, resume: bool = False):
+        self.folder, self.scene, self.choice, self.sim, self.comm = Path(folder), scene, choice, sim, comm
+        self.rank = comm.rank
+        self.outputs = scene["outputs"]
+        self.balance = PowerBalance()
+        self.rows: list[dict] = []
+        self.timings = {"output": 0.0}
+        if self.rank == 0:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            if scene.text:
+                (self.folder / "scene.toml").write_text(scene.text)
+        comm.barrier()
+        self._csv = None
+        self._kept: list[dict] = []
+        self.columns: list[str] | None = None
+        self._vtx = None
+        self.resume = resume
+
+    # -- time series ------------------------------------------------------------------
+    def open(self, keep_until_step: int | None = None) -> None:
+        """Start the CSV (keeping rows <= keep_until_step of an earlier run when resuming);
+        the header is written with the first record, from the model's diagnostics."""
+        if self.rank != 0 or keep_until_step is None:
+            return
+        path = self.folder / "timeseries.csv"
+        if path.exists():
+            with path.open() as f:
+                reader = csv.DictReader(f)
+                self.columns = list(reader.fieldnames or [])
+                self._kept = [r for r in reader if int(r["step"]) <= keep_until_step]
+        for r in self._kept:
+            self.rows.append({k: (int(v) if k == "step" else float(v)) for k, v in r.items()})
+
+    def _start_csv(self, row: dict) -> None:
+        if self.columns is None:
+            self.columns = list(row)
+        self._csv_file = (self.folder / "timeseries.csv").open("w", newline="")
+        self._csv = csv.DictWriter(self._csv_file, fieldnames=self.columns,
+                                   extrasaction="ignore")
+        self._csv.writeheader()
+        for r in self._kept:
+            self._csv.writerow(r)
+
+    def record(self, step: int, t: float, diag: dict) -> dict:
+        t0 = time.perf_counter()
+        total, residual = self.balance.update(diag)
+        row = {"step": step, "time": t, **{k: v for k, v in diag.items() if k != "time"},
+               "total_dissipation": total, "power_residual": residual}
+        if self.rank == 0:
+            if self._csv is None:
+                self._start_csv(row)
+            self.rows.append(row)
+            self._csv.writerow({k: (repr(float(v)) if k != "step" else v)
+                                for k, v in row.items()})
+            self._csv_file.flush()
+        self.timings["output"] += time.perf_counter() - t0
+        return row
+
+    # -- ParaView fields ------------------------------------------------------------------
+    def write_fields(self, t: float) -> None:
+        if not (self.outputs["fields"] and self.sim.fields):
+            return
+        t0 = time.perf_counter()
+        if self._vtx is None:
+            from dolfinx.io import VTXWriter
+            (self.folder / "fields").mkdir(exist_ok=True) if self.rank == 0 else None
+            self.comm.barrier()
+            self._vtx = []
+            for f in self.sim.fields:
+                if _is_real(f):
+                    continue     # a global (real-space) unknown: it is in the time series
+                name = f.name or "field"
+                self._vtx.append(VTXWriter(self.comm, self.folder / "fields" / f"{name}.bp",
+                                           [f], engine="BP4"))
+        for w in self._vtx:
+            w.write(t)
+        self.timings["output"] += time.perf_counter() - t0
+
+    # -- checkpoints ------------------------------------------------------------------------
+    def checkpoint(self, step: int, t: float) -> None:
+        """Collective: the state after ``step`` so that ``resume`` continues exactly."""
+        t0 = time.perf_counter()
+        folder = self.folder / "checkpoint"
+        tmp = folder / "state-new.bp"
+        if self.rank == 0:
+            folder.mkdir(exist_ok=True)
+            shutil.rmtree(tmp, ignore_errors=True)
+        self.comm.barrier()
+        state = self.sim.state()
+        functions = state.pop("functions", {})
+        real: dict[str, list[float]] = {}
+        if self.sim.fields:
+            import adios4dolfinx
+            named = {f"field_{i}": f for i, f in enumerate(self.sim.fields)} | functions
+            for name, f in named.items():
+                if _is_real(f):   # adios4dolfinx cannot read real spaces back in parallel
+                    f.x.scatter_forward()
+                    real[name] = f.x.array.tolist()
+                else:
+                    adios4dolfinx.write_function_on_input_mesh(tmp, f, time=0.0, name=name)
+        self.comm.barrier()
+        if self.rank == 0:
+            final = folder / "state.bp"
+            shutil.rmtree(final, ignore_errors=True)
+            if tmp.exists():
+                tmp.rename(final)
+            meta = {"step": step, "time": t, "model": self.sim.name, "sim": state, "real": real,
+                    "balance": self.balance.state()}
+            (folder / "meta-new.json").write_text(json.dumps(meta))
+            (folder / "meta-new.json").replace(folder / "meta.json")
+        self.comm.barrier()
+        self.timings["output"] += time.perf_counter() - t0
+
+    def read_checkpoint(self) -> dict:
+        """Collective: restore the model and balance from <run>/checkpoint; returns meta."""
+        folder = self.folder / "checkpoint"
+        meta = None
+        if self.rank == 0:
+            path = folder / "meta.json"
+            meta = json.loads(path.read_text()) if path.exists() else None
+        meta = self.comm.bcast(meta, root=0)
+        if meta is None:
+            raise FileNotFoundError(f"no checkpoint in {folder}")
+        if meta["model"] != self.sim.name:
+            raise ValueError(f"the checkpoint is of model {meta['model']!r}, this run uses "
+                             f"{self.sim.name!r}")
+        if self.sim.fields:
+            import adios4dolfinx
+            functions = self.sim.state().get("functions", {})
+            named = {f"field_{i}": f for i, f in enumerate(self.sim.fields)} | functions
+            for name, f in named.items():
+                if name in meta.get("real", {}):
+                    f.x.array[:] = meta["real"][name][0]   # one global value (owned + ghost)
+                else:
+                    adios4dolfinx.read_function(folder / "state.bp", f, time=0.0, name=name)
+                f.x.scatter_forward()
+        self.sim.restore(meta["sim"])
+        self.balance.restore(meta["balance"])
+        return meta
+
+    # -- the end --------------------------------------------------------------------------
+    def finish(self, summary: dict, timings: dict) -> None:
+        for w in self._vtx or []:
+            w.close()
+        if self.rank != 0:
+            return
+        if self._csv is not None:
+            self._csv_file.close()
+        series = {k: [r.get(k) for r in self.rows] for k in (self.columns or [])}
+        _dump(self.folder / "timeseries.json", _finite(series))
+        _dump(self.folder / "summary.json", _finite({**summary, "versions": versions()}))
+        _dump(self.folder / "timings.json", {**timings, **self.timings})
+        if self.outputs["plots"] and len(self.rows) > 1:
+            plot_histories(self.rows, self.folder / "histories.png", summary.get("title", ""))
+
+
+def _is_real(f) -> bool:
+    """A scifem real space (one global unknown, e.g. the uniform natural twist)."""
+    V = f.function_space
+    return (V.dofmap.index_map.size_global * V.dofmap.index_map_bs == 1
+            and V.mesh.topology.index_map(V.mesh.topology.dim).size_global > 1)
+
+
+def _finite(obj):
+    """NaN/inf -> None so that the JSON is standard."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+def _dump(path: Path, data) -> None:
+    tmp = path.with_suffix(".json-new")
+    tmp.write_text(json.dumps(data, indent=1))
+    tmp.replace(path)
+
+
+def plot_histories(rows: list[dict], path: Path, title: str = "") -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    t = np.array([r["time"] for r in rows])
+    col = lambda k: np.array([r[k] for r in rows], dtype=float)   # noqa: E731
+    fig, ax = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
+    if "end_torsion" in rows[0]:       # torsion models
+        ax[0, 0].plot(t, col("end_torsion")); ax[0, 0].set_ylabel("end torsion m")
+        ax[0, 1].plot(t, col("end_rotation"), label="end rotation phi(1)")
+        ax[0, 1].plot(t, col("mean_natural_twist"), label="mean natural twist")
+    else:                              # 3-D rod
+        for c in "xyz":
+            ax[0, 0].plot(t, col(f"tip_position_{c}"), label=f"tip {c}")
+        ax[0, 0].legend()
+        ax[0, 1].plot(t, col("tip_rotation_angle"), label="tip rotation angle")
+    ax[0, 1].legend()
+    ax[1, 0].plot(t, col("free_energy") + col("kinetic_energy"), label="K + Psi")
+    ax[1, 0].plot(t, col("total_dissipation"), label="int D dt")
+    ax[1, 0].legend(); ax[1, 0].set_xlabel("t")
+    ax[1, 1].semilogy(t[1:], np.abs(col("power_residual")[1:]) + 1e-300)
+    ax[1, 1].set_ylabel("|d/dt(K+Psi) + D - P|"); ax[1, 1].set_xlabel("t")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

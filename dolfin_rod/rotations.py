@@ -1,0 +1,108 @@
+"""SO(3) through quaternions, in UFL and (twins for tests and set-up) in numpy.
+
+The rod's rotation field is a nodal quaternion field q = (q0, q1, q2, q3) (scalar part
+first) with R = R(q/|q|), i.e. R a = q a conj(q) / |q|^2.  Then (Section 2.1)
+
+    R^T d_s R = skew(u),  u = 2 vec(conj(q) q_s) / |q|^2    (material curvature, sans-serif u)
+    R^T d_t R = skew(W),  W = 2 vec(conj(q) q_t) / |q|^2    (material angular velocity)
+
+Both are invariant under q -> rho(s, t) q (the gauge) and under a superposed rigid
+rotation q -> q_Q q.  The latter is linear in q, so it commutes with nodal interpolation:
+the discrete strains are exactly frame indifferent, and a continuous q field has no
+2 pi limit (q and -q are the same rotation; a rod rolled up once has q = -1 at its tip).
+No formula here divides by a rotation angle, so small angles need no special case.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import ufl
+
+# -- UFL ----------------------------------------------------------------------------------
+
+
+def vec(q):
+    """Vector part of a quaternion (UFL)."""
+    return ufl.as_vector((q[1], q[2], q[3]))
+
+
+def conj(q):
+    return ufl.as_vector((q[0], -q[1], -q[2], -q[3]))
+
+
+def qmul(p, q):
+    """Hamilton product p q (UFL)."""
+    p0, pv = p[0], vec(p)
+    q0, qv = q[0], vec(q)
+    s = p0 * q0 - ufl.dot(pv, qv)
+    v = p0 * qv + q0 * pv + ufl.cross(pv, qv)
+    return ufl.as_vector((s, v[0], v[1], v[2]))
+
+
+def rotation_matrix(q):
+    """R(q/|q|) as a UFL 3x3 matrix (exact for any q != 0)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    n2 = ufl.dot(q, q)
+    return ufl.as_matrix((
+        (w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)),
+        (2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)),
+        (2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z),
+    )) / n2
+
+
+def material_derivative_vector(q, dq):
+    """2 vec(conj(q) dq)/|q|^2: material axial vector of R^T dR for dq = q_s, q_t, delta q."""
+    return 2 * vec(qmul(conj(q), dq)) / ufl.dot(q, q)
+
+
+def spatial_derivative_vector(q, dq):
+    """2 vec(dq conj(q))/|q|^2: spatial axial vector of dR R^T (= R of the material one)."""
+    return 2 * vec(qmul(dq, conj(q))) / ufl.dot(q, q)
+
+
+# -- numpy twins ----------------------------------------------------------------------------
+
+
+def np_qmul(p, q):
+    p = np.asarray(p, dtype=float)
+    q = np.asarray(q, dtype=float)
+    s = p[..., 0] * q[..., 0] - np.sum(p[..., 1:] * q[..., 1:], axis=-1)
+    v = (p[..., :1] * q[..., 1:] + q[..., :1] * p[..., 1:]
+         + np.cross(p[..., 1:], q[..., 1:]))
+    return np.concatenate([s[..., None], v], axis=-1)
+
+
+def np_quaternion_from_rotation_vector(theta):
+    """q = (cos(|theta|/2), sin(|theta|/2) theta/|theta|) with a series near 0 (no 0/0)."""
+    theta = np.asarray(theta, dtype=float)
+    a = np.linalg.norm(theta, axis=-1)
+    half = 0.5 * a
+    # sin(a/2)/a = 1/2 sinc(a/2/pi) in numpy's normalised sinc: smooth at a = 0
+    k = 0.5 * np.sinc(half / np.pi)
+    return np.concatenate([np.cos(half)[..., None], k[..., None] * theta], axis=-1)
+
+
+def np_rotation_matrix(q):
+    q = np.asarray(q, dtype=float)
+    w, x, y, z = q
+    n2 = q @ q
+    return np.array([
+        [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
+    ]) / n2
+
+
+def np_rotation_angle(q) -> float:
+    """Angle in [0, 2 pi] of the rotation *path* end q (q = -1 is a full turn, 2 pi)."""
+    q = np.asarray(q, dtype=float)
+    return float(2.0 * np.arctan2(np.linalg.norm(q[1:]), q[0]))
+
+
+def np_rotation_vector(q):
+    """Rotation vector of q with angle in [0, 2 pi] (exact near angle 0, no 0/0 there)."""
+    q = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    s = np.linalg.norm(q[1:])
+    if q[0] > 0 and s < 1e-8:  # angle/sin(angle/2) = 2/cos(angle/2) + O(angle^2)
+        return 2.0 * q[1:] / q[0]
+    return 2.0 * np.arctan2(s, q[0]) * q[1:] / max(s, 1e-300)

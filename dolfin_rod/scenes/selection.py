@@ -1,0 +1,93 @@
+"""Model selection: the least model a scene needs, with the reason.
+
+    ode      quasi-static homogeneous torsion: constant coefficients, nu = 0, no distributed
+             couple, end torsion or end rotation.  Then u = phi_s and u_d stay homogeneous
+             (every point obeys the same ODE from the same data; under a prescribed end
+             rotation the homogeneous twist u = Phi(t) satisfies int u ds = Phi), so the
+             PDE reduces exactly to the 2x2 system of eqs. ``twist``, ``nattwist``.
+    torsion  isolated torsion otherwise (inertia, s-dependent coefficients, a distributed
+             couple): TorsionModel, the PDE of eqs. ``phieq``, ``upeq``.
+    rod      a 3-D rod material (tensors), natural curvature, forces: RodModel.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+
+from .schema import Scene
+
+__all__ = ["Choice", "select_model", "rod_available", "ts_available"]
+
+ORDER = ("ode", "torsion", "rod")
+
+
+@dataclass(frozen=True)
+class Choice:
+    model: str      # "ode" | "torsion" | "rod"
+    reason: str
+    forced: bool = False
+
+
+def _module_ok(name: str, attr: str) -> bool:
+    try:
+        return hasattr(importlib.import_module(name), attr)
+    except Exception:   # missing or broken module (being written): not available
+        return False
+
+
+def rod_available() -> bool:
+    return _module_ok("dolfin_rod.rod", "RodModel")
+
+
+def ts_available() -> bool:
+    return _module_ok("dolfin_rod.integrators.ts", "TSIntegrator")
+
+
+def _needs(scene: Scene) -> tuple[str, str]:
+    """The least model and why."""
+    if scene.is_rod_material:
+        return "rod", "a 3-D rod material (stiffness/viscosity tensors) is given"
+    mat, lds = scene["material"], scene["loads"]
+    not_constant = [k for k in ("alpha", "alpha_d", "mu", "mu_d", "nu")
+                    if not mat[k].is_constant]
+    if not_constant:
+        return "torsion", (f"{', '.join(not_constant)} varies along s, so the twist is not "
+                           "homogeneous: the isolated-torsion PDE")
+    if mat["nu"].constant != 0.0:
+        return "torsion", ("nu > 0: rotary inertia makes the twist non-homogeneous (waves): "
+                           "the isolated-torsion PDE")
+    if lds["distributed_couple"] is not None:
+        return "torsion", ("a distributed couple makes the torsion vary along s: the "
+                           "isolated-torsion PDE")
+    end = "end rotation" if scene["boundary"]["end"] == "rotation" else "end torsion"
+    return "ode", (f"quasi-static (nu = 0) homogeneous torsion with constant coefficients, "
+                   f"no distributed couple and an {end}: the PDE reduces exactly to the 2x2 "
+                   "ODE of eqs. twist/nattwist")
+
+
+def select_model(scene: Scene) -> Choice:
+    """The model that runs the scene; raises SceneError if a forced model cannot."""
+    need, reason = _needs(scene)
+    requested = scene["scene"]["model"]
+    if requested == "auto":
+        choice = Choice(need, reason)
+    elif ORDER.index(requested) < ORDER.index(need) or (requested != "rod" and need == "rod"):
+        raise scene.error("scene.model", f"the {requested!r} model cannot run this scene: "
+                                         f"it needs {need!r} ({reason})")
+    elif requested == "rod" and not scene.is_rod_material:
+        raise scene.error("scene.model", "the 'rod' model needs a 3-D rod material "
+                                         "(material.stiffness, viscosity, density)")
+    else:
+        choice = Choice(requested, f"forced by scene.model (the least model would be "
+                                   f"{need!r}: {reason})", forced=True)
+    if choice.model == "rod" and not rod_available():
+        raise scene.error("scene.model" if choice.forced else "material",
+                          "this scene needs the 3-D rod model, but dolfin_rod.rod.RodModel is "
+                          "not available in this installation")
+    if scene["time"]["integrator"] == "ts" and choice.model != "ode" and not ts_available():
+        raise scene.error("time.integrator", "the PETSc TS integrator "
+                                             "(dolfin_rod.integrators.ts) is not available")
+    return choice
+
+

@@ -1,0 +1,19 @@
+"""Named cases that MPI tests run on COMM_WORLD and compare with a serial run."""
+
+from __future__ import annotations
+
+from mpi4py import MPI
+
+from dolfin_rod import loads
+from dolfin_rod.torsion import TorsionParameters
+from torsion_runs import run
+
+KEYS = ("end_rotation", "mean_natural_twist", "free_energy", "dissipation_rate")
+
+
+def torsion_inhomogeneous(variant: str, comm=MPI.COMM_WORLD) -> dict[str, list[float]]:
+    p = TorsionParameters(alpha=lambda s: 1.0 + 3.0 * s, alpha_d=lambda s: 2.0 - s,
+                          mu=0.1, mu_d=0.5)
+    h = run(p, 0.5, 0.05, "bdf2", comm=comm, n_cells=17, variant=variant,
+            end_torsion=loads.smooth_step(1.0, 0.2))
+    return {k: [d[k] for d in h] for k in KEYS}
