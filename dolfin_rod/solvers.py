@@ -12,6 +12,7 @@ import dolfinx.fem as fem
 import dolfinx.fem.petsc as fem_petsc
 import numpy as np
 import ufl
+from ufl.algorithms import expand_derivatives
 from dolfinx.cpp.la.petsc import scatter_local_vectors
 from petsc4py import PETSc
 
@@ -20,8 +21,8 @@ DEFAULT_OPTIONS = {
     "snes_type": "newtonls",
     "snes_linesearch_type": "basic",
     "snes_rtol": 1e-10,
-    "snes_atol": 1e-12,
-    "snes_stol": 0.0,
+    "snes_atol": 1e-11,
+    "snes_stol": 1e-14,  # an update below round-off of the state ends Newton
     "snes_max_it": 25,
     "ksp_type": "preonly",
     "pc_type": "lu",
@@ -63,6 +64,30 @@ def vec_to_functions(x, functions) -> None:
         offset += n
 
 
+def jacobian_blocks(F: list[ufl.Form], y: list[fem.Function], wrt=None) -> list[list]:
+    """dF_i/dy_j (or d/d wrt_j) as UFL forms; empty off-diagonal blocks are None.
+
+    Empty diagonal blocks stay as zero forms: blocked assembly puts the unit diagonal of
+    Dirichlet rows only into diagonal blocks that exist (explicit schemes have them).
+    """
+    wrt = y if wrt is None else wrt
+    J = []
+    for i, Fi in enumerate(F):
+        row = []
+        for j, (yj, xj) in enumerate(zip(y, wrt)):
+            du = ufl.TrialFunction(yj.function_space)
+            Jij = expand_derivatives(ufl.derivative(Fi, xj, du))
+            if Jij.empty():
+                Jij = None
+                if i == j:
+                    v = ufl.TestFunction(yj.function_space)
+                    zero = fem.Constant(yj.function_space.mesh, 0.0)
+                    Jij = zero * ufl.inner(du, v) * ufl.dx(domain=yj.function_space.mesh)
+            row.append(Jij)
+        J.append(row)
+    return J
+
+
 class BlockSNES:
     """Solve F_i(y) = 0 (one form per block) for the block Functions ``y`` with SNES.
 
@@ -74,11 +99,8 @@ class BlockSNES:
                  prefix: str | None = None):
         self.y = y
         self.bcs = list(bcs)
-        J = [[ufl.derivative(Fi, yj, ufl.TrialFunction(yj.function_space)) for yj in y]
-             for Fi in F]
-        J = [[None if Jij.empty() else Jij for Jij in row] for row in J]
         self.F = fem.form(F)
-        self.J = fem.form(J)
+        self.J = fem.form(jacobian_blocks(F, y))
         self.b = fem_petsc.create_vector_block(self.F)
         self.x = fem_petsc.create_vector_block(self.F)
         self.A = fem_petsc.create_matrix_block(self.J)

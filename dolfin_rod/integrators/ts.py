@@ -44,11 +44,10 @@ from typing import Callable
 import dolfinx.fem as fem
 import dolfinx.fem.petsc as fem_petsc
 import numpy as np
-import ufl
 from petsc4py import PETSc
 
 from ..problem import SemiDiscreteProblem
-from ..solvers import DEFAULT_OPTIONS, functions_to_vec, vec_to_functions
+from ..solvers import DEFAULT_OPTIONS, functions_to_vec, jacobian_blocks, vec_to_functions
 from .stepper import IntegrationError
 
 # Design orders of the ARKIMEX tableaux (implicit part), PETSc's TSARKIMEX names.
@@ -151,16 +150,11 @@ class TSIntegrator:
         mesh = y[0].function_space.mesh
         self.shift = fem.Constant(mesh, 1.0)
 
-        def d(Fi, u, v):
-            return ufl.derivative(Fi, u, ufl.TrialFunction(v.function_space))
-
-        J = []
-        for Fi in problem.residual:
-            row = []
-            for yj, rj in zip(y, ydot):
-                Jij = d(Fi, yj, yj) + self.shift * d(Fi, rj, yj)
-                row.append(None if Jij.empty() else Jij)
-            J.append(row)
+        # IJacobian = dF/dy + shift dF/d(ydot), compiled once with shift a Constant.
+        J = [[a if b is None else (self.shift * b if a is None else a + self.shift * b)
+              for a, b in zip(row_y, row_r)]
+             for row_y, row_r in zip(jacobian_blocks(problem.residual, y),
+                                     jacobian_blocks(problem.residual, y, wrt=ydot))]
         self.F = fem.form(problem.residual)
         self.J = fem.form(J)
         self.b = fem_petsc.create_vector_block(self.F)
