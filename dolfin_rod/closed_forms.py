@@ -19,12 +19,12 @@ mu = 0 convolution is the corrected one of ERRATA.md, item 3.
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import quad
+from .validation import finite as _finite, positive as _positive, nonnegative as _nonnegative
 
 __all__ = [
     "creep",
@@ -42,32 +42,6 @@ FloatOrArray = float | NDArray[np.float64]
 
 
 # --- input validation ------------------------------------------------------------------
-
-
-def _finite(name: str, value: float) -> float:
-    """Return ``value`` as a float, or raise ValueError if it is not a finite number."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise ValueError(f"{name} must be a finite number, got {x}")
-    return x
-
-
-def _positive(name: str, value: float) -> float:
-    """Return ``value`` as a float, or raise ValueError unless it is finite and > 0."""
-    x = _finite(name, value)
-    if not x > 0.0:
-        raise ValueError(f"{name} must be > 0, got {x}")
-    return x
-
-
-def _nonnegative(name: str, value: float) -> float:
-    """Return ``value`` as a float, or raise ValueError unless it is finite and >= 0."""
-    x = _finite(name, value)
-    if not x >= 0.0:
-        raise ValueError(f"{name} must be >= 0, got {x}")
-    return x
 
 
 def _times(t: ArrayLike) -> NDArray[np.float64]:

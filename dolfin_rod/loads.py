@@ -10,13 +10,13 @@ regularisations ``u_n``, ``m_n`` that the paper uses to define it.
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from .validation import finite as _finite, positive as _positive
 
 __all__ = [
     "LoadHistory",
@@ -54,24 +54,6 @@ class LoadHistory(Protocol):
     def is_step(self) -> bool:
         """True if the history jumps at t = 0 (an idealised step), False if continuous there."""
         ...
-
-
-def _finite(name: str, value: float) -> float:
-    """Return ``value`` as a float, or raise ValueError if it is not a finite real number."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise ValueError(f"{name} must be finite, got {x}")
-    return x
-
-
-def _positive(name: str, value: float) -> float:
-    """Return ``value`` as a float, or raise ValueError unless it is finite and > 0."""
-    x = _finite(name, value)
-    if not x > 0.0:
-        raise ValueError(f"{name} must be > 0, got {x}")
-    return x
 
 
 def _times(t: ArrayLike) -> NDArray[np.float64]:

@@ -22,6 +22,12 @@ for any slenderness).  The natural strains are DG0, i.e. evaluated at the same p
 
 Models by name: "evolving" (the paper's), "kelvin_voigt" (psi independent of natural
 strains: psi(u_ref, v_ref, u, v), viscosities M, N) and "hyperelastic" (no viscosity).
+
+Reference strains u_ref, v_ref: the discrete strains of the initial configuration (DG0,
+set by set_initial_state), so an initially curved/twisted rod (reference_curvature) is
+exactly unstressed at t = 0.  The default energy is eq. quadenergy with the natural part
+centred there: 1/2 (u_d - u_ref).A_d(u_d - u_ref) + 1/2 (v_d - v_ref).B_d(v_d - v_ref)
+(the paper's form for a straight reference, u_ref = 0, v_ref = e_3).
 """
 
 from __future__ import annotations
@@ -43,7 +49,7 @@ from .evolution import check_variant, evolution_residual
 from .kinematics import material_curvature, material_stretch, strain_rates
 from .problem import SemiDiscreteProblem, TimeDependentValue
 from .rotations import (material_derivative_vector, np_qmul, np_quaternion_from_rotation_vector,
-                        qmul, rotation_matrix, spatial_derivative_vector)
+                        qmul)
 
 MODELS = ("evolving", "kelvin_voigt", "hyperelastic")
 END_TYPES = ("clamped", "pinned", "free")
@@ -181,7 +187,8 @@ class RodModel:
     def __init__(self, params: RodParameters, n_cells: int = 32, model: str = "evolving",
                  variant: str = "local", constraint: str | None = None,
                  ends: tuple[str, str] = ("clamped", "free"),
-                 end_loads: Sequence[EndLoad] = (), distributed_loads: Sequence[DistributedLoad] = (),
+                 end_loads: Sequence[EndLoad] = (),
+                 distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
                  comm: MPI.Comm = MPI.COMM_WORLD):
         self._validate(params, n_cells, model, variant, constraint, ends, end_loads,
@@ -203,7 +210,8 @@ class RodModel:
             facets[tag] = dolfinx.mesh.locate_entities_boundary(
                 mesh, 0, lambda x, e=end_s: np.isclose(x[0], e))
         idx = np.concatenate([facets[1], facets[2]]).astype(np.int32)
-        val = np.concatenate([np.full(len(facets[1]), 1), np.full(len(facets[2]), 2)]).astype(np.int32)
+        val = np.concatenate([np.full(len(facets[1]), 1),
+                              np.full(len(facets[2]), 2)]).astype(np.int32)
         order = np.argsort(idx)
         tags = dolfinx.mesh.meshtags(mesh, 0, idx[order], val[order])
         ds = ufl.Measure("ds", domain=mesh, subdomain_data=tags)
@@ -482,8 +490,6 @@ class RodModel:
             for end in (motion or {}):
                 if end not in ENDS:
                     raise ValueError(f"{name}: unknown end {end!r}")
-        if constraint == "inextensible_unshearable" and end_displacement:
-            pass  # allowed, but the user must keep it compatible with inextensibility
 
     def _energy_callable(self, params, c, u_ref, v_ref):
         if params.energy is None:

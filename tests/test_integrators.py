@@ -217,3 +217,44 @@ def test_unrecoverable_failure_keeps_history(kind):
     assert times[0] == 0.0 and np.all(np.diff(times) > 0) and times[-1] == t_fail
     assert value() == pytest.approx(history[-1][1], rel=1e-14)   # last accepted state kept
     assert all(np.isfinite(y) for _, y in history)
+
+
+# -- explicit Euler's stability limit on the dynamic torsion rod (docs/stability.md (a)) ---
+# nu = alpha = 1, mu = 0.05, u_d frozen (mu_d = 1e8), Dirichlet ends.  The top P1 mode
+# (consistent mass, uniform mesh) is the discrete sine sin((n - 1) pi s) with
+# kappa = 6 n^2 (1 - cos t)/(2 + cos t), t = (n - 1) pi/n; nu x'' + mu kappa x' + alpha kappa x
+# = 0 under forward Euler is stable iff dt <= mu/alpha (underdamped: Kelvin-Voigt) or
+# dt <= 2/|lambda_-| (overdamped: diffusive).  n = 8 is underdamped, n = 32 overdamped.
+
+
+@pytest.mark.parametrize("n", [8, 32])
+def test_explicit_euler_critical_step(n):
+    nu, alpha, mu = 1.0, 1.0, 0.05
+    t = (n - 1) * np.pi / n
+    kappa = 6 * n**2 * (1 - np.cos(t)) / (2 + np.cos(t))
+    a, b = mu * kappa / nu, alpha * kappa / nu
+    dt_crit = mu / alpha if a * a < 4 * b else 4.0 / (a + np.sqrt(a * a - 4 * b))
+    assert (n == 8) == (a * a < 4 * b)
+
+    def max_growth(dt, steps=300):
+        model = TorsionModel(TorsionParameters(alpha, 1.0, mu, 1e8, nu=nu), n_cells=n,
+                             end_rotation=loads.constant(0.0))
+        model.set_initial_state()
+        model.phi.interpolate(lambda x: np.sin((n - 1) * np.pi * x[0]))
+        energy = (lambda d: d["kinetic_energy"] + d["free_energy"])
+        e0, top = energy(model.diagnostics(0.0)), 1.0
+        stepper = TimeStepper(model.problem, "explicit_euler")
+        for i in range(steps):
+            stepper.step(i * dt, dt)
+            e = energy(model.diagnostics((i + 1) * dt)) / e0
+            top = max(top, e)
+            if top > 1e3:
+                break
+        return top, e
+
+    top, last = max_growth(0.9 * dt_crit)
+    # stable: the top mode decays (after a transient: from phi = mode, w = 0 the first
+    # step adds dt^2 alpha kappa/nu to the energy ratio, 2.4 for n = 8: G is not normal)
+    assert top < 3 and last < 1e-3
+    top, _ = max_growth(1.1 * dt_crit)
+    assert top > 1e3                             # unstable: energy x 1e3 within 300 steps

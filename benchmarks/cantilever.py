@@ -1,0 +1,164 @@
+"""The peer-comparison scenes (issue 7), built identically in dolfin_rod and PyElastica.
+
+Cantilever along e_3, clamped at s = 0, gravity along -e_1:
+    L = 1, r = 0.025, rho = 1000, E = 1e6, G = E/1.5, g = 9.81, T = 0.5.
+Section constants as PyElastica's ``CosseratRod.straight_rod``: A = pi r^2, I = pi r^4/4,
+J = 2I, shear stiffness alpha_c G A with alpha_c = 27/28 (PyElastica 1.0,
+rod/factory_function.py), so both codes discretise the same continuum:
+    bending/torsion  (E I, E I, G J),  shear/axial  (alpha_c G A, alpha_c G A, E A),
+    mass per length rho A, section inertia rho (I, I, 2I).
+
+Scene "elastic": hyperelastic, undamped.  Scene "creep": the natural curvature and
+stretch evolve by the local law (eqs. unatevol, vnatevol) with A_d = A, B_d = B,
+M_d = tau A, N_d = tau B, i.e. per strain component
+    d u_d/dt = (u - 2 u_d)/tau,    d (v_d - e_3)/dt = ((v - e_3) - 2 (v_d - e_3))/tau,
+which on the PyElastica side is a forcing that updates rest_kappa and rest_sigma once
+per step (forward Euler, as a PyElastica user would).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+L, RADIUS, RHO, E = 1.0, 0.025, 1000.0, 1e6
+G = E / 1.5
+GRAV = 9.81
+T_END = 0.5
+TAU = 0.1                       # creep time of the natural configuration
+ALPHA_C = 27.0 / 28.0           # PyElastica 1.0 shear coefficient
+AREA = np.pi * RADIUS**2
+I_SEC = np.pi * RADIUS**4 / 4
+J_SEC = 2 * I_SEC
+SAMPLES = np.linspace(0.1, T_END, 5)   # tip positions compared at these times
+
+
+def tip_error(tips, ref):
+    """max over the sample times of |tip - tip_ref|, relative to max |tip_ref - tip_0|."""
+    tips, ref = np.asarray(tips), np.asarray(ref)
+    scale = np.max(np.linalg.norm(ref - np.array([0.0, 0.0, L]), axis=1))
+    return float(np.max(np.linalg.norm(tips - ref, axis=1)) / scale)
+
+
+# -- dolfin_rod ---------------------------------------------------------------------------
+
+def dolfin_rod_model(n_cells: int, scene: str, comm=None):
+    from mpi4py import MPI
+    from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
+    A = (E * I_SEC, E * I_SEC, G * J_SEC)
+    B = (ALPHA_C * G * AREA, ALPHA_C * G * AREA, E * AREA)
+    kw = {}
+    if scene == "creep":
+        kw = dict(A_d=A, B_d=B, M_d=tuple(TAU * a for a in A), N_d=tuple(TAU * b for b in B))
+    params = RodParameters(length=L, A=A, B=B, rho_A=RHO * AREA, I11=RHO * I_SEC,
+                           I22=RHO * I_SEC, **kw)
+    model = RodModel(params, n_cells=n_cells,
+                     model="evolving" if scene == "creep" else "hyperelastic",
+                     variant="local", ends=("clamped", "free"),
+                     distributed_loads=[DistributedLoad("force", (-RHO * AREA * GRAV, 0.0, 0.0))],
+                     comm=comm or MPI.COMM_WORLD)
+    model.set_initial_state()
+    return model
+
+
+class TipProbe:
+    """Tip position r(L) = (0, 0, L) + x(L) from the owning rank (no form assembly)."""
+
+    def __init__(self, model):
+        import dolfinx.fem as fem
+        V = model.f["displacement"].function_space
+        dofs = fem.locate_dofs_geometrical(V, lambda X: np.isclose(X[0], L))
+        n_owned = V.dofmap.index_map.size_local
+        self.dofs = [d for d in dofs if d < n_owned]
+        self.u = model.f["displacement"]
+        self.comm = model.mesh.comm
+
+    def __call__(self):
+        val = np.zeros(3)
+        if self.dofs:
+            val = self.u.x.array[3 * self.dofs[0]: 3 * self.dofs[0] + 3].copy()
+        val = self.comm.allreduce(val)
+        return val + np.array([0.0, 0.0, L])
+
+
+def run_dolfin_rod(n_cells: int, dt: float, scene: str, scheme: str = "generalized_alpha",
+                   options=None, comm=None) -> dict:
+    """Tip positions at SAMPLES; setup (incl. JIT or cache load) and stepping timed apart."""
+    from dolfin_rod.integrators.stepper import TimeStepper
+    t0 = time.perf_counter()
+    model = dolfin_rod_model(n_cells, scene, comm)
+    stepper = TimeStepper(model.problem, scheme, solver_options=options)
+    probe = TipProbe(model)
+    tips = {}
+
+    def observe(t, _):
+        for ts in SAMPLES:
+            if abs(t - ts) < 1e-9 * T_END:
+                tips[ts] = probe()
+    stepper._residual(stepper.scheme)          # compile the step forms before timing
+    if stepper.scheme.startup:
+        from dolfin_rod.integrators.schemes import get_scheme
+        stepper._residual(get_scheme(stepper.scheme.startup))
+    t1 = time.perf_counter()
+    t = 0.0
+    for ts in SAMPLES:                         # march to each sample exactly
+        t = stepper.run(t, ts, dt, observer=None)
+        observe(t, None)
+    t2 = time.perf_counter()
+    return {"code": "dolfin_rod", "n_cells": n_cells, "dt": dt, "scheme": scheme,
+            "setup_s": t1 - t0, "wall_s": t2 - t1, "steps": stepper.stats.steps,
+            "newton_iterations": stepper.stats.newton_iterations,
+            "tips": [tips[ts].tolist() for ts in SAMPLES]}
+
+
+# -- PyElastica ---------------------------------------------------------------------------
+
+def run_pyelastica(n_elem: int, dt: float, scene: str) -> dict:
+    import elastica as ea
+
+    class Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.CallBacks):
+        pass
+
+    class NaturalConfigurationFlow(ea.NoForces):
+        """d kappa0/dt = (kappa - 2 kappa0)/tau, d sigma0/dt = (sigma - 2 sigma0)/tau
+        (the local evolution law with A_d = A, M_d = tau A, B_d = B, N_d = tau B)."""
+
+        def __init__(self, tau):
+            super().__init__()
+            self.tau, self.t_last = tau, 0.0
+
+        def apply_forces(self, system, time=0.0):
+            h = float(time) - self.t_last
+            if h <= 0.0:
+                return
+            self.t_last = float(time)
+            system.rest_kappa += h / self.tau * (system.kappa - 2.0 * system.rest_kappa)
+            system.rest_sigma += h / self.tau * (system.sigma - 2.0 * system.rest_sigma)
+
+    t0 = time.perf_counter()
+    sim = Sim()
+    rod = ea.CosseratRod.straight_rod(
+        n_elem, np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]),
+        L, RADIUS, RHO, youngs_modulus=E, shear_modulus=G)
+    sim.append(rod)
+    sim.constrain(rod).using(ea.OneEndFixedBC, constrained_position_idx=(0,),
+                             constrained_director_idx=(0,))
+    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([-GRAV, 0.0, 0.0]))
+    if scene == "creep":
+        sim.add_forcing_to(rod).using(NaturalConfigurationFlow, tau=TAU)
+    sim.finalize()
+    stepper = ea.PositionVerlet()
+    t1 = time.perf_counter()
+    tips, t, steps = [], 0.0, 0
+    for ts in SAMPLES:
+        n = int(round((ts - t) / dt))
+        h = (ts - t) / n
+        for _ in range(n):
+            t = stepper.step(sim, t, h)
+        t = float(ts)
+        steps += n
+        tips.append(rod.position_collection[:, -1].copy().tolist())
+    t2 = time.perf_counter()
+    return {"code": "pyelastica", "n_cells": n_elem, "dt": dt, "setup_s": t1 - t0,
+            "wall_s": t2 - t1, "steps": steps, "tips": tips}
