@@ -6,11 +6,10 @@ NP      ?= 2
 
 .PHONY: demo demos test test-serial test-mpi test-long bench work-precision stability env shell clean
 
-demo:            ## the flagship demo; figures and data under results/
-	$(RODENV) python3 demos/torsion_relaxation.py
-	$(RODENV) python3 demos/torsion_creep.py
+demo:            ## the flagship demo: viscoelastic cantilever creep and recovery (results/)
+	$(RODENV) python3 demos/cantilever_creep.py
 
-demos:           ## every demo, serially and under mpirun
+demos:           ## every demo as a user runs it, serially and under mpirun
 	$(RODENV) $(PYTEST) tests/test_demos.py -m "slow or not slow"
 
 test: test-serial test-mpi   ## the CI suite: serial run, then the MPI run on $(NP) ranks

@@ -109,5 +109,6 @@ if comm.rank == 0:
     plt.title("creep under a tip load, recovery after unloading")
     plt.legend(), plt.tight_layout()
     plt.savefig(OUT / "tip.png", dpi=100)
+    print(f"wrote {OUT / 'tip.png'}, {OUT / 'tip.csv'} and {OUT / 'rod.bp'} (ParaView)")
 # The error is BDF2's O(dt^2) plus the O(dt) start steps after each load jump: ~1e-3.
 assert error < 5e-3, error
