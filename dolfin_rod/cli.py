@@ -18,7 +18,9 @@ import sys
 import time
 from pathlib import Path
 
+from .integrators.stepper import IntegrationError
 from .scenes import Scene, SceneError, build, load_scene, select_model
+from .solvers import SolverError
 
 __all__ = ["main", "run_scene"]
 
@@ -131,7 +133,7 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
         status, message = "interrupted", f"interrupted at t = {t:g}"
     except SceneError:
         raise
-    except Exception as err:   # IntegrationError, SolverError: keep what was computed
+    except (IntegrationError, SolverError) as err:   # keep what was computed
         status, message = "failed", f"{type(err).__name__}: {err}"
     finally:
         interrupted.restore()

@@ -36,20 +36,18 @@ COLUMNS = ["step", "time", "<the model's diagnostics>", "total_dissipation",
 
 
 def versions() -> dict[str, str]:
+    import adios4dolfinx
+    import dolfinx
+    import petsc4py
+    import scipy
+    from petsc4py import PETSc
+
     from . import __version__
-    out = {"dolfin_rod": __version__, "python": sys.version.split()[0]}
-    for name in ("dolfinx", "petsc4py", "numpy", "scipy", "adios4dolfinx"):
-        try:
-            mod = __import__(name)
-            out[name] = str(getattr(mod, "__version__", "?"))
-        except Exception:
-            pass
-    try:
-        from petsc4py import PETSc
-        out["petsc"] = ".".join(str(v) for v in PETSc.Sys.getVersion())
-    except Exception:
-        pass
-    return out
+    return {"dolfin_rod": __version__, "python": sys.version.split()[0],
+            "dolfinx": dolfinx.__version__, "petsc4py": petsc4py.__version__,
+            "petsc": ".".join(str(v) for v in PETSc.Sys.getVersion()),
+            "numpy": np.__version__, "scipy": scipy.__version__,
+            "adios4dolfinx": adios4dolfinx.__version__}
 
 
 def show_progress(enabled: bool, rank: int) -> bool:

@@ -365,10 +365,8 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     from dataclasses import replace
 
     from mpi4py import MPI
-    try:
-        from ..rod import EndLoad, RodModel, RodParameters
-    except Exception as err:   # not written yet, or broken
-        raise scene.error("scene.model", f"the 3-D rod model is not available: {err}") from None
+    from ..rod import EndLoad, RodModel, RodParameters
+
     mat, geo, lds = scene["material"], scene["geometry"], scene["loads"]
     stiff, visc = mat["stiffness"], mat["viscosity"]
     kelvin_voigt = mat["energy"] == "kelvin_voigt"

@@ -12,12 +12,11 @@
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass
 
 from .schema import Scene
 
-__all__ = ["Choice", "select_model", "rod_available", "ts_available"]
+__all__ = ["Choice", "select_model"]
 
 ORDER = ("ode", "torsion", "rod")
 
@@ -27,21 +26,6 @@ class Choice:
     model: str      # "ode" | "torsion" | "rod"
     reason: str
     forced: bool = False
-
-
-def _module_ok(name: str, attr: str) -> bool:
-    try:
-        return hasattr(importlib.import_module(name), attr)
-    except Exception:   # missing or broken module (being written): not available
-        return False
-
-
-def rod_available() -> bool:
-    return _module_ok("dolfin_rod.rod", "RodModel")
-
-
-def ts_available() -> bool:
-    return _module_ok("dolfin_rod.integrators.ts", "TSIntegrator")
 
 
 def _needs(scene: Scene) -> tuple[str, str]:
@@ -81,13 +65,6 @@ def select_model(scene: Scene) -> Choice:
     else:
         choice = Choice(requested, f"forced by scene.model (the least model would be "
                                    f"{need!r}: {reason})", forced=True)
-    if choice.model == "rod" and not rod_available():
-        raise scene.error("scene.model" if choice.forced else "material",
-                          "this scene needs the 3-D rod model, but dolfin_rod.rod.RodModel is "
-                          "not available in this installation")
-    if scene["time"]["integrator"] == "ts" and choice.model != "ode" and not ts_available():
-        raise scene.error("time.integrator", "the PETSc TS integrator "
-                                             "(dolfin_rod.integrators.ts) is not available")
     return choice
 
 

@@ -1,0 +1,159 @@
+"""Peer comparison with PyElastica (issue 7, item 1): work-precision on two scenes.
+
+Scenes (benchmarks/cantilever.py): "elastic" (cantilever drooping under gravity, large
+rotations, T = 0.5) and "creep" (the same with the local evolution law of the natural
+curvature and stretch).  Each code is measured against its OWN converged reference
+(a finer run of the same code): relative tip error (max over t = 0.1 .. 0.5 of
+|r_tip - r_tip,ref| / max |r_tip,ref - r_tip(0)|) vs wall time of the time loop
+(setup, JIT/numba compilation excluded and reported separately; median of repeats).
+
+    PyElastica 1.0  PositionVerlet, n = 10 .. 320 elements, dt = 0.01 dx (PyElastica's
+                    examples' rule); reference n = 1280 (640 with --quick)
+    dolfin_rod      generalized-alpha (rho_inf = 0.5), n = 4 .. 128 cells, dt ~ 0.16/n
+                    (time and space errors balanced); reference n = 256 (128 --quick),
+                    twice: default options (Newton, MUMPS LU each iteration) and
+                    "reuse" (LU factorisation and Jacobian reused across iterations and
+                    steps, refreshed every 10 iterations: modified Newton)
+
+Speed ratio at equal accuracy: log-log interpolation of wall time at 1e-2 and 1e-3.
+Writes results/bench/peer_pyelastica.json and .png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import cantilever as cant  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+REUSE = {"snes_lag_jacobian": 10, "snes_lag_jacobian_persists": True,
+         "snes_lag_preconditioner": 10, "snes_lag_preconditioner_persists": True}
+CONFIGS = {"dolfin_rod": None, "dolfin_rod (reuse)": REUSE}
+
+
+def dolfin_dt(n):
+    return 0.1 / max(1, round(0.1 / (0.16 / n)))
+
+
+def timed(fn, repeats):
+    runs = [fn() for _ in range(repeats)]
+    best = runs[0]
+    best["wall_s"] = statistics.median(r["wall_s"] for r in runs)
+    best["wall_repeats_s"] = [r["wall_s"] for r in runs]
+    return best
+
+
+def time_at(errors, walls, target):
+    """Wall time at `target` error by log-log interpolation between bracketing points."""
+    e, w = np.log(np.asarray(errors)), np.log(np.asarray(walls))
+    for i in range(len(e) - 1):
+        lo, hi = sorted((e[i], e[i + 1]))
+        if lo <= np.log(target) <= hi and e[i] != e[i + 1]:
+            s = (np.log(target) - e[i]) / (e[i + 1] - e[i])
+            return float(np.exp(w[i] + s * (w[i + 1] - w[i])))
+    return None
+
+
+def sweep(scene, quick):
+    out = {"scene": scene, "codes": {}}
+    pe_sizes = [10, 20, 40, 80, 160] + ([] if quick else [320])
+    pe_ref = 640 if quick else 1280
+    dr_sizes = [4, 8, 16, 32, 64] + ([] if quick else [128])
+    dr_ref = 128 if quick else 256
+
+    # PyElastica: numba compiles on the first run (excluded), then the sweep
+    cant.run_pyelastica(10, 1e-3, scene)
+    ref = cant.run_pyelastica(pe_ref, 0.01 / pe_ref, scene)
+    rows = []
+    for n in pe_sizes:
+        r = timed(lambda: cant.run_pyelastica(n, 0.01 / n, scene), 3 if n <= 80 else 1)
+        r["error"] = cant.tip_error(r["tips"], ref["tips"])
+        rows.append(r)
+        print(f"  [{scene}] pyelastica n={n:5d} dt={r['dt']:.2e} wall={r['wall_s']:8.3f} s "
+              f"err={r['error']:.2e}", flush=True)
+    out["codes"]["pyelastica"] = {"reference": ref, "runs": rows}
+
+    cant.run_dolfin_rod(4, 0.05, scene)     # JIT/cache load (excluded)
+    ref = cant.run_dolfin_rod(dr_ref, dolfin_dt(dr_ref) / 2, scene,
+                              options={"snes_rtol": 1e-11, "snes_atol": 1e-12})
+    for label, opts in CONFIGS.items():
+        rows = []
+        for n in dr_sizes:
+            r = timed(lambda: cant.run_dolfin_rod(n, dolfin_dt(n), scene, options=opts),
+                      3 if n <= 16 else 1)
+            r["error"] = cant.tip_error(r["tips"], ref["tips"])
+            rows.append(r)
+            print(f"  [{scene}] {label:18s} n={n:4d} dt={r['dt']:.2e} wall={r['wall_s']:8.3f} s "
+                  f"its/step={r['newton_iterations'] / r['steps']:.2f} err={r['error']:.2e}",
+                  flush=True)
+        out["codes"][label] = {"reference": ref, "runs": rows, "options": opts}
+
+    ref_pe = np.array(out["codes"]["pyelastica"]["reference"]["tips"])
+    ref_dr = np.array(ref["tips"])
+    out["references_relative_difference"] = cant.tip_error(ref_pe, ref_dr)
+    out["ratios"] = {}
+    for target in (1e-2, 1e-3):
+        t = {k: time_at([r["error"] for r in v["runs"]], [r["wall_s"] for r in v["runs"]],
+                        target) for k, v in out["codes"].items()}
+        out["ratios"][f"{target:g}"] = {
+            "wall_s": t,
+            **{f"speedup {k} vs pyelastica": (t["pyelastica"] / t[k]
+                                              if t[k] and t["pyelastica"] else None)
+               for k in CONFIGS}}
+    return out
+
+
+def plot(results, path):
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, len(results), figsize=(5.5 * len(results), 4.2))
+    for ax, res in zip(np.atleast_1d(axes), results):
+        for (label, data), mk in zip(res["codes"].items(), "osD"):
+            e = [r["error"] for r in data["runs"]]
+            w = [r["wall_s"] for r in data["runs"]]
+            ax.loglog(w, e, marker=mk, label=label)
+            for r in data["runs"]:
+                ax.annotate(str(r["n_cells"]), (r["wall_s"], r["error"]), fontsize=7,
+                            textcoords="offset points", xytext=(3, 3))
+        for tgt in (1e-2, 1e-3):
+            ax.axhline(tgt, color="0.7", lw=0.8, ls="--")
+        ax.set_xlabel("wall time of the time loop [s]")
+        ax.set_ylabel("relative tip error vs own reference")
+        ax.set_title(f"cantilever, {res['scene']} (T = 0.5)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--scenes", nargs="*", default=["elastic", "creep"])
+    args = ap.parse_args()
+    from dolfin_rod.output import versions
+    import elastica
+    results = [sweep(s, args.quick) for s in args.scenes]
+    folder = ROOT / "results" / "bench"
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {"versions": {**versions(), "pyelastica": getattr(elastica, "__version__", "1.0.0")},
+           "quick": args.quick, "scenes": results}
+    (folder / "peer_pyelastica.json").write_text(json.dumps(out, indent=1))
+    plot(results, folder / "peer_pyelastica.png")
+    for res in results:
+        print(f"[{res['scene']}] references differ by {res['references_relative_difference']:.2e}")
+        for tgt, v in res["ratios"].items():
+            print(f"[{res['scene']}] at {tgt}: " + ", ".join(
+                f"{k}={x:.3g}" if x else f"{k}=n/a" for k, x in
+                [*v["wall_s"].items(), *[(k, x) for k, x in v.items() if k != "wall_s"]]))
+    print(f"wrote {folder / 'peer_pyelastica.json'} and .png")
+
+
+if __name__ == "__main__":
+    main()
