@@ -208,7 +208,8 @@ if comm.rank == 0:
           f"{err_h['uniform']:.2e})")
     print(f"mean natural twist, max error / u0: local {err_ud['local']:.2e}, "
           f"uniform {err_ud['uniform']:.2e}; local - uniform torque {gap:.1e}")
-    print(f"m(0+) = {m0:.4e} N m -> m({t_end:g} s) = {hist['local']['reaction_couple_right_z'][-1]:.4e}"
+    m_end = hist["local"]["reaction_couple_right_z"][-1]
+    print(f"m(0+) = {m0:.4e} N m -> m({t_end:g} s) = {m_end:.4e}"
           f" (relaxed {closed_forms.relaxed_torsion(u0, alpha, alpha_d):.4e}); "
           f"max lateral tip motion {straight:.1e} m")
     print(f"energy balance |psi(T) + int xi dt - psi(0+)| / psi(0+): local "
