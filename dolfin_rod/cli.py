@@ -177,13 +177,33 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--resume", action="store_true",
                      help="continue from the checkpoint in --out")
     run.add_argument("--quiet", action="store_true", help="no progress output")
+    sub.add_parser("schema", help="print every scene key with its default and meaning "
+                                  "(Markdown, as in docs/scenes.md)")
     return p
+
+
+def schema_markdown() -> str:
+    """The scene schema as Markdown tables (docs/scenes.md is generated from it)."""
+    from .scenes.schema import REQUIRED, SCHEMA
+    lines = []
+    for table, keys in SCHEMA.items():
+        lines += [f"### [{table}]", "", "| key | default | meaning |", "|---|---|---|"]
+        for name, key in keys.items():
+            default = "required" if key.default is REQUIRED else (
+                "-" if key.default is None else f"`{key.default!r}`")
+            doc = key.doc.replace("|", "\\|")
+            lines.append(f"| `{name}` | {default} | {doc} |")
+        lines.append("")
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
     args = _parser().parse_args(argv)
+    if args.command == "schema":
+        _print(comm, schema_markdown())
+        return 0
     try:
         scene = load_scene(args.scene)
         if args.command == "check":

@@ -151,3 +151,9 @@ def test_interrupted_run_keeps_what_it_computed(tmp_path):
     s = read_csv(csv_path)
     assert len(s["time"]) > 20 and len(s["time"]) == summary["steps"] + 1
     assert np.allclose(np.diff(s["time"]), 0.01)
+
+
+def test_scene_documentation_is_generated_from_the_schema():
+    from dolfin_rod.cli import schema_markdown
+    doc = (Path(__file__).resolve().parents[1] / "docs/scenes.md").read_text()
+    assert schema_markdown().strip() in doc
