@@ -109,6 +109,7 @@ def run_dolfin_rod(n_cells: int, dt: float, scene: str, scheme: str = "generaliz
     return {"code": "dolfin_rod", "n_cells": n_cells, "dt": dt, "scheme": scheme,
             "setup_s": t1 - t0, "wall_s": t2 - t1, "steps": stepper.stats.steps,
             "newton_iterations": stepper.stats.newton_iterations,
+            "rejected_steps": stepper.stats.rejected,
             "tips": [tips[ts].tolist() for ts in SAMPLES]}
 
 

@@ -6,6 +6,7 @@ raises IntegrationError and leaves every accepted step with the observer.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Callable
 
@@ -158,6 +159,11 @@ class TimeStepper:
                         f"time step failed at t = {t:.6g} after {self.max_cuts} step cuts "
                         f"(last dt = {h_try:.3g}): {err}", t) from err
                 h = h_try / 2
+                if self.scheme.startup:
+                    warnings.warn(f"step at t = {t:.6g} cut to dt = {h:.3g} ({err}); "
+                                  f"{self.scheme.name} restarts with {self.scheme.startup}, "
+                                  "which is first-order accurate", RuntimeWarning,
+                                  stacklevel=2)
                 self._history_ok = False
                 continue
             t = t_end if h_try == t_end - t else t + h_try
