@@ -32,9 +32,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cantilever as cant  # noqa: E402
 
+from dolfin_rod.solvers import JACOBIAN_REUSE  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
-REUSE = {"snes_lag_jacobian": 10, "snes_lag_jacobian_persists": True,
-         "snes_lag_preconditioner": 10, "snes_lag_preconditioner_persists": True}
+REUSE = JACOBIAN_REUSE
 REF_OPTIONS = {"snes_atol": 1e-8, "snes_rtol": 1e-10}
 CONFIGS = {"dolfin_rod": None, "dolfin_rod (reuse)": REUSE}
 

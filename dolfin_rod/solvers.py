@@ -29,6 +29,16 @@ DEFAULT_OPTIONS = {
     "pc_type": "lu",
     "pc_factor_mat_solver_type": "mumps",
 }
+# Modified Newton for dynamics with small steps: the Jacobian and its LU are refreshed
+# every 10 iterations and kept across time steps; 3-4x cheaper steps from 1e3 cells
+# (docs/performance.md).  Large quasi-static load steps diverge with a stale Jacobian.
+# Use as BlockSNES/TimeStepper solver_options.
+JACOBIAN_REUSE = {
+    "snes_lag_jacobian": 10,
+    "snes_lag_jacobian_persists": True,
+    "snes_lag_preconditioner": 10,
+    "snes_lag_preconditioner_persists": True,
+}
 _ids = itertools.count()
 
 
