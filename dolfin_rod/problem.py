@@ -57,3 +57,17 @@ class SemiDiscreteProblem:
     def set_loads(self, t: float) -> None:
         for load in self.loads:
             load.constant.value[...] = load.at(t)
+
+
+@dataclass
+class SecondOrderProblem(SemiDiscreteProblem):
+    """F(t, y, dy/dt, d^2y/dt^2) = 0 for second-order time integrators (PETSc TSALPHA2).
+
+    accelerations: placeholders for d^2y/dt^2 in ``residual`` (same spaces as ``fields``).
+    after_step:    called with the accepted state in fields/rates, to update what the
+                   model derives from them (e.g. the velocity fields of its first-order
+                   form, which its diagnostics read).
+    """
+
+    accelerations: list[fem.Function] = field(default_factory=list)
+    after_step: Callable[[], None] = lambda: None

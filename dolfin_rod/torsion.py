@@ -32,7 +32,7 @@ from . import loads as load_histories
 from .dissipation import dissipation_rate
 from .energy import derivatives, quadratic_energy
 from .evolution import check_variant, evolution_residual, real_space
-from .problem import SemiDiscreteProblem, TimeDependentValue
+from .problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
 
 Coefficient = float | Callable
 
@@ -179,6 +179,30 @@ class TorsionModel:
 
         self.problem = SemiDiscreteProblem(fields, rates, F, self.loads, bcs, self._set_bcs)
         self._diagnostic_forms(psi, dpsi_dud, torsion, w, rates, coef, dx)
+
+    def second_order_problem(self) -> SecondOrderProblem:
+        """The dynamic model as nu phi_tt + ... = 0 in (phi, u_d) for TSALPHA2.
+
+        The first-order residual with w -> phi_t and w_t -> phi_tt; the kinematic block
+        is dropped.  After each accepted step w is set to phi_t, so diagnostics() holds.
+        """
+        if not self.dynamic:
+            raise ValueError("second_order_problem needs nu > 0 (a dynamic rod)")
+        p = self.problem
+        w, phi_t = p.fields[2], p.rates[0]
+        phi_tt = fem.Function(self.phi.function_space, name="twist_angle_acceleration")
+        u_d_tt = fem.Function(self.u_d.function_space, name="natural_twist_acceleration")
+        mapping = {w: phi_t, p.rates[2]: phi_tt}
+        V = self.phi.function_space
+        bcs = [bc for bc in p.bcs if V._cpp_object.contains(bc.function_space)]
+
+        def sync():
+            w.x.array[:] = phi_t.x.array
+            p.rates[2].x.array[:] = phi_tt.x.array
+
+        return SecondOrderProblem(
+            p.fields[:2], p.rates[:2], [ufl.replace(F, mapping) for F in p.residual[:2]],
+            p.loads, bcs, p.set_bcs, accelerations=[phi_tt, u_d_tt], after_step=sync)
 
     # -- time-dependent boundary values ----------------------------------------------
     def _set_bcs(self, t: float) -> None:

@@ -24,6 +24,9 @@ TS types (``ts_type`` string, parameter after a colon like TimeStepper's
     crank_nicolson       theta = 1/2, endpoint form (trapezoidal rule)
     implicit_midpoint    theta = 1/2, midpoint form
     alpha[:rho_inf]      TSALPHA, Jansen-Whiting-Hulbert generalized-alpha (default 0.5)
+    alpha2[:rho_inf]     TSALPHA2, Chung-Hulbert generalized-alpha for second-order
+                         problems (problem.SecondOrderProblem, e.g.
+                         TorsionModel.second_order_problem())
     arkimex[:type]       ARKIMEX treated as fully implicit DIRK (no explicit part), type
                          one of ARKIMEX_ORDERS (default l2, L-stable, 2nd order)
 
@@ -46,7 +49,7 @@ import dolfinx.fem.petsc as fem_petsc
 import numpy as np
 from petsc4py import PETSc
 
-from ..problem import SemiDiscreteProblem
+from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..solvers import DEFAULT_OPTIONS, functions_to_vec, jacobian_blocks, vec_to_functions
 from .stepper import IntegrationError
 
@@ -55,7 +58,7 @@ from .stepper import IntegrationError
 ARKIMEX_ORDERS = {"1bee": 1, "a2": 2, "l2": 2, "2c": 2, "2d": 2, "2e": 2, "prssp2": 2,
                   "3": 3, "bpr3": 3, "ars443": 3, "4": 4, "5": 5}
 TS_TYPES = ("bdf[:order]", "theta[:theta]", "backward_euler", "crank_nicolson",
-            "implicit_midpoint", "alpha[:rho_inf]", "arkimex[:type]")
+            "implicit_midpoint", "alpha[:rho_inf]", "alpha2[:rho_inf]", "arkimex[:type]")
 _ids = itertools.count()
 _REASONS = {v: k for k, v in vars(PETSc.TS.ConvergedReason).items() if isinstance(v, int)}
 
@@ -96,9 +99,9 @@ def parse_ts_type(ts_type: str) -> TSMethod:
         return TSMethod(name if name != "theta" else f"theta:{theta:g}", "theta",
                         2 if theta == 0.5 else 1,
                         {"ts_theta_theta": theta, "ts_theta_endpoint": endpoint})
-    if name == "alpha":
+    if name in ("alpha", "alpha2"):
         rho = number("rho_inf", float, 0.0, 1.0) if arg else 0.5
-        return TSMethod(f"alpha:{rho:g}", "alpha", 2, {"ts_alpha_radius": rho})
+        return TSMethod(f"{name}:{rho:g}", name, 2, {"ts_alpha_radius": rho})
     if name == "arkimex":
         kind = arg or "l2"
         if kind not in ARKIMEX_ORDERS:
@@ -110,6 +113,12 @@ def parse_ts_type(ts_type: str) -> TSMethod:
                          "SemiDiscreteProblem is implicit (DAE): use TimeStepper("
                          "problem, 'explicit_euler') for an explicit scheme")
     raise ValueError(f"unknown ts_type '{ts_type}' (known: {', '.join(TS_TYPES)})")
+
+
+def _combine(terms, i, j):
+    """sum_k c_k J_k[i][j] over the blocks that exist (None if none does)."""
+    forms = [c * blocks[i][j] for c, blocks in terms if blocks[i][j] is not None]
+    return sum(forms[1:], forms[0]) if forms else None
 
 
 @dataclass
@@ -150,11 +159,20 @@ class TSIntegrator:
         mesh = y[0].function_space.mesh
         self.shift = fem.Constant(mesh, 1.0)
 
-        # IJacobian = dF/dy + shift dF/d(ydot), compiled once with shift a Constant.
-        J = [[a if b is None else (self.shift * b if a is None else a + self.shift * b)
-              for a, b in zip(row_y, row_r)]
-             for row_y, row_r in zip(jacobian_blocks(problem.residual, y),
-                                     jacobian_blocks(problem.residual, y, wrt=ydot))]
+        # IJacobian = dF/dy + shift dF/d(ydot) (+ a_shift dF/d(yddot) for TSALPHA2),
+        # compiled once with the shifts as Constants.
+        self.second_order = self.method.petsc_type == "alpha2"
+        if self.second_order != isinstance(problem, SecondOrderProblem):
+            wanted = ("a SecondOrderProblem (e.g. TorsionModel.second_order_problem())"
+                      if self.second_order else "a first-order SemiDiscreteProblem")
+            raise ValueError(f"ts_type '{ts_type}' needs {wanted}")
+        self.a_shift = fem.Constant(mesh, 0.0)
+        terms = [(1.0, jacobian_blocks(problem.residual, y)),
+                 (self.shift, jacobian_blocks(problem.residual, y, wrt=ydot))]
+        if self.second_order:
+            terms.append((self.a_shift, jacobian_blocks(problem.residual, y,
+                                                         wrt=problem.accelerations)))
+        J = [[_combine(terms, i, j) for j in range(len(y))] for i in range(len(y))]
         self.F = fem.form(problem.residual)
         self.J = fem.form(J)
         self.b = fem_petsc.create_vector_block(self.F)
@@ -168,8 +186,13 @@ class TSIntegrator:
         self.ts.setProblemType(PETSc.TS.ProblemType.NONLINEAR)
         self.ts.setEquationType(PETSc.TS.EquationType.DAE_IMPLICIT_INDEX1)
         self.ts.setType(self.method.petsc_type)
-        self.ts.setIFunction(self._ifunction, self.b)
-        self.ts.setIJacobian(self._ijacobian, self.A)
+        if self.second_order:
+            self.ts.setI2Function(self._i2function, self.b)
+            self.ts.setI2Jacobian(self._i2jacobian, self.A)
+            self._v = self.x.duplicate()
+        else:
+            self.ts.setIFunction(self._ifunction, self.b)
+            self.ts.setIJacobian(self._ijacobian, self.A)
         # the last step is clipped in _post_step (TS's MATCHSTEP trips on round-off)
         self.ts.setExactFinalTime(PETSc.TS.ExactFinalTime.STEPOVER)
         self.ts.setMaxSNESFailures(-1)            # every SNES failure: reject, cut, retry
@@ -206,6 +229,15 @@ class TSIntegrator:
                                         alpha=-1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
 
+    def _i2function(self, ts, t, x, xdot, xddot, b):
+        vec_to_functions(xddot, self.problem.accelerations)
+        self._ifunction(ts, t, x, xdot, b)
+
+    def _i2jacobian(self, ts, t, x, xdot, xddot, v_shift, a_shift, A, P):
+        vec_to_functions(xddot, self.problem.accelerations)
+        self.a_shift.value = a_shift
+        self._ijacobian(ts, t, x, xdot, v_shift, A, P)
+
     def _ijacobian(self, ts, t, x, xdot, shift, A, P):
         self._set_time(t, x, xdot)
         self.shift.value = shift
@@ -217,7 +249,10 @@ class TSIntegrator:
     def _monitor(self, ts, step, t, x):
         vec_to_functions(x, self.problem.fields)
         h = t - self._t_accepted if self._t_accepted is not None else 0.0
-        if h > 0:  # backward-difference rate of the accepted step
+        if self.second_order:  # TSALPHA2 carries the rate itself
+            vec_to_functions(ts.getSolution2()[1], self.problem.rates)
+            self.problem.after_step()
+        elif h > 0:  # backward-difference rate of the accepted step
             rate = x.copy()
             rate.axpy(-1.0, self._x_prev)
             rate.scale(1.0 / h)
@@ -262,6 +297,9 @@ class TSIntegrator:
                           0.0 if self.adaptive else dt * 0.25 ** self.max_rejections)
         # initial rates: whatever the problem holds (used only by diagnostics at t0)
         functions_to_vec(self.problem.fields, self.x)
+        if self.second_order:  # initial velocity: the problem's rates
+            functions_to_vec(self.problem.rates, self._v)
+            self.ts.setSolution2(self.x, self._v)
         self.ts.setTime(t0)
         self.ts.setTimeStep(min(dt, t_end - t0))
         self.ts.setStepNumber(0)
