@@ -38,14 +38,13 @@ from typing import Callable, Sequence
 import dolfinx
 import dolfinx.fem as fem
 import numpy as np
-import scifem
 import ufl
 from mpi4py import MPI
 
 from . import balance, constraints
 from .dissipation import dissipation_rate
 from .energy import derivatives, quadratic_energy
-from .evolution import check_variant, evolution_residual
+from .evolution import check_variant, evolution_residual, real_space
 from .kinematics import material_curvature, material_stretch, strain_rates
 from .problem import SemiDiscreteProblem, TimeDependentValue
 from .rotations import (material_derivative_vector, np_qmul, np_quaternion_from_rotation_vector,
@@ -225,7 +224,7 @@ class RodModel:
         # -- spaces and fields ------------------------------------------------------------
         def natural_space(shape):
             if variant == "uniform":
-                return scifem.create_real_functionspace(mesh, shape)
+                return real_space(mesh, shape)
             return fem.functionspace(mesh, ("DG", 0, shape) if shape else ("DG", 0))
 
         spaces = {"displacement": fem.functionspace(mesh, ("Lagrange", 1, (3,))),
