@@ -4,6 +4,8 @@
     ./rodenv python3 benchmarks/run_all.py --quick   # smaller sizes (a few minutes)
 
 1. peer_pyelastica.py   work-precision vs PyElastica, elastic and creep cantilevers
+   peer_pyelastica_long.py  part "peer_long": the creep_long scene (tau = 10 s, T = 30 s,
+                        same drag on both sides; ~10 min, PyElastica dominates)
 2. scaling.py           time per step / Newton iteration, 1e2 .. 1e5 cells, split into
                         assembly, linear solve, Python; JIT cold vs warm
 3. MPI                  scaling.py --mpi-size N under mpirun -n 1 and -n 2: speed-up and
@@ -69,7 +71,8 @@ def plot_scaling(path_json, path_png):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--parts", nargs="*", default=["peer", "scaling", "mpi", "model_selection"])
+    ap.add_argument("--parts", nargs="*",
+                    default=["peer", "peer_long", "scaling", "mpi", "model_selection"])
     args = ap.parse_args()
     quick = ["--quick"] if args.quick else []
     py = sys.executable
@@ -77,6 +80,8 @@ def main():
     wall = {}
     if "peer" in args.parts:
         wall["peer_pyelastica"] = run([py, str(HERE / "peer_pyelastica.py"), *quick])
+    if "peer_long" in args.parts:
+        wall["peer_pyelastica_long"] = run([py, str(HERE / "peer_pyelastica_long.py"), *quick])
     if "scaling" in args.parts:
         wall["scaling"] = run([py, str(HERE / "scaling.py"), *quick])
         plot_scaling(OUT / "scaling.json", OUT / "scaling.png")
