@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import time
 
+import elastica as ea
 import numpy as np
 
 L, RADIUS, RHO, E = 1.0, 0.025, 1000.0, 1e6
@@ -115,27 +116,27 @@ def run_dolfin_rod(n_cells: int, dt: float, scene: str, scheme: str = "generaliz
 
 # -- PyElastica ---------------------------------------------------------------------------
 
-def run_pyelastica(n_elem: int, dt: float, scene: str) -> dict:
-    import elastica as ea
 
+class NaturalConfigurationFlow(ea.NoForces):
+    """d kappa0/dt = (kappa - 2 kappa0)/tau, d sigma0/dt = (sigma - 2 sigma0)/tau
+    (the local evolution law with A_d = A, M_d = tau A, B_d = B, N_d = tau B)."""
+
+    def __init__(self, tau):
+        super().__init__()
+        self.tau, self.t_last = tau, 0.0
+
+    def apply_forces(self, system, time=0.0):
+        h = float(time) - self.t_last
+        if h <= 0.0:
+            return
+        self.t_last = float(time)
+        system.rest_kappa += h / self.tau * (system.kappa - 2.0 * system.rest_kappa)
+        system.rest_sigma += h / self.tau * (system.sigma - 2.0 * system.rest_sigma)
+
+
+def run_pyelastica(n_elem: int, dt: float, scene: str) -> dict:
     class Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.CallBacks):
         pass
-
-    class NaturalConfigurationFlow(ea.NoForces):
-        """d kappa0/dt = (kappa - 2 kappa0)/tau, d sigma0/dt = (sigma - 2 sigma0)/tau
-        (the local evolution law with A_d = A, M_d = tau A, B_d = B, N_d = tau B)."""
-
-        def __init__(self, tau):
-            super().__init__()
-            self.tau, self.t_last = tau, 0.0
-
-        def apply_forces(self, system, time=0.0):
-            h = float(time) - self.t_last
-            if h <= 0.0:
-                return
-            self.t_last = float(time)
-            system.rest_kappa += h / self.tau * (system.kappa - 2.0 * system.rest_kappa)
-            system.rest_sigma += h / self.tau * (system.sigma - 2.0 * system.rest_sigma)
 
     t0 = time.perf_counter()
     sim = Sim()

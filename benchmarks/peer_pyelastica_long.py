@@ -121,23 +121,10 @@ def run_dolfin_rod(n_cells: int, tol: float, ts_type: str = "bdf:2", options=Non
 # -- PyElastica ---------------------------------------------------------------------------
 
 def run_pyelastica(n_elem: int, dt: float, samples=SAMPLES) -> dict:
-    import elastica as ea
+    ea = cant.ea
 
     class Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
         pass
-
-    class NaturalConfigurationFlow(ea.NoForces):
-        def __init__(self, tau):
-            super().__init__()
-            self.tau, self.t_last = tau, 0.0
-
-        def apply_forces(self, system, time=0.0):
-            h = float(time) - self.t_last
-            if h <= 0.0:
-                return
-            self.t_last = float(time)
-            system.rest_kappa += h / self.tau * (system.kappa - 2.0 * system.rest_kappa)
-            system.rest_sigma += h / self.tau * (system.sigma - 2.0 * system.rest_sigma)
 
     h = samples[0] / int(round(samples[0] / dt))   # uniform step dividing the sample spacing
     t0 = time.perf_counter()
@@ -149,7 +136,7 @@ def run_pyelastica(n_elem: int, dt: float, samples=SAMPLES) -> dict:
     sim.constrain(rod).using(ea.OneEndFixedBC, constrained_position_idx=(0,),
                              constrained_director_idx=(0,))
     sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([-cant.GRAV, 0.0, 0.0]))
-    sim.add_forcing_to(rod).using(NaturalConfigurationFlow, tau=TAU)
+    sim.add_forcing_to(rod).using(cant.NaturalConfigurationFlow, tau=TAU)
     # per node: m_i dv/dt = -NU m_i v  (continuum drag c = NU rho A), no rotational damping
     sim.dampen(rod).using(ea.AnalyticalLinearDamper, time_step=h,
                           translational_damping_constant=NU * rod.mass.copy(),
