@@ -1,4 +1,4 @@
-"""PETSc SNES on blocked forms (DOLFINx 0.9 ``*_block`` assembly), with failure reasons.
+"""PETSc SNES on blocked forms (assembly.block_system), with failure reasons.
 
 Blocks may include scifem real spaces (global scalar unknowns), so the uniform variant's
 natural strains are solved monolithically with the fields, in serial and under MPI.
@@ -9,12 +9,11 @@ from __future__ import annotations
 import itertools
 
 import dolfinx.fem as fem
-import dolfinx.fem.petsc as fem_petsc
 import numpy as np
 import ufl
-from ufl.algorithms import expand_derivatives
-from dolfinx.cpp.la.petsc import scatter_local_vectors
 from petsc4py import PETSc
+
+from .assembly import block_system
 
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
 DEFAULT_OPTIONS = {
@@ -51,54 +50,6 @@ class SolverError(RuntimeError):
         self.iterations = iterations
 
 
-def block_maps(forms):
-    return [(f.function_spaces[0].dofmap.index_map, f.function_spaces[0].dofmap.index_map_bs)
-            for f in forms]
-
-
-def functions_to_vec(functions, x) -> None:
-    """Copy block Functions into a block vector (owned entries, then ghosts)."""
-    maps = [(u.function_space.dofmap.index_map, u.function_space.dofmap.index_map_bs)
-            for u in functions]
-    scatter_local_vectors(x, [u.x.array for u in functions], maps)
-    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-
-
-def vec_to_functions(x, functions) -> None:
-    """Copy the owned entries of a block vector into block Functions and scatter ghosts."""
-    offset = 0
-    xa = x.getArray(readonly=True)
-    for u in functions:
-        n = u.function_space.dofmap.index_map.size_local * u.function_space.dofmap.index_map_bs
-        u.x.array[:n] = xa[offset:offset + n]
-        u.x.scatter_forward()
-        offset += n
-
-
-def jacobian_blocks(F: list[ufl.Form], y: list[fem.Function], wrt=None) -> list[list]:
-    """dF_i/dy_j (or d/d wrt_j) as UFL forms; empty off-diagonal blocks are None.
-
-    Empty diagonal blocks stay as zero forms: blocked assembly puts the unit diagonal of
-    Dirichlet rows only into diagonal blocks that exist (explicit schemes have them).
-    """
-    wrt = y if wrt is None else wrt
-    J = []
-    for i, Fi in enumerate(F):
-        row = []
-        for j, (yj, xj) in enumerate(zip(y, wrt)):
-            du = ufl.TrialFunction(yj.function_space)
-            Jij = expand_derivatives(ufl.derivative(Fi, xj, du))
-            if Jij.empty():
-                Jij = None
-                if i == j:
-                    v = ufl.TestFunction(yj.function_space)
-                    zero = fem.Constant(yj.function_space.mesh, 0.0)
-                    Jij = zero * ufl.inner(du, v) * ufl.dx(domain=yj.function_space.mesh)
-            row.append(Jij)
-        J.append(row)
-    return J
-
-
 class BlockSNES:
     """Solve F_i(y) = 0 (one form per block) for the block Functions ``y`` with SNES.
 
@@ -107,17 +58,13 @@ class BlockSNES:
     """
 
     def __init__(self, F: list[ufl.Form], y: list[fem.Function], bcs=(), options=None,
-                 prefix: str | None = None):
+                 prefix: str | None = None, monolithic: bool | None = None):
         self.y = y
-        self.bcs = list(bcs)
-        self.F = fem.form(F)
-        self.J = fem.form(jacobian_blocks(F, y))
-        self.b = fem_petsc.create_vector_block(self.F)
-        self.x = fem_petsc.create_vector_block(self.F)
-        self.A = fem_petsc.create_matrix_block(self.J)
+        self.system = block_system(F, [y], bcs=bcs, monolithic=monolithic)
+        self.x = self.system.x
         self.snes = PETSc.SNES().create(self.x.getComm())
-        self.snes.setFunction(self._residual, self.b)
-        self.snes.setJacobian(self._jacobian, self.A)
+        self.snes.setFunction(self._residual, self.system.b)
+        self.snes.setJacobian(self._jacobian, self.system.A)
         self.prefix = prefix or f"dolfin_rod_{next(_ids)}_"
         self.snes.setOptionsPrefix(self.prefix)
         opts = PETSc.Options()
@@ -127,24 +74,19 @@ class BlockSNES:
         self.iterations = 0
 
     def _residual(self, snes, x, b):
-        vec_to_functions(x, self.y)
-        with b.localForm() as bl:
-            bl.set(0.0)
-        fem_petsc.assemble_vector_block(b, self.F, self.J, bcs=self.bcs, x0=x, alpha=-1.0)
-        b.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        self.system.set(0, x)
+        self.system.residual(x, b)
 
     def _jacobian(self, snes, x, A, P):
-        A.zeroEntries()
-        fem_petsc.assemble_matrix_block(A, self.J, bcs=self.bcs)
-        A.assemble()
+        self.system.jacobian(A)
 
     def solve(self) -> int:
         """Newton from the current ``y``; on success ``y`` holds the solution."""
-        functions_to_vec(self.y, self.x)
+        self.system.get(0, self.x)
         self.snes.solve(None, self.x)
         reason = self.snes.getConvergedReason()
         self.iterations = self.snes.getIterationNumber()
         if reason <= 0 or not np.isfinite(self.snes.getFunctionNorm()):
             raise SolverError(_REASONS.get(reason, str(reason)), self.iterations)
-        vec_to_functions(self.x, self.y)
+        self.system.set(0, self.x)
         return self.iterations

@@ -2,10 +2,9 @@
 
 TS sees the residual through two callbacks (PETSc's implicit form):
 
-    IFunction:  G(t, y, ydot)      = F(t, y, ydot; v) assembled per block, with the
-                                     Dirichlet rows replaced by y - g(t) (x0 = y, alpha = -1,
-                                     as in solvers.BlockSNES): the conditions are algebraic
-                                     equations of the DAE;
+    IFunction:  G(t, y, ydot)      = F(t, y, ydot; v) (assembly.block_system), with the
+                                     Dirichlet rows replaced by y - g(t): the conditions
+                                     are algebraic equations of the DAE;
     IJacobian:  dG/dy + a dG/dydot = sum_j [dF_i/dy_j + a dF_i/dydot_j], a = TS's ``shift``
                                      (a fem.Constant: the forms are compiled once).
 
@@ -45,12 +44,12 @@ from dataclasses import dataclass
 from typing import Callable
 
 import dolfinx.fem as fem
-import dolfinx.fem.petsc as fem_petsc
 import numpy as np
 from petsc4py import PETSc
 
 from ..problem import SecondOrderProblem, SemiDiscreteProblem
-from ..solvers import DEFAULT_OPTIONS, functions_to_vec, jacobian_blocks, vec_to_functions
+from ..assembly import block_system
+from ..solvers import DEFAULT_OPTIONS
 from .stepper import IntegrationError
 
 # Design orders of the ARKIMEX tableaux (implicit part), PETSc's TSARKIMEX names.
@@ -115,12 +114,6 @@ def parse_ts_type(ts_type: str) -> TSMethod:
     raise ValueError(f"unknown ts_type '{ts_type}' (known: {', '.join(TS_TYPES)})")
 
 
-def _combine(terms, i, j):
-    """sum_k c_k J_k[i][j] over the blocks that exist (None if none does)."""
-    forms = [c * blocks[i][j] for c, blocks in terms if blocks[i][j] is not None]
-    return sum(forms[1:], forms[0]) if forms else None
-
-
 @dataclass
 class TSStats:
     steps: int = 0
@@ -167,17 +160,10 @@ class TSIntegrator:
                       if self.second_order else "a first-order SemiDiscreteProblem")
             raise ValueError(f"ts_type '{ts_type}' needs {wanted}")
         self.a_shift = fem.Constant(mesh, 0.0)
-        terms = [(1.0, jacobian_blocks(problem.residual, y)),
-                 (self.shift, jacobian_blocks(problem.residual, y, wrt=ydot))]
-        if self.second_order:
-            terms.append((self.a_shift, jacobian_blocks(problem.residual, y,
-                                                         wrt=problem.accelerations)))
-        J = [[_combine(terms, i, j) for j in range(len(y))] for i in range(len(y))]
-        self.F = fem.form(problem.residual)
-        self.J = fem.form(J)
-        self.b = fem_petsc.create_vector_block(self.F)
-        self.x = fem_petsc.create_vector_block(self.F)
-        self.A = fem_petsc.create_matrix_block(self.J)
+        groups = [y, ydot] + ([problem.accelerations] if self.second_order else [])
+        terms = [(1.0, 0), (self.shift, 1)] + ([(self.a_shift, 2)] if self.second_order else [])
+        self.system = block_system(problem.residual, groups, terms, problem.bcs)
+        self.b, self.x, self.A = self.system.b, self.system.x, self.system.A
         self._x_prev = self.x.duplicate()
 
         self.ts = PETSc.TS().create(mesh.comm)
@@ -216,47 +202,41 @@ class TSIntegrator:
 
     # -- the DAE ----------------------------------------------------------------------
     def _set_time(self, t: float, x, xdot) -> None:
-        vec_to_functions(x, self.problem.fields)
-        vec_to_functions(xdot, self.problem.rates)
+        self.system.set(0, x)
+        self.system.set(1, xdot)
         self.problem.set_loads(t)
         self.problem.set_bcs(t)
 
     def _ifunction(self, ts, t, x, xdot, b):
         self._set_time(t, x, xdot)
-        with b.localForm() as bl:
-            bl.set(0.0)
-        fem_petsc.assemble_vector_block(b, self.F, self.J, bcs=self.problem.bcs, x0=x,
-                                        alpha=-1.0)
-        b.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        self.system.residual(x, b)
 
     def _i2function(self, ts, t, x, xdot, xddot, b):
-        vec_to_functions(xddot, self.problem.accelerations)
+        self.system.set(2, xddot)
         self._ifunction(ts, t, x, xdot, b)
 
     def _i2jacobian(self, ts, t, x, xdot, xddot, v_shift, a_shift, A, P):
-        vec_to_functions(xddot, self.problem.accelerations)
+        self.system.set(2, xddot)
         self.a_shift.value = a_shift
         self._ijacobian(ts, t, x, xdot, v_shift, A, P)
 
     def _ijacobian(self, ts, t, x, xdot, shift, A, P):
         self._set_time(t, x, xdot)
         self.shift.value = shift
-        A.zeroEntries()
-        fem_petsc.assemble_matrix_block(A, self.J, bcs=self.problem.bcs)
-        A.assemble()
+        self.system.jacobian(A)
 
     # -- accepted steps ---------------------------------------------------------------
     def _monitor(self, ts, step, t, x):
-        vec_to_functions(x, self.problem.fields)
+        self.system.set(0, x)
         h = t - self._t_accepted if self._t_accepted is not None else 0.0
         if self.second_order:  # TSALPHA2 carries the rate itself
-            vec_to_functions(ts.getSolution2()[1], self.problem.rates)
+            self.system.set(1, ts.getSolution2()[1])
             self.problem.after_step()
         elif h > 0:  # backward-difference rate of the accepted step
             rate = x.copy()
             rate.axpy(-1.0, self._x_prev)
             rate.scale(1.0 / h)
-            vec_to_functions(rate, self.problem.rates)
+            self.system.set(1, rate)
             rate.destroy()
         x.copy(self._x_prev)
         self._t_accepted = t
@@ -296,9 +276,9 @@ class TSIntegrator:
         self._dt_floor = (self.dt_min if self.dt_min is not None else
                           0.0 if self.adaptive else dt * 0.25 ** self.max_rejections)
         # initial rates: whatever the problem holds (used only by diagnostics at t0)
-        functions_to_vec(self.problem.fields, self.x)
+        self.system.get(0, self.x)
         if self.second_order:  # initial velocity: the problem's rates
-            functions_to_vec(self.problem.rates, self._v)
+            self.system.get(1, self._v)
             self.ts.setSolution2(self.x, self._v)
         self.ts.setTime(t0)
         self.ts.setTimeStep(min(dt, t_end - t0))
@@ -313,7 +293,7 @@ class TSIntegrator:
         self.stats.newton_iterations = self.ts.getSNESIterations()
         t = self._t_accepted
         if reason < 0 or t < t_end - 1e-10 * dt:
-            vec_to_functions(self._x_prev, self.problem.fields)
+            self.system.set(0, self._x_prev)
             raise IntegrationError(
                 f"TS {self.method.name} stopped at t = {t:.6g} ({_REASONS.get(reason, reason)}"
                 f", {self.stats.rejected} rejected steps, last dt = {self.ts.getTimeStep():.3g})",

@@ -1,0 +1,251 @@
+"""Residual vectors and Jacobians of blocked forms, as SNES and TS need them.
+
+A model writes one form per block (problem.SemiDiscreteProblem); this module assembles
+them in one of two layouts behind one interface (:func:`block_system`):
+
+    MonolithicSystem  every block in one mixed element: one kernel call per vector or
+                      matrix.  At rod sizes (10-100 cells) the blocked assembly's
+                      per-block calls cost 5x the kernels (docs/performance.md).
+    BlockedSystem     DOLFINx ``*_block`` assembly; needed when a block is a scifem real
+                      space (the uniform variant's global natural strains), which no mixed
+                      element can hold.
+
+Dirichlet conditions by row replacement: Jacobian rows of constrained dofs are identity
+rows, residual rows are x - g.  The columns stay, so no lifting is needed and Newton is
+exact also from iterates that violate the conditions (TS predictors, moving ends).
+"""
+
+from __future__ import annotations
+
+import basix.ufl
+import dolfinx.fem as fem
+import dolfinx.fem.petsc as fem_petsc
+import numpy as np
+import ufl
+from dolfinx.cpp.la.petsc import scatter_local_vectors
+from petsc4py import PETSc
+from ufl.algorithms import expand_derivatives
+
+
+def jacobian_blocks(F: list[ufl.Form], y: list[fem.Function], wrt=None) -> list[list]:
+    """dF_i/dy_j (or d/d wrt_j) as UFL forms; empty off-diagonal blocks are None.
+
+    Empty diagonal blocks stay as zero forms so that the block matrix has every diagonal
+    entry (identity rows of constrained dofs; explicit schemes' algebraic blocks).
+    """
+    wrt = y if wrt is None else wrt
+    J = []
+    for i, Fi in enumerate(F):
+        row = []
+        for j, (yj, xj) in enumerate(zip(y, wrt)):
+            du = ufl.TrialFunction(yj.function_space)
+            Jij = expand_derivatives(ufl.derivative(Fi, xj, du))
+            if Jij.empty():
+                Jij = None
+                if i == j:
+                    v = ufl.TestFunction(yj.function_space)
+                    zero = fem.Constant(yj.function_space.mesh, 0.0)
+                    Jij = zero * ufl.inner(du, v) * ufl.dx(domain=yj.function_space.mesh)
+            row.append(Jij)
+        J.append(row)
+    return J
+
+
+def _is_real(V) -> bool:
+    """A scifem real space: one global dof block on a mesh of several cells."""
+    tdim = V.mesh.topology.dim
+    return (V.dofmap.index_map.size_global == 1
+            and V.mesh.topology.index_map(tdim).size_global > 1)
+
+
+class _System:
+    """Shared part: Dirichlet rows (owned, in the vector layout) and their values."""
+
+    def _setup_bc_rows(self, bcs, offsets):
+        """offsets[j](dofs) -> local rows of the block-j dofs in this layout."""
+        spaces = [y.function_space for y in self.groups[0]]
+        self._bcs = []
+        rows = []
+        for bc in bcs:
+            j = next(k for k, V in enumerate(spaces)
+                     if V._cpp_object.contains(bc.function_space))
+            dofs, first_ghost = bc.dof_indices()
+            owned = dofs[:first_ghost]
+            rows.append(offsets(j, owned))
+            self._bcs.append((bc, j, owned))
+        self.bc_rows = (np.concatenate(rows) if rows else np.zeros(0, dtype=np.int32))
+        start = self.x.getOwnershipRange()[0]
+        self._bc_global = PETSc.IS().createGeneral(
+            (self.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        self._scratch = [np.zeros_like(y.x.array) for y in self.groups[0]]
+        self.A.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
+
+    def _bc_values(self) -> np.ndarray:
+        vals = []
+        for bc, j, owned in self._bcs:
+            bc.set(self._scratch[j])
+            vals.append(self._scratch[j][owned])
+        return np.concatenate(vals) if vals else np.zeros(0)
+
+    def _replace_bc_rows(self, x, b) -> None:
+        if len(self.bc_rows):
+            xa = x.getArray(readonly=True)
+            b.array_w[self.bc_rows] = xa[self.bc_rows] - self._bc_values()
+
+    def _identity_bc_rows(self, A) -> None:
+        A.zeroRows(self._bc_global, diag=1.0)
+
+
+class MonolithicSystem(_System):
+    """All blocks in one mixed element; block Functions mirror the mixed ones."""
+
+    def __init__(self, F, groups, jacobian_terms, bcs):
+        self.groups = groups
+        spaces = [y.function_space for y in groups[0]]
+        mesh = spaces[0].mesh
+        W = fem.functionspace(mesh, basix.ufl.mixed_element(
+            [V.ufl_element() for V in spaces]))
+        self.W = W
+        self.w = [fem.Function(W) for _ in groups]
+        # block j's local (unrolled) dofs -> W's local dofs, cell by cell
+        cells = mesh.topology.index_map(mesh.topology.dim)
+        ncells = cells.size_local + cells.num_ghosts
+        self._maps = []
+        for j, V in enumerate(spaces):
+            bs = V.dofmap.index_map_bs
+            cell_dofs = V.dofmap.list[:ncells]
+            unrolled = (cell_dofs[:, :, None] * bs + np.arange(bs)).reshape(ncells, -1)
+            m = np.empty(len(groups[0][j].x.array), dtype=np.int32)
+            m[unrolled.ravel()] = W.sub(j).dofmap.list[:ncells].ravel()
+            self._maps.append(m)
+        self._n_owned = W.dofmap.index_map.size_local
+
+        v = ufl.split(ufl.TestFunction(W))
+        mapping = {f: part for group, w in zip(groups, self.w)
+                   for f, part in zip(group, ufl.split(w))}
+        F_mixed = 0
+        for i, Fi in enumerate(F):
+            (arg,) = Fi.arguments()
+            F_mixed += ufl.replace(Fi, {**mapping, arg: v[i]})
+        dw = ufl.TrialFunction(W)
+        # One kernel per quadrature rule: FFCx 0.9 miscompiles mixed-element kernels that
+        # combine the vertex rule with Gauss rules (wrong vertex-rule terms, measured).
+        self.F, self.J = [], []
+        for part in _split_by_rule(F_mixed):
+            self.F.append(fem.form(part))
+            Jp = expand_derivatives(sum(c * ufl.derivative(part, self.w[k], dw)
+                                        for c, k in jacobian_terms))
+            if not Jp.empty():
+                self.J.append(fem.form(Jp))
+        self.x = fem_petsc.create_vector(self.F[0])
+        self.b = fem_petsc.create_vector(self.F[0])
+        self.A = fem_petsc.create_matrix(self.J[0])
+        self._setup_bc_rows(bcs, lambda j, dofs: self._maps[j][dofs])
+        if np.any(self.bc_rows >= self._n_owned):
+            raise RuntimeError("owned Dirichlet dof maps to a ghost of the mixed space")
+
+    def set(self, k: int, x) -> None:
+        """Vector -> group k (mixed Function and its block Functions, ghosts updated)."""
+        w = self.w[k]
+        w.x.array[:self._n_owned] = x.getArray(readonly=True)
+        w.x.scatter_forward()
+        for f, m in zip(self.groups[k], self._maps):
+            f.x.array[:] = w.x.array[m]
+
+    def get(self, k: int, x) -> None:
+        """Group k's block Functions -> vector."""
+        w = self.w[k]
+        for f, m in zip(self.groups[k], self._maps):
+            w.x.array[m] = f.x.array
+        x.array_w[:] = w.x.array[:self._n_owned]
+
+    def residual(self, x, b) -> None:
+        with b.localForm() as bl:
+            bl.set(0.0)
+        for form in self.F:
+            fem_petsc.assemble_vector(b, form)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        self._replace_bc_rows(x, b)
+
+    def jacobian(self, A) -> None:
+        A.zeroEntries()
+        for form in self.J:
+            fem_petsc.assemble_matrix(A, form)
+        A.assemble()
+        self._identity_bc_rows(A)
+
+
+class BlockedSystem(_System):
+    """DOLFINx blocked assembly (block vectors: the blocks' owned entries in turn)."""
+
+    def __init__(self, F, groups, jacobian_terms, bcs):
+        self.groups = groups
+        y = groups[0]
+        terms = [(c, jacobian_blocks(F, y, wrt=groups[k])) for c, k in jacobian_terms]
+        J = [[_combine(terms, i, j) for j in range(len(y))] for i in range(len(y))]
+        self.F, self.J = fem.form(F), fem.form(J)
+        self.x = fem_petsc.create_vector_block(self.F)
+        self.b = fem_petsc.create_vector_block(self.F)
+        self.A = fem_petsc.create_matrix_block(self.J)
+        sizes = [f.function_space.dofmap.index_map.size_local
+                 * f.function_space.dofmap.index_map_bs for f in y]
+        offsets = np.concatenate([[0], np.cumsum(sizes)])
+        self._sizes = sizes
+        self._setup_bc_rows(bcs, lambda j, dofs: (offsets[j] + dofs).astype(np.int32))
+
+    def set(self, k: int, x) -> None:
+        offset = 0
+        xa = x.getArray(readonly=True)
+        for f, n in zip(self.groups[k], self._sizes):
+            f.x.array[:n] = xa[offset:offset + n]
+            f.x.scatter_forward()
+            offset += n
+
+    def get(self, k: int, x) -> None:
+        maps = [(f.function_space.dofmap.index_map, f.function_space.dofmap.index_map_bs)
+                for f in self.groups[k]]
+        scatter_local_vectors(x, [f.x.array for f in self.groups[k]], maps)
+        x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+
+    def residual(self, x, b) -> None:
+        with b.localForm() as bl:
+            bl.set(0.0)
+        fem_petsc.assemble_vector_block(b, self.F, self.J, bcs=[])
+        self._replace_bc_rows(x, b)
+
+    def jacobian(self, A) -> None:
+        A.zeroEntries()
+        fem_petsc.assemble_matrix_block(A, self.J, bcs=[])
+        A.assemble()
+        self._identity_bc_rows(A)
+
+
+def _split_by_rule(form: ufl.Form) -> list[ufl.Form]:
+    """The integrals of ``form`` grouped by their quadrature metadata, one form each."""
+    groups: dict = {}
+    for itg in form.integrals():
+        groups.setdefault(tuple(sorted(itg.metadata().items())), []).append(itg)
+    return [ufl.Form(itgs) for itgs in groups.values()]
+
+
+def _combine(terms, i, j):
+    """sum_k c_k J_k[i][j] over the blocks that exist (None if none does)."""
+    forms = [blocks[i][j] if isinstance(c, float) and c == 1.0 else c * blocks[i][j]
+             for c, blocks in terms if blocks[i][j] is not None]
+    return sum(forms[1:], forms[0]) if forms else None
+
+
+def block_system(F: list[ufl.Form], groups: list[list[fem.Function]],
+                 jacobian_terms=((1.0, 0),), bcs=(), monolithic: bool | None = None):
+    """The assembled system of block residuals ``F`` (F_i linear in a test function on
+    the space of groups[0][i]).
+
+    groups:          lists of block Functions the forms depend on and the caller sets
+                     from vectors: groups[0] the unknowns y, then e.g. dy/dt for TS.
+    jacobian_terms:  [(c, k)]: J = sum c dF/d(groups[k]) (c a float or fem.Constant).
+    monolithic:      None: mixed element unless a block is a real space.
+    """
+    if monolithic is None:
+        monolithic = not any(_is_real(f.function_space) for f in groups[0])
+    cls = MonolithicSystem if monolithic else BlockedSystem
+    return cls(list(F), [list(g) for g in groups], list(jacobian_terms), list(bcs))
