@@ -40,7 +40,7 @@ def plot_scaling(path_json, path_png):
     import matplotlib.pyplot as plt
     rows = json.loads(path_json.read_text())["rows"]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    for label, mk in (("default", "o"), ("reuse", "s")):
+    for label, mk in (("default", "o"), ("native", "^"), ("tuned", "s")):
         rr = [r for r in rows if r["config"] == label]
         if not rr:
             continue
@@ -61,7 +61,7 @@ def plot_scaling(path_json, path_png):
         axes[1].bar(labels, frac, bottom=bottom, label=k)
         bottom += frac
     axes[1].set_ylabel("fraction of step time")
-    axes[1].set_title("d: default (Newton, LU every iteration), r: reuse")
+    axes[1].set_title("d: default (Newton, MUMPS), n: native LU, t: native + reuse")
     axes[1].tick_params(axis="x", rotation=45, labelsize=7)
     axes[1].legend(fontsize=8)
     fig.tight_layout()

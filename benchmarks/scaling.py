@@ -30,7 +30,12 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from peer_pyelastica import REUSE  # noqa: E402  (LU + Jacobian reuse, every 10 its)
+
+
+def configs():
+    """default: Newton + MUMPS; native: PETSc's LU; tuned: native + Jacobian/LU reuse."""
+    from dolfin_rod.solvers import JACOBIAN_REUSE, NATIVE_LU
+    return {"default": None, "native": NATIVE_LU, "tuned": {**NATIVE_LU, **JACOBIAN_REUSE}}
 
 
 def profiled_run(n_cells: int, steps: int, dt: float = 1e-3, options=None, scene="elastic"):
@@ -121,15 +126,16 @@ def main() -> None:
     folder = ROOT / "results" / "bench"
     folder.mkdir(parents=True, exist_ok=True)
     if args.mpi_size:
-        r = profiled_run(args.mpi_size, 5, options=options or REUSE)
+        from dolfin_rod.solvers import JACOBIAN_REUSE  # MUMPS: PETSc's LU is serial
+        r = profiled_run(args.mpi_size, 5, options=options or JACOBIAN_REUSE)
         if comm.rank == 0:
             print(json.dumps(r))
             (folder / f"mpi_np{comm.size}{args.tag}.json").write_text(json.dumps(r, indent=1))
         return
     sizes = [100, 1000, 10000] if args.quick else [100, 1000, 10000, 100000]
     rows = []
-    configs = {"default": None, "reuse": REUSE} if options is None else {"custom": options}
-    for (label, opts), n in itertools.product(configs.items(), sizes):
+    runs = configs() if options is None else {"custom": options}
+    for (label, opts), n in itertools.product(runs.items(), sizes):
         r = profiled_run(n, 5 if n >= 100000 else 10, options=opts)
         r["config"] = label
         rows.append(r)

@@ -28,6 +28,27 @@ DEFAULT_OPTIONS = {
     "pc_type": "lu",
     "pc_factor_mat_solver_type": "mumps",
 }
+# PETSc's own LU, one rank only: 5-8x cheaper factorisations than MUMPS on the rods'
+# banded systems, 16 to 4096 cells (docs/performance.md).  It does not pivot: the zero
+# diagonals of the multipliers (gauge, constraints) are permuted off the diagonal first,
+# a heuristic (with the "qmd" ordering it crashed PETSc 3.22 on a dynamic rod), hence
+# opt-in, for benchmarked model classes.  Use as BlockSNES/TimeStepper solver_options.
+NATIVE_LU = {
+    "pc_factor_mat_solver_type": "petsc",
+    "pc_factor_mat_ordering_type": "rcm",
+    "pc_factor_nonzeros_along_diagonal": 1e-12,
+}
+
+
+def solver_options(comm, options: dict | None) -> dict:
+    """DEFAULT_OPTIONS updated by ``options``; PETSc's LU on several ranks is an error."""
+    merged = {**DEFAULT_OPTIONS, **(options or {})}
+    if comm.size > 1 and merged.get("pc_type") == "lu" and \
+            merged.get("pc_factor_mat_solver_type") == "petsc":
+        raise ValueError("pc_factor_mat_solver_type 'petsc' (NATIVE_LU) is serial; under "
+                         "MPI use 'mumps' or 'superlu_dist'")
+    return merged
+
 # Modified Newton for dynamics with small steps: the Jacobian and its LU are refreshed
 # every 10 iterations and kept across time steps; 3-4x cheaper steps from 1e3 cells
 # (docs/performance.md).  Large quasi-static load steps diverge with a stale Jacobian.
@@ -60,6 +81,7 @@ class BlockSNES:
     def __init__(self, F: list[ufl.Form], y: list[fem.Function], bcs=(), options=None,
                  prefix: str | None = None, monolithic: bool | None = None):
         self.y = y
+        settings = solver_options(y[0].function_space.mesh.comm, options)
         self.system = block_system(F, [y], bcs=bcs, monolithic=monolithic)
         self.x = self.system.x
         self.snes = PETSc.SNES().create(self.x.getComm())
@@ -68,9 +90,11 @@ class BlockSNES:
         self.prefix = prefix or f"dolfin_rod_{next(_ids)}_"
         self.snes.setOptionsPrefix(self.prefix)
         opts = PETSc.Options()
-        for k, v in {**DEFAULT_OPTIONS, **(options or {})}.items():
+        for k, v in settings.items():
             opts[self.prefix + k] = v
         self.snes.setFromOptions()
+        self._persists = tuple(str(settings.get(f"snes_lag_{k}_persists", False)).lower()
+                               in ("true", "1", "yes") for k in ("jacobian", "preconditioner"))
         self.iterations = 0
 
     def _residual(self, snes, x, b):
@@ -80,10 +104,27 @@ class BlockSNES:
     def _jacobian(self, snes, x, A, P):
         self.system.jacobian(A)
 
-    def solve(self) -> int:
-        """Newton from the current ``y``; on success ``y`` holds the solution."""
+    def _set_persists(self, flags) -> None:
+        opts = PETSc.Options()
+        for k, flag in zip(("jacobian", "preconditioner"), flags):
+            opts[f"{self.prefix}snes_lag_{k}_persists"] = flag
+        self.snes.setFromOptions()
+
+    def solve(self, fresh_jacobian: bool = False) -> int:
+        """Newton from the current ``y``; on success ``y`` holds the solution.
+
+        fresh_jacobian: start from a new Jacobian even if a lagged one persists across
+        solves (JACOBIAN_REUSE): the caller knows the forms changed, e.g. a new dt.
+        """
         self.system.get(0, self.x)
-        self.snes.solve(None, self.x)
+        fresh = fresh_jacobian and any(self._persists)
+        if fresh:  # (petsc4py 3.22 has no SNESSetLag*Persists: via the options database)
+            self._set_persists((False, False))
+        try:
+            self.snes.solve(None, self.x)
+        finally:
+            if fresh:
+                self._set_persists(self._persists)
         reason = self.snes.getConvergedReason()
         self.iterations = self.snes.getIterationNumber()
         if reason <= 0 or not np.isfinite(self.snes.getFunctionNorm()):

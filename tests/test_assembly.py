@@ -1,9 +1,10 @@
-"""The two assembly layouts (dolfin_rod.assembly) assemble the same system.
+"""What the speed options may change: the Newton path, never the solution.
 
-Reference: DOLFINx's blocked assembly (BlockedSystem), which the mixed-element layout
-(MonolithicSystem) must reproduce block by block, at a random state, for the residual
-and for the Jacobian's action on a random vector; and the predictor of TimeStepper,
-which may change the Newton path but not the solution.
+References: DOLFINx's blocked assembly (BlockedSystem), which the mixed-element layout
+(MonolithicSystem) must reproduce block by block at a random state (residual, and the
+Jacobian's action on a random vector); full Newton from the constant predictor with
+MUMPS, which the linear predictor and PETSc's own LU (solvers.NATIVE_LU) must reproduce
+to the Newton tolerance.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from dolfin_rod import loads
 from dolfin_rod.assembly import BlockedSystem, MonolithicSystem, block_system
 from dolfin_rod.integrators.stepper import TimeStepper
 from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
+from dolfin_rod.solvers import NATIVE_LU
 from dolfin_rod.torsion import TorsionModel, TorsionParameters
 
 
@@ -128,3 +130,22 @@ def test_linear_predictor_saves_newton_iterations_not_accuracy():
     assert its_lin < its_const, (its_lin, its_const)
     with pytest.raises(ValueError, match="predictor"):
         TimeStepper(model.problem, predictor="quadratic")
+
+
+@pytest.mark.mpi
+def test_native_lu_gives_the_mumps_states_and_is_refused_in_parallel():
+    """PETSc's LU with the multipliers' zero diagonals permuted away solves the same
+    Newton systems as MUMPS (pivoting): same states to the Newton tolerance.  Under MPI
+    it does not exist, and asking for it is a ValueError before any assembly."""
+    model = creeping_cantilever(8)
+    if model.mesh.comm.size > 1:
+        with pytest.raises(ValueError, match="pc_factor_mat_solver_type"):
+            TimeStepper(model.problem, "generalized_alpha", solver_options=NATIVE_LU).step(0.0, 0.01)
+        return
+    states = []
+    for options in ({}, NATIVE_LU):
+        model = creeping_cantilever(8)
+        TimeStepper(model.problem, "generalized_alpha", solver_options=options).run(0.0, 0.2, 0.01)
+        states.append(model.f["displacement"].x.array.copy())
+    assert np.abs(states[0]).max() > 0.05
+    assert states[1] == pytest.approx(states[0], abs=1e-8)

@@ -57,13 +57,15 @@ class _StepResidual:
             self.stage_loads.append((st.c, loads))
             F = [Fi + st.w * ufl.replace(Ri, mapping) for Fi, Ri in zip(F, problem.residual)]
         self.solver = BlockSNES(F, y, problem.bcs, options)
+        self._dt_last = None
 
     def solve(self, t_n: float, dt: float) -> int:
         for c, loads in self.stage_loads:
             for const, load in loads:
                 const.value[...] = load.at(t_n + c * dt)
         self.problem.set_bcs(t_n + dt)
-        return self.solver.solve()
+        fresh, self._dt_last = dt != self._dt_last, dt  # a reused Jacobian holds the old dt
+        return self.solver.solve(fresh_jacobian=fresh)
 
 
 @dataclass

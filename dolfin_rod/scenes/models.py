@@ -275,14 +275,13 @@ class FESimulation:
 
     def __init__(self, name: str, model, scene: Scene, initial_state: Callable[[], float]):
         from ..integrators.stepper import TimeStepper
-        from ..solvers import DEFAULT_OPTIONS
         tim = scene["time"]
         self.name, self.model, self.scene = name, model, scene
         self.problem = model.problem
         self.comm = self.problem.comm
         self.fields = list(self.problem.fields)
         self._initial_state = initial_state
-        options = {**DEFAULT_OPTIONS, "snes_rtol": tim["rtol"], "snes_atol": tim["atol"]}
+        options = {"snes_rtol": tim["rtol"], "snes_atol": tim["atol"]}
         self.stepper = TimeStepper(self.problem, tim["scheme"], options,
                                    max_cuts=tim["max_step_cuts"])
         self.integrator = tim["integrator"]
