@@ -61,8 +61,8 @@ def _is_real(V) -> bool:
 class _System:
     """Shared part: Dirichlet rows (owned, in the vector layout) and their values."""
 
-    def _setup_bc_rows(self, bcs, offsets):
-        """offsets[j](dofs) -> local rows of the block-j dofs in this layout."""
+    def _setup_bc_rows(self, bcs, rows_of):
+        """rows_of(j, dofs): local rows of block j's (unrolled, owned) dofs."""
         spaces = [y.function_space for y in self.groups[0]]
         self._bcs = []
         rows = []
@@ -71,7 +71,7 @@ class _System:
                      if V._cpp_object.contains(bc.function_space))
             dofs, first_ghost = bc.dof_indices()
             owned = dofs[:first_ghost]
-            rows.append(offsets(j, owned))
+            rows.append(rows_of(j, owned))
             self._bcs.append((bc, j, owned))
         self.bc_rows = (np.concatenate(rows) if rows else np.zeros(0, dtype=np.int32))
         start = self.x.getOwnershipRange()[0]

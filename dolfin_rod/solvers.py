@@ -38,17 +38,6 @@ NATIVE_LU = {
     "pc_factor_mat_ordering_type": "rcm",
     "pc_factor_nonzeros_along_diagonal": 1e-12,
 }
-
-
-def solver_options(comm, options: dict | None) -> dict:
-    """DEFAULT_OPTIONS updated by ``options``; PETSc's LU on several ranks is an error."""
-    merged = {**DEFAULT_OPTIONS, **(options or {})}
-    if comm.size > 1 and merged.get("pc_type") == "lu" and \
-            merged.get("pc_factor_mat_solver_type") == "petsc":
-        raise ValueError("pc_factor_mat_solver_type 'petsc' (NATIVE_LU) is serial; under "
-                         "MPI use 'mumps' or 'superlu_dist'")
-    return merged
-
 # Modified Newton for dynamics with small steps: the Jacobian and its LU are refreshed
 # every 10 iterations and kept across time steps; 3-4x cheaper steps from 1e3 cells
 # (docs/performance.md).  Large quasi-static load steps diverge with a stale Jacobian.
@@ -60,6 +49,16 @@ JACOBIAN_REUSE = {
     "snes_lag_preconditioner_persists": True,
 }
 _ids = itertools.count()
+
+
+def petsc_options(comm, options: dict | None) -> dict:
+    """DEFAULT_OPTIONS updated by ``options``; PETSc's LU on several ranks is an error."""
+    merged = {**DEFAULT_OPTIONS, **(options or {})}
+    if comm.size > 1 and merged.get("pc_type") == "lu" and \
+            merged.get("pc_factor_mat_solver_type") == "petsc":
+        raise ValueError("pc_factor_mat_solver_type 'petsc' (NATIVE_LU) is serial; under "
+                         "MPI use 'mumps' or 'superlu_dist'")
+    return merged
 
 
 class SolverError(RuntimeError):
@@ -79,10 +78,10 @@ class BlockSNES:
     """
 
     def __init__(self, F: list[ufl.Form], y: list[fem.Function], bcs=(), options=None,
-                 prefix: str | None = None, monolithic: bool | None = None):
+                 prefix: str | None = None):
         self.y = y
-        settings = solver_options(y[0].function_space.mesh.comm, options)
-        self.system = block_system(F, [y], bcs=bcs, monolithic=monolithic)
+        settings = petsc_options(y[0].function_space.mesh.comm, options)
+        self.system = block_system(F, [y], bcs=bcs)
         self.x = self.system.x
         self.snes = PETSc.SNES().create(self.x.getComm())
         self.snes.setFunction(self._residual, self.system.b)

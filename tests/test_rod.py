@@ -534,6 +534,7 @@ def test_prescribed_end_displacement_and_reaction_of_a_viscous_bar():
 
 
 
+@pytest.mark.mpi
 def test_jacobian_reuse_gives_the_same_dynamics():
     """solvers.JACOBIAN_REUSE (modified Newton, docs/performance.md) only changes the path
     to each step's solution: a cantilever swinging down under gravity (generalized-alpha,

@@ -49,7 +49,7 @@ from petsc4py import PETSc
 
 from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..assembly import block_system
-from ..solvers import solver_options as merged_solver_options
+from ..solvers import petsc_options
 from .stepper import IntegrationError
 
 # Design orders of the ARKIMEX tableaux (implicit part), PETSc's TSARKIMEX names.
@@ -146,7 +146,7 @@ class TSIntegrator:
                 raise ValueError(f"{name} must be a finite number > 0, got {value}")
         if not (isinstance(max_rejections, int) and max_rejections >= 0):
             raise ValueError(f"max_rejections must be an integer >= 0, got {max_rejections!r}")
-        solver_settings = merged_solver_options(problem.comm, solver_options)
+        solver_settings = petsc_options(problem.comm, solver_options)
         self.problem, self.adaptive, self.dt_min = problem, adaptive, dt_min
         self.max_rejections = max_rejections
         y, ydot = problem.fields, problem.rates
