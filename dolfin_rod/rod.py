@@ -48,7 +48,7 @@ from .evolution import check_variant, evolution_residual, real_space
 from .kinematics import material_curvature, material_stretch, strain_rates
 from .problem import SemiDiscreteProblem, TimeDependentValue
 from .rotations import (material_derivative_vector, np_qmul, np_quaternion_from_rotation_vector,
-                        qmul)
+                        qmul, rotation_matrix)
 
 MODELS = ("evolving", "kelvin_voigt", "hyperelastic")
 END_TYPES = ("clamped", "pinned", "free")
@@ -611,3 +611,29 @@ class RodModel:
         e = fem.Expression(expr, pts)
         n = self.mesh.topology.index_map(1).size_local
         return e.eval(self.mesh, np.arange(n, dtype=np.int32)).reshape(n, -1)
+
+    def observables(self) -> dict:
+        """What a mechanician reads, as UFL expressions of the current state and rates:
+        centre line r = X + x (X = s e_3), directors d_i = R e_i, strains u, v, natural
+        strains u_d, v_d, reference strains u_ref, v_ref, contact force n and couple m in
+        material (``n``, ``m``) and spatial (``n_spatial`` = R n, ``m_spatial`` = R m)
+        components, dissipation rate xi (eq. disspw).  Used by the run outputs."""
+        q, x = self.f["quaternion"], self.f["displacement"]
+        s = ufl.SpatialCoordinate(self.mesh)[0]
+        R = rotation_matrix(q)
+        u_ref, v_ref = self._reference
+        zero = ufl.as_vector((0.0, 0.0, 0.0))
+        n = self.n if self.n is not None else zero
+        u_d, v_d = u_ref, v_ref
+        if self.evolving:
+            u_d = self.f["natural_curvature"]
+            v_d = self.f.get("natural_stretch", v_ref)
+            if self.constraint == "unshearable":
+                v_d = ufl.as_vector((0.0, 0.0, v_d))
+        out = {"centre_line": ufl.as_vector((0.0, 0.0, s)) + x}
+        out.update({f"d{i + 1}": ufl.as_vector([R[j, i] for j in range(3)]) for i in range(3)})
+        out.update({"u": self.u, "v": self.v, "u_d": u_d, "v_d": v_d, "u_ref": u_ref,
+                    "v_ref": v_ref, "n": n, "m": self.m, "n_spatial": ufl.dot(R, n),
+                    "m_spatial": ufl.dot(R, self.m), "xi": self.xi})
+        return out
+

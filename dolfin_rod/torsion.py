@@ -141,6 +141,7 @@ class TorsionModel:
         psi, dpsi_du, _, dpsi_dud, _ = derivatives(psi_fn, self.u_d, None, u, None)
         u_t = w.dx(0)
         torsion = dpsi_du + coef["mu"] * u_t            # m = dpsi/du + M du/dt (eq. mconsteq)
+        self._torsion = torsion
 
         self.loads: list[TimeDependentValue] = []
         F_phi = torsion * eta.dx(0) * dx
@@ -266,6 +267,13 @@ class TorsionModel:
         xi.interpolate(fem.Expression(self.xi, Q.element.interpolation_points()))
         n = Q.dofmap.index_map.size_local
         return xi.x.array[:n].copy()
+
+    def observables(self) -> dict:
+        """What a reader of Section 5 looks at, as UFL expressions of the current state:
+        twist angle phi, twist u = phi_s, natural twist u_d, torsion m (eq. mconsteq) and
+        dissipation rate xi.  Used by the run outputs."""
+        return {"phi": self.phi, "u": self.phi.dx(0), "u_d": self.u_d, "m": self._torsion,
+                "xi": self.xi}
 
     # -- initial state ----------------------------------------------------------------
     def set_initial_state(self, natural_twist: float = 0.0) -> float:

@@ -390,7 +390,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "outputs": {
         "directory": Key(string, "results", "parent folder of the run folders"),
         "every": Key(integer(1), 1, "write fields every N steps"),
-        "fields": Key(boolean, True, "ParaView fields (.bp) of FE models"),
+        "fields": Key(boolean, True, "rod.bp for ParaView (ADIOS2VTXReader): the deformed "
+                                     "centre line with directors, strains, natural strains, "
+                                     "forces, dissipation (FE models)"),
+        "animation": Key(boolean, True, "3-D rod: animation.gif and snapshots.png of the "
+                                        "moving centre line coloured by |u_d - u_ref|; "
+                                        "torsion: spacetime.png of phi(s, t), u_d(s, t)"),
         "plots": Key(boolean, True, "PNG plots of the main histories"),
         "checkpoint_every": Key(integer(0), 0, "adios4dolfinx checkpoint every N steps (0: off)"),
         "progress": Key(boolean, True, "tqdm progress bar (rank 0, TTY, not CI)"),
