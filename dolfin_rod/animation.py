@@ -81,6 +81,7 @@ def _setup_3d(ax, box, title=""):
     ax.set_xlim(lo[0], hi[0]), ax.set_ylim(lo[1], hi[1]), ax.set_zlim(lo[2], hi[2])
     ax.set_xlabel("x"), ax.set_ylabel("y"), ax.set_zlabel("z")
     ax.set_box_aspect((1, 1, 1))
+    ax.view_init(elev=18, azim=-72)
     ax.set_title(title, fontsize=9)
 
 
