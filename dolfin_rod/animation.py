@@ -34,13 +34,14 @@ class FrameStore:
         self.last = None
 
     def add(self, t: float, sample) -> None:
+        frame = (t, sample)
         if self.count % self.stride == 0:
-            self.frames.append((t, sample))
+            self.frames.append(frame)
             if len(self.frames) > self.max_frames:
                 self.frames = self.frames[::2]
                 self.stride *= 2
         self.count += 1
-        self.last = (t, sample)
+        self.last = frame
 
     def all(self) -> list:
         """The kept frames and the latest one."""
