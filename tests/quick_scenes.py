@@ -9,7 +9,7 @@ import sys
 import tomllib
 from pathlib import Path
 
-from dolfin_rod.scenes import Scene, validate
+from dolfin_rod.scenes import Scene, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -17,18 +17,15 @@ ROOT = Path(__file__).resolve().parents[1]
 def quick_scene(path: Path | str, steps: int = 4, **overrides) -> Scene:
     """The scene at ``path`` run for ``steps`` time steps; ``overrides`` as
     table__key=value (e.g. geometry__n_cells=8) replace keys first."""
-    path = Path(path)
-    raw = tomllib.loads(path.read_text())
-    for name, value in overrides.items():
-        table, key = name.split("__")
-        raw.setdefault(table, {})[key] = value
-    raw["time"]["t_end"] = steps * raw["time"]["dt"]
-    raw.setdefault("outputs", {}).setdefault("progress", False)
-    return validate(raw, str(path), path.stem)
+    dt = tomllib.loads(Path(path).read_text())["time"]["dt"]
+    changes = {"time.t_end": steps * dt, "outputs.progress": False}
+    changes.update({name.replace("__", "."): value for name, value in overrides.items()})
+    return load_scene(path, changes)
 
 
-def run_serially(path: Path | str, out: Path, steps: int = 4, **overrides) -> dict:
-    """run_scene(quick_scene(...)) in a separate single-process Python (for MPI tests)."""
+def run_serially(path: Path | str, out: Path, steps: int = 4, **overrides) -> str:
+    """run_scene(quick_scene(...)) in a separate single-process Python (for MPI tests);
+    returns the run's status."""
     from serial_reference import _singleton_env
     code = ("import sys, json; sys.path.insert(0, %r); from quick_scenes import quick_scene; "
             "from dolfin_rod.cli import run_scene; "

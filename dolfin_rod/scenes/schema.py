@@ -29,8 +29,8 @@ import numpy as np
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 
-__all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "load_scene", "parse_scene",
-           "SCHEMA", "MODEL_NAMES"]
+__all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "Tensor", "load_scene",
+           "parse_scene", "load_entry_point", "SCHEMA", "SCHEMA_NOTES", "MODEL_NAMES"]
 
 MODEL_NAMES = ("auto", "ode", "torsion", "rod")
 VARIANTS = ("local", "uniform")
@@ -491,6 +491,29 @@ class Key:
     doc: str = ""
 
 
+SCHEMA_NOTES = """\
+**Two kinds of scene.** A scene with `material.stiffness`/`viscosity` (or density,
+section_inertia, drag) is a **3-D rod** (RodModel): it is in the user's consistent units,
+e.g. SI: lengths in m, time in s, A = (EI_1, EI_2, GJ) in N m^2, B = (GA_1, GA_2, EA) in N,
+M, M_d in N m^2 s, N, N_d in N s, density rho A in kg/m, section_inertia rho I in kg m,
+gravity in m/s^2, forces in N, couples in N m, distributed loads per metre
+(`scenes/gravity_cantilever.toml` is an SI example).  Otherwise it is a **torsion** scene
+(the ODE or TorsionModel): the paper's dimensionless Section 5.1 variables (alpha, alpha_d,
+mu, mu_d, nu; s in [0, 1], errata item 5).  Keys marked "3-D rod:" or "torsion:" belong to
+one kind; giving one to the other kind is an error.
+
+**Values.** A load history is a table `{type = "step" | "ramp" | "smooth_step" | "table" |
+"constant", ...}` with `value`, `t0` (step), `duration` (ramp, smooth step), `times` and
+`values` (table); rod loads and end motions take `value = [x, y, z]` (a table: `values` of
+3-vectors), end loads also `follower = true` (components in the end's material frame).
+A torsion coefficient or a density/drag/profile is a number or `{polynomial = [c0, c1,
+...]}` in s.  A rod tensor (A, B, A_d, B_d, M, N, M_d, N_d) is `[a, b, c]` (diagonal),
+`[[..], [..], [..]]` (a full symmetric 3x3 matrix) or `{polynomial = [T0, T1, ...]}`
+(T(s) = T0 + T1 s + ..., each T_k diagonal or 3x3; s in [0, L]).  The uniform variant's
+law integrates over s (eq. unatevolunif), so its M_d carries a length factor:
+switching variant on a rod with L != 1 rescales time by L.
+"""
+
 R = "3-D rod: "
 T = "torsion: "
 SCHEMA: dict[str, dict[str, Key]] = {
@@ -682,8 +705,10 @@ class Scene:
         return SceneError(self.source, key, reason)
 
 
-def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene file; every failure is a SceneError."""
+def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
+    """Read and validate a scene file; every failure is a SceneError.  ``overrides``
+    {"table.key": value} (None: remove the key) change the file's values first, e.g.
+    ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``."""
     path = Path(path)
     try:
         raw = path.read_bytes()
@@ -693,20 +718,54 @@ def load_scene(path: str | Path) -> Scene:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as err:
         raise SceneError(str(path), "", f"not UTF-8 text: {err.reason} at byte {err.start}") from None
-    return parse_scene(text, source=str(path), default_name=path.stem)
+    return parse_scene(text, source=str(path), default_name=path.stem, overrides=overrides)
 
 
-def parse_scene(text: str, source: str = "<string>", default_name: str = "scene") -> Scene:
-    """Parse and validate TOML text; every failure is a SceneError."""
+def parse_scene(text: str, source: str = "<string>", default_name: str = "scene",
+                overrides: dict[str, Any] | None = None) -> Scene:
+    """Parse and validate TOML text (with ``overrides``, see load_scene); every failure
+    is a SceneError.  ``scene.text`` is the scene as run (the overridden values in)."""
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise SceneError(source, "", f"invalid TOML: {err}") from None
     except (ValueError, TypeError, RecursionError) as err:   # e.g. lone surrogates
         raise SceneError(source, "", f"invalid TOML: {err}") from None
+    if overrides:
+        for name, value in overrides.items():
+            table, _, key = name.partition(".")
+            if not key:
+                raise SceneError(source, name, "an override is named \"table.key\"")
+            section = raw.setdefault(table, {})
+            if value is None:
+                section.pop(key, None)
+            elif isinstance(section, dict):
+                section[key] = value
+        text = f"# {source} with overrides {overrides}\n" + to_toml(raw)
     scene = validate(raw, source, default_name)
     scene.text = text
     return scene
+
+
+def to_toml(raw: dict) -> str:
+    """A scene dict as TOML (tables of keys with inline values), for scene.toml."""
+    def value(v) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, (int, float)):
+            return repr(v)
+        if isinstance(v, str):
+            return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        if isinstance(v, (list, tuple)):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
+    out = []
+    for table, keys in raw.items():
+        out.append(f"[{table}]")
+        out += [f"{k if k.replace('_', '').isalnum() else value(k)} = {value(v)}"
+                for k, v in keys.items()]
+        out.append("")
+    return "\n".join(out)
 
 
 def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> Scene:
