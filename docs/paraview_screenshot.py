@@ -11,7 +11,7 @@ fields: s, d1, d2, d3.
 
 import sys
 
-from paraview.simple import (ADIOS2VTXReader, ColorBy, ExtractSurface, GetActiveViewOrCreate,
+from paraview.simple import (ADIOS2VTXReader, ColorBy, ExtractSurface, ForceTime, GetActiveViewOrCreate,
                              GetAnimationScene, GetColorTransferFunction, Glyph, Hide,
                              ResetCamera, SaveScreenshot, Show, Tube)
 
@@ -27,6 +27,11 @@ view.ViewSize = [900, 700]
 view.ViewTime = times[-1]                       # the last step: the deformed rod
 line = ExtractSurface(Input=reader)             # polylines for the Tube filter
 last = Tube(Input=line, Radius=0.02)
+start = ForceTime(Input=line, ForcedTime=times[0], IgnorePipelineTime=1)
+shown_start = Show(Tube(Input=start, Radius=0.01), view)   # the reference line, t = 0
+shown_start.DiffuseColor = [0.55, 0.55, 0.55]
+shown_start.AmbientColor = [0.55, 0.55, 0.55]
+shown_start.ColorArrayName = ["POINTS", ""]
 shown = Show(last, view)
 association = "CELLS" if field not in ("s", "d1", "d2", "d3") else "POINTS"
 ColorBy(shown, (association, field, "Magnitude"))
@@ -36,9 +41,10 @@ shown.RescaleTransferFunctionToDataRange(True, False)
 directors = Glyph(Input=reader, GlyphType="Arrow", OrientationArray=["POINTS", "d1"],
                   ScaleArray=["POINTS", "No scale array"], ScaleFactor=0.06)
 Show(directors, view).DiffuseColor = [0.8, 0.2, 0.2]
-view.CameraPosition = [2.5, -2.5, 1.2]
-view.CameraFocalPoint = [0.0, 0.0, 0.5]
-view.CameraViewUp = [0.0, 0.0, 1.0]
+view.CameraPosition = [-0.3, 4.5, 0.4]         # looking along -y; x (against gravity
+view.CameraFocalPoint = [-0.3, 0.0, 0.4]        # in gravity_cantilever.toml) points up
+view.CameraViewUp = [1.0, 0.0, 0.0]
+view.OrientationAxesVisibility = 1
 ResetCamera()
 SaveScreenshot(out, view, ImageResolution=[900, 700])
 print(f"{path}: {len(times)} steps, t = {times[0]:g} .. {times[-1]:g}; wrote {out}")

@@ -108,7 +108,8 @@ class RunWriter:
         self._csv = None
         self._kept: list[dict] = []
         self.columns: list[str] | None = None
-        self.lines = FieldOutputs(self.folder, sim, comm, self.outputs) \
+        self.lines = FieldOutputs(self.folder, getattr(sim, "model", None), comm,
+                                  self.outputs["fields"], self.outputs["animation"]) \
             if self.outputs["fields"] or self.outputs["animation"] else None
         self.resume = resume
 
@@ -247,14 +248,21 @@ class RunWriter:
 
 
 class FieldOutputs:
-    """The fields along the rod of an FE model: ``rod.bp`` (ParaView) and the pictures
-    of animation.py, from LineSampler samples gathered on rank 0.  ODE runs: nothing."""
+    """The fields along the rod of an FE model (RodModel or TorsionModel, anything with
+    ``observables()``): ``rod.bp`` (ParaView) and the pictures of animation.py, from
+    LineSampler samples gathered on rank 0.  ``model = None`` (ODE runs): nothing.
+    Usable from scripts:
+
+        out = FieldOutputs(folder, model, comm)     # collective
+        ... out.write(t) after each step (collective) ...
+        out.finish("title")                         # rank 0: close rod.bp, draw
+    """
 
     POINT = ("centre_line", "d1", "d2", "d3", "phi")    # vertex values; others per cell
 
-    def __init__(self, folder: Path, sim, comm, outputs: dict):
-        self.folder, self.outputs, self.comm = folder, outputs, comm
-        model = getattr(sim, "model", None)
+    def __init__(self, folder: Path, model, comm, fields: bool = True, animation: bool = True):
+        self.folder, self.comm = Path(folder), comm
+        self.outputs = {"fields": fields, "animation": animation}
         self.sampler = None
         if model is not None and hasattr(model, "observables"):
             from .line_fields import LineSampler
@@ -295,6 +303,8 @@ class FieldOutputs:
     def finish(self, title: str) -> None:
         """Rank 0: close rod.bp; the animation and pictures (outputs.animation)."""
         from . import animation
+        if self.comm.rank != 0:
+            return
         if self.vtx is not None:
             self.vtx.close()
         frames = self.frames.all() if self.frames is not None else []
