@@ -175,16 +175,7 @@ def coefficient(strict: bool):
 
     def check(v):
         if isinstance(v, dict):
-            _unknown(v, {"polynomial"})
-            if "polynomial" not in v:
-                raise _Bad("missing required key", "polynomial")
-            p = v["polynomial"]
-            if not isinstance(p, list) or not p:
-                raise _Bad("must be a non-empty array of numbers", "polynomial")
-            try:
-                coeffs = tuple(_number(c) for c in p)
-            except _Bad as bad:
-                raise _Bad(bad.reason, "polynomial") from None
+            coeffs = _polynomial_numbers(v)
             c = Coefficient(polynomial=coeffs)
             vals = c.values(np.linspace(0.0, 1.0, 257))
             rule = "> 0" if strict else ">= 0"
@@ -213,14 +204,18 @@ def _polynomial(v) -> tuple[float, ...]:
     return tuple(p)
 
 
+def _polynomial_numbers(v) -> tuple[float, ...]:
+    try:
+        return tuple(_number(c) for c in _polynomial(v))
+    except _Bad as bad:
+        raise _Bad(bad.reason, bad.key or "polynomial") from None
+
+
 def profile(v):
     """A load profile along s: a number or {polynomial = [c0, c1, ...]}, any sign."""
     if not isinstance(v, dict):
         return Coefficient(constant=_number(v))
-    try:
-        coeffs = tuple(_number(c) for c in _polynomial(v))
-    except _Bad as bad:
-        raise _Bad(bad.reason, bad.key or "polynomial") from None
+    coeffs = _polynomial_numbers(v)
     if len(coeffs) == 1 or not any(coeffs[1:]):
         return Coefficient(constant=coeffs[0])
     return Coefficient(polynomial=coeffs)
