@@ -42,16 +42,6 @@ class Scheme:
     l_stable: bool = False
     startup: str | None = None  # first step (two-step schemes, and those carrying ydot_n)
 
-    @property
-    def steps(self) -> int:
-        """1 for one-step schemes, 2 when y_{n-1} enters."""
-        uses_nm1 = any(s.a[2] or s.b[2] for s in self.stages) or self.rate[2]
-        return 2 if uses_nm1 else 1
-
-    @property
-    def uses_rate(self) -> bool:
-        return any(s.g for s in self.stages)
-
     def for_step(self, history_ok: bool) -> "Scheme":
         """The scheme of the next step: this one, or its startup scheme while y_{n-1}
         and ydot_n are not valid for the current dt (first step, after a step change)."""

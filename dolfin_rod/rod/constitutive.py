@@ -1,6 +1,6 @@
 """Strains -> free energy and contact couple m and force n (Sections 2.1, 4.1, 4.2).
 
-    u = 2 vec(conj(q) q_s)/|q|^2,  v = R^T r_s                    (Section 2.1)
+    u = 2 vec(conj(q) q_s)/|q|^2,  v = R^T r_s                    (Section 2.1, kinematics.py)
     m = dpsi/du + M du/dt,  n = dpsi/dv + N dv/dt                 (eqs. mfmeq, mfneq)
 
 Models by name: "evolving" (the paper's: psi(u_d, v_d, u, v) with evolving natural
@@ -21,7 +21,7 @@ import ufl
 
 from .. import constraints
 from ..energy import derivatives, quadratic_energy
-from ..kinematics import material_curvature, material_stretch, strain_rates
+from ..kinematics import strain_rates, strains
 from .material import RodParameters, is_zero
 
 MODELS = ("evolving", "kelvin_voigt", "hyperelastic")
@@ -90,8 +90,7 @@ def section_response(unk, c: dict, psi_fn, evolving: bool, constraint,
                      reference) -> SectionResponse:
     """Eqs. mfmeq, mfneq from the configuration (x, q) and its rates."""
     x, q = unk.f["displacement"], unk.f["quaternion"]
-    u = material_curvature(q)
-    v = material_stretch(q, ufl.as_vector((0.0, 0.0, 1.0)) + x.dx(0))
+    u, v = strains(x, q, ufl.as_vector((0.0, 0.0, 1.0)))      # reference tangent X_s = e_3
     v_eff = constraints.constrained_stretch(v, constraint)
     u_d, v_d = natural_strains(unk, evolving, constraint, reference, v_eff)
     psi, dpsi_du, dpsi_dv, dpsi_dud, dpsi_dvd = derivatives(psi_fn, u_d, v_d, u, v_eff)

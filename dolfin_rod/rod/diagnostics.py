@@ -3,10 +3,10 @@ drag), power of the loads, tip position and quaternion; and the tip rotation ang
 
 from __future__ import annotations
 
-import numpy as np
 import ufl
 
 from ..dissipation import dissipation_rate
+from ..rotations import np_rotation_angle
 
 
 def dissipation_density(resp, c: dict, natural_pairs: list):
@@ -39,5 +39,4 @@ def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation) -> dict:
 
 def tip_rotation_angle(d: dict) -> float:
     """Angle of the tip rotation path, in [0, 2 pi], from the tip quaternion."""
-    qt = np.array([d[f"tip_quaternion_{i}"] for i in range(4)])
-    return float(2 * np.arctan2(np.linalg.norm(qt[1:]), qt[0]))
+    return np_rotation_angle([d[f"tip_quaternion_{i}"] for i in range(4)])
