@@ -501,7 +501,7 @@ def test_rod_keys_reach_the_model():
             1.0, 1.0, 1.0]}, "model": "hyperelastic"}}, "t").data["material"]["stiffness"]["A"]
     sim = build(scene, "rod")
     model, p = sim.model, sim.model.params
-    assert model.ends == ("pinned", "free") and model.constraint == "unshearable"
+    assert model.supports.ends == ("pinned", "free") and model.constraint == "unshearable"
     assert (p.I11, p.I22, p.drag) == (0.01, 0.02, 0.3) and p.rho_A(0.5) == 1.5
     assert np.allclose(np.asarray(p.A(0.5), float), [[2.5, 0.5, 0], [0.5, 2.5, 0], [0, 0, 1.5]])
     assert p.reference_stretch == (0.0, 0.0, 1.1)
@@ -509,7 +509,7 @@ def test_rod_keys_reach_the_model():
     assert kinds == [("couple", True), ("force", False)]             # couple, then gravity
     assert np.allclose(np.asarray(model.distributed_loads[1].value(0.5), float),
                        [0.0, -9.81 * 1.5, 0.0])                       # rho_A(s) g
-    assert set(model.end_rotation) == {"left"}
+    assert set(model.supports.rotation) == {"left"}
     assert sim.stepper.options["snes_lag_jacobian"] == 10 and \
         sim.stepper.options["snes_max_it"] == 40
     sim.start()

@@ -28,6 +28,7 @@ import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
+from ..validation import profile_violation, sample_points
 
 __all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "Tensor", "load_scene",
            "parse_scene", "load_entry_point", "SCHEMA", "SCHEMA_NOTES", "MODEL_NAMES"]
@@ -177,14 +178,10 @@ def coefficient(strict: bool):
         if isinstance(v, dict):
             coeffs = _polynomial_numbers(v)
             c = Coefficient(polynomial=coeffs)
-            vals = c.values(np.linspace(0.0, 1.0, 257))
-            rule = "> 0" if strict else ">= 0"
-            bad_at = ~np.isfinite(vals) | ((vals <= 0) if strict else (vals < 0))
-            if bad_at.any():
-                raise _Bad(f"must be {rule} on [0, 1]; the polynomial is {vals[bad_at][0]:g} "
-                           f"at s = {np.linspace(0, 1, 257)[bad_at][0]:g}")
-            if not strict and (vals == 0).any() and (vals > 0).any():
-                raise _Bad("must be either > 0 everywhere or 0 everywhere on [0, 1]")
+            s = sample_points(1.0)
+            reason = profile_violation(c.values(s), s, strict)
+            if reason:
+                raise _Bad(f"{reason} (the polynomial)")
             if len(coeffs) == 1 or not any(coeffs[1:]):
                 return Coefficient(constant=coeffs[0])
             return c
@@ -894,7 +891,7 @@ def _check_torsion(scene: Scene) -> None:
 
 def _sampled(value, L: float) -> list[np.ndarray]:
     return [np.asarray(value(s) if callable(value) else value, dtype=float)
-            for s in np.linspace(0.0, L, 17)]
+            for s in sample_points(L)]
 
 
 def _check_rod_material(scene: Scene) -> None:
@@ -921,7 +918,7 @@ def _check_rod_material(scene: Scene) -> None:
     for table, have in (("stiffness", stiff), ("viscosity", visc)):
         for k, t in have.items():
             semidefinite = k in ("M", "N")
-            for si, a in zip(np.linspace(0, L, 17), _sampled(t.at, L)):
+            for si, a in zip(sample_points(L), _sampled(t.at, L)):
                 low = np.linalg.eigvalsh(a).min()
                 if low < 0 or (low == 0 and not semidefinite):
                     rule = "positive semidefinite" if semidefinite else "positive definite"
