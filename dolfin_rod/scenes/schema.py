@@ -628,7 +628,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "outputs": {
         "directory": Key(string, "results", "parent folder of the run folders"),
-        "every": Key(integer(1), 1, "write fields every N steps"),
+        "every": Key(integer(1), 1, "write rod.bp and animation frames every N steps (and "
+                                    "at the end)"),
         "fields": Key(boolean, True, "rod.bp for ParaView (ADIOS2VTXReader): the deformed "
                                      "centre line with directors, strains, natural strains, "
                                      "forces, dissipation (FE models)"),
