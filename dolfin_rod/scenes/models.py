@@ -313,6 +313,11 @@ class FESimulation:
     def restore(self, state: dict) -> None:
         self.stepper._history_ok = bool(state["history_ok"])
 
+    @property
+    def stats(self):
+        """Steps, Newton iterations and rejected steps of the integrator that ran."""
+        return self.ts.stats if self.ts is not None else self.stepper.stats
+
     def describe(self) -> str:
         if self.ts is not None:
             return f"PETSc TS ({self.ts.method})"
