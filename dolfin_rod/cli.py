@@ -66,16 +66,21 @@ class EnergyBound:
     FACTOR = 1e3
 
     def __init__(self, start: dict):
-        self.previous, self.supply = start, _energy(start)
+        self.previous = start
+        self._finite(start, start["time"])
+        self.supply = _energy(start)
 
-    def check(self, d: dict) -> None:
-        """Raises IntegrationError at the last good time if ``d`` diverged."""
-        t_good = self.previous["time"]
+    def _finite(self, d: dict, t_good: float) -> None:
         bad = [k for k, v in d.items() if not math.isfinite(v)]
         if bad:
             raise IntegrationError(f"the solution diverged: {bad[0]} = {d[bad[0]]} at "
                                    f"t = {d['time']:g} (stopped; results up to t = "
                                    f"{t_good:g} are kept)", t_good)
+
+    def check(self, d: dict) -> None:
+        """Raises IntegrationError at the last good time if ``d`` diverged."""
+        t_good = self.previous["time"]
+        self._finite(d, t_good)
         h = d["time"] - self.previous["time"]
         self.supply += h * max(0.0, 0.5 * (d["load_power"] + self.previous["load_power"]))
         if _energy(d) > self.FACTOR * self.supply + 1e-300:
@@ -163,7 +168,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     with t the time of the last recorded row."""
     from mpi4py import MPI
 
-    from .output import show_progress
+    from .output import OutputError, show_progress
     tim, outs = scene["time"], scene["outputs"]
     n_steps = max(1, math.ceil(tim["t_end"] / tim["dt"] - 1e-9))
     times = [min(k * tim["dt"], tim["t_end"]) for k in range(n_steps + 1)]
@@ -172,7 +177,6 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
         from tqdm import tqdm
         bar = tqdm(total=n_steps, initial=done, unit="step", desc=scene.name)
     progress = {"k": done, "t": times[done]}
-    bound = EnergyBound(writer.balance.previous)
     interrupted = _InterruptFlag()
 
     def after_step(t_k: float) -> None:
@@ -192,6 +196,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
 
     status, message = "completed", ""
     try:
+        bound = EnergyBound(writer.balance.previous)
         if getattr(sim, "ts", None) is not None:      # PETSc TS drives the whole run
             sim.run_all(times[0], tim["t_end"], tim["dt"], after_step)
         for k in range(done + 1, n_steps + 1) if getattr(sim, "ts", None) is None else ():
@@ -202,7 +207,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
                 break
     except KeyboardInterrupt:
         status, message = "interrupted", f"interrupted at t = {progress['t']:g}"
-    except (IntegrationError, SolverError) as err:   # keep what was computed
+    except (IntegrationError, SolverError, OutputError) as err:   # keep what was computed
         status, message = "failed", f"{type(err).__name__}: {err}"
     finally:
         interrupted.restore()

@@ -388,7 +388,8 @@ def fingerprint_difference(theirs: dict, mine: dict) -> str:
 
     def walk(a, b, path):
         if isinstance(a, dict) and isinstance(b, dict):
-            for k in sorted(set(a) | set(b)):
+            first = ("model", "scene")                 # the likely cause before its dofs
+            for k in sorted(set(a) | set(b), key=lambda k: (k not in first, k)):
                 walk(a.get(k), b.get(k), f"{path}.{k}" if path else k)
         elif a != b:
             diffs.append(f"{path}: {a!r} in the checkpoint, {b!r} now")

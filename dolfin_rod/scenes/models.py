@@ -227,7 +227,7 @@ class OdeTorsion:
         """u, u_d and their rates at t."""
         if self.mode == "scheme":
             return self.y[0], self.y[1], self.ydot[0], self.ydot[1]
-        k = int(np.argmin(np.abs(self.times - t)))
+        k = self._index(t)
         u, ud = self.u_series[k], self.ud_series[k]
         a, ad, mu, mud = self.alpha, self.alpha_d, self.mu, self.mu_d
         ud_t = (a * u - (a + ad) * ud) / mud
@@ -239,18 +239,25 @@ class OdeTorsion:
             u_t = self._load_rate(t) / a + ud_t
         return u, ud, u_t, ud_t
 
+    def _index(self, t: float) -> int:
+        """The output time t's index: a bisection, O(log N) (an argmin over all output
+        times made a run O(N^2)); ValueError for a time off the output grid."""
+        k = min(int(np.searchsorted(self.times, t - 1e-9 * self.dt)), len(self.times) - 1)
+        if abs(self.times[k] - t) > 1e-9 * self.dt:
+            raise ValueError(f"t = {t!r} is not an output time (multiples of dt = {self.dt:g})")
+        return k
+
     def diagnostics(self, t: float) -> dict[str, float]:
         a, ad, mu, mud = self.alpha, self.alpha_d, self.mu, self.mu_d
-        u, ud, u_t, ud_t = (float(x) for x in self._state_at(t))
-        m = a * (u - ud) + mu * u_t if self.rotation else self._load(t)
-        return {
-            "end_rotation": u, "end_rotation_rate": u_t,
-            "free_energy": 0.5 * a * (u - ud) ** 2 + 0.5 * ad * ud ** 2,
-            "kinetic_energy": 0.0,
-            "dissipation_rate": mu * u_t ** 2 + mud * ud_t ** 2,
-            "mean_natural_twist": ud, "time": float(t), "end_torsion": float(m),
-            "load_power": float(m) * u_t,
-        }
+        with np.errstate(over="ignore", invalid="ignore"):   # overflow -> inf, as in FE
+            u, ud, u_t, ud_t = (np.float64(x) for x in self._state_at(t))
+            m = a * (u - ud) + mu * u_t if self.rotation else np.float64(self._load(t))
+            d = {"end_rotation": u, "end_rotation_rate": u_t,
+                 "free_energy": 0.5 * a * (u - ud) ** 2 + 0.5 * ad * ud ** 2,
+                 "kinetic_energy": 0.0, "dissipation_rate": mu * u_t ** 2 + mud * ud_t ** 2,
+                 "mean_natural_twist": ud, "time": t, "end_torsion": m,
+                 "load_power": m * u_t}
+        return {k: float(v) for k, v in d.items()}
 
     def state(self) -> dict:
         return {"y": self.y.tolist(), "y_nm1": self.y_nm1.tolist(), "ydot": self.ydot.tolist(),
