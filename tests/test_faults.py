@@ -504,3 +504,69 @@ def test_version(capsys):
         main(["--version"])
     assert info.value.code == 0
     assert capsys.readouterr().out.strip() == f"dolfin-rod {__version__}"
+
+
+# --- interrupt paths ---------------------------------------------------------------------
+
+
+def _start(*args: str) -> subprocess.Popen:
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    return subprocess.Popen([sys.executable, "-m", "dolfin_rod", *args], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for(condition, what: str, timeout: float = 60.0) -> None:
+    import time
+    deadline = time.time() + timeout
+    while not condition():
+        if time.time() > deadline:
+            pytest.fail(f"timed out waiting for {what}")
+        time.sleep(0.05)
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="signals one process")
+def test_sigkill_mid_run_then_resume_equals_the_uninterrupted_run(tmp_path):
+    """kill -9 at an arbitrary moment (possibly inside a checkpoint): --resume continues
+    from the last complete checkpoint; extended to a few steps past it, it equals a run
+    made in one go (t_end is not part of the checkpoint's fingerprint)."""
+    import signal
+    long = write(tmp_path / "long.toml", CREEP.replace("t_end = 0.08", "t_end = 1000.0")
+                 .replace("checkpoint_every = 3", "checkpoint_every = 7\nfields = false"))
+    run = tmp_path / "run"
+    proc = _start("run", str(long), "--out", str(run), "--quiet")
+    root = run / "checkpoint"
+    _wait_for(lambda: root.is_dir() and len(list(root.glob("step-*[0-9]"))) > 0
+              and (run / "timeseries.csv").read_text().count("\n") > 40, "checkpoints")
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate(timeout=60)
+    step = max(int(p.name.split("-")[1]) for p in root.glob("step-*[0-9]")
+               if (p / "meta.json").exists())
+    t_end = (step + 4) * 0.01
+    text = CREEP.replace("t_end = 0.08", f"t_end = {t_end!r}").replace(
+        "checkpoint_every = 3", "checkpoint_every = 7\nfields = false")
+    short = write(tmp_path / "short.toml", text)
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    cmd = [sys.executable, "-m", "dolfin_rod", "run", str(short), "--quiet", "--out"]
+    resumed = subprocess.run([*cmd, str(run), "--resume"], capture_output=True, text=True,
+                             timeout=120, cwd=ROOT, env=env)
+    assert resumed.returncode == 0, resumed.stderr
+    full = subprocess.run([*cmd, str(tmp_path / "full")], capture_output=True, text=True,
+                          timeout=120, cwd=ROOT, env=env)
+    assert full.returncode == 0, full.stderr
+    a, b = read_csv(tmp_path / "full" / "timeseries.csv"), read_csv(run / "timeseries.csv")
+    assert len(a) == step + 5
+    assert_same_rows(a, b)
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="signals one process")
+def test_ctrl_c_during_start_up_is_a_clean_interruption(tmp_path):
+    """SIGINT after the scene is read, while the model is built: exit 130, one line."""
+    import signal
+    scene = write(tmp_path / "s.toml", CREEP.replace("n_cells = 4", "n_cells = 5"))
+    proc = _start("run", str(scene), "--out", str(tmp_path / "run"))
+    line = proc.stdout.readline()           # "model: ..." is printed before the build
+    assert line.startswith("model: torsion"), line
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted"), err
