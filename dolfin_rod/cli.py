@@ -23,6 +23,7 @@ from pathlib import Path
 
 from .integrators.stepper import IntegrationError
 from .scenes import Scene, SceneError, build, load_scene, select_model
+from .scenes.stability import explicit_stability_warning
 from .solvers import SolverError
 
 __all__ = ["main", "run_scene"]
@@ -132,6 +133,7 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     folder = _run_folder(scene, None if out is None else Path(out), comm, resume, overwrite)
     if not quiet:
         _print(comm, f"model: {choice.model} ({choice.reason})")
+    _warn_if_unstable(scene, comm)
     sim = build(scene, choice.model, comm)
     impulse = sim.start()
     clock["setup"] = time.perf_counter() - clock["start"]
@@ -276,6 +278,12 @@ def schema_markdown() -> str:
     return "\n".join(lines)
 
 
+def _warn_if_unstable(scene: Scene, comm) -> None:
+    warning = explicit_stability_warning(scene)
+    if warning:
+        _print(comm, f"warning: {warning}", file=sys.stderr)
+
+
 def _check(scene: Scene, out: Path | None, comm) -> None:
     """``dolfin-rod check``: the scene, its model and the output location."""
     from .output import OutputError, folder_problem
@@ -289,6 +297,7 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
     _print(comm, f"{scene.source}: OK")
     _print(comm, f"model: {choice.model}")
     _print(comm, f"why: {choice.reason}")
+    _warn_if_unstable(scene, comm)
 
 
 def main(argv: list[str] | None = None) -> int:

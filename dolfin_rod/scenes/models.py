@@ -119,7 +119,7 @@ class OdeTorsion:
         self.y = np.array([u, self.u_d0])
         self.ydot = np.zeros(2)
         self.y_nm1 = self.y.copy()
-        self.history_ok = False
+        self.history_steps = 0
         if self.mode == "exact":
             self._solve_exact()
         self.impulse = impulse
@@ -198,7 +198,7 @@ class OdeTorsion:
     def _scheme_step(self, t: float, dt: float) -> None:
         """One step of the scheme (as TimeStepper's: same stages, startup and rate rule)
         on the linear system M y' + K y = f: J y = -r with r the residual at y = 0."""
-        scheme = self.scheme.for_step(self.history_ok)
+        scheme = self.scheme.for_step(self.history_steps)
         M, K = self._matrices()
         y_n, y_nm1, ydot_n = self.y, self.y_nm1, self.ydot
         zero = np.zeros(2)
@@ -214,7 +214,7 @@ class OdeTorsion:
         y = np.linalg.solve(J, -r)
         self.ydot = scheme.rate_after_step(y, y_n, y_nm1, ydot_n, dt)
         self.y_nm1, self.y = y_n, y
-        self.history_ok = True
+        self.history_steps = min(self.history_steps + 1, 2)
 
     def advance(self, t: float, t_next: float) -> None:
         if self.mode == "scheme":
@@ -254,18 +254,19 @@ class OdeTorsion:
             m = a * (u - ud) + mu * u_t if self.rotation else np.float64(self._load(t))
             d = {"end_rotation": u, "end_rotation_rate": u_t,
                  "free_energy": 0.5 * a * (u - ud) ** 2 + 0.5 * ad * ud ** 2,
-                 "kinetic_energy": 0.0, "dissipation_rate": mu * u_t ** 2 + mud * ud_t ** 2,
+                 "kinetic_energy": 0.0,   # eq. disspw: xi = mu u'^2 - dpsi/du_d u_d'
+                 "dissipation_rate": mu * u_t ** 2 + (a * (u - ud) - ad * ud) * ud_t,
                  "mean_natural_twist": ud, "time": t, "end_torsion": m,
                  "load_power": m * u_t}
         return {k: float(v) for k, v in d.items()}
 
     def state(self) -> dict:
         return {"y": self.y.tolist(), "y_nm1": self.y_nm1.tolist(), "ydot": self.ydot.tolist(),
-                "history_ok": self.history_ok}
+                "history_steps": self.history_steps}
 
     def restore(self, state: dict) -> None:
         self.y, self.y_nm1 = np.array(state["y"]), np.array(state["y_nm1"])
-        self.ydot, self.history_ok = np.array(state["ydot"]), bool(state["history_ok"])
+        self.ydot, self.history_steps = np.array(state["ydot"]), int(state["history_steps"])
 
     def describe(self) -> str:
         return self.method
@@ -315,10 +316,10 @@ class FESimulation:
         """Functions a checkpoint stores (besides problem.fields) and the stepper flags."""
         return {"functions": {**{f"rate_{i}": r for i, r in enumerate(self.problem.rates)},
                               **{f"previous_{i}": p for i, p in enumerate(self.stepper.y_nm1)}},
-                "history_ok": self.stepper.history_ok}
+                "history_steps": self.stepper.history_steps}
 
     def restore(self, state: dict) -> None:
-        self.stepper.history_ok = bool(state["history_ok"])
+        self.stepper.history_steps = int(state["history_steps"])
 
     @property
     def stats(self):
