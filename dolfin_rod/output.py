@@ -200,7 +200,6 @@ class RunWriter:
         self.columns: list[str] | None = None
         self._vtx = None
         self.resume = resume
-        self.resumed_at: float | None = None   # t of the checkpoint a resumed run starts at
 
     # -- time series ------------------------------------------------------------------
     def open(self, keep_until_step: int | None = None) -> None:
@@ -333,7 +332,6 @@ class RunWriter:
             f.x.scatter_forward()
         self.sim.restore(meta["sim"])
         self.balance.restore(meta["balance"])
-        self.resumed_at = meta["time"]
 
     # -- the end --------------------------------------------------------------------------
     def finish(self, summary: dict, timings: dict) -> None:
