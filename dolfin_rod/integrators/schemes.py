@@ -43,16 +43,6 @@ class Scheme:
     startup: str | None = None  # first step (two-step schemes, and those carrying ydot_n)
     second: str | None = None   # second step, if it differs (a rate rule that needs ydot_n)
 
-    @property
-    def steps(self) -> int:
-        """1 for one-step schemes, 2 when y_{n-1} enters."""
-        uses_nm1 = any(s.a[2] or s.b[2] for s in self.stages) or self.rate[2]
-        return 2 if uses_nm1 else 1
-
-    @property
-    def uses_rate(self) -> bool:
-        return any(s.g for s in self.stages)
-
     def for_step(self, history: int) -> "Scheme":
         """The scheme of the next step after ``history`` accepted steps of the current dt
         (0: first step, or after a step change): the startup scheme on the first, the

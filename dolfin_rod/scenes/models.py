@@ -26,6 +26,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from .. import closed_forms
+from ..loads import rate as load_rate
 from ..integrators.schemes import get_scheme
 from .schema import Scene, SceneError
 
@@ -98,9 +99,8 @@ class OdeTorsion:
         return 0.0 if self.history is None else float(self.history(t))
 
     def _load_rate(self, t: float) -> float:
-        """Phi'(t) by central differences (as TorsionModel._set_bcs)."""
-        h = 1e-7 * max(1.0, abs(t))
-        return (self._load(t + h) - self._load(t - h)) / (2 * h)
+        """Phi'(t), as the torsion PDE's end condition on w."""
+        return float(load_rate(self._load, t))
 
     def _jump0(self) -> float:
         if self.history is None:

@@ -25,6 +25,7 @@ import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
+from ..validation import profile_violation, sample_points
 
 __all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "load_scene", "parse_scene",
            "SCHEMA", "MODEL_NAMES", "path_problem"]
@@ -219,14 +220,10 @@ def coefficient(strict: bool):
         if isinstance(v, dict):
             c = Coefficient(polynomial=_polynomial(v))
             coeffs = c.polynomial
-            vals = c.values(np.linspace(0.0, 1.0, 257))
-            rule = "> 0" if strict else ">= 0"
-            bad_at = ~np.isfinite(vals) | ((vals <= 0) if strict else (vals < 0))
-            if bad_at.any():
-                raise _Bad(f"must be {rule} on [0, 1]; the polynomial is {vals[bad_at][0]:g} "
-                           f"at s = {np.linspace(0, 1, 257)[bad_at][0]:g}")
-            if not strict and (vals == 0).any() and (vals > 0).any():
-                raise _Bad("must be either > 0 everywhere or 0 everywhere on [0, 1]")
+            s = sample_points(1.0)
+            reason = profile_violation(c.values(s), s, strict)
+            if reason:
+                raise _Bad(f"{reason} (the polynomial)")
             if len(coeffs) == 1 or not any(coeffs[1:]):
                 return Coefficient(constant=coeffs[0])
             return c
