@@ -383,7 +383,9 @@ def test_divergence_stops_with_exit_3_keeps_rows_and_reports_on_stderr(tmp_path,
     code, out, err = run_main(capsys, "run", scene_file, "--out", folder / "run", "--quiet")
     assert code == 3
     if COMM.rank == 0:
-        assert out == "" and err.startswith("failed: t = ") and "diverged" in err, err
+        warning, failure = err.strip().splitlines()
+        assert out == "" and warning.startswith("warning: ") and "unstable" in warning
+        assert failure.startswith("failed: t = ") and "diverged" in failure, err
         rows = read_csv(folder / "run" / "timeseries.csv")
         summary = json.loads((folder / "run" / "summary.json").read_text())
         assert summary["status"] == "failed" and "diverged" in summary["message"]
