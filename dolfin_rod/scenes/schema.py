@@ -28,7 +28,7 @@ from ..integrators.schemes import get_scheme
 from ..validation import profile_violation, sample_points
 
 __all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "load_scene", "parse_scene",
-           "SCHEMA", "MODEL_NAMES"]
+           "SCHEMA", "MODEL_NAMES", "path_problem"]
 
 MODEL_NAMES = ("auto", "ode", "torsion", "rod")
 VARIANTS = ("local", "uniform")
@@ -108,6 +108,52 @@ def string(v):
     return v
 
 
+NAME_MAX = 255     # bytes in one path component (POSIX file systems)
+PATH_MAX = 4096    # bytes in a whole path (Linux)
+
+
+def run_name(v):
+    """A scene name is a folder name: letters, digits, '.', '_', '-', not starting with
+    '.', so that it can never leave outputs.directory or nest folders."""
+    v = string(v)
+    if not v or v.startswith(".") or not all(c.isascii() and (c.isalnum() or c in "._-")
+                                              for c in v):
+        raise _Bad(f"must be a folder name of letters, digits, '.', '_', '-' (not starting "
+                   f"with '.'), got {v!r}")
+    if len(v) > 100:
+        raise _Bad(f"must be at most 100 characters (it names the run folder), got {len(v)}")
+    return v
+
+
+def safe_name(stem: str) -> str:
+    """The default scene name from a file stem: characters run_name refuses become '_'."""
+    name = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in stem)
+    return name.lstrip(".")[:100] or "scene"
+
+
+def path_problem(text: str) -> str | None:
+    """Why ``text`` cannot be a file-system path (None if it can): empty, a NUL, a
+    component longer than NAME_MAX or the whole longer than PATH_MAX bytes."""
+    if not text:
+        return "must be a non-empty path"
+    if "\0" in text:
+        return "must not contain a NUL character"
+    encoded = text.encode("utf-8", "surrogateescape")
+    if len(encoded) >= PATH_MAX:
+        return f"is {len(encoded)} bytes long; paths are limited to {PATH_MAX - 1}"
+    longest = max(encoded.split(b"/"), key=len)
+    if len(longest) > NAME_MAX:
+        return f"has a path component of {len(longest)} bytes; file systems allow {NAME_MAX}"
+    return None
+
+
+def path_text(v):
+    problem = path_problem(string(v))
+    if problem:
+        raise _Bad(problem)
+    return v
+
+
 def boolean(v):
     if not isinstance(v, bool):
         raise _Bad(f"must be true or false, got {_type_name(v)} {v!r}")
@@ -172,17 +218,8 @@ def coefficient(strict: bool):
 
     def check(v):
         if isinstance(v, dict):
-            _unknown(v, {"polynomial"})
-            if "polynomial" not in v:
-                raise _Bad("missing required key", "polynomial")
-            p = v["polynomial"]
-            if not isinstance(p, list) or not p:
-                raise _Bad("must be a non-empty array of numbers", "polynomial")
-            try:
-                coeffs = tuple(_number(c) for c in p)
-            except _Bad as bad:
-                raise _Bad(bad.reason, "polynomial") from None
-            c = Coefficient(polynomial=coeffs)
+            c = Coefficient(polynomial=_polynomial(v))
+            coeffs = c.polynomial
             s = sample_points(1.0)
             reason = profile_violation(c.values(s), s, strict)
             if reason:
@@ -298,12 +335,37 @@ def history(vector_ok: bool):
     return check
 
 
+def _polynomial(v: dict) -> tuple[float, ...]:
+    """The coefficients of {polynomial = [c0, c1, ...]}."""
+    _unknown(v, {"polynomial"})
+    if "polynomial" not in v:
+        raise _Bad("missing required key", "polynomial")
+    p = v["polynomial"]
+    if not isinstance(p, list) or not p:
+        raise _Bad("must be a non-empty array of numbers", "polynomial")
+    try:
+        return tuple(_number(c) for c in p)
+    except _Bad as bad:
+        raise _Bad(bad.reason, "polynomial") from None
+
+
+def profile(v):
+    """A load profile along s: a number or {polynomial = [...]}, of any sign (a couple
+    density is a load, not a material modulus)."""
+    if not isinstance(v, dict):
+        return Coefficient(constant=_number(v))
+    coeffs = _polynomial(v)
+    if len(coeffs) == 1 or not any(coeffs[1:]):
+        return Coefficient(constant=coeffs[0])
+    return Coefficient(polynomial=coeffs)
+
+
 def couple(v):
     if not isinstance(v, dict):
         raise _Bad(f"must be a table {{profile = ..., history = {{...}}}}, got {_type_name(v)}")
     _unknown(v, {"profile", "history"})
     out = {}
-    for k, check, default in (("profile", coefficient(strict=False), 1.0),
+    for k, check, default in (("profile", profile, 1.0),
                               ("history", history(False), None)):
         if k not in v and default is None:
             raise _Bad("missing required key", k)
@@ -328,7 +390,8 @@ class Key:
 
 SCHEMA: dict[str, dict[str, Key]] = {
     "scene": {
-        "name": Key(string, None, "run name (default: the file's stem)"),
+        "name": Key(run_name, None, "run name, a folder name: letters, digits, '.', '_', '-' "
+                                   "(default: the file's stem, other characters as '_')"),
         "description": Key(string, "", "free text"),
         "model": Key(choice(*MODEL_NAMES), "auto", "auto | ode | torsion | rod"),
     },
@@ -385,11 +448,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                             "ODE model: closed form/solve_ivp, or the FE model's scheme"),
     },
     "outputs": {
-        "directory": Key(string, "results", "parent folder of the run folders"),
+        "directory": Key(path_text, "results", "parent folder of the run folders"),
         "every": Key(integer(1), 1, "write fields every N steps"),
         "fields": Key(boolean, True, "ParaView fields (.bp) of FE models"),
         "plots": Key(boolean, True, "PNG plots of the main histories"),
-        "checkpoint_every": Key(integer(0), 0, "adios4dolfinx checkpoint every N steps (0: off)"),
+        "checkpoint_every": Key(integer(0), 0, "adios4dolfinx checkpoint every N steps (0: off; "
+                                               "integrator = \"stepper\" only)"),
         "progress": Key(boolean, True, "tqdm progress bar (rank 0, TTY, not CI)"),
     },
 }
@@ -438,6 +502,24 @@ class Scene:
     def error(self, key: str, reason: str) -> SceneError:
         return SceneError(self.source, key, reason)
 
+    def physics(self) -> dict[str, dict[str, Any]]:
+        """The validated keys that determine the computed states, as plain JSON data
+        (what a checkpoint must match to be resumed): everything but the name and
+        description, the outputs table, t_end (a run may be extended) and the requested
+        model (the chosen model is compared instead)."""
+        return {table: {k: _plain(v) for k, v in keys.items()
+                        if not (table == "time" and k == "t_end")}
+                for table, keys in self.data.items() if table not in ("scene", "outputs")}
+
+
+def _plain(v: Any) -> Any:
+    """Validated values (dataclasses, tuples, floats) as JSON data (lists, dicts)."""
+    if hasattr(v, "__dataclass_fields__"):
+        return {f: _plain(getattr(v, f)) for f in v.__dataclass_fields__}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    return v
+
 
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file; every failure is a SceneError."""
@@ -447,7 +529,7 @@ def load_scene(path: str | Path) -> Scene:
     except OSError as err:
         raise SceneError(str(path), "", f"cannot read the scene: {err.strerror or err}") from None
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")   # a UTF-8 byte-order mark is allowed
     except UnicodeDecodeError as err:
         raise SceneError(str(path), "", f"not UTF-8 text: {err.reason} at byte {err.start}") from None
     return parse_scene(text, source=str(path), default_name=path.stem)
@@ -503,7 +585,7 @@ def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> S
                                  bad.reason) from None
         data[table] = out
     if data["scene"]["name"] is None:
-        data["scene"]["name"] = default_name
+        data["scene"]["name"] = safe_name(default_name)
     scene = Scene(data, source, given=given)
     _check_combinations(scene)
     return scene
@@ -587,6 +669,10 @@ def _check_combinations(scene: Scene) -> None:
             if lds[k] is not None:
                 raise err(f"loads.{k}", "a torsion load; this scene has a 3-D rod material "
                                         "(use loads.end_couple)")
+    if d["outputs"]["checkpoint_every"] and tim["integrator"] == "ts":
+        raise err("outputs.checkpoint_every", "checkpoints (and --resume) need integrator = "
+                                              "\"stepper\": PETSc TS runs the whole interval "
+                                              "in one call")
     if tim["dt"] > tim["t_end"]:
         raise err("time.dt", f"must be <= t_end = {tim['t_end']:g}, got {tim['dt']:g}")
     if tim["t_end"] / tim["dt"] > 1e7:
