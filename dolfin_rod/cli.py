@@ -265,8 +265,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def schema_markdown() -> str:
     """The scene schema as Markdown tables (docs/scenes.md is generated from it)."""
-    from .scenes.schema import REQUIRED, SCHEMA
-    lines = []
+    from .scenes.schema import REQUIRED, SCHEMA, SCHEMA_NOTES
+    lines = [SCHEMA_NOTES]
     for table, keys in SCHEMA.items():
         lines += [f"### [{table}]", "", "| key | default | meaning |", "|---|---|---|"]
         for name, key in keys.items():

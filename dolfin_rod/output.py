@@ -6,7 +6,11 @@
     <run>/summary.json      model and why, status, end values, impulse, versions
     <run>/timings.json      wall-clock seconds of setup, integration, output
     <run>/histories.png     end torsion, end rotation, natural twist, energies, balance
-    <run>/fields/*.bp       ParaView fields (dolfinx.io.VTXWriter) of FE models
+    <run>/rod.bp            ParaView (ADIOS2VTXReader) of FE models: the deformed centre
+                            line with directors d1, d2, d3 (points) and u, v, u_d, v_d, n,
+                            m, xi (cells); torsion: phi (points), u, u_d, m, xi (cells)
+    <run>/animation.gif     3-D rod: the moving centre line, coloured by |u_d - u_ref|
+    <run>/snapshots.png     3-D rod: selected frames; torsion: spacetime.png (phi, u_d)
     <run>/checkpoint/step-N/  adios4dolfinx state.bp + meta.json after step N, for resume
 
 A checkpoint is written into ``step-N.partial`` and renamed to ``step-N`` when complete
@@ -15,6 +19,9 @@ complete checkpoint, never a state of one step with the metadata of another.  Re
 verifies that the scene's physics (``Scene.physics``), the model and the number of
 degrees of freedom are those of the checkpoint, before anything is written.
 
+summary.json lists every file of the run folder (``files``).  The CSV has LF line ends;
+a value that does not exist (the power residual of row 0) is an empty field.
+
 Columns: the model's diagnostics (TorsionModel.diagnostics keys) plus
 ``total_dissipation`` = int_0^t int xi ds dt (trapezoidal rule) and ``power_residual`` =
 d/dt(K + Psi) + D - P on each interval [t_{k-1}, t_k]: the difference quotient of the
@@ -22,9 +29,10 @@ stored energy plus the trapezoidal means of dissipation rate D and load power P 
 power balance of ERRATA.md).  It is O(dt^2) for smooth histories; an idealised step at
 t = 0 makes the first interval's value O(1) (the 0+ rates are not known to the FE model).
 
-Only rank 0 writes files; VTX and adios4dolfinx writes are collective.  A file-system
-error on rank 0 is raised on every rank as :class:`OutputError` (``on_root``), so no
-rank waits in a collective call for one that failed.
+Only rank 0 writes files (the fields along the rod are gathered there, line_fields.py);
+adios4dolfinx checkpoint writes are collective.  A file-system error on rank 0 is raised
+on every rank as :class:`OutputError` (``on_root``), so no rank waits in a collective
+call for one that failed.
 """
 
 from __future__ import annotations
@@ -198,7 +206,9 @@ class RunWriter:
         self._csv = None
         self._kept: list[dict] = []
         self.columns: list[str] | None = None
-        self._vtx = None
+        self.lines = FieldOutputs(self.folder, getattr(sim, "model", None), comm,
+                                  self.outputs["fields"], self.outputs["animation"]) \
+            if self.outputs["fields"] or self.outputs["animation"] else None
         self.resume = resume
 
     # -- time series ------------------------------------------------------------------
@@ -214,14 +224,17 @@ class RunWriter:
                 self.columns = list(reader.fieldnames or [])
                 self._kept = [r for r in reader if int(r["step"]) <= keep_until_step]
         for r in self._kept:
-            self.rows.append({k: (int(v) if k == "step" else float(v)) for k, v in r.items()})
+            self.rows.append({k: (int(v) if k == "step" else _csv_float(v))
+                              for k, v in r.items()})
+        if self.lines is not None and self.rows:
+            self.lines.keep_until = self.rows[-1]["time"]
 
     def _start_csv(self, row: dict) -> None:
         if self.columns is None:
             self.columns = list(row)
         self._csv_file = (self.folder / "timeseries.csv").open("w", newline="")
         self._csv = csv.DictWriter(self._csv_file, fieldnames=self.columns,
-                                   extrasaction="ignore")
+                                   extrasaction="ignore", lineterminator="\n")
         self._csv.writeheader()
         for r in self._kept:
             self._csv.writerow(r)
@@ -235,30 +248,19 @@ class RunWriter:
             if self._csv is None:
                 self._start_csv(row)
             self.rows.append(row)
-            self._csv.writerow({k: (repr(float(v)) if k != "step" else v)
+            self._csv.writerow({k: (_csv_text(v) if k != "step" else v)
                                 for k, v in row.items()})
             self._csv_file.flush()
         self.timings["output"] += time.perf_counter() - t0
         return row
 
-    # -- ParaView fields ------------------------------------------------------------------
+    # -- fields along the rod: ParaView file and animation frames ------------------------
     def write_fields(self, t: float) -> None:
-        if not (self.outputs["fields"] and self.sim.fields):
+        """Collective: sample the fields along the rod at time t (ParaView, animation)."""
+        if self.lines is None:
             return
         t0 = time.perf_counter()
-        if self._vtx is None:
-            from dolfinx.io import VTXWriter
-            (self.folder / "fields").mkdir(exist_ok=True) if self.rank == 0 else None
-            self.comm.barrier()
-            self._vtx = []
-            for f in self.sim.fields:
-                if _is_real(f):
-                    continue     # a global (real-space) unknown: it is in the time series
-                name = f.name or "field"
-                self._vtx.append(VTXWriter(self.comm, self.folder / "fields" / f"{name}.bp",
-                                           [f], engine="BP4"))
-        for w in self._vtx:
-            w.write(t)
+        self.lines.write(t)
         self.timings["output"] += time.perf_counter() - t0
 
     # -- checkpoints ------------------------------------------------------------------------
@@ -335,18 +337,133 @@ class RunWriter:
 
     # -- the end --------------------------------------------------------------------------
     def finish(self, summary: dict, timings: dict) -> None:
-        for w in self._vtx or []:
-            w.close()
         if self.rank != 0:
             return
         if self._csv is not None:
             self._csv_file.close()
         series = {k: [r.get(k) for r in self.rows] for k in (self.columns or [])}
         _dump(self.folder / "timeseries.json", _finite(series))
-        _dump(self.folder / "summary.json", _finite({**summary, "versions": versions()}))
-        _dump(self.folder / "timings.json", {**timings, **self.timings})
         if self.outputs["plots"] and len(self.rows) > 1:
             plot_histories(self.rows, self.folder / "histories.png", summary.get("title", ""))
+        if self.lines is not None:
+            t0 = time.perf_counter()
+            self.lines.finish(summary.get("title", ""))
+            self.timings["pictures"] = time.perf_counter() - t0
+        _dump(self.folder / "timings.json", {**timings, **self.timings})
+        files = sorted(set(files_in(self.folder)) | {"summary.json"})
+        _dump(self.folder / "summary.json", _finite({**summary, "versions": versions(),
+                                                     "files": files}))
+
+
+class FieldOutputs:
+    """The fields along the rod of an FE model (RodModel or TorsionModel, anything with
+    ``observables()``): ``rod.bp`` (ParaView) and the pictures of animation.py, from
+    LineSampler samples gathered on rank 0.  ``model = None`` (ODE runs): nothing.
+    Usable from scripts:
+
+        out = FieldOutputs(folder, model, comm)     # collective
+        ... out.write(t) after each step (collective) ...
+        out.finish("title")                         # rank 0: close rod.bp, draw
+    """
+
+    POINT = ("centre_line", "d1", "d2", "d3", "phi")    # vertex values; others per cell
+
+    def __init__(self, folder: Path, model, comm, fields: bool = True, animation: bool = True):
+        self.folder, self.comm = Path(folder), comm
+        self.outputs = {"fields": fields, "animation": animation}
+        self.sampler = None
+        if model is not None and hasattr(model, "observables"):
+            from .line_fields import LineSampler
+            self.sampler = LineSampler(model.mesh, model.observables(), self.POINT)
+        self.keep_until: float | None = None     # resume: steps of rod.bp kept up to here
+        self.vtx = None
+        self.frames = None
+
+    def write(self, t: float) -> None:
+        """Collective: one sample; rank 0 writes it to rod.bp and keeps it as a frame."""
+        if self.sampler is None:
+            return
+        sample = self.sampler.sample()
+        if sample is None:
+            return
+        if self.frames is None:
+            self._start()
+        if self.outputs["fields"]:
+            self.vtx.write(t, _geometry(sample), *self._data(sample))
+        self.frames.add(t, sample)
+
+    def _start(self) -> None:
+        from .animation import FrameStore
+        from .vtx import LineVTX
+        self.frames = FrameStore()
+        if self.outputs["fields"]:
+            self.vtx = LineVTX(self.folder / "rod.bp", keep_until=self.keep_until)
+            for step in self.vtx.kept:   # resume: earlier frames come back from rod.bp
+                self.frames.add(step["time"], _sample_from_vtx(step))
+
+    @staticmethod
+    def _data(sample) -> tuple[dict, dict]:
+        """Point data (arc length s first) and cell data; the centre line is the geometry."""
+        point = {"s": sample.s_nodes, **{k: v for k, v in sample.point.items()
+                                         if k != "centre_line"}}
+        return point, dict(sample.cell)
+
+    def finish(self, title: str) -> None:
+        """Rank 0: close rod.bp; the animation and pictures (outputs.animation)."""
+        from . import animation
+        if self.comm.rank != 0:
+            return
+        if self.vtx is not None:
+            self.vtx.close()
+        frames = self.frames.all() if self.frames is not None else []
+        if not (self.outputs["animation"] and len(frames) > 1):
+            return
+        if "centre_line" in frames[0][1].point:
+            animation.rod_animation(frames, self.folder / "animation.gif", title)
+            animation.rod_snapshots(frames, self.folder / "snapshots.png", title)
+        else:
+            animation.torsion_spacetime(frames, self.folder / "spacetime.png", title)
+
+
+def _geometry(sample) -> np.ndarray:
+    """The points of rod.bp: the centre line (3-D rod) or s e_3 (torsion, dimensionless)."""
+    if "centre_line" in sample.point:
+        return sample.point["centre_line"]
+    s = sample.s_nodes
+    return np.column_stack([np.zeros_like(s), np.zeros_like(s), s])
+
+
+def _sample_from_vtx(step: dict):
+    """A LineSample from a step of rod.bp (resume: the frames before the checkpoint)."""
+    from .line_fields import LineSample
+    point = dict(step["point"])
+    s_nodes = point.pop("s")
+    if "phi" not in point:
+        point["centre_line"] = step["points"]
+    return LineSample(s_nodes, 0.5 * (s_nodes[1:] + s_nodes[:-1]), point, dict(step["cell"]))
+
+
+def files_in(folder: Path) -> list[str]:
+    """Every file under folder, relative; a .bp folder (ADIOS2) counts as one file."""
+    out = set()
+    for path in Path(folder).rglob("*"):
+        rel = path.relative_to(folder)
+        bp = next((i for i, part in enumerate(rel.parts) if part.endswith(".bp")), None)
+        if bp is not None:
+            out.add(str(Path(*rel.parts[:bp + 1])))
+        elif path.is_file():
+            out.add(str(rel))
+    return sorted(out)
+
+
+def _csv_text(value) -> str:
+    """A CSV field: repr of a finite float (round trip exact), empty if not a number."""
+    x = float(value)
+    return repr(x) if np.isfinite(x) else ""
+
+
+def _csv_float(text: str) -> float:
+    return float(text) if text != "" else float("nan")
 
 
 def write_checkpoint_meta(folder: Path, meta: dict) -> None:
