@@ -11,7 +11,13 @@
                             m, xi (cells); torsion: phi (points), u, u_d, m, xi (cells)
     <run>/animation.gif     3-D rod: the moving centre line, coloured by |u_d - u_ref|
     <run>/snapshots.png     3-D rod: selected frames; torsion: spacetime.png (phi, u_d)
-    <run>/checkpoint/       adios4dolfinx state + meta.json, for ``resume``
+    <run>/checkpoint/step-N/  adios4dolfinx state.bp + meta.json after step N, for resume
+
+A checkpoint is written into ``step-N.partial`` and renamed to ``step-N`` when complete
+(one atomic rename), then older ones are removed: a crash at any moment leaves the last
+complete checkpoint, never a state of one step with the metadata of another.  Resuming
+verifies that the scene's physics (``Scene.physics``), the model and the number of
+degrees of freedom are those of the checkpoint, before anything is written.
 
 summary.json lists every file of the run folder (``files``).  The CSV has LF line ends;
 a value that does not exist (the power residual of row 0) is an empty field.
@@ -24,16 +30,21 @@ power balance of ERRATA.md).  It is O(dt^2) for smooth histories; an idealised s
 t = 0 makes the first interval's value O(1) (the 0+ rates are not known to the FE model).
 
 Only rank 0 writes files (the fields along the rod are gathered there, line_fields.py);
-adios4dolfinx checkpoint writes are collective.
+adios4dolfinx checkpoint writes are collective.  A file-system error on rank 0 is raised
+on every rank as :class:`OutputError` (``on_root``), so no rank waits in a collective
+call for one that failed.
 """
 
 from __future__ import annotations
 
 import csv
+import datetime
+import hashlib
 import json
 import os
 import shutil
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -41,6 +52,94 @@ import numpy as np
 
 COLUMNS = ["step", "time", "<the model's diagnostics>", "total_dissipation",
            "power_residual"]   # torsion models: end_torsion, end_rotation, ... (see models)
+
+
+class OutputError(RuntimeError):
+    """A results folder or checkpoint cannot be used; nothing was written (exit 2)."""
+
+
+def on_root(comm, action, what: str):
+    """``action()`` on rank 0 only, its result on every rank; an OSError or ValueError
+    there is raised on every rank as OutputError("what: reason")."""
+    result, error = None, None
+    if comm.rank == 0:
+        try:
+            result = action()
+        except OutputError as err:
+            error = str(err)
+        except (OSError, ValueError) as err:
+            error = f"{what}: {getattr(err, 'strerror', None) or err}"
+    error, result = comm.bcast((error, result), root=0)
+    if error is not None:
+        raise OutputError(error)
+    return result
+
+
+def folder_problem(path: Path) -> str | None:
+    """Why ``path`` cannot become a results folder (None if it can): a NUL, a name too
+    long, an existing file, a file or an unwritable folder on the way.  Writability is
+    probed by creating and removing a temporary folder (permission bits do not tell a
+    root user about read-only file systems)."""
+    from .scenes.schema import path_problem
+    problem = path_problem(str(path))
+    if problem:
+        return f"{str(path)[:80]!r}: {problem}"
+    if path.exists() and not path.is_dir():
+        return f"{path} exists and is not a folder"
+    ancestor = path
+    while not ancestor.exists():
+        if ancestor.is_symlink():
+            return f"{ancestor} is a broken symbolic link"
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        return f"{ancestor} is a file, so {path} cannot be a folder"
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".dolfin-rod-probe-", dir=ancestor))
+    except OSError as err:
+        return f"cannot create folders in {ancestor}: {err.strerror or err}"
+    return None
+
+
+RUN_FILES = ("scene.toml", "timeseries.csv", "summary.json", "checkpoint")
+
+
+def prepare_run_folder(folder: Path, resume: bool, overwrite: bool) -> None:
+    """Rank 0: make ``folder`` ready; a non-empty folder is reused only to resume, or
+    replaced with ``overwrite`` if it is a run folder (never any other folder)."""
+    problem = folder_problem(folder)
+    if problem:
+        raise OutputError(f"--out {problem}")
+    if resume:
+        if not folder.is_dir():
+            raise OutputError(f"--resume: {folder} is not a run folder")
+        return
+    if folder.is_dir() and any(folder.iterdir()):
+        if not overwrite:
+            raise OutputError(f"{folder} is not empty: pass --resume to continue its run or "
+                              "--overwrite to replace it")
+        if not any((folder / name).exists() for name in RUN_FILES):
+            raise OutputError(f"--overwrite: {folder} is not a dolfin-rod run folder (none of "
+                              f"{', '.join(RUN_FILES)}); refusing to delete it")
+        shutil.rmtree(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+
+
+def new_run_folder(parent: Path, name: str) -> Path:
+    """Rank 0: create <parent>/<name>-<time> (with -2, -3, ... if that exists: mkdir is
+    atomic, so two runs started in the same second get different folders)."""
+    problem = folder_problem(parent)
+    if problem:
+        raise OutputError(f"outputs.directory {problem}")
+    parent.mkdir(parents=True, exist_ok=True)
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    for n in range(1, 10_000):
+        folder = parent / (f"{name}-{stamp}" + (f"-{n}" if n > 1 else ""))
+        try:
+            folder.mkdir()
+            return folder
+        except FileExistsError:
+            continue
+    raise OutputError(f"no free run folder name {name}-{stamp}-N in {parent}")
 
 
 def versions() -> dict[str, str]:
@@ -94,17 +193,16 @@ class RunWriter:
     """Everything a run writes; rank 0 writes files, collective writes on all ranks."""
 
     def __init__(self, folder: Path, scene, choice, sim, comm, resume: bool = False):
+        """``folder`` exists (prepare_run_folder); a resumed run keeps its scene.toml."""
         self.folder, self.scene, self.choice, self.sim, self.comm = Path(folder), scene, choice, sim, comm
         self.rank = comm.rank
         self.outputs = scene["outputs"]
         self.balance = PowerBalance()
         self.rows: list[dict] = []
         self.timings = {"output": 0.0}
-        if self.rank == 0:
-            self.folder.mkdir(parents=True, exist_ok=True)
-            if scene.text:
-                (self.folder / "scene.toml").write_text(scene.text)
-        comm.barrier()
+        if scene.text and not resume:
+            on_root(comm, lambda: (self.folder / "scene.toml").write_text(scene.text),
+                    f"cannot write {self.folder / 'scene.toml'}")
         self._csv = None
         self._kept: list[dict] = []
         self.columns: list[str] | None = None
@@ -166,66 +264,76 @@ class RunWriter:
         self.timings["output"] += time.perf_counter() - t0
 
     # -- checkpoints ------------------------------------------------------------------------
-    def checkpoint(self, step: int, t: float) -> None:
-        """Collective: the state after ``step`` so that ``resume`` continues exactly."""
-        t0 = time.perf_counter()
-        folder = self.folder / "checkpoint"
-        tmp = folder / "state-new.bp"
-        if self.rank == 0:
-            folder.mkdir(exist_ok=True)
-            shutil.rmtree(tmp, ignore_errors=True)
-        self.comm.barrier()
+    def _named_functions(self) -> tuple[dict, dict]:
+        """The model's checkpointed functions by name, and the rest of its state."""
         state = self.sim.state()
         functions = state.pop("functions", {})
+        named = {f"field_{i}": f for i, f in enumerate(self.sim.fields)} | functions
+        return named, state
+
+    def fingerprint(self) -> dict:
+        """What a checkpoint must match: the scene's physics, the model, the dofs."""
+        named, _ = self._named_functions()
+        dofs = {name: f.function_space.dofmap.index_map.size_global
+                * f.function_space.dofmap.index_map_bs for name, f in named.items()}
+        data = {"scene": self.scene.physics(), "model": self.sim.name, "dofs": dofs}
+        data = json.loads(json.dumps(data))          # tuples -> lists, as read back
+        digest = hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
+        return {**data, "sha256": digest}
+
+    def checkpoint(self, step: int, t: float) -> None:
+        """Collective: the state after ``step`` so that ``resume`` continues exactly,
+        written to step-N.partial and made visible by one rename (module docstring)."""
+        t0 = time.perf_counter()
+        root = self.folder / "checkpoint"
+        partial, final = root / f"step-{step:09d}.partial", root / f"step-{step:09d}"
+
+        def make_partial():
+            root.mkdir(exist_ok=True)
+            shutil.rmtree(partial, ignore_errors=True)
+            partial.mkdir()
+        on_root(self.comm, make_partial, f"cannot write a checkpoint in {root}")
+        named, state = self._named_functions()
         real: dict[str, list[float]] = {}
-        if self.sim.fields:
-            import adios4dolfinx
-            named = {f"field_{i}": f for i, f in enumerate(self.sim.fields)} | functions
-            for name, f in named.items():
-                if _is_real(f):   # adios4dolfinx cannot read real spaces back in parallel
-                    f.x.scatter_forward()
-                    real[name] = f.x.array.tolist()
-                else:
-                    adios4dolfinx.write_function_on_input_mesh(tmp, f, time=0.0, name=name)
-        self.comm.barrier()
-        if self.rank == 0:
-            final = folder / "state.bp"
-            shutil.rmtree(final, ignore_errors=True)
-            if tmp.exists():
-                tmp.rename(final)
-            meta = {"step": step, "time": t, "model": self.sim.name, "sim": state, "real": real,
-                    "balance": self.balance.state()}
-            (folder / "meta-new.json").write_text(json.dumps(meta))
-            (folder / "meta-new.json").replace(folder / "meta.json")
-        self.comm.barrier()
+        import adios4dolfinx
+        for name, f in named.items():
+            if _is_real(f):   # adios4dolfinx cannot read real spaces back in parallel
+                f.x.scatter_forward()
+                real[name] = f.x.array.tolist()
+            else:
+                adios4dolfinx.write_function_on_input_mesh(partial / "state.bp", f, time=0.0,
+                                                           name=name)
+        meta = {"step": step, "time": t, "model": self.sim.name, "sim": state, "real": real,
+                "balance": self.balance.state(), "fingerprint": self.fingerprint()}
+
+        def publish():
+            write_checkpoint_meta(partial, meta)
+            partial.rename(final)
+            for old in root.iterdir():
+                if old != final:
+                    shutil.rmtree(old, ignore_errors=True)
+        self.comm.barrier()                            # every rank's state.bp is written
+        on_root(self.comm, publish, f"cannot write a checkpoint in {root}")
         self.timings["output"] += time.perf_counter() - t0
 
-    def read_checkpoint(self) -> dict:
-        """Collective: restore the model and balance from <run>/checkpoint; returns meta."""
-        folder = self.folder / "checkpoint"
-        meta = None
-        if self.rank == 0:
-            path = folder / "meta.json"
-            meta = json.loads(path.read_text()) if path.exists() else None
-        meta = self.comm.bcast(meta, root=0)
-        if meta is None:
-            raise FileNotFoundError(f"no checkpoint in {folder}")
-        if meta["model"] != self.sim.name:
-            raise ValueError(f"the checkpoint is of model {meta['model']!r}, this run uses "
-                             f"{self.sim.name!r}")
-        if self.sim.fields:
-            import adios4dolfinx
-            functions = self.sim.state().get("functions", {})
-            named = {f"field_{i}": f for i, f in enumerate(self.sim.fields)} | functions
-            for name, f in named.items():
-                if name in meta.get("real", {}):
-                    f.x.array[:] = meta["real"][name][0]   # one global value (owned + ghost)
-                else:
-                    adios4dolfinx.read_function(folder / "state.bp", f, time=0.0, name=name)
-                f.x.scatter_forward()
+    def restore_checkpoint(self, meta: dict) -> None:
+        """Collective: check the model and dofs against ``meta`` (read_checkpoint_meta),
+        then restore the model and the power balance; nothing is written."""
+        mine = self.fingerprint()
+        if meta["fingerprint"]["sha256"] != mine["sha256"]:
+            raise OutputError(f"cannot resume from {meta['folder']}: "
+                              + fingerprint_difference(meta["fingerprint"], mine))
+        import adios4dolfinx
+        named, _ = self._named_functions()
+        for name, f in named.items():
+            if name in meta["real"]:
+                f.x.array[:] = meta["real"][name][0]   # one global value (owned + ghost)
+            else:
+                adios4dolfinx.read_function(Path(meta["folder"]) / "state.bp", f, time=0.0,
+                                            name=name)
+            f.x.scatter_forward()
         self.sim.restore(meta["sim"])
         self.balance.restore(meta["balance"])
-        return meta
 
     # -- the end --------------------------------------------------------------------------
     def finish(self, summary: dict, timings: dict) -> None:
@@ -356,6 +464,54 @@ def _csv_text(value) -> str:
 
 def _csv_float(text: str) -> float:
     return float(text) if text != "" else float("nan")
+
+
+def write_checkpoint_meta(folder: Path, meta: dict) -> None:
+    """Rank 0: meta.json of a checkpoint (its own function so that tests can make a
+    crash happen between state.bp and meta.json)."""
+    (folder / "meta.json").write_text(json.dumps(meta))
+
+
+def read_checkpoint_meta(run: Path, comm, scene) -> dict:
+    """Collective: the newest complete checkpoint of ``run`` (``meta["folder"]``),
+    refused with OutputError unless it was written by a scene with the same physics
+    (Scene.physics) and ends before time.t_end.  Reads only."""
+    def newest():
+        root = run / "checkpoint"
+        done = sorted(p for p in root.glob("step-*") if p.suffix != ".partial"
+                      and (p / "meta.json").is_file()) if root.is_dir() else []
+        if not done:
+            raise OutputError(f"--resume: no complete checkpoint in {root} (the scene "
+                              "needs outputs.checkpoint_every > 0)")
+        return {**json.loads((done[-1] / "meta.json").read_text()), "folder": str(done[-1])}
+    meta = on_root(comm, newest, f"--resume: cannot read the checkpoint of {run}")
+    theirs = meta.get("fingerprint", {}).get("scene")
+    mine = json.loads(json.dumps(scene.physics()))
+    if theirs != mine:
+        raise OutputError(f"cannot resume from {meta['folder']}: "
+                          + fingerprint_difference({"scene": theirs}, {"scene": mine}))
+    if meta["time"] >= scene["time"]["t_end"]:
+        raise OutputError(f"cannot resume from {meta['folder']}: it is at t = "
+                          f"{meta['time']:g}, not before time.t_end = "
+                          f"{scene['time']['t_end']:g}")
+    return meta
+
+
+def fingerprint_difference(theirs: dict, mine: dict) -> str:
+    """The first entries where a checkpoint's fingerprint and this run's differ."""
+    diffs = []
+
+    def walk(a, b, path):
+        if isinstance(a, dict) and isinstance(b, dict):
+            first = ("model", "scene")                 # the likely cause before its dofs
+            for k in sorted(set(a) | set(b), key=lambda k: (k not in first, k)):
+                walk(a.get(k), b.get(k), f"{path}.{k}" if path else k)
+        elif a != b:
+            diffs.append(f"{path}: {a!r} in the checkpoint, {b!r} now")
+    walk(theirs, mine, "")
+    shown = "; ".join(d.removeprefix("scene.") for d in diffs[:4])
+    return (f"it was written by a different run ({shown or 'unreadable fingerprint'}"
+            f"{'; ...' if len(diffs) > 4 else ''}); nothing was changed")
 
 
 def _is_real(f) -> bool:

@@ -64,10 +64,26 @@ def shared_folder(tmp_path) -> Path:
 # --- validation ---------------------------------------------------------------------------
 
 
+# the least model of each bundled scene, by reading it: homogeneous quasi-static torsion
+# with an end load or rotation -> ode; a 3-D material -> rod (a new scene needs its entry)
+BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
+                  "cantilever_creep.toml": "rod", "gravity_cantilever.toml": "rod",
+                  "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod"}
+
+
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
 def test_bundled_scenes_are_valid(path):
     scene = load_scene(path)
-    assert select_model(scene).model in ("ode", "torsion", "rod")
+    assert select_model(scene).model == BUNDLED_MODELS[path.name]
+
+
+def relaxation_rederived(t, u0, alpha, alpha_d, mu_d):
+    """Stress relaxation re-derived here (not closed_forms): with u = u0 held from t = 0,
+    eq. nattwist mu_d u_d' = alpha u0 - (alpha + alpha_d) u_d, u_d(0) = 0 gives
+    u_d = alpha u0/(alpha + alpha_d) (1 - exp(-(alpha + alpha_d) t/mu_d)), and eq. twist
+    (mu u' = 0 for t > 0) the end torsion m = alpha (u0 - u_d)."""
+    u_d = alpha * u0 / (alpha + alpha_d) * (1.0 - np.exp(-(alpha + alpha_d) * t / mu_d))
+    return u_d, alpha * (u0 - u_d)
 
 
 def test_defaults_a_user_expects():
@@ -270,7 +286,8 @@ def test_ode_exact_is_the_closed_form():
     scene = _case("relaxation")
     d = _run(scene, "ode")
     t = np.array([x["time"] for x in d])
-    ud, m = closed_forms.relaxation(t, 0.5, 2.0, 1.0, 0.5)
+    ud, m = relaxation_rederived(t, 0.5, 2.0, 1.0, 0.5)
+    # the same exponential evaluated in two ways: round-off, 1e-13 on O(1) values
     assert np.allclose([x["end_torsion"] for x in d], m, atol=1e-13)
     assert np.allclose([x["mean_natural_twist"] for x in d], ud, atol=1e-13)
     scene = _case("creep_inviscid_table")          # solve_ivp (Radau) path, mu = 0

@@ -55,6 +55,11 @@ class RodModel(FEModel):
         check_supports(ends, end_displacement, end_rotation)
         check_parameters(params, model == "evolving", model != "hyperelastic", variant)
         check_loads(end_loads, distributed_loads)
+        if constraint is not None and not is_zero(params.rho_A):
+            raise ValueError(f"constraint = {constraint!r} with rho_A > 0: a dynamic rod with "
+                             "constraint multipliers is an index-3 DAE, which no integrator "
+                             "here solves reliably; use a quasi-static rod (rho_A = 0) or "
+                             "stiff shear/axial B instead of the constraint")
         self.params, self.model, self.variant, self.constraint = params, model, variant, constraint
         self.end_loads, self.distributed_loads = list(end_loads), list(distributed_loads)
         self.length = float(params.length)
@@ -100,7 +105,8 @@ class RodModel(FEModel):
     def set_initial_state(self, natural_curvature=None, natural_stretch=None) -> None:
         """Rest in the stress-free configuration of the reference strains (a straight rod
         along e_3, or the helix/circle of constant reference_curvature), natural strains
-        equal to the reference strains unless given (3-vectors), rates zero."""
+        equal to the discrete reference strains (uniform variant: their mean) unless given
+        (3-vectors), rates zero: no stress at t = 0."""
         initial_state.set_initial_state(self, natural_curvature, natural_stretch)
 
     def diagnostics(self, t: float) -> dict[str, float]:

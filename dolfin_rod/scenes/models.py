@@ -120,7 +120,7 @@ class OdeTorsion:
         self.y = np.array([u, self.u_d0])
         self.ydot = np.zeros(2)
         self.y_nm1 = self.y.copy()
-        self.history_ok = False
+        self.history_steps = 0
         if self.mode == "exact":
             self._solve_exact()
         self.impulse = impulse
@@ -199,7 +199,7 @@ class OdeTorsion:
     def _scheme_step(self, t: float, dt: float) -> None:
         """One step of the scheme (as TimeStepper's: same stages, startup and rate rule)
         on the linear system M y' + K y = f: J y = -r with r the residual at y = 0."""
-        scheme = self.scheme.for_step(self.history_ok)
+        scheme = self.scheme.for_step(self.history_steps)
         M, K = self._matrices()
         y_n, y_nm1, ydot_n = self.y, self.y_nm1, self.ydot
         zero = np.zeros(2)
@@ -215,7 +215,7 @@ class OdeTorsion:
         y = np.linalg.solve(J, -r)
         self.ydot = scheme.rate_after_step(y, y_n, y_nm1, ydot_n, dt)
         self.y_nm1, self.y = y_n, y
-        self.history_ok = True
+        self.history_steps = min(self.history_steps + 1, 2)
 
     def advance(self, t: float, t_next: float) -> None:
         if self.mode == "scheme":
@@ -228,7 +228,7 @@ class OdeTorsion:
         """u, u_d and their rates at t."""
         if self.mode == "scheme":
             return self.y[0], self.y[1], self.ydot[0], self.ydot[1]
-        k = int(np.argmin(np.abs(self.times - t)))
+        k = self._index(t)
         u, ud = self.u_series[k], self.ud_series[k]
         a, ad, mu, mud = self.alpha, self.alpha_d, self.mu, self.mu_d
         ud_t = (a * u - (a + ad) * ud) / mud
@@ -240,26 +240,34 @@ class OdeTorsion:
             u_t = self._load_rate(t) / a + ud_t
         return u, ud, u_t, ud_t
 
+    def _index(self, t: float) -> int:
+        """The output time t's index: a bisection, O(log N) (an argmin over all output
+        times made a run O(N^2)); ValueError for a time off the output grid."""
+        k = min(int(np.searchsorted(self.times, t - 1e-9 * self.dt)), len(self.times) - 1)
+        if abs(self.times[k] - t) > 1e-9 * self.dt:
+            raise ValueError(f"t = {t!r} is not an output time (multiples of dt = {self.dt:g})")
+        return k
+
     def diagnostics(self, t: float) -> dict[str, float]:
         a, ad, mu, mud = self.alpha, self.alpha_d, self.mu, self.mu_d
-        u, ud, u_t, ud_t = (float(x) for x in self._state_at(t))
-        m = a * (u - ud) + mu * u_t if self.rotation else self._load(t)
-        return {
-            "end_rotation": u, "end_rotation_rate": u_t,
-            "free_energy": 0.5 * a * (u - ud) ** 2 + 0.5 * ad * ud ** 2,
-            "kinetic_energy": 0.0,
-            "dissipation_rate": mu * u_t ** 2 + mud * ud_t ** 2,
-            "mean_natural_twist": ud, "time": float(t), "end_torsion": float(m),
-            "load_power": float(m) * u_t,
-        }
+        with np.errstate(over="ignore", invalid="ignore"):   # overflow -> inf, as in FE
+            u, ud, u_t, ud_t = (np.float64(x) for x in self._state_at(t))
+            m = a * (u - ud) + mu * u_t if self.rotation else np.float64(self._load(t))
+            d = {"end_rotation": u, "end_rotation_rate": u_t,
+                 "free_energy": 0.5 * a * (u - ud) ** 2 + 0.5 * ad * ud ** 2,
+                 "kinetic_energy": 0.0,   # eq. disspw: xi = mu u'^2 - dpsi/du_d u_d'
+                 "dissipation_rate": mu * u_t ** 2 + (a * (u - ud) - ad * ud) * ud_t,
+                 "mean_natural_twist": ud, "time": t, "end_torsion": m,
+                 "load_power": m * u_t}
+        return {k: float(v) for k, v in d.items()}
 
     def state(self) -> dict:
         return {"y": self.y.tolist(), "y_nm1": self.y_nm1.tolist(), "ydot": self.ydot.tolist(),
-                "history_ok": self.history_ok}
+                "history_steps": self.history_steps}
 
     def restore(self, state: dict) -> None:
         self.y, self.y_nm1 = np.array(state["y"]), np.array(state["y_nm1"])
-        self.ydot, self.history_ok = np.array(state["ydot"]), bool(state["history_ok"])
+        self.ydot, self.history_steps = np.array(state["ydot"]), int(state["history_steps"])
 
     def describe(self) -> str:
         return self.method
@@ -318,10 +326,15 @@ class FESimulation:
         """Functions a checkpoint stores (besides problem.fields) and the stepper flags."""
         return {"functions": {**{f"rate_{i}": r for i, r in enumerate(self.problem.rates)},
                               **{f"previous_{i}": p for i, p in enumerate(self.stepper.y_nm1)}},
-                "history_ok": self.stepper.history_ok}
+                "history_steps": self.stepper.history_steps}
 
     def restore(self, state: dict) -> None:
-        self.stepper.history_ok = bool(state["history_ok"])
+        self.stepper.history_steps = int(state["history_steps"])
+
+    @property
+    def stats(self):
+        """Steps, Newton iterations and rejected steps of the integrator that ran."""
+        return self.ts.stats if self.ts is not None else self.stepper.stats
 
     def describe(self) -> str:
         if self.ts is not None:

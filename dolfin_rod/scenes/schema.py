@@ -31,7 +31,8 @@ from ..integrators.schemes import get_scheme
 from ..validation import profile_violation, sample_points
 
 __all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "Tensor", "load_scene",
-           "parse_scene", "load_entry_point", "SCHEMA", "SCHEMA_NOTES", "MODEL_NAMES"]
+           "parse_scene", "load_entry_point", "SCHEMA", "SCHEMA_NOTES", "MODEL_NAMES",
+           "path_problem"]
 
 MODEL_NAMES = ("auto", "ode", "torsion", "rod")
 VARIANTS = ("local", "uniform")
@@ -109,6 +110,52 @@ def choice(*options: str):
 def string(v):
     if not isinstance(v, str):
         raise _Bad(f"must be a string, got {_type_name(v)} {v!r}")
+    return v
+
+
+NAME_MAX = 255     # bytes in one path component (POSIX file systems)
+PATH_MAX = 4096    # bytes in a whole path (Linux)
+
+
+def run_name(v):
+    """A scene name is a folder name: letters, digits, '.', '_', '-', not starting with
+    '.', so that it can never leave outputs.directory or nest folders."""
+    v = string(v)
+    if not v or v.startswith(".") or not all(c.isascii() and (c.isalnum() or c in "._-")
+                                              for c in v):
+        raise _Bad(f"must be a folder name of letters, digits, '.', '_', '-' (not starting "
+                   f"with '.'), got {v!r}")
+    if len(v) > 100:
+        raise _Bad(f"must be at most 100 characters (it names the run folder), got {len(v)}")
+    return v
+
+
+def safe_name(stem: str) -> str:
+    """The default scene name from a file stem: characters run_name refuses become '_'."""
+    name = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in stem)
+    return name.lstrip(".")[:100] or "scene"
+
+
+def path_problem(text: str) -> str | None:
+    """Why ``text`` cannot be a file-system path (None if it can): empty, a NUL, a
+    component longer than NAME_MAX or the whole longer than PATH_MAX bytes."""
+    if not text:
+        return "must be a non-empty path"
+    if "\0" in text:
+        return "must not contain a NUL character"
+    encoded = text.encode("utf-8", "surrogateescape")
+    if len(encoded) >= PATH_MAX:
+        return f"is {len(encoded)} bytes long; paths are limited to {PATH_MAX - 1}"
+    longest = max(encoded.split(b"/"), key=len)
+    if len(longest) > NAME_MAX:
+        return f"has a path component of {len(longest)} bytes; file systems allow {NAME_MAX}"
+    return None
+
+
+def path_text(v):
+    problem = path_problem(string(v))
+    if problem:
+        raise _Bad(problem)
     return v
 
 
@@ -510,7 +557,8 @@ R = "3-D rod: "
 T = "torsion: "
 SCHEMA: dict[str, dict[str, Key]] = {
     "scene": {
-        "name": Key(string, None, "run name (default: the file's stem)"),
+        "name": Key(run_name, None, "run name, a folder name: letters, digits, '.', '_', '-' "
+                                   "(default: the file's stem, other characters as '_')"),
         "description": Key(string, "", "free text"),
         "model": Key(choice(*MODEL_NAMES), "auto", "auto | ode | torsion | rod"),
     },
@@ -627,7 +675,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
                        "e.g. {snes_max_it = 50, ksp_type = \"preonly\"}"),
     },
     "outputs": {
-        "directory": Key(string, "results", "parent folder of the run folders"),
+        "directory": Key(path_text, "results", "parent folder of the run folders"),
         "every": Key(integer(1), 1, "write rod.bp and animation frames every N steps (and "
                                     "at the end)"),
         "fields": Key(boolean, True, "rod.bp for ParaView (ADIOS2VTXReader): the deformed "
@@ -637,7 +685,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                         "moving centre line coloured by |u_d - u_ref|; "
                                         "torsion: spacetime.png of phi(s, t), u_d(s, t)"),
         "plots": Key(boolean, True, "PNG plots of the main histories"),
-        "checkpoint_every": Key(integer(0), 0, "adios4dolfinx checkpoint every N steps (0: off)"),
+        "checkpoint_every": Key(integer(0), 0, "adios4dolfinx checkpoint every N steps (0: off; "
+                                               "integrator = \"stepper\" only)"),
         "progress": Key(boolean, True, "tqdm progress bar (rank 0, TTY, not CI)"),
     },
 }
@@ -697,6 +746,24 @@ class Scene:
     def error(self, key: str, reason: str) -> SceneError:
         return SceneError(self.source, key, reason)
 
+    def physics(self) -> dict[str, dict[str, Any]]:
+        """The validated keys that determine the computed states, as plain JSON data
+        (what a checkpoint must match to be resumed): everything but the name and
+        description, the outputs table, t_end (a run may be extended) and the requested
+        model (the chosen model is compared instead)."""
+        return {table: {k: _plain(v) for k, v in keys.items()
+                        if not (table == "time" and k == "t_end")}
+                for table, keys in self.data.items() if table not in ("scene", "outputs")}
+
+
+def _plain(v: Any) -> Any:
+    """Validated values (dataclasses, tuples, floats) as JSON data (lists, dicts)."""
+    if hasattr(v, "__dataclass_fields__"):
+        return {f: _plain(getattr(v, f)) for f in v.__dataclass_fields__}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    return v
+
 
 def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
     """Read and validate a scene file; every failure is a SceneError.  ``overrides``
@@ -708,7 +775,7 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
     except OSError as err:
         raise SceneError(str(path), "", f"cannot read the scene: {err.strerror or err}") from None
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")   # a UTF-8 byte-order mark is allowed
     except UnicodeDecodeError as err:
         raise SceneError(str(path), "", f"not UTF-8 text: {err.reason} at byte {err.start}") from None
     return parse_scene(text, source=str(path), default_name=path.stem, overrides=overrides)
@@ -800,7 +867,7 @@ def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> S
                                  bad.reason) from None
         data[table] = out
     if data["scene"]["name"] is None:
-        data["scene"]["name"] = default_name
+        data["scene"]["name"] = safe_name(default_name)
     scene = Scene(data, source, given=given)
     _check_combinations(scene)
     return scene
@@ -838,6 +905,10 @@ def _check_time(scene: Scene) -> None:
     for key in ("ts_rtol", "ts_atol"):
         if key in given and not tim["adaptive"]:
             raise err(f"time.{key}", "an error tolerance of adaptive TS: set adaptive = true")
+    if scene["outputs"]["checkpoint_every"] and ts:
+        raise err("outputs.checkpoint_every", "checkpoints (and --resume) need integrator = "
+                                              "\"stepper\": PETSc TS runs the whole interval "
+                                              "in one call")
     if tim["dt"] > tim["t_end"]:
         raise err("time.dt", f"must be <= t_end = {tim['t_end']:g}, got {tim['dt']:g}")
     if tim["t_end"] / tim["dt"] > 1e7:
