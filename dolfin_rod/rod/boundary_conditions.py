@@ -3,7 +3,11 @@
 ends: (left, right), each "clamped" (x and q fixed), "pinned" (x fixed) or "free".
 end_displacement, end_rotation: {end: history t -> 3-vector}: a prescribed motion of an
 end (displacement from its initial position; rotation vector superposed on its initial
-rotation); the end's velocities (dynamic rods) follow from loads.rate.
+rotation); the end's velocities (dynamic rods) follow from loads.rate (the history's own
+derivative if it has one).  A dynamic rod cannot follow a jump of an end: a motion that
+is not 0 at t = 0 (the rod starts at rest in its initial configuration) or that declares
+jumps (``jumps``, as loads.PiecewiseSmoothLoad) is refused, as TorsionModel refuses a
+step in the end rotation; other jumps of an arbitrary callable cannot be detected.
 
 Reactions at a supported end: the residual tested with a unit virtual translation or
 spatial rotation of that end node only (the hat function of the node).
@@ -23,14 +27,19 @@ END_TYPES = ("clamped", "pinned", "free")
 _IDENTITY = np.array([1.0, 0, 0, 0])
 
 
-def check_supports(ends, end_displacement, end_rotation) -> None:
+def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False) -> None:
     if len(ends) != 2 or any(e not in END_TYPES for e in ends):
         raise ValueError(f"ends must be two of {END_TYPES}, got {ends!r}")
     for name, motion in (("end_displacement", end_displacement),
                          ("end_rotation", end_rotation)):
-        for end in (motion or {}):
+        for end, history in (motion or {}).items():
             if end not in ENDS:
                 raise ValueError(f"{name}: unknown end {end!r}")
+            if dynamic and (np.any(np.asarray(history(0.0), float) != 0.0)
+                            or any(size for _, size in getattr(history, "jumps", ()))):
+                raise ValueError(f"{name}[{end!r}] jumps (at t = 0 it must be 0: the rod "
+                                 "starts at rest), but rho_A > 0: a rod with inertia cannot "
+                                 "follow a jump of its end; use a smooth_step or a ramp")
 
 
 class EndSupports:
@@ -83,6 +92,21 @@ class EndSupports:
     def _set(self, key, value) -> None:
         if key in self.values:
             self.values[key].value[:] = value
+
+    def power(self, d: dict, t: float) -> float:
+        """Power of the reactions at ends with a prescribed motion: reaction force . x_t
+        + reaction couple . w (spatial angular velocity 2 vec(q_t conj(q))/|q|^2), from
+        the assembled reactions in ``d`` (issue 13 item 20: part of the load power)."""
+        total = 0.0
+        for end in set(self.displacement) | set(self.rotation):
+            x_t = loads.rate(lambda s: self.prescribed(end, s)[0], t)
+            qe = self.prescribed(end, t)[1]
+            q_t = loads.rate(lambda s: self.prescribed(end, s)[1], t)
+            w = 2 * np_qmul(q_t, qe * np.array([1, -1, -1, -1]))[1:] / (qe @ qe)
+            for i, comp in enumerate("xyz"):
+                total += d.get(f"reaction_force_{end}_{comp}", 0.0) * x_t[i]
+                total += d.get(f"reaction_couple_{end}_{comp}", 0.0) * w[i]
+        return float(total)
 
     def reaction_forms(self, F: dict, unk, length: float) -> dict:
         """reaction_force_{end}_{xyz}, reaction_couple_{end}_{xyz} at supported ends."""

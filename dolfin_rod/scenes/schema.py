@@ -414,7 +414,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "stiffness": Key(lambda v: _tensors(v, ("A", "B", "A_d", "B_d"), True), None,
                          "3-D rod: diagonals of A, B, A_d, B_d"),
         "viscosity": Key(lambda v: _tensors(v, ("M", "N", "M_d", "N_d"), False), None,
-                         "3-D rod: diagonals of M, N, M_d, N_d"),
+                         "3-D rod: diagonals of M, N, M_d, N_d; the uniform variant's M_d, "
+                         "N_d carry one more length factor than the local ones (its law "
+                         "integrates over s, docs/rod.md)"),
         "density": Key(real(0.0), None, "3-D rod: mass per length rho A (default 0: "
                                        "quasi-static)"),
         "section_inertia": Key(real(0.0), None, "3-D rod: I_11 = I_22 of a round section "
