@@ -111,7 +111,6 @@ class EndSupports:
     def reaction_forms(self, F: dict, unk, length: float) -> dict:
         """reaction_force_{end}_{xyz}, reaction_couple_{end}_{xyz} at supported ends."""
         forms = {}
-        q = unk.f["quaternion"]
         for end in ENDS:
             hat = fem.Function(unk.spaces["gauge_multiplier"])
             hat.interpolate(lambda X, e=end_coordinate(end, length):
@@ -122,7 +121,12 @@ class EndSupports:
                     forms[f"reaction_force_{end}_{comp}"] = ufl.replace(
                         F["displacement"], {unk.t["displacement"]: hat * e_i})
                 if ("quaternion", end) in self.values:
-                    dq = 0.5 * hat * qmul(ufl.as_vector((0.0, e_i[0], e_i[1], e_i[2])), q)
+                    # the end node's virtual rotation in the discrete space: hat times
+                    # the nodal value e_i q_end/2 (hat * e_i q(s)/2 is not P1 and made
+                    # the couple, and its power, O(h) wrong; issue 13 item 20)
+                    q_end = self.values[("quaternion", end)]
+                    dq = 0.5 * hat * qmul(ufl.as_vector((0.0, e_i[0], e_i[1], e_i[2])),
+                                          ufl.as_vector([q_end[k] for k in range(4)]))
                     forms[f"reaction_couple_{end}_{comp}"] = ufl.replace(
                         F["quaternion"], {unk.t["quaternion"]: dq})
         return forms
