@@ -52,6 +52,8 @@ class EndSupports:
         self.initial = {end: (np.zeros(3), _IDENTITY.copy()) for end in ENDS}  # (x, q)
         self.values: dict = {}
         spaces, mesh, L = model.unknowns.spaces, model.mesh, model.length
+        self.motion_rates = {end: (fem.Constant(mesh, np.zeros(3)), fem.Constant(mesh, np.zeros(4)))
+                             for end in ENDS if end in self.displacement or end in self.rotation}
         for end, kind in zip(ENDS, self.ends):
             blocks = []
             if kind in ("clamped", "pinned") or end in self.displacement:
@@ -93,40 +95,44 @@ class EndSupports:
         if key in self.values:
             self.values[key].value[:] = value
 
-    def power(self, d: dict, t: float) -> float:
-        """Power of the reactions at ends with a prescribed motion: reaction force . x_t
-        + reaction couple . w (spatial angular velocity 2 vec(q_t conj(q))/|q|^2), from
-        the assembled reactions in ``d`` (issue 13 item 20: part of the load power)."""
-        total = 0.0
-        for end in set(self.displacement) | set(self.rotation):
-            x_t = loads.rate(lambda s: self.prescribed(end, s)[0], t)
-            qe = self.prescribed(end, t)[1]
-            q_t = loads.rate(lambda s: self.prescribed(end, s)[1], t)
-            w = 2 * np_qmul(q_t, qe * np.array([1, -1, -1, -1]))[1:] / (qe @ qe)
-            for i, comp in enumerate("xyz"):
-                total += d.get(f"reaction_force_{end}_{comp}", 0.0) * x_t[i]
-                total += d.get(f"reaction_couple_{end}_{comp}", 0.0) * w[i]
-        return float(total)
-
     def reaction_forms(self, F: dict, unk, length: float) -> dict:
         """reaction_force_{end}_{xyz}, reaction_couple_{end}_{xyz} at supported ends."""
         forms = {}
+        q = unk.f["quaternion"]
+        power = 0
         for end in ENDS:
             hat = fem.Function(unk.spaces["gauge_multiplier"])
             hat.interpolate(lambda X, e=end_coordinate(end, length):
                             np.isclose(X[0], e).astype(float))
+            if end in self.motion_rates:
+                power += self._power_form(F, unk, end, hat)
             for i, comp in enumerate("xyz"):
                 e_i = ufl.unit_vector(i, 3)
                 if ("displacement", end) in self.values:
                     forms[f"reaction_force_{end}_{comp}"] = ufl.replace(
                         F["displacement"], {unk.t["displacement"]: hat * e_i})
                 if ("quaternion", end) in self.values:
-                    # the end node's virtual rotation in the discrete space: hat times
-                    # the nodal value e_i q_end/2 (hat * e_i q(s)/2 is not P1 and made
-                    # the couple, and its power, O(h) wrong; issue 13 item 20)
-                    q_end = self.values[("quaternion", end)]
-                    dq = 0.5 * hat * qmul(ufl.as_vector((0.0, e_i[0], e_i[1], e_i[2])),
-                                          ufl.as_vector([q_end[k] for k in range(4)]))
+                    dq = 0.5 * hat * qmul(ufl.as_vector((0.0, e_i[0], e_i[1], e_i[2])), q)
                     forms[f"reaction_couple_{end}_{comp}"] = ufl.replace(
                         F["quaternion"], {unk.t["quaternion"]: dq})
+        if self.motion_rates:
+            forms["reaction_power"] = power
         return forms
+
+    def _power_form(self, F: dict, unk, end: str, hat):
+        """The residual tested with the end node's velocity hat * (x_t, q_t): the power
+        of the reactions there (discrete test functions: the nodal values x_t, q_t times
+        the hat function)."""
+        x_t, q_t = self.motion_rates[end]
+        form = 0
+        if ("displacement", end) in self.values:
+            form += ufl.replace(F["displacement"], {unk.t["displacement"]: hat * x_t})
+        if ("quaternion", end) in self.values:
+            form += ufl.replace(F["quaternion"], {unk.t["quaternion"]: hat * q_t})
+        return form
+
+    def set_motion_rates(self, t: float) -> None:
+        """x_t and q_t of the moving ends at t, for the reaction power."""
+        for end, (x_t, q_t) in self.motion_rates.items():
+            x_t.value[:] = loads.rate(lambda s: self.prescribed(end, s)[0], t)
+            q_t.value[:] = loads.rate(lambda s: self.prescribed(end, s)[1], t)

@@ -110,8 +110,10 @@ class RodModel(FEModel):
         """MPI-reduced scalars at time t: tip position and quaternion, tip rotation angle
         (of the rotation path, in [0, 2 pi]), free and kinetic energy, dissipation rate
         (incl. drag), power of the applied loads and of the reactions at ends with a
-        prescribed motion, reactions at supported ends."""
+        prescribed motion (load_power; the latter also alone as reaction_power),
+        reactions at supported ends."""
+        self.supports.set_motion_rates(t)
         d = self.assembled_diagnostics(t)
-        d["load_power"] += self.supports.power(d, t)
+        d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         return d
