@@ -101,7 +101,7 @@ class OdeTorsion:
 
     def _load_rate(self, t: float) -> float:
         """Phi'(t), as the torsion PDE's end condition on w."""
-        return float(load_rate(self._load, t))
+        return 0.0 if self.history is None else float(load_rate(self.history, t))
 
     def _jump0(self) -> float:
         if self.history is None:

@@ -595,7 +595,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "B_d (evolving model); each a tensor (see above)"),
         "viscosity": Key(lambda v: _tensors(v, ("M", "N", "M_d", "N_d")), None,
                          R + "{M, N, M_d, N_d}: Kelvin-Voigt M, N (default 0), natural-"
-                         "configuration M_d, N_d (evolving model); each a tensor"),
+                         "configuration M_d, N_d (evolving model; the uniform variant's M_d, N_d carry one "
+                         "more length factor than the local ones, docs/rod.md); each a tensor"),
         "density": Key(coefficient(False), None, R + "mass per length rho A (number or "
                        "{polynomial}); > 0: dynamic, 0 (default): quasi-static"),
         "section_inertia": Key(_inertia, None, R + "I_11 = I_22 (a number) or [I_11, I_22]: "
