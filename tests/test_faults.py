@@ -102,7 +102,9 @@ def snapshot(folder: Path) -> dict[str, str]:
 
 def read_csv(path: Path) -> list[dict[str, float]]:
     with path.open() as f:
-        return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+        # an empty field is a value that does not exist (row 0's power residual)
+        return [{k: float(v) if v else float("nan") for k, v in r.items()}
+                for r in csv.DictReader(f)]
 
 
 def run_main(capsys, *argv) -> tuple[int, str, str]:
