@@ -1032,6 +1032,11 @@ def _check_rod_inertia(scene: Scene) -> None:
         raise err("material.section_inertia", "density and section_inertia (I_11, I_22) must "
                                               "be all > 0 (dynamic) or all 0 (quasi-static)")
     mat["dynamic"] = dynamic
+    if dynamic and mat["constraints"] != "none":
+        raise err("material.constraints", "a dynamic rod (density > 0) with constraint "
+                                          "multipliers is an index-3 DAE, which no integrator "
+                                          "here solves reliably: use a quasi-static rod or a "
+                                          "stiff shear/axial B instead")
     if lds["gravity"] is not None and not dynamic:
         raise err("loads.gravity", "the weight rho_A g needs material.density > 0 (a "
                                    "dynamic rod); quasi-static: use loads.distributed_force")
