@@ -233,6 +233,13 @@ class TorsionModel(FEModel):
         d["load_power"] = d["end_torsion"] * d["end_rotation_rate"] + d.pop("couple_power", 0.0)
         return d
 
+    def observables(self) -> dict:
+        """What a reader of Section 5 looks at, as UFL expressions of the current state:
+        twist angle phi, twist u = phi_s, natural twist u_d, torsion m (eq. mconsteq) and
+        dissipation rate xi.  Used by the run outputs (line_fields.py)."""
+        return {"phi": self.phi, "u": self.phi.dx(0), "u_d": self.u_d, "m": self.torsion,
+                "xi": self.xi}
+
     def pointwise_dissipation(self) -> np.ndarray:
         """xi at the cell midpoints (owned cells) for the current state and rates."""
         return self.pointwise(self.xi)[:, 0].copy()

@@ -1,11 +1,14 @@
 """The rod's initial state: at rest in the stress-free configuration of the reference
 strains (a straight rod along e_3, or the helix/circle of constant reference_curvature),
-natural strains equal to the reference strains unless given, rates zero."""
+natural strains equal to the discrete reference strains (uniform variant: their mean)
+unless given, rates zero."""
 
 from __future__ import annotations
 
 import dolfinx.fem as fem
 import numpy as np
+import ufl
+from mpi4py import MPI
 
 from ..rotations import np_quaternion_from_rotation_vector
 from ..model_base import ENDS, end_coordinate
@@ -50,24 +53,32 @@ def set_initial_state(model, natural_curvature=None, natural_stretch=None) -> No
     u_ref.interpolate(fem.Expression(model.u, pts))
     v_ref.interpolate(fem.Expression(model.v, pts))
     if model.evolving:
-        # natural strains: given constants, else the discrete strains (local variant:
-        # unstressed at t = 0) or the reference strains (uniform variant)
-        _fill_natural(model, "natural_curvature", natural_curvature, u_ref, u0)
+        # natural strains: given constants, else the discrete strains (local variant) or
+        # their mean (uniform variant): unstressed at t = 0 (issue 13 item 18: the
+        # continuum u0 left an O(h^2) stress in the uniform variant)
+        _fill_natural(model, "natural_curvature", natural_curvature, u_ref)
         if "natural_stretch" in f:
-            _fill_natural(model, "natural_stretch", natural_stretch, v_ref, v0)
+            _fill_natural(model, "natural_stretch", natural_stretch, v_ref)
         for g in f.values():
             g.x.scatter_forward()
     model.supports.set(0.0)
 
 
-def _fill_natural(model, name, given, discrete, reference) -> None:
+def _mean(model, field) -> np.ndarray:
+    """(1/L) int field ds of a DG0 vector field (MPI-reduced)."""
+    parts = [fem.assemble_scalar(fem.form(field[i] * ufl.dx(domain=model.mesh)))
+             for i in range(3)]
+    return np.array(model.mesh.comm.allreduce(np.array(parts), op=MPI.SUM)) / model.length
+
+
+def _fill_natural(model, name, given, discrete) -> None:
     g = model.unknowns.f[name]
     if given is not None:
         val = np.broadcast_to(np.asarray(given, float), (g.x.array.size // 3 or 1, 3))
     elif model.variant == "local":
         val = discrete.x.array.reshape(-1, 3)
-    else:
-        val = np.atleast_2d(reference)
+    else:     # one global value: the mean of the discrete strains, so no initial stress
+        val = np.atleast_2d(_mean(model, discrete))
     if model.constraint == "unshearable" and name == "natural_stretch":
         g.x.array[:] = np.broadcast_to(val[:, 2], g.x.array.shape)
     else:

@@ -33,8 +33,8 @@ class RodParameters:
     B_d: Tensor = (1.0, 1.0, 1.0)    # natural-stretch stiffness
     M: Tensor = None                 # Kelvin-Voigt viscosities (eq. xichoice); None: 0
     N: Tensor = None
-    M_d: Tensor = (1.0, 1.0, 1.0)    # natural-configuration viscosities
-    N_d: Tensor = (1.0, 1.0, 1.0)
+    M_d: Tensor = (1.0, 1.0, 1.0)    # natural-configuration viscosities; uniform variant:
+    N_d: Tensor = (1.0, 1.0, 1.0)    #   per unit length too (evolution.py, docs/rod.md)
     rho_A: float | Callable = 0.0    # mass per length; 0: quasi-static
     I11: float | Callable = 0.0      # section mass moments (rho J, Section 2.2)
     I22: float | Callable = 0.0
@@ -109,6 +109,11 @@ def check_parameters(params: RodParameters, evolving: bool, viscous: bool,
             check_tensor(name, value, L, semidefinite=True)
     for name in SCALARS:
         check_scalar(name, getattr(params, name), L)
+    if is_zero(params.rho_A):
+        for name in ("I11", "I22"):
+            if not is_zero(getattr(params, name)):
+                raise ValueError(f"{name} > 0 needs rho_A > 0: with rho_A = 0 the rod is "
+                                 "quasi-static and its rotary inertia would be dropped")
     for name in ("reference_curvature", "reference_stretch"):
         if np.shape(getattr(params, name)) != (3,):
             raise ValueError(f"{name} must be a 3-vector")

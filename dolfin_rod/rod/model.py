@@ -16,12 +16,14 @@ from __future__ import annotations
 from typing import Sequence
 
 import dolfinx.fem as fem
+import ufl
 from mpi4py import MPI
 
 from .. import constraints
 from ..evolution import check_variant
 from ..model_base import FEModel, check_n_cells
 from ..problem import SemiDiscreteProblem
+from ..rotations import rotation_matrix
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports, check_supports
 from .constitutive import check_model, energy_function, section_response
@@ -53,6 +55,11 @@ class RodModel(FEModel):
         check_supports(ends, end_displacement, end_rotation)
         check_parameters(params, model == "evolving", model != "hyperelastic", variant)
         check_loads(end_loads, distributed_loads)
+        if constraint is not None and not is_zero(params.rho_A):
+            raise ValueError(f"constraint = {constraint!r} with rho_A > 0: a dynamic rod with "
+                             "constraint multipliers is an index-3 DAE, which no integrator "
+                             "here solves reliably; use a quasi-static rod (rho_A = 0) or "
+                             "stiff shear/axial B instead of the constraint")
         self.params, self.model, self.variant, self.constraint = params, model, variant, constraint
         self.end_loads, self.distributed_loads = list(end_loads), list(distributed_loads)
         self.length = float(params.length)
@@ -72,6 +79,7 @@ class RodModel(FEModel):
         psi_fn = energy_function(params, c, self.evolving, *self.reference)
         resp = section_response(unk, c, psi_fn, self.evolving, constraint, self.reference)
         self.psi, self.m, self.u, self.v = resp.psi, resp.m, resp.u, resp.v
+        self.u_d, self.v_d = resp.u_d, resp.v_d
 
         F, self.n = residual.internal_forces(unk, resp, constraint, disc)
         residual.gauge(F, unk, disc)
@@ -97,7 +105,8 @@ class RodModel(FEModel):
     def set_initial_state(self, natural_curvature=None, natural_stretch=None) -> None:
         """Rest in the stress-free configuration of the reference strains (a straight rod
         along e_3, or the helix/circle of constant reference_curvature), natural strains
-        equal to the reference strains unless given (3-vectors), rates zero."""
+        equal to the discrete reference strains (uniform variant: their mean) unless given
+        (3-vectors), rates zero: no stress at t = 0."""
         initial_state.set_initial_state(self, natural_curvature, natural_stretch)
 
     def diagnostics(self, t: float) -> dict[str, float]:
@@ -107,3 +116,22 @@ class RodModel(FEModel):
         d = self.assembled_diagnostics(t)
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         return d
+
+    def observables(self) -> dict:
+        """What a mechanician reads, as UFL expressions of the current state and rates:
+        centre line r = X + x (X = s e_3), directors d_i = R e_i, strains u, v, natural
+        strains u_d, v_d, reference strains u_ref, v_ref, contact force n and couple m in
+        material (``n``, ``m``) and spatial (``n_spatial`` = R n, ``m_spatial`` = R m)
+        components, dissipation rate xi (eq. disspw).  Used by the run outputs."""
+        q, x = self.f["quaternion"], self.f["displacement"]
+        s = ufl.SpatialCoordinate(self.mesh)[0]
+        R = rotation_matrix(q)
+        u_ref, v_ref = self.reference
+        n = self.n if self.n is not None else ufl.as_vector((0.0, 0.0, 0.0))
+        v_d = self.v_d if self.v_d is not None and ufl.shape(self.v_d) == (3,) else v_ref
+        out = {"centre_line": ufl.as_vector((0.0, 0.0, s)) + x}
+        out.update({f"d{i + 1}": ufl.as_vector([R[j, i] for j in range(3)]) for i in range(3)})
+        out.update({"u": self.u, "v": self.v, "u_d": self.u_d, "v_d": v_d, "u_ref": u_ref,
+                    "v_ref": v_ref, "n": n, "m": self.m, "n_spatial": ufl.dot(R, n),
+                    "m_spatial": ufl.dot(R, self.m), "xi": self.xi})
+        return out

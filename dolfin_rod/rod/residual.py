@@ -49,7 +49,10 @@ def evolution(F: dict, unk: Unknowns, resp: SectionResponse, c: dict, variant: s
     pairs = []
     blocks = [("natural_curvature", c["M_d"], resp.dpsi_dud)]
     if "natural_stretch" in unk.f:
-        unshearable = constraint == "unshearable"   # scalar v_d,3 only
+        # unshearable: scalar v_d,3 only, evolving with N_d,33 (the stretch viscosity).
+        # Deviation from the paper: eq. dotmfvpequ prints M_d,33 (the twist viscosity),
+        # which mixes the torsional and axial laws; docs/rod.md, "Deviations".
+        unshearable = constraint == "unshearable"
         blocks.append(("natural_stretch", c["N_d"][2, 2] if unshearable else c["N_d"],
                        resp.dpsi_dvd[2] if unshearable else resp.dpsi_dvd))
     for name, M_d, dpsi in blocks:
