@@ -9,7 +9,6 @@ regularisations ``u_n``, ``m_n`` that the paper uses to define it.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
