@@ -1,8 +1,13 @@
 # Every target runs inside the dolfin_rod environment through ./rodenv, which builds
-# that environment on first use (see README.md, "Environment").
+# that environment on first use (see README.md, "Environment").  DOLFINX=0.9 (default,
+# Debian trixie) or DOLFINX=0.11 (Debian sid) chooses the release.
 RODENV  := ./rodenv
 PYTEST  := python3 -m pytest
 NP      ?= 2
+# `make test` covers: DOLFINX if set; else the host's own DOLFINx if python3 imports one
+# (the Docker image, conda; ./rodenv then runs natively); else both releases.
+RELEASES = $(or $(DOLFINX),$(shell python3 -c 'import dolfinx; \
+    print(".".join(dolfinx.__version__.split(".")[:2]))' 2>/dev/null),0.9 0.11)
 
 .PHONY: demo demos test test-serial test-mpi test-long bench work-precision stability env shell clean
 
@@ -12,7 +17,11 @@ demo:            ## the flagship demo: viscoelastic cantilever creep and recover
 demos:           ## every demo as a user runs it, serially and under mpirun
 	$(RODENV) $(PYTEST) tests/test_demos.py -m "slow or not slow"
 
-test: test-serial test-mpi   ## the CI suite: serial run, then the MPI run on $(NP) ranks
+test:            ## the CI suite on each release: serial run, then the MPI run on $(NP) ranks
+	@for v in $(RELEASES); do \
+	    echo "== DOLFINx $$v: make test-serial test-mpi"; \
+	    DOLFINX=$$v $(MAKE) --no-print-directory test-serial test-mpi || exit 1; \
+	done
 
 test-serial:
 	$(RODENV) $(PYTEST) -m "not slow"

@@ -48,6 +48,7 @@ import ufl
 from dolfinx.io import VTXWriter
 from mpi4py import MPI
 
+from dolfin_rod import compat
 from dolfin_rod.integrators.stepper import TimeStepper
 from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
 from dolfin_rod.rotations import rotation_matrix
@@ -101,7 +102,7 @@ def swing(scheme, dt, record=None):
         director = fem.Function(P1, name="director_1")
         d1 = fem.Expression(ufl.dot(rotation_matrix(model.f["quaternion"]),
                                     ufl.as_vector((1.0, 0.0, 0.0))),
-                            P1.element.interpolation_points())
+                            compat.interpolation_points(P1))
         vtx = VTXWriter(comm, OUT / "rod.bp", [model.f["displacement"], director],
                         engine="BP4")
         nodes = P1.tabulate_dof_coordinates()[:P1.dofmap.index_map.size_local, 0]

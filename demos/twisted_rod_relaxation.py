@@ -60,7 +60,7 @@ import ufl
 from dolfinx.io import VTXWriter
 from mpi4py import MPI
 
-from dolfin_rod import closed_forms
+from dolfin_rod import closed_forms, compat
 from dolfin_rod.integrators.stepper import TimeStepper
 from dolfin_rod.rod import RodModel, RodParameters
 from dolfin_rod.rotations import np_quaternion_from_rotation_vector, rotation_matrix
@@ -129,7 +129,7 @@ def relax(variant):
     director = fem.Function(P1, name="director_1")
     d1 = fem.Expression(ufl.dot(rotation_matrix(model.f["quaternion"]),
                                 ufl.as_vector((1.0, 0.0, 0.0))),
-                        P1.element.interpolation_points())
+                        compat.interpolation_points(P1))
     vtx = VTXWriter(comm, OUT / f"rod_{variant}.bp", [model.f["displacement"], director],
                     engine="BP4")
     natural_twist = fem.form(model.f["natural_curvature"][2] * model.dx_r)

@@ -41,7 +41,7 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from . import balance, constraints
+from . import balance, compat, constraints
 from .dissipation import dissipation_rate
 from .energy import derivatives, quadratic_energy
 from .evolution import check_variant, evolution_residual, real_space
@@ -564,7 +564,7 @@ class RodModel:
         for g in self.f.values():
             g.x.scatter_forward()
         u_ref, v_ref = self._reference
-        pts = u_ref.function_space.element.interpolation_points()
+        pts = compat.interpolation_points(u_ref.function_space)
         u_ref.interpolate(fem.Expression(self.u, pts))
         v_ref.interpolate(fem.Expression(self.v, pts))
         if self.evolving:

@@ -23,11 +23,11 @@ from typing import Callable
 
 import dolfinx
 import dolfinx.fem as fem
-import dolfinx.fem.petsc as fem_petsc
 import numpy as np
 import ufl
 from mpi4py import MPI
 
+from . import compat
 from . import loads as load_histories
 from .dissipation import dissipation_rate
 from .energy import derivatives, quadratic_energy
@@ -194,7 +194,7 @@ class TorsionModel:
         u_d_tt = fem.Function(self.u_d.function_space, name="natural_twist_acceleration")
         mapping = {w: phi_t, p.rates[2]: phi_tt}
         V = self.phi.function_space
-        bcs = [bc for bc in p.bcs if V._cpp_object.contains(bc.function_space)]
+        bcs = [bc for bc in p.bcs if compat.contains(V, bc)]
 
         def sync():
             w.x.array[:] = phi_t.x.array
@@ -263,7 +263,7 @@ class TorsionModel:
         """xi at the cell midpoints (owned cells) for the current state and rates."""
         Q = fem.functionspace(self.mesh, ("DG", 0))
         xi = fem.Function(Q)
-        xi.interpolate(fem.Expression(self.xi, Q.element.interpolation_points()))
+        xi.interpolate(fem.Expression(self.xi, compat.interpolation_points(Q)))
         n = Q.dofmap.index_map.size_local
         return xi.x.array[:n].copy()
 
@@ -301,8 +301,8 @@ class TorsionModel:
             if self._couple is not None:
                 L += self._couple * eta * dx
         self._set_bcs(0.0)
-        bcs = [bc for bc in self.problem.bcs if V._cpp_object.contains(bc.function_space)]
-        solver = fem_petsc.LinearProblem(a, L, bcs=bcs, u=self.phi, petsc_options={
+        bcs = [bc for bc in self.problem.bcs if compat.contains(V, bc)]
+        solver = compat.linear_problem(a, L, bcs, self.phi, {
             "ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"})
         solver.solve()
         if self.viscous:  # the impulse of the end torsion: int mu dphi_s ds
