@@ -145,6 +145,15 @@ class MonolithicSystem(_System):
         if np.any(self.bc_rows >= self._n_owned):
             raise RuntimeError("owned Dirichlet dof maps to a ghost of the mixed space")
 
+    @property
+    def block_dofs(self) -> tuple[np.ndarray, ...]:
+        """Per block j, read-only: its local (unrolled) dofs -> the mixed space's local
+        dofs (owned block dofs map to owned mixed dofs)."""
+        views = tuple(m.view() for m in self._maps)
+        for v in views:
+            v.flags.writeable = False
+        return views
+
     def set(self, k: int, x) -> None:
         """Vector -> group k (mixed Function and its block Functions, ghosts updated)."""
         w = self.w[k]

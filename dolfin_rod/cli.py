@@ -21,6 +21,7 @@ import sys
 import time
 from pathlib import Path
 
+from .divergence import EnergyBound
 from .integrators.stepper import IntegrationError
 from .scenes import Scene, SceneError, build, load_scene, select_model
 from .scenes.stability import explicit_stability_warning
@@ -56,59 +57,10 @@ class _InterruptFlag:
             self._old = None
 
 
-class EnergyBound:
-    """Divergence detection after every step, for every model and scheme: a state that
-    is not finite, or a stored energy K + Psi above ``FACTOR`` times what the start and
-    the loads can supply, E(t_0) + int_{t_0}^t max(P, 0) dt (the power balance
-    d/dt(K + Psi) = P - D with total dissipation D >= 0, ERRATA.md).  FACTOR = 1e3 is
-    the instability criterion of docs/stability.md: far above the transient growth of a
-    stable explicit step (x2.4 there) and above the O(dt) error of the trapezoidal work."""
-
-    FACTOR = 1e3
-
-    def __init__(self, start: dict):
-        self.previous = start
-        self._finite(start, start["time"])
-        self.supply = _energy(start)
-        self.first_step = True
-
-    def _finite(self, d: dict, t_good: float) -> None:
-        bad = [k for k, v in d.items() if not math.isfinite(v)]
-        if bad:
-            raise IntegrationError(f"the solution diverged: {bad[0]} = {d[bad[0]]} at "
-                                   f"t = {d['time']:g} (stopped; results up to t = "
-                                   f"{t_good:g} are kept)", t_good)
-
-    def check(self, d: dict) -> None:
-        """Raises IntegrationError at the last good time if ``d`` diverged."""
-        t_good = self.previous["time"]
-        self._finite(d, t_good)
-        h = d["time"] - self.previous["time"]
-        self.supply += h * max(0.0, 0.5 * (d["load_power"] + self.previous["load_power"]))
-        if self.first_step:
-            # a step load or a step of a prescribed end motion at t_0 supplies its energy
-            # as an impulse the trapezoidal work cannot see: the first state counts as
-            # supplied (an explicit instability grows by a bounded factor per step, x2.4
-            # in docs/stability.md, so it is caught one step later)
-            self.supply = max(self.supply, _energy(d))
-            self.first_step = False
-        if _energy(d) > self.FACTOR * self.supply + 1e-300:
-            raise IntegrationError(
-                f"the solution diverged: the stored energy {_energy(d):.3g} at t = "
-                f"{d['time']:g} is more than {self.FACTOR:g} times what the initial state "
-                f"and the loads supplied ({self.supply:.3g}); time.dt is probably above the "
-                f"scheme's stability limit (stopped; results up to t = {t_good:g} are kept)",
-                t_good)
-        self.previous = d
-
-
-def _energy(d: dict) -> float:
-    return d["free_energy"] + d["kinetic_energy"]
-
 
 def _run_folder(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool) -> Path:
     """The results folder, ready on rank 0 (errors on every rank as OutputError)."""
-    from .output import new_run_folder, on_root, prepare_run_folder
+    from .run_folders import new_run_folder, on_root, prepare_run_folder
     if out is None:
         parent = Path(scene["outputs"]["directory"])
         return Path(on_root(comm, lambda: str(new_run_folder(parent, scene.name)),
@@ -131,7 +83,8 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     """
     from mpi4py import MPI
 
-    from .output import RunWriter, read_checkpoint_meta
+    from .checkpoints import read_checkpoint_meta
+    from .output import RunWriter
     comm = comm or MPI.COMM_WORLD
     clock = {"start": time.perf_counter()}
     choice = select_model(scene)
@@ -178,7 +131,8 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     with t the time of the last recorded row."""
     from mpi4py import MPI
 
-    from .output import OutputError, show_progress
+    from .output import show_progress
+    from .run_folders import OutputError
     tim, outs = scene["time"], scene["outputs"]
     n_steps = max(1, math.ceil(tim["t_end"] / tim["dt"] - 1e-9))
     times = [min(k * tim["dt"], tim["t_end"]) for k in range(n_steps + 1)]
@@ -294,7 +248,7 @@ def _warn_if_unstable(scene: Scene, comm) -> None:
 
 def _check(scene: Scene, out: Path | None, comm) -> None:
     """``dolfin-rod check``: the scene, its model and the output location."""
-    from .output import OutputError, folder_problem
+    from .run_folders import OutputError, folder_problem
     choice = select_model(scene)
     target = out if out is not None else Path(scene["outputs"]["directory"])
     problem = folder_problem(target) if comm.rank == 0 else None
@@ -328,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None, comm) -> int:
-    from .output import OutputError
+    from .run_folders import OutputError
     args = _parser().parse_args(argv)
     if args.command == "schema":
         _print(comm, schema_markdown())

@@ -49,7 +49,7 @@ def in_blocks(system, vec, fields):
     """A vector of either layout, split into the blocks' owned entries."""
     a = vec.getArray(readonly=True)
     if isinstance(system, MonolithicSystem):
-        return [a[m[:owned(f)]] for f, m in zip(fields, system._maps)]
+        return [a[m[:owned(f)]] for f, m in zip(fields, system.block_dofs)]
     offsets = np.cumsum([0] + [owned(f) for f in fields])
     return [a[offsets[j]:offsets[j + 1]] for j in range(len(fields))]
 

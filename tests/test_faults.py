@@ -28,11 +28,12 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from dolfin_rod import output
-from dolfin_rod.cli import EnergyBound, main, run_scene
+from dolfin_rod import checkpoints, run_folders
+from dolfin_rod.cli import main, run_scene
+from dolfin_rod.divergence import EnergyBound
 from dolfin_rod.integrators.schemes import get_scheme
 from dolfin_rod.integrators.stepper import IntegrationError
-from dolfin_rod.output import OutputError, on_root
+from dolfin_rod.run_folders import OutputError, on_root
 from dolfin_rod.scenes import SceneError, build, load_scene, parse_scene, select_model
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -182,14 +183,14 @@ def test_crash_between_checkpoint_files_resumes_from_the_last_complete_one(
     scene = parse_scene(CREEP, "creep.toml")
     full = run_scene(scene, folder / "full", quiet=True)
     calls = {"n": 0}
-    real_write = output.write_checkpoint_meta
+    real_write = checkpoints.write_checkpoint_meta
 
     def crash_on_second(path, meta):
         calls["n"] += 1
         if calls["n"] == 2:     # step 6: state.bp is written, meta.json is not
             raise OSError(28, "No space left on device (injected)")
         real_write(path, meta)
-    monkeypatch.setattr(output, "write_checkpoint_meta", crash_on_second)
+    monkeypatch.setattr(checkpoints, "write_checkpoint_meta", crash_on_second)
     crashed = run_scene(scene, folder / "run", quiet=True)
     monkeypatch.undo()
     assert crashed["status"] == "failed" and "No space left" in crashed["message"]
@@ -214,8 +215,8 @@ def test_run_folders_started_in_the_same_second_differ(tmp_path, monkeypatch):
         @classmethod
         def now(cls, tz=None):
             return cls(2026, 1, 1, 12, 0, 0)
-    monkeypatch.setattr(output.datetime, "datetime", Frozen)
-    made = [output.new_run_folder(tmp_path, "x") for _ in range(3)]
+    monkeypatch.setattr(run_folders.datetime, "datetime", Frozen)
+    made = [run_folders.new_run_folder(tmp_path, "x") for _ in range(3)]
     assert [p.name for p in made] == ["x-20260101-120000", "x-20260101-120000-2",
                                       "x-20260101-120000-3"]
     assert all(p.is_dir() for p in made)

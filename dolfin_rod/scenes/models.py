@@ -208,7 +208,7 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
 def rod_parameters(scene: Scene):
     """RodParameters from [geometry] and [material] (tensors: 3x3 arrays or callables)."""
     from ..rod import RodParameters
-    from .schema import load_entry_point
+    from .values import load_entry_point
     mat, geo = scene["material"], scene["geometry"]
     stiff, visc = mat["stiffness"], mat["viscosity"] or {}
     tensors = {k: t.value() for k, t in {**stiff, **visc}.items()

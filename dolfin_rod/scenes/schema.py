@@ -14,21 +14,26 @@ quadratic energy (eq. ``quadenergy``) and the viscosities M, N, M_d, N_d in the 
 consistent units.  A key that does not apply to the scene's model (a torsion key in a
 rod scene, a rod key in a torsion scene, natural-strain data of a non-evolving rod, ...)
 is an error.
+
+The value checkers live in ``scenes/values.py`` and ``scenes/histories.py``, the rules
+across keys in ``scenes/rules.py``; this module holds the table and the entry points.
 """
 
 from __future__ import annotations
 
-import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-import numpy as np
-
-from .. import loads as load_histories
-from ..integrators.schemes import get_scheme
-from ..validation import profile_violation, sample_points
+from .histories import HistorySpec, distributed, history
+from .rules import check_combinations
+from .scene import Scene, SceneError
+from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
+                     entry_point, integer, load_entry_point, path_problem, path_text,
+                     petsc_table, real, run_name, safe_name, scheme_name,
+                     section_inertia, string, tensor_table, ts_type_name, type_name,
+                     vector3)
 
 __all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "Tensor", "load_scene",
            "parse_scene", "load_entry_point", "SCHEMA", "SCHEMA_NOTES", "MODEL_NAMES",
@@ -39,486 +44,7 @@ VARIANTS = ("local", "uniform")
 ROD_MODELS = ("evolving", "kelvin_voigt", "hyperelastic")
 ROD_ENDS = ("clamped", "pinned", "free")
 CONSTRAINTS = ("none", "unshearable", "inextensible_unshearable")
-HISTORY_TYPES = ("step", "ramp", "smooth_step", "table", "constant")
 
-
-class SceneError(ValueError):
-    """A scene cannot be used: ``source`` (file), ``key`` (dotted path) and ``reason``."""
-
-    def __init__(self, source: str, key: str, reason: str):
-        self.source, self.key, self.reason = str(source), key, reason
-        where = f"[{key}]: " if key else ""
-        super().__init__(f"{self.source}: {where}{reason}")
-
-
-# --- value checkers: each returns the cleaned value or raises _Bad(reason) --------------
-
-
-class _Bad(Exception):
-    """Internal: a value broke a rule; turned into a SceneError with its key path."""
-
-    def __init__(self, reason: str, key: str | None = None):
-        super().__init__(reason)
-        self.reason, self.key = reason, key
-
-
-def _type_name(v: Any) -> str:
-    return {bool: "boolean", int: "integer", float: "float", str: "string", list: "array",
-            dict: "table"}.get(type(v), type(v).__name__)
-
-
-def _number(v: Any) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise _Bad(f"must be a number, got {_type_name(v)} {v!r}")
-    x = float(v)
-    if not math.isfinite(x):
-        raise _Bad(f"must be finite, got {v!r}")
-    return x
-
-
-def real(lo: float | None = None, lo_strict: bool = False, hi: float | None = None):
-    def check(v):
-        x = _number(v)
-        if lo is not None and (x <= lo if lo_strict else x < lo):
-            raise _Bad(f"must be {'>' if lo_strict else '>='} {lo:g}, got {x:g}")
-        if hi is not None and x > hi:
-            raise _Bad(f"must be <= {hi:g}, got {x:g}")
-        return x
-    return check
-
-
-def integer(lo: int, hi: int | None = None):
-    def check(v):
-        if isinstance(v, bool) or not isinstance(v, int):
-            raise _Bad(f"must be an integer, got {_type_name(v)} {v!r}")
-        if v < lo or (hi is not None and v > hi):
-            raise _Bad(f"must be an integer in [{lo}, {hi if hi is not None else 'inf'}], got {v}")
-        return v
-    return check
-
-
-def choice(*options: str):
-    def check(v):
-        if not isinstance(v, str):
-            raise _Bad(f"must be a string, one of {', '.join(options)}; got {_type_name(v)}")
-        if v not in options:
-            raise _Bad(f"must be one of {', '.join(repr(o) for o in options)}, got {v!r}")
-        return v
-    return check
-
-
-def string(v):
-    if not isinstance(v, str):
-        raise _Bad(f"must be a string, got {_type_name(v)} {v!r}")
-    return v
-
-
-NAME_MAX = 255     # bytes in one path component (POSIX file systems)
-PATH_MAX = 4096    # bytes in a whole path (Linux)
-
-
-def run_name(v):
-    """A scene name is a folder name: letters, digits, '.', '_', '-', not starting with
-    '.', so that it can never leave outputs.directory or nest folders."""
-    v = string(v)
-    if not v or v.startswith(".") or not all(c.isascii() and (c.isalnum() or c in "._-")
-                                              for c in v):
-        raise _Bad(f"must be a folder name of letters, digits, '.', '_', '-' (not starting "
-                   f"with '.'), got {v!r}")
-    if len(v) > 100:
-        raise _Bad(f"must be at most 100 characters (it names the run folder), got {len(v)}")
-    return v
-
-
-def safe_name(stem: str) -> str:
-    """The default scene name from a file stem: characters run_name refuses become '_'."""
-    name = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in stem)
-    return name.lstrip(".")[:100] or "scene"
-
-
-def path_problem(text: str) -> str | None:
-    """Why ``text`` cannot be a file-system path (None if it can): empty, a NUL, a
-    component longer than NAME_MAX or the whole longer than PATH_MAX bytes."""
-    if not text:
-        return "must be a non-empty path"
-    if "\0" in text:
-        return "must not contain a NUL character"
-    encoded = text.encode("utf-8", "surrogateescape")
-    if len(encoded) >= PATH_MAX:
-        return f"is {len(encoded)} bytes long; paths are limited to {PATH_MAX - 1}"
-    longest = max(encoded.split(b"/"), key=len)
-    if len(longest) > NAME_MAX:
-        return f"has a path component of {len(longest)} bytes; file systems allow {NAME_MAX}"
-    return None
-
-
-def path_text(v):
-    problem = path_problem(string(v))
-    if problem:
-        raise _Bad(problem)
-    return v
-
-
-def boolean(v):
-    if not isinstance(v, bool):
-        raise _Bad(f"must be true or false, got {_type_name(v)} {v!r}")
-    return v
-
-
-def vector3(lo: float | None = None, lo_strict: bool = False):
-    each = real(lo, lo_strict)
-
-    def check(v):
-        if not isinstance(v, list) or len(v) != 3:
-            raise _Bad(f"must be an array of 3 numbers, got {v!r}")
-        out = []
-        for i, x in enumerate(v):
-            try:
-                out.append(each(x))
-            except _Bad as bad:
-                raise _Bad(f"entry {i} {bad.reason}") from None
-        return tuple(out)
-    return check
-
-
-def scheme_name(v):
-    v = string(v)
-    try:
-        get_scheme(v)
-    except (ValueError, TypeError) as err:
-        raise _Bad(str(err)) from None
-    return v
-
-
-@dataclass(frozen=True)
-class Coefficient:
-    """A material coefficient: a constant or a polynomial c0 + c1 s + c2 s^2 + ... in s."""
-
-    constant: float | None = None
-    polynomial: tuple[float, ...] = ()
-
-    @property
-    def is_constant(self) -> bool:
-        return self.constant is not None
-
-    def __call__(self, s):
-        """Works on numpy arrays and on UFL expressions (Horner's rule)."""
-        if self.constant is not None:
-            return self.constant
-        out = 0.0 * s + self.polynomial[-1]
-        for c in reversed(self.polynomial[:-1]):
-            out = out * s + c
-        return out
-
-    def value(self):
-        """A float for TorsionParameters, or this callable for an s-dependent coefficient."""
-        return self.constant if self.constant is not None else self
-
-    def values(self, s: np.ndarray) -> np.ndarray:
-        return np.broadcast_to(np.asarray(self(s), dtype=float), s.shape)
-
-
-def coefficient(strict: bool):
-    """A float, or {polynomial = [c0, c1, ...]} (s in [0, 1]); > 0 (strict) or >= 0."""
-
-    def check(v):
-        if isinstance(v, dict):
-            coeffs = _polynomial_numbers(v)
-            c = Coefficient(polynomial=coeffs)
-            s = sample_points(1.0)
-            reason = profile_violation(c.values(s), s, strict)
-            if reason:
-                raise _Bad(f"{reason} (the polynomial)")
-            if len(coeffs) == 1 or not any(coeffs[1:]):
-                return Coefficient(constant=coeffs[0])
-            return c
-        return Coefficient(constant=real(0.0, lo_strict=strict)(v))
-    return check
-
-
-def _polynomial(v) -> tuple[float, ...]:
-    if not isinstance(v, dict):
-        raise _Bad(f"must be {{polynomial = [c0, c1, ...]}}, got {_type_name(v)}")
-    _unknown(v, {"polynomial"})
-    if "polynomial" not in v:
-        raise _Bad("missing required key", "polynomial")
-    p = v["polynomial"]
-    if not isinstance(p, list) or not p:
-        raise _Bad("must be a non-empty array", "polynomial")
-    return tuple(p)
-
-
-def _polynomial_numbers(v) -> tuple[float, ...]:
-    try:
-        return tuple(_number(c) for c in _polynomial(v))
-    except _Bad as bad:
-        raise _Bad(bad.reason, bad.key or "polynomial") from None
-
-
-def profile(v):
-    """A load profile along s: a number or {polynomial = [c0, c1, ...]}, any sign."""
-    if not isinstance(v, dict):
-        return Coefficient(constant=_number(v))
-    coeffs = _polynomial_numbers(v)
-    if len(coeffs) == 1 or not any(coeffs[1:]):
-        return Coefficient(constant=coeffs[0])
-    return Coefficient(polynomial=coeffs)
-
-
-@dataclass(frozen=True)
-class Tensor:
-    """A 3x3 material tensor T(s) = T_0 + T_1 s + T_2 s^2 + ... (s in [0, L]); each T_k
-    written as 3 diagonal entries or a 3x3 array."""
-
-    terms: tuple[np.ndarray, ...]
-
-    @property
-    def is_zero(self) -> bool:
-        return not any(np.any(t) for t in self.terms)
-
-    def at(self, s: float) -> np.ndarray:
-        return sum(t * s**k for k, t in enumerate(self.terms))
-
-    def value(self):
-        """RodParameters' form: the 3x3 array, or a callable of s (floats and UFL)."""
-        if len(self.terms) == 1:
-            return self.terms[0]
-        terms = self.terms
-        return lambda s: [[sum(t[i, j] * s**k for k, t in enumerate(terms)) for j in range(3)]
-                          for i in range(3)]
-
-
-def _matrix(v) -> np.ndarray:
-    if isinstance(v, list) and len(v) == 3 and all(isinstance(r, list) for r in v):
-        rows = []
-        for i, r in enumerate(v):
-            if len(r) != 3:
-                raise _Bad(f"row {i} must have 3 numbers, got {r!r}")
-            rows.append([_number(x) for x in r])
-        return np.array(rows)
-    return np.diag(vector3()(v))
-
-
-def tensor(v) -> Tensor:
-    """[a, b, c] (diagonal), [[...], [...], [...]] (3x3), or {polynomial = [T0, T1, ...]}."""
-    if isinstance(v, dict):
-        try:
-            terms = tuple(_matrix(t) for t in _polynomial(v))
-        except _Bad as bad:
-            raise _Bad(bad.reason, bad.key or "polynomial") from None
-    else:
-        terms = (_matrix(v),)
-    for t in terms:
-        if not np.allclose(t, t.T, rtol=1e-12, atol=0.0):
-            raise _Bad(f"must be symmetric, got {t.tolist()}")
-    return Tensor(terms)
-
-
-def entry_point(v) -> str:
-    """"package.module:function": imported (from the scene's folder or sys.path)."""
-    v = string(v)
-    module, sep, name = v.partition(":")
-    if not (sep and module and name.isidentifier()):
-        raise _Bad(f"must be \"quadratic\" or an entry point \"package.module:function\", "
-                   f"got {v!r}")
-    return v
-
-
-def load_entry_point(spec: str, folder: Path | None = None):
-    """The callable named by ``package.module:function`` (folder: tried first)."""
-    import importlib
-    import sys
-    module, _, name = spec.partition(":")
-    added = folder is not None and str(folder) not in sys.path
-    if added:
-        sys.path.insert(0, str(folder))
-    try:
-        obj = getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError) as err:
-        raise _Bad(f"cannot import {spec!r}: {err}") from None
-    finally:
-        if added:
-            sys.path.remove(str(folder))
-    if not callable(obj):
-        raise _Bad(f"{spec!r} is not callable")
-    return obj
-
-
-def _unknown(table: dict, known: set[str]) -> None:
-    for k in table:
-        if k not in known:
-            raise _Bad(f"unknown key (known: {', '.join(sorted(known))})", k)
-
-
-# --- load histories ----------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class HistorySpec:
-    """A load history as written in the scene: {type = ..., ...}."""
-
-    type: str
-    value: float | tuple[float, ...] = 0.0
-    t0: float = 0.0            # step: time of the jump
-    duration: float = 1.0      # ramp: time to reach value; smooth_step: width
-    times: tuple[float, ...] = ()
-    values: tuple = ()         # numbers, or 3-vectors (a vector table)
-    follower: bool = False     # rod loads: components in the material (rotating) frame
-
-    def build(self, component: int | None = None):
-        """The loads.LoadHistory (component of a vector value if given)."""
-        if self.type == "table":
-            values = self.values if component is None else [x[component] for x in self.values]
-            return load_histories.table(self.times, values)
-        v = self.value if component is None else self.value[component]
-        if self.type == "step":
-            return load_histories.step(v, self.t0)
-        if self.type == "ramp":
-            return load_histories.ramp(v, self.duration)
-        if self.type == "smooth_step":
-            return load_histories.smooth_step(v, self.duration)
-        return load_histories.constant(v)
-
-    @property
-    def is_vector(self) -> bool:
-        if self.type == "table":
-            return isinstance(self.values[0], tuple)
-        return isinstance(self.value, tuple)
-
-    def vector(self):
-        """t -> the 3-vector value (rod end motions)."""
-        parts = [self.build(i) for i in range(3)]
-        return lambda t: np.array([float(h(t)) for h in parts])
-
-    @property
-    def jumps_at_start(self) -> bool:
-        return self.type == "step" and self.t0 == 0.0 and self.value != 0.0
-
-    def breakpoints(self) -> tuple[float, ...]:
-        """Times where the history is not smooth (for the ODE integrator)."""
-        if self.type == "step":
-            return (self.t0,)
-        if self.type in ("ramp", "smooth_step"):
-            return (0.0, self.duration)
-        if self.type == "table":
-            return self.times
-        return ()
-
-
-_HISTORY_KEYS = {
-    "step": {"value": True, "t0": False},
-    "ramp": {"value": True, "duration": True},
-    "smooth_step": {"value": True, "duration": True},
-    "constant": {"value": True},
-    "table": {"times": True, "values": True},
-}
-
-
-def history(vector_ok: bool, follower_ok: bool = False):
-    def check(v):
-        if not isinstance(v, dict):
-            raise _Bad(f"must be a table {{type = \"step\"|\"ramp\"|...}}, got {_type_name(v)}")
-        follower = False
-        if follower_ok and "follower" in v:
-            v = dict(v)
-            try:
-                follower = boolean(v.pop("follower"))
-            except _Bad as bad:
-                raise _Bad(bad.reason, "follower") from None
-        if "type" not in v:
-            raise _Bad(f"missing required key (one of {', '.join(HISTORY_TYPES)})", "type")
-        try:
-            kind = choice(*HISTORY_TYPES)(v["type"])
-        except _Bad as bad:
-            raise _Bad(bad.reason, "type") from None
-        keys = _HISTORY_KEYS[kind]
-        _unknown(v, {"type", *keys})
-        for k, required in keys.items():
-            if required and k not in v:
-                raise _Bad(f"missing required key for a {kind} history", k)
-        out: dict[str, Any] = {"type": kind}
-        for k in keys:
-            if k not in v:
-                continue
-            try:
-                if k == "value":
-                    out[k] = (vector3()(v[k]) if vector_ok and isinstance(v[k], list)
-                              else _number(v[k]))
-                elif k == "t0":
-                    out[k] = real(0.0)(v[k])
-                elif k == "duration":
-                    out[k] = real(0.0, lo_strict=True)(v[k])
-                else:
-                    if not isinstance(v[k], list) or not v[k]:
-                        raise _Bad("must be a non-empty array of numbers")
-                    vectors = k == "values" and vector_ok and isinstance(v[k][0], list)
-                    out[k] = tuple((vector3()(x) if vectors else _number(x)) for x in v[k])
-            except _Bad as bad:
-                raise _Bad(bad.reason, k) from None
-        if kind == "table":
-            if len(out["times"]) != len(out["values"]):
-                raise _Bad(f"times and values must have the same length, got "
-                           f"{len(out['times'])} and {len(out['values'])}", "values")
-            if any(b <= a for a, b in zip(out["times"], out["times"][1:])):
-                raise _Bad("must be strictly increasing", "times")
-        return HistorySpec(**out, follower=follower)
-    return check
-
-
-def distributed(v):
-    """{value = [x, y, z] (rod) , profile = number | {polynomial}, history = {...},
-    follower = bool (rod)}: value profile(s) history(t) per unit reference length."""
-    if not isinstance(v, dict):
-        raise _Bad(f"must be a table {{profile = ..., history = {{...}}}}, got {_type_name(v)}")
-    _unknown(v, {"value", "profile", "history", "follower"})
-    out = {"value": None, "follower": False}
-    checks = (("value", vector3(), None), ("profile", profile, 1.0),
-              ("history", history(False), {"type": "constant", "value": 1.0}),
-              ("follower", boolean, False))
-    for k, check, default in checks:
-        if k not in v and default is None:
-            continue
-        try:
-            out[k] = check(v.get(k, default))
-        except _Bad as bad:
-            raise _Bad(bad.reason, f"{k}.{bad.key}" if bad.key else k) from None
-    return out
-
-
-def _inertia(v) -> tuple[float, float]:
-    """I_11 = I_22 (a number) or [I_11, I_22], each >= 0."""
-    if isinstance(v, list):
-        if len(v) != 2:
-            raise _Bad(f"must be a number or [I_11, I_22], got {v!r}")
-        return (real(0.0)(v[0]), real(0.0)(v[1]))
-    x = real(0.0)(v)
-    return (x, x)
-
-
-def ts_type_name(v) -> str:
-    from ..integrators.ts import parse_ts_type
-    v = string(v)
-    try:
-        parse_ts_type(v)
-    except ValueError as err:
-        raise _Bad(str(err)) from None
-    return v
-
-
-def petsc_table(v) -> dict:
-    """PETSc options: names without the leading '-', values numbers, strings or booleans."""
-    if not isinstance(v, dict):
-        raise _Bad(f"must be a table of PETSc options, got {_type_name(v)}")
-    for k, x in v.items():
-        if k.startswith("-") or not k.replace("_", "").isalnum():
-            raise _Bad("must be a PETSc option name without the leading '-'", k)
-        if not isinstance(x, (bool, int, float, str)) or (isinstance(x, float)
-                                                         and not math.isfinite(x)):
-            raise _Bad(f"must be a number, string or boolean, got {_type_name(x)}", k)
-    return dict(v)
-
-
-# --- the schema ----------------------------------------------------------------------------
 
 REQUIRED = object()
 
@@ -589,17 +115,17 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "mu": Key(coefficient(False), None, T + "Kelvin-Voigt viscosity (default 0)"),
         "mu_d": Key(coefficient(True), None, T + "natural-configuration viscosity (default 1)"),
         "nu": Key(coefficient(False), None, T + "rotary inertia (default 0: quasi-static)"),
-        "stiffness": Key(lambda v: _tensors(v, ("A", "B", "A_d", "B_d")), None,
+        "stiffness": Key(lambda v: tensor_table(v, ("A", "B", "A_d", "B_d")), None,
                          R + "{A, B, A_d, B_d}: bending/torsion A = (EI_1, EI_2, GJ), "
                          "shear/axial B = (GA_1, GA_2, EA), natural-strain stiffnesses A_d, "
                          "B_d (evolving model); each a tensor (see above)"),
-        "viscosity": Key(lambda v: _tensors(v, ("M", "N", "M_d", "N_d")), None,
+        "viscosity": Key(lambda v: tensor_table(v, ("M", "N", "M_d", "N_d")), None,
                          R + "{M, N, M_d, N_d}: Kelvin-Voigt M, N (default 0), natural-"
                          "configuration M_d, N_d (evolving model; the uniform variant's M_d, N_d carry one "
                          "more length factor than the local ones, docs/rod.md); each a tensor"),
         "density": Key(coefficient(False), None, R + "mass per length rho A (number or "
                        "{polynomial}); > 0: dynamic, 0 (default): quasi-static"),
-        "section_inertia": Key(_inertia, None, R + "I_11 = I_22 (a number) or [I_11, I_22]: "
+        "section_inertia": Key(section_inertia, None, R + "I_11 = I_22 (a number) or [I_11, I_22]: "
                                "section mass moments per length (rho J, Section 2.2)"),
         "drag": Key(coefficient(False), None, R + "linear drag f = -c dr/dt (c per length)"),
         "constraints": Key(choice(*CONSTRAINTS), "none",
@@ -692,78 +218,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
 }
 REQUIRED_TABLES = ("time",)
-TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
-ROD_KEYS = ("stiffness", "viscosity", "density", "section_inertia", "drag")
-# keys of one model family only: (table, key) -> the family that reads it
-TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
-    ("geometry", "degree"), ("initial", "natural_twist"), ("loads", "end_torsion")}
-ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints")} | {
-    ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
-    ("initial", "natural_curvature"), ("initial", "natural_stretch"),
-    ("boundary", "start_rotation"), ("boundary", "end_displacement"),
-    ("boundary", "start_displacement"), ("loads", "distributed_force"), ("loads", "gravity"),
-    ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
-    ("loads", "start_couple")}
 RENAMED = {("geometry", "reference_twist"): "initial.natural_twist (u_d at t = 0 is an "
                                             "initial natural strain, not a reference shape)"}
-TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
-
-
-def _tensors(v, names) -> dict[str, Tensor]:
-    """The tensors of a stiffness/viscosity table (required ones checked per model)."""
-    if not isinstance(v, dict):
-        raise _Bad(f"must be a table with {', '.join(names)}, got {_type_name(v)}")
-    _unknown(v, set(names))
-    out = {}
-    for n in names:
-        if n in v:
-            try:
-                out[n] = tensor(v[n])
-            except _Bad as bad:
-                raise _Bad(bad.reason, f"{n}.{bad.key}" if bad.key else n) from None
-    return out
-
-
-@dataclass
-class Scene:
-    """A validated scene: ``data[table][key]`` with defaults filled in."""
-
-    data: dict[str, dict[str, Any]]
-    source: str = "<string>"
-    text: str = ""
-    given: dict[str, set[str]] = field(default_factory=dict)  # keys the file set
-
-    def __getitem__(self, table: str) -> dict[str, Any]:
-        return self.data[table]
-
-    @property
-    def name(self) -> str:
-        return self.data["scene"]["name"]
-
-    @property
-    def is_rod_material(self) -> bool:
-        return any(self.data["material"][k] is not None for k in ROD_KEYS)
-
-    def error(self, key: str, reason: str) -> SceneError:
-        return SceneError(self.source, key, reason)
-
-    def physics(self) -> dict[str, dict[str, Any]]:
-        """The validated keys that determine the computed states, as plain JSON data
-        (what a checkpoint must match to be resumed): everything but the name and
-        description, the outputs table, t_end (a run may be extended) and the requested
-        model (the chosen model is compared instead)."""
-        return {table: {k: _plain(v) for k, v in keys.items()
-                        if not (table == "time" and k == "t_end")}
-                for table, keys in self.data.items() if table not in ("scene", "outputs")}
-
-
-def _plain(v: Any) -> Any:
-    """Validated values (dataclasses, tuples, floats) as JSON data (lists, dicts)."""
-    if hasattr(v, "__dataclass_fields__"):
-        return {f: _plain(getattr(v, f)) for f in v.__dataclass_fields__}
-    if isinstance(v, (list, tuple)):
-        return [_plain(x) for x in v]
-    return v
 
 
 def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
@@ -832,7 +288,7 @@ def to_toml(raw: dict) -> str:
 def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> Scene:
     """Validate an already-parsed scene dict; every failure is a SceneError."""
     if not isinstance(raw, dict):
-        raise SceneError(source, "", f"a scene must be a table, got {_type_name(raw)}")
+        raise SceneError(source, "", f"a scene must be a table, got {type_name(raw)}")
     for table in raw:
         if table not in SCHEMA:
             raise SceneError(source, str(table),
@@ -845,7 +301,7 @@ def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> S
     for table, keys in SCHEMA.items():
         section = raw.get(table, {})
         if not isinstance(section, dict):
-            raise SceneError(source, table, f"must be a table, got {_type_name(section)}")
+            raise SceneError(source, table, f"must be a table, got {type_name(section)}")
         given[table] = set(section)
         out = {}
         for k in section:
@@ -863,220 +319,12 @@ def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> S
                 continue
             try:
                 out[k] = spec.check(section[k])
-            except _Bad as bad:
+            except BadValue as bad:
                 raise SceneError(source, f"{path}.{bad.key}" if bad.key else path,
                                  bad.reason) from None
         data[table] = out
     if data["scene"]["name"] is None:
         data["scene"]["name"] = safe_name(default_name)
     scene = Scene(data, source, given=given)
-    _check_combinations(scene)
+    check_combinations(scene)
     return scene
-
-
-def _check_combinations(scene: Scene) -> None:
-    """Rules that involve more than one key."""
-    rod = scene.is_rod_material
-    wrong = ROD_ONLY if not rod else TORSION_ONLY
-    for table, key in sorted(wrong):
-        if key in scene.given[table]:
-            raise scene.error(f"{table}.{key}", (
-                "applies to the 3-D rod only; this scene has a torsion material (give "
-                "material.stiffness, viscosity for a rod)") if not rod else (
-                "applies to the torsion model only; this scene has a 3-D rod material"))
-    _check_time(scene)
-    if rod:
-        _check_rod_material(scene)
-        _check_rod_ends(scene)
-    else:
-        _check_torsion(scene)
-
-
-def _check_time(scene: Scene) -> None:
-    tim, given, err = scene["time"], scene.given["time"], scene.error
-    ts = tim["integrator"] == "ts"
-    for key in ("ts_type", "adaptive", "ts_rtol", "ts_atol"):
-        if key in given and not ts:
-            raise err(f"time.{key}", "applies to integrator = \"ts\" only")
-    if ts and "predictor" in given:
-        raise err("time.predictor", "applies to integrator = \"stepper\" only")
-    if ts and "ts_type" in given and "scheme" in given:
-        raise err("time.scheme", "give either time.scheme (per-step schemes) or time.ts_type "
-                                 "(PETSc TS), not both")
-    for key in ("ts_rtol", "ts_atol"):
-        if key in given and not tim["adaptive"]:
-            raise err(f"time.{key}", "an error tolerance of adaptive TS: set adaptive = true")
-    if scene["outputs"]["checkpoint_every"] and ts:
-        raise err("outputs.checkpoint_every", "checkpoints (and --resume) need integrator = "
-                                              "\"stepper\": PETSc TS runs the whole interval "
-                                              "in one call")
-    if tim["dt"] > tim["t_end"]:
-        raise err("time.dt", f"must be <= t_end = {tim['t_end']:g}, got {tim['dt']:g}")
-    if tim["t_end"] / tim["dt"] > 1e7:
-        raise err("time.dt", f"t_end/dt = {tim['t_end'] / tim['dt']:.3g} steps is more than "
-                             "10^7")
-
-
-def _check_torsion(scene: Scene) -> None:
-    """Torsion scenes (dimensionless, Section 5.1)."""
-    d, err = scene.data, scene.error
-    mat, bnd, lds, tim = d["material"], d["boundary"], d["loads"], d["time"]
-    for k in TORSION_KEYS:
-        if mat[k] is None:
-            mat[k] = Coefficient(constant=TORSION_DEFAULTS[k])
-    if mat["variant"] == "uniform" and not mat["mu_d"].is_constant:
-        raise err("material.mu_d", "must be a constant for the uniform variant (M_d is one "
-                                   "tensor for the whole rod, eq. unatevolunif)")
-    if bnd["start"] != "clamped":
-        raise err("boundary.start", "the torsion model is clamped at s = 0 (phi(0) = 0)")
-    if bnd["end"] not in ("free", "rotation"):
-        raise err("boundary.end", "torsion: free (an applied end torsion) or rotation (a "
-                                  "prescribed end rotation)")
-    if bnd["end_rotation"] is not None and bnd["end_rotation"].is_vector:
-        raise err("boundary.end_rotation.value", "torsion: the end rotation Phi is a number")
-    if bnd["end"] == "rotation":
-        if bnd["end_rotation"] is None:
-            raise err("boundary.end_rotation", "missing: boundary.end = \"rotation\" needs "
-                                               "the history of the end rotation")
-        if lds["end_torsion"] is not None:
-            raise err("loads.end_torsion", "an end torsion cannot be applied where the end "
-                                           "rotation is prescribed (boundary.end = \"rotation\")")
-    elif bnd["end_rotation"] is not None:
-        raise err("boundary.end_rotation", "given but boundary.end is \"free\": set "
-                                           "boundary.end = \"rotation\"")
-    couple = lds["distributed_couple"]
-    for k in ("value", "follower"):
-        if couple is not None and couple[k] not in (None, False):
-            raise err(f"loads.distributed_couple.{k}", "torsion: the couple is "
-                                                       "profile(s) history(t), a number")
-    if d["geometry"]["length"] != 1.0:
-        raise err("geometry.length", "torsion scenes are dimensionless on s in [0, 1] "
-                                     "(Section 5.1): length must be 1")
-    dynamic = not (mat["nu"].is_constant and mat["nu"].constant == 0.0)
-    if dynamic and bnd["end"] == "rotation" and bnd["end_rotation"].jumps_at_start:
-        raise err("boundary.end_rotation", "a step at t = 0 but nu > 0: a rod with "
-                                           "inertia cannot follow a jump in rotation; use "
-                                           "type = \"smooth_step\" or \"ramp\"")
-    if not dynamic and get_scheme(tim["scheme"]).explicit:
-        raise err("time.scheme", f"{tim['scheme']} is explicit, but quasi-static torsion "
-                                 "(nu = 0) is differential-algebraic: use an implicit scheme")
-
-
-def _sampled(value, L: float) -> list[np.ndarray]:
-    return [np.asarray(value(s) if callable(value) else value, dtype=float)
-            for s in sample_points(L)]
-
-
-def _check_rod_material(scene: Scene) -> None:
-    """3-D rod material: the tensors each model needs, and only those."""
-    d, err = scene.data, scene.error
-    mat, L = d["material"], d["geometry"]["length"]
-    evolving = mat["model"] == "evolving"
-    stiff, visc = mat["stiffness"] or {}, mat["viscosity"] or {}
-    needed = {"stiffness": ("A", "B") + (("A_d", "B_d") if evolving else ()),
-              "viscosity": ("M_d", "N_d") if evolving else ()}
-    for table, have in (("stiffness", stiff), ("viscosity", visc)):
-        for k in needed[table]:
-            if k not in have:
-                raise err(f"material.{table}.{k}", f"missing: the {mat['model']} model needs it")
-        for k in have:
-            if k in ("A_d", "B_d", "M_d", "N_d") and not evolving:
-                raise err(f"material.{table}.{k}", f"a natural-strain tensor; the "
-                                                  f"{mat['model']} model has none")
-    if mat["model"] == "hyperelastic" and any(k in visc for k in ("M", "N")):
-        raise err("material.viscosity", "the hyperelastic model has no viscosity")
-    if mat["model"] == "kelvin_voigt" and all(visc.get(k) is None or visc[k].is_zero
-                                              for k in ("M", "N")):
-        raise err("material.viscosity", "the kelvin_voigt model needs M or N")
-    for table, have in (("stiffness", stiff), ("viscosity", visc)):
-        for k, t in have.items():
-            semidefinite = k in ("M", "N")
-            for si, a in zip(sample_points(L), _sampled(t.at, L)):
-                low = np.linalg.eigvalsh(a).min()
-                if low < 0 or (low == 0 and not semidefinite):
-                    rule = "positive semidefinite" if semidefinite else "positive definite"
-                    raise err(f"material.{table}.{k}", f"must be {rule}; eigenvalue {low:g} "
-                                                       f"at s = {si:g}")
-    for key in ("variant",):
-        if key in scene.given["material"] and not evolving:
-            raise err(f"material.{key}", f"the natural strains of the {mat['model']} model "
-                                         "do not evolve: drop it")
-    for key in ("natural_curvature", "natural_stretch"):
-        if d["initial"][key] is not None and not evolving:
-            raise err(f"initial.{key}", f"the {mat['model']} model has no natural strains")
-    if d["initial"]["natural_stretch"] is not None and \
-            mat["constraints"] == "inextensible_unshearable":
-        raise err("initial.natural_stretch", "an inextensible, unshearable rod has no "
-                                             "natural stretch")
-    if d["geometry"]["reference_stretch"][2] <= 0:
-        raise err("geometry.reference_stretch", "v_ref,3 must be > 0 (eq. v3pos)")
-    _check_rod_inertia(scene)
-    if mat["energy"] is not None:
-        folder = Path(scene.source).parent if Path(scene.source).is_file() else None
-        try:
-            load_entry_point(mat["energy"], folder)
-        except _Bad as bad:
-            raise err("material.energy", bad.reason) from None
-
-
-def _check_rod_inertia(scene: Scene) -> None:
-    mat, lds, err = scene["material"], scene["loads"], scene.error
-    L = scene["geometry"]["length"]
-    for k in ("density", "drag"):
-        c = mat[k]
-        if c is not None and min(np.min(v) for v in _sampled(c, L)) < 0:
-            raise err(f"material.{k}", "must be >= 0 on [0, L]")
-    inertia = mat["section_inertia"] or (0.0, 0.0)
-    density = mat["density"] or Coefficient(constant=0.0)
-    dynamic = not (density.is_constant and density.constant == 0.0)
-    if dynamic != (min(inertia) > 0):
-        raise err("material.section_inertia", "density and section_inertia (I_11, I_22) must "
-                                              "be all > 0 (dynamic) or all 0 (quasi-static)")
-    mat["dynamic"] = dynamic
-    if dynamic and mat["constraints"] != "none":
-        raise err("material.constraints", "a dynamic rod (density > 0) with constraint "
-                                          "multipliers is an index-3 DAE, which no integrator "
-                                          "here solves reliably: use a quasi-static rod or a "
-                                          "stiff shear/axial B instead")
-    if lds["gravity"] is not None and not dynamic:
-        raise err("loads.gravity", "the weight rho_A g needs material.density > 0 (a "
-                                   "dynamic rod); quasi-static: use loads.distributed_force")
-    if not dynamic and get_scheme(scene["time"]["scheme"]).explicit:
-        raise err("time.scheme", f"{scene['time']['scheme']} is explicit, but a quasi-static "
-                                 "rod is differential-algebraic: use an implicit scheme")
-
-
-def _check_rod_ends(scene: Scene) -> None:
-    """Supports, prescribed end motions and end loads of the 3-D rod."""
-    bnd, lds, err = scene["boundary"], scene["loads"], scene.error
-    fixed_x, fixed_q = [], []
-    for end in ("start", "end"):
-        kind = bnd[end]
-        if kind == "rotation":
-            raise err(f"boundary.{end}", "3-D rod: clamped, pinned or free; a prescribed "
-                                         f"rotation is boundary.{end}_rotation")
-        for motion in ("displacement", "rotation"):
-            spec = bnd[f"{end}_{motion}"]
-            if spec is not None and not spec.is_vector:
-                raise err(f"boundary.{end}_{motion}.value", "3-D rod: a vector [x, y, z]")
-        x = kind in ("clamped", "pinned") or bnd[f"{end}_displacement"] is not None
-        q = kind == "clamped" or bnd[f"{end}_rotation"] is not None
-        fixed_x.append(x), fixed_q.append(q)
-        for load, fixed, what in (("force", x, "position"), ("couple", q, "rotation")):
-            spec = lds[f"{end}_{load}"]
-            if spec is None:
-                continue
-            if not spec.is_vector:
-                raise err(f"loads.{end}_{load}.value", "3-D rod: a vector value = [x, y, z] "
-                                                       "(or a table of 3-vectors)")
-            if fixed:
-                raise err(f"loads.{end}_{load}", f"acts where the {what} is prescribed "
-                                                 f"(boundary.{end} = {kind!r}): the support "
-                                                 "takes it")
-    for k in ("distributed_force", "distributed_couple"):
-        if lds[k] is not None and lds[k]["value"] is None:
-            raise err(f"loads.{k}.value", "missing: 3-D rod: value = [x, y, z]")
-    if not scene["material"]["dynamic"] and not (any(fixed_x) and any(fixed_q)):
-        raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "
-                                    "rotation somewhere (e.g. start = \"clamped\"); rigid "
-                                    "motions are free otherwise")

@@ -1,0 +1,149 @@
+"""Checkpoints of a run: ``<run>/checkpoint/step-N/`` (adios4dolfinx ``state.bp`` and
+``meta.json``), written into ``step-N.partial`` and published by one atomic rename, then
+older ones removed: a crash at any moment leaves the last complete checkpoint, never a
+state of one step with the metadata of another.  Resuming verifies that the scene's
+physics (``Scene.physics``), the model and the number of degrees of freedom are those of
+the checkpoint (a fingerprint), before anything is written.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from pathlib import Path
+
+from .run_folders import OutputError, on_root
+
+
+class Checkpoints:
+    """The checkpoints of one run in ``folder``: ``sim`` (the integrator) supplies the
+    fields and state, ``scene`` the physics the checkpoint must match."""
+
+    def __init__(self, folder: Path, scene, sim, comm):
+        self.folder, self.scene, self.sim, self.comm = Path(folder), scene, sim, comm
+
+    def _named_functions(self) -> tuple[dict, dict]:
+        """The model's checkpointed functions by name, and the rest of its state."""
+        state = self.sim.state()
+        functions = state.pop("functions", {})
+        named = {f"field_{i}": f for i, f in enumerate(self.sim.fields)} | functions
+        return named, state
+
+    def fingerprint(self) -> dict:
+        """What a checkpoint must match: the scene's physics, the model, the dofs."""
+        named, _ = self._named_functions()
+        dofs = {name: f.function_space.dofmap.index_map.size_global
+                * f.function_space.dofmap.index_map_bs for name, f in named.items()}
+        data = {"scene": self.scene.physics(), "model": self.sim.name, "dofs": dofs}
+        data = json.loads(json.dumps(data))          # tuples -> lists, as read back
+        digest = hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
+        return {**data, "sha256": digest}
+
+    def write(self, step: int, t: float, balance: dict) -> None:
+        """Collective: the state after ``step`` (and the power ``balance`` state) so that
+        ``resume`` continues exactly, written to step-N.partial and made visible by one
+        rename (module docstring)."""
+        root = self.folder / "checkpoint"
+        partial, final = root / f"step-{step:09d}.partial", root / f"step-{step:09d}"
+
+        def make_partial():
+            root.mkdir(exist_ok=True)
+            shutil.rmtree(partial, ignore_errors=True)
+            partial.mkdir()
+        on_root(self.comm, make_partial, f"cannot write a checkpoint in {root}")
+        named, state = self._named_functions()
+        real: dict[str, list[float]] = {}
+        import adios4dolfinx
+        for name, f in named.items():
+            if _is_real(f):   # adios4dolfinx cannot read real spaces back in parallel
+                f.x.scatter_forward()
+                real[name] = f.x.array.tolist()
+            else:
+                adios4dolfinx.write_function_on_input_mesh(partial / "state.bp", f, time=0.0,
+                                                           name=name)
+        meta = {"step": step, "time": t, "model": self.sim.name, "sim": state, "real": real,
+                "balance": balance, "fingerprint": self.fingerprint()}
+
+        def publish():
+            write_checkpoint_meta(partial, meta)
+            partial.rename(final)
+            for old in root.iterdir():
+                if old != final:
+                    shutil.rmtree(old, ignore_errors=True)
+        self.comm.barrier()                            # every rank's state.bp is written
+        on_root(self.comm, publish, f"cannot write a checkpoint in {root}")
+
+    def restore(self, meta: dict) -> dict:
+        """Collective: check the model and dofs against ``meta`` (read_checkpoint_meta),
+        then restore the model; returns the power-balance state.  Nothing is written."""
+        mine = self.fingerprint()
+        if meta["fingerprint"]["sha256"] != mine["sha256"]:
+            raise OutputError(f"cannot resume from {meta['folder']}: "
+                              + fingerprint_difference(meta["fingerprint"], mine))
+        import adios4dolfinx
+        named, _ = self._named_functions()
+        for name, f in named.items():
+            if name in meta["real"]:
+                f.x.array[:] = meta["real"][name][0]   # one global value (owned + ghost)
+            else:
+                adios4dolfinx.read_function(Path(meta["folder"]) / "state.bp", f, time=0.0,
+                                            name=name)
+            f.x.scatter_forward()
+        self.sim.restore(meta["sim"])
+        return meta["balance"]
+
+
+def write_checkpoint_meta(folder: Path, meta: dict) -> None:
+    """Rank 0: meta.json of a checkpoint (its own function so that tests can make a
+    crash happen between state.bp and meta.json)."""
+    (folder / "meta.json").write_text(json.dumps(meta))
+
+
+def read_checkpoint_meta(run: Path, comm, scene) -> dict:
+    """Collective: the newest complete checkpoint of ``run`` (``meta["folder"]``),
+    refused with OutputError unless it was written by a scene with the same physics
+    (Scene.physics) and ends before time.t_end.  Reads only."""
+    def newest():
+        root = run / "checkpoint"
+        done = sorted(p for p in root.glob("step-*") if p.suffix != ".partial"
+                      and (p / "meta.json").is_file()) if root.is_dir() else []
+        if not done:
+            raise OutputError(f"--resume: no complete checkpoint in {root} (the scene "
+                              "needs outputs.checkpoint_every > 0)")
+        return {**json.loads((done[-1] / "meta.json").read_text()), "folder": str(done[-1])}
+    meta = on_root(comm, newest, f"--resume: cannot read the checkpoint of {run}")
+    theirs = meta.get("fingerprint", {}).get("scene")
+    mine = json.loads(json.dumps(scene.physics()))
+    if theirs != mine:
+        raise OutputError(f"cannot resume from {meta['folder']}: "
+                          + fingerprint_difference({"scene": theirs}, {"scene": mine}))
+    if meta["time"] >= scene["time"]["t_end"]:
+        raise OutputError(f"cannot resume from {meta['folder']}: it is at t = "
+                          f"{meta['time']:g}, not before time.t_end = "
+                          f"{scene['time']['t_end']:g}")
+    return meta
+
+
+def fingerprint_difference(theirs: dict, mine: dict) -> str:
+    """The first entries where a checkpoint's fingerprint and this run's differ."""
+    diffs = []
+
+    def walk(a, b, path):
+        if isinstance(a, dict) and isinstance(b, dict):
+            first = ("model", "scene")                 # the likely cause before its dofs
+            for k in sorted(set(a) | set(b), key=lambda k: (k not in first, k)):
+                walk(a.get(k), b.get(k), f"{path}.{k}" if path else k)
+        elif a != b:
+            diffs.append(f"{path}: {a!r} in the checkpoint, {b!r} now")
+    walk(theirs, mine, "")
+    shown = "; ".join(d.removeprefix("scene.") for d in diffs[:4])
+    return (f"it was written by a different run ({shown or 'unreadable fingerprint'}"
+            f"{'; ...' if len(diffs) > 4 else ''}); nothing was changed")
+
+
+def _is_real(f) -> bool:
+    """A scifem real space (one global unknown, e.g. the uniform natural twist)."""
+    V = f.function_space
+    return (V.dofmap.index_map.size_global * V.dofmap.index_map_bs == 1
+            and V.mesh.topology.index_map(V.mesh.topology.dim).size_global > 1)

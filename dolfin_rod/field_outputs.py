@@ -1,0 +1,96 @@
+"""The fields along the rod written while a run goes: ``rod.bp`` (ParaView,
+ADIOS2VTXReader) and the frames of the animation and pictures (animation.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+class FieldOutputs:
+    """The fields along the rod of an FE model (RodModel or TorsionModel, anything with
+    ``observables()``): ``rod.bp`` (ParaView) and the pictures of animation.py, from
+    LineSampler samples gathered on rank 0.  ``model = None`` (ODE runs): nothing.
+    Usable from scripts:
+
+        out = FieldOutputs(folder, model, comm)     # collective
+        ... out.write(t) after each step (collective) ...
+        out.finish("title")                         # rank 0: close rod.bp, draw
+    """
+
+    POINT = ("centre_line", "d1", "d2", "d3", "phi")    # vertex values; others per cell
+
+    def __init__(self, folder: Path, model, comm, fields: bool = True, animation: bool = True):
+        self.folder, self.comm = Path(folder), comm
+        self.outputs = {"fields": fields, "animation": animation}
+        self.sampler = None
+        if model is not None and hasattr(model, "observables"):
+            from .line_fields import LineSampler
+            self.sampler = LineSampler(model.mesh, model.observables(), self.POINT)
+        self.keep_until: float | None = None     # resume: steps of rod.bp kept up to here
+        self.vtx = None
+        self.frames = None
+
+    def write(self, t: float) -> None:
+        """Collective: one sample; rank 0 writes it to rod.bp and keeps it as a frame."""
+        if self.sampler is None:
+            return
+        sample = self.sampler.sample()
+        if sample is None:
+            return
+        if self.frames is None:
+            self._start()
+        if self.outputs["fields"]:
+            self.vtx.write(t, _geometry(sample), *self._data(sample))
+        self.frames.add(t, sample)
+
+    def _start(self) -> None:
+        from .animation import FrameStore
+        from .vtx import LineVTX
+        self.frames = FrameStore()
+        if self.outputs["fields"]:
+            self.vtx = LineVTX(self.folder / "rod.bp", keep_until=self.keep_until)
+            for step in self.vtx.kept:   # resume: earlier frames come back from rod.bp
+                self.frames.add(step["time"], _sample_from_vtx(step))
+
+    @staticmethod
+    def _data(sample) -> tuple[dict, dict]:
+        """Point data (arc length s first) and cell data; the centre line is the geometry."""
+        point = {"s": sample.s_nodes, **{k: v for k, v in sample.point.items()
+                                         if k != "centre_line"}}
+        return point, dict(sample.cell)
+
+    def finish(self, title: str) -> None:
+        """Rank 0: close rod.bp; the animation and pictures (outputs.animation)."""
+        from . import animation
+        if self.comm.rank != 0:
+            return
+        if self.vtx is not None:
+            self.vtx.close()
+        frames = self.frames.all() if self.frames is not None else []
+        if not (self.outputs["animation"] and len(frames) > 1):
+            return
+        if "centre_line" in frames[0][1].point:
+            animation.rod_animation(frames, self.folder / "animation.gif", title)
+            animation.rod_snapshots(frames, self.folder / "snapshots.png", title)
+        else:
+            animation.torsion_spacetime(frames, self.folder / "spacetime.png", title)
+
+
+def _geometry(sample) -> np.ndarray:
+    """The points of rod.bp: the centre line (3-D rod) or s e_3 (torsion, dimensionless)."""
+    if "centre_line" in sample.point:
+        return sample.point["centre_line"]
+    s = sample.s_nodes
+    return np.column_stack([np.zeros_like(s), np.zeros_like(s), s])
+
+
+def _sample_from_vtx(step: dict):
+    """A LineSample from a step of rod.bp (resume: the frames before the checkpoint)."""
+    from .line_fields import LineSample
+    point = dict(step["point"])
+    s_nodes = point.pop("s")
+    if "phi" not in point:
+        point["centre_line"] = step["points"]
+    return LineSample(s_nodes, 0.5 * (s_nodes[1:] + s_nodes[:-1]), point, dict(step["cell"]))

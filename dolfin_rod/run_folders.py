@@ -1,0 +1,114 @@
+"""Run folders: where a run may write (``folder_problem``), a fresh or resumed results
+folder (``prepare_run_folder``, ``new_run_folder``), the files it holds (``files_in``),
+and file-system errors raised on every rank (``on_root``, :class:`OutputError`), so no
+rank waits in a collective call for one that failed.
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+
+class OutputError(RuntimeError):
+    """A results folder or checkpoint cannot be used; nothing was written (exit 2)."""
+
+
+def on_root(comm, action, what: str):
+    """``action()`` on rank 0 only, its result on every rank; an OSError or ValueError
+    there is raised on every rank as OutputError("what: reason")."""
+    result, error = None, None
+    if comm.rank == 0:
+        try:
+            result = action()
+        except OutputError as err:
+            error = str(err)
+        except (OSError, ValueError) as err:
+            error = f"{what}: {getattr(err, 'strerror', None) or err}"
+    error, result = comm.bcast((error, result), root=0)
+    if error is not None:
+        raise OutputError(error)
+    return result
+
+
+def folder_problem(path: Path) -> str | None:
+    """Why ``path`` cannot become a results folder (None if it can): a NUL, a name too
+    long, an existing file, a file or an unwritable folder on the way.  Writability is
+    probed by creating and removing a temporary folder (permission bits do not tell a
+    root user about read-only file systems)."""
+    from .scenes.values import path_problem
+    problem = path_problem(str(path))
+    if problem:
+        return f"{str(path)[:80]!r}: {problem}"
+    if path.exists() and not path.is_dir():
+        return f"{path} exists and is not a folder"
+    ancestor = path
+    while not ancestor.exists():
+        if ancestor.is_symlink():
+            return f"{ancestor} is a broken symbolic link"
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        return f"{ancestor} is a file, so {path} cannot be a folder"
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".dolfin-rod-probe-", dir=ancestor))
+    except OSError as err:
+        return f"cannot create folders in {ancestor}: {err.strerror or err}"
+    return None
+
+
+RUN_FILES = ("scene.toml", "timeseries.csv", "summary.json", "checkpoint")
+
+
+def prepare_run_folder(folder: Path, resume: bool, overwrite: bool) -> None:
+    """Rank 0: make ``folder`` ready; a non-empty folder is reused only to resume, or
+    replaced with ``overwrite`` if it is a run folder (never any other folder)."""
+    problem = folder_problem(folder)
+    if problem:
+        raise OutputError(f"--out {problem}")
+    if resume:
+        if not folder.is_dir():
+            raise OutputError(f"--resume: {folder} is not a run folder")
+        return
+    if folder.is_dir() and any(folder.iterdir()):
+        if not overwrite:
+            raise OutputError(f"{folder} is not empty: pass --resume to continue its run or "
+                              "--overwrite to replace it")
+        if not any((folder / name).exists() for name in RUN_FILES):
+            raise OutputError(f"--overwrite: {folder} is not a dolfin-rod run folder (none of "
+                              f"{', '.join(RUN_FILES)}); refusing to delete it")
+        shutil.rmtree(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+
+
+def new_run_folder(parent: Path, name: str) -> Path:
+    """Rank 0: create <parent>/<name>-<time> (with -2, -3, ... if that exists: mkdir is
+    atomic, so two runs started in the same second get different folders)."""
+    problem = folder_problem(parent)
+    if problem:
+        raise OutputError(f"outputs.directory {problem}")
+    parent.mkdir(parents=True, exist_ok=True)
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    for n in range(1, 10_000):
+        folder = parent / (f"{name}-{stamp}" + (f"-{n}" if n > 1 else ""))
+        try:
+            folder.mkdir()
+            return folder
+        except FileExistsError:
+            continue
+    raise OutputError(f"no free run folder name {name}-{stamp}-N in {parent}")
+
+
+def files_in(folder: Path) -> list[str]:
+    """Every file under folder, relative; a .bp folder (ADIOS2) counts as one file."""
+    out = set()
+    for path in Path(folder).rglob("*"):
+        rel = path.relative_to(folder)
+        bp = next((i for i, part in enumerate(rel.parts) if part.endswith(".bp")), None)
+        if bp is not None:
+            out.add(str(Path(*rel.parts[:bp + 1])))
+        elif path.is_file():
+            out.add(str(rel))
+    return sorted(out)

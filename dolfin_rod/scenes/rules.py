@@ -1,0 +1,235 @@
+"""Scene rules that involve more than one key (run by :func:`schema.validate` after each
+key passed its own check): which model family a key belongs to, time-integration
+options, torsion boundary conditions, 3-D rod material, inertia and ends."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..integrators.schemes import get_scheme
+from ..validation import sample_points
+from .scene import ROD_KEYS, Scene
+from .values import BadValue, Coefficient, load_entry_point
+
+TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
+# keys of one model family only: (table, key) -> the family that reads it
+TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
+    ("geometry", "degree"), ("initial", "natural_twist"), ("loads", "end_torsion")}
+ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints")} | {
+    ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
+    ("initial", "natural_curvature"), ("initial", "natural_stretch"),
+    ("boundary", "start_rotation"), ("boundary", "end_displacement"),
+    ("boundary", "start_displacement"), ("loads", "distributed_force"), ("loads", "gravity"),
+    ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
+    ("loads", "start_couple")}
+TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
+
+
+def check_combinations(scene: Scene) -> None:
+    """Rules that involve more than one key."""
+    rod = scene.is_rod_material
+    wrong = ROD_ONLY if not rod else TORSION_ONLY
+    for table, key in sorted(wrong):
+        if key in scene.given[table]:
+            raise scene.error(f"{table}.{key}", (
+                "applies to the 3-D rod only; this scene has a torsion material (give "
+                "material.stiffness, viscosity for a rod)") if not rod else (
+                "applies to the torsion model only; this scene has a 3-D rod material"))
+    _check_time(scene)
+    if rod:
+        _check_rod_material(scene)
+        _check_rod_ends(scene)
+    else:
+        _check_torsion(scene)
+
+
+def _check_time(scene: Scene) -> None:
+    tim, given, err = scene["time"], scene.given["time"], scene.error
+    ts = tim["integrator"] == "ts"
+    for key in ("ts_type", "adaptive", "ts_rtol", "ts_atol"):
+        if key in given and not ts:
+            raise err(f"time.{key}", "applies to integrator = \"ts\" only")
+    if ts and "predictor" in given:
+        raise err("time.predictor", "applies to integrator = \"stepper\" only")
+    if ts and "ts_type" in given and "scheme" in given:
+        raise err("time.scheme", "give either time.scheme (per-step schemes) or time.ts_type "
+                                 "(PETSc TS), not both")
+    for key in ("ts_rtol", "ts_atol"):
+        if key in given and not tim["adaptive"]:
+            raise err(f"time.{key}", "an error tolerance of adaptive TS: set adaptive = true")
+    if scene["outputs"]["checkpoint_every"] and ts:
+        raise err("outputs.checkpoint_every", "checkpoints (and --resume) need integrator = "
+                                              "\"stepper\": PETSc TS runs the whole interval "
+                                              "in one call")
+    if tim["dt"] > tim["t_end"]:
+        raise err("time.dt", f"must be <= t_end = {tim['t_end']:g}, got {tim['dt']:g}")
+    if tim["t_end"] / tim["dt"] > 1e7:
+        raise err("time.dt", f"t_end/dt = {tim['t_end'] / tim['dt']:.3g} steps is more than "
+                             "10^7")
+
+
+def _check_torsion(scene: Scene) -> None:
+    """Torsion scenes (dimensionless, Section 5.1)."""
+    d, err = scene.data, scene.error
+    mat, bnd, lds, tim = d["material"], d["boundary"], d["loads"], d["time"]
+    for k in TORSION_KEYS:
+        if mat[k] is None:
+            mat[k] = Coefficient(constant=TORSION_DEFAULTS[k])
+    if mat["variant"] == "uniform" and not mat["mu_d"].is_constant:
+        raise err("material.mu_d", "must be a constant for the uniform variant (M_d is one "
+                                   "tensor for the whole rod, eq. unatevolunif)")
+    if bnd["start"] != "clamped":
+        raise err("boundary.start", "the torsion model is clamped at s = 0 (phi(0) = 0)")
+    if bnd["end"] not in ("free", "rotation"):
+        raise err("boundary.end", "torsion: free (an applied end torsion) or rotation (a "
+                                  "prescribed end rotation)")
+    if bnd["end_rotation"] is not None and bnd["end_rotation"].is_vector:
+        raise err("boundary.end_rotation.value", "torsion: the end rotation Phi is a number")
+    if bnd["end"] == "rotation":
+        if bnd["end_rotation"] is None:
+            raise err("boundary.end_rotation", "missing: boundary.end = \"rotation\" needs "
+                                               "the history of the end rotation")
+        if lds["end_torsion"] is not None:
+            raise err("loads.end_torsion", "an end torsion cannot be applied where the end "
+                                           "rotation is prescribed (boundary.end = \"rotation\")")
+    elif bnd["end_rotation"] is not None:
+        raise err("boundary.end_rotation", "given but boundary.end is \"free\": set "
+                                           "boundary.end = \"rotation\"")
+    couple = lds["distributed_couple"]
+    for k in ("value", "follower"):
+        if couple is not None and couple[k] not in (None, False):
+            raise err(f"loads.distributed_couple.{k}", "torsion: the couple is "
+                                                       "profile(s) history(t), a number")
+    if d["geometry"]["length"] != 1.0:
+        raise err("geometry.length", "torsion scenes are dimensionless on s in [0, 1] "
+                                     "(Section 5.1): length must be 1")
+    dynamic = not (mat["nu"].is_constant and mat["nu"].constant == 0.0)
+    if dynamic and bnd["end"] == "rotation" and bnd["end_rotation"].jumps_at_start:
+        raise err("boundary.end_rotation", "a step at t = 0 but nu > 0: a rod with "
+                                           "inertia cannot follow a jump in rotation; use "
+                                           "type = \"smooth_step\" or \"ramp\"")
+    if not dynamic and get_scheme(tim["scheme"]).explicit:
+        raise err("time.scheme", f"{tim['scheme']} is explicit, but quasi-static torsion "
+                                 "(nu = 0) is differential-algebraic: use an implicit scheme")
+
+
+def _sampled(value, L: float) -> list[np.ndarray]:
+    return [np.asarray(value(s) if callable(value) else value, dtype=float)
+            for s in sample_points(L)]
+
+
+def _check_rod_material(scene: Scene) -> None:
+    """3-D rod material: the tensors each model needs, and only those."""
+    d, err = scene.data, scene.error
+    mat, L = d["material"], d["geometry"]["length"]
+    evolving = mat["model"] == "evolving"
+    stiff, visc = mat["stiffness"] or {}, mat["viscosity"] or {}
+    needed = {"stiffness": ("A", "B") + (("A_d", "B_d") if evolving else ()),
+              "viscosity": ("M_d", "N_d") if evolving else ()}
+    for table, have in (("stiffness", stiff), ("viscosity", visc)):
+        for k in needed[table]:
+            if k not in have:
+                raise err(f"material.{table}.{k}", f"missing: the {mat['model']} model needs it")
+        for k in have:
+            if k in ("A_d", "B_d", "M_d", "N_d") and not evolving:
+                raise err(f"material.{table}.{k}", f"a natural-strain tensor; the "
+                                                  f"{mat['model']} model has none")
+    if mat["model"] == "hyperelastic" and any(k in visc for k in ("M", "N")):
+        raise err("material.viscosity", "the hyperelastic model has no viscosity")
+    if mat["model"] == "kelvin_voigt" and all(visc.get(k) is None or visc[k].is_zero
+                                              for k in ("M", "N")):
+        raise err("material.viscosity", "the kelvin_voigt model needs M or N")
+    for table, have in (("stiffness", stiff), ("viscosity", visc)):
+        for k, t in have.items():
+            semidefinite = k in ("M", "N")
+            for si, a in zip(sample_points(L), _sampled(t.at, L)):
+                low = np.linalg.eigvalsh(a).min()
+                if low < 0 or (low == 0 and not semidefinite):
+                    rule = "positive semidefinite" if semidefinite else "positive definite"
+                    raise err(f"material.{table}.{k}", f"must be {rule}; eigenvalue {low:g} "
+                                                       f"at s = {si:g}")
+    for key in ("variant",):
+        if key in scene.given["material"] and not evolving:
+            raise err(f"material.{key}", f"the natural strains of the {mat['model']} model "
+                                         "do not evolve: drop it")
+    for key in ("natural_curvature", "natural_stretch"):
+        if d["initial"][key] is not None and not evolving:
+            raise err(f"initial.{key}", f"the {mat['model']} model has no natural strains")
+    if d["initial"]["natural_stretch"] is not None and \
+            mat["constraints"] == "inextensible_unshearable":
+        raise err("initial.natural_stretch", "an inextensible, unshearable rod has no "
+                                             "natural stretch")
+    if d["geometry"]["reference_stretch"][2] <= 0:
+        raise err("geometry.reference_stretch", "v_ref,3 must be > 0 (eq. v3pos)")
+    _check_rod_inertia(scene)
+    if mat["energy"] is not None:
+        folder = Path(scene.source).parent if Path(scene.source).is_file() else None
+        try:
+            load_entry_point(mat["energy"], folder)
+        except BadValue as bad:
+            raise err("material.energy", bad.reason) from None
+
+
+def _check_rod_inertia(scene: Scene) -> None:
+    mat, lds, err = scene["material"], scene["loads"], scene.error
+    L = scene["geometry"]["length"]
+    for k in ("density", "drag"):
+        c = mat[k]
+        if c is not None and min(np.min(v) for v in _sampled(c, L)) < 0:
+            raise err(f"material.{k}", "must be >= 0 on [0, L]")
+    inertia = mat["section_inertia"] or (0.0, 0.0)
+    density = mat["density"] or Coefficient(constant=0.0)
+    dynamic = not (density.is_constant and density.constant == 0.0)
+    if dynamic != (min(inertia) > 0):
+        raise err("material.section_inertia", "density and section_inertia (I_11, I_22) must "
+                                              "be all > 0 (dynamic) or all 0 (quasi-static)")
+    mat["dynamic"] = dynamic
+    if dynamic and mat["constraints"] != "none":
+        raise err("material.constraints", "a dynamic rod (density > 0) with constraint "
+                                          "multipliers is an index-3 DAE, which no integrator "
+                                          "here solves reliably: use a quasi-static rod or a "
+                                          "stiff shear/axial B instead")
+    if lds["gravity"] is not None and not dynamic:
+        raise err("loads.gravity", "the weight rho_A g needs material.density > 0 (a "
+                                   "dynamic rod); quasi-static: use loads.distributed_force")
+    if not dynamic and get_scheme(scene["time"]["scheme"]).explicit:
+        raise err("time.scheme", f"{scene['time']['scheme']} is explicit, but a quasi-static "
+                                 "rod is differential-algebraic: use an implicit scheme")
+
+
+def _check_rod_ends(scene: Scene) -> None:
+    """Supports, prescribed end motions and end loads of the 3-D rod."""
+    bnd, lds, err = scene["boundary"], scene["loads"], scene.error
+    fixed_x, fixed_q = [], []
+    for end in ("start", "end"):
+        kind = bnd[end]
+        if kind == "rotation":
+            raise err(f"boundary.{end}", "3-D rod: clamped, pinned or free; a prescribed "
+                                         f"rotation is boundary.{end}_rotation")
+        for motion in ("displacement", "rotation"):
+            spec = bnd[f"{end}_{motion}"]
+            if spec is not None and not spec.is_vector:
+                raise err(f"boundary.{end}_{motion}.value", "3-D rod: a vector [x, y, z]")
+        x = kind in ("clamped", "pinned") or bnd[f"{end}_displacement"] is not None
+        q = kind == "clamped" or bnd[f"{end}_rotation"] is not None
+        fixed_x.append(x), fixed_q.append(q)
+        for load, fixed, what in (("force", x, "position"), ("couple", q, "rotation")):
+            spec = lds[f"{end}_{load}"]
+            if spec is None:
+                continue
+            if not spec.is_vector:
+                raise err(f"loads.{end}_{load}.value", "3-D rod: a vector value = [x, y, z] "
+                                                       "(or a table of 3-vectors)")
+            if fixed:
+                raise err(f"loads.{end}_{load}", f"acts where the {what} is prescribed "
+                                                 f"(boundary.{end} = {kind!r}): the support "
+                                                 "takes it")
+    for k in ("distributed_force", "distributed_couple"):
+        if lds[k] is not None and lds[k]["value"] is None:
+            raise err(f"loads.{k}.value", "missing: 3-D rod: value = [x, y, z]")
+    if not scene["material"]["dynamic"] and not (any(fixed_x) and any(fixed_q)):
+        raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "
+                                    "rotation somewhere (e.g. start = \"clamped\"); rigid "
+                                    "motions are free otherwise")

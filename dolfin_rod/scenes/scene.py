@@ -1,0 +1,61 @@
+"""A validated scene (:class:`Scene`) and the one error a bad scene raises
+(:class:`SceneError`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+# the material keys that make a scene a 3-D rod scene (RodModel)
+ROD_KEYS = ("stiffness", "viscosity", "density", "section_inertia", "drag")
+
+
+class SceneError(ValueError):
+    """A scene cannot be used: ``source`` (file), ``key`` (dotted path) and ``reason``."""
+
+    def __init__(self, source: str, key: str, reason: str):
+        self.source, self.key, self.reason = str(source), key, reason
+        where = f"[{key}]: " if key else ""
+        super().__init__(f"{self.source}: {where}{reason}")
+
+
+@dataclass
+class Scene:
+    """A validated scene: ``data[table][key]`` with defaults filled in."""
+
+    data: dict[str, dict[str, Any]]
+    source: str = "<string>"
+    text: str = ""
+    given: dict[str, set[str]] = field(default_factory=dict)  # keys the file set
+
+    def __getitem__(self, table: str) -> dict[str, Any]:
+        return self.data[table]
+
+    @property
+    def name(self) -> str:
+        return self.data["scene"]["name"]
+
+    @property
+    def is_rod_material(self) -> bool:
+        return any(self.data["material"][k] is not None for k in ROD_KEYS)
+
+    def error(self, key: str, reason: str) -> SceneError:
+        return SceneError(self.source, key, reason)
+
+    def physics(self) -> dict[str, dict[str, Any]]:
+        """The validated keys that determine the computed states, as plain JSON data
+        (what a checkpoint must match to be resumed): everything but the name and
+        description, the outputs table, t_end (a run may be extended) and the requested
+        model (the chosen model is compared instead)."""
+        return {table: {k: _plain(v) for k, v in keys.items()
+                        if not (table == "time" and k == "t_end")}
+                for table, keys in self.data.items() if table not in ("scene", "outputs")}
+
+
+def _plain(v: Any) -> Any:
+    """Validated values (dataclasses, tuples, floats) as JSON data (lists, dicts)."""
+    if hasattr(v, "__dataclass_fields__"):
+        return {f: _plain(getattr(v, f)) for f in v.__dataclass_fields__}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    return v

@@ -1,0 +1,362 @@
+"""Scene value checkers: each takes a TOML value and returns the cleaned value or raises
+:class:`BadValue` (the reason, and the sub-key it concerns), which the schema turns into
+one SceneError naming the key path.  Also the validated value types of a scene:
+:class:`Coefficient` (torsion coefficients, load profiles) and :class:`Tensor` (rod
+material tensors), and the checks of path text and entry points.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..integrators.schemes import get_scheme
+from ..validation import profile_violation, sample_points
+
+
+class BadValue(Exception):
+    """A value broke a rule; turned into a SceneError with its key path."""
+
+    def __init__(self, reason: str, key: str | None = None):
+        super().__init__(reason)
+        self.reason, self.key = reason, key
+
+
+def type_name(v: Any) -> str:
+    return {bool: "boolean", int: "integer", float: "float", str: "string", list: "array",
+            dict: "table"}.get(type(v), type(v).__name__)
+
+
+def number(v: Any) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise BadValue(f"must be a number, got {type_name(v)} {v!r}")
+    x = float(v)
+    if not math.isfinite(x):
+        raise BadValue(f"must be finite, got {v!r}")
+    return x
+
+
+def real(lo: float | None = None, lo_strict: bool = False, hi: float | None = None):
+    def check(v):
+        x = number(v)
+        if lo is not None and (x <= lo if lo_strict else x < lo):
+            raise BadValue(f"must be {'>' if lo_strict else '>='} {lo:g}, got {x:g}")
+        if hi is not None and x > hi:
+            raise BadValue(f"must be <= {hi:g}, got {x:g}")
+        return x
+    return check
+
+
+def integer(lo: int, hi: int | None = None):
+    def check(v):
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise BadValue(f"must be an integer, got {type_name(v)} {v!r}")
+        if v < lo or (hi is not None and v > hi):
+            raise BadValue(f"must be an integer in [{lo}, {hi if hi is not None else 'inf'}], got {v}")
+        return v
+    return check
+
+
+def choice(*options: str):
+    def check(v):
+        if not isinstance(v, str):
+            raise BadValue(f"must be a string, one of {', '.join(options)}; got {type_name(v)}")
+        if v not in options:
+            raise BadValue(f"must be one of {', '.join(repr(o) for o in options)}, got {v!r}")
+        return v
+    return check
+
+
+def string(v):
+    if not isinstance(v, str):
+        raise BadValue(f"must be a string, got {type_name(v)} {v!r}")
+    return v
+
+
+NAME_MAX = 255     # bytes in one path component (POSIX file systems)
+PATH_MAX = 4096    # bytes in a whole path (Linux)
+
+
+def run_name(v):
+    """A scene name is a folder name: letters, digits, '.', '_', '-', not starting with
+    '.', so that it can never leave outputs.directory or nest folders."""
+    v = string(v)
+    if not v or v.startswith(".") or not all(c.isascii() and (c.isalnum() or c in "._-")
+                                              for c in v):
+        raise BadValue(f"must be a folder name of letters, digits, '.', '_', '-' (not starting "
+                   f"with '.'), got {v!r}")
+    if len(v) > 100:
+        raise BadValue(f"must be at most 100 characters (it names the run folder), got {len(v)}")
+    return v
+
+
+def safe_name(stem: str) -> str:
+    """The default scene name from a file stem: characters run_name refuses become '_'."""
+    name = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in stem)
+    return name.lstrip(".")[:100] or "scene"
+
+
+def path_problem(text: str) -> str | None:
+    """Why ``text`` cannot be a file-system path (None if it can): empty, a NUL, a
+    component longer than NAME_MAX or the whole longer than PATH_MAX bytes."""
+    if not text:
+        return "must be a non-empty path"
+    if "\0" in text:
+        return "must not contain a NUL character"
+    encoded = text.encode("utf-8", "surrogateescape")
+    if len(encoded) >= PATH_MAX:
+        return f"is {len(encoded)} bytes long; paths are limited to {PATH_MAX - 1}"
+    longest = max(encoded.split(b"/"), key=len)
+    if len(longest) > NAME_MAX:
+        return f"has a path component of {len(longest)} bytes; file systems allow {NAME_MAX}"
+    return None
+
+
+def path_text(v):
+    problem = path_problem(string(v))
+    if problem:
+        raise BadValue(problem)
+    return v
+
+
+def boolean(v):
+    if not isinstance(v, bool):
+        raise BadValue(f"must be true or false, got {type_name(v)} {v!r}")
+    return v
+
+
+def vector3(lo: float | None = None, lo_strict: bool = False):
+    each = real(lo, lo_strict)
+
+    def check(v):
+        if not isinstance(v, list) or len(v) != 3:
+            raise BadValue(f"must be an array of 3 numbers, got {v!r}")
+        out = []
+        for i, x in enumerate(v):
+            try:
+                out.append(each(x))
+            except BadValue as bad:
+                raise BadValue(f"entry {i} {bad.reason}") from None
+        return tuple(out)
+    return check
+
+
+def scheme_name(v):
+    v = string(v)
+    try:
+        get_scheme(v)
+    except (ValueError, TypeError) as err:
+        raise BadValue(str(err)) from None
+    return v
+
+
+@dataclass(frozen=True)
+class Coefficient:
+    """A material coefficient: a constant or a polynomial c0 + c1 s + c2 s^2 + ... in s."""
+
+    constant: float | None = None
+    polynomial: tuple[float, ...] = ()
+
+    @property
+    def is_constant(self) -> bool:
+        return self.constant is not None
+
+    def __call__(self, s):
+        """Works on numpy arrays and on UFL expressions (Horner's rule)."""
+        if self.constant is not None:
+            return self.constant
+        out = 0.0 * s + self.polynomial[-1]
+        for c in reversed(self.polynomial[:-1]):
+            out = out * s + c
+        return out
+
+    def value(self):
+        """A float for TorsionParameters, or this callable for an s-dependent coefficient."""
+        return self.constant if self.constant is not None else self
+
+    def values(self, s: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(np.asarray(self(s), dtype=float), s.shape)
+
+
+def coefficient(strict: bool):
+    """A float, or {polynomial = [c0, c1, ...]} (s in [0, 1]); > 0 (strict) or >= 0."""
+
+    def check(v):
+        if isinstance(v, dict):
+            coeffs = _polynomial_numbers(v)
+            c = Coefficient(polynomial=coeffs)
+            s = sample_points(1.0)
+            reason = profile_violation(c.values(s), s, strict)
+            if reason:
+                raise BadValue(f"{reason} (the polynomial)")
+            if len(coeffs) == 1 or not any(coeffs[1:]):
+                return Coefficient(constant=coeffs[0])
+            return c
+        return Coefficient(constant=real(0.0, lo_strict=strict)(v))
+    return check
+
+
+def _polynomial(v) -> tuple[float, ...]:
+    if not isinstance(v, dict):
+        raise BadValue(f"must be {{polynomial = [c0, c1, ...]}}, got {type_name(v)}")
+    refuse_unknown(v, {"polynomial"})
+    if "polynomial" not in v:
+        raise BadValue("missing required key", "polynomial")
+    p = v["polynomial"]
+    if not isinstance(p, list) or not p:
+        raise BadValue("must be a non-empty array", "polynomial")
+    return tuple(p)
+
+
+def _polynomial_numbers(v) -> tuple[float, ...]:
+    try:
+        return tuple(number(c) for c in _polynomial(v))
+    except BadValue as bad:
+        raise BadValue(bad.reason, bad.key or "polynomial") from None
+
+
+def profile(v):
+    """A load profile along s: a number or {polynomial = [c0, c1, ...]}, any sign."""
+    if not isinstance(v, dict):
+        return Coefficient(constant=number(v))
+    coeffs = _polynomial_numbers(v)
+    if len(coeffs) == 1 or not any(coeffs[1:]):
+        return Coefficient(constant=coeffs[0])
+    return Coefficient(polynomial=coeffs)
+
+
+@dataclass(frozen=True)
+class Tensor:
+    """A 3x3 material tensor T(s) = T_0 + T_1 s + T_2 s^2 + ... (s in [0, L]); each T_k
+    written as 3 diagonal entries or a 3x3 array."""
+
+    terms: tuple[np.ndarray, ...]
+
+    @property
+    def is_zero(self) -> bool:
+        return not any(np.any(t) for t in self.terms)
+
+    def at(self, s: float) -> np.ndarray:
+        return sum(t * s**k for k, t in enumerate(self.terms))
+
+    def value(self):
+        """RodParameters' form: the 3x3 array, or a callable of s (floats and UFL)."""
+        if len(self.terms) == 1:
+            return self.terms[0]
+        terms = self.terms
+        return lambda s: [[sum(t[i, j] * s**k for k, t in enumerate(terms)) for j in range(3)]
+                          for i in range(3)]
+
+
+def _matrix(v) -> np.ndarray:
+    if isinstance(v, list) and len(v) == 3 and all(isinstance(r, list) for r in v):
+        rows = []
+        for i, r in enumerate(v):
+            if len(r) != 3:
+                raise BadValue(f"row {i} must have 3 numbers, got {r!r}")
+            rows.append([number(x) for x in r])
+        return np.array(rows)
+    return np.diag(vector3()(v))
+
+
+def tensor(v) -> Tensor:
+    """[a, b, c] (diagonal), [[...], [...], [...]] (3x3), or {polynomial = [T0, T1, ...]}."""
+    if isinstance(v, dict):
+        try:
+            terms = tuple(_matrix(t) for t in _polynomial(v))
+        except BadValue as bad:
+            raise BadValue(bad.reason, bad.key or "polynomial") from None
+    else:
+        terms = (_matrix(v),)
+    for t in terms:
+        if not np.allclose(t, t.T, rtol=1e-12, atol=0.0):
+            raise BadValue(f"must be symmetric, got {t.tolist()}")
+    return Tensor(terms)
+
+
+def entry_point(v) -> str:
+    """"package.module:function": imported (from the scene's folder or sys.path)."""
+    v = string(v)
+    module, sep, name = v.partition(":")
+    if not (sep and module and name.isidentifier()):
+        raise BadValue(f"must be \"quadratic\" or an entry point \"package.module:function\", "
+                   f"got {v!r}")
+    return v
+
+
+def load_entry_point(spec: str, folder: Path | None = None):
+    """The callable named by ``package.module:function`` (folder: tried first)."""
+    import importlib
+    import sys
+    module, _, name = spec.partition(":")
+    added = folder is not None and str(folder) not in sys.path
+    if added:
+        sys.path.insert(0, str(folder))
+    try:
+        obj = getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError) as err:
+        raise BadValue(f"cannot import {spec!r}: {err}") from None
+    finally:
+        if added:
+            sys.path.remove(str(folder))
+    if not callable(obj):
+        raise BadValue(f"{spec!r} is not callable")
+    return obj
+
+
+def refuse_unknown(table: dict, known: set[str]) -> None:
+    for k in table:
+        if k not in known:
+            raise BadValue(f"unknown key (known: {', '.join(sorted(known))})", k)
+
+
+def section_inertia(v) -> tuple[float, float]:
+    """I_11 = I_22 (a number) or [I_11, I_22], each >= 0."""
+    if isinstance(v, list):
+        if len(v) != 2:
+            raise BadValue(f"must be a number or [I_11, I_22], got {v!r}")
+        return (real(0.0)(v[0]), real(0.0)(v[1]))
+    x = real(0.0)(v)
+    return (x, x)
+
+
+def ts_type_name(v) -> str:
+    from ..integrators.ts import parse_ts_type
+    v = string(v)
+    try:
+        parse_ts_type(v)
+    except ValueError as err:
+        raise BadValue(str(err)) from None
+    return v
+
+
+def petsc_table(v) -> dict:
+    """PETSc options: names without the leading '-', values numbers, strings or booleans."""
+    if not isinstance(v, dict):
+        raise BadValue(f"must be a table of PETSc options, got {type_name(v)}")
+    for k, x in v.items():
+        if k.startswith("-") or not k.replace("_", "").isalnum():
+            raise BadValue("must be a PETSc option name without the leading '-'", k)
+        if not isinstance(x, (bool, int, float, str)) or (isinstance(x, float)
+                                                         and not math.isfinite(x)):
+            raise BadValue(f"must be a number, string or boolean, got {type_name(x)}", k)
+    return dict(v)
+
+
+def tensor_table(v, names) -> dict[str, Tensor]:
+    """The tensors of a stiffness/viscosity table (required ones checked per model)."""
+    if not isinstance(v, dict):
+        raise BadValue(f"must be a table with {', '.join(names)}, got {type_name(v)}")
+    refuse_unknown(v, set(names))
+    out = {}
+    for n in names:
+        if n in v:
+            try:
+                out[n] = tensor(v[n])
+            except BadValue as bad:
+                raise BadValue(bad.reason, f"{n}.{bad.key}" if bad.key else n) from None
+    return out
