@@ -181,8 +181,7 @@ class IncrementalRod:
         """Straight, unstressed, at rest (natural strains = (0, e_3))."""
         for g in [*self.f.values(), *self.r.values(), *self.a.values()]:
             g.x.array[:] = 0.0
-        self.q_n.x.array.reshape(-1, 4)[:] = (1.0, 0.0, 0.0, 0.0)
-        self._cell_quaternions()
+        self.set_nodal_rotations((1.0, 0.0, 0.0, 0.0))
         if self.evolving:
             self.f["natural_stretch"].x.array.reshape(-1, 3)[:, 2] = 1.0
 
@@ -193,11 +192,13 @@ class IncrementalRod:
         qn[:] = np_qmul(qn, np_cayley(th))
         qn /= np.linalg.norm(qn, axis=1)[:, None]
         th[:] = 0.0
-        self._cell_quaternions()
+        self.set_nodal_rotations(qn)
 
-    def _cell_quaternions(self) -> None:
-        """qa_n, p_n (DG0) from the nodal q_n."""
+    def set_nodal_rotations(self, q) -> None:
+        """Stored nodal unit quaternions q_n := q (rows, local + ghost nodes), and from them
+        per cell the left node's q_n,a and p_n = conj(q_n,a) q_n,b (DG0)."""
         qn = self.q_n.x.array.reshape(-1, 4)
+        qn[:] = q
         left, right = self._cell_nodes
         self.qa_n.x.array.reshape(-1, 4)[:] = qn[left]
         self.p_n.x.array.reshape(-1, 4)[:] = np_qmul(qn[left] * [1, -1, -1, -1], qn[right])
