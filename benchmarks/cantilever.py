@@ -97,10 +97,7 @@ def run_dolfin_rod(n_cells: int, dt: float, scene: str, scheme: str = "generaliz
         for ts in SAMPLES:
             if abs(t - ts) < 1e-9 * T_END:
                 tips[ts] = probe()
-    stepper._residual(stepper.scheme)          # compile the step forms before timing
-    if stepper.scheme.startup:
-        from dolfin_rod.integrators.schemes import get_scheme
-        stepper._residual(get_scheme(stepper.scheme.startup))
+    stepper.compile()                          # compile the step forms before timing
     t1 = time.perf_counter()
     t = 0.0
     for ts in SAMPLES:                         # march to each sample exactly

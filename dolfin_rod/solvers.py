@@ -7,6 +7,7 @@ natural strains are solved monolithically with the fields, in serial and under M
 from __future__ import annotations
 
 import itertools
+import time
 
 import dolfinx.fem as fem
 import numpy as np
@@ -95,13 +96,18 @@ class BlockSNES:
         self._persists = tuple(str(settings.get(f"snes_lag_{k}_persists", False)).lower()
                                in ("true", "1", "yes") for k in ("jacobian", "preconditioner"))
         self.iterations = 0
+        self.timings = {"residual": 0.0, "jacobian": 0.0}  # seconds spent in assembly
 
     def _residual(self, snes, x, b):
+        t0 = time.perf_counter()
         self.system.set(0, x)
         self.system.residual(x, b)
+        self.timings["residual"] += time.perf_counter() - t0
 
     def _jacobian(self, snes, x, A, P):
+        t0 = time.perf_counter()
         self.system.jacobian(A)
+        self.timings["jacobian"] += time.perf_counter() - t0
 
     def _set_persists(self, flags) -> None:
         opts = PETSc.Options()

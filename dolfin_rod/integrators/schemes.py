@@ -23,6 +23,14 @@ class Stage:
     b: tuple[float, float, float]
     g: float = 0.0
 
+    def state(self, y, y_n, y_nm1):
+        """Y = a0 y + a1 y_n + a2 y_{n-1} (UFL expressions or arrays)."""
+        return self.a[0] * y + self.a[1] * y_n + self.a[2] * y_nm1
+
+    def rate(self, y, y_n, y_nm1, ydot_n, dt):
+        """Ydot = (b0 y + b1 y_n + b2 y_{n-1}) / dt + g ydot_n."""
+        return (self.b[0] * y + self.b[1] * y_n + self.b[2] * y_nm1) / dt + self.g * ydot_n
+
 
 @dataclass(frozen=True)
 class Scheme:
@@ -43,6 +51,16 @@ class Scheme:
     @property
     def uses_rate(self) -> bool:
         return any(s.g for s in self.stages)
+
+    def for_step(self, history_ok: bool) -> "Scheme":
+        """The scheme of the next step: this one, or its startup scheme while y_{n-1}
+        and ydot_n are not valid for the current dt (first step, after a step change)."""
+        return get_scheme(self.startup) if self.startup and not history_ok else self
+
+    def rate_after_step(self, y, y_n, y_nm1, ydot_n, dt):
+        """ydot_{n+1} = (r0 y + r1 y_n + r2 y_{n-1}) / dt + rg ydot_n (arrays)."""
+        r0, r1, r2, rg = self.rate
+        return (r0 * y + r1 * y_n + r2 * y_nm1) / dt + rg * ydot_n
 
 
 def generalized_alpha(rho_inf: float = 0.5) -> Scheme:

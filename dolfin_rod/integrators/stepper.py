@@ -5,9 +5,7 @@ raises IntegrationError and leaves every accepted step with the observer.
 
 from __future__ import annotations
 
-import math
 import warnings
-from dataclasses import dataclass
 from typing import Callable
 
 import dolfinx.fem as fem
@@ -17,14 +15,10 @@ import ufl
 from ..problem import SemiDiscreteProblem
 from ..solvers import BlockSNES, SolverError
 from .schemes import Scheme, get_scheme
+from .stepping import (CUT_FACTOR, IntegrationError, StepStats, check_run, clip_to_end, grown,
+                       nominal_steps, reached)
 
-
-class IntegrationError(RuntimeError):
-    """The run stopped early; ``t`` is the last accepted time (its state is kept)."""
-
-    def __init__(self, message: str, t: float):
-        super().__init__(message)
-        self.t = t
+__all__ = ["TimeStepper", "IntegrationError", "StepStats", "step_forms"]
 
 
 def _copy(f: fem.Function) -> fem.Function:
@@ -33,30 +27,36 @@ def _copy(f: fem.Function) -> fem.Function:
     return g
 
 
+def step_forms(problem: SemiDiscreteProblem, scheme: Scheme, history, dt):
+    """The UFL residual of one step, sum_k w_k F(t_k, Y_k, Ydot_k) (schemes.py), one form
+    per block, and per stage (c_k, [(stage load constant, TimeDependentValue)])."""
+    y, ydot = problem.fields, problem.rates
+    y_n, y_nm1, ydot_n = history
+    mesh = y[0].function_space.mesh
+    stage_loads = []
+    F = [0] * len(y)
+    for st in scheme.stages:
+        mapping = {}
+        for i in range(len(y)):
+            mapping[y[i]] = st.state(y[i], y_n[i], y_nm1[i])
+            mapping[ydot[i]] = st.rate(y[i], y_n[i], y_nm1[i], ydot_n[i], dt)
+        loads = []
+        for load in problem.loads:
+            c = fem.Constant(mesh, np.array(load.constant.value, dtype=float))
+            mapping[load.constant] = c
+            loads.append((c, load))
+        stage_loads.append((st.c, loads))
+        F = [Fi + st.w * ufl.replace(Ri, mapping) for Fi, Ri in zip(F, problem.residual)]
+    return F, stage_loads
+
+
 class _StepResidual:
     """The compiled step residual of one scheme (dt, loads and stage times are Constants)."""
 
     def __init__(self, problem: SemiDiscreteProblem, scheme: Scheme, history, dt, options):
         self.problem, self.scheme = problem, scheme
-        y, ydot = problem.fields, problem.rates
-        y_n, y_nm1, ydot_n = history
-        mesh = y[0].function_space.mesh
-        self.stage_loads = []
-        F = [0] * len(y)
-        for st in scheme.stages:
-            mapping = {}
-            for i in range(len(y)):
-                mapping[y[i]] = st.a[0] * y[i] + st.a[1] * y_n[i] + st.a[2] * y_nm1[i]
-                mapping[ydot[i]] = ((st.b[0] * y[i] + st.b[1] * y_n[i] + st.b[2] * y_nm1[i]) / dt
-                                    + st.g * ydot_n[i])
-            loads = []
-            for load in problem.loads:
-                c = fem.Constant(mesh, np.array(load.constant.value, dtype=float))
-                mapping[load.constant] = c
-                loads.append((c, load))
-            self.stage_loads.append((st.c, loads))
-            F = [Fi + st.w * ufl.replace(Ri, mapping) for Fi, Ri in zip(F, problem.residual)]
-        self.solver = BlockSNES(F, y, problem.bcs, options)
+        F, self.stage_loads = step_forms(problem, scheme, history, dt)
+        self.solver = BlockSNES(F, problem.fields, problem.bcs, options)
         self._dt_last = None
 
     def solve(self, t_n: float, dt: float) -> int:
@@ -68,13 +68,6 @@ class _StepResidual:
         return self.solver.solve(fresh_jacobian=fresh)
 
 
-@dataclass
-class StepStats:
-    steps: int = 0
-    newton_iterations: int = 0
-    rejected: int = 0
-
-
 class TimeStepper:
     """Advance a SemiDiscreteProblem with a per-step scheme.
 
@@ -83,6 +76,8 @@ class TimeStepper:
     predictor:  Newton's initial guess, "linear" y_n + dt dy/dt_n (an O(dt^2) guess:
                 about one Newton iteration fewer per step on smooth dynamics) or
                 "constant" y_n.
+    history_ok: y_{n-1} and dy/dt_n are valid for the current dt (else the next step
+                uses the scheme's startup scheme); part of a checkpoint's state.
     """
 
     PREDICTORS = ("linear", "constant")
@@ -103,7 +98,7 @@ class TimeStepper:
         self.dt = fem.Constant(problem.fields[0].function_space.mesh, 1.0)
         self._residuals: dict[str, _StepResidual] = {}
         self.stats = StepStats()
-        self._history_ok = False  # y_{n-1}, ydot_n valid for the current dt (else: startup)
+        self.history_ok = False
 
     def _residual(self, scheme: Scheme) -> _StepResidual:
         if scheme.name not in self._residuals:
@@ -112,18 +107,34 @@ class TimeStepper:
                 self.problem, scheme, history, self.dt, self.options)
         return self._residuals[scheme.name]
 
-    def _update_rates(self, scheme: Scheme, dt: float) -> None:
-        r0, r1, r2, rg = scheme.rate
-        for f, fn, fnm1, rate, rate_n in zip(self.problem.fields, self.y_n, self.y_nm1,
-                                              self.problem.rates, self.ydot_n):
-            rate.x.array[:] = ((r0 * f.x.array + r1 * fn.x.array + r2 * fnm1.x.array) / dt
-                               + rg * rate_n.x.array)
+    def compile(self) -> None:
+        """Compile the step forms of the scheme and of its startup scheme now (e.g. before
+        timing a run), rather than at the first step that needs them."""
+        self._residual(self.scheme)
+        if self.scheme.startup:
+            self._residual(get_scheme(self.scheme.startup))
+
+    def step_forms(self, scheme: Scheme | None = None) -> list:
+        """The UFL step residual (one form per block) of ``scheme`` (default: this
+        stepper's), on this stepper's history and dt, without compiling it."""
+        history = (self.y_n, self.y_nm1, self.ydot_n)
+        return step_forms(self.problem, scheme or self.scheme, history, self.dt)[0]
+
+    def assembly_timings(self) -> dict[str, float]:
+        """Seconds spent so far in residual and Jacobian assembly (all schemes' solvers)."""
+        total = {"residual": 0.0, "jacobian": 0.0}
+        for res in self._residuals.values():
+            for key, seconds in res.solver.timings.items():
+                total[key] += seconds
+        return total
+
+    def _restore(self) -> None:
+        for fn, f in zip(self.y_n, self.problem.fields):
+            f.x.array[:] = fn.x.array
 
     def step(self, t: float, dt: float) -> None:
         """One step from t (state in problem.fields) to t + dt; raises SolverError."""
-        scheme = self.scheme
-        if scheme.startup and not self._history_ok:
-            scheme = get_scheme(scheme.startup)
+        scheme = self.scheme.for_step(self.history_ok)
         for fn, f, rn, r in zip(self.y_n, self.problem.fields, self.ydot_n, self.problem.rates):
             fn.x.array[:] = f.x.array
             rn.x.array[:] = r.x.array
@@ -133,57 +144,57 @@ class TimeStepper:
         try:
             its = self._residual(scheme).solve(t, dt)
         except SolverError:
-            for fn, f in zip(self.y_n, self.problem.fields):
-                f.x.array[:] = fn.x.array
+            self._restore()
             raise
         if not all(np.isfinite(f.x.array).all() for f in self.problem.fields):
-            for fn, f in zip(self.y_n, self.problem.fields):
-                f.x.array[:] = fn.x.array
+            self._restore()
             raise SolverError("non-finite solution", its)
-        self._update_rates(scheme, dt)
-        for fnm1, fn in zip(self.y_nm1, self.y_n):
+        for f, fn, fnm1, rate, rate_n in zip(self.problem.fields, self.y_n, self.y_nm1,
+                                              self.problem.rates, self.ydot_n):
+            rate.x.array[:] = scheme.rate_after_step(f.x.array, fn.x.array, fnm1.x.array,
+                                                     rate_n.x.array, dt)
             fnm1.x.array[:] = fn.x.array
-        self._history_ok = True
+        self.history_ok = True
         self.stats.steps += 1
         self.stats.newton_iterations += its
+
+    def _cut(self, t: float, h_try: float, cuts: int, err: SolverError) -> float:
+        """The step after a failure at t (IntegrationError after max_cuts cuts)."""
+        self.stats.rejected += 1
+        if cuts > self.max_cuts:
+            raise IntegrationError(
+                f"time step failed at t = {t:.6g} after {self.max_cuts} step cuts "
+                f"(last dt = {h_try:.3g}): {err}", t) from err
+        h = CUT_FACTOR * h_try
+        if self.scheme.startup:
+            warnings.warn(f"step at t = {t:.6g} cut to dt = {h:.3g} ({err}); "
+                          f"{self.scheme.name} restarts with {self.scheme.startup}, "
+                          "which is first-order accurate", RuntimeWarning, stacklevel=3)
+        self.history_ok = False
+        return h
 
     def run(self, t0: float, t_end: float, dt: float,
             observer: Callable[[float, "TimeStepper"], None] | None = None) -> float:
         """Integrate from t0 to t_end with nominal step dt, cutting steps on failure."""
-        if not dt > 0:
-            raise ValueError(f"dt must be > 0, got {dt}")
-        if not t_end > t0:
-            raise ValueError(f"t_end must be > t0 = {t0}, got {t_end}")
+        check_run(t0, t_end, dt)
         if observer:
             observer(t0, self)
         t, h, cuts = t0, dt, 0
-        n_total = math.ceil((t_end - t0) / dt - 1e-9)
-        for _ in range(100 * n_total + 10 * self.max_cuts):
-            if t_end - t <= 1e-9 * dt:  # round-off from summing steps
+        for _ in range(100 * nominal_steps(t0, t_end, dt) + 10 * self.max_cuts):
+            if reached(t, t_end, dt):
                 return t
-            h_try = t_end - t if t_end - t < h * (1 + 1e-9) else h
+            h_try = clip_to_end(t, t_end, h)
             try:
                 self.step(t, h_try)
             except SolverError as err:
                 cuts += 1
-                self.stats.rejected += 1
-                if cuts > self.max_cuts:
-                    raise IntegrationError(
-                        f"time step failed at t = {t:.6g} after {self.max_cuts} step cuts "
-                        f"(last dt = {h_try:.3g}): {err}", t) from err
-                h = h_try / 2
-                if self.scheme.startup:
-                    warnings.warn(f"step at t = {t:.6g} cut to dt = {h:.3g} ({err}); "
-                                  f"{self.scheme.name} restarts with {self.scheme.startup}, "
-                                  "which is first-order accurate", RuntimeWarning,
-                                  stacklevel=2)
-                self._history_ok = False
+                h = self._cut(t, h_try, cuts, err)
                 continue
             t = t_end if h_try == t_end - t else t + h_try
             if observer:
                 observer(t, self)
             if h < dt and cuts:  # grow back towards the nominal step after a success
-                h = min(2 * h, dt)
-                self._history_ok = False
+                h = grown(h, dt)
+                self.history_ok = False
                 cuts = max(cuts - 1, 0)
         raise IntegrationError(f"step budget exhausted at t = {t:.6g}", t)

@@ -39,7 +39,6 @@ back to the nominal dt (doubling) after a cut, like TimeStepper.
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -50,7 +49,8 @@ from petsc4py import PETSc
 from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..assembly import block_system
 from ..solvers import petsc_options
-from .stepper import IntegrationError
+from .stepping import (IntegrationError, StepStats, check_run, clip_to_end, grown,
+                       nominal_steps, reached)
 
 # Design orders of the ARKIMEX tableaux (implicit part), PETSc's TSARKIMEX names.
 # (ars122 is left out: PETSc refuses it without an explicit part, error 56.)
@@ -112,14 +112,6 @@ def parse_ts_type(ts_type: str) -> TSMethod:
                          "SemiDiscreteProblem is implicit (DAE): use TimeStepper("
                          "problem, 'explicit_euler') for an explicit scheme")
     raise ValueError(f"unknown ts_type '{ts_type}' (known: {', '.join(TS_TYPES)})")
-
-
-@dataclass
-class TSStats:
-    steps: int = 0
-    rejected: int = 0
-    snes_failures: int = 0
-    newton_iterations: int = 0
 
 
 class TSIntegrator:
@@ -196,7 +188,7 @@ class TSIntegrator:
         self.ts.setFromOptions()
         self.ts.setMonitor(self._monitor)
         self.ts.setPostStep(self._post_step)
-        self.stats = TSStats()
+        self.stats = StepStats()
         self._observer = None
         self._t_accepted = None
         self._dt_nominal = None
@@ -249,12 +241,11 @@ class TSIntegrator:
     def _post_step(self, ts):
         dt, t = ts.getTimeStep(), ts.getTime()
         if not self.adaptive and dt < self._dt_nominal:  # grow back after a cut
-            dt = min(2.0 * dt, self._dt_nominal)
-        remaining = self._t_end - t
-        if remaining <= 1e-10 * self._dt_nominal:
+            dt = grown(dt, self._dt_nominal)
+        if reached(t, self._t_end, self._dt_nominal):
             ts.setConvergedReason(PETSc.TS.ConvergedReason.CONVERGED_TIME)
-        elif dt >= remaining * (1.0 - 1e-10):
-            dt = remaining
+        elif clip_to_end(t, self._t_end, dt) != dt:
+            dt = self._t_end - t
         elif self._dt_floor > 0 and dt < self._dt_floor:
             ts.setConvergedReason(PETSc.TS.ConvergedReason.DIVERGED_STEP_REJECTED)
         ts.setTimeStep(dt)
@@ -267,10 +258,7 @@ class TSIntegrator:
         Returns the final time; raises IntegrationError when a step is rejected
         ``max_rejections`` times in a row (state: the last accepted step).
         """
-        if not dt > 0:
-            raise ValueError(f"dt must be > 0, got {dt}")
-        if not t_end > t0:
-            raise ValueError(f"t_end must be > t0 = {t0}, got {t_end}")
+        check_run(t0, t_end, dt)
         self._observer, self._t_accepted, self._dt_nominal = observer, None, dt
         self._t_end = t_end
         # smallest accepted step before giving up: dt_min, else (fixed step) dt 4^-rejections
@@ -286,14 +274,15 @@ class TSIntegrator:
         self.ts.setStepNumber(0)
         self.ts.setMaxTime(t_end)
         self.ts.setConvergedReason(PETSc.TS.ConvergedReason.CONVERGED_ITERATING)
-        self.ts.setMaxSteps(max(10 * math.ceil((t_end - t0) / dt), 10**6 if self.adaptive else 0))
+        self.ts.setMaxSteps(max(10 * nominal_steps(t0, t_end, dt),
+                                10**6 if self.adaptive else 0))
         self.ts.solve(self.x)
         reason = self.ts.getConvergedReason()
         self.stats.rejected = self.ts.getStepRejections()
         self.stats.snes_failures = self.ts.getSNESFailures()
         self.stats.newton_iterations = self.ts.getSNESIterations()
         t = self._t_accepted
-        if reason < 0 or t < t_end - 1e-10 * dt:
+        if reason < 0 or not reached(t, t_end, dt):
             self.system.set(0, self._x_prev)
             raise IntegrationError(
                 f"TS {self.method.name} stopped at t = {t:.6g} ({_REASONS.get(reason, reason)}"

@@ -196,23 +196,23 @@ class OdeTorsion:
         return M, K
 
     def _scheme_step(self, t: float, dt: float) -> None:
-        scheme = self.scheme
-        if scheme.startup and not self.history_ok:
-            scheme = get_scheme(scheme.startup)
+        """One step of the scheme (as TimeStepper's: same stages, startup and rate rule)
+        on the linear system M y' + K y = f: J y = -r with r the residual at y = 0."""
+        scheme = self.scheme.for_step(self.history_ok)
         M, K = self._matrices()
-        y_n, y_nm1, ydot_n = self.y.copy(), self.y_nm1.copy(), self.ydot.copy()
+        y_n, y_nm1, ydot_n = self.y, self.y_nm1, self.ydot
+        zero = np.zeros(2)
         J, r = np.zeros((2, 2)), np.zeros(2)
         for st in scheme.stages:
             f = np.array([0.0 if self.rotation else self._load(t + st.c * dt), 0.0])
             J += st.w * (M * st.b[0] / dt + K * st.a[0])
-            r += st.w * (M @ ((st.b[1] * y_n + st.b[2] * y_nm1) / dt + st.g * ydot_n)
-                         + K @ (st.a[1] * y_n + st.a[2] * y_nm1) - f)
+            r += st.w * (M @ st.rate(zero, y_n, y_nm1, ydot_n, dt)
+                         + K @ st.state(zero, y_n, y_nm1) - f)
         if self.rotation:   # Dirichlet row: u = Phi(t_{n+1})
             J[0] = (1.0, 0.0)
             r[0] = -self._load(t + dt)
         y = np.linalg.solve(J, -r)
-        r0, r1, r2, rg = scheme.rate
-        self.ydot = (r0 * y + r1 * y_n + r2 * y_nm1) / dt + rg * ydot_n
+        self.ydot = scheme.rate_after_step(y, y_n, y_nm1, ydot_n, dt)
         self.y_nm1, self.y = y_n, y
         self.history_ok = True
 
@@ -308,10 +308,10 @@ class FESimulation:
         """Functions a checkpoint stores (besides problem.fields) and the stepper flags."""
         return {"functions": {**{f"rate_{i}": r for i, r in enumerate(self.problem.rates)},
                               **{f"previous_{i}": p for i, p in enumerate(self.stepper.y_nm1)}},
-                "history_ok": self.stepper._history_ok}
+                "history_ok": self.stepper.history_ok}
 
     def restore(self, state: dict) -> None:
-        self.stepper._history_ok = bool(state["history_ok"])
+        self.stepper.history_ok = bool(state["history_ok"])
 
     def describe(self) -> str:
         if self.ts is not None:
