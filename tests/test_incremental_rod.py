@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from dolfin_rod import form_cache
 from dolfin_rod.incremental_rod import IncrementalRod, np_cayley
 from dolfin_rod.integrators.lie_alpha import LieGeneralizedAlpha
 from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
@@ -125,3 +126,31 @@ def test_lie_generalized_alpha_is_second_order():
     # each observed order is 2 +- log2(1 + 2/64) ~ 2 +- 0.05 (the load starts smoothly,
     # (t/T)^3, so no unresolved stiff mode is excited and the error is asymptotic at once)
     assert orders == pytest.approx([2.0, 2.0], abs=0.1), (errors, orders)
+
+
+def _three_steps(params, n_cells):
+    rod = IncrementalRod(params, n_cells=n_cells,
+                         distributed_loads=[DistributedLoad("force", (-3.0, 0.0, 1.0))])
+    rod.set_initial_state()
+    ig = LieGeneralizedAlpha(rod.problem, rho_inf=0.8)
+    ig.initial_accelerations(0.0, rod.bcs)
+    for k in range(3):
+        ig.step(0.01 * k, 0.01)
+    return np.concatenate([rod.f["displacement"].x.array, rod.q_n.x.array,
+                           rod.r["rotation_increment"].x.array])
+
+
+@pytest.mark.mpi
+def test_cached_step_forms_give_the_fresh_forms_results():
+    other = RodParameters(length=2.0, A=(1.0, 2.0, 3.0), B=(4e2, 5e2, 6e2), rho_A=1.0,
+                          I11=2e-3, I22=3e-3)
+    form_cache.clear()
+    _three_steps(other, 6)                      # compiles; other mesh and data
+    cached = _three_steps(PARAMS, 5)            # binds the same kernels to its own data
+    form_cache.clear()
+    fresh = _three_steps(PARAMS, 5)
+    # the same kernels on the same data: bitwise equal
+    assert np.array_equal(cached, fresh)
+    keys = {form_cache.structure_key(IncrementalRod(PARAMS, n_cells=n, model=m).problem.residual)
+            for n, m in ((5, "hyperelastic"), (7, "hyperelastic"), (5, "evolving"))}
+    assert len(keys) == 2  # the structure, not the mesh size, decides

@@ -23,7 +23,8 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from ..solvers import BlockSNES
+from .. import form_cache
+from ..solvers import BlockSNES, SolverError
 
 
 def alpha_parameters(rho_inf: float):
@@ -58,18 +59,30 @@ class LieGeneralizedAlpha:
         self.acc_n = [None if a is None else _copy(a, "acc_n") for a in acc]
         # algorithmic accelerations a (second order) or rates b (first order)
         self.alg_n = [_copy(f, "alg_n") for f in r]
-        mapping = {}
-        for i, f in enumerate(y):
-            new_r, new_a = self._ufl_update(i, f - self.y_n[i])
-            mapping[r[i]] = new_r
-            if acc[i] is not None:
-                mapping[acc[i]] = new_a
-        F = [ufl.replace(Fi, mapping) for Fi in problem.residual]
-        self.solver = BlockSNES(F, y, problem.bcs, solver_options)
+        # compiled step forms shared by all problems of this structure (form_cache)
+        self._model_objects = form_cache.registry(problem.residual)
+        self.structure_key = form_cache.structure_key(problem.residual, "lie_alpha", self.order,
+                                             rho_inf)
+        objects = [*self._model_objects, *self.y_n, *self.v_n,
+                   *(a for a in self.acc_n if a is not None), *self.alg_n, self.dt]
+        F = None if form_cache.lookup(self.structure_key) else self._step_forms()
+        self.solver = BlockSNES(F, y, problem.bcs, solver_options,
+                                cache=(self.structure_key, objects))
         self.iterations = 0
         self.steps = 0
+        self.rejected = 0
         self._started = False
         self._dt_last = None
+
+    def _step_forms(self):
+        p = self.problem
+        mapping = {}
+        for i, f in enumerate(p.fields):
+            new_r, new_a = self._ufl_update(i, f - self.y_n[i])
+            mapping[p.rates[i]] = new_r
+            if p.accelerations[i] is not None:
+                mapping[p.accelerations[i]] = new_a
+        return [ufl.replace(Fi, mapping) for Fi in p.residual]
 
     def _ufl_update(self, i, d):
         """(rate, acceleration) at t_{n+1} as UFL expressions of the increment d."""
@@ -100,10 +113,40 @@ class LieGeneralizedAlpha:
         p = self.problem
         unknown = [a if a is not None else r for a, r in zip(p.accelerations, p.rates)]
         p.set_loads(t0)
-        BlockSNES(p.residual, unknown, bcs).solve()
+        key = self.structure_key + "initial"
+        F = None if form_cache.lookup(key) else p.residual
+        BlockSNES(F, unknown, bcs, cache=(key, self._model_objects)).solve()
         for i, a in enumerate(unknown):
             self.alg_n[i].x.array[:] = a.x.array
         self._started = True
+
+    def _restore(self) -> None:
+        """Back to the state at the start of the failed step (one-step method: exact)."""
+        p = self.problem
+        for i, f in enumerate(p.fields):
+            f.x.array[:] = self.y_n[i].x.array
+            p.rates[i].x.array[:] = self.v_n[i].x.array
+            if p.accelerations[i] is not None:
+                p.accelerations[i].x.array[:] = self.acc_n[i].x.array
+
+    def advance(self, t: float, t_end: float, dt: float, max_cuts: int = 6) -> float:
+        """Steps of dt (the last one clipped) from t to t_end; a step whose Newton fails
+        is redone as two half steps, at most ``max_cuts`` halvings deep."""
+        n = max(1, int(np.ceil((t_end - t) / dt - 1e-9)))
+        h = (t_end - t) / n
+        for k in range(n):
+            self._substep(t + k * h, h, max_cuts)
+        return t_end
+
+    def _substep(self, t: float, h: float, cuts_left: int) -> None:
+        try:
+            self.step(t, h)
+        except SolverError:
+            if cuts_left == 0:
+                raise
+            self.rejected += 1
+            self._substep(t, h / 2, cuts_left - 1)
+            self._substep(t + h / 2, h / 2, cuts_left - 1)
 
     def step(self, t: float, h: float) -> int:
         p = self.problem
@@ -124,7 +167,11 @@ class LieGeneralizedAlpha:
         p.set_loads(t + h)
         p.set_bcs(t + h)
         fresh, self._dt_last = h != self._dt_last, h
-        its = self.solver.solve(fresh_jacobian=fresh)
+        try:
+            its = self.solver.solve(fresh_jacobian=fresh)
+        except SolverError:
+            self._restore()
+            raise
         for i, f in enumerate(p.fields):
             alg_new, v_new, acc_new = self._np_update(i, f.x.array - self.y_n[i].x.array, h)
             self.alg_n[i].x.array[:] = alg_new
