@@ -39,12 +39,9 @@ from dolfin_rod.solvers import JACOBIAN_REUSE, NATIVE_LU  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 TUNED = {**NATIVE_LU, **JACOBIAN_REUSE, "snes_rtol": 1e-6, "snes_atol": 1e-9}
 REF_OPTIONS = {"snes_atol": 1e-8, "snes_rtol": 1e-10}
-# the prototype's defaults (issue 12): PETSc's own LU in the natural (banded) order, safe
-# without a saddle point; MUMPS under MPI (solvers.petsc_options)
-INCREMENTAL_DEFAULTS = {"pc_factor_mat_solver_type": "petsc",
-                        "pc_factor_mat_ordering_type": "natural"}
+# the prototype with its defaults (integrators.lie_alpha.default_options)
 CONFIGS = {"dolfin_rod": ("rod", None), "dolfin_rod (tuned)": ("rod", TUNED),
-           "incremental_rod": ("incremental", INCREMENTAL_DEFAULTS)}
+           "incremental_rod": ("incremental", None)}
 RUNNERS = {"rod": cant.run_dolfin_rod, "incremental": cant.run_incremental_rod}
 
 
