@@ -22,7 +22,9 @@
 # factor (1 - 1/(4N^2)) of the 1-point-Gauss element (see tests/test_rod.py).
 #
 # Run: `./rodenv python3 demos/cantilever_creep.py` or under `mpirun -n 2`.
-# Output: results/cantilever_creep/{rod.bp (VTX, ParaView), tip.png, tip.csv}.
+# Output: results/cantilever_creep/{rod.bp (ParaView, ADIOS2VTXReader: the deformed rod with
+# directors, strains, natural strains, forces, dissipation), animation.gif, snapshots.png,
+# tip.png, tip.csv}.  (A scene cannot restart BDF2 at the unloading jump; see below.)
 
 from __future__ import annotations
 
@@ -30,10 +32,10 @@ import pathlib
 
 import numpy as np
 from mpi4py import MPI
-from dolfinx.io import VTXWriter
 
 from dolfin_rod import closed_forms as cf
 from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod.output import FieldOutputs
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
 
 OUT = pathlib.Path("results/cantilever_creep")
@@ -64,15 +66,15 @@ model.set_initial_state()
 
 # ## Time integration
 # BDF2 (second order, L-stable: the load steps excite no oscillation).  The observer
-# records the tip history and writes the centre-line displacement for ParaView.
+# records the tip history and writes the rod for ParaView and the animation.
 history = []
-vtx = VTXWriter(comm, OUT / "rod.bp", [model.f["displacement"]], engine="BP4")
+fields = FieldOutputs(OUT, model, comm)
 
 
 def observe(t, stepper):
     history.append(model.diagnostics(t))
     if len(history) % 20 == 1:
-        vtx.write(t)
+        fields.write(t)
 
 
 # Newton stops at |F| < 1e-11 (rounding of the stiff axial terms, EA = 1e4, is ~1e-12).
@@ -82,7 +84,7 @@ options = {"snes_atol": 1e-11, "snes_stol": 1e-14}
 TimeStepper(model.problem, "bdf2", solver_options=options).run(0.0, t_off, dt, observe)
 history.pop()  # t_off is recorded again as the start of the second run
 TimeStepper(model.problem, "bdf2", solver_options=options).run(t_off, t_end, dt, observe)
-vtx.close()
+fields.finish("cantilever creep and recovery")
 
 # ## Comparison with the closed form
 t = np.array([d["time"] for d in history])

@@ -34,8 +34,9 @@
 # show its order (the error of the demo's run is the larger one).
 #
 # Run: `./rodenv python3 demos/swinging_rod.py` (about 12 s), also under `mpirun -n 2`.
-# Output: results/swinging_rod/{energy.csv, energy.png, centreline.png, rod.bp (VTX:
-# displacement and director d_1 = R e_1; view with "warp by vector")}.
+# Output: results/swinging_rod/{energy.csv, energy.png, centreline.png, rod.bp (ParaView,
+# ADIOS2VTXReader: the deformed rod with directors, strains, forces), animation.gif,
+# snapshots.png}.  (The initial spin is set through the Python API: scenes start at rest.)
 
 from __future__ import annotations
 
@@ -45,12 +46,11 @@ import time
 import dolfinx.fem as fem
 import numpy as np
 import ufl
-from dolfinx.io import VTXWriter
 from mpi4py import MPI
 
 from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod.output import FieldOutputs
 from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
-from dolfin_rod.rotations import rotation_matrix
 
 OUT = pathlib.Path("results/swinging_rod")
 comm = MPI.COMM_WORLD
@@ -96,14 +96,9 @@ def swing(scheme, dt, record=None):
     r = ufl.as_vector((0.0, 0.0, s)) + model.f["displacement"]
     U_g = fem.form(rho_A * g * r[0] * model.dx)          # gravity potential
     rows = []
-    if record:
+    if record:   # rod.bp (the deformed rod for ParaView) and the animation
+        fields = FieldOutputs(OUT, model, comm)
         P1 = model.f["displacement"].function_space
-        director = fem.Function(P1, name="director_1")
-        d1 = fem.Expression(ufl.dot(rotation_matrix(model.f["quaternion"]),
-                                    ufl.as_vector((1.0, 0.0, 0.0))),
-                            P1.element.interpolation_points())
-        vtx = VTXWriter(comm, OUT / "rod.bp", [model.f["displacement"], director],
-                        engine="BP4")
         nodes = P1.tabulate_dof_coordinates()[:P1.dofmap.index_map.size_local, 0]
         snapshots = []
 
@@ -112,8 +107,7 @@ def swing(scheme, dt, record=None):
         d["gravity_potential"] = comm.allreduce(fem.assemble_scalar(U_g))
         rows.append(d)
         if record and (len(rows) - 1) % record == 0:
-            director.interpolate(d1)
-            vtx.write(t)
+            fields.write(t)
             n = len(nodes)
             xs = model.f["displacement"].x.array[:3 * n].reshape(-1, 3).copy()
             xs[:, 2] += nodes
@@ -128,7 +122,7 @@ def swing(scheme, dt, record=None):
     stepper.run(0.0, t_end, dt, observe)
     wall = time.perf_counter() - t0
     if record:
-        vtx.close()
+        fields.finish("swinging rod")
     h = {k: np.array([row[k] for row in rows]) for k in rows[0]}
     t = h["time"]
     h["dissipated"] = np.concatenate([[0.0], np.cumsum(
@@ -193,7 +187,7 @@ if comm.rank == 0:
           f"{defect_fine:.2e} (dt = {dt / 2}); order {np.log2(defect / defect_fine):.2f}")
     print(f"implicit midpoint, {n_cells} cells: {len(t) - 1} steps, {hist['newton']} Newton "
           f"iterations, {hist['wall']:.1f} s")
-    print(f"wrote {OUT}/energy.csv, energy.png, centreline.png, rod.bp")
+    print(f"wrote {OUT}/energy.csv, energy.png, centreline.png, rod.bp, animation.gif")
 
 # Second order: halving dt divides the defect by ~4; a wrong inertia, load or dissipation
 # term would leave an O(1) defect that does not converge.

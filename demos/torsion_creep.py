@@ -12,34 +12,43 @@
 # 1/delta).  With mu = 0 the twist jumps to m0/alpha at once and then creeps,
 # u = m0/alpha + (1 - exp(-alpha_d t/mu_d)) m0/alpha_d.  Both tend to
 # u = (alpha + alpha_d) m0/(alpha alpha_d), u_d = m0/alpha_d: solid-like creep.
+# The rod is the scene `scenes/torsion_creep.toml`, run here as the FE model with the
+# load m0 = 0.8 and mu = 0.4 or 0 (changed keys).
 # Run: `./rodenv python3 demos/torsion_creep.py`, also under `mpirun -n 2`.
 
+import json
+import shutil
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_rod import closed_forms, loads
-from dolfin_rod.integrators.stepper import TimeStepper
-from dolfin_rod.torsion import TorsionModel, TorsionParameters
+from dolfin_rod import closed_forms
+from dolfin_rod.cli import run_scene
+from dolfin_rod.scenes import load_scene
 
+SCENE = "scenes/torsion_creep.toml"
 out = Path("results/torsion_creep")
-rank0 = MPI.COMM_WORLD.rank == 0
-m0, t_end, dt = 0.8, 4.0, 0.01
-alpha, alpha_d, mu_d = 2.0, 1.0, 0.5
+comm = MPI.COMM_WORLD
+rank0 = comm.rank == 0
+m0, t_end = 0.8, 4.0
+scene = load_scene(SCENE)
+alpha, alpha_d, mu_d = (scene["material"][k].constant for k in ("alpha", "alpha_d", "mu_d"))
 
 
 def creep(mu, variant="local"):
     """End rotation (= twist, the rod is homogeneous) and mean natural twist."""
-    model = TorsionModel(TorsionParameters(alpha=alpha, alpha_d=alpha_d, mu=mu, mu_d=mu_d),
-                         n_cells=16, variant=variant, end_torsion=loads.step(m0))
-    model.set_initial_state()
-    rows = []
-    TimeStepper(model.problem, "bdf2").run(
-        0.0, t_end, dt, observer=lambda t, s: rows.append(model.diagnostics(t)))
-    return {k: np.array([r[k] for r in rows])
-            for k in ("time", "end_rotation", "mean_natural_twist")}
+    folder = out / f"mu{mu}_{variant}"
+    if rank0:
+        shutil.rmtree(folder, ignore_errors=True)
+    comm.barrier()
+    changes = {"scene.model": "torsion", "material.mu": mu, "material.variant": variant,
+               "loads.end_torsion": {"type": "step", "value": m0}, "time.t_end": t_end}
+    summary = run_scene(load_scene(SCENE, changes), folder, comm, quiet=True)
+    assert summary["status"] == "completed", summary["message"]
+    rows = comm.bcast(json.loads((folder / "timeseries.json").read_text()) if rank0 else None)
+    return {k: np.array(rows[k]) for k in ("time", "end_rotation", "mean_natural_twist")}
 
 
 cases = {"mu = 0.4": creep(0.4), "mu = 0": creep(0.0)}
@@ -49,7 +58,6 @@ exact = {"mu = 0.4": closed_forms.creep(t, m0, alpha, alpha_d, 0.4, mu_d),
 uniform = creep(0.4, "uniform")
 
 if rank0:
-    out.mkdir(parents=True, exist_ok=True)
     columns, header = [t], ["t"]
     fig, ax = plt.subplots(figsize=(6, 4))
     for i, (label, fe) in enumerate(cases.items()):

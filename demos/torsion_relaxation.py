@@ -15,52 +15,64 @@
 # resolves the idealised step exactly: the state at t = 0+ is the viscous response to the
 # step, and the delta impulse mu u0 is reported apart (TorsionModel.set_initial_state).
 # Then a tapered rod (alpha = alpha_d = 1 + 3s) shows where the local and the uniform
-# evolution laws part ways.  Run: `./rodenv python3 demos/torsion_relaxation.py`, also
-# under `mpirun -n 2`.
+# evolution laws part ways.  The rod, load and time stepping are the scene
+# `scenes/torsion_relaxation.toml`, run here as the FE model (`scene.model = "torsion"`,
+# the scene alone would pick the exact ODE) with mu = 0.2 and changed keys for each case.
+# Run: `./rodenv python3 demos/torsion_relaxation.py`, also under `mpirun -n 2`.
+# Output: results/torsion_relaxation/{relaxation.csv, relaxation.png} and one run folder
+# per case (rod.bp, spacetime.png, timeseries.csv, ...).
 
+import json
+import shutil
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_rod import closed_forms, loads
-from dolfin_rod.integrators.stepper import TimeStepper
-from dolfin_rod.torsion import TorsionModel, TorsionParameters
+from dolfin_rod import closed_forms
+from dolfin_rod.cli import run_scene
+from dolfin_rod.scenes import load_scene
 
+SCENE = "scenes/torsion_relaxation.toml"
 out = Path("results/torsion_relaxation")
-rank0 = MPI.COMM_WORLD.rank == 0
-u0, t_end, dt = 0.5, 2.0, 0.01
+comm = MPI.COMM_WORLD
+rank0 = comm.rank == 0
+scene = load_scene(SCENE)
+u0 = scene["boundary"]["end_rotation"].value
+alpha, alpha_d, mu_d = (scene["material"][k].constant for k in ("alpha", "alpha_d", "mu_d"))
+mu = 0.2                                   # Kelvin-Voigt viscosity: an impulse mu u0 at 0
 
 
-def relax(params, variant, n_cells=32):
-    """End torsion and mean natural twist histories after the step Phi = u0 H(t)."""
-    model = TorsionModel(params, n_cells=n_cells, variant=variant,
-                         end_rotation=loads.step(u0))
-    impulse = model.set_initial_state()
-    rows = []
-    TimeStepper(model.problem, "bdf2").run(
-        0.0, t_end, dt, observer=lambda t, s: rows.append(model.diagnostics(t)))
-    hist = {k: np.array([r[k] for r in rows])
-            for k in ("time", "end_torsion", "mean_natural_twist")}
-    return hist, impulse
+def relax(case, **changes):
+    """Run the scene as the FE model with ``changes`` (table.key: value); the end torsion
+    and mean natural twist histories and the impulse mu u0 of the step at t = 0."""
+    folder = out / case
+    if rank0:
+        shutil.rmtree(folder, ignore_errors=True)
+    comm.barrier()
+    changes = {"scene.model": "torsion", "geometry.n_cells": 32, "material.mu": mu, **changes}
+    summary = run_scene(load_scene(SCENE, changes), folder, comm, quiet=True)
+    assert summary["status"] == "completed", summary["message"]
+    rows = json.loads((folder / "timeseries.json").read_text()) if rank0 else None
+    rows = comm.bcast(rows, root=0)
+    hist = {k: np.array(rows[k]) for k in ("time", "end_torsion", "mean_natural_twist")}
+    return hist, summary["end_torsion_impulse_at_0"]
 
 
 # ## Homogeneous rod: finite elements against eq. stressrelax
-alpha, alpha_d, mu, mu_d = 2.0, 1.0, 0.2, 0.5
-fe = {v: relax(TorsionParameters(alpha=alpha, alpha_d=alpha_d, mu=mu, mu_d=mu_d), v)
-      for v in ("local", "uniform")}
+fe = {v: relax(v, **{"material.variant": v}) for v in ("local", "uniform")}
 t = fe["local"][0]["time"]
 ud_exact, m_exact = closed_forms.relaxation(t, u0, alpha, alpha_d, mu_d)
 errors = {v: float(np.max(np.abs(h["end_torsion"] - m_exact))) for v, (h, _) in fe.items()}
 
 # ## Tapered rod: local and uniform natural twist differ
-taper = TorsionParameters(alpha=lambda s: 1 + 3 * s, alpha_d=lambda s: 1 + 3 * s,
-                          mu=0.0, mu_d=mu_d)
-tapered = {v: relax(taper, v)[0] for v in ("local", "uniform")}
+taper = {"material.alpha": {"polynomial": [1.0, 3.0]},
+         "material.alpha_d": {"polynomial": [1.0, 3.0]}, "material.mu": 0.0}
+tapered = {v: relax(f"tapered_{v}", **taper, **{"material.variant": v})[0]
+           for v in ("local", "uniform")}
 
 if rank0:
-    out.mkdir(parents=True, exist_ok=True)
     h = fe["local"][0]
     np.savetxt(out / "relaxation.csv",
                np.column_stack([t, h["end_torsion"], fe["uniform"][0]["end_torsion"], m_exact,

@@ -1,3 +1,43 @@
-"""dolfin_rod: special Cosserat rods with evolving natural configurations in FEniCSx."""
+"""dolfin_rod: special Cosserat rods with evolving natural configurations in FEniCSx.
+
+The public API (what a user imports); names load on first use, so ``import dolfin_rod``
+stays cheap (e.g. for ``dolfin-rod check``):
+
+    from dolfin_rod import RodModel, RodParameters, EndLoad, TimeStepper, loads
+    model = RodModel(RodParameters(rho_A=1.0), end_loads=[EndLoad("force", (1, 0, 0))])
+    model.set_initial_state()
+    TimeStepper(model.problem, "bdf2").run(0.0, 1.0, 0.01, observer)
+"""
+
+from importlib import import_module
 
 __version__ = "0.1.0"
+
+_WHERE = {
+    # models and their data
+    "RodModel": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
+    "TorsionModel": "torsion", "TorsionParameters": "torsion",
+    "SemiDiscreteProblem": "problem", "SecondOrderProblem": "problem",
+    # integrators and solvers
+    "TimeStepper": "integrators.stepper", "TSIntegrator": "integrators.ts",
+    "IntegrationError": "integrators.stepping", "SolverError": "solvers",
+    "JACOBIAN_REUSE": "solvers", "NATIVE_LU": "solvers",
+    # scenes: load, choose the model, build, run
+    "load_scene": "scenes", "parse_scene": "scenes", "select_model": "scenes",
+    "build": "scenes", "SceneError": "scenes", "run_scene": "cli",
+}
+_MODULES = ("loads", "closed_forms", "rotations")   # modules users import as a whole
+
+__all__ = sorted(_WHERE) + list(_MODULES)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        return getattr(import_module(f".{_WHERE[name]}", __name__), name)
+    if name in _MODULES:
+        return import_module(f".{name}", __name__)
+    raise AttributeError(f"module 'dolfin_rod' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

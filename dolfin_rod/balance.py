@@ -41,10 +41,11 @@ def internal_work(m, n, u, v, fields, tests, dx):
     return form
 
 
-def inertia(rho_A, J, velocity_rate, W, W_rate, dx_test, dTheta, dx):
-    """int rhoA V_t . dx + (J W_t + W x J W) . dTheta ds (eqs. linmom, angmom, left sides)."""
-    return (rho_A * ufl.inner(velocity_rate, dx_test)
-            + ufl.inner(ufl.dot(J, W_rate) + ufl.cross(W, ufl.dot(J, W)), dTheta)) * dx
+def inertia(rho_A, J, velocity_rate, W, W_rate, x_test, dTheta, dx):
+    """The left sides of eqs. linmom and angmom, tested: the (displacement, quaternion)
+    blocks int rhoA V_t . dx ds and int (J W_t + W x J W) . dTheta ds."""
+    return (rho_A * ufl.inner(velocity_rate, x_test) * dx,
+            ufl.inner(ufl.dot(J, W_rate) + ufl.cross(W, ufl.dot(J, W)), dTheta) * dx)
 
 
 def kinematic_equations(x_rate, V, q, q_rate, W, V_test, W_test, dx_vertex):

@@ -3,16 +3,19 @@
     dolfin-rod check scenes/torsion_creep.toml            validate, print the model and why
     dolfin-rod run scenes/torsion_creep.toml --out DIR    run, results in DIR
     dolfin-rod run SCENE --out DIR --resume               continue from DIR/checkpoint
+    dolfin-rod run SCENE --out DIR --overwrite            replace the run folder DIR
     mpirun -n 2 python3 -m dolfin_rod run SCENE           only rank 0 prints and writes
 
-Exit status: 0 success, 2 a bad scene (SceneError, printed without a traceback) or bad
-arguments, 3 the integration stopped early (what was computed is kept), 130 interrupted.
+Exit status: 0 success, 2 a bad scene, folder or checkpoint (SceneError, OutputError:
+one line on stderr, nothing written), 3 the integration failed or diverged (what was
+computed before is kept), 130 interrupted.  Failures always go to stderr, --quiet or
+not.  Under MPI every error ends every rank: expected errors are raised collectively,
+anything else calls MPI_Abort, so no rank is left waiting.
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime
 import math
 import sys
 import time
@@ -20,6 +23,7 @@ from pathlib import Path
 
 from .integrators.stepper import IntegrationError
 from .scenes import Scene, SceneError, build, load_scene, select_model
+from .scenes.stability import explicit_stability_warning
 from .solvers import SolverError
 
 __all__ = ["main", "run_scene"]
@@ -52,60 +56,137 @@ class _InterruptFlag:
             self._old = None
 
 
-def default_run_folder(scene: Scene) -> Path:
-    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    return Path(scene["outputs"]["directory"]) / f"{scene.name}-{stamp}"
+class EnergyBound:
+    """Divergence detection after every step, for every model and scheme: a state that
+    is not finite, or a stored energy K + Psi above ``FACTOR`` times what the start and
+    the loads can supply, E(t_0) + int_{t_0}^t max(P, 0) dt (the power balance
+    d/dt(K + Psi) = P - D with total dissipation D >= 0, ERRATA.md).  FACTOR = 1e3 is
+    the instability criterion of docs/stability.md: far above the transient growth of a
+    stable explicit step (x2.4 there) and above the O(dt) error of the trapezoidal work."""
+
+    FACTOR = 1e3
+
+    def __init__(self, start: dict):
+        self.previous = start
+        self._finite(start, start["time"])
+        self.supply = _energy(start)
+
+    def _finite(self, d: dict, t_good: float) -> None:
+        bad = [k for k, v in d.items() if not math.isfinite(v)]
+        if bad:
+            raise IntegrationError(f"the solution diverged: {bad[0]} = {d[bad[0]]} at "
+                                   f"t = {d['time']:g} (stopped; results up to t = "
+                                   f"{t_good:g} are kept)", t_good)
+
+    def check(self, d: dict) -> None:
+        """Raises IntegrationError at the last good time if ``d`` diverged."""
+        t_good = self.previous["time"]
+        self._finite(d, t_good)
+        h = d["time"] - self.previous["time"]
+        self.supply += h * max(0.0, 0.5 * (d["load_power"] + self.previous["load_power"]))
+        if _energy(d) > self.FACTOR * self.supply + 1e-300:
+            raise IntegrationError(
+                f"the solution diverged: the stored energy {_energy(d):.3g} at t = "
+                f"{d['time']:g} is more than {self.FACTOR:g} times what the initial state "
+                f"and the loads supplied ({self.supply:.3g}); time.dt is probably above the "
+                f"scheme's stability limit (stopped; results up to t = {t_good:g} are kept)",
+                t_good)
+        self.previous = d
+
+
+def _energy(d: dict) -> float:
+    return d["free_energy"] + d["kinetic_energy"]
+
+
+def _run_folder(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool) -> Path:
+    """The results folder, ready on rank 0 (errors on every rank as OutputError)."""
+    from .output import new_run_folder, on_root, prepare_run_folder
+    if out is None:
+        parent = Path(scene["outputs"]["directory"])
+        return Path(on_root(comm, lambda: str(new_run_folder(parent, scene.name)),
+                            f"cannot create a run folder in {parent}"))
+    on_root(comm, lambda: prepare_run_folder(Path(out), resume, overwrite),
+            f"cannot use --out {out}")
+    return Path(out)
 
 
 def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bool = False,
-              stop_after: int | None = None, quiet: bool = False) -> dict:
+              stop_after: int | None = None, quiet: bool = False,
+              overwrite: bool = False) -> dict:
     """Run a validated scene; returns the summary (same on every rank).
 
+    ``out``: the results folder; if it is not empty, ``resume`` continues its run from
+    its last checkpoint (verified against this scene) and ``overwrite`` replaces it.
     ``stop_after``: stop after that many steps (as an interrupted run would), keeping
     the outputs and the last checkpoint; used to test ``resume``.
+    Raises OutputError (nothing written) for an unusable folder or checkpoint.
     """
     from mpi4py import MPI
 
-    from .output import RunWriter, show_progress
+    from .output import RunWriter, read_checkpoint_meta
     comm = comm or MPI.COMM_WORLD
     clock = {"start": time.perf_counter()}
     choice = select_model(scene)
-    folder = Path(out) if out is not None else default_run_folder(scene)
-    if out is None:
-        folder = Path(comm.bcast(str(folder), root=0))
+    if (resume or stop_after is not None) and scene["time"]["integrator"] == "ts":
+        raise scene.error("time.integrator", "resume/stop_after need integrator = \"stepper\"")
+    meta = read_checkpoint_meta(Path(out), comm, scene) if resume else None
+    folder = _run_folder(scene, None if out is None else Path(out), comm, resume, overwrite)
     if not quiet:
         _print(comm, f"model: {choice.model} ({choice.reason})")
+    _warn_if_unstable(scene, comm)
     sim = build(scene, choice.model, comm)
     impulse = sim.start()
     clock["setup"] = time.perf_counter() - clock["start"]
     writer = RunWriter(folder, scene, choice, sim, comm, resume=resume)
-    tim, outs = scene["time"], scene["outputs"]
-    n_steps = max(1, math.ceil(tim["t_end"] / tim["dt"] - 1e-9))
-    times = [min(k * tim["dt"], tim["t_end"]) for k in range(n_steps + 1)]
-    first = 1
-    if resume:
-        meta = writer.read_checkpoint()
-        first = meta["step"] + 1
+    if meta is not None:
+        writer.restore_checkpoint(meta)
         writer.open(keep_until_step=meta["step"])
         if not quiet:
             _print(comm, f"resumed at step {meta['step']}, t = {meta['time']:g}")
     else:
         writer.open()
-        writer.record(0, times[0], sim.diagnostics(times[0]))
-        if outs["every"]:
-            writer.write_fields(times[0])
+        writer.record(0, 0.0, sim.diagnostics(0.0))
+        if scene["outputs"]["every"]:
+            writer.write_fields(0.0)
+    t_run = time.perf_counter()
+    status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
+                                    meta["step"], stop_after, quiet)
+    clock["integration"] = time.perf_counter() - t_run
+    summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
+    clock["total"] = time.perf_counter() - clock["start"]
+    writer.finish(summary, {k: v for k, v in clock.items() if k != "start"})
+    summary["folder"] = str(folder)
+    line = f"{status}: t = {t:g}, results in {folder}" + (f" ({message})" if message else "")
+    if status in ("failed", "interrupted"):          # never hidden, never on stdout
+        _print(comm, line, file=sys.stderr)
+    elif not quiet:
+        _print(comm, line)
+    return summary
+
+
+def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | None,
+               quiet: bool) -> tuple[str, str, float]:
+    """Steps done+1 .. n (PETSc TS: the whole run), recording each; (status, message, t)
+    with t the time of the last recorded row."""
+    from mpi4py import MPI
+
+    from .output import OutputError, show_progress
+    tim, outs = scene["time"], scene["outputs"]
+    n_steps = max(1, math.ceil(tim["t_end"] / tim["dt"] - 1e-9))
+    times = [min(k * tim["dt"], tim["t_end"]) for k in range(n_steps + 1)]
     bar = None
     if show_progress(outs["progress"] and not quiet, comm.rank):
         from tqdm import tqdm
-        bar = tqdm(total=n_steps, initial=first - 1, unit="step", desc=scene.name)
-    status, message, t = "completed", "", times[first - 1]
-    t_run = time.perf_counter()
-    progress = {"k": first - 1}
+        bar = tqdm(total=n_steps, initial=done, unit="step", desc=scene.name)
+    progress = {"k": done, "t": times[done]}
     interrupted = _InterruptFlag()
 
     def after_step(t_k: float) -> None:
+        diag = sim.diagnostics(t_k)
+        bound.check(diag)
         k = progress["k"] = progress["k"] + 1
-        writer.record(k, t_k, sim.diagnostics(t_k))
+        writer.record(k, t_k, diag)
+        progress["t"] = t_k
         if k % outs["every"] == 0 or k == n_steps:
             writer.write_fields(t_k)
         if outs["checkpoint_every"] and k % outs["checkpoint_every"] == 0:
@@ -115,68 +196,68 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
         if comm.allreduce(interrupted.raised, op=MPI.LOR):   # stop between steps
             raise KeyboardInterrupt
 
+    status, message = "completed", ""
     try:
+        bound = EnergyBound(writer.balance.previous)
         if getattr(sim, "ts", None) is not None:      # PETSc TS drives the whole run
-            if resume or stop_after is not None:
-                raise scene.error("time.integrator", "resume/stop_after need integrator = "
-                                                     "\"stepper\"")
             sim.run_all(times[0], tim["t_end"], tim["dt"], after_step)
-            t = tim["t_end"]
-        for k in range(first, n_steps + 1) if getattr(sim, "ts", None) is None else ():
+        for k in range(done + 1, n_steps + 1) if getattr(sim, "ts", None) is None else ():
             sim.advance(times[k - 1], times[k])
-            t = times[k]
-            after_step(t)
+            after_step(times[k])
             if stop_after is not None and k >= stop_after and k < n_steps:
                 status, message = "stopped", f"stopped after step {k} (stop_after)"
                 break
     except KeyboardInterrupt:
-        status, message = "interrupted", f"interrupted at t = {t:g}"
-    except SceneError:
-        raise
-    except (IntegrationError, SolverError) as err:   # keep what was computed
+        status, message = "interrupted", f"interrupted at t = {progress['t']:g}"
+    except (IntegrationError, SolverError, OutputError) as err:   # keep what was computed
         status, message = "failed", f"{type(err).__name__}: {err}"
     finally:
         interrupted.restore()
         if bar is not None:
             bar.close()
-    clock["integration"] = time.perf_counter() - t_run
-    last = writer.balance.previous or {}
+    return status, message, progress["t"]
+
+
+def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> dict:
     summary = {
         "scene": scene.name, "source": scene.source, "model": choice.model,
         "reason": choice.reason, "method": getattr(sim, "describe", lambda: "")(),
-        "status": status, "message": message, "t_end_reached": t, "steps": len(writer.rows) - 1
-        if comm.rank == 0 else None,
+        "status": status, "message": message, "t_end_reached": t,
+        "steps": len(writer.rows) - 1 if comm.rank == 0 else None,
         "end_torsion_impulse_at_0": impulse,
-        "final": {k: v for k, v in last.items()},
+        "final": dict(writer.balance.previous or {}),
         "total_dissipation": writer.balance.total_dissipation,
         "title": f"{scene.name}: {choice.model} model",
     }
-    stats = getattr(getattr(sim, "stepper", None), "stats", None)
+    stats = getattr(sim, "stats", None)
     if stats is not None:
         summary["newton_iterations"] = stats.newton_iterations
         summary["rejected_steps"] = stats.rejected
-    clock["total"] = time.perf_counter() - clock["start"]
-    writer.finish(summary, {k: v for k, v in clock.items() if k != "start"})
-    summary["folder"] = str(folder)
-    if not quiet:
-        _print(comm, f"{status}: t = {t:g}, results in {folder}" + (f" ({message})" if message
-                                                                    else ""))
     return summary
 
 
 def _parser() -> argparse.ArgumentParser:
+    from . import __version__
     p = argparse.ArgumentParser(prog="dolfin-rod", description="Cosserat rods with evolving "
                                 "natural configurations: run or check a TOML scene")
+    p.add_argument("--version", action="version", version=f"dolfin-rod {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
-    check = sub.add_parser("check", help="validate a scene, print the chosen model and why")
+    check = sub.add_parser("check", help="validate a scene and its output folder, print the "
+                                         "chosen model and why")
     check.add_argument("scene", type=Path)
+    check.add_argument("--out", type=Path, default=None, help="check this results folder "
+                       "too (default: outputs.directory)")
     run = sub.add_parser("run", help="run a scene")
     run.add_argument("scene", type=Path)
     run.add_argument("--out", type=Path, default=None,
-                     help="results folder (default: <outputs.directory>/<name>-<time>)")
-    run.add_argument("--resume", action="store_true",
-                     help="continue from the checkpoint in --out")
-    run.add_argument("--quiet", action="store_true", help="no progress output")
+                     help="results folder (default: a new <outputs.directory>/<name>-<time>)")
+    mode = run.add_mutually_exclusive_group()
+    mode.add_argument("--resume", action="store_true",
+                      help="continue the run in --out from its last checkpoint")
+    mode.add_argument("--overwrite", action="store_true",
+                      help="replace the run folder --out if it is not empty")
+    run.add_argument("--quiet", action="store_true", help="no progress output (failures "
+                                                          "are still reported on stderr)")
     sub.add_parser("schema", help="print every scene key with its default and meaning "
                                   "(Markdown, as in docs/scenes.md)")
     return p
@@ -184,8 +265,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def schema_markdown() -> str:
     """The scene schema as Markdown tables (docs/scenes.md is generated from it)."""
-    from .scenes.schema import REQUIRED, SCHEMA
-    lines = []
+    from .scenes.schema import REQUIRED, SCHEMA, SCHEMA_NOTES
+    lines = [SCHEMA_NOTES]
     for table, keys in SCHEMA.items():
         lines += [f"### [{table}]", "", "| key | default | meaning |", "|---|---|---|"]
         for name, key in keys.items():
@@ -197,9 +278,49 @@ def schema_markdown() -> str:
     return "\n".join(lines)
 
 
+def _warn_if_unstable(scene: Scene, comm) -> None:
+    warning = explicit_stability_warning(scene)
+    if warning:
+        _print(comm, f"warning: {warning}", file=sys.stderr)
+
+
+def _check(scene: Scene, out: Path | None, comm) -> None:
+    """``dolfin-rod check``: the scene, its model and the output location."""
+    from .output import OutputError, folder_problem
+    choice = select_model(scene)
+    target = out if out is not None else Path(scene["outputs"]["directory"])
+    problem = folder_problem(target) if comm.rank == 0 else None
+    problem = comm.bcast(problem, root=0)
+    if problem:
+        what = "--out" if out is not None else f"{scene.source}: [outputs.directory]"
+        raise OutputError(f"{what} {problem}")
+    _print(comm, f"{scene.source}: OK")
+    _print(comm, f"model: {choice.model}")
+    _print(comm, f"why: {choice.reason}")
+    _warn_if_unstable(scene, comm)
+
+
 def main(argv: list[str] | None = None) -> int:
+    """The command line; every error ends every rank: expected ones (a bad scene or
+    folder) collectively with exit 2, anything else by MPI_Abort after its traceback."""
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
+    try:
+        return _main(argv, comm)
+    except KeyboardInterrupt:                      # Ctrl-C before the run loop
+        _print(comm, "interrupted", file=sys.stderr)
+        return 130
+    except Exception:
+        if comm.size == 1:
+            raise
+        import traceback
+        print(f"rank {comm.rank}: {traceback.format_exc()}", file=sys.stderr, flush=True)
+        comm.Abort(1)                              # the other ranks may wait in a collective
+        return 1
+
+
+def _main(argv: list[str] | None, comm) -> int:
+    from .output import OutputError
     args = _parser().parse_args(argv)
     if args.command == "schema":
         _print(comm, schema_markdown())
@@ -207,18 +328,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         scene = load_scene(args.scene)
         if args.command == "check":
-            choice = select_model(scene)
-            _print(comm, f"{scene.source}: OK")
-            _print(comm, f"model: {choice.model}")
-            _print(comm, f"why: {choice.reason}")
+            _check(scene, args.out, comm)
             return 0
         if args.resume and args.out is None:
             raise SceneError(str(args.scene), "", "--resume needs --out (the run folder)")
-        summary = run_scene(scene, args.out, comm, resume=args.resume, quiet=args.quiet)
-    except SceneError as err:
-        _print(comm, f"error: {err}", file=sys.stderr)
-        return 2
-    except FileNotFoundError as err:   # --resume without a checkpoint
+        summary = run_scene(scene, args.out, comm, resume=args.resume, quiet=args.quiet,
+                            overwrite=args.overwrite)
+    except (SceneError, OutputError) as err:
         _print(comm, f"error: {err}", file=sys.stderr)
         return 2
     return {"completed": 0, "stopped": 0, "interrupted": 130}.get(summary["status"], 3)

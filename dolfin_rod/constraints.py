@@ -6,7 +6,7 @@ inextensible_unshearable:  v = e_3 (and v_d = e_3, v_e = 0): the whole contact f
                            the multiplier; psi depends on (u_d, u) only.
 
 The multiplier is a DG field on the points where the strains are evaluated (the reduced
-quadrature of rod.py), so each constraint holds pointwise there.
+quadrature of rod/discretisation.py), so each constraint holds pointwise there.
 """
 
 from __future__ import annotations

@@ -41,7 +41,3 @@ def strain_rates(u, v, fields, rates):
     v_t = sum(ufl.derivative(v, f, r) for f, r in zip(fields, rates))
     return u_t, v_t
 
-
-def elastic_strains(u, v, u_d, v_d):
-    """Material elastic strains u_e = u - u_d, v_e = v - v_d (eqs. ustraindecomp, vstraindecomp)."""
-    return u - u_d, (None if v is None or v_d is None else v - v_d)

@@ -24,6 +24,7 @@ __all__ = [
     "constant",
     "from_callable",
     "jump_at",
+    "rate",
     "ramp",
     "smooth_step",
     "step",
@@ -99,6 +100,14 @@ class PiecewiseSmoothLoad:
 
     def __repr__(self) -> str:
         return f"<{self.description}>"
+
+
+def rate(motion: Callable, t: float):
+    """d/dt of a load history or a prescribed motion t -> value (float or array), the one
+    rate rule of every model: central differences, h = 1e-6 max(1, |t|) (truncation
+    O(h^2) ~ 1e-12, round-off eps/h ~ 1e-10 relative)."""
+    h = 1e-6 * max(1.0, abs(t))
+    return (np.asarray(motion(t + h), float) - np.asarray(motion(t - h), float)) / (2 * h)
 
 
 def jump_at(history: LoadHistory, t: ArrayLike) -> FloatOrArray:

@@ -2,7 +2,7 @@
 
 A model (torsion, 3-D rod) builds a :class:`SemiDiscreteProblem`; an integrator turns
 it into the residual of one time step; a solver solves that.  Three places that meet in
-one line (STYLE.md, after dolfiny): the model never sees dt, the integrator never sees
+one line (after dolfiny): the model never sees dt, the integrator never sees
 the physics, the solver never sees time.
 """
 

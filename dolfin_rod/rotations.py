@@ -55,11 +55,6 @@ def material_derivative_vector(q, dq):
     return 2 * vec(qmul(conj(q), dq)) / ufl.dot(q, q)
 
 
-def spatial_derivative_vector(q, dq):
-    """2 vec(dq conj(q))/|q|^2: spatial axial vector of dR R^T (= R of the material one)."""
-    return 2 * vec(qmul(dq, conj(q))) / ufl.dot(q, q)
-
-
 # -- numpy twins ----------------------------------------------------------------------------
 
 

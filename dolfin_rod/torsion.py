@@ -32,20 +32,13 @@ from . import loads as load_histories
 from .dissipation import dissipation_rate
 from .energy import derivatives, quadratic_energy
 from .evolution import check_variant, evolution_residual, real_space
+from .model_base import (FEModel, check_n_cells, end_measures, scalar_coefficient,
+                         vertex_measure)
 from .problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
+from .validation import profile_violation, sample_points
 
 Coefficient = float | Callable
-
-
-def _check_coefficient(name: str, value: Coefficient, strict: bool) -> None:
-    s = np.linspace(0.0, 1.0, 257)
-    vals = np.broadcast_to(np.asarray(value(s) if callable(value) else value, dtype=float),
-                           s.shape)
-    bad = ~np.isfinite(vals) | ((vals <= 0) if strict else (vals < 0))
-    if bad.any():
-        rule = "> 0" if strict else ">= 0"
-        raise ValueError(f"{name} must be {rule} on [0, 1]; got {vals[bad][0]:g} "
-                         f"at s = {s[bad][0]:g}")
+NAMES = ("twist_angle", "natural_twist", "angular_velocity")
 
 
 @dataclass
@@ -61,26 +54,23 @@ class TorsionParameters:
     couple_history: Callable = field(default=lambda t: 1.0)
 
     def validate(self, variant: str) -> None:
-        for name in ("alpha", "alpha_d", "mu_d"):
-            _check_coefficient(name, getattr(self, name), strict=True)
-        for name in ("mu", "nu"):
-            _check_coefficient(name, getattr(self, name), strict=False)
+        s = sample_points(1.0)
+        for name in ("alpha", "alpha_d", "mu_d", "mu", "nu"):
+            value = getattr(self, name)
+            reason = profile_violation(value(s) if callable(value) else value, s,
+                                       strict=name not in ("mu", "nu"))
+            if reason:
+                raise ValueError(f"{name} {reason}")
         if variant == "uniform" and callable(self.mu_d):
             raise ValueError("mu_d must be a constant for the uniform variant "
                              "(M_d is one tensor for the whole rod, eq. unatevolunif)")
-        for name in ("mu", "nu"):
-            value = getattr(self, name)
-            if callable(value):
-                vals = np.asarray(value(np.linspace(0, 1, 257)), dtype=float)
-                if (vals == 0).any() and (vals > 0).any():
-                    raise ValueError(f"{name} must be either > 0 everywhere or 0 everywhere")
 
     def is_zero(self, name: str) -> bool:
         value = getattr(self, name)
         return (not callable(value)) and value == 0.0
 
 
-class TorsionModel:
+class TorsionModel(FEModel):
     """The isolated-torsion rod as a SemiDiscreteProblem (see module docstring).
 
     Exactly one of ``end_torsion`` (applied m(t)) and ``end_rotation`` (prescribed
@@ -90,95 +80,91 @@ class TorsionModel:
     def __init__(self, params: TorsionParameters, n_cells: int = 64, variant: str = "local",
                  end_torsion: Callable | None = None, end_rotation: Callable | None = None,
                  degree: int = 1, comm: MPI.Comm = MPI.COMM_WORLD):
+        self._validate(params, n_cells, variant, end_torsion, end_rotation, degree)
+        self.params, self.variant, self.degree = params, variant, degree
+        self.end_torsion, self.end_rotation = end_torsion, end_rotation
+        self.dynamic = not params.is_zero("nu")
+        self.viscous = not params.is_zero("mu")
+        super().__init__(dolfinx.mesh.create_unit_interval(comm, n_cells))
+        s = ufl.SpatialCoordinate(self.mesh)[0]
+        self.coefficients = {n: scalar_coefficient(getattr(params, n), self.mesh, s)
+                             for n in ("alpha", "alpha_d", "mu", "mu_d", "nu")}
+        self._couple = None if params.couple is None else params.couple(s)
+        self.ds_end = end_measures(self.mesh, 1.0)["right"]   # the end s = 1
+        self._fields()
+        F, self.loads = self._residual(ufl.Measure("dx", domain=self.mesh))
+        self._dirichlet_conditions()
+        self.problem = SemiDiscreteProblem(self.fields, self.rates, F, self.loads, self.bcs,
+                                           self._set_bcs)
+        self._diagnostic_forms(ufl.Measure("dx", domain=self.mesh))
+
+    @staticmethod
+    def _validate(params, n_cells, variant, end_torsion, end_rotation, degree):
         check_variant(variant)
         params.validate(variant)
         if (end_torsion is None) == (end_rotation is None):
             raise ValueError("give exactly one of end_torsion (applied torsion m(t)) and "
                              "end_rotation (prescribed Phi(t)) at s = 1")
-        if not (isinstance(n_cells, (int, np.integer)) and n_cells >= 1):
-            raise ValueError(f"n_cells must be a positive integer, got {n_cells!r}")
+        check_n_cells(n_cells)
         if degree not in (1, 2, 3):
             raise ValueError(f"degree must be 1, 2 or 3, got {degree!r}")
-        self.params, self.variant, self.degree = params, variant, degree
-        self.end_torsion, self.end_rotation = end_torsion, end_rotation
-        self.dynamic = not params.is_zero("nu")
-        self.viscous = not params.is_zero("mu")
-        if self.dynamic and end_rotation is not None and _jump(end_rotation) != 0.0:
+        if not params.is_zero("nu") and end_rotation is not None and _jump(end_rotation) != 0.0:
             raise ValueError("end_rotation has a step at t = 0 but nu > 0: a rod with "
                              "inertia cannot follow a jump in rotation; use "
                              "loads.smooth_step or loads.ramp")
 
-        self.mesh = dolfinx.mesh.create_unit_interval(comm, n_cells)
-        mesh = self.mesh
-        s = ufl.SpatialCoordinate(mesh)[0]
-        coef = {n: (getattr(params, n)(s) if callable(getattr(params, n))
-                    else fem.Constant(mesh, float(getattr(params, n))))
-                for n in ("alpha", "alpha_d", "mu", "mu_d", "nu")}
-        self.coefficients = coef
-
-        V = fem.functionspace(mesh, ("Lagrange", degree))
-        Q = (real_space(mesh) if variant == "uniform"
-             else fem.functionspace(mesh, ("DG", degree - 1)))
-        spaces = [V, Q] + ([fem.functionspace(mesh, ("Lagrange", degree))]
-                           if self.dynamic else [])
-        names = ["twist_angle", "natural_twist", "angular_velocity"][:len(spaces)]
-        fields = [fem.Function(S, name=n) for S, n in zip(spaces, names)]
-        rates = [fem.Function(S, name=f"{n}_rate") for S, n in zip(spaces, names)]
-        self.phi, self.u_d = fields[0], fields[1]
-        phi_t, ud_t = rates[0], rates[1]
-        w = fields[2] if self.dynamic else phi_t  # angular velocity
-        tests = [ufl.TestFunction(S) for S in spaces]
-        eta, zeta = tests[0], tests[1]
-
-        # End s = 1 as a boundary measure: point values and point loads in parallel.
-        right = dolfinx.mesh.locate_entities_boundary(mesh, 0, lambda x: np.isclose(x[0], 1.0))
-        tags = dolfinx.mesh.meshtags(mesh, 0, right, np.full(len(right), 1, dtype=np.int32))
-        self.ds_end = ufl.Measure("ds", domain=mesh, subdomain_data=tags, subdomain_id=1)
-        dx = ufl.Measure("dx", domain=mesh)
-
-        u = self.phi.dx(0)                              # twist u = phi_s
-        psi_fn = quadratic_energy(coef["alpha"], coef["alpha_d"])
-        psi, dpsi_du, _, dpsi_dud, _ = derivatives(psi_fn, self.u_d, None, u, None)
-        u_t = w.dx(0)
-        torsion = dpsi_du + coef["mu"] * u_t            # m = dpsi/du + M du/dt (eq. mconsteq)
-
-        self.loads: list[TimeDependentValue] = []
-        F_phi = torsion * eta.dx(0) * dx
+    def _fields(self) -> None:
+        """phi in P_k, u_d in DG_{k-1} (local) or a real space (uniform), w in P_k.
+        Blocked assembly finds a condition's block by its space object, hence w's own space."""
+        mesh, k = self.mesh, self.degree
+        spaces = [fem.functionspace(mesh, ("Lagrange", k)),
+                  real_space(mesh) if self.variant == "uniform"
+                  else fem.functionspace(mesh, ("DG", k - 1))]
         if self.dynamic:
-            F_phi += coef["nu"] * rates[2] * eta * dx
-        if params.couple is not None:
-            l_t = fem.Constant(mesh, 0.0)
-            self.loads.append(TimeDependentValue(l_t, params.couple_history))
-            F_phi -= params.couple(s) * l_t * eta * dx
-            self._couple = params.couple(s) * l_t
-        else:
-            self._couple = None
+            spaces.append(fem.functionspace(mesh, ("Lagrange", k)))
+        self.spaces = dict(zip(NAMES, spaces))
+        self.fields = [fem.Function(S, name=n) for n, S in self.spaces.items()]
+        self.rates = [fem.Function(S, name=f"{n}_rate") for n, S in self.spaces.items()]
+        self.phi, self.u_d = self.fields[0], self.fields[1]
+        self.w = self.fields[2] if self.dynamic else self.rates[0]   # angular velocity phi_t
+
+    def _residual(self, dx):
+        """Eqs. phieq and upeq (or errata 1), and phi_t = w at the vertices."""
+        c, w = self.coefficients, self.w
+        eta, zeta, *w_test = [ufl.TestFunction(S) for S in self.spaces.values()]
+        u = self.phi.dx(0)                              # twist u = phi_s
+        psi_fn = quadratic_energy(c["alpha"], c["alpha_d"])
+        self.psi, dpsi_du, _, self.dpsi_dud, _ = derivatives(psi_fn, self.u_d, None, u, None)
+        self.torsion = dpsi_du + c["mu"] * w.dx(0)      # m = dpsi/du + M du/dt (eq. mconsteq)
+        loads: list[TimeDependentValue] = []
+        F_phi = self.torsion * eta.dx(0) * dx
+        if self.dynamic:
+            F_phi += c["nu"] * self.rates[2] * eta * dx
+        if self._couple is not None:
+            l_t = fem.Constant(self.mesh, 0.0)
+            loads.append(TimeDependentValue(l_t, self.params.couple_history))
+            self._couple = self._couple * l_t
+            F_phi -= self._couple * eta * dx
         self.m_applied = None
-        if end_torsion is not None:
-            self.m_applied = fem.Constant(mesh, 0.0)
-            self.loads.append(TimeDependentValue(self.m_applied, end_torsion))
+        if self.end_torsion is not None:
+            self.m_applied = fem.Constant(self.mesh, 0.0)
+            loads.append(TimeDependentValue(self.m_applied, self.end_torsion))
             F_phi -= self.m_applied * eta * self.ds_end
-        F = [F_phi, evolution_residual(coef["mu_d"], ud_t, dpsi_dud, zeta, variant, 1.0, dx)]
+        F = [F_phi, evolution_residual(c["mu_d"], self.rates[1], self.dpsi_dud, zeta,
+                                       self.variant, 1.0, dx)]
         if self.dynamic:  # phi_t = w at the vertices (lumped kinematic equation)
-            dx_v = ufl.Measure("dx", domain=mesh, metadata={"quadrature_rule": "vertex",
-                                                            "quadrature_degree": 1})
-            F.append((phi_t - w) * tests[2] * dx_v)
+            F.append((self.rates[0] - w) * w_test[0] * vertex_measure(self.mesh))
+        return F, loads
 
-        # Dirichlet conditions: phi(0) = 0, phi(1) = Phi(t); w(0) = 0, w(1) = Phi'(t).
-        # Blocked assembly finds a condition's block by its space object, hence W != V.
-        self._phi_end = fem.Constant(mesh, 0.0)
-        self._w_end = fem.Constant(mesh, 0.0)
-        bcs = []
-        for S, end_value in [(V, self._phi_end)] + ([(spaces[2], self._w_end)]
-                                                   if self.dynamic else []):
-            left = fem.locate_dofs_geometrical(S, lambda x: np.isclose(x[0], 0.0))
-            bcs.append(fem.dirichletbc(fem.Constant(mesh, 0.0), left, S))
-            if end_rotation is not None:
-                right_dofs = fem.locate_dofs_geometrical(S, lambda x: np.isclose(x[0], 1.0))
-                bcs.append(fem.dirichletbc(end_value, right_dofs, S))
-
-        self.problem = SemiDiscreteProblem(fields, rates, F, self.loads, bcs, self._set_bcs)
-        self._diagnostic_forms(psi, dpsi_dud, torsion, w, rates, coef, dx)
+    def _dirichlet_conditions(self) -> None:
+        """phi(0) = 0, phi(1) = Phi(t); w(0) = 0, w(1) = Phi'(t)."""
+        self._end_values = {}
+        for name in ("twist_angle", "angular_velocity")[:1 + self.dynamic]:
+            S = self.spaces[name]
+            self.dirichlet(name, S, "left", 1.0, fem.Constant(self.mesh, 0.0))
+            if self.end_rotation is not None:
+                self._end_values[name] = fem.Constant(self.mesh, 0.0)
+                self.dirichlet(name, S, "right", 1.0, self._end_values[name])
 
     def second_order_problem(self) -> SecondOrderProblem:
         """The dynamic model as nu phi_tt + ... = 0 in (phi, u_d) for TSALPHA2.
@@ -193,8 +179,7 @@ class TorsionModel:
         phi_tt = fem.Function(self.phi.function_space, name="twist_angle_acceleration")
         u_d_tt = fem.Function(self.u_d.function_space, name="natural_twist_acceleration")
         mapping = {w: phi_t, p.rates[2]: phi_tt}
-        V = self.phi.function_space
-        bcs = [bc for bc in p.bcs if V._cpp_object.contains(bc.function_space)]
+        bcs = self.bcs_of("twist_angle")
 
         def sync():
             w.x.array[:] = phi_t.x.array
@@ -207,40 +192,34 @@ class TorsionModel:
     # -- time-dependent boundary values ----------------------------------------------
     def _set_bcs(self, t: float) -> None:
         if self.end_rotation is not None:
-            self._phi_end.value = float(self.end_rotation(t))
+            self._end_values["twist_angle"].value = float(self.end_rotation(t))
             if self.dynamic:
-                h = 1e-7 * max(1.0, abs(t))  # Phi'(t) by central differences
-                self._w_end.value = float(
-                    (self.end_rotation(t + h) - self.end_rotation(t - h)) / (2 * h))
+                self._end_values["angular_velocity"].value = float(
+                    load_histories.rate(self.end_rotation, t))
 
     # -- diagnostics ------------------------------------------------------------------
-    def _diagnostic_forms(self, psi, dpsi_dud, torsion, w, rates, coef, dx):
+    def _diagnostic_forms(self, dx) -> None:
         s_fn = fem.Function(self.phi.function_space)
         s_fn.interpolate(lambda x: x[0])  # test function s: the end reaction (see reaction)
-        kinetic = 0.5 * coef["nu"] * w * w
-        xi = dissipation_rate([(w.dx(0), coef["mu"])], [(rates[1], dpsi_dud)])
-        self.xi = xi
-        reaction = torsion * dx
+        c, w, rates = self.coefficients, self.w, self.rates
+        self.xi = dissipation_rate([(w.dx(0), c["mu"])], [(rates[1], self.dpsi_dud)])
+        reaction = self.torsion * dx
         if self.dynamic:
-            reaction += coef["nu"] * rates[2] * s_fn * dx
+            reaction += c["nu"] * rates[2] * s_fn * dx
         if self._couple is not None:
             reaction -= self._couple * s_fn * dx
         forms = {
             "end_rotation": self.phi * self.ds_end,
             "end_rotation_rate": w * self.ds_end,
-            "free_energy": psi * dx,
-            "kinetic_energy": kinetic * dx,
-            "dissipation_rate": xi * dx,
+            "free_energy": self.psi * dx,
+            "kinetic_energy": 0.5 * c["nu"] * w * w * dx,
+            "dissipation_rate": self.xi * dx,
             "mean_natural_twist": self.u_d * dx,
             "reaction_torsion": reaction,
         }
         if self._couple is not None:
             forms["couple_power"] = self._couple * w * dx
-        self._forms = {k: fem.form(v) for k, v in forms.items()}
-
-    def _assemble(self, key: str) -> float:
-        local = fem.assemble_scalar(self._forms[key])
-        return self.mesh.comm.allreduce(local, op=MPI.SUM)
+        self.set_diagnostic_forms(forms)
 
     def diagnostics(self, t: float) -> dict[str, float]:
         """Scalars at time t from the current state and rate estimates.
@@ -248,24 +227,22 @@ class TorsionModel:
         end_torsion is the applied m(t) or, under a prescribed rotation, the reaction
         int [m + nu phi_tt s - l s] ds (the discrete residual tested with eta = s).
         """
-        self.problem.set_loads(t)
-        d = {k: self._assemble(k) for k in self._forms}
-        d["time"] = t
-        if self.end_torsion is not None:
-            d["end_torsion"] = float(self.end_torsion(t))
-        else:
-            d["end_torsion"] = d["reaction_torsion"]
-        d.pop("reaction_torsion")
+        d = self.assembled_diagnostics(t)
+        reaction = d.pop("reaction_torsion")
+        d["end_torsion"] = reaction if self.end_torsion is None else float(self.end_torsion(t))
         d["load_power"] = d["end_torsion"] * d["end_rotation_rate"] + d.pop("couple_power", 0.0)
         return d
 
+    def observables(self) -> dict:
+        """What a reader of Section 5 looks at, as UFL expressions of the current state:
+        twist angle phi, twist u = phi_s, natural twist u_d, torsion m (eq. mconsteq) and
+        dissipation rate xi.  Used by the run outputs (line_fields.py)."""
+        return {"phi": self.phi, "u": self.phi.dx(0), "u_d": self.u_d, "m": self.torsion,
+                "xi": self.xi}
+
     def pointwise_dissipation(self) -> np.ndarray:
         """xi at the cell midpoints (owned cells) for the current state and rates."""
-        Q = fem.functionspace(self.mesh, ("DG", 0))
-        xi = fem.Function(Q)
-        xi.interpolate(fem.Expression(self.xi, Q.element.interpolation_points()))
-        n = Q.dofmap.index_map.size_local
-        return xi.x.array[:n].copy()
+        return self.pointwise(self.xi)[:, 0].copy()
 
     # -- initial state ----------------------------------------------------------------
     def set_initial_state(self, natural_twist: float = 0.0) -> float:
@@ -301,7 +278,7 @@ class TorsionModel:
             if self._couple is not None:
                 L += self._couple * eta * dx
         self._set_bcs(0.0)
-        bcs = [bc for bc in self.problem.bcs if V._cpp_object.contains(bc.function_space)]
+        bcs = self.bcs_of("twist_angle")
         solver = fem_petsc.LinearProblem(a, L, bcs=bcs, u=self.phi, petsc_options={
             "ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"})
         solver.solve()

@@ -286,8 +286,22 @@ def test_relaxation_decreases_from_alpha_u0_to_the_relaxed_torsion(params):
     assert cf.relaxation(-0.5, u0, *params) == (0.0, 0.0)
 
 
-def test_relaxation_impulse_is_mu_u0():
-    assert cf.relaxation_impulse(0.4, 2.5) == pytest.approx(1.0, rel=1e-15)
+def test_relaxation_impulse_is_the_limit_of_regularised_steps():
+    """The impulse of the idealised step is defined (Section 5) as the limit of
+    int_0^eps m dt for the ramp u = u0 t/eps: computed here from that definition
+    (eq. twist m = alpha (u - u_d) + mu u', eq. nattwist for u_d by solve_ivp, quad for
+    the integral).  Since 0 <= u - u_d <= u on [0, eps], the integral exceeds mu u0 by
+    between 0 and alpha u0 eps/2: that bound is the tolerance, and it shrinks with eps."""
+    from scipy.integrate import quad, solve_ivp
+    alpha, alpha_d, mu, mu_d, u0 = 2.0, 1.0, 2.5, 0.5, 0.4
+    for eps in (1e-2, 1e-3):
+        u = lambda t: u0 * t / eps  # noqa: E731
+        sol = solve_ivp(lambda t, y: [(alpha * u(t) - (alpha + alpha_d) * y[0]) / mu_d],
+                        (0.0, eps), [0.0], rtol=1e-12, atol=1e-15, dense_output=True)
+        elastic, _ = quad(lambda t: alpha * (u(t) - sol.sol(t)[0]), 0.0, eps, epsabs=1e-15)
+        impulse = elastic + mu * (u(eps) - u(0.0))
+        excess = impulse - cf.relaxation_impulse(u0, mu)
+        assert 0.0 <= excess <= alpha * u0 * eps / 2, (eps, excess)
     assert cf.relaxation_impulse(0.4, 0.0) == 0.0
 
 

@@ -18,10 +18,21 @@ from dolfin_rod.loads import LoadHistory, jump_at
 EXACT = 1e-15
 
 
-def test_every_constructor_gives_a_load_history():
-    histories = [loads.constant(1.0), loads.step(1.0), loads.ramp(1.0, 2.0), loads.smooth_step(1.0, 0.5),
-                 loads.table([0.0, 1.0], [0.0, 1.0]), loads.from_callable(math.cos)]
-    assert all(isinstance(h, LoadHistory) for h in histories)
+@pytest.mark.parametrize("history, start_limits, is_step", [
+    (loads.constant(1.0), (1.0, 1.0), False),                    # also before t = 0
+    (loads.step(1.0), (0.0, 1.0), True),                         # H(0) = 1
+    (loads.step(1.0, 0.5), (0.0, 0.0), False),                   # jumps later, not at 0
+    (loads.ramp(1.0, 2.0), (0.0, 0.0), False),
+    (loads.smooth_step(1.0, 0.5), (0.0, 0.0), False),
+    (loads.table([0.0, 1.0], [2.0, 1.0]), (2.0, 2.0), False),    # constant beyond the ends
+    (loads.from_callable(math.cos), (1.0, 1.0), False),
+    (loads.from_callable(lambda t: 1.0 if t >= 0 else 0.0, {0.0: 1.0}), (0.0, 1.0), True),
+])
+def test_every_constructor_keeps_the_load_history_contract(history, start_limits, is_step):
+    """Not only the protocol's attributes: the values (f(0-), f(0+)) and is_step each
+    constructor must give, derived by hand from its definition."""
+    assert isinstance(history, LoadHistory)
+    assert history.start_limits == start_limits and history.is_step is is_step
 
 
 @pytest.mark.parametrize("history", [loads.constant(2.0), loads.step(2.0), loads.ramp(2.0, 1.0),

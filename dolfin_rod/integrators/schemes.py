@@ -41,21 +41,17 @@ class Scheme:
     explicit: bool = False
     l_stable: bool = False
     startup: str | None = None  # first step (two-step schemes, and those carrying ydot_n)
+    second: str | None = None   # second step, if it differs (a rate rule that needs ydot_n)
 
-    @property
-    def steps(self) -> int:
-        """1 for one-step schemes, 2 when y_{n-1} enters."""
-        uses_nm1 = any(s.a[2] or s.b[2] for s in self.stages) or self.rate[2]
-        return 2 if uses_nm1 else 1
-
-    @property
-    def uses_rate(self) -> bool:
-        return any(s.g for s in self.stages)
-
-    def for_step(self, history_ok: bool) -> "Scheme":
-        """The scheme of the next step: this one, or its startup scheme while y_{n-1}
-        and ydot_n are not valid for the current dt (first step, after a step change)."""
-        return get_scheme(self.startup) if self.startup and not history_ok else self
+    def for_step(self, history: int) -> "Scheme":
+        """The scheme of the next step after ``history`` accepted steps of the current dt
+        (0: first step, or after a step change): the startup scheme on the first, the
+        second-step scheme (if any) on the second, this one after that."""
+        if history == 0 and self.startup:
+            return get_scheme(self.startup)
+        if history == 1 and self.second:
+            return get_scheme(self.second)
+        return self
 
     def rate_after_step(self, y, y_n, y_nm1, ydot_n, dt):
         """ydot_{n+1} = (r0 y + r1 y_n + r2 y_{n-1}) / dt + rg ydot_n (arrays)."""
@@ -83,17 +79,34 @@ def generalized_alpha(rho_inf: float = 0.5) -> Scheme:
         startup="backward_euler")  # rates start at 0: one BE step makes ydot_1 O(dt)-exact
 
 
+# Rates after a step of the one-step second-order rules (their steps do not use ydot_n).
+# From the third step on, the trapezoidal recurrence ydot_{n+1} = 2 (y_{n+1} - y_n)/dt
+# - ydot_n: it keeps F(t_{n+1}, y_{n+1}, ydot_{n+1}) = -F(t_n, y_n, ydot_n) for the
+# trapezoidal rule, so an inconsistent ydot_n is carried for ever as (-1)^n times its
+# defect, and it cannot start from ydot_0 (0 after a step load: the 0+ rate is unknown
+# to a FE model; issue 13 item 6).  It starts instead from (y_1 - y_0)/dt after the
+# first step (O(dt) at t_1) and the derivative at t_2 of the quadratic through y_0, y_1,
+# y_2 (BDF2_RATE, O(dt^2)) after the second, whose O(dt^2) defect it then carries.
+RECURRENCE_RATE = (2.0, -2.0, 0.0, -1.0)
+BDF2_RATE = (1.5, -2.0, 0.5, 0.0)
+FIRST_STEP_RATE = (1.0, -1.0, 0.0, 0.0)
+MIDPOINT = (Stage(1.0, 0.5, (0.5, 0.5, 0), (1, -1, 0)),)
+TRAPEZOIDAL = (Stage(0.5, 1.0, (1, 0, 0), (1, -1, 0)), Stage(0.5, 0.0, (0, 1, 0), (1, -1, 0)))
+
 SCHEMES: dict[str, Scheme] = {
     s.name: s for s in (
         Scheme("backward_euler", 1, (Stage(1.0, 1.0, (1, 0, 0), (1, -1, 0)),),
-               rate=(1, -1, 0, 0), l_stable=True),
+               rate=FIRST_STEP_RATE, l_stable=True),
         Scheme("bdf2", 2, (Stage(1.0, 1.0, (1, 0, 0), (1.5, -2.0, 0.5)),),
-               rate=(1.5, -2.0, 0.5, 0), l_stable=True, startup="backward_euler"),
-        Scheme("implicit_midpoint", 2, (Stage(1.0, 0.5, (0.5, 0.5, 0), (1, -1, 0)),),
-               rate=(2, -2, 0, -1)),
-        Scheme("crank_nicolson", 2, (Stage(0.5, 1.0, (1, 0, 0), (1, -1, 0)),
-                                     Stage(0.5, 0.0, (0, 1, 0), (1, -1, 0))),
-               rate=(2, -2, 0, -1)),
+               rate=BDF2_RATE, l_stable=True, startup="backward_euler"),
+        Scheme("implicit_midpoint", 2, MIDPOINT, rate=RECURRENCE_RATE,
+               startup="implicit_midpoint_first_step", second="implicit_midpoint_second_step"),
+        Scheme("implicit_midpoint_first_step", 2, MIDPOINT, rate=FIRST_STEP_RATE),
+        Scheme("implicit_midpoint_second_step", 2, MIDPOINT, rate=BDF2_RATE),
+        Scheme("crank_nicolson", 2, TRAPEZOIDAL, rate=RECURRENCE_RATE,
+               startup="crank_nicolson_first_step", second="crank_nicolson_second_step"),
+        Scheme("crank_nicolson_first_step", 2, TRAPEZOIDAL, rate=FIRST_STEP_RATE),
+        Scheme("crank_nicolson_second_step", 2, TRAPEZOIDAL, rate=BDF2_RATE),
         Scheme("explicit_euler", 1, (Stage(1.0, 0.0, (0, 1, 0), (1, -1, 0)),),
                rate=(1, -1, 0, 0), explicit=True),
     )
@@ -103,8 +116,16 @@ SCHEMES: dict[str, Scheme] = {
 def get_scheme(name: str) -> Scheme:
     """A scheme by name; 'generalized_alpha' or 'generalized_alpha:0.3' sets rho_inf."""
     if name.startswith("generalized_alpha"):
-        _, _, rho = name.partition(":")
-        return generalized_alpha(float(rho) if rho else 0.5)
+        _, colon, rho = name.partition(":")
+        try:
+            rho_inf = float(rho) if colon else 0.5
+        except ValueError:
+            rho_inf = None
+        if name != "generalized_alpha" + colon + rho or rho_inf is None \
+                or not 0.0 <= rho_inf <= 1.0:
+            raise ValueError(f"unknown time scheme '{name}': write generalized_alpha or "
+                             "generalized_alpha:RHO with rho_inf = RHO a number in [0, 1]")
+        return generalized_alpha(rho_inf)
     try:
         return SCHEMES[name]
     except KeyError:

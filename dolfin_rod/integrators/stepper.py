@@ -76,8 +76,9 @@ class TimeStepper:
     predictor:  Newton's initial guess, "linear" y_n + dt dy/dt_n (an O(dt^2) guess:
                 about one Newton iteration fewer per step on smooth dynamics) or
                 "constant" y_n.
-    history_ok: y_{n-1} and dy/dt_n are valid for the current dt (else the next step
-                uses the scheme's startup scheme); part of a checkpoint's state.
+    history_steps: accepted steps of the current dt since the start or the last step
+                change, capped at 2 (Scheme.for_step picks the startup and second-step
+                schemes from it); part of a checkpoint's state.
     """
 
     PREDICTORS = ("linear", "constant")
@@ -98,7 +99,7 @@ class TimeStepper:
         self.dt = fem.Constant(problem.fields[0].function_space.mesh, 1.0)
         self._residuals: dict[str, _StepResidual] = {}
         self.stats = StepStats()
-        self.history_ok = False
+        self.history_steps = 0
 
     def _residual(self, scheme: Scheme) -> _StepResidual:
         if scheme.name not in self._residuals:
@@ -134,7 +135,7 @@ class TimeStepper:
 
     def step(self, t: float, dt: float) -> None:
         """One step from t (state in problem.fields) to t + dt; raises SolverError."""
-        scheme = self.scheme.for_step(self.history_ok)
+        scheme = self.scheme.for_step(self.history_steps)
         for fn, f, rn, r in zip(self.y_n, self.problem.fields, self.ydot_n, self.problem.rates):
             fn.x.array[:] = f.x.array
             rn.x.array[:] = r.x.array
@@ -154,7 +155,7 @@ class TimeStepper:
             rate.x.array[:] = scheme.rate_after_step(f.x.array, fn.x.array, fnm1.x.array,
                                                      rate_n.x.array, dt)
             fnm1.x.array[:] = fn.x.array
-        self.history_ok = True
+        self.history_steps = min(self.history_steps + 1, 2)
         self.stats.steps += 1
         self.stats.newton_iterations += its
 
@@ -166,11 +167,11 @@ class TimeStepper:
                 f"time step failed at t = {t:.6g} after {self.max_cuts} step cuts "
                 f"(last dt = {h_try:.3g}): {err}", t) from err
         h = CUT_FACTOR * h_try
-        if self.scheme.startup:
+        if self.scheme.startup and get_scheme(self.scheme.startup).order < self.scheme.order:
             warnings.warn(f"step at t = {t:.6g} cut to dt = {h:.3g} ({err}); "
                           f"{self.scheme.name} restarts with {self.scheme.startup}, "
                           "which is first-order accurate", RuntimeWarning, stacklevel=3)
-        self.history_ok = False
+        self.history_steps = 0
         return h
 
     def run(self, t0: float, t_end: float, dt: float,
@@ -195,6 +196,6 @@ class TimeStepper:
                 observer(t, self)
             if h < dt and cuts:  # grow back towards the nominal step after a success
                 h = grown(h, dt)
-                self.history_ok = False
+                self.history_steps = 0
                 cuts = max(cuts - 1, 0)
         raise IntegrationError(f"step budget exhausted at t = {t:.6g}", t)

@@ -158,8 +158,17 @@ class TSIntegrator:
         self.system = block_system(problem.residual, groups, terms, problem.bcs)
         self.b, self.x, self.A = self.system.b, self.system.x, self.system.A
         self._x_prev = self.x.duplicate()
+        self._create_ts(mesh.comm, {**solver_settings,
+                                    "ts_adapt_type": "basic" if adaptive else "none",
+                                    **self.method.options, **(ts_options or {})}, rtol, atol)
+        self.stats = StepStats()
+        self._observer = None
+        self._t_accepted = None
+        self._dt_nominal = None
 
-        self.ts = PETSc.TS().create(mesh.comm)
+    def _create_ts(self, comm, settings: dict, rtol: float, atol: float) -> None:
+        """PETSc TS on the callbacks below, options under a private prefix."""
+        self.ts = PETSc.TS().create(comm)
         self.prefix = f"dolfin_rod_ts_{next(_ids)}_"
         self.ts.setOptionsPrefix(self.prefix)
         self.ts.setProblemType(PETSc.TS.ProblemType.NONLINEAR)
@@ -175,23 +184,16 @@ class TSIntegrator:
         # the last step is clipped in _post_step (TS's MATCHSTEP trips on round-off)
         self.ts.setExactFinalTime(PETSc.TS.ExactFinalTime.STEPOVER)
         self.ts.setMaxSNESFailures(-1)            # every SNES failure: reject, cut, retry
-        self.ts.setMaxStepRejections(max_rejections)
+        self.ts.setMaxStepRejections(self.max_rejections)
         self.ts.setErrorIfStepFails(False)
         self.ts.setTolerances(rtol=rtol, atol=atol)
         opts = PETSc.Options()
-        settings = {**solver_settings,
-                    "ts_adapt_type": "basic" if adaptive else "none",
-                    **self.method.options, **(ts_options or {})}
         self._option_keys = [self.prefix + k for k in settings]
         for k, v in settings.items():
             opts[self.prefix + k] = v
         self.ts.setFromOptions()
         self.ts.setMonitor(self._monitor)
         self.ts.setPostStep(self._post_step)
-        self.stats = StepStats()
-        self._observer = None
-        self._t_accepted = None
-        self._dt_nominal = None
 
     # -- the DAE ----------------------------------------------------------------------
     def _set_time(self, t: float, x, xdot) -> None:

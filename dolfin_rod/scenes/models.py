@@ -21,11 +21,13 @@ and rate rules), so that ODE and PDE agree to solver tolerance, not only to O(dt
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Callable, Protocol
 
 import numpy as np
 
 from .. import closed_forms
+from ..loads import rate as load_rate
 from ..integrators.schemes import get_scheme
 from .schema import Scene, SceneError
 
@@ -82,7 +84,7 @@ class OdeTorsion:
         mat = scene["material"]
         self.alpha, self.alpha_d = mat["alpha"].constant, mat["alpha_d"].constant
         self.mu, self.mu_d = mat["mu"].constant, mat["mu_d"].constant
-        self.u_d0 = scene["geometry"]["reference_twist"]
+        self.u_d0 = scene["initial"]["natural_twist"] or 0.0
         self.rotation = scene["boundary"]["end"] == "rotation"
         spec = scene["boundary"]["end_rotation"] if self.rotation else scene["loads"]["end_torsion"]
         self.spec = spec
@@ -98,9 +100,8 @@ class OdeTorsion:
         return 0.0 if self.history is None else float(self.history(t))
 
     def _load_rate(self, t: float) -> float:
-        """Phi'(t) by central differences (as TorsionModel._set_bcs)."""
-        h = 1e-7 * max(1.0, abs(t))
-        return (self._load(t + h) - self._load(t - h)) / (2 * h)
+        """Phi'(t), as the torsion PDE's end condition on w."""
+        return float(load_rate(self._load, t))
 
     def _jump0(self) -> float:
         if self.history is None:
@@ -119,7 +120,7 @@ class OdeTorsion:
         self.y = np.array([u, self.u_d0])
         self.ydot = np.zeros(2)
         self.y_nm1 = self.y.copy()
-        self.history_ok = False
+        self.history_steps = 0
         if self.mode == "exact":
             self._solve_exact()
         self.impulse = impulse
@@ -198,7 +199,7 @@ class OdeTorsion:
     def _scheme_step(self, t: float, dt: float) -> None:
         """One step of the scheme (as TimeStepper's: same stages, startup and rate rule)
         on the linear system M y' + K y = f: J y = -r with r the residual at y = 0."""
-        scheme = self.scheme.for_step(self.history_ok)
+        scheme = self.scheme.for_step(self.history_steps)
         M, K = self._matrices()
         y_n, y_nm1, ydot_n = self.y, self.y_nm1, self.ydot
         zero = np.zeros(2)
@@ -214,7 +215,7 @@ class OdeTorsion:
         y = np.linalg.solve(J, -r)
         self.ydot = scheme.rate_after_step(y, y_n, y_nm1, ydot_n, dt)
         self.y_nm1, self.y = y_n, y
-        self.history_ok = True
+        self.history_steps = min(self.history_steps + 1, 2)
 
     def advance(self, t: float, t_next: float) -> None:
         if self.mode == "scheme":
@@ -227,7 +228,7 @@ class OdeTorsion:
         """u, u_d and their rates at t."""
         if self.mode == "scheme":
             return self.y[0], self.y[1], self.ydot[0], self.ydot[1]
-        k = int(np.argmin(np.abs(self.times - t)))
+        k = self._index(t)
         u, ud = self.u_series[k], self.ud_series[k]
         a, ad, mu, mud = self.alpha, self.alpha_d, self.mu, self.mu_d
         ud_t = (a * u - (a + ad) * ud) / mud
@@ -239,26 +240,34 @@ class OdeTorsion:
             u_t = self._load_rate(t) / a + ud_t
         return u, ud, u_t, ud_t
 
+    def _index(self, t: float) -> int:
+        """The output time t's index: a bisection, O(log N) (an argmin over all output
+        times made a run O(N^2)); ValueError for a time off the output grid."""
+        k = min(int(np.searchsorted(self.times, t - 1e-9 * self.dt)), len(self.times) - 1)
+        if abs(self.times[k] - t) > 1e-9 * self.dt:
+            raise ValueError(f"t = {t!r} is not an output time (multiples of dt = {self.dt:g})")
+        return k
+
     def diagnostics(self, t: float) -> dict[str, float]:
         a, ad, mu, mud = self.alpha, self.alpha_d, self.mu, self.mu_d
-        u, ud, u_t, ud_t = (float(x) for x in self._state_at(t))
-        m = a * (u - ud) + mu * u_t if self.rotation else self._load(t)
-        return {
-            "end_rotation": u, "end_rotation_rate": u_t,
-            "free_energy": 0.5 * a * (u - ud) ** 2 + 0.5 * ad * ud ** 2,
-            "kinetic_energy": 0.0,
-            "dissipation_rate": mu * u_t ** 2 + mud * ud_t ** 2,
-            "mean_natural_twist": ud, "time": float(t), "end_torsion": float(m),
-            "load_power": float(m) * u_t,
-        }
+        with np.errstate(over="ignore", invalid="ignore"):   # overflow -> inf, as in FE
+            u, ud, u_t, ud_t = (np.float64(x) for x in self._state_at(t))
+            m = a * (u - ud) + mu * u_t if self.rotation else np.float64(self._load(t))
+            d = {"end_rotation": u, "end_rotation_rate": u_t,
+                 "free_energy": 0.5 * a * (u - ud) ** 2 + 0.5 * ad * ud ** 2,
+                 "kinetic_energy": 0.0,   # eq. disspw: xi = mu u'^2 - dpsi/du_d u_d'
+                 "dissipation_rate": mu * u_t ** 2 + (a * (u - ud) - ad * ud) * ud_t,
+                 "mean_natural_twist": ud, "time": t, "end_torsion": m,
+                 "load_power": m * u_t}
+        return {k: float(v) for k, v in d.items()}
 
     def state(self) -> dict:
         return {"y": self.y.tolist(), "y_nm1": self.y_nm1.tolist(), "ydot": self.ydot.tolist(),
-                "history_ok": self.history_ok}
+                "history_steps": self.history_steps}
 
     def restore(self, state: dict) -> None:
         self.y, self.y_nm1 = np.array(state["y"]), np.array(state["y_nm1"])
-        self.ydot, self.history_ok = np.array(state["ydot"]), bool(state["history_ok"])
+        self.ydot, self.history_steps = np.array(state["ydot"]), int(state["history_steps"])
 
     def describe(self) -> str:
         return self.method
@@ -281,14 +290,23 @@ class FESimulation:
         self.comm = self.problem.comm
         self.fields = list(self.problem.fields)
         self._initial_state = initial_state
-        options = {"snes_rtol": tim["rtol"], "snes_atol": tim["atol"]}
+        options = solver_options(scene)
         self.stepper = TimeStepper(self.problem, tim["scheme"], options,
-                                   max_cuts=tim["max_step_cuts"])
+                                   max_cuts=tim["max_step_cuts"], predictor=tim["predictor"])
         self.integrator = tim["integrator"]
         self.ts = None
         if self.integrator == "ts":
             from ..integrators.ts import TSIntegrator
-            self.ts = TSIntegrator(self.problem, ts_type(scene), solver_options=options)
+            kind = tim["ts_type"] or ts_type(scene)
+            problem = self.problem
+            if kind.startswith("alpha2"):
+                if not hasattr(model, "second_order_problem") or not model.dynamic:
+                    raise scene.error("time.ts_type", "alpha2 (TSALPHA2) needs a second-order "
+                                                      "problem: dynamic torsion (nu > 0)")
+                problem = model.second_order_problem()
+            self.ts = TSIntegrator(problem, kind, adaptive=tim["adaptive"],
+                                   rtol=tim["ts_rtol"], atol=tim["ts_atol"],
+                                   solver_options=options)
 
     def run_all(self, t0: float, t_end: float, dt: float, on_step: Callable[[float], None]):
         """PETSc TS over the whole run (its multistep history must not restart at every
@@ -308,15 +326,30 @@ class FESimulation:
         """Functions a checkpoint stores (besides problem.fields) and the stepper flags."""
         return {"functions": {**{f"rate_{i}": r for i, r in enumerate(self.problem.rates)},
                               **{f"previous_{i}": p for i, p in enumerate(self.stepper.y_nm1)}},
-                "history_ok": self.stepper.history_ok}
+                "history_steps": self.stepper.history_steps}
 
     def restore(self, state: dict) -> None:
-        self.stepper.history_ok = bool(state["history_ok"])
+        self.stepper.history_steps = int(state["history_steps"])
+
+    @property
+    def stats(self):
+        """Steps, Newton iterations and rejected steps of the integrator that ran."""
+        return self.ts.stats if self.ts is not None else self.stepper.stats
 
     def describe(self) -> str:
         if self.ts is not None:
             return f"PETSc TS ({self.ts.method})"
         return f"TimeStepper with {self.stepper.scheme.name}"
+
+
+def solver_options(scene: Scene) -> dict:
+    """PETSc options of a scene: tolerances of [time], the [solver] preset, its options."""
+    from .. import solvers
+    tim, sol = scene["time"], scene["solver"]
+    preset = {"default": {}, "native_lu": solvers.NATIVE_LU,
+              "jacobian_reuse": solvers.JACOBIAN_REUSE}[sol["preset"]]
+    return {"snes_rtol": tim["rtol"], "snes_atol": tim["atol"], **preset,
+            **(sol["options"] or {})}
 
 
 def ts_type(scene: Scene) -> str:
@@ -355,31 +388,93 @@ def build_torsion(scene: Scene, comm=None) -> FESimulation:
     model = TorsionModel(params, n_cells=geo["n_cells"], variant=mat["variant"],
                          degree=geo["degree"], comm=comm or MPI.COMM_WORLD, **ends)
     return FESimulation("torsion", model, scene,
-                        lambda: model.set_initial_state(geo["reference_twist"]))
+                        lambda: model.set_initial_state(scene["initial"]["natural_twist"] or 0.0))
 
 
 @register_model("rod")
 def build_rod(scene: Scene, comm=None) -> FESimulation:
-    """The 3-D rod (dolfin_rod.rod.RodModel): clamped at s = 0, end loads at s = L."""
-    from dataclasses import replace
-
+    """The 3-D rod (dolfin_rod.rod.RodModel) with every scene key mapped to its API."""
     from mpi4py import MPI
-    from ..rod import EndLoad, RodModel, RodParameters
+    from ..rod import RodModel
 
-    mat, geo, lds = scene["material"], scene["geometry"], scene["loads"]
-    stiff, visc = mat["stiffness"], mat["viscosity"]
-    kelvin_voigt = mat["energy"] == "kelvin_voigt"
-    params = RodParameters(
-        length=geo["length"], A=stiff["A"], B=stiff["B"], A_d=stiff["A_d"], B_d=stiff["B_d"],
-        M=visc["M"] if any(visc["M"]) else None, N=visc["N"] if any(visc["N"]) else None,
-        M_d=visc["M_d"], N_d=visc["N_d"], rho_A=mat["density"], I11=mat["section_inertia"],
-        I22=mat["section_inertia"], reference_curvature=geo["reference_curvature"])
-    end_loads = [EndLoad(kind, spec.value, replace(spec, value=1.0).build())
-                 for kind, spec in (("force", lds["end_force"]), ("couple", lds["end_couple"]))
-                 if spec is not None]
+    mat, geo = scene["material"], scene["geometry"]
+    ends = {"start": "left", "end": "right"}
+    motions = {m: {side: spec.vector() for key, side in ends.items()
+                   if (spec := scene["boundary"][f"{key}_{m}"]) is not None}
+               for m in ("displacement", "rotation")}
+    end_loads, distributed_loads = rod_loads(scene)
     constraint = None if mat["constraints"] == "none" else mat["constraints"]
-    model = RodModel(params, n_cells=geo["n_cells"],
-                     model="kelvin_voigt" if kelvin_voigt else "evolving",
-                     variant=mat["variant"], constraint=constraint, ends=("clamped", "free"),
-                     end_loads=end_loads, comm=comm or MPI.COMM_WORLD)
-    return FESimulation("rod", model, scene, lambda: model.set_initial_state())
+    try:
+        model = RodModel(rod_parameters(scene), n_cells=geo["n_cells"], model=mat["model"],
+                         variant=mat["variant"], constraint=constraint,
+                         ends=(scene["boundary"]["start"], scene["boundary"]["end"]),
+                         end_loads=end_loads, distributed_loads=distributed_loads,
+                         end_displacement=motions["displacement"],
+                         end_rotation=motions["rotation"], comm=comm or MPI.COMM_WORLD)
+    except ValueError as err:
+        key = "material.energy" if str(err).startswith("energy") else "scene.model"
+        raise scene.error(key, f"the 'rod' model rejected the scene: {err}") from err
+    initial = scene["initial"]
+    return FESimulation("rod", model, scene, lambda: model.set_initial_state(
+        natural_curvature=initial["natural_curvature"],
+        natural_stretch=initial["natural_stretch"]))
+
+
+def rod_parameters(scene: Scene):
+    """RodParameters from [geometry] and [material] (tensors: 3x3 arrays or callables)."""
+    from ..rod import RodParameters
+    from .schema import load_entry_point
+    mat, geo = scene["material"], scene["geometry"]
+    stiff, visc = mat["stiffness"], mat["viscosity"] or {}
+    tensors = {k: t.value() for k, t in {**stiff, **visc}.items()
+               if not (k in ("M", "N") and t.is_zero)}
+    scalars = {k: mat[k].value() for k in ("density", "drag") if mat[k] is not None}
+    I11, I22 = mat["section_inertia"] or (0.0, 0.0)
+    energy = None
+    if mat["energy"] is not None:
+        folder = Path(scene.source).parent if Path(scene.source).is_file() else None
+        energy = load_entry_point(mat["energy"], folder)
+    return RodParameters(length=geo["length"], **tensors, rho_A=scalars.get("density", 0.0),
+                         drag=scalars.get("drag", 0.0), I11=I11, I22=I22, energy=energy,
+                         reference_curvature=geo["reference_curvature"],
+                         reference_stretch=geo["reference_stretch"])
+
+
+def rod_loads(scene: Scene) -> tuple[list, list]:
+    """EndLoads (start_/end_force/couple) and DistributedLoads (distributed_force/couple,
+    gravity as rho_A g) of a rod scene."""
+    from ..rod import DistributedLoad, EndLoad
+    lds, mat = scene["loads"], scene["material"]
+    end_loads = []
+    for key, side in (("start", "left"), ("end", "right")):
+        for kind in ("force", "couple"):
+            spec = lds[f"{key}_{kind}"]
+            for value, history in _vector_parts(spec) if spec is not None else ():
+                end_loads.append(EndLoad(kind, value, history, end=side,
+                                         follower=spec.follower))
+    distributed = []
+    for kind in ("force", "couple"):
+        load = lds[f"distributed_{kind}"]
+        if load is not None:
+            distributed.append(DistributedLoad(kind, _profiled(load["value"], load["profile"]),
+                                               load["history"].build(), load["follower"]))
+    if lds["gravity"] is not None:
+        distributed.append(DistributedLoad("force", _profiled(lds["gravity"], mat["density"])))
+    return end_loads, distributed
+
+
+def _vector_parts(spec):
+    """(value, scalar history) pairs whose sum is the vector history: value * history(t)
+    for steps, ramps, ...; one pair per non-zero component for a table of 3-vectors."""
+    from dataclasses import replace
+    if spec.type != "table":
+        return [(spec.value, replace(spec, value=1.0).build())]
+    return [(tuple(np.eye(3)[i]), spec.build(i)) for i in range(3)
+            if any(v[i] for v in spec.values)]
+
+
+def _profiled(value, profile):
+    """value * profile(s): a 3-tuple, or a callable of s (UFL and floats) if s-dependent."""
+    if profile.is_constant:
+        return tuple(profile.constant * np.asarray(value, float))
+    return lambda s: [profile(s) * v for v in value]

@@ -65,6 +65,27 @@ def select_model(scene: Scene) -> Choice:
     else:
         choice = Choice(requested, f"forced by scene.model (the least model would be "
                                    f"{need!r}: {reason})", forced=True)
+    if choice.model == "ode":
+        choice = Choice(choice.model, choice.reason + _ode_time_keys(scene), choice.forced)
     return choice
+
+
+def _ode_time_keys(scene: Scene) -> str:
+    """The ODE model has no PETSc TS path and uses time.scheme only with ode_solution =
+    "scheme": integrator = "ts", or a scheme with an explicit ode_solution = "exact", is
+    an error; a scheme kept for a forced PDE run is named as unused in the reason."""
+    tim, given = scene["time"], scene.given["time"]
+    if tim["integrator"] == "ts":
+        raise scene.error("time.integrator", "the 'ode' model (chosen: quasi-static "
+                          "homogeneous torsion) has no PETSc TS path: drop integrator = "
+                          "\"ts\" or set scene.model = \"torsion\"")
+    if "scheme" in given and tim["ode_solution"] == "exact" and "ode_solution" in given:
+        raise scene.error("time.scheme", "ode_solution = \"exact\" solves the ODE exactly "
+                          "and uses no time scheme: drop time.scheme or set ode_solution = "
+                          "\"scheme\"")
+    if "scheme" in given and tim["ode_solution"] == "exact":
+        return (f"; time.scheme = {tim['scheme']!r} is not used: the ODE is solved exactly "
+                "(ode_solution = \"exact\"; \"scheme\" applies it to the ODE)")
+    return ""
 
 

@@ -1,0 +1,101 @@
+"""What the FE models (torsion.TorsionModel, rod.RodModel) share: the ends of the interval
+and their measures, coefficients as UFL, Dirichlet conditions recorded by block, the
+rate of a prescribed boundary motion, and the assembly of MPI-reduced diagnostics.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import dolfinx
+import dolfinx.fem as fem
+import numpy as np
+import ufl
+from mpi4py import MPI
+
+ENDS = ("left", "right")
+_TAGS = {"left": 1, "right": 2}
+
+
+def check_n_cells(n_cells) -> int:
+    if not (isinstance(n_cells, (int, np.integer)) and n_cells >= 1):
+        raise ValueError(f"n_cells must be a positive integer, got {n_cells!r}")
+    return int(n_cells)
+
+
+def end_coordinate(end: str, length: float) -> float:
+    """s of an end: 0 (left) or the length (right)."""
+    return 0.0 if end == "left" else float(length)
+
+
+def end_measures(mesh, length: float) -> dict[str, ufl.Measure]:
+    """{end: ds restricted to that end point}: point values and point loads in parallel."""
+    facets = {end: dolfinx.mesh.locate_entities_boundary(
+        mesh, 0, lambda x, e=end_coordinate(end, length): np.isclose(x[0], e)) for end in ENDS}
+    idx = np.concatenate([facets[e] for e in ENDS]).astype(np.int32)
+    val = np.concatenate([np.full(len(facets[e]), _TAGS[e]) for e in ENDS]).astype(np.int32)
+    order = np.argsort(idx)
+    tags = dolfinx.mesh.meshtags(mesh, 0, idx[order], val[order])
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=tags)
+    return {end: ds(_TAGS[end]) for end in ENDS}
+
+
+def vertex_measure(mesh) -> ufl.Measure:
+    """dx with the vertex rule: an equation tested with it holds at the nodes (P1)."""
+    return ufl.Measure("dx", domain=mesh, metadata={"quadrature_rule": "vertex",
+                                                    "quadrature_degree": 1})
+
+
+def scalar_coefficient(value: float | Callable, mesh, s):
+    """A float as a fem.Constant, a callable of s as the UFL expression value(s)."""
+    return value(s) if callable(value) else fem.Constant(mesh, float(value))
+
+
+class FEModel:
+    """Base of the FE models: Dirichlet conditions by block, diagnostics by form.
+
+    A subclass calls ``FEModel.__init__(self, mesh)``, creates its conditions with
+    ``dirichlet``, sets ``self.problem`` and its diagnostic forms with
+    ``set_diagnostic_forms``.
+    """
+
+    def __init__(self, mesh):
+        self.mesh = mesh
+        self.bcs: list[fem.DirichletBC] = []                   # in order of creation
+        self.block_bcs: dict[str, list[fem.DirichletBC]] = {}
+        self.diagnostic_forms: dict = {}
+
+    def dirichlet(self, block: str, space, end: str, length: float, value) -> fem.DirichletBC:
+        """A Dirichlet condition value at an end on the block's space, recorded in
+        ``block_bcs[block]`` (e.g. for a sub-problem of some blocks)."""
+        s_end = end_coordinate(end, length)
+        dofs = fem.locate_dofs_geometrical(space, lambda x: np.isclose(x[0], s_end))
+        bc = fem.dirichletbc(value, dofs, space)
+        self.bcs.append(bc)
+        self.block_bcs.setdefault(block, []).append(bc)
+        return bc
+
+    def bcs_of(self, block: str) -> list[fem.DirichletBC]:
+        """The Dirichlet conditions on one block."""
+        return list(self.block_bcs.get(block, []))
+
+    def set_diagnostic_forms(self, forms: dict[str, ufl.Form]) -> None:
+        self.diagnostic_forms = {key: fem.form(form) for key, form in forms.items()}
+
+    def assemble(self, key: str) -> float:
+        """One diagnostic form, assembled and summed over the ranks."""
+        local = fem.assemble_scalar(self.diagnostic_forms[key])
+        return self.mesh.comm.allreduce(local, op=MPI.SUM)
+
+    def assembled_diagnostics(self, t: float) -> dict[str, float]:
+        """Every diagnostic form at time t (loads set to t), and the time."""
+        self.problem.set_loads(t)
+        d = {key: self.assemble(key) for key in self.diagnostic_forms}
+        d["time"] = t
+        return d
+
+    def pointwise(self, expr) -> np.ndarray:
+        """Values of a UFL expression at the cell midpoints (owned cells), (n, ...)."""
+        e = fem.Expression(expr, np.array([[0.5]]))
+        n = self.mesh.topology.index_map(1).size_local
+        return e.eval(self.mesh, np.arange(n, dtype=np.int32)).reshape(n, -1)

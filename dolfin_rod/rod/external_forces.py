@@ -1,0 +1,92 @@
+"""Loads on the rod (PyElastica's ``external_forces``): end and distributed forces and
+couples, dead or follower, with their histories, and linear drag f = -c dr/dt.
+
+Their virtual work enters the balance blocks (balance.force_work, balance.couple_work);
+the same densities tested with the velocities (V, W) give the power of the loads.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import dolfinx.fem as fem
+import numpy as np
+import ufl
+
+from .. import balance
+from ..model_base import ENDS
+from ..problem import TimeDependentValue
+from .discretisation import Discretisation, Unknowns
+from .material import is_zero
+
+
+@dataclass
+class EndLoad:
+    """A force or couple at an end: value(3,) * history(t); dead (spatial components)
+    or follower (material components, i.e. rotating with the end section)."""
+
+    kind: str                        # "force" or "couple"
+    value: Sequence[float]
+    history: Callable = field(default=lambda t: 1.0)
+    end: str = "right"
+    follower: bool = False
+
+
+@dataclass
+class DistributedLoad:
+    """A force or couple per unit reference length: value(s) * history(t)."""
+
+    kind: str                        # "force" or "couple"
+    value: Sequence[float] | Callable
+    history: Callable = field(default=lambda t: 1.0)
+    follower: bool = False
+
+
+def check_loads(end_loads, distributed_loads) -> None:
+    for load in list(end_loads) + list(distributed_loads):
+        if load.kind not in ("force", "couple"):
+            raise ValueError(f"load kind must be 'force' or 'couple', got {load.kind!r}")
+        if not callable(load.value) and np.shape(load.value) != (3,):
+            raise ValueError(f"load value must be a 3-vector, got {load.value!r}")
+    for load in end_loads:
+        if load.end not in ENDS:
+            raise ValueError(f"load end must be 'left' or 'right', got {load.end!r}")
+
+
+def _load_value(load, disc: Discretisation):
+    """The load's vector (a constant, or value(s) for a distributed profile)."""
+    if callable(load.value):
+        return ufl.as_vector(list(load.value(disc.s)))
+    return fem.Constant(disc.mesh, np.asarray(load.value, float))
+
+
+def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, end_loads, distributed_loads):
+    """Subtracts each load's virtual work from its balance block; returns the load
+    histories (TimeDependentValue) and the power of the loads (a UFL form, or 0)."""
+    q = unk.f["quaternion"]
+    dTheta = balance.virtual_rotation(q, unk.t["quaternion"])
+    histories, power = [], 0
+    placed = [(load, disc.ds_end[load.end]) for load in end_loads] + [
+        (load, disc.dx) for load in distributed_loads]
+    for load, measure in placed:
+        amp = fem.Constant(disc.mesh, 0.0)
+        histories.append(TimeDependentValue(amp, load.history))
+        val = amp * _load_value(load, disc)
+        if load.kind == "force":
+            F["displacement"] -= balance.force_work(
+                val, q, unk.t["displacement"], load.follower) * measure
+            power += balance.force_work(val, q, unk.V, load.follower) * measure
+        else:
+            F["quaternion"] -= balance.couple_work(val, q, dTheta, load.follower) * measure
+            power += balance.couple_work(val, q, unk.W, load.follower) * measure
+    return histories, power
+
+
+def drag(F: dict, unk: Unknowns, c: dict, params, disc: Discretisation):
+    """Linear drag f = -c V in the displacement block; returns its dissipation density
+    c V.V integrated (0 without drag)."""
+    if is_zero(params.drag):
+        return 0
+    F["displacement"] += c["drag"] * ufl.inner(unk.V, unk.t["displacement"]) * disc.dx
+    return c["drag"] * ufl.inner(unk.V, unk.V) * disc.dx

@@ -1,0 +1,137 @@
+"""RodModel: the 3-D special Cosserat rod with evolving natural configuration (Sections
+2-4) as one SemiDiscreteProblem, composed of the modules of this package:
+
+    material.py            RodParameters and their checks
+    discretisation.py      mesh, end measures, quadrature rules, spaces, unknowns
+    constitutive.py        strains -> psi, m, n (eqs. mfmeq, mfneq)
+    residual.py            balance, gauge, constraints, evolution, inertia
+    external_forces.py     end and distributed loads, drag
+    boundary_conditions.py clamped, pinned, prescribed motions, reactions
+    initial_state.py       the stress-free initial configuration
+    diagnostics.py         energies, powers, tip
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import dolfinx.fem as fem
+import ufl
+from mpi4py import MPI
+
+from .. import constraints
+from ..evolution import check_variant
+from ..model_base import FEModel, check_n_cells
+from ..problem import SemiDiscreteProblem
+from ..rotations import rotation_matrix
+from . import diagnostics, external_forces, initial_state, residual
+from .boundary_conditions import EndSupports, check_supports
+from .constitutive import check_model, energy_function, section_response
+from .discretisation import discretise, function_spaces, unknowns
+from .external_forces import DistributedLoad, EndLoad, check_loads
+from .material import RodParameters, check_parameters, coefficients, is_zero
+
+
+class RodModel(FEModel):
+    """The 3-D rod as a SemiDiscreteProblem.
+
+    model: "evolving", "kelvin_voigt" or "hyperelastic" (constitutive.py); variant:
+    "local" or "uniform" (evolution.py); constraint: None, "unshearable" or
+    "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
+    boundary_conditions.py; end_loads, distributed_loads: external_forces.py.
+    """
+
+    def __init__(self, params: RodParameters, n_cells: int = 32, model: str = "evolving",
+                 variant: str = "local", constraint: str | None = None,
+                 ends: tuple[str, str] = ("clamped", "free"),
+                 end_loads: Sequence[EndLoad] = (),
+                 distributed_loads: Sequence[DistributedLoad] = (),
+                 end_displacement: dict | None = None, end_rotation: dict | None = None,
+                 comm: MPI.Comm = MPI.COMM_WORLD):
+        check_model(model, params)
+        check_variant(variant)
+        constraints.check_constraint(constraint)
+        check_n_cells(n_cells)
+        check_supports(ends, end_displacement, end_rotation)
+        check_parameters(params, model == "evolving", model != "hyperelastic", variant)
+        check_loads(end_loads, distributed_loads)
+        if constraint is not None and not is_zero(params.rho_A):
+            raise ValueError(f"constraint = {constraint!r} with rho_A > 0: a dynamic rod with "
+                             "constraint multipliers is an index-3 DAE, which no integrator "
+                             "here solves reliably; use a quasi-static rod (rho_A = 0) or "
+                             "stiff shear/axial B instead of the constraint")
+        self.params, self.model, self.variant, self.constraint = params, model, variant, constraint
+        self.end_loads, self.distributed_loads = list(end_loads), list(distributed_loads)
+        self.length = float(params.length)
+        self.evolving = model == "evolving"
+        self.dynamic = not is_zero(params.rho_A)
+        disc = discretise(comm, n_cells, self.length)
+        super().__init__(disc.mesh)
+        self.ds_end, self.dx, self.dx_r = disc.ds_end, disc.dx, disc.dx_r
+        self.unknowns = unk = unknowns(function_spaces(
+            disc.mesh, self.evolving, variant, constraint, self.dynamic))
+        self.names, self.f, self.r, self.t = unk.names, unk.f, unk.r, unk.t
+        self.V, self.W = unk.V, unk.W
+        self.coefficients = c = coefficients(params, disc.mesh, disc.s)
+        self.J = c["J"]
+        S_ref = fem.functionspace(disc.mesh, ("DG", 0, (3,)))   # set by the initial state
+        self.reference = (fem.Function(S_ref, name="u_ref"), fem.Function(S_ref, name="v_ref"))
+        psi_fn = energy_function(params, c, self.evolving, *self.reference)
+        resp = section_response(unk, c, psi_fn, self.evolving, constraint, self.reference)
+        self.psi, self.m, self.u, self.v = resp.psi, resp.m, resp.u, resp.v
+        self.u_d, self.v_d = resp.u_d, resp.v_d
+
+        F, self.n = residual.internal_forces(unk, resp, constraint, disc)
+        residual.gauge(F, unk, disc)
+        natural_pairs = (residual.evolution(F, unk, resp, c, variant, constraint, disc)
+                         if self.evolving else [])
+        if self.dynamic:
+            residual.inertia(F, unk, c, disc)
+        drag_dissipation = external_forces.drag(F, unk, c, params, disc)
+        residual.zero_diagonals(F, unk, disc)
+        self.loads, power = external_forces.apply_loads(F, unk, disc, self.end_loads,
+                                                        self.distributed_loads)
+        self.supports = EndSupports(self, ends, end_displacement, end_rotation)
+        self.residual = {name: F[name] for name in self.names}
+        self.problem = SemiDiscreteProblem(
+            [unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
+            list(self.residual.values()), self.loads, self.bcs, self.supports.set)
+
+        self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
+        self.set_diagnostic_forms({
+            **diagnostics.energy_forms(resp, self.xi, c, unk, disc, power, drag_dissipation),
+            **self.supports.reaction_forms(F, unk, self.length)})
+
+    def set_initial_state(self, natural_curvature=None, natural_stretch=None) -> None:
+        """Rest in the stress-free configuration of the reference strains (a straight rod
+        along e_3, or the helix/circle of constant reference_curvature), natural strains
+        equal to the discrete reference strains (uniform variant: their mean) unless given
+        (3-vectors), rates zero: no stress at t = 0."""
+        initial_state.set_initial_state(self, natural_curvature, natural_stretch)
+
+    def diagnostics(self, t: float) -> dict[str, float]:
+        """MPI-reduced scalars at time t: tip position and quaternion, tip rotation angle
+        (of the rotation path, in [0, 2 pi]), free and kinetic energy, dissipation rate
+        (incl. drag), power of the applied loads, reactions at supported ends."""
+        d = self.assembled_diagnostics(t)
+        d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
+        return d
+
+    def observables(self) -> dict:
+        """What a mechanician reads, as UFL expressions of the current state and rates:
+        centre line r = X + x (X = s e_3), directors d_i = R e_i, strains u, v, natural
+        strains u_d, v_d, reference strains u_ref, v_ref, contact force n and couple m in
+        material (``n``, ``m``) and spatial (``n_spatial`` = R n, ``m_spatial`` = R m)
+        components, dissipation rate xi (eq. disspw).  Used by the run outputs."""
+        q, x = self.f["quaternion"], self.f["displacement"]
+        s = ufl.SpatialCoordinate(self.mesh)[0]
+        R = rotation_matrix(q)
+        u_ref, v_ref = self.reference
+        n = self.n if self.n is not None else ufl.as_vector((0.0, 0.0, 0.0))
+        v_d = self.v_d if self.v_d is not None and ufl.shape(self.v_d) == (3,) else v_ref
+        out = {"centre_line": ufl.as_vector((0.0, 0.0, s)) + x}
+        out.update({f"d{i + 1}": ufl.as_vector([R[j, i] for j in range(3)]) for i in range(3)})
+        out.update({"u": self.u, "v": self.v, "u_d": self.u_d, "v_d": v_d, "u_ref": u_ref,
+                    "v_ref": v_ref, "n": n, "m": self.m, "n_spatial": ufl.dot(R, n),
+                    "m_spatial": ufl.dot(R, self.m), "xi": self.xi})
+        return out

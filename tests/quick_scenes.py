@@ -1,0 +1,39 @@
+"""Bundled scenes made cheap for the test suite: the same file with a shorter t_end and,
+if asked, fewer cells and other overrides (the test-only override of issue 14)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+from dolfin_rod.scenes import Scene, load_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def quick_scene(path: Path | str, steps: int = 4, **overrides) -> Scene:
+    """The scene at ``path`` run for ``steps`` time steps; ``overrides`` as
+    table__key=value (e.g. geometry__n_cells=8) replace keys first."""
+    dt = tomllib.loads(Path(path).read_text())["time"]["dt"]
+    changes = {"time.t_end": steps * dt, "outputs.progress": False}
+    changes.update({name.replace("__", "."): value for name, value in overrides.items()})
+    return load_scene(path, changes)
+
+
+def run_serially(path: Path | str, out: Path, steps: int = 4, **overrides) -> str:
+    """run_scene(quick_scene(...)) in a separate single-process Python (for MPI tests);
+    returns the run's status."""
+    from serial_reference import _singleton_env
+    code = ("import sys, json; sys.path.insert(0, %r); from quick_scenes import quick_scene; "
+            "from dolfin_rod.cli import run_scene; "
+            "s = run_scene(quick_scene(%r, %d, **%r), %r, quiet=True); "
+            "print(json.dumps(s['status']))" % (str(ROOT / "tests"), str(path), steps,
+                                                 overrides, str(out)))
+    proc = subprocess.run([sys.executable, "-c", code], env=_singleton_env(), cwd=ROOT,
+                          capture_output=True, text=True, timeout=600)
+    if proc.returncode != 0:
+        raise RuntimeError(f"serial run of {path} failed:\n{proc.stderr[-3000:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])

@@ -1,0 +1,734 @@
+"""Fault injection (issue 13): every way a run can go wrong ends in one clear message and
+the right exit status, never in a silent wrong result, a traceback or a hang.
+
+Each test names the issue item it reproduces.  In-process tests call ``cli.main`` /
+``run_scene`` on COMM_WORLD (the ``mpi`` ones run again under ``mpirun -n 2``, rank 0's
+tmp_path shared); the MPI hang tests start ``mpirun -n 2`` themselves with a timeout, so
+a hang fails instead of blocking the suite.
+
+Tolerances
+* resume vs the uninterrupted run: the same floating-point operations on the same data
+  (checkpoints store the doubles exactly), so 1e-12 absolute on O(1) values.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime
+import hashlib
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from dolfin_rod import output
+from dolfin_rod.cli import EnergyBound, main, run_scene
+from dolfin_rod.integrators.schemes import get_scheme
+from dolfin_rod.integrators.stepper import IntegrationError
+from dolfin_rod.output import OutputError, on_root
+from dolfin_rod.scenes import SceneError, build, load_scene, parse_scene, select_model
+
+ROOT = Path(__file__).resolve().parents[1]
+COMM = MPI.COMM_WORLD
+
+# creep under a step end torsion (quasi-static, Kelvin-Voigt): 4 cells, fast
+CREEP = """
+[scene]
+name = "creep"
+model = "torsion"
+[geometry]
+n_cells = 4
+[material]
+alpha = 2.0
+alpha_d = 1.0
+mu = 0.2
+mu_d = 0.5
+[loads]
+end_torsion = { type = "step", value = 1.0 }
+[time]
+t_end = 0.08
+dt = 0.01
+[outputs]
+plots = false
+checkpoint_every = 3
+"""
+
+# issue 13 item 2: explicit Euler on dynamic torsion, dt = 0.05 far above its limit
+DIVERGING = """
+[geometry]
+n_cells = 16
+[material]
+alpha = 2.0
+alpha_d = 1.0
+mu = 0.0
+mu_d = 0.5
+nu = 0.01
+[loads]
+end_torsion = { type = "smooth_step", value = 1.0, duration = 0.5 }
+[time]
+t_end = 2.0
+dt = 0.05
+scheme = "explicit_euler"
+[outputs]
+plots = false
+fields = false
+"""
+
+
+def shared(tmp_path: Path) -> Path:
+    """One folder for all ranks (rank 0's tmp_path)."""
+    return Path(COMM.bcast(str(tmp_path), root=0))
+
+
+def write(path: Path, text: str) -> Path:
+    if COMM.rank == 0:
+        path.write_text(text)
+    COMM.barrier()
+    return path
+
+
+def snapshot(folder: Path) -> dict[str, str]:
+    """Every file under folder with the hash of its bytes (to show nothing changed)."""
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def read_csv(path: Path) -> list[dict[str, float]]:
+    with path.open() as f:
+        return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+
+
+def run_main(capsys, *argv) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def assert_same_rows(a: list[dict], b: list[dict]) -> None:
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        for k in x:
+            if not (math.isnan(x[k]) and math.isnan(y[k])):
+                assert abs(x[k] - y[k]) <= 1e-12, (k, x, y)
+
+
+# --- item 1: resume verifies the scene, model and dofs; touches nothing on a mismatch ----
+
+
+@pytest.mark.mpi
+def test_resume_refuses_a_checkpoint_of_another_scene(tmp_path, capsys):
+    folder = shared(tmp_path)
+    scene_file = write(folder / "creep.toml", CREEP)
+    run = folder / "run"
+    code, _, _ = run_main(capsys, "run", scene_file, "--out", run, "--quiet")
+    assert code == 0
+    partial = run_scene(load_scene(scene_file), run, stop_after=5, quiet=True,
+                        overwrite=True)
+    assert partial["status"] == "stopped"
+    before = snapshot(run) if COMM.rank == 0 else None
+    changed = write(folder / "changed.toml", CREEP.replace("dt = 0.01", "dt = 0.02"))
+    code, out, err = run_main(capsys, "run", changed, "--out", run, "--resume")
+    if COMM.rank == 0:
+        assert code == 2 and out == ""
+        assert err.startswith("error: cannot resume from") and "time.dt: 0.01 in the " \
+            "checkpoint, 0.02 now" in err and "nothing was changed" in err, err
+        assert snapshot(run) == before
+    # the same physics run by another model (forced ODE): refused by the model check
+    ode = write(folder / "ode.toml", CREEP.replace('model = "torsion"', 'model = "ode"'))
+    code, _, err = run_main(capsys, "run", ode, "--out", run, "--resume")
+    assert code == 2
+    if COMM.rank == 0:
+        assert "model: 'torsion' in the checkpoint, 'ode' now" in err, err
+        assert snapshot(run) == before
+    # the matching scene resumes and equals the uninterrupted run
+    full = folder / "full"
+    assert run_scene(load_scene(scene_file), full, quiet=True)["status"] == "completed"
+    code, _, _ = run_main(capsys, "run", scene_file, "--out", run, "--resume", "--quiet")
+    assert code == 0
+    if COMM.rank == 0:
+        assert_same_rows(read_csv(full / "timeseries.csv"), read_csv(run / "timeseries.csv"))
+        assert (run / "scene.toml").read_text() == CREEP
+
+
+def test_resume_needs_a_checkpoint_and_time_left(tmp_path, capsys):
+    scene_file = write(tmp_path / "creep.toml", CREEP.replace("checkpoint_every = 3", ""))
+    run = tmp_path / "run"
+    assert run_main(capsys, "run", scene_file, "--out", run, "--quiet")[0] == 0
+    code, _, err = run_main(capsys, "run", scene_file, "--out", run, "--resume")
+    assert code == 2 and "no complete checkpoint" in err, err
+    with_cp = write(tmp_path / "cp.toml", CREEP)
+    assert run_main(capsys, "run", with_cp, "--out", run, "--overwrite", "--quiet")[0] == 0
+    shorter = write(tmp_path / "short.toml", CREEP.replace("t_end = 0.08", "t_end = 0.05"))
+    code, _, err = run_main(capsys, "run", shorter, "--out", run, "--resume")
+    assert code == 2 and "not before time.t_end = 0.05" in err, err
+
+
+# --- item 3: a crash between checkpoint files leaves the previous checkpoint ------------
+
+
+@pytest.mark.mpi
+def test_crash_between_checkpoint_files_resumes_from_the_last_complete_one(
+        tmp_path, monkeypatch):
+    folder = shared(tmp_path)
+    scene = parse_scene(CREEP, "creep.toml")
+    full = run_scene(scene, folder / "full", quiet=True)
+    calls = {"n": 0}
+    real_write = output.write_checkpoint_meta
+
+    def crash_on_second(path, meta):
+        calls["n"] += 1
+        if calls["n"] == 2:     # step 6: state.bp is written, meta.json is not
+            raise OSError(28, "No space left on device (injected)")
+        real_write(path, meta)
+    monkeypatch.setattr(output, "write_checkpoint_meta", crash_on_second)
+    crashed = run_scene(scene, folder / "run", quiet=True)
+    monkeypatch.undo()
+    assert crashed["status"] == "failed" and "No space left" in crashed["message"]
+    if COMM.rank == 0:
+        kept = sorted(p.name for p in (folder / "run" / "checkpoint").iterdir())
+        assert kept == ["step-000000003", "step-000000006.partial"]
+        assert (folder / "run" / "checkpoint" / "step-000000006.partial" / "state.bp").exists()
+    resumed = run_scene(scene, folder / "run", resume=True, quiet=True)
+    assert full["status"] == resumed["status"] == "completed"
+    if COMM.rank == 0:
+        assert_same_rows(read_csv(folder / "full" / "timeseries.csv"),
+                         read_csv(folder / "run" / "timeseries.csv"))
+        kept = sorted(p.name for p in (folder / "run" / "checkpoint").iterdir())
+        assert kept == ["step-000000006"]
+
+
+# --- item 5: unique run folders; a non-empty --out is never reused silently --------------
+
+
+def test_run_folders_started_in_the_same_second_differ(tmp_path, monkeypatch):
+    class Frozen(datetime.datetime):
+        @classmethod
+        def now(cls, tz=None):
+            return cls(2026, 1, 1, 12, 0, 0)
+    monkeypatch.setattr(output.datetime, "datetime", Frozen)
+    made = [output.new_run_folder(tmp_path, "x") for _ in range(3)]
+    assert [p.name for p in made] == ["x-20260101-120000", "x-20260101-120000-2",
+                                      "x-20260101-120000-3"]
+    assert all(p.is_dir() for p in made)
+
+
+def test_non_empty_out_needs_resume_or_overwrite(tmp_path, capsys):
+    scene_file = write(tmp_path / "creep.toml", CREEP.replace("checkpoint_every = 3", ""))
+    run = tmp_path / "run"
+    assert run_main(capsys, "run", scene_file, "--out", run, "--quiet")[0] == 0
+    before = snapshot(run)
+    code, _, err = run_main(capsys, "run", scene_file, "--out", run)
+    assert code == 2 and "is not empty: pass --resume" in err and snapshot(run) == before
+    (run / "stale.txt").write_text("old")
+    assert run_main(capsys, "run", scene_file, "--out", run, "--overwrite", "--quiet")[0] == 0
+    assert not (run / "stale.txt").exists() and (run / "summary.json").exists()
+    other = tmp_path / "notes"
+    other.mkdir()
+    (other / "thesis.tex").write_text("precious")
+    code, _, err = run_main(capsys, "run", scene_file, "--out", other, "--overwrite")
+    assert code == 2 and "not a dolfin-rod run folder" in err
+    assert (other / "thesis.tex").read_text() == "precious"
+
+
+# --- items 7, 8: output-path mistakes: check finds them, run exits 2, every rank ---------
+
+
+def _read_only_dir(tmp_path: Path) -> Path | None:
+    """A folder where mkdir fails: chmod 555 for a normal user; for root (containers)
+    a read-only mount such as /sys."""
+    if os.geteuid() != 0:
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o555)
+        return ro
+    for candidate in (Path("/sys"), Path("/proc/sys")):
+        try:
+            (candidate / "dolfin-rod-probe").mkdir()
+        except OSError:
+            return candidate
+        (candidate / "dolfin-rod-probe").rmdir()
+    return None
+
+
+PATH_MISTAKES = {
+    "directory is a file": ("directory", "{file}/sub", "is a file"),
+    "read-only location": ("directory", "{ro}/results", "cannot create folders in"),
+    "--out an existing file": ("out", "{file}", "exists and is not a folder"),
+    "5000-character name": ("out", "{tmp}/" + "x" * 5000, "paths are limited to 4095"),
+    "300-byte component": ("out", "{tmp}/" + "y" * 300, "file systems allow 255"),
+    "NUL in outputs.directory": ("directory", "a\\u0000b", "NUL"),
+}
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("case", list(PATH_MISTAKES))
+def test_output_path_mistakes_are_found_by_check_and_exit_2_in_run(tmp_path, capsys, case):
+    folder = shared(tmp_path)
+    where, template, reason = PATH_MISTAKES[case]
+    ro = _read_only_dir(folder) if "{ro}" in template else None
+    if "{ro}" in template and ro is None:
+        pytest.skip("no read-only location on this machine")
+    file = write(folder / "a-file", "not a folder")
+    path = template.format(file=file, tmp=folder, ro=ro)
+    text = CREEP.replace("checkpoint_every = 3", "")
+    args = []
+    if where == "directory":
+        text = text.replace("[outputs]", f'[outputs]\ndirectory = "{path}"')
+    else:
+        args = ["--out", path]
+    scene_file = write(folder / "scene.toml", text)
+    for command in ("check", "run"):
+        code, out, err = run_main(capsys, command, scene_file, *args)
+        assert code == 2, (command, out, err)
+        if COMM.rank == 0:
+            assert err.startswith("error: ") and reason in err and err.count("\n") == 1, err
+            assert "Traceback" not in err and "completed" not in out
+
+
+MPI_TIMEOUT = 120   # s: mpirun start-up and two runs of a 4-cell model take ~10 s
+
+
+def _mpirun(*args: str) -> subprocess.CompletedProcess:
+    """``mpirun -n 2 python3 ARGS`` with a timeout: a hang fails the test."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    for k in list(env):
+        if k.startswith(("OMPI_COMM_WORLD", "PMIX_", "OMPI_MCA_ess", "PMI_")):
+            env.pop(k)     # a test run under mpirun itself starts a fresh job
+    cmd = [shutil.which("mpirun") or "mpirun", "-n", "2", sys.executable, *args]
+    try:
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=MPI_TIMEOUT,
+                              cwd=ROOT, env=env)
+    except subprocess.TimeoutExpired as err:
+        pytest.fail(f"mpirun -n 2 hung for {MPI_TIMEOUT} s: {err.stderr}")
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own mpirun -n 2")
+def test_rank0_only_folder_error_under_mpirun_exits_2_without_hang(tmp_path):
+    """Item 7 as reported: outputs.directory under a file fails on rank 0 (the only rank
+    touching files); rank 1 used to wait in a barrier for ever."""
+    (tmp_path / "a-file").write_text("x")
+    scene = tmp_path / "scene.toml"
+    scene.write_text(CREEP.replace("[outputs]", f'[outputs]\ndirectory = "{tmp_path}/a-file/r"'))
+    out = _mpirun("-m", "dolfin_rod", "run", str(scene))
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert out.stderr.count("error: ") == 1 and "is a file" in out.stderr, out.stderr
+
+
+INJECT_RANK1 = """
+import sys
+from mpi4py import MPI
+from dolfin_rod.scenes import models
+original = models.FESimulation.diagnostics
+def failing(self, t):
+    if MPI.COMM_WORLD.rank == 1 and t > 0.025:
+        raise RuntimeError("injected fault on rank 1")
+    return original(self, t)
+models.FESimulation.diagnostics = failing
+from dolfin_rod.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own mpirun -n 2")
+def test_unexpected_error_on_one_rank_ends_the_whole_run(tmp_path):
+    """Item 7: an unexpected exception on rank 1 only (rank 0 is then in a collective
+    call) ends both ranks via MPI_Abort with that rank's traceback."""
+    scene = tmp_path / "scene.toml"
+    scene.write_text(CREEP)
+    out = _mpirun("-c", INJECT_RANK1, "run", str(scene), "--out", str(tmp_path / "run"))
+    assert out.returncode != 0
+    assert "rank 1: Traceback" in out.stderr and "injected fault on rank 1" in out.stderr
+    assert "completed" not in out.stdout
+
+
+@pytest.mark.mpi
+def test_on_root_raises_a_rank0_error_on_every_rank(tmp_path):
+    def fail_on_root():
+        raise PermissionError(13, "Permission denied")
+    with pytest.raises(OutputError, match="cannot write x: Permission denied"):
+        on_root(COMM, fail_on_root, "cannot write x")
+    assert on_root(COMM, lambda: 41 + 1, "unused") == 42
+
+
+# --- item 10: the scene name is a folder name -------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["../x", "sub/dir", "", ".hidden", "a b", "x" * 101])
+def test_scene_name_that_is_not_a_folder_name_is_refused(name):
+    with pytest.raises(SceneError) as info:
+        parse_scene(CREEP.replace('name = "creep"', f"name = {json.dumps(name)}"), "s.toml")
+    assert info.value.key == "scene.name", str(info.value)
+
+
+def test_default_name_from_an_awkward_file_name_is_sanitised(tmp_path):
+    path = tmp_path / "my scene (v2).toml"
+    path.write_text(CREEP.replace('name = "creep"\n', ""))
+    assert load_scene(path).name == "my_scene__v2_"
+
+
+# --- items 2, 11, 12: divergence and solver failure: honest status, stderr, exit 3 ------
+
+
+@pytest.mark.mpi
+def test_divergence_stops_with_exit_3_keeps_rows_and_reports_on_stderr(tmp_path, capsys):
+    folder = shared(tmp_path)
+    scene_file = write(folder / "div.toml", DIVERGING)
+    code, out, err = run_main(capsys, "run", scene_file, "--out", folder / "run", "--quiet")
+    assert code == 3
+    if COMM.rank == 0:
+        warning, failure = err.strip().splitlines()
+        assert out == "" and warning.startswith("warning: ") and "unstable" in warning
+        assert failure.startswith("failed: t = ") and "diverged" in failure, err
+        rows = read_csv(folder / "run" / "timeseries.csv")
+        summary = json.loads((folder / "run" / "summary.json").read_text())
+        assert summary["status"] == "failed" and "diverged" in summary["message"]
+        assert summary["t_end_reached"] == rows[-1]["time"] < 2.0
+        assert len(rows) == summary["steps"] + 1 >= 2
+        assert all(math.isfinite(v) for r in rows for k, v in r.items()
+                   if k != "power_residual")
+
+
+@pytest.mark.parametrize("model, mu", [("ode", 0.2), ("ode", 0.0), ("torsion", 0.2)])
+def test_overflowing_load_is_a_failure_not_a_completed_run(tmp_path, capsys, model, mu):
+    """Item 2: an end torsion of 1e308 gave all-NaN rows and "completed" (mu = 0: the
+    state at t = 0+ already overflows)."""
+    text = CREEP.replace("value = 1.0", "value = 1e308").replace(
+        'model = "torsion"', f'model = "{model}"').replace("checkpoint_every = 3", "").replace(
+        "mu = 0.2", f"mu = {mu}")
+    scene_file = write(tmp_path / "big.toml", text)
+    code, _, err = run_main(capsys, "run", scene_file, "--out", tmp_path / "run", "--quiet")
+    assert code == 3 and "failed" in err, err
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["status"] == "failed"
+
+
+def test_energy_bound_accepts_dissipative_decay_and_flags_growth():
+    """The bound itself, on hand-made diagnostics: a state that loses energy without
+    load power passes; one that gains 1e3 x its supply without work is flagged."""
+    row = {"time": 0.0, "free_energy": 1.0, "kinetic_energy": 0.0, "load_power": 0.0}
+    bound = EnergyBound(row)
+    bound.check({**row, "time": 0.1, "free_energy": 0.5})
+    bound.check({**row, "time": 0.2, "free_energy": 999.0})   # below FACTOR x supply
+    with pytest.raises(IntegrationError, match="diverged") as info:
+        bound.check({**row, "time": 0.3, "free_energy": 1001.0})
+    assert info.value.t == 0.2
+    with pytest.raises(IntegrationError, match="end_rotation = nan"):
+        bound.check({**row, "time": 0.3, "end_rotation": float("nan")})
+
+
+def test_ts_failure_reports_the_real_time_and_counts(tmp_path):
+    """Item 11: TS failing at t = 0.5 was summarised as "failed: t = 0", 0 rejected."""
+    scene = parse_scene(CREEP.replace("checkpoint_every = 3", "fields = false").replace(
+        "[time]", '[time]\nintegrator = "ts"').replace(
+        "value = 1.0", "value = 1e300, t0 = 0.5").replace("t_end = 0.08", "t_end = 1.0")
+        .replace("dt = 0.01", "dt = 0.1"), "ts.toml")
+    summary = run_scene(scene, tmp_path / "run", quiet=True)
+    rows = read_csv(tmp_path / "run" / "timeseries.csv")
+    assert summary["status"] == "failed"
+    assert 0.4 < summary["t_end_reached"] == rows[-1]["time"] <= 0.5
+    assert summary["rejected_steps"] > 0 and summary["steps"] == len(rows) - 1
+
+
+# --- item 13: the ODE output lookup ------------------------------------------------------
+
+
+def test_ode_output_lookup_finds_every_output_time_and_refuses_others():
+    scene = parse_scene(CREEP.replace('model = "torsion"', 'model = "ode"').replace(
+        "t_end = 0.08", "t_end = 0.085"), "ode.toml")
+    sim = build(scene, "ode")
+    sim.start()
+    assert len(sim.times) == 10 and sim.times[-1] == 0.085   # last step truncated
+    assert [sim._index(t) for t in sim.times] == list(range(10))
+    with pytest.raises(ValueError, match="not an output time"):
+        sim._index(0.015)
+
+
+# --- item 14: the smaller items ----------------------------------------------------------
+
+
+def test_couple_profile_may_change_sign_and_reach_zero():
+    text = CREEP.replace("[loads]", "[loads]\ndistributed_couple = { profile = "
+                         "{polynomial = [1.0, -1.0]}, history = { type = \"constant\", "
+                         "value = 1.0 } }").replace('end_torsion = { type = "step", '
+                                                    'value = 1.0 }', "")
+    scene = parse_scene(text, "couple.toml")
+    profile = scene["loads"]["distributed_couple"]["profile"]
+    assert profile.polynomial == (1.0, -1.0) and profile(0.25) == 0.75
+    assert select_model(scene).model == "torsion"
+
+
+def test_checkpoints_with_petsc_ts_are_refused_at_check():
+    with pytest.raises(SceneError) as info:
+        parse_scene(CREEP.replace("[time]", '[time]\nintegrator = "ts"'), "ts.toml")
+    assert info.value.key == "outputs.checkpoint_every"
+
+
+def test_ode_model_refuses_time_keys_it_would_ignore():
+    ode = CREEP.replace('model = "torsion"', 'model = "auto"').replace(
+        "checkpoint_every = 3", "")
+    with pytest.raises(SceneError) as info:
+        select_model(parse_scene(ode.replace("[time]", '[time]\nintegrator = "ts"'), "s"))
+    assert info.value.key == "time.integrator"
+    with pytest.raises(SceneError) as info:
+        select_model(parse_scene(ode.replace(
+            "[time]", '[time]\nscheme = "bdf2"\node_solution = "exact"'), "s"))
+    assert info.value.key == "time.scheme"
+    choice = select_model(parse_scene(ode.replace("[time]", '[time]\nscheme = "bdf2"'), "s"))
+    assert choice.model == "ode" and "time.scheme = 'bdf2' is not used" in choice.reason
+
+
+@pytest.mark.parametrize("name", ["generalized_alpha:abc", "generalized_alpha:2",
+                                  "generalized_alphax", "generalized_alpha:nan"])
+def test_bad_generalized_alpha_parameter_is_a_clear_error(name):
+    with pytest.raises(ValueError, match="rho_inf = RHO a number in"):
+        get_scheme(name)
+    with pytest.raises(SceneError) as info:
+        parse_scene(CREEP.replace("[time]", f'[time]\nscheme = "{name}"'), "s.toml")
+    assert info.value.key == "time.scheme" and "generalized_alpha:RHO" in info.value.reason
+
+
+def test_utf8_byte_order_mark_is_accepted(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + CREEP.encode())
+    assert load_scene(path).name == "creep"
+
+
+def test_version(capsys):
+    from dolfin_rod import __version__
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"dolfin-rod {__version__}"
+
+
+# --- interrupt paths ---------------------------------------------------------------------
+
+
+def _start(*args: str) -> subprocess.Popen:
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    return subprocess.Popen([sys.executable, "-m", "dolfin_rod", *args], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for(condition, what: str, timeout: float = 60.0) -> None:
+    import time
+    deadline = time.time() + timeout
+    while not condition():
+        if time.time() > deadline:
+            pytest.fail(f"timed out waiting for {what}")
+        time.sleep(0.05)
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="signals one process")
+def test_sigkill_mid_run_then_resume_equals_the_uninterrupted_run(tmp_path):
+    """kill -9 at an arbitrary moment (possibly inside a checkpoint): --resume continues
+    from the last complete checkpoint; extended to a few steps past it, it equals a run
+    made in one go (t_end is not part of the checkpoint's fingerprint)."""
+    import signal
+    long = write(tmp_path / "long.toml", CREEP.replace("t_end = 0.08", "t_end = 1000.0")
+                 .replace("checkpoint_every = 3", "checkpoint_every = 7\nfields = false"))
+    run = tmp_path / "run"
+    proc = _start("run", str(long), "--out", str(run), "--quiet")
+    root = run / "checkpoint"
+    _wait_for(lambda: root.is_dir() and len(list(root.glob("step-*[0-9]"))) > 0
+              and (run / "timeseries.csv").read_text().count("\n") > 40, "checkpoints")
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate(timeout=60)
+    step = max(int(p.name.split("-")[1]) for p in root.glob("step-*[0-9]")
+               if (p / "meta.json").exists())
+    t_end = (step + 4) * 0.01
+    text = CREEP.replace("t_end = 0.08", f"t_end = {t_end!r}").replace(
+        "checkpoint_every = 3", "checkpoint_every = 7\nfields = false")
+    short = write(tmp_path / "short.toml", text)
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    cmd = [sys.executable, "-m", "dolfin_rod", "run", str(short), "--quiet", "--out"]
+    resumed = subprocess.run([*cmd, str(run), "--resume"], capture_output=True, text=True,
+                             timeout=120, cwd=ROOT, env=env)
+    assert resumed.returncode == 0, resumed.stderr
+    full = subprocess.run([*cmd, str(tmp_path / "full")], capture_output=True, text=True,
+                          timeout=120, cwd=ROOT, env=env)
+    assert full.returncode == 0, full.stderr
+    a, b = read_csv(tmp_path / "full" / "timeseries.csv"), read_csv(run / "timeseries.csv")
+    assert len(a) == step + 5
+    assert_same_rows(a, b)
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="signals one process")
+def test_ctrl_c_during_start_up_is_a_clean_interruption(tmp_path):
+    """SIGINT after the scene is read, while the model is built: exit 130, one line."""
+    import signal
+    scene = write(tmp_path / "s.toml", CREEP.replace("n_cells = 4", "n_cells = 5"))
+    proc = _start("run", str(scene), "--out", str(tmp_path / "run"))
+    line = proc.stdout.readline()           # "model: ..." is printed before the build
+    assert line.startswith("model: torsion"), line
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted"), err
+
+
+# --- item 6: Crank-Nicolson and implicit midpoint after a step load ----------------------
+
+A, AD, MU, MUD = 2.0, 1.0, 0.2, 0.5      # Kelvin-Voigt (mu > 0) torsion, as CREEP
+
+
+def _exact_diagnostics(kind: str, t: np.ndarray) -> dict[str, np.ndarray]:
+    """Closed forms (closed_forms.creep / relaxation, homogeneous twist) of the rates and
+    of everything built from them: u' and u_d' from eqs. twist, nattwist; dissipation
+    mu u'^2 + mu_d u_d'^2 (eq. disspw, homogeneous); load power m u'; torsion m."""
+    from dolfin_rod import closed_forms
+    if kind == "creep":
+        u, ud = closed_forms.creep(t, 1.0, A, AD, MU, MUD)
+        m = np.ones_like(t)
+        u_t = (m - A * (u - ud)) / MU
+    else:      # relaxation: u = 0.5 for t > 0, so u' = 0 and m = alpha (u - u_d)
+        ud, m = closed_forms.relaxation(t, 0.5, A, AD, MUD)
+        u, u_t = np.full_like(t, 0.5), np.zeros_like(t)
+    ud_t = (A * u - (A + AD) * ud) / MUD
+    return {"dissipation_rate": MU * u_t ** 2 + MUD * ud_t ** 2, "load_power": m * u_t,
+            "end_torsion": m}
+
+
+def _pde_diagnostics(kind: str, scheme: str, dt: float) -> list[dict]:
+    text = CREEP.replace("checkpoint_every = 3", "").replace("t_end = 0.08", "t_end = 0.4")
+    text = text.replace("dt = 0.01", f"dt = {dt}").replace("[time]",
+                                                          f'[time]\nscheme = "{scheme}"')
+    if kind == "relaxation":
+        text = text.replace('end_torsion = { type = "step", value = 1.0 }', "").replace(
+            "[loads]", '[boundary]\nend = "rotation"\nend_rotation = { type = "step", '
+            'value = 0.5 }\n[loads]')
+    scene = parse_scene(text, f"{kind}.toml")
+    sim = build(scene, "torsion")
+    sim.start()
+    n = round(0.4 / dt)
+    rows = [sim.diagnostics(0.0)]
+    for k in range(1, n + 1):
+        sim.advance((k - 1) * dt, k * dt)
+        rows.append(sim.diagnostics(k * dt))
+    return rows
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("scheme", ["crank_nicolson", "implicit_midpoint"])
+@pytest.mark.parametrize("kind", ["creep", "relaxation"])
+def test_second_order_schemes_give_consistent_rates_after_a_step_load(kind, scheme):
+    """The rates (hence dissipation, load power, the mu > 0 reaction torsion and the
+    power residual) converge at second order from the second step on; they used to
+    carry (-1)^n times the unknown 0+ rate for ever (O(1), not converging).
+    Criterion: observed order of the max error over t in [2 dt_coarse, 0.4] between
+    dt = 0.02 and 0.01 >= 1.8 (design order 2, minus 0.2 for the pre-asymptotic
+    regime: the fastest rate 9.1 gives |lambda dt| <= 0.18), and the power residual
+    d/dt(K + Psi) + D - P (trapezoidal) of the same order."""
+    from dolfin_rod.output import PowerBalance
+    errors, residuals = {}, []
+    for dt in (0.02, 0.01):
+        rows = _pde_diagnostics(kind, scheme, dt)
+        t = np.array([r["time"] for r in rows])
+        keep = t >= 0.04 - 1e-12
+        exact = _exact_diagnostics(kind, t)
+        for key, ref in exact.items():
+            got = np.array([r[key] for r in rows])
+            errors.setdefault(key, []).append(np.max(np.abs(got - ref)[keep]))
+        balance = PowerBalance()
+        res = np.array([balance.update(r)[1] for r in rows])
+        residuals.append(np.max(np.abs(res[keep])))
+    for key, (coarse, fine) in errors.items():
+        if coarse < 1e-10:        # exact for both steps (relaxation: m u' = 0)
+            continue
+        assert np.log2(coarse / fine) > 1.8, (key, coarse, fine)
+    assert np.log2(residuals[0] / residuals[1]) > 1.8, residuals
+
+
+# --- item 2: the warning before an explicit run above its stability limit ---------------
+
+
+# docs/stability.md (a), "dt_c theory (rho(G) = 1)": bisection on the spectral radius of
+# the assembled step matrix (demos/stability_study.py), an independent computation;
+# nu = alpha = alpha_d = 1, mu = 0.05, mu_d = 1e8, Dirichlet ends, P1.  The table has 7
+# significant digits: relative tolerance 1e-6.
+STABILITY_TABLE = {4: 0.05, 8: 0.05, 16: 0.01594088, 32: 0.003393967, 64: 0.0008220307}
+
+
+@pytest.mark.parametrize("n", list(STABILITY_TABLE))
+def test_explicit_euler_limit_is_the_measured_one(n):
+    from dolfin_rod.scenes.stability import explicit_euler_limit
+    scene = parse_scene(f"""
+[geometry]
+n_cells = {n}
+[material]
+alpha = 1.0
+alpha_d = 1.0
+mu = 0.05
+mu_d = 1e8
+nu = 1.0
+[boundary]
+end = "rotation"
+end_rotation = {{ type = "smooth_step", value = 0.1, duration = 0.5 }}
+[time]
+t_end = 1.0
+dt = 0.01
+scheme = "explicit_euler"
+""", "stab.toml")
+    assert explicit_euler_limit(scene) == pytest.approx(STABILITY_TABLE[n], rel=1e-6)
+
+
+def test_check_and_run_warn_before_an_unstable_explicit_run(tmp_path, capsys):
+    scene_file = write(tmp_path / "div.toml", DIVERGING)
+    code, _, err = run_main(capsys, "check", scene_file)
+    assert code == 0 and "warning: " in err and "unstable at every dt" in err, err
+    damped = write(tmp_path / "damped.toml", DIVERGING.replace("mu = 0.0", "mu = 0.05"))
+    code, _, err = run_main(capsys, "check", damped)
+    assert code == 0 and "is above the stability limit" in err, err
+    # nu = 1: kappa_max = 3.1e3, underdamped (a^2 = 2.4e4 < 4b = 2.5e4): limit mu/alpha
+    stable = write(tmp_path / "stable.toml", DIVERGING.replace("mu = 0.0", "mu = 0.05")
+                   .replace("nu = 0.01", "nu = 1.0").replace("dt = 0.05", "dt = 0.02")
+                   .replace("t_end = 2.0", "t_end = 0.2"))
+    code, out, err = run_main(capsys, "run", stable, "--out", tmp_path / "run")
+    assert code == 0 and "warning" not in err and "completed" in out, err
+
+
+# --- rod correctness flags (items 15, 17, 18) ---------------------------------------------
+
+
+@pytest.mark.parametrize("kwargs, params, match", [
+    ({}, {"I11": 0.01}, "I11 > 0 needs rho_A > 0"),                     # item 15
+    ({}, {"I22": 0.01}, "I22 > 0 needs rho_A > 0"),
+    ({"constraint": "unshearable"}, {"rho_A": 1.0, "I11": 0.01, "I22": 0.01},
+     "index-3 DAE"),                                                     # item 17
+    ({"constraint": "inextensible_unshearable"}, {"rho_A": 1.0}, "index-3 DAE"),
+])
+def test_rod_inputs_that_would_be_silently_wrong_are_refused(kwargs, params, match):
+    from dolfin_rod.rod import RodModel, RodParameters
+    with pytest.raises(ValueError, match=match):
+        RodModel(RodParameters(**params), n_cells=2, **kwargs)
+
+
+def test_dynamic_constrained_rod_scene_is_refused_at_check():
+    """Item 17 through a scene: one SceneError naming the model's reason."""
+    text = (ROOT / "scenes" / "cantilever_creep.toml").read_text().replace(
+        'variant = "local"', 'variant = "local"\ndensity = 1.0\nsection_inertia = 0.01\n'
+        'constraints = "unshearable"')
+    scene = parse_scene(text, "dyn.toml")
+    with pytest.raises(SceneError, match="index-3 DAE"):
+        build(scene, select_model(scene).model)
+
+
+@pytest.mark.mpi
+def test_uniform_variant_with_reference_curvature_starts_unstressed():
+    """Item 18: the uniform natural curvature starts at the mean of the discrete reference
+    strains, which on a uniform mesh equal each other (a helix of constant curvature):
+    the initial free energy is round-off (was 4e-7, the O(h^2) gap between the discrete
+    strain 4 tan(h|u0|/4)/h and the continuum u0)."""
+    from dolfin_rod.rod import RodModel, RodParameters
+    for variant in ("local", "uniform"):
+        model = RodModel(RodParameters(reference_curvature=(0.8, 0.3, 0.5)), n_cells=8,
+                         variant=variant)
+        model.set_initial_state()
+        assert model.diagnostics(0.0)["free_energy"] < 1e-25, variant
