@@ -16,10 +16,16 @@ import ufl
 CONSTRAINTS = (None, "unshearable", "inextensible_unshearable")
 
 
-def check_constraint(name):
+def check_constraint(name, dynamic: bool = False):
+    """The constraint's name; ValueError if unknown, or if given for a dynamic rod."""
     if name not in CONSTRAINTS:
         raise ValueError(f"unknown constraint '{name}' (known: unshearable, "
                          "inextensible_unshearable, or None)")
+    if name is not None and dynamic:
+        raise ValueError(f"constraint = {name!r} with rho_A > 0: a dynamic rod with "
+                         "constraint multipliers is an index-3 DAE, which no integrator "
+                         "here solves reliably; use a quasi-static rod (rho_A = 0) or "
+                         "stiff shear/axial B instead of the constraint")
     return name
 
 

@@ -6,6 +6,8 @@ Uniform (eq. unatevolunif/vnatevolunif): M_d du_d/dt = -int_0^L dpsi/du_d ds.
 Both are the same weak form int (M_d/|I| du_d/dt + dpsi/du_d) . zeta ds: with zeta in a
 discontinuous space (|I| = 1, the local law holds cell by cell) or in a real space
 (zeta constant, |I| = L, the integral law), so the two variants share one residual.
+Units: the uniform law's M_d carries one more length factor than the local one
+(docs/rod.md); for L != 1 the same numbers relax L times faster in the uniform variant.
 """
 
 from __future__ import annotations

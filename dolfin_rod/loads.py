@@ -9,7 +9,6 @@ regularisations ``u_n``, ``m_n`` that the paper uses to define it.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
@@ -70,12 +69,23 @@ class PiecewiseSmoothLoad:
     """A load history given by its right-continuous values and its list of jumps.
 
     ``values`` maps a float array of times to an array of the same shape; ``jumps`` holds
-    the pairs ``(time, f(time+) - f(time-))``. Build one with the constructors below.
+    the pairs ``(time, f(time+) - f(time-))``; ``slopes`` (if known) maps times to the
+    right derivative f'(t+) (0 at a jump: its impulse is not a rate). Build one with the
+    constructors below.
     """
 
     values: Callable[[NDArray[np.float64]], NDArray[np.float64]]
     jumps: tuple[tuple[float, float], ...] = ()
     description: str = "load history"
+    slopes: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None
+
+    def derivative(self, t: ArrayLike) -> FloatOrArray:
+        """The right derivative f'(t+), analytic (``slopes``) or by central differences."""
+        if self.slopes is None:
+            return central_difference(self, t)
+        times = _times(t)
+        out = np.broadcast_to(np.asarray(self.slopes(times), dtype=float), times.shape).copy()
+        return float(out) if out.ndim == 0 else out
 
     def __call__(self, t: ArrayLike) -> FloatOrArray:
         times = _times(t)
@@ -104,8 +114,15 @@ class PiecewiseSmoothLoad:
 
 def rate(motion: Callable, t: float):
     """d/dt of a load history or a prescribed motion t -> value (float or array), the one
-    rate rule of every model: central differences, h = 1e-6 max(1, |t|) (truncation
-    O(h^2) ~ 1e-12, round-off eps/h ~ 1e-10 relative)."""
+    rate rule of every model: the history's own ``derivative`` where it has one (the
+    constructors below), else central differences."""
+    derivative = getattr(motion, "derivative", None)
+    return derivative(t) if derivative is not None else central_difference(motion, t)
+
+
+def central_difference(motion: Callable, t: float):
+    """(f(t + h) - f(t - h))/(2h), h = 1e-6 max(1, |t|) (truncation O(h^2) ~ 1e-12,
+    round-off eps/h ~ 1e-10 relative)."""
     h = 1e-6 * max(1.0, abs(t))
     return (np.asarray(motion(t + h), float) - np.asarray(motion(t - h), float)) / (2 * h)
 
@@ -118,21 +135,24 @@ def jump_at(history: LoadHistory, t: ArrayLike) -> FloatOrArray:
 def constant(v: float) -> PiecewiseSmoothLoad:
     """The constant history ``f(t) = v`` for all t (also before t = 0: no jump)."""
     v = _finite("v", v)
-    return PiecewiseSmoothLoad(lambda t: np.full_like(t, v), (), f"constant {v}")
+    return PiecewiseSmoothLoad(lambda t: np.full_like(t, v), (), f"constant {v}",
+                               np.zeros_like)
 
 
 def step(v: float, t0: float = 0.0) -> PiecewiseSmoothLoad:
     """The idealised step ``f(t) = v H(t - t0)`` with H(0) = 1 (a jump v at t0)."""
     v = _finite("v", v)
     t0 = _finite("t0", t0)
-    return PiecewiseSmoothLoad(lambda t: np.where(t >= t0, v, 0.0), ((t0, v),) if v != 0.0 else (), f"step {v} at t = {t0}")
+    return PiecewiseSmoothLoad(lambda t: np.where(t >= t0, v, 0.0), ((t0, v),) if v != 0.0 else (), f"step {v} at t = {t0}",
+                               np.zeros_like)
 
 
 def ramp(v: float, t_ramp: float) -> PiecewiseSmoothLoad:
     """The linear ramp: 0 for t < 0, ``v t / t_ramp`` on [0, t_ramp], v afterwards (continuous)."""
     v = _finite("v", v)
     t_ramp = _positive("t_ramp", t_ramp)
-    return PiecewiseSmoothLoad(lambda t: v * np.clip(t / t_ramp, 0.0, 1.0), (), f"ramp to {v} over {t_ramp}")
+    return PiecewiseSmoothLoad(lambda t: v * np.clip(t / t_ramp, 0.0, 1.0), (), f"ramp to {v} over {t_ramp}",
+                               lambda t: np.where((t >= 0.0) & (t < t_ramp), v / t_ramp, 0.0))
 
 
 def smooth_step(v: float, width: float) -> PiecewiseSmoothLoad:
@@ -149,7 +169,11 @@ def smooth_step(v: float, width: float) -> PiecewiseSmoothLoad:
         x = np.clip(t / width, 0.0, 1.0)
         return v * x * x * (3.0 - 2.0 * x)
 
-    return PiecewiseSmoothLoad(values, (), f"smooth step to {v} over {width}")
+    def slopes(t: NDArray[np.float64]) -> NDArray[np.float64]:
+        x = np.clip(t / width, 0.0, 1.0)
+        return v * 6.0 * x * (1.0 - x) / width
+
+    return PiecewiseSmoothLoad(values, (), f"smooth step to {v} over {width}", slopes)
 
 
 def table(times: ArrayLike, values: ArrayLike) -> PiecewiseSmoothLoad:
@@ -166,7 +190,16 @@ def table(times: ArrayLike, values: ArrayLike) -> PiecewiseSmoothLoad:
         raise ValueError("load table times and values must be finite")
     if np.any(np.diff(knots) <= 0.0):
         raise ValueError("load table times must be strictly increasing")
-    return PiecewiseSmoothLoad(lambda t: np.interp(t, knots, heights), (), f"table of {knots.size} points")
+    def slopes(t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Slope of the segment starting at or before t (right derivative), 0 outside."""
+        if knots.size == 1:
+            return np.zeros_like(t)
+        k = np.clip(np.searchsorted(knots, t, side="right") - 1, 0, knots.size - 2)
+        slope = np.diff(heights)[k] / np.diff(knots)[k]
+        return np.where((t >= knots[0]) & (t < knots[-1]), slope, 0.0)
+
+    return PiecewiseSmoothLoad(lambda t: np.interp(t, knots, heights), (), f"table of {knots.size} points",
+                               slopes)
 
 
 def from_callable(f: Callable[[float], float], jumps: Mapping[float, float] | None = None) -> PiecewiseSmoothLoad:

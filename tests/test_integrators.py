@@ -112,6 +112,25 @@ def test_ts_matches_time_stepper():
 
 
 @pytest.mark.mpi
+def test_both_integrators_clip_the_final_step_alike():
+    """dt = 0.3 on [0, 1]: both integrators step 0.3, 0.6, 0.9 and clip the last step to
+    0.1 (integrators/stepping.py), ending at t = 1; backward Euler either way,
+    so the states agree to the Newton tolerance (1e-10 relative, solvers.py)."""
+    results = []
+    for kind in ("step", "ts"):
+        model = TorsionModel(TorsionParameters(ALPHA, ALPHA_D, 0.5, MU_D), n_cells=4,
+                             end_torsion=loads.step(1.0))
+        model.set_initial_state()
+        times = []
+        t = make_integrator(model.problem, kind, "backward_euler").run(
+            0.0, 1.0, 0.3, observer=lambda t, _: times.append(t))
+        assert abs(t - 1.0) <= 1e-14 and times[-1] == t, (kind, times)   # round-off only
+        assert np.allclose(times, [0.0, 0.3, 0.6, 0.9, 1.0], rtol=0, atol=1e-14), (kind, times)
+        results.append(model.diagnostics(1.0)["end_rotation"])
+    assert abs(results[0] - results[1]) < 1e-9 * abs(results[0])
+
+
+@pytest.mark.mpi
 def test_ts_bdf_adaptive_reaches_tolerance():
     """TS BDF(3) with error control (rtol = atol = tol) on creep over [0, 3], every step checked.
 

@@ -386,6 +386,8 @@ plots = false
 """
 
 ROD_BAD = [
+    (ROD_BASE.replace("[material]", '[material]\nconstraints = "unshearable"\ndensity = 1.0\n'
+                      'section_inertia = 0.01'), "material.constraints", "index-3 DAE"),
     (ROD_BASE + "[loads]\nend_torsion = { type = \"step\", value = 1.0 }\n", "loads.end_torsion",
      "torsion model only"),
     (ROD_BASE.replace("[material]", '[material]\nmodel = "hyperelastic"'),
@@ -510,15 +512,16 @@ def test_rod_keys_reach_the_model():
         "[initial]\nnatural_curvature = [0.1, 0.0, 0.0]\n[solver]\npreset = \"jacobian_reuse\"\n"
         "options = { snes_max_it = 40 }\n",
         material__section_inertia=[0.01, 0.02], material__density={"polynomial": [1.0, 1.0]},
-        material__drag=0.3, material__constraints="unshearable",
-        geometry__reference_stretch=[0.0, 0.0, 1.1])
+        material__drag=0.3, geometry__reference_stretch=[0.0, 0.0, 1.1])
     scene["material"]["stiffness"]["A"] = validate(  # a full, s-dependent tensor
         {"time": {"t_end": 1.0, "dt": 0.5}, "material": {"stiffness": {"A": {"polynomial": [
             [[2.0, 0.5, 0.0], [0.5, 2.0, 0.0], [0.0, 0.0, 1.0]], [1.0, 1.0, 1.0]]}, "B": [
             1.0, 1.0, 1.0]}, "model": "hyperelastic"}}, "t").data["material"]["stiffness"]["A"]
     sim = build(scene, "rod")
     model, p = sim.model, sim.model.params
-    assert model.supports.ends == ("pinned", "free") and model.constraint == "unshearable"
+    assert model.supports.ends == ("pinned", "free") and model.constraint is None
+    quasi_static = build(_rod(material__constraints="unshearable"), "rod").model
+    assert quasi_static.constraint == "unshearable"
     assert (p.I11, p.I22, p.drag) == (0.01, 0.02, 0.3) and p.rho_A(0.5) == 1.5
     assert np.allclose(np.asarray(p.A(0.5), float), [[2.5, 0.5, 0], [0.5, 2.5, 0], [0, 0, 1.5]])
     assert p.reference_stretch == (0.0, 0.0, 1.1)

@@ -50,16 +50,11 @@ class RodModel(FEModel):
                  comm: MPI.Comm = MPI.COMM_WORLD):
         check_model(model, params)
         check_variant(variant)
-        constraints.check_constraint(constraint)
         check_n_cells(n_cells)
-        check_supports(ends, end_displacement, end_rotation)
+        check_supports(ends, end_displacement, end_rotation, not is_zero(params.rho_A))
         check_parameters(params, model == "evolving", model != "hyperelastic", variant)
+        constraints.check_constraint(constraint, dynamic=not is_zero(params.rho_A))
         check_loads(end_loads, distributed_loads)
-        if constraint is not None and not is_zero(params.rho_A):
-            raise ValueError(f"constraint = {constraint!r} with rho_A > 0: a dynamic rod with "
-                             "constraint multipliers is an index-3 DAE, which no integrator "
-                             "here solves reliably; use a quasi-static rod (rho_A = 0) or "
-                             "stiff shear/axial B instead of the constraint")
         self.params, self.model, self.variant, self.constraint = params, model, variant, constraint
         self.end_loads, self.distributed_loads = list(end_loads), list(distributed_loads)
         self.length = float(params.length)
@@ -112,8 +107,12 @@ class RodModel(FEModel):
     def diagnostics(self, t: float) -> dict[str, float]:
         """MPI-reduced scalars at time t: tip position and quaternion, tip rotation angle
         (of the rotation path, in [0, 2 pi]), free and kinetic energy, dissipation rate
-        (incl. drag), power of the applied loads, reactions at supported ends."""
+        (incl. drag), power of the applied loads and of the reactions at ends with a
+        prescribed motion (load_power; the latter also alone as reaction_power),
+        reactions at supported ends."""
+        self.supports.set_motion_rates(t)
         d = self.assembled_diagnostics(t)
+        d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         return d
 

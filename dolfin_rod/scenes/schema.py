@@ -595,7 +595,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "B_d (evolving model); each a tensor (see above)"),
         "viscosity": Key(lambda v: _tensors(v, ("M", "N", "M_d", "N_d")), None,
                          R + "{M, N, M_d, N_d}: Kelvin-Voigt M, N (default 0), natural-"
-                         "configuration M_d, N_d (evolving model); each a tensor"),
+                         "configuration M_d, N_d (evolving model; the uniform variant's M_d, N_d carry one "
+                         "more length factor than the local ones, docs/rod.md); each a tensor"),
         "density": Key(coefficient(False), None, R + "mass per length rho A (number or "
                        "{polynomial}); > 0: dynamic, 0 (default): quasi-static"),
         "section_inertia": Key(_inertia, None, R + "I_11 = I_22 (a number) or [I_11, I_22]: "
@@ -1031,6 +1032,11 @@ def _check_rod_inertia(scene: Scene) -> None:
         raise err("material.section_inertia", "density and section_inertia (I_11, I_22) must "
                                               "be all > 0 (dynamic) or all 0 (quasi-static)")
     mat["dynamic"] = dynamic
+    if dynamic and mat["constraints"] != "none":
+        raise err("material.constraints", "a dynamic rod (density > 0) with constraint "
+                                          "multipliers is an index-3 DAE, which no integrator "
+                                          "here solves reliably: use a quasi-static rod or a "
+                                          "stiff shear/axial B instead")
     if lds["gravity"] is not None and not dynamic:
         raise err("loads.gravity", "the weight rho_A g needs material.density > 0 (a "
                                    "dynamic rod); quasi-static: use loads.distributed_force")
