@@ -1,24 +1,26 @@
-"""Peer comparison with PyElastica (issue 7, item 1): work-precision on two scenes.
+"""Peer comparison with PyElastica (issues 7, 12): work-precision on six scenes.
 
-Scenes (benchmarks/cantilever.py): "elastic" (cantilever drooping under gravity, large
-rotations, T = 0.5) and "creep" (the same with the local evolution law of the natural
-curvature and stretch).  Each code is measured against its OWN converged reference
-(a finer run of the same code): relative tip error (max over t = 0.1 .. 0.5 of
-|r_tip - r_tip,ref| / max |r_tip,ref - r_tip(0)|) vs wall time of the time loop
-(setup, JIT/numba compilation excluded and reported separately; median of repeats).
+Scenes (benchmarks/cantilever.py SCENES): "elastic" (cantilever drooping under gravity,
+large rotations, T = 0.5), "creep" (the same with the local evolution law of the natural
+curvature and stretch), and the gravity-cantilever variants "soft" (E/3), "stiff" (3E),
+"long" (T = 2) and "oblique" (gravity out of plane with a tensile axial part).  Each
+code is measured against its OWN converged reference (a finer run of the same code):
+relative tip error (max over the 5 sample times of |r_tip - r_tip,ref| /
+max |r_tip,ref - r_tip(0)|) vs wall time of the time loop (set-up, JIT/numba
+compilation excluded and reported separately; median of repeats).
 
-    PyElastica 1.0  PositionVerlet, n = 20 .. 320 elements (n = 10 at this dt is unstable), dt = 0.01 dx (PyElastica's
-                    examples' rule); reference n = 1280 (640 with --quick)
-    dolfin_rod      generalized-alpha (rho_inf = 0.5), n = 4 .. 128 cells, dt ~ 0.16/n
-                    (time and space errors balanced); reference n = 256 (128 --quick) at the same dt rule,
-                    twice: default options (Newton, MUMPS LU each iteration, rtol 1e-10) and
-                    "tuned" (TUNED below: PETSc's own LU, Jacobian and factorisation reused
-                    across iterations and steps, refreshed every 10 iterations, Newton
-                    tolerance rtol 1e-6 / atol 1e-9: the tip errors equal the default
-                    run's to 3 digits, see the JSON)
+    PyElastica 1.0  PositionVerlet, n = 20 .. 320 elements, dt = 0.01 dx sqrt(E_0/E)
+                    (PyElastica's examples' rule, scaled with the wave speed);
+                    reference n = 1280 (640 with --quick)
+    dolfin_rod      RodModel, generalized-alpha (rho_inf = 0.5), n = 4 .. 128 cells,
+                    dt ~ 0.16/n; reference n = 256 (128 --quick), with default options
+                    ("dolfin_rod") or TUNED ("dolfin_rod (tuned)": PETSc's own LU,
+                    Jacobian reuse, rtol 1e-6 / atol 1e-9)
+    incremental_rod the 6-unknowns-per-node prototype (dolfin_rod.incremental_rod) with
+                    the Lie-group generalized-alpha and its default solver options
 
 Speed ratio at equal accuracy: log-log interpolation of wall time at 1e-2 and 1e-3.
-Writes results/bench/peer_pyelastica.json and .png.
+Writes results/bench/<--out>.json and .png (default peer_pyelastica).
 """
 
 from __future__ import annotations
