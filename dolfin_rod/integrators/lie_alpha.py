@@ -74,7 +74,7 @@ class LieGeneralizedAlpha:
         self.am, self.af, self.gamma, self.beta = alpha_parameters(rho_inf)
         mesh = problem.fields[0].function_space.mesh
         self.dt = fem.Constant(mesh, 1.0)
-        self.order = problem.time_orders
+        self.order = problem.time_orders or [2] * len(problem.fields)
         y, r, acc = problem.fields, problem.rates, problem.accelerations
         self.y_n = [_copy(f, "n") for f in y]
         self.v_n = [_copy(f, "rate_n") for f in r]
