@@ -1,10 +1,15 @@
 # Every target runs inside the dolfin_rod environment through ./rodenv, which builds
-# that environment on first use (see README.md, "Environment").
+# that environment on first use (see README.md, "Environment").  DOLFINX=0.9 (default,
+# Debian trixie) or DOLFINX=0.11 (Debian sid) chooses the release.
 RODENV  := ./rodenv
 PYTEST  := python3 -m pytest
 NP      ?= 2
+# `make test` covers: DOLFINX if set; else the host's own DOLFINx if python3 imports one
+# (the Docker image, conda; ./rodenv then runs natively); else both releases.
+RELEASES = $(or $(DOLFINX),$(shell python3 -c 'import dolfinx; \
+    print(".".join(dolfinx.__version__.split(".")[:2]))' 2>/dev/null),0.9 0.11)
 
-.PHONY: demo demos test test-serial test-mpi test-long bench work-precision stability env shell clean
+.PHONY: demo demos test test-serial test-mpi test-interrupt test-long bench work-precision stability env shell clean
 
 demo:            ## the flagship demo: viscoelastic cantilever creep and recovery (results/)
 	$(RODENV) python3 demos/cantilever_creep.py
@@ -12,13 +17,21 @@ demo:            ## the flagship demo: viscoelastic cantilever creep and recover
 demos:           ## every demo as a user runs it, serially and under mpirun
 	$(RODENV) $(PYTEST) tests/test_demos.py -m "slow or not slow"
 
-test: test-serial test-mpi   ## the CI suite: serial run, then the MPI run on $(NP) ranks
+test:            ## the CI suite on each release: serial run, then the MPI run on $(NP) ranks
+	@for v in $(RELEASES); do \
+	    echo "== DOLFINx $$v: make test-serial test-mpi test-interrupt"; \
+	    DOLFINX=$$v $(MAKE) --no-print-directory test-serial test-mpi test-interrupt \
+	        || exit 1; \
+	done
 
 test-serial:
 	$(RODENV) $(PYTEST) -m "not slow"
 
 test-mpi:
 	$(RODENV) mpirun -n $(NP) tests/mpi_pytest.sh -m "mpi and not slow"
+
+test-interrupt:  ## Ctrl-C through ./rodenv: dolfin-rod stops, writes its summary, exits 130
+	tests/rodenv_interrupt.sh
 
 test-long:       ## long verification runs (convergence studies, long horizons)
 	$(RODENV) $(PYTEST) -m slow

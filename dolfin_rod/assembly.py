@@ -6,9 +6,10 @@ them in one of two layouts behind one interface (:func:`block_system`):
     MonolithicSystem  every block in one mixed element: one kernel call per vector or
                       matrix.  At rod sizes (10-100 cells) the blocked assembly's
                       per-block calls cost 5x the kernels (docs/performance.md).
-    BlockedSystem     DOLFINx ``*_block`` assembly; needed when a block is a scifem real
-                      space (the uniform variant's global natural strains), which no mixed
-                      element can hold.
+    BlockedSystem     DOLFINx blocked assembly (compat.py: 0.9's ``*_block`` functions or
+                      0.10+'s form lists); needed when a block is a real space (the
+                      uniform variant's global natural strains), which the mixed element
+                      does not hold.
 
 Dirichlet conditions by row replacement: Jacobian rows of constrained dofs are identity
 rows, residual rows are x - g.  The columns stay, so no lifting is needed and Newton is
@@ -22,11 +23,10 @@ import dolfinx.fem as fem
 import dolfinx.fem.petsc as fem_petsc
 import numpy as np
 import ufl
-from dolfinx.cpp.la.petsc import scatter_local_vectors
 from petsc4py import PETSc
 from ufl.algorithms import expand_derivatives
 
-from . import form_cache
+from . import compat, form_cache
 
 
 def jacobian_blocks(F: list[ufl.Form], y: list[fem.Function], wrt=None) -> list[list]:
@@ -54,7 +54,7 @@ def jacobian_blocks(F: list[ufl.Form], y: list[fem.Function], wrt=None) -> list[
 
 
 def _is_real(V) -> bool:
-    """A scifem real space: one global dof block on a mesh of several cells."""
+    """A real space: one global dof block on a mesh of several cells."""
     tdim = V.mesh.topology.dim
     return (V.dofmap.index_map.size_global == 1
             and V.mesh.topology.index_map(tdim).size_global > 1)
@@ -69,8 +69,7 @@ class _System:
         self._bcs = []
         rows = []
         for bc in bcs:
-            j = next(k for k, V in enumerate(spaces)
-                     if V._cpp_object.contains(bc.function_space))
+            j = next(k for k, V in enumerate(spaces) if compat.contains(V, bc))
             dofs, first_ghost = bc.dof_indices()
             owned = dofs[:first_ghost]
             rows.append(rows_of(j, owned))
@@ -136,8 +135,8 @@ class MonolithicSystem(_System):
             forms = form_cache.bind(entry, objects, W, mesh)
             self.F = [f for f in forms if f.rank == 1]
             self.J = [f for f in forms if f.rank == 2]
-        self.x = fem_petsc.create_vector(self.F[0])
-        self.b = fem_petsc.create_vector(self.F[0])
+        self.x = compat.vector(self.F[0])
+        self.b = compat.vector(self.F[0])
         self.A = fem_petsc.create_matrix(self.J[0])
         self._setup_bc_rows(bcs, lambda j, dofs: self._maps[j][dofs])
         if np.any(self.bc_rows >= self._n_owned):
@@ -206,9 +205,9 @@ class BlockedSystem(_System):
         terms = [(c, jacobian_blocks(F, y, wrt=groups[k])) for c, k in jacobian_terms]
         J = [[_combine(terms, i, j) for j in range(len(y))] for i in range(len(y))]
         self.F, self.J = fem.form(F), fem.form(J)
-        self.x = fem_petsc.create_vector_block(self.F)
-        self.b = fem_petsc.create_vector_block(self.F)
-        self.A = fem_petsc.create_matrix_block(self.J)
+        self.x = compat.block_vector(self.F)
+        self.b = compat.block_vector(self.F)
+        self.A = compat.block_matrix(self.J)
         sizes = [f.function_space.dofmap.index_map.size_local
                  * f.function_space.dofmap.index_map_bs for f in y]
         offsets = np.concatenate([[0], np.cumsum(sizes)])
@@ -224,20 +223,17 @@ class BlockedSystem(_System):
             offset += n
 
     def get(self, k: int, x) -> None:
-        maps = [(f.function_space.dofmap.index_map, f.function_space.dofmap.index_map_bs)
-                for f in self.groups[k]]
-        scatter_local_vectors(x, [f.x.array for f in self.groups[k]], maps)
-        x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        compat.functions_to_block_vector(self.groups[k], x)
 
     def residual(self, x, b) -> None:
         with b.localForm() as bl:
             bl.set(0.0)
-        fem_petsc.assemble_vector_block(b, self.F, self.J, bcs=[])
+        compat.assemble_block_vector(b, self.F, self.J)
         self._replace_bc_rows(x, b)
 
     def jacobian(self, A) -> None:
         A.zeroEntries()
-        fem_petsc.assemble_matrix_block(A, self.J, bcs=[])
+        compat.assemble_block_matrix(A, self.J)
         A.assemble()
         self._identity_bc_rows(A)
 

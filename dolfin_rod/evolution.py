@@ -12,9 +12,9 @@ Units: the uniform law's M_d carries one more length factor than the local one
 
 from __future__ import annotations
 
-import scifem
 import ufl
-from mpi4py import MPI
+
+from . import compat
 
 VARIANTS = ("local", "uniform")
 
@@ -37,12 +37,6 @@ def evolution_residual(M_d, natural_rate, dpsi_dnatural, test, variant: str, len
 
 
 def real_space(mesh, shape: tuple[int, ...] = ()):
-    """The space of the uniform variant's global natural strains (scifem real space).
-
-    scifem 0.6 builds it with collectives on MPI.COMM_WORLD, so the mesh must live on
-    MPI.COMM_WORLD (or a congruent communicator): on a sub-communicator it would hang.
-    """
-    if MPI.Comm.Compare(mesh.comm, MPI.COMM_WORLD) not in (MPI.IDENT, MPI.CONGRUENT):
-        raise ValueError("the uniform variant needs a mesh on MPI.COMM_WORLD (scifem 0.6 "
-                         "creates its global unknowns collectively on COMM_WORLD)")
-    return scifem.create_real_functionspace(mesh, shape)
+    """The space of the uniform variant's global natural strains: a real space (scifem's
+    with DOLFINx 0.9, which needs a mesh on MPI.COMM_WORLD; basix's from 0.10)."""
+    return compat.real_space(mesh, shape)

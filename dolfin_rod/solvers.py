@@ -1,7 +1,7 @@
 """PETSc SNES on blocked forms (assembly.block_system), with failure reasons.
 
-Blocks may include scifem real spaces (global scalar unknowns), so the uniform variant's
-natural strains are solved monolithically with the fields, in serial and under MPI.
+Blocks may include real spaces (global scalar unknowns; compat.real_space), so the uniform
+variant's natural strains are solved monolithically with the fields, serially and under MPI.
 """
 
 from __future__ import annotations

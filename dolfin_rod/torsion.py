@@ -23,11 +23,11 @@ from typing import Callable
 
 import dolfinx
 import dolfinx.fem as fem
-import dolfinx.fem.petsc as fem_petsc
 import numpy as np
 import ufl
 from mpi4py import MPI
 
+from . import compat
 from . import loads as load_histories
 from .dissipation import dissipation_rate
 from .energy import derivatives, quadratic_energy
@@ -279,7 +279,7 @@ class TorsionModel(FEModel):
                 L += self._couple * eta * dx
         self._set_bcs(0.0)
         bcs = self.bcs_of("twist_angle")
-        solver = fem_petsc.LinearProblem(a, L, bcs=bcs, u=self.phi, petsc_options={
+        solver = compat.linear_problem(a, L, bcs, self.phi, {
             "ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"})
         solver.solve()
         if self.viscous:  # the impulse of the end torsion: int mu dphi_s ds

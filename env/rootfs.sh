@@ -1,6 +1,8 @@
 #!/bin/sh
-# Builds (once) and prints the path of the Debian trixie root file system in which
-# dolfin_rod runs on hosts without DOLFINx >= 0.9.  Used by ./rodenv.
+# Builds (once) and prints the path of the Debian root file system in which dolfin_rod
+# runs on hosts without DOLFINx.  Used by ./rodenv.  The release follows $DOLFINX:
+#   DOLFINX=0.9   Debian trixie (the default)
+#   DOLFINX=0.11  Debian sid
 #
 #   env/rootfs.sh path     print the root's path, building it first if needed
 #   env/rootfs.sh build    build it (no-op when complete)
@@ -15,12 +17,22 @@ project=$(dirname "$env_dir")
 cache=${DOLFIN_ROD_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/dolfin_rod}
 need_mb=4000
 
+case "${DOLFINX:-0.9}" in
+    0.9) release=trixie ;;
+    0.11) release=sid ;;
+    *) printf 'rodenv: error: DOLFINX=%s is not supported (use 0.9 or 0.11)\n' "$DOLFINX" >&2
+       exit 2 ;;
+esac
+# sid's Release file on the reachable mirrors can be past its Valid-Until date.
+aptopt=""
+[ "$release" = sid ] && aptopt='Acquire::Check-Valid-Until "false"'
+
 say() { printf 'rodenv: %s\n' "$*" >&2; }
 die() { say "error: $*"; exit 1; }
 
-hash=$(cat "$env_dir/debian-packages.txt" "$env_dir/pypi-packages.txt" "$env_dir/install.sh" \
-       | sha256sum | cut -c1-12)
-root="$cache/trixie-$hash"
+hash=$(cat "$env_dir/debian-packages-$release.txt" "$env_dir/pypi-packages.txt" \
+       "$env_dir/install.sh" | sha256sum | cut -c1-12)
+root="$cache/$release-$hash"
 
 host_tools() {
     missing=""
@@ -61,21 +73,22 @@ build() {
     host_tools
     check_disk
     mkdir -p "$cache"
-    exec 9>"$cache/.lock"
+    exec 9>"$cache/.lock-$release"
     flock 9   # a second rodenv waits for the first build instead of racing it
     [ -f "$root/.dolfin_rod-complete" ] && return 0
     partial="$root.partial"
     rm -rf "$partial"
-    say "building the DOLFINx 0.9 environment (Debian trixie) in $root"
+    say "building the DOLFINx ${DOLFINX:-0.9} environment (Debian $release) in $root"
     say "first use only: about 3 minutes and 2.5 GB; later calls start at once"
     log="$cache/build-$hash.log"
-    mmdebstrap --variant=apt --include=ca-certificates trixie "$partial" >"$log" 2>&1 \
+    mmdebstrap --variant=apt --include=ca-certificates ${aptopt:+--aptopt="$aptopt"} \
+        "$release" "$partial" >"$log" 2>&1 \
         || die "mmdebstrap failed (is the Debian archive reachable?  see $log)"
     # Certificate authorities the host added (a proxy's, a company's) are trusted inside too.
     for ca in /usr/local/share/ca-certificates/*.crt; do
         [ -f "$ca" ] && cp "$ca" "$partial/usr/local/share/ca-certificates/"
     done
-    sandbox "$partial" /bin/sh /project/env/install.sh >>"$log" 2>&1 \
+    sandbox "$partial" /bin/sh /project/env/install.sh "$release" >>"$log" 2>&1 \
         || die "env/install.sh failed inside the new root (network?  see $log)"
     touch "$partial/.dolfin_rod-complete"
     rm -rf "$root"

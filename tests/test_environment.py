@@ -1,31 +1,51 @@
-"""The two ways into the environment share one install script and one package list."""
+"""The ways into the environment share one install script and one package list per
+Debian release; the README's test command (CI) covers every release."""
 
+import os
 import re
+import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def releases() -> dict[str, str]:
+    """DOLFINx release -> Debian release, as env/rootfs.sh maps $DOLFINX."""
+    rootfs = (ROOT / "env/rootfs.sh").read_text()
+    table = dict(re.findall(r"^\s*(\d+\.\d+)\) release=(\w+) ;;", rootfs, re.M))
+    assert table, "no DOLFINX -> Debian release table in env/rootfs.sh"
+    return table
+
+
+def test_rootfs_maps_each_dolfinx_release_to_a_debian_release():
+    assert releases() == {"0.9": "trixie", "0.11": "sid"}
+    rootfs = (ROOT / "env/rootfs.sh").read_text()
+    assert '"${DOLFINX:-0.9}"' in rootfs                     # 0.9 is the default
+    assert '/project/env/install.sh "$release"' in rootfs
+    # the expired-Release workaround is for sid only
+    assert re.search(r'\[ "\$release" = sid \] && aptopt=', rootfs)
+
+
 def test_dockerfile_and_rootfs_run_the_same_install_script():
     docker = (ROOT / "Dockerfile").read_text()
-    rootfs = (ROOT / "env/rootfs.sh").read_text()
-    assert re.search(r"^FROM debian:trixie\b", docker, re.M)
-    assert re.search(r"^RUN sh /tmp/env/install\.sh", docker, re.M)
+    assert re.search(r"^ARG DEBIAN=trixie$", docker, re.M)   # same default as rootfs.sh
+    assert re.search(r"^FROM debian:\$\{DEBIAN\}$", docker, re.M)
+    assert re.search(r'^RUN sh /tmp/env/install\.sh "\$\{DEBIAN\}"', docker, re.M)
     assert "COPY env/ /tmp/env/" in docker
-    assert "/project/env/install.sh" in rootfs
-    assert "trixie" in rootfs
 
 
-def test_install_script_reads_the_package_lists():
+def test_install_script_reads_one_package_list_per_release():
     install = (ROOT / "env/install.sh").read_text()
-    assert "debian-packages.txt" in install and "pypi-packages.txt" in install
-    packages = (ROOT / "env/debian-packages.txt").read_text().split()
-    for required in ("python3-dolfinx-real", "python3-scifem", "python3-adios4dolfinx",
-                     "openmpi-bin", "python3-pytest"):
-        assert required in packages
+    assert 'debian-packages-$release.txt' in install and "pypi-packages.txt" in install
+    for debian in releases().values():
+        packages = (ROOT / f"env/debian-packages-{debian}.txt").read_text().split()
+        for required in ("python3-dolfinx-real", "python3-adios4dolfinx", "python3-petsc4py",
+                         "openmpi-bin", "python3-pytest", "python3-pip"):
+            assert required in packages, (debian, required)
+    assert "python3-scifem" in (ROOT / "env/debian-packages-trixie.txt").read_text().split()
 
 
-def test_ci_runs_the_readme_test_command():
+def test_ci_runs_the_readme_test_command_on_every_release():
     readme = (ROOT / "README.md").read_text()
     ci = (ROOT / ".ci/run").read_text()
     assert "make test" in readme and "make demo" in readme
@@ -33,9 +53,26 @@ def test_ci_runs_the_readme_test_command():
                 if line.strip() and not line.startswith("#") and not line.startswith("set ")
                 and not line.startswith("cd ")]
     assert commands == ["make test"]
+    makefile = (ROOT / "Makefile").read_text()
+    fallback = re.search(r"^RELEASES = .*,([\d. ]+)\)$", makefile, re.M | re.S)
+    assert fallback and fallback.group(1).split() == list(releases())
+    for target in ("test-serial", "test-mpi", "test-interrupt"):
+        assert re.search(rf"DOLFINX=\$\$v \$\(MAKE\) .*{target}", makefile)
 
 
-def test_environment_has_dolfinx_0_9():
+def test_pyproject_declares_the_supported_dolfinx_releases():
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    dolfinx = [d for d in project["dependencies"] if d.startswith("fenics-dolfinx")]
+    assert dolfinx == ["fenics-dolfinx>=0.9,<0.12"]
+    assert project["scripts"]["dolfin-rod"] == "dolfin_rod.__main__:main"
+
+
+def test_environment_has_the_requested_dolfinx():
     import dolfinx
-    import scifem  # noqa: F401
-    assert tuple(int(x) for x in dolfinx.__version__.split(".")[:2]) >= (0, 9)
+
+    from dolfin_rod import compat
+    version = tuple(int(x) for x in dolfinx.__version__.split(".")[:2])
+    assert compat.DOLFINX_VERSION == version
+    assert (0, 9) <= version < (0, 12)
+    if "DOLFINX" in os.environ:          # set by ./rodenv inside its Debian roots
+        assert version == tuple(int(x) for x in os.environ["DOLFINX"].split("."))

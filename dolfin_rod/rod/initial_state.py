@@ -10,6 +10,7 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
+from .. import compat
 from ..rotations import np_quaternion_from_rotation_vector
 from ..model_base import ENDS, end_coordinate
 
@@ -49,7 +50,7 @@ def set_initial_state(model, natural_curvature=None, natural_stretch=None) -> No
     for g in f.values():
         g.x.scatter_forward()
     u_ref, v_ref = model.reference
-    pts = u_ref.function_space.element.interpolation_points()
+    pts = compat.interpolation_points(u_ref.function_space)
     u_ref.interpolate(fem.Expression(model.u, pts))
     v_ref.interpolate(fem.Expression(model.v, pts))
     if model.evolving:

@@ -677,7 +677,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "outputs": {
         "directory": Key(path_text, "results", "parent folder of the run folders"),
-        "every": Key(integer(1), 1, "write fields every N steps"),
+        "every": Key(integer(1), 1, "write rod.bp and animation frames every N steps (and "
+                                    "at the end)"),
         "fields": Key(boolean, True, "rod.bp for ParaView (ADIOS2VTXReader): the deformed "
                                      "centre line with directors, strains, natural strains, "
                                      "forces, dissipation (FE models)"),

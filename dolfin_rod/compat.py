@@ -1,0 +1,115 @@
+"""Every difference between the supported DOLFINx releases, 0.9 and 0.11, in one place.
+
+The rest of the package calls these functions and never checks a version.
+
+    blocked assembly   0.9: ``create_vector_block``/``assemble_*_block``;
+                       0.10+: ``create_vector(spaces)``, ``assemble_*`` on form lists
+    real spaces        0.9: scifem's ``create_real_functionspace`` (collective on
+                       COMM_WORLD); 0.10+: basix's ``real_element`` (on the mesh's comm)
+    element data       0.9: ``interpolation_points()`` a method; 0.10+: a property
+    LinearProblem      0.10+: needs ``petsc_options_prefix``
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import dolfinx
+import dolfinx.fem as fem
+import dolfinx.fem.petsc as fem_petsc
+from mpi4py import MPI
+from petsc4py import PETSc
+
+DOLFINX_VERSION = tuple(int(x) for x in dolfinx.__version__.split(".")[:2])
+_BLOCK_ASSEMBLERS = DOLFINX_VERSION < (0, 10)   # the *_block functions (removed in 0.10)
+_prefixes = itertools.count()
+
+
+def vector(form: fem.Form) -> PETSc.Vec:
+    """A ghosted vector in the layout of the linear form's test space."""
+    if _BLOCK_ASSEMBLERS:
+        return fem_petsc.create_vector(form)
+    return fem_petsc.create_vector(form.function_spaces[0])
+
+
+def block_vector(forms: list[fem.Form]) -> PETSc.Vec:
+    """A vector of the blocks of linear forms: every block's owned entries, then ghosts."""
+    if _BLOCK_ASSEMBLERS:
+        return fem_petsc.create_vector_block(forms)
+    return fem_petsc.create_vector([f.function_spaces[0] for f in forms])
+
+
+def block_matrix(forms: list[list]) -> PETSc.Mat:
+    """One (not nested) matrix of the bilinear forms' blocks (None: an empty block)."""
+    if _BLOCK_ASSEMBLERS:
+        return fem_petsc.create_matrix_block(forms)
+    return fem_petsc.create_matrix(forms)
+
+
+def assemble_block_vector(b: PETSc.Vec, forms: list[fem.Form], jacobian: list[list]) -> None:
+    """b += the blocks of ``forms``, ghost contributions summed on their owners.
+
+    ``jacobian`` (the bilinear blocks) is what DOLFINx 0.9's interface asks for; without
+    boundary conditions it is not used.
+    """
+    if _BLOCK_ASSEMBLERS:
+        fem_petsc.assemble_vector_block(b, forms, jacobian, bcs=[])
+        return
+    fem_petsc.assemble_vector(b, forms)
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+
+
+def assemble_block_matrix(A: PETSc.Mat, forms: list[list]) -> None:
+    """A += the bilinear blocks (no boundary conditions; A.assemble() is the caller's)."""
+    if _BLOCK_ASSEMBLERS:
+        fem_petsc.assemble_matrix_block(A, forms, bcs=[])
+    else:
+        fem_petsc.assemble_matrix(A, forms, bcs=[])
+
+
+def functions_to_block_vector(functions: list[fem.Function], x: PETSc.Vec) -> None:
+    """Copy the Functions' values into the block vector x, ghosts included."""
+    if _BLOCK_ASSEMBLERS:
+        from dolfinx.cpp.la.petsc import scatter_local_vectors
+        maps = [(f.function_space.dofmap.index_map, f.function_space.dofmap.index_map_bs)
+                for f in functions]
+        scatter_local_vectors(x, [f.x.array for f in functions], maps)
+    else:
+        fem_petsc.assign(functions, x)
+    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+
+
+def contains(V: fem.FunctionSpace, bc: fem.DirichletBC) -> bool:
+    """Whether the Dirichlet condition ``bc`` acts on V (or on a subspace of V)."""
+    return V._cpp_object.contains(bc.function_space)
+
+
+def interpolation_points(V: fem.FunctionSpace):
+    """The reference points at which V's element interpolates."""
+    points = V.element.interpolation_points
+    return points() if callable(points) else points
+
+
+def real_space(mesh, shape: tuple[int, ...] = ()) -> fem.FunctionSpace:
+    """A real space: ``prod(shape)`` global unknowns, constant on the whole mesh."""
+    if _BLOCK_ASSEMBLERS:
+        import scifem
+        # scifem 0.6 creates the global dofs collectively on COMM_WORLD: on another
+        # communicator it would hang.
+        if MPI.Comm.Compare(mesh.comm, MPI.COMM_WORLD) not in (MPI.IDENT, MPI.CONGRUENT):
+            raise ValueError("a real space (the uniform variant) needs a mesh on "
+                             "MPI.COMM_WORLD with DOLFINx 0.9 (scifem 0.6 creates its "
+                             "global unknowns collectively on COMM_WORLD)")
+        return scifem.create_real_functionspace(mesh, shape)
+    import basix.ufl
+    element = basix.ufl.real_element(mesh.basix_cell(), value_shape=tuple(shape),
+                                     dtype=mesh.geometry.x.dtype)
+    return fem.functionspace(mesh, element)
+
+
+def linear_problem(a, L, bcs, u: fem.Function, petsc_options: dict):
+    """dolfinx.fem.petsc.LinearProblem under a fresh options prefix."""
+    if _BLOCK_ASSEMBLERS:
+        return fem_petsc.LinearProblem(a, L, bcs=bcs, u=u, petsc_options=petsc_options)
+    return fem_petsc.LinearProblem(a, L, bcs=bcs, u=u, petsc_options=petsc_options,
+                                   petsc_options_prefix=f"dolfin_rod_lp{next(_prefixes)}_")

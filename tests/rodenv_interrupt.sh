@@ -1,0 +1,62 @@
+#!/bin/bash
+# Ctrl-C through ./rodenv (issue 13 item 9), as a user meets it: SIGINT to the process
+# group of `./rodenv dolfin-rod run SCENE`, on the host (bubblewrap) or natively.
+#   mid-run:     exit status 130 (dolfin_rod.cli), summary.json says "interrupted",
+#                the time series is kept
+#   start-up:    exit status 130, no Python traceback
+# Run by `make test` for each release (DOLFINX=0.9|0.11); the first run also compiles
+# the scene's forms, so the start-up case does not interrupt a compiler.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+work="results/interrupt-test-${DOLFINX:-0.9}"
+rm -rf "$work"
+mkdir -p "$work"
+# The torsion PDE model of the creep scene, with a horizon it would need hours for.
+sed -e 's/^name = .*/name = "interrupt"\nmodel = "torsion"/' -e 's/^t_end = .*/t_end = 1e5/' \
+    scenes/torsion_creep.toml >"$work/scene.toml"
+
+fail() { echo "rodenv_interrupt: FAIL: $*" >&2; exit 1; }
+
+# Job control: each background job gets a process group of its own (pid = group id) and,
+# as in a terminal, SIGINT at its default (without it, a background job ignores SIGINT).
+set -m
+start() {  # start NAME
+    ./rodenv dolfin-rod run "$work/scene.toml" --out "$work/$1" >"$work/$1.out" \
+        2>"$work/$1.err" &
+    pid=$!
+}
+
+wait_for() {  # wait_for DESCRIPTION TEST...: poll TEST for up to 5 minutes
+    what=$1; shift
+    i=0
+    until "$@"; do
+        i=$((i + 1))
+        kill -0 "$pid" 2>/dev/null || { cat "$work"/*.err >&2; fail "run ended before $what"; }
+        [ "$i" -lt 1500 ] || { kill -KILL -- "-$pid"; fail "no $what in 5 minutes"; }
+        sleep 0.2
+    done
+}
+
+interrupt() {  # SIGINT to the whole group, as Ctrl-C does; status is the run's exit status
+    kill -INT -- "-$pid"
+    status=0
+    wait "$pid" || status=$?
+}
+
+rows() { [ "$(cat "$work/run/timeseries.csv" 2>/dev/null | wc -l)" -ge 20 ]; }
+start run
+wait_for "20 steps" rows
+interrupt
+[ "$status" = 130 ] || { cat "$work/run.err" >&2; fail "mid-run: exit status $status, not 130"; }
+grep -q '"status": *"interrupted"' "$work/run/summary.json" \
+    || fail "mid-run: summary.json missing or not 'interrupted'"
+grep -qi 'interrupted' "$work/run.out" "$work/run.err" \
+    || fail "mid-run: no 'interrupted' message"
+
+started() { grep -q '^model: ' "$work/startup.out"; }
+start startup
+wait_for "start-up message" started
+interrupt
+[ "$status" = 130 ] || { cat "$work/startup.err" >&2; fail "start-up: exit status $status"; }
+! grep -q Traceback "$work/startup.err" || { cat "$work/startup.err" >&2; fail "start-up: traceback"; }
+echo "rodenv_interrupt: OK (mid-run and start-up Ctrl-C: exit status 130, summary written)"
