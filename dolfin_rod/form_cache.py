@@ -19,6 +19,8 @@ import dolfinx.fem as fem
 import ufl
 from dolfinx.fem.forms import form_cpp_class
 
+from . import compat
+
 _ENTRIES: dict[str, list] = {}
 
 
@@ -69,10 +71,14 @@ def bind(entry, objects, space, mesh) -> list[fem.Form]:
 
 
 def _bound_form(form: fem.Form, coefficients, constants, space, mesh) -> fem.Form:
-    """A DOLFINx form from a compiled one with other data (DOLFINx 0.9 constructor)."""
+    """A DOLFINx form from a compiled one with other data (the C++ constructor: the one
+    call here that differs between DOLFINx 0.9 and 0.11)."""
     ufcx, module = form.ufcx_form, form.module
-    f = form_cpp_class(form.dtype)(module.ffi.cast("uintptr_t", module.ffi.addressof(ufcx)),
-            [space._cpp_object] * form.rank, [c._cpp_object for c in coefficients],
-            [c._cpp_object for c in constants], {t: [] for t in form.integral_types}, {},
-            mesh._cpp_object)
+    pointer = module.ffi.cast("uintptr_t", module.ffi.addressof(ufcx))
+    old = compat.DOLFINX_VERSION < (0, 10)
+    f = form_cpp_class(form.dtype)(
+        pointer if old else [int(pointer)],
+        [space._cpp_object] * form.rank, [c._cpp_object for c in coefficients],
+        [c._cpp_object for c in constants], {t: [] for t in form.integral_types},
+        {} if old else [], mesh._cpp_object)
     return fem.Form(f, ufcx, form.code, module)
