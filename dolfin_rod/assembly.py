@@ -139,8 +139,11 @@ class MonolithicSystem(_System):
         self.b = compat.vector(self.F[0])
         self.A = fem_petsc.create_matrix(self.J[0])
         self._setup_bc_rows(bcs, lambda j, dofs: self._maps[j][dofs])
-        if np.any(self.bc_rows >= self._n_owned):
-            raise RuntimeError("owned Dirichlet dof maps to a ghost of the mixed space")
+        # collective, so that no rank waits for one that raised (seen with < 2 cells a rank)
+        if self.W.mesh.comm.allreduce(int(np.any(self.bc_rows >= self._n_owned))):
+            raise RuntimeError("an owned Dirichlet dof maps to a ghost of the mixed space "
+                               "(a rank with fewer than 2 cells?): use more cells or fewer "
+                               "MPI ranks")
 
     def _compile(self, F, groups, jacobian_terms):
         """Residual and Jacobian forms on the mixed space, and their UFL forms."""
