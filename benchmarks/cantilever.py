@@ -14,11 +14,17 @@ M_d = tau A, N_d = tau B, i.e. per strain component
     d u_d/dt = (u - 2 u_d)/tau,    d (v_d - e_3)/dt = ((v - e_3) - 2 (v_d - e_3))/tau,
 which on the PyElastica side is a forcing that updates rest_kappa and rest_sigma once
 per step (forward Euler, as a PyElastica user would).
+
+More gravity-cantilever variants (issue 12; same rod unless stated): "soft" (E / 3),
+"stiff" (3 E), "long" (T = 2, about half a first-mode period), "oblique" (gravity
+(-0.6, -0.48, 0.64) g: out-of-plane and with an axial, tensile part).  ``SCENES`` holds
+them; PyElastica's step follows its wave-speed rule dt = 0.01 dx sqrt(E_0/E).
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import elastica as ea
 import numpy as np
@@ -32,7 +38,39 @@ ALPHA_C = 27.0 / 28.0           # PyElastica 1.0 shear coefficient
 AREA = np.pi * RADIUS**2
 I_SEC = np.pi * RADIUS**4 / 4
 J_SEC = 2 * I_SEC
-SAMPLES = np.linspace(0.1, T_END, 5)   # tip positions compared at these times
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    evolving: bool = False
+    E: float = E
+    T: float = T_END
+    gravity: tuple = (-1.0, 0.0, 0.0)    # direction of g
+
+    @property
+    def G(self):
+        return self.E / 1.5
+
+    @property
+    def samples(self):
+        return np.linspace(self.T / 5, self.T, 5)
+
+    @property
+    def pyelastica_dt_factor(self):  # PyElastica dt = factor dx (explicit: wave speed)
+        return 0.01 * np.sqrt(E / self.E)
+
+
+SCENES = {sc.name: sc for sc in (
+    Scene("elastic"), Scene("creep", evolving=True), Scene("soft", E=E / 3),
+    Scene("stiff", E=3 * E), Scene("long", T=2.0),
+    Scene("oblique", gravity=(-0.6, -0.48, 0.64)))}
+
+
+def section_constants(scene: Scene):
+    """(A, B) = ((E I, E I, G J), (alpha_c G A, alpha_c G A, E A))."""
+    return ((scene.E * I_SEC, scene.E * I_SEC, scene.G * J_SEC),
+            (ALPHA_C * scene.G * AREA, ALPHA_C * scene.G * AREA, scene.E * AREA))
 
 
 def tip_error(tips, ref):
@@ -44,21 +82,36 @@ def tip_error(tips, ref):
 
 # -- dolfin_rod ---------------------------------------------------------------------------
 
-def dolfin_rod_model(n_cells: int, scene: str, comm=None):
-    from mpi4py import MPI
-    from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
-    A = (E * I_SEC, E * I_SEC, G * J_SEC)
-    B = (ALPHA_C * G * AREA, ALPHA_C * G * AREA, E * AREA)
+def dolfin_rod_parameters(scene: Scene):
+    from dolfin_rod.rod import DistributedLoad, RodParameters
+    A, B = section_constants(scene)
     kw = {}
-    if scene == "creep":
+    if scene.evolving:
         kw = dict(A_d=A, B_d=B, M_d=tuple(TAU * a for a in A), N_d=tuple(TAU * b for b in B))
     params = RodParameters(length=L, A=A, B=B, rho_A=RHO * AREA, I11=RHO * I_SEC,
                            I22=RHO * I_SEC, **kw)
-    model = RodModel(params, n_cells=n_cells,
-                     model="evolving" if scene == "creep" else "hyperelastic",
-                     variant="local", ends=("clamped", "free"),
-                     distributed_loads=[DistributedLoad("force", (-RHO * AREA * GRAV, 0.0, 0.0))],
+    weight = DistributedLoad("force", tuple(RHO * AREA * GRAV * np.asarray(scene.gravity)))
+    return params, "evolving" if scene.evolving else "hyperelastic", [weight]
+
+
+def dolfin_rod_model(n_cells: int, scene: str, comm=None):
+    from mpi4py import MPI
+    from dolfin_rod.rod import RodModel
+    params, model_name, loads = dolfin_rod_parameters(SCENES[scene])
+    model = RodModel(params, n_cells=n_cells, model=model_name, variant="local",
+                     ends=("clamped", "free"), distributed_loads=loads,
                      comm=comm or MPI.COMM_WORLD)
+    model.set_initial_state()
+    return model
+
+
+def incremental_rod_model(n_cells: int, scene: str, comm=None):
+    """The 6-unknowns-per-node prototype (dolfin_rod.incremental_rod), same scene."""
+    from mpi4py import MPI
+    from dolfin_rod.incremental_rod import IncrementalRod
+    params, model_name, loads = dolfin_rod_parameters(SCENES[scene])
+    model = IncrementalRod(params, n_cells=n_cells, model=model_name,
+                           distributed_loads=loads, comm=comm or MPI.COMM_WORLD)
     model.set_initial_state()
     return model
 
@@ -85,30 +138,45 @@ class TipProbe:
 
 def run_dolfin_rod(n_cells: int, dt: float, scene: str, scheme: str = "generalized_alpha",
                    options=None, comm=None) -> dict:
-    """Tip positions at SAMPLES; setup (incl. JIT or cache load) and stepping timed apart."""
+    """Tip positions at the scene's samples; set-up (model, stepper, step forms; JIT or
+    cache load) and stepping timed apart."""
     from dolfin_rod.integrators.stepper import TimeStepper
     t0 = time.perf_counter()
     model = dolfin_rod_model(n_cells, scene, comm)
     stepper = TimeStepper(model.problem, scheme, solver_options=options)
     probe = TipProbe(model)
-    tips = {}
-
-    def observe(t, _):
-        for ts in SAMPLES:
-            if abs(t - ts) < 1e-9 * T_END:
-                tips[ts] = probe()
     stepper.compile()                          # compile the step forms before timing
     t1 = time.perf_counter()
-    t = 0.0
-    for ts in SAMPLES:                         # march to each sample exactly
+    t, tips = 0.0, []
+    for ts in SCENES[scene].samples:           # march to each sample exactly
         t = stepper.run(t, ts, dt, observer=None)
-        observe(t, None)
+        tips.append(probe().tolist())
     t2 = time.perf_counter()
     return {"code": "dolfin_rod", "n_cells": n_cells, "dt": dt, "scheme": scheme,
             "setup_s": t1 - t0, "wall_s": t2 - t1, "steps": stepper.stats.steps,
             "newton_iterations": stepper.stats.newton_iterations,
-            "rejected_steps": stepper.stats.rejected,
-            "tips": [tips[ts].tolist() for ts in SAMPLES]}
+            "rejected_steps": stepper.stats.rejected, "tips": tips}
+
+
+def run_incremental_rod(n_cells: int, dt: float, scene: str, rho_inf: float = 0.8,
+                        options=None, comm=None) -> dict:
+    """As run_dolfin_rod for the prototype with its Lie-group generalized-alpha."""
+    from dolfin_rod.integrators.lie_alpha import LieGeneralizedAlpha
+    t0 = time.perf_counter()
+    model = incremental_rod_model(n_cells, scene, comm)
+    integrator = LieGeneralizedAlpha(model.problem, rho_inf, options)
+    integrator.initial_accelerations(0.0, model.bcs)
+    probe = TipProbe(model)
+    t1 = time.perf_counter()
+    t, tips = 0.0, []
+    for ts in SCENES[scene].samples:
+        t = integrator.advance(t, ts, dt)
+        tips.append(probe().tolist())
+    t2 = time.perf_counter()
+    return {"code": "incremental_rod", "n_cells": n_cells, "dt": dt, "rho_inf": rho_inf,
+            "setup_s": t1 - t0, "wall_s": t2 - t1, "steps": integrator.steps,
+            "newton_iterations": integrator.iterations,
+            "rejected_steps": integrator.rejected, "tips": tips}
 
 
 # -- PyElastica ---------------------------------------------------------------------------
@@ -132,6 +200,8 @@ class NaturalConfigurationFlow(ea.NoForces):
 
 
 def run_pyelastica(n_elem: int, dt: float, scene: str) -> dict:
+    sc = SCENES[scene]
+
     class Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.CallBacks):
         pass
 
@@ -139,18 +209,18 @@ def run_pyelastica(n_elem: int, dt: float, scene: str) -> dict:
     sim = Sim()
     rod = ea.CosseratRod.straight_rod(
         n_elem, np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]),
-        L, RADIUS, RHO, youngs_modulus=E, shear_modulus=G)
+        L, RADIUS, RHO, youngs_modulus=sc.E, shear_modulus=sc.G)
     sim.append(rod)
     sim.constrain(rod).using(ea.OneEndFixedBC, constrained_position_idx=(0,),
                              constrained_director_idx=(0,))
-    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([-GRAV, 0.0, 0.0]))
-    if scene == "creep":
+    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=GRAV * np.asarray(sc.gravity))
+    if sc.evolving:
         sim.add_forcing_to(rod).using(NaturalConfigurationFlow, tau=TAU)
     sim.finalize()
     stepper = ea.PositionVerlet()
     t1 = time.perf_counter()
     tips, t, steps = [], 0.0, 0
-    for ts in SAMPLES:
+    for ts in sc.samples:
         n = int(round((ts - t) / dt))
         h = (ts - t) / n
         for _ in range(n):

@@ -1,24 +1,26 @@
-"""Peer comparison with PyElastica (issue 7, item 1): work-precision on two scenes.
+"""Peer comparison with PyElastica (issues 7, 12): work-precision on six scenes.
 
-Scenes (benchmarks/cantilever.py): "elastic" (cantilever drooping under gravity, large
-rotations, T = 0.5) and "creep" (the same with the local evolution law of the natural
-curvature and stretch).  Each code is measured against its OWN converged reference
-(a finer run of the same code): relative tip error (max over t = 0.1 .. 0.5 of
-|r_tip - r_tip,ref| / max |r_tip,ref - r_tip(0)|) vs wall time of the time loop
-(setup, JIT/numba compilation excluded and reported separately; median of repeats).
+Scenes (benchmarks/cantilever.py SCENES): "elastic" (cantilever drooping under gravity,
+large rotations, T = 0.5), "creep" (the same with the local evolution law of the natural
+curvature and stretch), and the gravity-cantilever variants "soft" (E/3), "stiff" (3E),
+"long" (T = 2) and "oblique" (gravity out of plane with a tensile axial part).  Each
+code is measured against its OWN converged reference (a finer run of the same code):
+relative tip error (max over the 5 sample times of |r_tip - r_tip,ref| /
+max |r_tip,ref - r_tip(0)|) vs wall time of the time loop (set-up, JIT/numba
+compilation excluded and reported separately; median of repeats).
 
-    PyElastica 1.0  PositionVerlet, n = 20 .. 320 elements (n = 10 at this dt is unstable), dt = 0.01 dx (PyElastica's
-                    examples' rule); reference n = 1280 (640 with --quick)
-    dolfin_rod      generalized-alpha (rho_inf = 0.5), n = 4 .. 128 cells, dt ~ 0.16/n
-                    (time and space errors balanced); reference n = 256 (128 --quick) at the same dt rule,
-                    twice: default options (Newton, MUMPS LU each iteration, rtol 1e-10) and
-                    "tuned" (TUNED below: PETSc's own LU, Jacobian and factorisation reused
-                    across iterations and steps, refreshed every 10 iterations, Newton
-                    tolerance rtol 1e-6 / atol 1e-9: the tip errors equal the default
-                    run's to 3 digits, see the JSON)
+    PyElastica 1.0  PositionVerlet, n = 20 .. 320 elements, dt = 0.01 dx sqrt(E_0/E)
+                    (PyElastica's examples' rule, scaled with the wave speed);
+                    reference n = 1280 (640 with --quick)
+    dolfin_rod      RodModel, generalized-alpha (rho_inf = 0.5), n = 4 .. 128 cells,
+                    dt ~ 0.16/n; reference n = 256 (128 --quick), with default options
+                    ("dolfin_rod") or TUNED ("dolfin_rod (tuned)": PETSc's own LU,
+                    Jacobian reuse, rtol 1e-6 / atol 1e-9)
+    incremental_rod the 6-unknowns-per-node prototype (dolfin_rod.incremental_rod) with
+                    the Lie-group generalized-alpha and its default solver options
 
 Speed ratio at equal accuracy: log-log interpolation of wall time at 1e-2 and 1e-3.
-Writes results/bench/peer_pyelastica.json and .png.
+Writes results/bench/<--out>.json and .png (default peer_pyelastica).
 """
 
 from __future__ import annotations
@@ -39,7 +41,10 @@ from dolfin_rod.solvers import JACOBIAN_REUSE, NATIVE_LU  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 TUNED = {**NATIVE_LU, **JACOBIAN_REUSE, "snes_rtol": 1e-6, "snes_atol": 1e-9}
 REF_OPTIONS = {"snes_atol": 1e-8, "snes_rtol": 1e-10}
-CONFIGS = {"dolfin_rod": None, "dolfin_rod (tuned)": TUNED}
+# the prototype with its defaults (integrators.lie_alpha.default_options)
+CONFIGS = {"dolfin_rod": ("rod", None), "dolfin_rod (tuned)": ("rod", TUNED),
+           "incremental_rod": ("incremental", None)}
+RUNNERS = {"rod": cant.run_dolfin_rod, "incremental": cant.run_incremental_rod}
 
 
 def dolfin_dt(n):
@@ -65,45 +70,50 @@ def time_at(errors, walls, target):
     return None
 
 
-def sweep(scene, quick):
-    out = {"scene": scene, "codes": {}}
+def _pyelastica(scene, quick, out):
+    dt_factor = cant.SCENES[scene].pyelastica_dt_factor
     pe_sizes = [20, 40, 80, 160] + ([] if quick else [320])
     pe_ref = 640 if quick else 1280
-    dr_sizes = [4, 8, 16, 32, 64] + ([] if quick else [128])
-    dr_ref = 128 if quick else 256
-
-    # PyElastica: numba compiles on the first run (excluded), then the sweep
-    cant.run_pyelastica(10, 1e-3, scene)
-    ref = cant.run_pyelastica(pe_ref, 0.01 / pe_ref, scene)
+    cant.run_pyelastica(10, 1e-3, scene)       # numba compiles on the first run (excluded)
+    ref = cant.run_pyelastica(pe_ref, dt_factor / pe_ref, scene)
     rows = []
     for n in pe_sizes:
-        r = timed(lambda: cant.run_pyelastica(n, 0.01 / n, scene), 3 if n <= 80 else 1)
+        r = timed(lambda: cant.run_pyelastica(n, dt_factor / n, scene), 3 if n <= 80 else 1)
         r["error"] = cant.tip_error(r["tips"], ref["tips"])
         rows.append(r)
         print(f"  [{scene}] pyelastica n={n:5d} dt={r['dt']:.2e} wall={r['wall_s']:8.3f} s "
               f"err={r['error']:.2e}", flush=True)
     out["codes"]["pyelastica"] = {"reference": ref, "runs": rows}
 
-    cant.run_dolfin_rod(4, 0.05, scene)     # JIT/cache load (excluded)
+
+def _dolfin(scene, quick, label, kind, opts, out):
+    dr_sizes = [4, 8, 16, 32, 64] + ([] if quick else [128])
+    dr_ref = 128 if quick else 256
+    run = RUNNERS[kind]
+    run(4, 0.05, scene)                        # JIT/cache load (excluded)
     # atol above round-off: with the default atol = 1e-11 the n = 256 residual stalls at
     # round-off (~ EA n eps), SNES "fails", and every rejected step restarts
     # generalized-alpha with a first-order backward Euler step, spoiling the reference
-    ref = cant.run_dolfin_rod(dr_ref, dolfin_dt(dr_ref), scene, options=REF_OPTIONS)
-    print(f"  [{scene}] dolfin_rod reference n={dr_ref} rejected={ref['rejected_steps']}")
-    for label, opts in CONFIGS.items():
-        rows = []
-        for n in dr_sizes:
-            r = timed(lambda: cant.run_dolfin_rod(n, dolfin_dt(n), scene, options=opts),
-                      3 if n <= 16 else 1)
-            r["error"] = cant.tip_error(r["tips"], ref["tips"])
-            rows.append(r)
-            print(f"  [{scene}] {label:18s} n={n:4d} dt={r['dt']:.2e} wall={r['wall_s']:8.3f} s "
-                  f"its/step={r['newton_iterations'] / r['steps']:.2f} rejected={r['rejected_steps']} err={r['error']:.2e}",
-                  flush=True)
-        out["codes"][label] = {"reference": ref, "runs": rows, "options": opts}
+    ref = run(dr_ref, dolfin_dt(dr_ref), scene, options={**(opts or {}), **REF_OPTIONS})
+    print(f"  [{scene}] {label} reference n={dr_ref} rejected={ref['rejected_steps']}")
+    rows = []
+    for n in dr_sizes:
+        r = timed(lambda: run(n, dolfin_dt(n), scene, options=opts), 3 if n <= 16 else 1)
+        r["error"] = cant.tip_error(r["tips"], ref["tips"])
+        rows.append(r)
+        print(f"  [{scene}] {label:18s} n={n:4d} dt={r['dt']:.2e} wall={r['wall_s']:8.3f} s "
+              f"setup={r['setup_s']:.3f} s its/step={r['newton_iterations'] / r['steps']:.2f} "
+              f"rejected={r['rejected_steps']} err={r['error']:.2e}", flush=True)
+    out["codes"][label] = {"reference": ref, "runs": rows, "options": opts}
 
+
+def sweep(scene, quick, configs):
+    out = {"scene": scene, "codes": {}}
+    _pyelastica(scene, quick, out)
+    for label in configs:
+        _dolfin(scene, quick, label, *CONFIGS[label], out)
     ref_pe = np.array(out["codes"]["pyelastica"]["reference"]["tips"])
-    ref_dr = np.array(ref["tips"])
+    ref_dr = np.array(out["codes"][configs[0]]["reference"]["tips"])
     out["references_relative_difference"] = cant.tip_error(ref_pe, ref_dr)
     out["ratios"] = {}
     for target in (1e-2, 1e-3):
@@ -113,7 +123,7 @@ def sweep(scene, quick):
             "wall_s": t,
             **{f"speedup {k} vs pyelastica": (t["pyelastica"] / t[k]
                                               if t[k] and t["pyelastica"] else None)
-               for k in CONFIGS}}
+               for k in configs}}
     return out
 
 
@@ -132,7 +142,7 @@ def plot(results, path):
             ax.axhline(tgt, color="0.7", lw=0.8, ls="--")
         ax.set_xlabel("wall time of the time loop [s]")
         ax.set_ylabel("relative tip error vs own reference")
-        ax.set_title(f"cantilever, {res['scene']} (T = 0.5)")
+        ax.set_title(f"cantilever, {res['scene']} (T = {cant.SCENES[res['scene']].T:g})")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
@@ -142,24 +152,27 @@ def plot(results, path):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--scenes", nargs="*", default=["elastic", "creep"])
+    ap.add_argument("--scenes", nargs="*", default=list(cant.SCENES))
+    ap.add_argument("--configs", nargs="*", default=["dolfin_rod", "incremental_rod"],
+                    choices=list(CONFIGS))
+    ap.add_argument("--out", default="peer_pyelastica")
     args = ap.parse_args()
     from dolfin_rod.output import versions
     import elastica
-    results = [sweep(s, args.quick) for s in args.scenes]
+    results = [sweep(s, args.quick, args.configs) for s in args.scenes]
     folder = ROOT / "results" / "bench"
     folder.mkdir(parents=True, exist_ok=True)
     out = {"versions": {**versions(), "pyelastica": getattr(elastica, "__version__", "1.0.0")},
            "quick": args.quick, "scenes": results}
-    (folder / "peer_pyelastica.json").write_text(json.dumps(out, indent=1))
-    plot(results, folder / "peer_pyelastica.png")
+    (folder / f"{args.out}.json").write_text(json.dumps(out, indent=1))
+    plot(results, folder / f"{args.out}.png")
     for res in results:
         print(f"[{res['scene']}] references differ by {res['references_relative_difference']:.2e}")
         for tgt, v in res["ratios"].items():
             print(f"[{res['scene']}] at {tgt}: " + ", ".join(
                 f"{k}={x:.3g}" if x else f"{k}=n/a" for k, x in
                 [*v["wall_s"].items(), *[(k, x) for k, x in v.items() if k != "wall_s"]]))
-    print(f"wrote {folder / 'peer_pyelastica.json'} and .png")
+    print(f"wrote {folder / args.out}.json and .png")
 
 
 if __name__ == "__main__":

@@ -26,7 +26,7 @@ import ufl
 from petsc4py import PETSc
 from ufl.algorithms import expand_derivatives
 
-from . import compat
+from . import compat, form_cache
 
 
 def jacobian_blocks(F: list[ufl.Form], y: list[fem.Function], wrt=None) -> list[list]:
@@ -98,9 +98,13 @@ class _System:
 
 
 class MonolithicSystem(_System):
-    """All blocks in one mixed element; block Functions mirror the mixed ones."""
+    """All blocks in one mixed element; block Functions mirror the mixed ones.
 
-    def __init__(self, F, groups, jacobian_terms, bcs):
+    cache: (key, objects) or None: reuse the compiled forms of an earlier system with
+    the same key (form_cache; F may then be None), else compile and remember them.
+    """
+
+    def __init__(self, F, groups, jacobian_terms, bcs, cache=None):
         self.groups = groups
         spaces = [y.function_space for y in groups[0]]
         mesh = spaces[0].mesh
@@ -120,7 +124,30 @@ class MonolithicSystem(_System):
             m[unrolled.ravel()] = W.sub(j).dofmap.list[:ncells].ravel()
             self._maps.append(m)
         self._n_owned = W.dofmap.index_map.size_local
+        key, objects = cache if cache else (None, ())
+        objects = [*objects, *self.w]
+        entry = form_cache.lookup(key)
+        if entry is None:
+            self.F, self.J, ufl_forms = self._compile(F, groups, jacobian_terms)
+            if key:
+                form_cache.store(key, self.F + self.J, ufl_forms, objects)
+        else:
+            forms = form_cache.bind(entry, objects, W, mesh)
+            self.F = [f for f in forms if f.rank == 1]
+            self.J = [f for f in forms if f.rank == 2]
+        self.x = compat.vector(self.F[0])
+        self.b = compat.vector(self.F[0])
+        self.A = fem_petsc.create_matrix(self.J[0])
+        self._setup_bc_rows(bcs, lambda j, dofs: self._maps[j][dofs])
+        # collective, so that no rank waits for one that raised (seen with < 2 cells a rank)
+        if self.W.mesh.comm.allreduce(int(np.any(self.bc_rows >= self._n_owned))):
+            raise RuntimeError("an owned Dirichlet dof maps to a ghost of the mixed space "
+                               "(a rank with fewer than 2 cells?): use more cells or fewer "
+                               "MPI ranks")
 
+    def _compile(self, F, groups, jacobian_terms):
+        """Residual and Jacobian forms on the mixed space, and their UFL forms."""
+        W = self.W
         v = ufl.split(ufl.TestFunction(W))
         mapping = {f: part for group, w in zip(groups, self.w)
                    for f, part in zip(group, ufl.split(w))}
@@ -131,19 +158,15 @@ class MonolithicSystem(_System):
         dw = ufl.TrialFunction(W)
         # One kernel per quadrature rule: FFCx 0.9 miscompiles mixed-element kernels that
         # combine the vertex rule with Gauss rules (wrong vertex-rule terms, measured).
-        self.F, self.J = [], []
+        residuals, jacobians = [], []
         for part in _split_by_rule(F_mixed):
-            self.F.append(fem.form(part))
+            residuals.append(part)
             Jp = expand_derivatives(sum(c * ufl.derivative(part, self.w[k], dw)
                                         for c, k in jacobian_terms))
             if not Jp.empty():
-                self.J.append(fem.form(Jp))
-        self.x = compat.vector(self.F[0])
-        self.b = compat.vector(self.F[0])
-        self.A = fem_petsc.create_matrix(self.J[0])
-        self._setup_bc_rows(bcs, lambda j, dofs: self._maps[j][dofs])
-        if np.any(self.bc_rows >= self._n_owned):
-            raise RuntimeError("owned Dirichlet dof maps to a ghost of the mixed space")
+                jacobians.append(Jp)
+        return ([fem.form(f) for f in residuals], [fem.form(f) for f in jacobians],
+                residuals + jacobians)
 
     @property
     def block_dofs(self) -> tuple[np.ndarray, ...]:
@@ -242,8 +265,9 @@ def _combine(terms, i, j):
     return sum(forms[1:], forms[0]) if forms else None
 
 
-def block_system(F: list[ufl.Form], groups: list[list[fem.Function]],
-                 jacobian_terms=((1.0, 0),), bcs=(), monolithic: bool | None = None):
+def block_system(F: list[ufl.Form] | None, groups: list[list[fem.Function]],
+                 jacobian_terms=((1.0, 0),), bcs=(), monolithic: bool | None = None,
+                 cache=None):
     """The assembled system of block residuals ``F`` (F_i linear in a test function on
     the space of groups[0][i]).
 
@@ -251,8 +275,12 @@ def block_system(F: list[ufl.Form], groups: list[list[fem.Function]],
                      from vectors: groups[0] the unknowns y, then e.g. dy/dt for TS.
     jacobian_terms:  [(c, k)]: J = sum c dF/d(groups[k]) (c a float or fem.Constant).
     monolithic:      None: mixed element unless a block is a real space.
+    cache:           (key, objects): compiled forms shared by systems of one structure
+                     (form_cache; mixed-element layout only; F may be None on a hit).
     """
     if monolithic is None:
         monolithic = not any(_is_real(f.function_space) for f in groups[0])
-    cls = MonolithicSystem if monolithic else BlockedSystem
-    return cls(list(F), [list(g) for g in groups], list(jacobian_terms), list(bcs))
+    groups = [list(g) for g in groups]
+    if monolithic:
+        return MonolithicSystem(F and list(F), groups, list(jacobian_terms), list(bcs), cache)
+    return BlockedSystem(list(F), groups, list(jacobian_terms), list(bcs))

@@ -67,7 +67,10 @@ class SecondOrderProblem(SemiDiscreteProblem):
     after_step:    called with the accepted state in fields/rates, to update what the
                    model derives from them (e.g. the velocity fields of its first-order
                    form, which its diagnostics read).
+    time_orders:   per block 2 (its accelerations enter) or 1 (only its rate; the
+                   accelerations entry is None); empty: all 2.
     """
 
     accelerations: list[fem.Function] = field(default_factory=list)
     after_step: Callable[[], None] = lambda: None
+    time_orders: list[int] = field(default_factory=list)

@@ -76,13 +76,14 @@ class BlockSNES:
 
     ``options`` are PETSc options under a private prefix (defaults: Newton with an exact
     line search off and MUMPS LU, which suits 1-D rods' banded systems).
+    ``cache``: (key, objects) to share compiled forms (assembly.block_system).
     """
 
-    def __init__(self, F: list[ufl.Form], y: list[fem.Function], bcs=(), options=None,
-                 prefix: str | None = None):
+    def __init__(self, F: list[ufl.Form] | None, y: list[fem.Function], bcs=(), options=None,
+                 prefix: str | None = None, cache=None):
         self.y = y
         settings = petsc_options(y[0].function_space.mesh.comm, options)
-        self.system = block_system(F, [y], bcs=bcs)
+        self.system = block_system(F, [y], bcs=bcs, cache=cache)
         self.x = self.system.x
         self.snes = PETSc.SNES().create(self.x.getComm())
         self.snes.setFunction(self._residual, self.system.b)

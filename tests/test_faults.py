@@ -351,6 +351,27 @@ def test_unexpected_error_on_one_rank_ends_the_whole_run(tmp_path):
     assert "completed" not in out.stdout
 
 
+FEW_CELLS = """
+from mpi4py import MPI
+from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod.rod import EndLoad, RodModel, RodParameters
+model = RodModel(RodParameters(), n_cells=2, end_loads=[EndLoad("force", [0.1, 0.0, 0.0])])
+try:
+    TimeStepper(model.problem, "backward_euler").compile()
+except RuntimeError as err:
+    print(f"rank {MPI.COMM_WORLD.rank}: {err}", flush=True)
+"""
+
+
+def test_too_few_cells_per_rank_is_an_error_on_every_rank():
+    """A mesh that leaves a rank with one cell (its Dirichlet dof a ghost of the mixed
+    space): both ranks report it, none waits in a collective call for the other."""
+    out = _mpirun("-c", FEW_CELLS)
+    assert out.returncode == 0, out.stderr
+    for rank in (0, 1):
+        assert f"rank {rank}: an owned Dirichlet dof maps to a ghost" in out.stdout, out.stdout
+
+
 @pytest.mark.mpi
 def test_on_root_raises_a_rank0_error_on_every_rank(tmp_path):
     def fail_on_root():

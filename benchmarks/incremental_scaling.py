@@ -1,0 +1,106 @@
+"""Cost per cell and Newton iteration of the 6-unknowns-per-node prototype (issue 12).
+
+Elastic cantilever (benchmarks/cantilever.py), Lie-group generalized-alpha, dt = 1e-3,
+a few steps per size; split into residual assembly, Jacobian assembly and the rest
+(LU factorisation + solve + SNES/Python), per cell per Newton iteration.  Beside each
+number its physical limit: flops of the block-tridiagonal LU for b unknowns per node,
+flops of the Jacobian kernel (counted in the generated C) and bytes of assembly.
+Also the set-up time of a model whose structure is compiled already (form_cache) and,
+under mpirun, the tip position (serial == 2 ranks).
+
+    ./rodenv python3 benchmarks/incremental_scaling.py [--sizes 1000 10000 100000]
+    ./rodenv mpirun -n 2 python3 benchmarks/incremental_scaling.py --sizes 100000
+Writes results/bench/incremental_scaling_np{size}.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import time
+from pathlib import Path
+
+from mpi4py import MPI
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import cantilever as cant  # noqa: E402
+
+from dolfin_rod.integrators.lie_alpha import LieGeneralizedAlpha  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def kernel_flops(form) -> int:
+    """Multiplications and additions in the generated C of a compiled form's kernels."""
+    source = Path(form.module.__file__).with_suffix("").with_suffix(".c")
+    if not source.exists():
+        candidates = list(Path(form.module.__file__).parent.glob(
+            Path(form.module.__file__).name.split(".")[0] + ".c"))
+        if not candidates:
+            return -1
+        source = candidates[0]
+    body = source.read_text()
+    return len(re.findall(r"[^+*/-][*+-][^+*/=-]", body))
+
+
+def lu_flops_per_node(b: int) -> float:
+    """Block-tridiagonal LU, b x b blocks: LU of the pivot block 2/3 b^3, the multiplier
+    C D^-1 2 b^3, the Schur update 2 b^3."""
+    return (2 / 3 + 2 + 2) * b**3
+
+
+def measure(n_cells: int, steps: int, comm) -> dict:
+    t0 = time.perf_counter()
+    model = cant.incremental_rod_model(n_cells, "elastic", comm)
+    integrator = LieGeneralizedAlpha(model.problem, 0.8)     # default solver options
+    integrator.initial_accelerations(0.0, model.bcs)
+    setup = time.perf_counter() - t0
+    probe = cant.TipProbe(model)
+    timings = integrator.solver.timings
+    timings.update(residual=0.0, jacobian=0.0)
+    t0 = time.perf_counter()
+    t = integrator.advance(0.0, steps * 1e-3, 1e-3)
+    wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+    its = integrator.iterations
+    per = 1e6 / (its * n_cells)
+    res = comm.allreduce(timings["residual"], op=MPI.MAX)
+    jac = comm.allreduce(timings["jacobian"], op=MPI.MAX)
+    out = {"n_cells": n_cells, "ranks": comm.size, "unknowns": integrator.solver.x.getSize(),
+           "setup_s": setup, "steps": integrator.steps, "newton_iterations": its,
+           "wall_s": wall, "us_per_cell_iteration": wall * per,
+           "residual_us": res * per, "jacobian_us": jac * per,
+           "solve_and_rest_us": (wall - res - jac) * per, "tip": probe().tolist(), "t": t}
+    if comm.rank == 0:
+        print(f"n={n_cells:7d} ranks={comm.size} setup={setup:.3f} s "
+              f"its/step={its / integrator.steps:.2f} total={out['us_per_cell_iteration']:.2f} "
+              f"res={out['residual_us']:.2f} jac={out['jacobian_us']:.2f} "
+              f"solve+rest={out['solve_and_rest_us']:.2f} us/cell/iteration", flush=True)
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--sizes", nargs="*", type=int, default=[1000, 10000, 100000])
+    ap.add_argument("--steps", type=int, default=3)
+    args = ap.parse_args()
+    comm = MPI.COMM_WORLD
+    measure(8, 1, comm)                        # compiles (or loads) the forms: excluded
+    rows = [measure(n, args.steps, comm) for n in args.sizes]
+    model = cant.incremental_rod_model(8, "elastic", comm)
+    integrator = LieGeneralizedAlpha(model.problem, 0.8)
+    limits = {"unknowns_per_node": 6,
+              "lu_flops_per_node": lu_flops_per_node(6),
+              "jacobian_kernel_flops": [kernel_flops(f) for f in integrator.solver.system.J],
+              "element_matrix_bytes": 12 * 12 * 8}
+    if comm.rank == 0:
+        print("limits:", limits)
+        folder = ROOT / "results" / "bench"
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / f"incremental_scaling_np{comm.size}.json").write_text(
+            json.dumps({"rows": rows, "limits": limits}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
