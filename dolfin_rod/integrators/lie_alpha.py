@@ -20,11 +20,11 @@ spectral radius rho_inf.  The start needs consistent accelerations (solved at t0
 from __future__ import annotations
 
 import dolfinx.fem as fem
-import numpy as np
 import ufl
 
 from .. import form_cache
 from ..solvers import BlockSNES, SolverError
+from .stepping import check_run, nominal_steps
 
 
 def default_options(comm) -> dict:
@@ -153,9 +153,11 @@ class LieGeneralizedAlpha:
                 p.accelerations[i].x.array[:] = self.acc_n[i].x.array
 
     def advance(self, t: float, t_end: float, dt: float, max_cuts: int = 6) -> float:
-        """Steps of dt (the last one clipped) from t to t_end; a step whose Newton fails
-        is redone as two half steps, at most ``max_cuts`` halvings deep."""
-        n = max(1, int(np.ceil((t_end - t) / dt - 1e-9)))
+        """Equal steps of at most dt from t to t_end (stepping.nominal_steps of them); a
+        step whose Newton fails is redone as two half steps, at most ``max_cuts``
+        halvings deep."""
+        check_run(t, t_end, dt)
+        n = nominal_steps(t, t_end, dt)
         h = (t_end - t) / n
         for k in range(n):
             self._substep(t + k * h, h, max_cuts)
