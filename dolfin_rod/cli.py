@@ -1,4 +1,5 @@
-"""The command line: ``dolfin-rod check SCENE.toml`` and ``dolfin-rod run SCENE.toml``.
+"""The command line: ``dolfin-rod check SCENE.toml``, ``dolfin-rod run SCENE.toml`` and
+``dolfin-rod fit SCENE.toml DATA.csv --params ...`` (dolfin_rod/fit_cli.py).
 
     dolfin-rod check scenes/torsion_creep.toml            validate, print the model and why
     dolfin-rod run scenes/torsion_creep.toml --out DIR    run, results in DIR
@@ -222,6 +223,8 @@ def _parser() -> argparse.ArgumentParser:
                                                           "are still reported on stderr)")
     sub.add_parser("schema", help="print every scene key with its default and meaning "
                                   "(Markdown, as in docs/scenes.md)")
+    from .fit_cli import add_fit_parser
+    add_fit_parser(sub)
     return p
 
 
@@ -282,12 +285,15 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None, comm) -> int:
+    from .fit_cli import FitInputError, fit_command
     from .run_folders import OutputError
     args = _parser().parse_args(argv)
     if args.command == "schema":
         _print(comm, schema_markdown())
         return 0
     try:
+        if args.command == "fit":
+            return fit_command(args, comm)
         scene = load_scene(args.scene)
         if args.command == "check":
             _check(scene, args.out, comm)
@@ -296,7 +302,7 @@ def _main(argv: list[str] | None, comm) -> int:
             raise SceneError(str(args.scene), "", "--resume needs --out (the run folder)")
         summary = run_scene(scene, args.out, comm, resume=args.resume, quiet=args.quiet,
                             overwrite=args.overwrite)
-    except (SceneError, OutputError) as err:
+    except (SceneError, OutputError, FitInputError) as err:
         _print(comm, f"error: {err}", file=sys.stderr)
         return 2
     return {"completed": 0, "stopped": 0, "interrupted": 130}.get(summary["status"], 3)
