@@ -68,6 +68,7 @@ class FitResult:
     message: str = ""
     unidentified: list[str] = field(default_factory=list)
     combination: str | None = None
+    null_direction: dict[str, float] | None = None   # in log p, largest component 1
     evaluations: int = 0
     last_iterate: list[float] = field(default_factory=list)   # not an estimate (see status)
     times: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
@@ -151,9 +152,10 @@ class FitProblem:
         try:
             trial = trial_scene(self.base, self.scene, self.params, p, self.experiment,
                                 self.data, self.dt)
-            t, y, self.method = simulate_response(trial, self.model, self.experiment,
-                                                  self.comm)
-            out = np.interp(self.data.time[self.used], t, y)
+            with np.errstate(over="ignore", invalid="ignore"):    # overflow: inf, below
+                t, y, self.method = simulate_response(trial, self.model, self.experiment,
+                                                      self.comm)
+                out = np.interp(self.data.time[self.used], t, y)
         except (SceneError, IntegrationError, SolverError, ArithmeticError) as err:
             self.last_error = f"{type(err).__name__}: {err}"
             out = np.full(int(self.used.sum()), np.inf)
@@ -312,6 +314,7 @@ def _result(problem: FitProblem, res, r, s, J) -> FitResult:
         correlation=correlation, residual_std=s, n_data=int(r.size), model=choice.model,
         reason=choice.reason, method=problem.method, experiment=problem.experiment.description, message=message,
         unidentified=unidentified, combination=combination(names, ident.null, p),
+        null_direction=None if ident.null is None else dict(zip(names, map(float, ident.null))),
         evaluations=problem.evaluations, last_iterate=[float(x) for x in p],
         times=problem.data.time[problem.used], data=problem.data.response[problem.used],
         fitted=r + problem.data.response[problem.used])
