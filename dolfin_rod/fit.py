@@ -304,8 +304,8 @@ def _result(problem: FitProblem, res, r, s, J) -> FitResult:
     if unidentified:
         status = "not identifiable"
         message = f"{', '.join(unidentified)}: {ident.reason}" + (
-            f"; the other values are conditional on {', '.join(unidentified)} held at their "
-            "last iterate" if keep else "")
+            f"; the other values are conditional on {', '.join(unidentified)} held at "
+            f"{'its' if len(unidentified) == 1 else 'their'} last iterate" if keep else "")
     elif res.status <= 0:
         status, message = "not converged", res.message
     return FitResult(

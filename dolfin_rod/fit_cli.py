@@ -120,7 +120,10 @@ def plot_fit(result: FitResult, path: Path, title: str) -> None:
     top.plot(result.times, result.fitted, "-", color="C0", label=f"fit ({result.model} model)")
     top.set_ylabel(result.experiment.split("response: ")[-1])
     top.set_title(f"{title}: {result.status}")
-    top.legend()
+    for n, v, e in zip(result.parameters, result.values, result.std_errors):
+        top.plot([], [], " ", label=f"{n} = {v:.4g} ± {e:.2g}" if v is not None
+                 else f"{n}: not identifiable")
+    top.legend(loc="best")
     bottom.plot(result.times, result.data - result.fitted, ".", ms=3, color="C3")
     bottom.axhline(0.0, color="0.5", lw=0.8)
     bottom.set_xlabel("time")
