@@ -31,7 +31,8 @@ from .solvers import SolverError
 __all__ = ["main", "run_scene"]
 
 
-def _print(comm, *args, file=None) -> None:
+def print_on_root(comm, *args, file=None) -> None:
+    """print on rank 0 only (flushed: stdout and stderr interleave as written)."""
     if comm.rank == 0:
         print(*args, file=file or sys.stdout, flush=True)
 
@@ -94,7 +95,7 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     meta = read_checkpoint_meta(Path(out), comm, scene) if resume else None
     folder = _run_folder(scene, None if out is None else Path(out), comm, resume, overwrite)
     if not quiet:
-        _print(comm, f"model: {choice.model} ({choice.reason})")
+        print_on_root(comm, f"model: {choice.model} ({choice.reason})")
     _warn_if_unstable(scene, comm)
     sim = build(scene, choice.model, comm)
     impulse = sim.start()
@@ -104,7 +105,7 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
         writer.restore_checkpoint(meta)
         writer.open(keep_until_step=meta["step"])
         if not quiet:
-            _print(comm, f"resumed at step {meta['step']}, t = {meta['time']:g}")
+            print_on_root(comm, f"resumed at step {meta['step']}, t = {meta['time']:g}")
     else:
         writer.open()
         writer.record(0, 0.0, sim.diagnostics(0.0))
@@ -120,9 +121,9 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     summary["folder"] = str(folder)
     line = f"{status}: t = {t:g}, results in {folder}" + (f" ({message})" if message else "")
     if status in ("failed", "interrupted"):          # never hidden, never on stdout
-        _print(comm, line, file=sys.stderr)
+        print_on_root(comm, line, file=sys.stderr)
     elif not quiet:
-        _print(comm, line)
+        print_on_root(comm, line)
     return summary
 
 
@@ -246,7 +247,7 @@ def schema_markdown() -> str:
 def _warn_if_unstable(scene: Scene, comm) -> None:
     warning = explicit_stability_warning(scene)
     if warning:
-        _print(comm, f"warning: {warning}", file=sys.stderr)
+        print_on_root(comm, f"warning: {warning}", file=sys.stderr)
 
 
 def _check(scene: Scene, out: Path | None, comm) -> None:
@@ -259,9 +260,9 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
     if problem:
         what = "--out" if out is not None else f"{scene.source}: [outputs.directory]"
         raise OutputError(f"{what} {problem}")
-    _print(comm, f"{scene.source}: OK")
-    _print(comm, f"model: {choice.model}")
-    _print(comm, f"why: {choice.reason}")
+    print_on_root(comm, f"{scene.source}: OK")
+    print_on_root(comm, f"model: {choice.model}")
+    print_on_root(comm, f"why: {choice.reason}")
     _warn_if_unstable(scene, comm)
 
 
@@ -273,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return _main(argv, comm)
     except KeyboardInterrupt:                      # Ctrl-C before the run loop
-        _print(comm, "interrupted", file=sys.stderr)
+        print_on_root(comm, "interrupted", file=sys.stderr)
         return 130
     except Exception:
         if comm.size == 1:
@@ -289,7 +290,7 @@ def _main(argv: list[str] | None, comm) -> int:
     from .run_folders import OutputError
     args = _parser().parse_args(argv)
     if args.command == "schema":
-        _print(comm, schema_markdown())
+        print_on_root(comm, schema_markdown())
         return 0
     try:
         if args.command == "fit":
@@ -303,7 +304,7 @@ def _main(argv: list[str] | None, comm) -> int:
         summary = run_scene(scene, args.out, comm, resume=args.resume, quiet=args.quiet,
                             overwrite=args.overwrite)
     except (SceneError, OutputError, FitInputError) as err:
-        _print(comm, f"error: {err}", file=sys.stderr)
+        print_on_root(comm, f"error: {err}", file=sys.stderr)
         return 2
     return {"completed": 0, "stopped": 0, "interrupted": 130}.get(summary["status"], 3)
 

@@ -38,30 +38,26 @@ def add_fit_parser(sub) -> None:
 
 def fit_command(args, comm) -> int:
     """Run ``dolfin-rod fit``; SceneError/OutputError/FitInputError propagate (exit 2)."""
+    from .cli import print_on_root
     from .run_folders import on_root
     from .scenes import load_scene
     scene = load_scene(args.scene)
     data = _read_on_root(args.data, comm)
     problem = prepare_fit(scene, data, args.params, comm)
     folder = _fit_folder(scene, args.out, comm)
-    say = (lambda *a: None) if args.quiet else (lambda *a: _print(comm, *a))
+    say = (lambda *a: None) if args.quiet else (lambda *a: print_on_root(comm, *a))
     say(f"model: {problem.choice.model} ({problem.choice.reason})")
     say(f"data: {problem.experiment.description}; {int(problem.used.sum())} rows")
     try:
         result = run_fit(problem)
     except FitError as err:
-        _print(comm, f"failed: {err}", file=sys.stderr)
+        print_on_root(comm, f"failed: {err}", file=sys.stderr)
         return 3
     say(result_table(result))
     on_root(comm, lambda: _write(folder, result, scene.name), f"cannot write to {folder}")
     line = f"{result.status}: results in {folder}"
-    _print(comm, line + (f" ({result.message})" if result.message else ""))
+    print_on_root(comm, line + (f" ({result.message})" if result.message else ""))
     return 0
-
-
-def _print(comm, *args, file=None) -> None:
-    if comm.rank == 0:
-        print(*args, file=file or sys.stdout, flush=True)
 
 
 def _read_on_root(path: Path, comm):
