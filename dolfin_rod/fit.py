@@ -33,7 +33,8 @@ from .fit_inputs import (Experiment, FitInputError, MeasuredSeries, Parameter,
                          experiment_of, parse_parameters, raw_scene, trial_scene)
 from .scenes import Scene, SceneError, build, select_model
 
-__all__ = ["FitError", "FitProblem", "FitResult", "fit_scene", "prepare_fit", "run_fit", "simulate_response", "identifiability",
+__all__ = ["FitError", "FitProblem", "FitResult", "fit_scene", "prepare_fit", "run_fit",
+           "simulate_response", "identifiability",
            "SINGULAR_RATIO", "MAX_RELATIVE_ERROR"]
 
 # J (unit columns) is numerically singular below this ratio of its extreme singular
@@ -146,8 +147,7 @@ class FitProblem:
         self.last_error = self.method = ""
 
     def curve(self, p: np.ndarray) -> np.ndarray:
-        from .integrators.stepping import IntegrationError
-        from .solvers import SolverError
+        """The model's response at the used sample times for parameters p."""
         self.evaluations += 1
         try:
             trial = trial_scene(self.base, self.scene, self.params, p, self.experiment,
@@ -156,7 +156,8 @@ class FitProblem:
                 t, y, self.method = simulate_response(trial, self.model, self.experiment,
                                                       self.comm)
                 out = np.interp(self.data.time[self.used], t, y)
-        except (SceneError, IntegrationError, SolverError, ArithmeticError) as err:
+        except (SceneError, RuntimeError, ArithmeticError) as err:   # RuntimeError:
+            # IntegrationError, SolverError, the ODE's solve_ivp failure
             self.last_error = f"{type(err).__name__}: {err}"
             out = np.full(int(self.used.sum()), np.inf)
         out = np.where(np.isfinite(out), out, np.inf)
@@ -209,9 +210,9 @@ def identifiability(J: np.ndarray, s: float) -> Identifiability:
     if loose:
         _, vecs = np.linalg.eigh(cov)
         w = vecs[:, -1] / np.abs(vecs[:, -1]).max()
+        shown = ", ".join(f"{relative[i]:.2g}" for i in loose)
         return Identifiability(loose, f"relative standard error above "
-                               f"{MAX_RELATIVE_ERROR:g} ({', '.join(f'{relative[i]:.2g}' for i in loose)})",
-                               w)
+                               f"{MAX_RELATIVE_ERROR:g} ({shown})", w)
     return Identifiability((), "")
 
 
@@ -308,13 +309,15 @@ def _result(problem: FitProblem, res, r, s, J) -> FitResult:
             f"{'its' if len(unidentified) == 1 else 'their'} last iterate" if keep else "")
     elif res.status <= 0:
         status, message = "not converged", res.message
+    null = None if ident.null is None else dict(zip(names, map(float, ident.null)))
     return FitResult(
         status=status, parameters=names, paths=[q.path for q in parameters],
         initial=[q.initial for q in parameters], values=values, std_errors=errors,
         correlation=correlation, residual_std=s, n_data=int(r.size), model=choice.model,
-        reason=choice.reason, method=problem.method, experiment=problem.experiment.description, message=message,
+        reason=choice.reason, method=problem.method,
+        experiment=problem.experiment.description, message=message,
         unidentified=unidentified, combination=combination(names, ident.null, p),
-        null_direction=None if ident.null is None else dict(zip(names, map(float, ident.null))),
-        evaluations=problem.evaluations, last_iterate=[float(x) for x in p],
+        null_direction=null, evaluations=problem.evaluations,
+        last_iterate=[float(x) for x in p],
         times=problem.data.time[problem.used], data=problem.data.response[problem.used],
         fitted=r + problem.data.response[problem.used])

@@ -270,6 +270,9 @@ def experiment_of(scene: Scene) -> Experiment:
 
 def raw_scene(scene: Scene) -> dict:
     """The scene's TOML as a dict (the text as run, overrides included)."""
+    if not scene.text:
+        raise FitInputError(f"{scene.source}: the scene has no TOML text to rewrite (load "
+                            "it with load_scene or parse_scene)")
     return tomllib.loads(scene.text)
 
 

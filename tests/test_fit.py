@@ -29,13 +29,15 @@ SD = 0.01
 def creep_data(t, seed: int, sd: float = SD) -> MeasuredSeries:
     """End rotation under a step end torsion m0 = 1 (eq. creepform), plus noise."""
     u, _ = closed_forms.creep(t, 1.0, *TRUE.values())
-    return MeasuredSeries(t, np.ones_like(t), u + np.random.default_rng(seed).normal(0, sd, t.size))
+    noise = np.random.default_rng(seed).normal(0, sd, t.size)
+    return MeasuredSeries(t, np.ones_like(t), u + noise)
 
 
 def relaxation_data(t, seed: int, u0: float = 0.5) -> MeasuredSeries:
     """End torsion under a step end rotation u0 (eq. stressrelax), plus noise."""
     _, m = closed_forms.relaxation(t, u0, TRUE["alpha"], TRUE["alpha_d"], TRUE["mu_d"])
-    return MeasuredSeries(t, np.full_like(t, u0), m + np.random.default_rng(seed).normal(0, SD, t.size))
+    noise = np.random.default_rng(seed).normal(0, SD, t.size)
+    return MeasuredSeries(t, np.full_like(t, u0), m + noise)
 
 
 def grid(t_end: float, h: float) -> np.ndarray:
@@ -93,7 +95,6 @@ def test_standard_errors_match_the_scatter_over_seeds():
     assert abs(rms / SD - 1) < 3 * np.sqrt(1 / (2 * 40 * (t.size - 2)))
 
 
-@pytest.mark.mpi
 def test_a_load_that_is_not_a_step_drives_the_ode_as_a_table():
     """mu = 0 creep under a ramp to m = 1 over t in [0, 0.5], then held: data from the
     convolution of ERRATA item 3 (closed_forms.creep_response, quadrature to 1e-10); the
