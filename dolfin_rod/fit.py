@@ -105,10 +105,11 @@ def simulate_response(scene: Scene, model: str, experiment: Experiment, comm
     e = experiment.direction
 
     def response(d: dict) -> float:
-        if experiment.response == "tip_displacement":
-            return sum((d[f"tip_position_{c}"] - rest[f"tip_position_{c}"]) * e[i]
-                       for i, c in enumerate("xyz"))
-        return d[experiment.response]
+        if e is None:
+            return d[experiment.response]
+        key = experiment.response
+        return sum((d[key + c] - (rest[key + c] if experiment.from_rest else 0.0)) * e[i]
+                   for i, c in enumerate("xyz"))
 
     times, values = [0.0], [response(rest)]
 

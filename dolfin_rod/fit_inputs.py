@@ -12,6 +12,10 @@ increasing and >= 0.  What load and response mean depends on the scene (``Experi
     3-D rod with loads.end_force            load: the force's magnitude along the scene's
                                              end_force direction e
                                              response: tip displacement (r(L,t) - r(L,0)).e
+    3-D rod, boundary.end_displacement      load: the displacement along its direction e
+                                             response: reaction force at s = L, along e
+    3-D rod, boundary.end_rotation          load: the rotation angle about its axis e
+                                             response: reaction couple at s = L, about e
 
 The model is at rest for t < 0; the load is the CSV's column interpolated linearly
 between rows (constant before the first row and after the last), so a load equal on
@@ -229,43 +233,68 @@ def set_parameter(raw: dict, p: Parameter, value: float) -> None:
 
 # --- the experiment: which load the CSV drives and which response it measures ------------
 
+# the rod experiments: scene key of the load -> (response, its diagnostics, what it is)
+ROD_EXPERIMENTS = {
+    "loads.end_force": ("tip_displacement", "tip_position_",
+                        "load: end force along its direction e; response: tip displacement "
+                        "along e"),
+    "boundary.end_displacement": ("reaction_force", "reaction_force_right_",
+                                  "load: end displacement along its direction e; response: "
+                                  "reaction force at s = L along e"),
+    "boundary.end_rotation": ("reaction_couple", "reaction_couple_right_",
+                              "load: end rotation angle about its axis e; response: "
+                              "reaction couple at s = L about e"),
+}
+TORSION_EXPERIMENTS = {
+    "boundary.end_rotation": "load: end rotation Phi(t); response: end torsion",
+    "loads.end_torsion": "load: end torsion m(t); response: end rotation phi(1)",
+}
+ROD_OTHER_LOADS = ("loads.end_couple", "loads.start_force", "loads.start_couple",
+                   "loads.distributed_force", "loads.distributed_couple", "loads.gravity",
+                   "boundary.start_displacement", "boundary.start_rotation")
+
 
 @dataclass(frozen=True)
 class Experiment:
-    """The scene key the CSV's load drives, the response measured, and its direction
-    (rod: unit vector of the scene's end_force)."""
+    """The scene key the CSV's load drives and the response measured: a diagnostics key
+    (torsion), or for a rod the prefix of x, y, z diagnostics projected on the unit
+    vector ``direction`` of the scene's load (``from_rest``: minus the value at rest)."""
 
-    load_key: str          # "boundary.end_rotation" | "loads.end_torsion" | "loads.end_force"
-    response: str          # "end_torsion" | "end_rotation" | "tip_displacement"
+    load_key: str
+    response: str
+    description: str
     direction: tuple[float, float, float] | None = None
-
-    @property
-    def description(self) -> str:
-        return {"boundary.end_rotation": "load: end rotation Phi(t); response: end torsion",
-                "loads.end_torsion": "load: end torsion m(t); response: end rotation phi(1)",
-                "loads.end_force": "load: end force along its direction e; response: tip "
-                                   "displacement along e"}[self.load_key]
+    from_rest: bool = False
 
 
 def experiment_of(scene: Scene) -> Experiment:
     """The experiment a scene describes (see the module docstring)."""
     if not scene.is_rod_material:
-        if scene["boundary"]["end"] == "rotation":
-            return Experiment("boundary.end_rotation", "end_torsion")
-        return Experiment("loads.end_torsion", "end_rotation")
-    spec = scene["loads"]["end_force"]
-    others = [k for k in ("end_couple", "start_force", "start_couple", "distributed_force",
-                          "distributed_couple", "gravity") if scene["loads"][k] is not None]
-    if spec is None or spec.type == "table" or others:
-        raise FitInputError(f"{scene.source}: a rod fit needs loads.end_force (a step, ramp "
-                            "or constant with value = [x, y, z], whose direction the CSV's "
-                            "load scales) and no other load"
-                            + (f"; the scene also has {', '.join(others)}" if others else ""))
+        key = ("boundary.end_rotation" if scene["boundary"]["end"] == "rotation"
+               else "loads.end_torsion")
+        response = "end_torsion" if key == "boundary.end_rotation" else "end_rotation"
+        return Experiment(key, response, TORSION_EXPERIMENTS[key])
+    given = [k for k in (*ROD_EXPERIMENTS, *ROD_OTHER_LOADS) if _scene_value(scene, k)]
+    key = given[0] if len(given) == 1 and given[0] in ROD_EXPERIMENTS else None
+    spec = _scene_value(scene, key) if key else None
+    if spec is None or spec.type == "table":
+        raise FitInputError(f"{scene.source}: a rod fit needs exactly one of "
+                            f"{', '.join(ROD_EXPERIMENTS)} (a step, ramp or constant with "
+                            "value = [x, y, z], whose direction the CSV's load scales) and "
+                            f"no other load or end motion (the scene has: "
+                            f"{', '.join(given) or 'none'})")
     e = np.asarray(spec.value, float)
     if not np.linalg.norm(e) > 0.0:
-        raise FitInputError(f"{scene.source}: [loads.end_force]: value must be non-zero (it "
-                            "gives the direction of the CSV's load)")
-    return Experiment("loads.end_force", "tip_displacement", tuple(e / np.linalg.norm(e)))
+        raise FitInputError(f"{scene.source}: [{key}]: value must be non-zero (it gives "
+                            "the direction of the CSV's load)")
+    name, prefix, description = ROD_EXPERIMENTS[key]
+    return Experiment(key, prefix, description, tuple(e / np.linalg.norm(e)),
+                      from_rest=name == "tip_displacement")
+
+
+def _scene_value(scene: Scene, key: str):
+    table, name = key.split(".")
+    return scene[table][name]
 
 
 def raw_scene(scene: Scene) -> dict:
@@ -286,8 +315,8 @@ def trial_scene(base: dict, scene: Scene, params: list[Parameter], values,
         set_parameter(raw, p, float(v))
     table, key = experiment.load_key.split(".")
     raw.setdefault(table, {})[key] = _load_history(data, experiment)
-    if experiment.load_key == "boundary.end_rotation":
-        raw["boundary"]["end"] = "rotation"
+    if experiment.load_key == "boundary.end_rotation" and experiment.direction is None:
+        raw["boundary"]["end"] = "rotation"             # torsion: the end is turned
     raw["time"].update({"t_end": float(data.time[-1]), "dt": float(dt)})
     out = validate(raw, scene.source, scene.name)
     out.text = scene.text
