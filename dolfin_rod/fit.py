@@ -250,6 +250,10 @@ def prepare_fit(scene: Scene, data: MeasuredSeries, params: list[str] | str,
     choice = select_model(scene)
     parameters = parse_parameters(names, scene, raw_scene(scene))
     problem = FitProblem(scene, data, parameters, choice, comm or MPI.COMM_WORLD)
+    for p in parameters:
+        if p.path.startswith(problem.experiment.load_key) or p.keys[0] == "time":
+            raise FitInputError(f"parameter {p.name!r}: {p.path} is set by the fit from the "
+                                "data (the load history, the time span), not a parameter")
     n, k = int(problem.used.sum()), len(parameters)
     if n <= k:
         raise FitInputError(f"{data.source}: {n} usable rows for {k} parameters: need "

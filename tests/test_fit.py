@@ -254,6 +254,7 @@ def test_nan_in_a_series_from_python():
     ("alpha,alpha", "given twice"),
     ("material.mu[", "not a key path"),
     ("nu", "initial value must be > 0"),
+    ("loads.end_torsion.value", "is set by the fit from the data"),
 ])
 def test_bad_parameter_is_refused_before_any_model_runs(params, message):
     scene = load_scene(EXAMPLES / "creep.toml")
