@@ -18,7 +18,7 @@ vstraindecomp; e = v_3 - v_d,3 the elastic stretch, w = u_3 - u_d,3 the elastic 
 * The overstretching landscape phi(x), x = v_d,3, has the natural tension
       f(x) = phi'(x) = F_p tanh((x - 1)/sig) + k_p (x - 1) / (1 - ((x - 1)/lam_d)^2),
   sig = F_p / B_d0: stiff (B_d0) below the plateau force F_p, a plateau of slope ~k_p from
-  x ~ 1.02 to ~1.7, and a natural stretch limit 1 + lam_d.  f increases monotonically, so
+  x ~ 1.05 to ~1.7, and a natural stretch limit 1 + lam_d.  f increases monotonically, so
   phi is convex and the equilibrium curve is unique: every hysteresis is rate dependent
   (a double well would add a rate-independent loop, a different effect).
 

@@ -25,7 +25,7 @@ from dolfin_rod.scenes import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "demos"))
-from dna_overstretching import cycle_changes  # noqa: E402  (the demo's loading cycles)
+from dna_overstretching import loop  # noqa: E402  (the demo's loading cycle)
 
 PULL = ROOT / "scenes/dna_overstretching.toml"
 TWIST = ROOT / "scenes/dna_twist_relaxation.toml"
@@ -133,31 +133,16 @@ def test_scene_stiffness_tables_are_the_energy_linearised():
 
 
 def cycle(folder: Path, rate: float, steps_per_ramp: int) -> dict:
-    """One ramp 0 -> 80 pN -> 0 and rest; loop area, dissipated energy, psi change (all
-    ranks) and the time, force and extension X/L0 histories."""
-    changes = {**cycle_changes(rate, steps_per_ramp), **QUIET}
-    scene = load_scene(PULL, changes)
-    summary = run_scene(scene, folder, quiet=True)
-    assert summary["status"] == "completed", summary["message"]
-    out = None
-    if MPI.COMM_WORLD.rank == 0:
-        rows = json.loads((folder / "timeseries.json").read_text())
-        t = np.array(rows["time"])
-        F = scene["loads"]["end_force"].build(2)(t)
-        X = np.array(rows["tip_position_z"])
-        out = {"t": t.tolist(), "F": F.tolist(), "x": (X / scene["geometry"]["length"]).tolist(),
-               "reaction": (-np.array(rows["reaction_force_left_z"])).tolist(),
-               "area": float(np.trapezoid(F, X)), "dissipated": rows["total_dissipation"][-1],
-               "psi_change": rows["free_energy"][-1] - rows["free_energy"][0]}
-    return MPI.COMM_WORLD.bcast(out, root=0)
+    """The demo's loading cycle (ramp 0 -> 80 pN -> 0 and rest) on every rank."""
+    return MPI.COMM_WORLD.bcast(loop(rate, folder, steps_per_ramp, QUIET), root=0)
 
 
-@pytest.mark.mpi
 def test_loop_area_is_the_dissipated_energy_at_second_order(tmp_path):
     """int F dX over the cycle = int int xi ds dt + Psi(T) - Psi(0) (power balance,
     ERRATA.md) holds for the exact solution; the run's discrepancy falls at BDF2's
     order 2 (with trapezoidal quadrature of F dX and of the dissipation rate, also
-    O(dt^2)) as dt halves: 400, 800, 1600 steps per ramp at 10 pN/s."""
+    O(dt^2)) as dt halves: 400, 800, 1600 steps per ramp at 10 pN/s.  (Serial only:
+    6000 steps; the last test runs this scene under mpirun -n 2 against serial.)"""
     folder = shared_folder(tmp_path)
     runs = [cycle(folder / f"n{n}", 10.0, n) for n in (400, 800, 1600)]
     gaps = [r["area"] - r["dissipated"] - r["psi_change"] for r in runs]
