@@ -18,7 +18,7 @@ import numpy as np
 import ufl
 from ufl.algorithms import expand_derivatives
 
-__all__ = ["NaturalStateReport", "check_natural_state"]
+__all__ = ["NaturalStateReport", "check_natural_state", "stationarity_and_hessian"]
 
 
 @dataclass(frozen=True)
@@ -42,18 +42,14 @@ def _value(expr) -> float:
 
 def stationarity_and_hessian(psi: Callable, u_d, v_d) -> tuple[np.ndarray, np.ndarray]:
     """(dpsi/d(u, v), d^2psi/d(u, v)^2) at u = u_d, v = v_d: a 6-vector and a 6x6 matrix."""
-    u = ufl.variable(ufl.as_vector([float(x) for x in u_d]))
-    v = ufl.variable(ufl.as_vector([float(x) for x in v_d]))
-    energy = psi(ufl.as_vector([float(x) for x in u_d]), ufl.as_vector([float(x) for x in v_d]),
-                 u, v)
-    grad = [expand_derivatives(ufl.diff(energy, w)) for w in (u, v)]
-    g = np.array([_value(gi[k]) for gi in grad for k in range(3)])
-    hess = np.empty((6, 6))
-    for i, (gi, k) in enumerate((gi, k) for gi in grad for k in range(3)):
-        for j, w in enumerate((u, v)):
-            row = expand_derivatives(ufl.diff(gi[k], w))
-            hess[i, 3 * j:3 * j + 3] = [_value(row[m]) for m in range(3)]
-    return g, hess
+    def constant(a):
+        return ufl.as_vector([float(x) for x in a])
+    strains = (ufl.variable(constant(u_d)), ufl.variable(constant(v_d)))
+    energy = psi(constant(u_d), constant(v_d), *strains)
+    gradient = [expand_derivatives(ufl.diff(energy, w))[k] for w in strains for k in range(3)]
+    hess = np.array([[_value(expand_derivatives(ufl.diff(g, w))[k])
+                      for w in strains for k in range(3)] for g in gradient])
+    return np.array([_value(g) for g in gradient]), hess
 
 
 def check_natural_state(psi: Callable, natural_states: Iterable[tuple], force_scale: float = 1.0,
