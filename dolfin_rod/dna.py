@@ -54,10 +54,10 @@ class DnaParameters:
     shear_stiffness: float = 500.0       # pN: GA ~ S/3 (isotropic, Poisson 1/2; not measured,
     #                                      it does not enter the straight states computed)
     stretch_limit: float = 0.2           # lam: elastic stretch bound (modelling choice: the
-    #                                      law stays within 5% of n = S e up to 50 pN)
+    #                                      law stays within 3% of n = S e up to 50 pN)
     plateau_force: float = 65.0          # pN: F_p (Smith et al. 1996; Cluzel et al. 1996)
     natural_stiffness: float = 4000.0    # pN: B_d0, the B form's slow creep below F_p (above)
-    plateau_slope: float = 5.0           # pN: k_p, the plateau rises ~10 pN by 1.7 L0 (Smith
+    plateau_slope: float = 5.0           # pN: k_p, the plateau rises ~15 pN by 1.7 L0 (Smith
     #                                      et al. 1996; van Mameren et al. 2009)
     natural_stretch_limit: float = 0.8   # lam_d: overstretched length <= 1.8 L0 (Smith 1996)
     natural_curvature_ratio: float = 0.5  # A_d = ratio (EI, EI, C) (illustrative)
@@ -96,8 +96,9 @@ class DnaParameters:
                 - 0.5 * k_p * lam_d ** 2 * ufl.ln(1 - (y / lam_d) ** 2))
 
     def linearised(self) -> dict[str, list[float]]:
-        """The diagonals of psi's Hessian at the unstressed state (u_d = u = 0, v_d = v =
-        e_3): A, B (elastic) and A_d, B_d (natural part) as a scene writes them."""
+        """Diagonals of the Hessians at the unstressed state (u_d = u = 0, v_d = v = e_3):
+        A, B of psi in (u, v), A_d, B_d of its natural part in (u_d, v_d), as a scene's
+        material.stiffness writes them."""
         EI, C, GA = self.bending_stiffness, self.twist_stiffness, self.shear_stiffness
         a = self.natural_curvature_ratio
         return {"A": [EI, EI, C], "B": [GA, GA, self.stretch_modulus],
