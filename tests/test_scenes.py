@@ -68,7 +68,8 @@ def shared_folder(tmp_path) -> Path:
 # with an end load or rotation -> ode; a 3-D material -> rod (a new scene needs its entry)
 BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "cantilever_creep.toml": "rod", "gravity_cantilever.toml": "rod",
-                  "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod"}
+                  "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod",
+                  "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
