@@ -259,6 +259,10 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
     _print(comm, f"{scene.source}: OK")
     _print(comm, f"model: {choice.model}")
     _print(comm, f"why: {choice.reason}")
+    if choice.model == "rod":
+        from .scenes.rules import rod_rotations
+        _print(comm, f"rotations: {rod_rotations(scene)} (geometry.rotations = "
+                     f"{scene['geometry']['rotations']!r})")
     _warn_if_unstable(scene, comm)
 
 
