@@ -93,7 +93,7 @@ class LieGeneralizedAlpha:
         objects = [*self._model_objects, *self.y_n, *self.v_n,
                    *(a for a in self.acc_n if a is not None), *self.alg_n, self.dt]
         F = None if form_cache.lookup(self.structure_key) else self._step_forms()
-        options = {**default_options(mesh.comm), **(solver_options or {})}
+        self.options = options = {**default_options(mesh.comm), **(solver_options or {})}
         self.solver = BlockSNES(F, y, problem.bcs, options,
                                 cache=(self.structure_key, objects))
         self.stats = StepStats()
