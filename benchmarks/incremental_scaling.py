@@ -1,4 +1,5 @@
-"""Cost per cell and Newton iteration of the 6-unknowns-per-node prototype (issue 12).
+"""Cost per cell and Newton iteration of the dynamic rod with its defaults (issue 12:
+rotation vectors, 6 unknowns per node).
 
 Elastic cantilever (benchmarks/cantilever.py), Lie-group generalized-alpha, dt = 1e-3,
 a few steps per size; split into residual assembly, Jacobian assembly and the rest
@@ -27,7 +28,7 @@ from mpi4py import MPI
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cantilever as cant  # noqa: E402
 
-from dolfin_rod.integrators.lie_alpha import LieGeneralizedAlpha  # noqa: E402
+from dolfin_rod.integrators.stepper import TimeStepper  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -53,28 +54,28 @@ def lu_flops_per_node(b: int) -> float:
 
 def measure(n_cells: int, steps: int, comm) -> dict:
     t0 = time.perf_counter()
-    model = cant.incremental_rod_model(n_cells, "elastic", comm)
-    integrator = LieGeneralizedAlpha(model.problem, 0.8)     # default solver options
-    integrator.initial_accelerations(0.0, model.bcs)
+    model = cant.dolfin_rod_model(n_cells, "elastic", comm)
+    integrator = TimeStepper(model.problem)     # every default
+    integrator.initial_accelerations(0.0)
     setup = time.perf_counter() - t0
     probe = cant.TipProbe(model)
     timings = integrator.solver.timings
     timings.update(residual=0.0, jacobian=0.0)
     t0 = time.perf_counter()
-    t = integrator.advance(0.0, steps * 1e-3, 1e-3)
+    t = integrator.run(0.0, steps * 1e-3, 1e-3)
     wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
-    its = integrator.iterations
+    its = integrator.stats.newton_iterations
     per = 1e6 / (its * n_cells)
     res = comm.allreduce(timings["residual"], op=MPI.MAX)
     jac = comm.allreduce(timings["jacobian"], op=MPI.MAX)
     out = {"n_cells": n_cells, "ranks": comm.size, "unknowns": integrator.solver.x.getSize(),
-           "setup_s": setup, "steps": integrator.steps, "newton_iterations": its,
+           "setup_s": setup, "steps": integrator.stats.steps, "newton_iterations": its,
            "wall_s": wall, "us_per_cell_iteration": wall * per,
            "residual_us": res * per, "jacobian_us": jac * per,
            "solve_and_rest_us": (wall - res - jac) * per, "tip": probe().tolist(), "t": t}
     if comm.rank == 0:
         print(f"n={n_cells:7d} ranks={comm.size} setup={setup:.3f} s "
-              f"its/step={its / integrator.steps:.2f} total={out['us_per_cell_iteration']:.2f} "
+              f"its/step={its / integrator.stats.steps:.2f} total={out['us_per_cell_iteration']:.2f} "
               f"res={out['residual_us']:.2f} jac={out['jacobian_us']:.2f} "
               f"solve+rest={out['solve_and_rest_us']:.2f} us/cell/iteration", flush=True)
     return out
@@ -88,8 +89,8 @@ def main():
     comm = MPI.COMM_WORLD
     measure(8, 1, comm)                        # compiles (or loads) the forms: excluded
     rows = [measure(n, args.steps, comm) for n in args.sizes]
-    model = cant.incremental_rod_model(8, "elastic", comm)
-    integrator = LieGeneralizedAlpha(model.problem, 0.8)
+    model = cant.dolfin_rod_model(8, "elastic", comm)
+    integrator = TimeStepper(model.problem)
     limits = {"unknowns_per_node": 6,
               "lu_flops_per_node": lu_flops_per_node(6),
               "jacobian_kernel_flops": [kernel_flops(f) for f in integrator.solver.system.J],

@@ -263,6 +263,10 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
     print_on_root(comm, f"{scene.source}: OK")
     print_on_root(comm, f"model: {choice.model}")
     print_on_root(comm, f"why: {choice.reason}")
+    if choice.model == "rod":
+        from .scenes.rules import rod_rotations
+        print_on_root(comm, f"rotations: {rod_rotations(scene)} (geometry.rotations = "
+                            f"{scene['geometry']['rotations']!r})")
     _warn_if_unstable(scene, comm)
 
 
