@@ -52,18 +52,25 @@ def scalar_coefficient(value: float | Callable, mesh, s):
     return value(s) if callable(value) else fem.Constant(mesh, float(value))
 
 
-def nodal_residual(form: fem.Form, space, s_node: float) -> np.ndarray:
-    """The assembled residual of one block at the node at s_node (its components),
-    summed over the ranks: the residual tested with the node's unit nodal motions."""
-    b = fem.assemble_vector(form)
-    b.scatter_reverse(la.InsertMode.add)
+def node_values(array: np.ndarray, space, s_nodes) -> list[np.ndarray]:
+    """The entries (bs components) of a dof array of ``space`` at the nodes at s_nodes,
+    from their owners, summed over the ranks (one reduction)."""
     bs = space.dofmap.index_map_bs
     owned = space.dofmap.index_map.size_local
-    local = np.zeros(bs)
-    for d in fem.locate_dofs_geometrical(space, lambda x: np.isclose(x[0], s_node)):
-        if d < owned:
-            local += b.array[bs * d: bs * (d + 1)]
-    return space.mesh.comm.allreduce(local, op=MPI.SUM)
+    local = np.zeros((len(s_nodes), bs))
+    for k, s_node in enumerate(s_nodes):
+        for d in fem.locate_dofs_geometrical(space, lambda x: np.isclose(x[0], s_node)):
+            if d < owned:
+                local[k] += array[bs * d: bs * (d + 1)]
+    return list(space.mesh.comm.allreduce(local, op=MPI.SUM))
+
+
+def nodal_residual(form: fem.Form, space, s_nodes) -> list[np.ndarray]:
+    """The assembled residual of one block at the nodes at s_nodes: the residual tested
+    with each node's unit nodal motions (one assembly)."""
+    b = fem.assemble_vector(form)
+    b.scatter_reverse(la.InsertMode.add)
+    return node_values(b.array, space, s_nodes)
 
 
 class FEModel:

@@ -127,10 +127,15 @@ class EndSupports:
         unit nodal translation, or a nodal spatial rotation e: delta q = (0, e) q_end / 2
         (quaternions) or delta theta = R(q_end)^T e (rotation vectors, theta = 0)."""
         out, power = {}, 0.0
-        for end in ENDS:
-            node = {block: nodal_residual(self._compiled(residual, block), spaces[block],
-                                          end_coordinate(end, length))
-                    for block in ("displacement", rotation_block)
+        ends = [e for e in ENDS if any((b, e) in self.values
+                                       for b in ("displacement", rotation_block))]
+        at_ends = {block: dict(zip(ends, nodal_residual(
+            self._compiled(residual, block), spaces[block],
+            [end_coordinate(e, length) for e in ends])))
+            for block in ("displacement", rotation_block)
+            if any((block, e) in self.values for e in ends)}
+        for end in ends:
+            node = {block: values[end] for block, values in at_ends.items()
                     if (block, end) in self.values}
             q_end = self.prescribed(end, t)[1]
             for i, comp in enumerate("xyz"):

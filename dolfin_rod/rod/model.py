@@ -146,6 +146,7 @@ class RodModel(FEModel):
         reactions at supported ends."""
         self.supports.set_motion_rates(t)
         d = self.assembled_diagnostics(t)
+        d.update(diagnostics.tip(self.unknowns, self.length))
         d.update(self.supports.reactions(self.residual, self.unknowns.spaces,
                                          self.unknowns.rotation, self.length, t))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
