@@ -19,7 +19,7 @@ import dolfinx.fem as fem
 import numpy as np
 
 from .. import loads
-from ..model_base import ENDS, end_coordinate, nodal_residual
+from ..model_base import ENDS, NodeValues, end_coordinate, nodal_residual
 from ..rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 from .rotation_vector import np_inverse_cayley
 
@@ -130,8 +130,7 @@ class EndSupports:
         ends = [e for e in ENDS if any((b, e) in self.values
                                        for b in ("displacement", rotation_block))]
         at_ends = {block: dict(zip(ends, nodal_residual(
-            self._compiled(residual, block), spaces[block],
-            [end_coordinate(e, length) for e in ends])))
+            *self._compiled(residual, block, spaces[block], ends, length))))
             for block in ("displacement", rotation_block)
             if any((block, e) in self.values for e in ends)}
         for end in ends:
@@ -152,10 +151,11 @@ class EndSupports:
             out["reaction_power"] = power
         return out
 
-    def _compiled(self, residual: dict, block: str):
-        """The block's residual form, compiled at the first diagnostics."""
+    def _compiled(self, residual: dict, block: str, space, ends, length: float):
+        """The block's residual form and its end nodes, made at the first diagnostics."""
         if block not in self._residual_forms:
-            self._residual_forms[block] = fem.form(residual[block])
+            self._residual_forms[block] = (fem.form(residual[block]), NodeValues(
+                space, [end_coordinate(e, length) for e in ends]))
         return self._residual_forms[block]
 
     def set_motion_rates(self, t: float) -> None:

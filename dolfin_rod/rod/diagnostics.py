@@ -7,7 +7,7 @@ from __future__ import annotations
 import ufl
 
 from ..dissipation import dissipation_rate
-from ..model_base import node_values
+from ..model_base import NodeValues
 from ..rotations import np_qmul, np_rotation_angle
 from .rotation_vector import np_cayley
 
@@ -33,21 +33,28 @@ def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation) -> dict:
     return forms
 
 
-def tip(unk, length: float) -> dict:
-    """tip_position_{xyz} (r = L e_3 + x) and tip_quaternion_{0..3} at s = L, nodal
+class Tip:
+    """tip_position_{xyz} (r = L e_3 + x) and tip_quaternion_{0..3} at s = L: nodal
     values (rotation vectors: q_n c(theta))."""
-    x_dofs = unk.f["displacement"]
-    if unk.chart is None:
-        q_field, q_array = unk.f["quaternion"], unk.f["quaternion"].x.array
-    else:
-        q_field = unk.chart.q_n
-        q_array = np_qmul(q_field.x.array.reshape(-1, 4),
-                          np_cayley(unk.f[unk.rotation].x.array.reshape(-1, 3))).ravel()
-    x, = node_values(x_dofs.x.array, x_dofs.function_space, [length])
-    q, = node_values(q_array, q_field.function_space, [length])
-    d = {f"tip_position_{c}": x[i] + (length if c == "z" else 0.0) for i, c in enumerate("xyz")}
-    d.update({f"tip_quaternion_{i}": q[i] for i in range(4)})
-    return d
+
+    def __init__(self, unk, length: float):
+        self.unk, self.length = unk, length
+        q_space = (unk.f["quaternion"] if unk.chart is None else unk.chart.q_n).function_space
+        self.x_node = NodeValues(unk.f["displacement"].function_space, [length])
+        self.q_node = NodeValues(q_space, [length])
+
+    def __call__(self) -> dict:
+        unk = self.unk
+        if unk.chart is None:
+            q_array = unk.f["quaternion"].x.array
+        else:
+            q_array = np_qmul(unk.chart.q_n.x.array.reshape(-1, 4),
+                              np_cayley(unk.f[unk.rotation].x.array.reshape(-1, 3))).ravel()
+        x, q = self.x_node(unk.f["displacement"].x.array)[0], self.q_node(q_array)[0]
+        d = {f"tip_position_{c}": x[i] for i, c in enumerate("xyz")}
+        d["tip_position_z"] += self.length
+        d.update({f"tip_quaternion_{i}": q[i] for i in range(4)})
+        return d
 
 
 def tip_rotation_angle(d: dict) -> float:
