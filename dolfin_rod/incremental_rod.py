@@ -48,6 +48,34 @@ def _RT(q):
     return ufl.transpose(rotation_matrix(q))
 
 
+def rotate_back(m, y):
+    """R(m/|m|)^T y for any quaternion m != 0 (UFL): y + 2 (mv x (mv x y) - m_0 mv x y)/|m|^2."""
+    mv = vec(m)
+    c = ufl.cross(mv, y)
+    return y + 2.0 / ufl.dot(m, m) * (ufl.cross(mv, c) - m[0] * c)
+
+
+def strains(theta_a, theta_b, r_s, q_n_a, p_n, h):
+    """(u, v) of one cell: RodModel's strains of the P1 quaternion interpolant at the
+    midpoint, q_mid = (q_a + q_b)/2, with the nodal rotations q_a = q_n,a c(theta_a),
+    q_b = q_n,b c(theta_b), q_n,b = q_n,a p_n (UFL; q_n,a, p_n unit, per cell; h the
+    cell length).  With m = c(theta_a) + p_n c(theta_b) = 2 conj(q_n,a) q_mid and
+    d = p_n c(theta_b) - c(theta_a) = h conj(q_n,a) q_s:
+
+        u = 2 vec(conj(q_mid) q_s)/|q_mid|^2 = 4 vec(conj(m) d)/(h |m|^2),
+        v = R(q_mid)^T r_s = R(m)^T R(q_n,a)^T r_s.
+
+    One quaternion product and one rotation of the unknowns (the Jacobian kernel's cost
+    is the second derivative of this graph: 17.6k flops against 27.2k for the form
+    conj(c_a) p_n c_b with three rotation matrices, same values to round-off).
+    """
+    c_a, pc_b = cayley(theta_a), qmul(p_n, cayley(theta_b))
+    m, d = c_a + pc_b, pc_b - c_a
+    mv, dv = vec(m), vec(d)
+    u = 4 * (m[0] * dv - d[0] * mv - ufl.cross(mv, dv)) / (h * ufl.dot(m, m))
+    return u, rotate_back(m, ufl.dot(_RT(q_n_a), r_s))
+
+
 def np_cayley(theta):
     theta = np.asarray(theta, dtype=float)
     q = np.concatenate([np.full(theta.shape[:-1] + (1,), 2.0), theta], axis=-1)
@@ -107,21 +135,13 @@ class IncrementalRod:
         self.qa_n, self.p_n = fem.Function(S4, name="q_n_left"), fem.Function(S4, name="p_n")
 
     def _strains(self):
-        """(u, v) of the P1 quaternion interpolant at the cell midpoint, from the nodal
-        quaternions q_a = q_n,a c(theta_a), q_b (nodal values at any point of the cell)."""
+        """(u, v) of the cell (eq. strains of RodModel's P1 interpolant at the midpoint)."""
         s, h = ufl.SpatialCoordinate(self.mesh)[0], ufl.CellVolume(self.mesh)
         x, th = self.f["displacement"], self.f["rotation_increment"]
-        c_a, c_b = (cayley(th + (s_node - s) * th.dx(0))
-                    for s_node in (self.s_mid - h / 2, self.s_mid + h / 2))
-        p = qmul(qmul(conj(c_a), self.p_n), c_b)          # conj(q_a) q_b
-        # q_mid = (q_a + q_b)/2 = q_a (1 + p)/2:
-        # u = 2 vec(conj(q_mid) q_s)/|q_mid|^2 = 4 vec(p)/(h (1 + p_0)),
-        # v = R(q_mid)^T r_s = R(1 + p)^T R(c_a)^T R(q_n,a)^T r_s
-        u = 4 * vec(p) / (h * (1 + p[0]))
+        th_a, th_b = (th + (s_node - s) * th.dx(0)
+                      for s_node in (self.s_mid - h / 2, self.s_mid + h / 2))
         r_s = ufl.as_vector((0.0, 0.0, 1.0)) + x.dx(0)
-        one_p = ufl.as_vector((1 + p[0], p[1], p[2], p[3]))
-        v = ufl.dot(_RT(one_p), ufl.dot(_RT(c_a), ufl.dot(_RT(self.qa_n), r_s)))
-        return u, v
+        return strains(th_a, th_b, r_s, self.qa_n, self.p_n, h)
 
     def _coefficients(self, params) -> dict:
         c = {}
