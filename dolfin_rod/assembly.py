@@ -80,6 +80,10 @@ class _System:
             (self.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         self._scratch = [np.zeros_like(y.x.array) for y in self.groups[0]]
         self.A.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
+        # MPI: after the first assembly the off-rank entries go to the same ranks, and each
+        # rank zeroes only its own (owned) rows: no rendezvous (BuildTwoSided) per Jacobian
+        self.A.setOption(PETSc.Mat.Option.SUBSET_OFF_PROC_ENTRIES, True)
+        self.A.setOption(PETSc.Mat.Option.NO_OFF_PROC_ZERO_ROWS, True)
 
     def _bc_values(self) -> np.ndarray:
         vals = []
