@@ -158,3 +158,21 @@ def test_cached_step_forms_give_the_fresh_forms_results():
     keys = {form_cache.structure_key(IncrementalRod(PARAMS, n_cells=n, model=m).problem.residual)
             for n, m in ((5, "hyperelastic"), (7, "hyperelastic"), (5, "evolving"))}
     assert len(keys) == 2  # the structure, not the mesh size, decides
+
+
+@pytest.mark.mpi
+def test_step_forms_from_the_disk_cache_give_the_fresh_forms_results():
+    form_cache.clear()
+    fresh = _three_steps(PARAMS, 5)             # compiles; records the kernels on disk
+    form_cache.clear(disk=False)                # as a new process: memory empty
+    rod = IncrementalRod(PARAMS, n_cells=5,
+                         distributed_loads=[DistributedLoad("force", (-3.0, 0.0, 1.0))])
+    key = LieGeneralizedAlpha(rod.problem, rho_inf=0.8).structure_key
+    form_cache.clear(disk=False)
+    # serial: the entry comes from disk; under MPI the disk cache is off (a rank's miss
+    # would deadlock the collective JIT of the others' hit), so nothing is found
+    assert (form_cache.lookup(key) is not None) == (rod.mesh.comm.size == 1)
+    form_cache.clear(disk=False)
+    from_disk = _three_steps(PARAMS, 5)
+    # the same kernels on the same data: equal to round-off (see the test above)
+    assert np.allclose(from_disk, fresh, rtol=0, atol=1e-14 * np.abs(fresh).max())
