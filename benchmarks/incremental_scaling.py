@@ -87,7 +87,8 @@ def measure(n_cells: int, steps: int, comm) -> dict:
     if comm.rank == 0:
         print(f"n={n_cells:7d} ranks={comm.size} setup={setup:.3f} s first step={first:.3f} s "
               f"its/step={its / steps:.2f} jacobians={counts['jacobian']} "
-              f"total={out['us_per_cell_iteration']:.2f} (cpu {out['cpu_us_per_cell_iteration']:.2f}) "
+              f"total={out['us_per_cell_iteration']:.2f} "
+              f"(cpu {out['cpu_us_per_cell_iteration']:.2f}) "
               f"res={out['residual_us']:.2f} jac={out['jacobian_us']:.2f} "
               f"({out['jacobian_us_per_assembly']:.2f} per assembly) "
               f"solve+rest={out['solve_and_rest_us']:.2f} us/cell/iteration", flush=True)
