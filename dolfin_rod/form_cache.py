@@ -33,7 +33,7 @@ import dolfinx.fem as fem
 import ffcx
 import numpy as np
 import ufl
-from dolfinx.cpp.fem import IntegralType
+from dolfinx.fem import IntegralType
 from dolfinx.fem.forms import form_cpp_class
 from mpi4py import MPI
 
