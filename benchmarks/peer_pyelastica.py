@@ -12,12 +12,13 @@ compilation excluded and reported separately; median of repeats).
     PyElastica 1.0  PositionVerlet, n = 20 .. 320 elements, dt = 0.01 dx sqrt(E_0/E)
                     (PyElastica's examples' rule, scaled with the wave speed);
                     reference n = 1280 (640 with --quick)
-    dolfin_rod      RodModel, generalized-alpha (rho_inf = 0.5), n = 4 .. 128 cells,
-                    dt ~ 0.16/n; reference n = 256 (128 --quick), with default options
-                    ("dolfin_rod") or TUNED ("dolfin_rod (tuned)": PETSc's own LU,
-                    Jacobian reuse, rtol 1e-6 / atol 1e-9)
-    incremental_rod the 6-unknowns-per-node prototype (dolfin_rod.incremental_rod) with
-                    the Lie-group generalized-alpha and its default solver options
+    dolfin_rod      RodModel and TimeStepper(model.problem) with every default (rotation
+                    vectors, generalized-alpha on the rotation group, its solver
+                    defaults), n = 4 .. 128 cells, dt ~ 0.16/n; reference n = 256
+                    (128 --quick)
+    quaternion      the previous default for comparison: RodModel(rotations =
+                    "quaternion"), generalized-alpha (rho_inf = 0.5), default options;
+                    "quaternion (tuned)": PETSc's own LU, Jacobian reuse, rtol 1e-6
 
 Speed ratio at equal accuracy: log-log interpolation of wall time at 1e-2 and 1e-3.
 Writes results/bench/<--out>.json and .png (default peer_pyelastica).
@@ -41,10 +42,10 @@ from dolfin_rod.solvers import JACOBIAN_REUSE, NATIVE_LU  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 TUNED = {**NATIVE_LU, **JACOBIAN_REUSE, "snes_rtol": 1e-6, "snes_atol": 1e-9}
 REF_OPTIONS = {"snes_atol": 1e-8, "snes_rtol": 1e-10}
-# the prototype with its defaults (integrators.lie_alpha.default_options)
-CONFIGS = {"dolfin_rod": ("rod", None), "dolfin_rod (tuned)": ("rod", TUNED),
-           "incremental_rod": ("incremental", None)}
-RUNNERS = {"rod": cant.run_dolfin_rod, "incremental": cant.run_incremental_rod}
+# (scheme, options, rotations) per configuration; None: the defaults
+CONFIGS = {"dolfin_rod": (None, None, "auto"),
+           "quaternion": ("generalized_alpha", None, "quaternion"),
+           "quaternion (tuned)": ("generalized_alpha", TUNED, "quaternion")}
 
 
 def dolfin_dt(n):
@@ -86,10 +87,12 @@ def _pyelastica(scene, quick, out):
     out["codes"]["pyelastica"] = {"reference": ref, "runs": rows}
 
 
-def _dolfin(scene, quick, label, kind, opts, out):
+def _dolfin(scene, quick, label, scheme, opts, rotations, out):
     dr_sizes = [4, 8, 16, 32, 64] + ([] if quick else [128])
     dr_ref = 128 if quick else 256
-    run = RUNNERS[kind]
+
+    def run(n, dt, scene, options=None):
+        return cant.run_dolfin_rod(n, dt, scene, scheme, options, rotations=rotations)
     run(4, 0.05, scene)                        # JIT/cache load (excluded)
     # atol above round-off: with the default atol = 1e-11 the n = 256 residual stalls at
     # round-off (~ EA n eps), SNES "fails", and every rejected step restarts
@@ -153,7 +156,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--scenes", nargs="*", default=list(cant.SCENES))
-    ap.add_argument("--configs", nargs="*", default=["dolfin_rod", "incremental_rod"],
+    ap.add_argument("--configs", nargs="*", default=["dolfin_rod", "quaternion"],
                     choices=list(CONFIGS))
     ap.add_argument("--out", default="peer_pyelastica")
     args = ap.parse_args()

@@ -88,7 +88,7 @@ def dolfin_rod_model(n_cells: int):
                            A_d=A, B_d=B, M_d=tuple(TAU * a for a in A),
                            N_d=tuple(TAU * b for b in B), drag=DRAG)
     model = RodModel(params, n_cells=n_cells, model="evolving", variant="local",
-                     ends=("clamped", "free"),
+                     ends=("clamped", "free"), rotations="quaternion",   # PETSc TS
                      distributed_loads=[DistributedLoad(
                          "force", (-cant.RHO * cant.AREA * cant.GRAV, 0.0, 0.0))],
                      comm=MPI.COMM_WORLD)

@@ -25,6 +25,8 @@ _WHERE = {
     # scenes: load, choose the model, build, run
     "load_scene": "scenes", "parse_scene": "scenes", "select_model": "scenes",
     "build": "scenes", "SceneError": "scenes", "run_scene": "cli",
+    # fitting parameters to measured time series (docs/fitting.md)
+    "fit_scene": "fit", "FitResult": "fit", "read_series": "fit_inputs",
 }
 _MODULES = ("loads", "closed_forms", "rotations")   # modules users import as a whole
 

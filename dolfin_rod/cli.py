@@ -1,4 +1,5 @@
-"""The command line: ``dolfin-rod check SCENE.toml`` and ``dolfin-rod run SCENE.toml``.
+"""The command line: ``dolfin-rod check SCENE.toml``, ``dolfin-rod run SCENE.toml`` and
+``dolfin-rod fit SCENE.toml DATA.csv --params ...`` (dolfin_rod/fit_cli.py).
 
     dolfin-rod check scenes/torsion_creep.toml            validate, print the model and why
     dolfin-rod run scenes/torsion_creep.toml --out DIR    run, results in DIR
@@ -30,7 +31,8 @@ from .solvers import SolverError
 __all__ = ["main", "run_scene"]
 
 
-def _print(comm, *args, file=None) -> None:
+def print_on_root(comm, *args, file=None) -> None:
+    """print on rank 0 only (flushed: stdout and stderr interleave as written)."""
     if comm.rank == 0:
         print(*args, file=file or sys.stdout, flush=True)
 
@@ -93,7 +95,7 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     meta = read_checkpoint_meta(Path(out), comm, scene) if resume else None
     folder = _run_folder(scene, None if out is None else Path(out), comm, resume, overwrite)
     if not quiet:
-        _print(comm, f"model: {choice.model} ({choice.reason})")
+        print_on_root(comm, f"model: {choice.model} ({choice.reason})")
     _warn_if_unstable(scene, comm)
     sim = build(scene, choice.model, comm)
     impulse = sim.start()
@@ -103,7 +105,7 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
         writer.restore_checkpoint(meta)
         writer.open(keep_until_step=meta["step"])
         if not quiet:
-            _print(comm, f"resumed at step {meta['step']}, t = {meta['time']:g}")
+            print_on_root(comm, f"resumed at step {meta['step']}, t = {meta['time']:g}")
     else:
         writer.open()
         writer.record(0, 0.0, sim.diagnostics(0.0))
@@ -119,9 +121,9 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     summary["folder"] = str(folder)
     line = f"{status}: t = {t:g}, results in {folder}" + (f" ({message})" if message else "")
     if status in ("failed", "interrupted"):          # never hidden, never on stdout
-        _print(comm, line, file=sys.stderr)
+        print_on_root(comm, line, file=sys.stderr)
     elif not quiet:
-        _print(comm, line)
+        print_on_root(comm, line)
     return summary
 
 
@@ -222,6 +224,8 @@ def _parser() -> argparse.ArgumentParser:
                                                           "are still reported on stderr)")
     sub.add_parser("schema", help="print every scene key with its default and meaning "
                                   "(Markdown, as in docs/scenes.md)")
+    from .fit_cli import add_fit_parser
+    add_fit_parser(sub)
     return p
 
 
@@ -243,7 +247,7 @@ def schema_markdown() -> str:
 def _warn_if_unstable(scene: Scene, comm) -> None:
     warning = explicit_stability_warning(scene)
     if warning:
-        _print(comm, f"warning: {warning}", file=sys.stderr)
+        print_on_root(comm, f"warning: {warning}", file=sys.stderr)
 
 
 def _check(scene: Scene, out: Path | None, comm) -> None:
@@ -256,9 +260,13 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
     if problem:
         what = "--out" if out is not None else f"{scene.source}: [outputs.directory]"
         raise OutputError(f"{what} {problem}")
-    _print(comm, f"{scene.source}: OK")
-    _print(comm, f"model: {choice.model}")
-    _print(comm, f"why: {choice.reason}")
+    print_on_root(comm, f"{scene.source}: OK")
+    print_on_root(comm, f"model: {choice.model}")
+    print_on_root(comm, f"why: {choice.reason}")
+    if choice.model == "rod":
+        from .scenes.rules import rod_rotations
+        print_on_root(comm, f"rotations: {rod_rotations(scene)} (geometry.rotations = "
+                            f"{scene['geometry']['rotations']!r})")
     _warn_if_unstable(scene, comm)
 
 
@@ -270,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return _main(argv, comm)
     except KeyboardInterrupt:                      # Ctrl-C before the run loop
-        _print(comm, "interrupted", file=sys.stderr)
+        print_on_root(comm, "interrupted", file=sys.stderr)
         return 130
     except Exception:
         if comm.size == 1:
@@ -282,12 +290,15 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None, comm) -> int:
+    from .fit_cli import FitInputError, fit_command
     from .run_folders import OutputError
     args = _parser().parse_args(argv)
     if args.command == "schema":
-        _print(comm, schema_markdown())
+        print_on_root(comm, schema_markdown())
         return 0
     try:
+        if args.command == "fit":
+            return fit_command(args, comm)
         scene = load_scene(args.scene)
         if args.command == "check":
             _check(scene, args.out, comm)
@@ -296,8 +307,8 @@ def _main(argv: list[str] | None, comm) -> int:
             raise SceneError(str(args.scene), "", "--resume needs --out (the run folder)")
         summary = run_scene(scene, args.out, comm, resume=args.resume, quiet=args.quiet,
                             overwrite=args.overwrite)
-    except (SceneError, OutputError) as err:
-        _print(comm, f"error: {err}", file=sys.stderr)
+    except (SceneError, OutputError, FitInputError) as err:
+        print_on_root(comm, f"error: {err}", file=sys.stderr)
         return 2
     return {"completed": 0, "stopped": 0, "interrupted": 130}.get(summary["status"], 3)
 

@@ -9,6 +9,7 @@ from typing import Callable
 
 import dolfinx
 import dolfinx.fem as fem
+import dolfinx.la as la
 import numpy as np
 import ufl
 from mpi4py import MPI
@@ -51,6 +52,20 @@ def scalar_coefficient(value: float | Callable, mesh, s):
     return value(s) if callable(value) else fem.Constant(mesh, float(value))
 
 
+def nodal_residual(form: fem.Form, space, s_node: float) -> np.ndarray:
+    """The assembled residual of one block at the node at s_node (its components),
+    summed over the ranks: the residual tested with the node's unit nodal motions."""
+    b = fem.assemble_vector(form)
+    b.scatter_reverse(la.InsertMode.add)
+    bs = space.dofmap.index_map_bs
+    owned = space.dofmap.index_map.size_local
+    local = np.zeros(bs)
+    for d in fem.locate_dofs_geometrical(space, lambda x: np.isclose(x[0], s_node)):
+        if d < owned:
+            local += b.array[bs * d: bs * (d + 1)]
+    return space.mesh.comm.allreduce(local, op=MPI.SUM)
+
+
 class FEModel:
     """Base of the FE models: Dirichlet conditions by block, diagnostics by form.
 
@@ -63,7 +78,8 @@ class FEModel:
         self.mesh = mesh
         self.bcs: list[fem.DirichletBC] = []                   # in order of creation
         self.block_bcs: dict[str, list[fem.DirichletBC]] = {}
-        self.diagnostic_forms: dict = {}
+        self.diagnostic_forms: dict = {}                        # compiled on first use
+        self._diagnostic_ufl: dict = {}
 
     def dirichlet(self, block: str, space, end: str, length: float, value) -> fem.DirichletBC:
         """A Dirichlet condition value at an end on the block's space, recorded in
@@ -80,17 +96,22 @@ class FEModel:
         return list(self.block_bcs.get(block, []))
 
     def set_diagnostic_forms(self, forms: dict[str, ufl.Form]) -> None:
-        self.diagnostic_forms = {key: fem.form(form) for key, form in forms.items()}
+        """The diagnostics' UFL forms; compiled at the first ``assemble`` (a model that is
+        only stepped never pays for them)."""
+        self._diagnostic_ufl = dict(forms)
+        self.diagnostic_forms = {}
 
     def assemble(self, key: str) -> float:
         """One diagnostic form, assembled and summed over the ranks."""
+        if not self.diagnostic_forms:
+            self.diagnostic_forms = {k: fem.form(f) for k, f in self._diagnostic_ufl.items()}
         local = fem.assemble_scalar(self.diagnostic_forms[key])
         return self.mesh.comm.allreduce(local, op=MPI.SUM)
 
     def assembled_diagnostics(self, t: float) -> dict[str, float]:
         """Every diagnostic form at time t (loads set to t), and the time."""
         self.problem.set_loads(t)
-        d = {key: self.assemble(key) for key in self.diagnostic_forms}
+        d = {key: self.assemble(key) for key in self._diagnostic_ufl}
         d["time"] = t
         return d
 

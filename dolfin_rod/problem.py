@@ -69,8 +69,12 @@ class SecondOrderProblem(SemiDiscreteProblem):
                    form, which its diagnostics read).
     time_orders:   per block 2 (its accelerations enter) or 1 (only its rate; the
                    accelerations entry is None); empty: all 2.
+    lie_group:     the fields include rotation increments reset by after_step (a rod
+                   with rotation vectors): only generalized-alpha on the rotation group
+                   (integrators/lie_alpha.py) advances it, not PETSc TS.
     """
 
     accelerations: list[fem.Function] = field(default_factory=list)
     after_step: Callable[[], None] = lambda: None
     time_orders: list[int] = field(default_factory=list)
+    lie_group: bool = False

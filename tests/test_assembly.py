@@ -26,6 +26,7 @@ def creeping_cantilever(n_cells=4):
                       I11=1e-3, I22=1e-3, A_d=(0.3, 0.4, 0.2), B_d=(1e2, 1e2, 3e2),
                       M_d=(0.1, 0.1, 0.1), N_d=(10.0, 10.0, 30.0))
     model = RodModel(p, n_cells=n_cells, model="evolving", variant="local",
+                     rotations="quaternion",           # the blocked/mixed layouts' case
                      distributed_loads=[DistributedLoad("force", (-5.0, 0.0, 0.0))],
                      end_loads=[EndLoad("couple", (0.0, 0.1, 0.2), loads.ramp(1.0, 0.3),
                                         follower=True)])

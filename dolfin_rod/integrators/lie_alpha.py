@@ -20,11 +20,13 @@ spectral radius rho_inf.  The start needs consistent accelerations (solved at t0
 from __future__ import annotations
 
 import dolfinx.fem as fem
+import numpy as np
 import ufl
 
 from .. import form_cache
 from ..solvers import BlockSNES, SolverError
-from .stepping import check_run, nominal_steps
+from .schemes import alpha_rho_inf
+from .stepping import IntegrationError, StepStats, check_run, nominal_steps
 
 
 def default_options(comm) -> dict:
@@ -67,10 +69,13 @@ def _copy(f, tag):
 
 class LieGeneralizedAlpha:
     """Advance a second-order problem; ``problem.after_step`` moves the rotation
-    increments into the stored rotations (and resets them to 0)."""
+    increments into the stored rotations (and resets them to 0).  The interface of
+    TimeStepper (run, step, stats, checkpoint_state), which returns this integrator for a
+    SecondOrderProblem."""
 
-    def __init__(self, problem, rho_inf: float = 0.8, solver_options=None):
+    def __init__(self, problem, rho_inf: float = 0.8, solver_options=None, max_cuts: int = 6):
         self.problem = problem
+        self.rho_inf, self.max_cuts = rho_inf, max_cuts
         self.am, self.af, self.gamma, self.beta = alpha_parameters(rho_inf)
         mesh = problem.fields[0].function_space.mesh
         self.dt = fem.Constant(mesh, 1.0)
@@ -84,19 +89,34 @@ class LieGeneralizedAlpha:
         # compiled step forms shared by all problems of this structure (form_cache)
         self._model_objects = form_cache.registry(problem.residual)
         self.structure_key = form_cache.structure_key(problem.residual, "lie_alpha", self.order,
-                                             rho_inf)
+                                                      rho_inf)
         objects = [*self._model_objects, *self.y_n, *self.v_n,
                    *(a for a in self.acc_n if a is not None), *self.alg_n, self.dt]
         F = None if form_cache.lookup(self.structure_key) else self._step_forms()
-        options = {**default_options(mesh.comm), **(solver_options or {})}
+        self.options = options = {**default_options(mesh.comm), **(solver_options or {})}
         self.solver = BlockSNES(F, y, problem.bcs, options,
                                 cache=(self.structure_key, objects))
         self._arrays = self._views()
-        self.iterations = 0
-        self.steps = 0
-        self.rejected = 0
+        self.stats = StepStats()
         self._started = False
         self._dt_last = None
+        self._initial_solver = None
+
+    @classmethod
+    def for_scheme(cls, problem, scheme: str | None, solver_options=None, max_cuts: int = 6):
+        """TimeStepper's arguments: ``scheme`` None (rho_inf 0.8) or 'generalized_alpha'
+        ['RHO'] (schemes.alpha_rho_inf); a first-order scheme is refused."""
+        if scheme is not None and not scheme.startswith("generalized_alpha"):
+            raise ValueError(f"scheme {scheme!r}: a rod with rotation-vector unknowns is "
+                             "advanced by generalized_alpha[:rho_inf] on the rotation group "
+                             "only; for another scheme build RodModel(..., "
+                             "rotations='quaternion')")
+        rho_inf = 0.8 if scheme is None else alpha_rho_inf(scheme)
+        return cls(problem, rho_inf, solver_options, max_cuts)
+
+    @property
+    def description(self) -> str:
+        return f"generalized-alpha on the rotation group (rho_inf = {self.rho_inf:g})"
 
     def _step_forms(self):
         p = self.problem
@@ -131,16 +151,36 @@ class LieGeneralizedAlpha:
         b_new = (d - h * (1 - g) * alg) / (h * g)
         return b_new, ((1 - am) * b_new + am * alg - af * vn) / (1 - af), None
 
-    def initial_accelerations(self, t0: float, bcs) -> None:
-        """Solve the residual at t0 for the accelerations (second order) and rates (first
-        order) with the state fixed; bcs: homogeneous conditions on those spaces."""
+    def _unknowns_at_start(self) -> list:
         p = self.problem
-        unknown = [a if a is not None else r for a, r in zip(p.accelerations, p.rates)]
+        return [a if a is not None else r for a, r in zip(p.accelerations, p.rates)]
+
+    def compile(self) -> None:
+        """Compile the start's forms now (the step forms are compiled already), e.g.
+        before timing a run."""
+        if self._initial_solver is None:
+            key = self.structure_key + "initial"
+            F = None if form_cache.lookup(key) else self.problem.residual
+            self._initial_solver = BlockSNES(F, self._unknowns_at_start(), self.problem.bcs,
+                                             cache=(key, self._model_objects))
+
+    def initial_accelerations(self, t0: float) -> None:
+        """Solve the residual at t0 for the accelerations (second order) and rates (first
+        order) with the state fixed, zero at the Dirichlet dofs (the rod starts at rest,
+        rod/boundary_conditions.py)."""
+        p = self.problem
         p.set_loads(t0)
-        key = self.structure_key + "initial"
-        F = None if form_cache.lookup(key) else p.residual
-        BlockSNES(F, unknown, bcs, cache=(key, self._model_objects)).solve()
-        for i, a in enumerate(unknown):
+        p.set_bcs(t0)
+        self.compile()
+        values = [np.array(bc.g.value) for bc in p.bcs]
+        for bc in p.bcs:
+            bc.g.value[...] = 0.0
+        try:
+            self._initial_solver.solve()
+        finally:
+            for bc, value in zip(p.bcs, values):
+                bc.g.value[...] = value
+        for i, a in enumerate(self._unknowns_at_start()):
             self.alg_n[i].x.array[:] = a.x.array
         self._started = True
 
@@ -153,26 +193,36 @@ class LieGeneralizedAlpha:
             if p.accelerations[i] is not None:
                 p.accelerations[i].x.array[:] = self.acc_n[i].x.array
 
-    def advance(self, t: float, t_end: float, dt: float, max_cuts: int = 6) -> float:
-        """Equal steps of at most dt from t to t_end (stepping.nominal_steps of them); a
-        step whose Newton fails is redone as two half steps, at most ``max_cuts``
-        halvings deep."""
-        check_run(t, t_end, dt)
-        n = nominal_steps(t, t_end, dt)
-        h = (t_end - t) / n
+    def run(self, t0: float, t_end: float, dt: float, observer=None) -> float:
+        """Equal steps of at most dt from t0 to t_end (stepping.nominal_steps of them);
+        ``observer(t, self)`` at t0 and after every accepted step.  A step whose Newton
+        fails is redone as two half steps, at most ``max_cuts`` halvings deep
+        (IntegrationError after that, the last accepted state kept)."""
+        check_run(t0, t_end, dt)
+        if not self._started:
+            self.initial_accelerations(t0)
+        if observer:
+            observer(t0, self)
+        n = nominal_steps(t0, t_end, dt)
+        h = (t_end - t0) / n
         for k in range(n):
-            self._substep(t + k * h, h, max_cuts)
+            self._substep(t0 + k * h, h, self.max_cuts, observer)
         return t_end
 
-    def _substep(self, t: float, h: float, cuts_left: int) -> None:
+    def _substep(self, t: float, h: float, cuts_left: int, observer) -> None:
         try:
             self.step(t, h)
-        except SolverError:
+        except SolverError as err:
+            self.stats.rejected += 1
             if cuts_left == 0:
-                raise
-            self.rejected += 1
-            self._substep(t, h / 2, cuts_left - 1)
-            self._substep(t + h / 2, h / 2, cuts_left - 1)
+                raise IntegrationError(f"time step failed at t = {t:.6g} after "
+                                       f"{self.max_cuts} step cuts (last dt = {h:.3g}): "
+                                       f"{err}", t) from err
+            self._substep(t, h / 2, cuts_left - 1, observer)
+            self._substep(t + h / 2, h / 2, cuts_left - 1, observer)
+            return
+        if observer:
+            observer(t + h, self)
 
     def _views(self) -> list:
         """Per block the arrays step() reads and writes (views, fetched once: a DOLFINx
@@ -186,9 +236,10 @@ class LieGeneralizedAlpha:
                 for i, f in enumerate(p.fields)]
 
     def step(self, t: float, h: float) -> int:
+        """One step from t to t + h; raises SolverError (state restored)."""
         p = self.problem
         if not self._started:
-            raise RuntimeError("call initial_accelerations(t0, bcs) first")
+            self.initial_accelerations(t)
         self.dt.value = h
         for i, (y, r, y_n, v_n, alg, acc, acc_n) in enumerate(self._arrays):
             y_n[:], v_n[:] = y, r
@@ -201,6 +252,8 @@ class LieGeneralizedAlpha:
         fresh, self._dt_last = h != self._dt_last, h
         try:
             its = self.solver.solve(fresh_jacobian=fresh)
+            if not all(np.isfinite(f.x.array).all() for f in p.fields):
+                raise SolverError("non-finite solution", its)
         except SolverError:
             self._restore()
             raise
@@ -210,6 +263,24 @@ class LieGeneralizedAlpha:
             if acc is not None:
                 acc[:] = acc_new
         p.after_step()
-        self.iterations += its
-        self.steps += 1
+        self.stats.newton_iterations += its
+        self.stats.steps += 1
         return its
+
+    def assembly_timings(self) -> dict[str, float]:
+        """Seconds spent so far in residual and Jacobian assembly."""
+        return dict(self.solver.timings)
+
+    def checkpoint_state(self) -> dict:
+        """Functions (besides problem.fields) a checkpoint stores: rates, accelerations,
+        algorithmic accelerations (one-step method: nothing else)."""
+        p = self.problem
+        functions = {f"rate_{i}": r for i, r in enumerate(p.rates)}
+        functions |= {f"acceleration_{i}": a for i, a in enumerate(p.accelerations)
+                      if a is not None}
+        functions |= {f"algorithmic_{i}": a for i, a in enumerate(self.alg_n)}
+        return {"functions": functions, "history_steps": 0}
+
+    def restore_state(self, state: dict) -> None:
+        """After the checkpoint's functions were read: no initial solve again."""
+        self._started = True

@@ -113,19 +113,24 @@ SCHEMES: dict[str, Scheme] = {
 }
 
 
+def alpha_rho_inf(name: str) -> float:
+    """rho_inf of 'generalized_alpha' (0.5) or 'generalized_alpha:RHO'; ValueError else."""
+    _, colon, rho = name.partition(":")
+    try:
+        rho_inf = float(rho) if colon else 0.5
+    except ValueError:
+        rho_inf = None
+    if name != "generalized_alpha" + colon + rho or rho_inf is None \
+            or not 0.0 <= rho_inf <= 1.0:
+        raise ValueError(f"unknown time scheme '{name}': write generalized_alpha or "
+                         "generalized_alpha:RHO with rho_inf = RHO a number in [0, 1]")
+    return rho_inf
+
+
 def get_scheme(name: str) -> Scheme:
     """A scheme by name; 'generalized_alpha' or 'generalized_alpha:0.3' sets rho_inf."""
     if name.startswith("generalized_alpha"):
-        _, colon, rho = name.partition(":")
-        try:
-            rho_inf = float(rho) if colon else 0.5
-        except ValueError:
-            rho_inf = None
-        if name != "generalized_alpha" + colon + rho or rho_inf is None \
-                or not 0.0 <= rho_inf <= 1.0:
-            raise ValueError(f"unknown time scheme '{name}': write generalized_alpha or "
-                             "generalized_alpha:RHO with rho_inf = RHO a number in [0, 1]")
-        return generalized_alpha(rho_inf)
+        return generalized_alpha(alpha_rho_inf(name))
     try:
         return SCHEMES[name]
     except KeyError:

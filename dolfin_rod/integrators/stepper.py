@@ -12,7 +12,7 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from ..problem import SemiDiscreteProblem
+from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..solvers import BlockSNES, SolverError
 from .schemes import Scheme, get_scheme
 from .stepping import (CUT_FACTOR, IntegrationError, StepStats, check_run, clip_to_end, grown,
@@ -83,14 +83,24 @@ class TimeStepper:
 
     PREDICTORS = ("linear", "constant")
 
-    def __init__(self, problem: SemiDiscreteProblem, scheme: str = "backward_euler",
+    def __new__(cls, problem: SemiDiscreteProblem, scheme: str | None = None,
+                solver_options: dict | None = None, max_cuts: int = 6,
+                predictor: str = "linear"):
+        """A SecondOrderProblem (a rod with rotation-vector unknowns, rod/model.py) is
+        advanced by generalized-alpha on the rotation group (lie_alpha.py) instead."""
+        if isinstance(problem, SecondOrderProblem):
+            from .lie_alpha import LieGeneralizedAlpha
+            return LieGeneralizedAlpha.for_scheme(problem, scheme, solver_options, max_cuts)
+        return super().__new__(cls)
+
+    def __init__(self, problem: SemiDiscreteProblem, scheme: str | None = None,
                  solver_options: dict | None = None, max_cuts: int = 6,
                  predictor: str = "linear"):
         if predictor not in self.PREDICTORS:
             raise ValueError(f"predictor must be one of {self.PREDICTORS}, got {predictor!r}")
         self.predictor = predictor
         self.problem = problem
-        self.scheme = get_scheme(scheme)
+        self.scheme = get_scheme(scheme or "backward_euler")
         self.options = solver_options
         self.max_cuts = max_cuts
         self.y_n = [_copy(f) for f in problem.fields]
@@ -128,6 +138,19 @@ class TimeStepper:
             for key, seconds in res.solver.timings.items():
                 total[key] += seconds
         return total
+
+    @property
+    def description(self) -> str:
+        return f"TimeStepper with {self.scheme.name}"
+
+    def checkpoint_state(self) -> dict:
+        """Functions (besides problem.fields) and flags a checkpoint stores."""
+        return {"functions": {**{f"rate_{i}": r for i, r in enumerate(self.problem.rates)},
+                              **{f"previous_{i}": p for i, p in enumerate(self.y_nm1)}},
+                "history_steps": self.history_steps}
+
+    def restore_state(self, state: dict) -> None:
+        self.history_steps = int(state["history_steps"])
 
     def _restore(self) -> None:
         for fn, f in zip(self.y_n, self.problem.fields):

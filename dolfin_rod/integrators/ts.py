@@ -132,6 +132,11 @@ class TSIntegrator:
                  adaptive: bool = False, rtol: float = 1e-6, atol: float = 1e-8,
                  solver_options: dict | None = None, ts_options: dict | None = None,
                  max_rejections: int = 10, dt_min: float | None = None):
+        if getattr(problem, "lie_group", False):
+            raise ValueError("a rod with rotation-vector unknowns (RodModel's default for "
+                             "dynamic rods) is advanced by TimeStepper (generalized-alpha "
+                             "on the rotation group); for PETSc TS build RodModel(..., "
+                             "rotations='quaternion')")
         self.method = parse_ts_type(ts_type)
         for name, value in (("rtol", rtol), ("atol", atol)):
             if not (np.isfinite(value) and value > 0):

@@ -9,22 +9,23 @@ is not 0 at t = 0 (the rod starts at rest in its initial configuration) or that 
 jumps (``jumps``, as loads.PiecewiseSmoothLoad) is refused, as TorsionModel refuses a
 step in the end rotation; other jumps of an arbitrary callable cannot be detected.
 
-Reactions at a supported end: the residual tested with a unit virtual translation or
-spatial rotation of that end node only (the hat function of the node).
+Reactions at a supported end: the assembled residual at that end node, i.e. the residual
+tested with a unit virtual translation or spatial rotation of the node only.
 """
 
 from __future__ import annotations
 
 import dolfinx.fem as fem
 import numpy as np
-import ufl
 
 from .. import loads
-from ..model_base import ENDS, end_coordinate
-from ..rotations import np_qmul, np_quaternion_from_rotation_vector, qmul
+from ..model_base import ENDS, end_coordinate, nodal_residual
+from ..rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
+from .rotation_vector import np_inverse_cayley
 
 END_TYPES = ("clamped", "pinned", "free")
 _IDENTITY = np.array([1.0, 0, 0, 0])
+_CONJ = np.array([1.0, -1, -1, -1])
 
 
 def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False) -> None:
@@ -43,7 +44,11 @@ def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False) 
 
 
 class EndSupports:
-    """The Dirichlet conditions of both ends and their values at time t."""
+    """The Dirichlet conditions of both ends and their values at time t.
+
+    Rotation vectors (discretisation.py): a clamped or rotated end holds theta_end =
+    c^-1(conj(q_n,end) q_end(t)), with q_n,end = q_end(t_n) the end's rotation at the
+    last accepted step t_n (``commit``), so that q_n,end c(theta_end) = q_end(t)."""
 
     def __init__(self, model, ends, end_displacement, end_rotation):
         self.ends = tuple(ends)
@@ -51,16 +56,22 @@ class EndSupports:
         self.rotation = dict(end_rotation or {})
         self.initial = {end: (np.zeros(3), _IDENTITY.copy()) for end in ENDS}  # (x, q)
         self.values: dict = {}
+        self.block = model.unknowns.rotation
+        self.committed_time = 0.0                # rotation vectors: time of q_n
+        self._time_set = 0.0
         spaces, mesh, L = model.unknowns.spaces, model.mesh, model.length
-        self.motion_rates = {end: (fem.Constant(mesh, np.zeros(3)), fem.Constant(mesh, np.zeros(4)))
+        rate_size = 4 if self.block == "quaternion" else 3
+        self.motion_rates = {end: (fem.Constant(mesh, np.zeros(3)),
+                                   fem.Constant(mesh, np.zeros(rate_size)))
                              for end in ENDS if end in self.displacement or end in self.rotation}
+        self._residual_forms: dict = {}
         for end, kind in zip(ENDS, self.ends):
             blocks = []
             if kind in ("clamped", "pinned") or end in self.displacement:
                 blocks += [("displacement", (3,)), ("velocity", (3,))]
             if kind == "clamped" or end in self.rotation:
                 blocks += [("quaternion", (4,)), ("gauge_multiplier", ()),
-                           ("angular_velocity", (3,))]
+                           ("angular_velocity", (3,)), ("rotation_increment", (3,))]
             for block, shape in blocks:
                 if block in spaces:
                     const = fem.Constant(mesh, np.zeros(shape) if shape else 0.0)
@@ -78,61 +89,81 @@ class EndSupports:
         return x0 + d, q0
 
     def set(self, t: float) -> None:
-        """Values at time t, and (dynamic rods) the velocities V = x_t and
+        """Values at time t, and (dynamic quaternion rods) the velocities V = x_t and
         W = 2 vec(conj(q) q_t)/|q|^2 of the prescribed motion."""
         for end in ENDS:
             xe, qe = self.prescribed(end, t)
             self._set(("displacement", end), xe)
             self._set(("quaternion", end), qe)
+            if ("rotation_increment", end) in self.values:
+                q_n = self.prescribed(end, self.committed_time)[1]
+                self._set(("rotation_increment", end),
+                          np_inverse_cayley(np_qmul(q_n * _CONJ, qe)))
             if ("velocity", end) in self.values:
                 self._set(("velocity", end), loads.rate(lambda s: self.prescribed(end, s)[0], t))
             if ("angular_velocity", end) in self.values:
-                qdot = loads.rate(lambda s: self.prescribed(end, s)[1], t)
-                conj = qe * np.array([1, -1, -1, -1])
-                self._set(("angular_velocity", end), 2 * np_qmul(conj, qdot)[1:] / (qe @ qe))
+                self._set(("angular_velocity", end), self._angular_velocity(end, t))
+        self._time_set = t
+
+    def commit(self) -> None:
+        """Rotation vectors: the accepted step ends at the time last set (chart.commit)."""
+        self.committed_time = self._time_set
+
+    def _angular_velocity(self, end: str, t: float) -> np.ndarray:
+        """Material angular velocity 2 vec(conj(q) q_t)/|q|^2 of a prescribed end."""
+        qe = self.prescribed(end, t)[1]
+        qdot = loads.rate(lambda s: self.prescribed(end, s)[1], t)
+        return 2 * np_qmul(qe * _CONJ, qdot)[1:] / (qe @ qe)
 
     def _set(self, key, value) -> None:
         if key in self.values:
             self.values[key].value[:] = value
 
-    def reaction_forms(self, F: dict, unk, length: float) -> dict:
-        """reaction_force_{end}_{xyz}, reaction_couple_{end}_{xyz} at supported ends."""
-        forms = {}
-        q = unk.f["quaternion"]
-        power = 0
+    def reactions(self, residual: dict, spaces: dict, rotation_block: str, length: float,
+                  t: float) -> dict:
+        """reaction_force_{end}_{xyz}, reaction_couple_{end}_{xyz} at supported ends and the
+        reaction_power of moving ends, at t (between steps): the assembled residual of
+        the balance blocks at the end node (MPI-summed), i.e. the residual tested with a
+        unit nodal translation, or a nodal spatial rotation e: delta q = (0, e) q_end / 2
+        (quaternions) or delta theta = R(q_end)^T e (rotation vectors, theta = 0)."""
+        out, power = {}, 0.0
         for end in ENDS:
-            hat = fem.Function(unk.spaces["gauge_multiplier"])
-            hat.interpolate(lambda X, e=end_coordinate(end, length):
-                            np.isclose(X[0], e).astype(float))
-            if end in self.motion_rates:
-                power += self._power_form(F, unk, end, hat)
+            node = {block: nodal_residual(self._compiled(residual, block), spaces[block],
+                                          end_coordinate(end, length))
+                    for block in ("displacement", rotation_block)
+                    if (block, end) in self.values}
+            q_end = self.prescribed(end, t)[1]
             for i, comp in enumerate("xyz"):
-                e_i = ufl.unit_vector(i, 3)
-                if ("displacement", end) in self.values:
-                    forms[f"reaction_force_{end}_{comp}"] = ufl.replace(
-                        F["displacement"], {unk.t["displacement"]: hat * e_i})
-                if ("quaternion", end) in self.values:
-                    dq = 0.5 * hat * qmul(ufl.as_vector((0.0, e_i[0], e_i[1], e_i[2])), q)
-                    forms[f"reaction_couple_{end}_{comp}"] = ufl.replace(
-                        F["quaternion"], {unk.t["quaternion"]: dq})
+                if "displacement" in node:
+                    out[f"reaction_force_{end}_{comp}"] = node["displacement"][i]
+                if rotation_block in node:
+                    out[f"reaction_couple_{end}_{comp}"] = node[rotation_block] @ \
+                        _nodal_rotation(rotation_block, q_end, np.eye(3)[i])
+            if end in self.motion_rates:
+                x_t, rot_t = (c.value for c in self.motion_rates[end])
+                power += sum(node[b] @ v for b, v in (("displacement", x_t),
+                                                      (rotation_block, rot_t)) if b in node)
         if self.motion_rates:
-            forms["reaction_power"] = power
-        return forms
+            out["reaction_power"] = power
+        return out
 
-    def _power_form(self, F: dict, unk, end: str, hat):
-        """The residual tested with the end node's velocity hat * (x_t, q_t): the power
-        of the reactions there (discrete test functions: the nodal values x_t, q_t times
-        the hat function)."""
-        x_t, q_t = self.motion_rates[end]
-        form = 0
-        if ("displacement", end) in self.values:
-            form += ufl.replace(F["displacement"], {unk.t["displacement"]: hat * x_t})
-        if ("quaternion", end) in self.values:
-            form += ufl.replace(F["quaternion"], {unk.t["quaternion"]: hat * q_t})
-        return form
+    def _compiled(self, residual: dict, block: str):
+        """The block's residual form, compiled at the first diagnostics."""
+        if block not in self._residual_forms:
+            self._residual_forms[block] = fem.form(residual[block])
+        return self._residual_forms[block]
 
     def set_motion_rates(self, t: float) -> None:
-        """x_t and q_t of the moving ends at t, for the reaction power."""
-        for end, (x_t, q_t) in self.motion_rates.items():
+        """For the reactions at t (between steps): x_t and q_t (quaternions) or W
+        (rotation vectors, theta = 0: the nodal test value) of the moving ends."""
+        for end, (x_t, rot_t) in self.motion_rates.items():
             x_t.value[:] = loads.rate(lambda s: self.prescribed(end, s)[0], t)
-            q_t.value[:] = loads.rate(lambda s: self.prescribed(end, s)[1], t)
+            rot_t.value[:] = (loads.rate(lambda s: self.prescribed(end, s)[1], t)
+                              if self.block == "quaternion" else self._angular_velocity(end, t))
+
+
+def _nodal_rotation(block: str, q_end, e) -> np.ndarray:
+    """The end node's test value of a spatial virtual rotation e (module docstring)."""
+    if block == "quaternion":
+        return 0.5 * np_qmul(np.concatenate([[0.0], e]), q_end)
+    return np_rotation_matrix(q_end).T @ e

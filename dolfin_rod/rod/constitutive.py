@@ -86,16 +86,27 @@ def natural_strains(unk, evolving: bool, constraint, reference, v_eff):
     return unk.f["natural_curvature"], v_d
 
 
+def _kinematics(unk, viscous: bool):
+    """(u, v, u_t, v_t) of the rotation unknowns (discretisation.py); the strain rates are
+    derivatives along the rates (quaternions) or the angular velocities (rotation vectors)."""
+    x = unk.f["displacement"]
+    if unk.chart is not None:
+        u, v = unk.chart.strains(x, body_rates=viscous)
+        return (u, v, *unk.chart.strain_rates(u, v, x, unk.V, unk.W))
+    q = unk.f["quaternion"]
+    u, v = strains(x, q, ufl.as_vector((0.0, 0.0, 1.0)))      # reference tangent X_s = e_3
+    return (u, v, *strain_rates(u, v, [x, q], [unk.r["displacement"], unk.r["quaternion"]]))
+
+
 def section_response(unk, c: dict, psi_fn, evolving: bool, constraint,
                      reference) -> SectionResponse:
     """Eqs. mfmeq, mfneq from the configuration (x, q) and its rates."""
-    x, q = unk.f["displacement"], unk.f["quaternion"]
-    u, v = strains(x, q, ufl.as_vector((0.0, 0.0, 1.0)))      # reference tangent X_s = e_3
+    u, v, u_t, v_t = _kinematics(unk, viscous="M" in c or "N" in c)
     v_eff = constraints.constrained_stretch(v, constraint)
+    if v_eff is not None and v_eff is not v:
+        v_t = constraints.constrained_stretch(v_t, constraint)
     u_d, v_d = natural_strains(unk, evolving, constraint, reference, v_eff)
     psi, dpsi_du, dpsi_dv, dpsi_dud, dpsi_dvd = derivatives(psi_fn, u_d, v_d, u, v_eff)
-    u_t, v_t = strain_rates(u, v_eff if v_eff is not None else v, [x, q],
-                            [unk.r["displacement"], unk.r["quaternion"]])
     m = dpsi_du + ufl.dot(c["M"], u_t) if "M" in c else dpsi_du
     n = None
     if v_eff is not None:

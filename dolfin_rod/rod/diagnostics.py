@@ -22,7 +22,7 @@ def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation) -> dict:
     """free_energy, dissipation_rate, kinetic_energy, load_power, tip_position_{xyz},
     tip_quaternion_{0..3}."""
     V, W, dx_r = unk.V, unk.W, disc.dx_r
-    dynamic = "velocity" in unk.f
+    dynamic = unk.dynamic
     kinetic = 0.5 * (c["rho_A"] * ufl.inner(V, V) + ufl.inner(W, ufl.dot(c["J"], W)))
     forms = {"free_energy": resp.psi * dx_r,
              "dissipation_rate": xi * dx_r + drag_dissipation,
@@ -33,7 +33,7 @@ def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation) -> dict:
     for i, comp in enumerate("xyz"):
         forms[f"tip_position_{comp}"] = r_tip[i] * tip
     for i in range(4):
-        forms[f"tip_quaternion_{i}"] = unk.f["quaternion"][i] * tip
+        forms[f"tip_quaternion_{i}"] = unk.q[i] * tip
     return forms
 
 

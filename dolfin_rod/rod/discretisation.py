@@ -1,11 +1,19 @@
 """The rod's finite elements: mesh of [0, L], end measures, quadrature rules, spaces and
 the unknowns (fields, rates, test functions) of each block.
 
-Blocks (in this order): displacement x (P1, 3), quaternion q (P1, 4), gauge multiplier
-(P1), natural curvature u_d and natural stretch v_d (DG0, or one real vector for the
-uniform variant; v_d scalar if unshearable, absent if inextensible; evolving model only),
-constraint multiplier (DG0, 2 or 3), velocity V and material angular velocity W (P1, 3;
-dynamic rods only).
+Two kinds of rotation unknowns (``ROTATIONS``):
+
+"quaternion"       blocks (in this order): displacement x (P1, 3), quaternion q (P1, 4),
+                   gauge multiplier (P1), natural curvature u_d and natural stretch v_d
+                   (DG0, or one real vector for the uniform variant; v_d scalar if
+                   unshearable, absent if inextensible; evolving model only), constraint
+                   multiplier (DG0, 2 or 3), velocity V and material angular velocity W
+                   (P1, 3; dynamic rods only): a first-order system for any scheme.
+"rotation_vector"  displacement x, rotation increment theta (P1, 3 each) on stored nodal
+                   quaternions (rotation_vector.py), natural strains (DG0): 6 unknowns
+                   per node, no saddle point; velocities and accelerations are the
+                   integrator's (integrators/lie_alpha.py): dynamic rods, local variant,
+                   no constraint.  The default for those (``choose_rotations``).
 
 Locking: the strain-dependent terms are integrated with the 1-point Gauss rule ``dx_r``,
 where the P1 element's 6 strains are independent functions of its 6 deformation modes
@@ -22,8 +30,25 @@ import ufl
 
 from .. import constraints
 from ..evolution import real_space
-from ..rotations import material_derivative_vector
 from ..model_base import end_measures, vertex_measure
+from ..rotations import material_derivative_vector
+from .rotation_vector import RotationVectorChart
+
+ROTATIONS = ("auto", "quaternion", "rotation_vector")
+
+
+def choose_rotations(rotations: str, dynamic: bool, variant: str, constraint) -> str:
+    """"auto": rotation vectors for a dynamic rod with the local variant and no
+    constraint, quaternions otherwise; an explicit choice is checked."""
+    if rotations not in ROTATIONS:
+        raise ValueError(f"rotations must be one of {ROTATIONS}, got {rotations!r}")
+    fits = dynamic and variant == "local" and constraint is None
+    if rotations == "auto":
+        return "rotation_vector" if fits else "quaternion"
+    if rotations == "rotation_vector" and not fits:
+        raise ValueError("rotations = 'rotation_vector' needs a dynamic rod (rho_A > 0) with "
+                         "the local variant and no constraint; use 'quaternion'")
+    return rotations
 
 
 @dataclass
@@ -34,22 +59,24 @@ class Discretisation:
     length: float
     s: ufl.core.expr.Expr
     ds_end: dict
-    dx: ufl.Measure       # degree 4: inertia, loads, drag
+    dx: ufl.Measure       # inertia, loads, drag: degree 4 (quaternions), or the 2-point
+                          # Gauss rule (rotation vectors: exact for the P1 mass matrix)
     dx_r: ufl.Measure     # 1-point Gauss: strains, psi, xi, evolution, constraints
     dx_v: ufl.Measure     # vertex rule: gauge and kinematic equations hold nodally
 
 
-def discretise(comm, n_cells: int, length: float) -> Discretisation:
+def discretise(comm, n_cells: int, length: float, rotations: str) -> Discretisation:
     mesh = dolfinx.mesh.create_interval(comm, n_cells, [0.0, length])
+    degree = 2 if rotations == "rotation_vector" else 4
     return Discretisation(
         mesh, length, ufl.SpatialCoordinate(mesh)[0], end_measures(mesh, length),
-        ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 4}),
+        ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": degree}),
         ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 1}),
         vertex_measure(mesh))
 
 
 def function_spaces(mesh, evolving: bool, variant: str, constraint: str | None,
-                    dynamic: bool) -> dict:
+                    dynamic: bool, rotations: str = "quaternion") -> dict:
     """One space object per block (blocks sharing an element still get their own: the
     assembly finds a Dirichlet condition's block by its space)."""
     def natural_space(shape):
@@ -57,9 +84,12 @@ def function_spaces(mesh, evolving: bool, variant: str, constraint: str | None,
             return real_space(mesh, shape)
         return fem.functionspace(mesh, ("DG", 0, shape) if shape else ("DG", 0))
 
-    spaces = {"displacement": fem.functionspace(mesh, ("Lagrange", 1, (3,))),
-              "quaternion": fem.functionspace(mesh, ("Lagrange", 1, (4,))),
-              "gauge_multiplier": fem.functionspace(mesh, ("Lagrange", 1))}
+    spaces = {"displacement": fem.functionspace(mesh, ("Lagrange", 1, (3,)))}
+    if rotations == "rotation_vector":
+        spaces["rotation_increment"] = fem.functionspace(mesh, ("Lagrange", 1, (3,)))
+    else:
+        spaces["quaternion"] = fem.functionspace(mesh, ("Lagrange", 1, (4,)))
+        spaces["gauge_multiplier"] = fem.functionspace(mesh, ("Lagrange", 1))
     if evolving:
         spaces["natural_curvature"] = natural_space((3,))
         if constraint is None:
@@ -69,7 +99,7 @@ def function_spaces(mesh, evolving: bool, variant: str, constraint: str | None,
     k = constraints.multiplier_size(constraint)
     if k:
         spaces["constraint_multiplier"] = fem.functionspace(mesh, ("DG", 0, (k,)))
-    if dynamic:
+    if dynamic and rotations == "quaternion":
         spaces["velocity"] = fem.functionspace(mesh, ("Lagrange", 1, (3,)))
         spaces["angular_velocity"] = fem.functionspace(mesh, ("Lagrange", 1, (3,)))
     return spaces
@@ -77,8 +107,13 @@ def function_spaces(mesh, evolving: bool, variant: str, constraint: str | None,
 
 @dataclass
 class Unknowns:
-    """Per block: field f, rate placeholder r, test function t; and the velocities V
-    (= x_t when quasi-static) and W (= 2 vec(conj(q) q_t)/|q|^2 when quasi-static)."""
+    """Per block: field f, rate placeholder r, test function t, acceleration placeholder
+    acc (rotation vectors: displacement and rotation increment); the velocities V and
+    material angular velocity W (fields of a dynamic quaternion rod; the rates otherwise:
+    x_t and 2 vec(conj(q) q_t)/|q|^2, or the rotation increment's rate, which the
+    integrator treats as W); the rotation block's name, the rotation q at any point, the
+    material virtual rotation dTheta of the rotation block's test function; the chart
+    of the stored rotations (rotation vectors) or None."""
 
     spaces: dict
     f: dict
@@ -86,18 +121,34 @@ class Unknowns:
     t: dict
     V: ufl.core.expr.Expr
     W: ufl.core.expr.Expr
+    rotation: str
+    q: ufl.core.expr.Expr
+    dTheta: ufl.core.expr.Expr
+    acc: dict
+    chart: RotationVectorChart | None
 
     @property
     def names(self) -> list[str]:
         return list(self.spaces)
 
+    @property
+    def dynamic(self) -> bool:
+        return "velocity" in self.spaces or bool(self.acc)
 
-def unknowns(spaces: dict) -> Unknowns:
+
+def unknowns(spaces: dict, dynamic: bool) -> Unknowns:
     f = {n: fem.Function(S, name=n) for n, S in spaces.items()}
     r = {n: fem.Function(S, name=f"{n}_rate") for n, S in spaces.items()}
     t = {n: ufl.TestFunction(S) for n, S in spaces.items()}
-    dynamic = "velocity" in spaces
+    if "rotation_increment" in spaces:
+        name = "rotation_increment"
+        chart = RotationVectorChart(spaces[name].mesh, f[name])
+        acc = {n: fem.Function(spaces[n], name=f"{n}_acceleration")
+               for n in ("displacement", name)} if dynamic else {}
+        return Unknowns(spaces, f, r, t, r["displacement"], r[name], name, chart.q,
+                        chart.virtual_rotation(t[name]), acc, chart)
+    q, qt = f["quaternion"], t["quaternion"]
     V = f["velocity"] if dynamic else r["displacement"]
-    W = f["angular_velocity"] if dynamic else material_derivative_vector(
-        f["quaternion"], r["quaternion"])
-    return Unknowns(spaces, f, r, t, V, W)
+    W = f["angular_velocity"] if dynamic else material_derivative_vector(q, r["quaternion"])
+    return Unknowns(spaces, f, r, t, V, W, "quaternion", q,
+                    material_derivative_vector(q, qt), {}, None)

@@ -64,8 +64,7 @@ def _load_value(load, disc: Discretisation):
 def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, end_loads, distributed_loads):
     """Subtracts each load's virtual work from its balance block; returns the load
     histories (TimeDependentValue) and the power of the loads (a UFL form, or 0)."""
-    q = unk.f["quaternion"]
-    dTheta = balance.virtual_rotation(q, unk.t["quaternion"])
+    q, dTheta = unk.q, unk.dTheta
     histories, power = [], 0
     placed = [(load, disc.ds_end[load.end]) for load in end_loads] + [
         (load, disc.dx) for load in distributed_loads]
@@ -78,7 +77,7 @@ def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, end_loads, distrib
                 val, q, unk.t["displacement"], load.follower) * measure
             power += balance.force_work(val, q, unk.V, load.follower) * measure
         else:
-            F["quaternion"] -= balance.couple_work(val, q, dTheta, load.follower) * measure
+            F[unk.rotation] -= balance.couple_work(val, q, dTheta, load.follower) * measure
             power += balance.couple_work(val, q, unk.W, load.follower) * measure
     return histories, power
 

@@ -35,14 +35,19 @@ def helix(s, u0, v0):
 
 def set_initial_state(model, natural_curvature=None, natural_stretch=None) -> None:
     """See RodModel.set_initial_state."""
-    f = model.unknowns.f
-    for g in list(f.values()) + list(model.unknowns.r.values()):
+    unk = model.unknowns
+    f = unk.f
+    for g in [*f.values(), *unk.r.values(), *unk.acc.values()]:
         g.x.array[:] = 0.0
     u0 = np.asarray(model.params.reference_curvature, float)
     v0 = np.asarray(model.params.reference_stretch, float)
     f["displacement"].interpolate(
         lambda X: (helix(X[0], u0, v0)[0] - np.outer(X[0], [0, 0, 1.0])).T)
-    f["quaternion"].interpolate(lambda X: helix(X[0], u0, v0)[1].T)
+    if unk.chart is not None:
+        unk.chart.set_nodal_rotations(lambda s: helix(s, u0, v0)[1])
+        model.supports.committed_time = 0.0
+    else:
+        f["quaternion"].interpolate(lambda X: helix(X[0], u0, v0)[1].T)
     for end in ENDS:
         e_s = end_coordinate(end, model.length)
         r, qq = helix(np.array([e_s]), u0, v0)

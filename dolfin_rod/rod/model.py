@@ -22,12 +22,12 @@ from mpi4py import MPI
 from .. import constraints
 from ..evolution import check_variant
 from ..model_base import FEModel, check_n_cells
-from ..problem import SemiDiscreteProblem
+from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..rotations import rotation_matrix
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports, check_supports
 from .constitutive import check_model, energy_function, section_response
-from .discretisation import discretise, function_spaces, unknowns
+from .discretisation import choose_rotations, discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, check_loads
 from .material import RodParameters, check_parameters, coefficients, is_zero
 
@@ -38,7 +38,13 @@ class RodModel(FEModel):
     model: "evolving", "kelvin_voigt" or "hyperelastic" (constitutive.py); variant:
     "local" or "uniform" (evolution.py); constraint: None, "unshearable" or
     "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
-    boundary_conditions.py; end_loads, distributed_loads: external_forces.py.
+    boundary_conditions.py; end_loads, distributed_loads: external_forces.py; rotations:
+    "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
+    vectors for a dynamic rod, local variant, no constraint: 6 unknowns per node).
+
+    ``problem`` is a SemiDiscreteProblem (quaternions: any scheme of TimeStepper or
+    TSIntegrator) or a SecondOrderProblem (rotation vectors: generalized-alpha on the
+    rotation group, integrators/lie_alpha.py, which TimeStepper uses for it).
     """
 
     def __init__(self, params: RodParameters, n_cells: int = 32, model: str = "evolving",
@@ -47,7 +53,7 @@ class RodModel(FEModel):
                  end_loads: Sequence[EndLoad] = (),
                  distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
-                 comm: MPI.Comm = MPI.COMM_WORLD):
+                 rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD):
         check_model(model, params)
         check_variant(variant)
         check_n_cells(n_cells)
@@ -60,11 +66,13 @@ class RodModel(FEModel):
         self.length = float(params.length)
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(params.rho_A)
-        disc = discretise(comm, n_cells, self.length)
+        self.rotations = choose_rotations(rotations, self.dynamic, variant, constraint)
+        disc = discretise(comm, n_cells, self.length, self.rotations)
         super().__init__(disc.mesh)
         self.ds_end, self.dx, self.dx_r = disc.ds_end, disc.dx, disc.dx_r
         self.unknowns = unk = unknowns(function_spaces(
-            disc.mesh, self.evolving, variant, constraint, self.dynamic))
+            disc.mesh, self.evolving, variant, constraint, self.dynamic, self.rotations),
+            self.dynamic)
         self.names, self.f, self.r, self.t = unk.names, unk.f, unk.r, unk.t
         self.V, self.W = unk.V, unk.W
         self.coefficients = c = coefficients(params, disc.mesh, disc.s)
@@ -88,14 +96,40 @@ class RodModel(FEModel):
                                                         self.distributed_loads)
         self.supports = EndSupports(self, ends, end_displacement, end_rotation)
         self.residual = {name: F[name] for name in self.names}
-        self.problem = SemiDiscreteProblem(
-            [unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
-            list(self.residual.values()), self.loads, self.bcs, self.supports.set)
+        self.problem = self._problem()
 
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
-        self.set_diagnostic_forms({
-            **diagnostics.energy_forms(resp, self.xi, c, unk, disc, power, drag_dissipation),
-            **self.supports.reaction_forms(F, unk, self.length)})
+        self.set_diagnostic_forms(
+            diagnostics.energy_forms(resp, self.xi, c, unk, disc, power, drag_dissipation))
+
+    def _problem(self) -> SemiDiscreteProblem:
+        unk = self.unknowns
+        blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
+                  list(self.residual.values()), self.loads, self.bcs, self.supports.set)
+        if unk.chart is None:
+            return SemiDiscreteProblem(*blocks)
+        return SecondOrderProblem(
+            *blocks, accelerations=[unk.acc.get(n) for n in self.names],
+            after_step=self.commit_rotations,
+            time_orders=[2 if n in unk.acc else 1 for n in self.names], lie_group=True)
+
+    def commit_rotations(self) -> None:
+        """Rotation vectors, after an accepted step: q_n <- q_n c(theta), theta <- 0."""
+        self.unknowns.chart.commit()
+        self.supports.commit()
+
+    def checkpoint_state(self) -> dict:
+        """Rotation vectors: the stored rotations and the time they belong to."""
+        if self.unknowns.chart is None:
+            return {}
+        return {"functions": {"stored_rotation": self.unknowns.chart.q_n},
+                "rotations_committed_at": self.supports.committed_time}
+
+    def restore_state(self, state: dict) -> None:
+        """After the checkpoint's functions were read (checkpoint_state)."""
+        if self.unknowns.chart is not None:
+            self.unknowns.chart.refresh()
+            self.supports.committed_time = float(state["rotations_committed_at"])
 
     def set_initial_state(self, natural_curvature=None, natural_stretch=None) -> None:
         """Rest in the stress-free configuration of the reference strains (a straight rod
@@ -112,6 +146,8 @@ class RodModel(FEModel):
         reactions at supported ends."""
         self.supports.set_motion_rates(t)
         d = self.assembled_diagnostics(t)
+        d.update(self.supports.reactions(self.residual, self.unknowns.spaces,
+                                         self.unknowns.rotation, self.length, t))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         return d
@@ -122,7 +158,7 @@ class RodModel(FEModel):
         strains u_d, v_d, reference strains u_ref, v_ref, contact force n and couple m in
         material (``n``, ``m``) and spatial (``n_spatial`` = R n, ``m_spatial`` = R m)
         components, dissipation rate xi (eq. disspw).  Used by the run outputs."""
-        q, x = self.f["quaternion"], self.f["displacement"]
+        q, x = self.unknowns.q, self.f["displacement"]
         s = ufl.SpatialCoordinate(self.mesh)[0]
         R = rotation_matrix(q)
         u_ref, v_ref = self.reference

@@ -20,12 +20,12 @@ def internal_forces(unk: Unknowns, resp: SectionResponse, constraint, disc: Disc
     """int m . delta u + n . delta v ds on the (displacement, quaternion) blocks, with the
     multiplier's contact force for a constrained rod, and the constraint block.  Returns
     the blocks and the total material contact force n (constitutive + multiplier)."""
-    x, q = unk.f["displacement"], unk.f["quaternion"]
-    xt, qt = unk.t["displacement"], unk.t["quaternion"]
+    x, q = unk.f["displacement"], unk.f[unk.rotation]
+    xt, qt = unk.t["displacement"], unk.t[unk.rotation]
     m, n, dx_r = resp.m, resp.n, disc.dx_r
     F = {"displacement": balance.internal_work(m, n, resp.u, resp.v_eff, [x], [xt], dx_r),
-         "quaternion": balance.internal_work(m, n, resp.u, resp.v_eff, [q], [qt], dx_r)}
-    if constraints.multiplier_size(constraint):
+         unk.rotation: balance.internal_work(m, n, resp.u, resp.v_eff, [q], [qt], dx_r)}
+    if constraints.multiplier_size(constraint):    # quaternion rods only (discretisation.py)
         n_c = constraints.multiplier_force(unk.f["constraint_multiplier"], constraint)
         F["displacement"] += ufl.inner(n_c, ufl.derivative(resp.v, x, xt)) * dx_r
         F["quaternion"] += ufl.inner(n_c, ufl.derivative(resp.v, q, qt)) * dx_r
@@ -36,7 +36,10 @@ def internal_forces(unk: Unknowns, resp: SectionResponse, constraint, disc: Disc
 
 
 def gauge(F: dict, unk: Unknowns, disc: Discretisation) -> None:
-    """|q| = 1 at the vertices: d/d(q, lam) of int lam (|q|^2 - 1)/2 (vertex quadrature)."""
+    """|q| = 1 at the vertices: d/d(q, lam) of int lam (|q|^2 - 1)/2 (vertex quadrature);
+    nothing for rotation vectors (unit nodal quaternions by construction)."""
+    if unk.rotation != "quaternion":
+        return
     F_q, F["gauge_multiplier"] = balance.gauge(
         unk.f["quaternion"], unk.f["gauge_multiplier"], unk.t["quaternion"],
         unk.t["gauge_multiplier"], disc.dx_v)
@@ -64,15 +67,20 @@ def evolution(F: dict, unk: Unknowns, resp: SectionResponse, c: dict, variant: s
 
 
 def inertia(F: dict, unk: Unknowns, c: dict, disc: Discretisation) -> None:
-    """rhoA r_tt and d/dt[(rho J) w] (eqs. linmom, angmom), first order in time: the
-    kinematic equations x_t = V, W = 2 vec(conj(q) q_t)/|q|^2 at the vertices."""
-    q = unk.f["quaternion"]
-    dTheta = balance.virtual_rotation(q, unk.t["quaternion"])
-    F_x, F_q = balance.inertia(c["rho_A"], c["J"], unk.r["velocity"], unk.W,
-                               unk.r["angular_velocity"], unk.t["displacement"], dTheta,
-                               disc.dx)
+    """rhoA r_tt and d/dt[(rho J) w] (eqs. linmom, angmom).  Quaternions: first order in
+    time, with the kinematic equations x_t = V, W = 2 vec(conj(q) q_t)/|q|^2 at the
+    vertices; rotation vectors: second order, the integrator's accelerations."""
+    if unk.acc:
+        accelerations = unk.acc["displacement"], unk.acc[unk.rotation]
+    else:
+        accelerations = unk.r["velocity"], unk.r["angular_velocity"]
+    F_x, F_q = balance.inertia(c["rho_A"], c["J"], accelerations[0], unk.W, accelerations[1],
+                               unk.t["displacement"], unk.dTheta, disc.dx)
     F["displacement"] += F_x
-    F["quaternion"] += F_q
+    F[unk.rotation] += F_q
+    if unk.acc:
+        return
+    q = unk.f["quaternion"]
     F["velocity"], F["angular_velocity"] = balance.kinematic_equations(
         unk.r["displacement"], unk.V, q, unk.r["quaternion"], unk.W, unk.t["velocity"],
         unk.t["angular_velocity"], disc.dx_v)
@@ -84,6 +92,8 @@ def zero_diagonals(F: dict, unk: Unknowns, disc: Discretisation) -> None:
     residual 2e-4 off the mixed layout, which splits its kernels by quadrature rule
     (tests/test_assembly.py; DOLFINx 0.9 / FFCx, a kernel with the vertex rule and Gauss
     rules together).  Drop it once BlockedSystem splits its forms by rule as well."""
+    if unk.chart is not None:      # rotation vectors: the mixed layout only (one rule)
+        return
     zero = fem.Constant(disc.mesh, 0.0)
     for name in ("displacement", "quaternion", "gauge_multiplier", "velocity",
                  "angular_velocity"):

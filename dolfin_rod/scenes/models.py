@@ -17,7 +17,9 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from ..problem import SecondOrderProblem
 from .ode import OdeTorsion
+from .rules import rod_rotations
 from .schema import Scene, SceneError
 
 __all__ = ["Simulation", "MODELS", "register_model", "build", "OdeTorsion", "FESimulation"]
@@ -75,8 +77,11 @@ class FESimulation:
         self.comm = self.problem.comm
         self.fields = list(self.problem.fields)
         self._initial_state = initial_state
-        options = solver_options(scene)
-        self.stepper = TimeStepper(self.problem, tim["scheme"], options,
+        options = solver_options(scene, second_order=isinstance(self.problem,
+                                                                SecondOrderProblem))
+        scheme = tim["scheme"] if "scheme" in scene.given["time"] or not isinstance(
+            self.problem, SecondOrderProblem) else None     # None: the integrator's default
+        self.stepper = TimeStepper(self.problem, scheme, options,
                                    max_cuts=tim["max_step_cuts"], predictor=tim["predictor"])
         self.integrator = tim["integrator"]
         self.ts = None
@@ -108,13 +113,17 @@ class FESimulation:
         return self.model.diagnostics(t)
 
     def state(self) -> dict:
-        """Functions a checkpoint stores (besides problem.fields) and the stepper flags."""
-        return {"functions": {**{f"rate_{i}": r for i, r in enumerate(self.problem.rates)},
-                              **{f"previous_{i}": p for i, p in enumerate(self.stepper.y_nm1)}},
-                "history_steps": self.stepper.history_steps}
+        """Functions a checkpoint stores (besides problem.fields): the integrator's and
+        the model's, and their flags."""
+        stepper = self.stepper.checkpoint_state()
+        model = getattr(self.model, "checkpoint_state", dict)()
+        return {**stepper, **model, "functions": {**stepper["functions"],
+                                                  **model.get("functions", {})}}
 
     def restore(self, state: dict) -> None:
-        self.stepper.history_steps = int(state["history_steps"])
+        self.stepper.restore_state(state)
+        if hasattr(self.model, "restore_state"):
+            self.model.restore_state(state)
 
     @property
     def stats(self):
@@ -124,17 +133,20 @@ class FESimulation:
     def describe(self) -> str:
         if self.ts is not None:
             return f"PETSc TS ({self.ts.method})"
-        return f"TimeStepper with {self.stepper.scheme.name}"
+        return self.stepper.description
 
 
-def solver_options(scene: Scene) -> dict:
-    """PETSc options of a scene: tolerances of [time], the [solver] preset, its options."""
+def solver_options(scene: Scene, second_order: bool = False) -> dict:
+    """PETSc options of a scene: tolerances of [time] (given ones only for a rod with
+    rotation vectors, whose integrator has its own defaults, lie_alpha.default_options),
+    the [solver] preset, its options."""
     from .. import solvers
     tim, sol = scene["time"], scene["solver"]
     preset = {"default": {}, "native_lu": solvers.NATIVE_LU,
               "jacobian_reuse": solvers.JACOBIAN_REUSE}[sol["preset"]]
-    return {"snes_rtol": tim["rtol"], "snes_atol": tim["atol"], **preset,
-            **(sol["options"] or {})}
+    tolerances = {f"snes_{k}": tim[k] for k in ("rtol", "atol")
+                  if not second_order or k in scene.given["time"]}
+    return {**tolerances, **preset, **(sol["options"] or {})}
 
 
 def ts_type(scene: Scene) -> str:
@@ -195,7 +207,8 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
                          ends=(scene["boundary"]["start"], scene["boundary"]["end"]),
                          end_loads=end_loads, distributed_loads=distributed_loads,
                          end_displacement=motions["displacement"],
-                         end_rotation=motions["rotation"], comm=comm or MPI.COMM_WORLD)
+                         end_rotation=motions["rotation"], rotations=rod_rotations(scene),
+                         comm=comm or MPI.COMM_WORLD)
     except ValueError as err:
         key = "material.energy" if str(err).startswith("energy") else "scene.model"
         raise scene.error(key, f"the 'rod' model rejected the scene: {err}") from err

@@ -19,6 +19,7 @@ TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
     ("geometry", "degree"), ("initial", "natural_twist"), ("loads", "end_torsion")}
 ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints")} | {
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
+    ("geometry", "rotations"),
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
     ("boundary", "start_displacement"), ("loads", "distributed_force"), ("loads", "gravity"),
@@ -197,6 +198,28 @@ def _check_rod_inertia(scene: Scene) -> None:
     if not dynamic and get_scheme(scene["time"]["scheme"]).explicit:
         raise err("time.scheme", f"{scene['time']['scheme']} is explicit, but a quasi-static "
                                  "rod is differential-algebraic: use an implicit scheme")
+    rod_rotations(scene)
+
+
+def rod_rotations(scene: Scene) -> str:
+    """The rod's rotation unknowns (rod/discretisation.py) for geometry.rotations: "auto"
+    takes rotation vectors (6 unknowns per node, generalized-alpha on the rotation group)
+    for a dynamic rod with the local variant, no constraint, the stepper integrator and
+    time.scheme not given or a generalized_alpha; quaternions otherwise."""
+    tim, mat = scene["time"], scene["material"]
+    wanted = scene["geometry"]["rotations"]
+    scheme_fits = ("scheme" not in scene.given["time"]
+                   or tim["scheme"].startswith("generalized_alpha"))
+    fits = (mat["dynamic"] and mat["variant"] == "local" and mat["constraints"] == "none"
+            and tim["integrator"] == "stepper")
+    if wanted == "rotation_vector" and not (fits and scheme_fits):
+        key = "geometry.rotations" if not fits else "time.scheme"
+        raise scene.error(key, "rotation_vector needs a dynamic rod (density > 0), the local "
+                               "variant, no constraint, integrator = \"stepper\" and "
+                               "time.scheme = generalized_alpha[:rho_inf] (or none)")
+    if wanted == "auto":
+        return "rotation_vector" if fits and scheme_fits else "quaternion"
+    return wanted
 
 
 def _check_rod_ends(scene: Scene) -> None:

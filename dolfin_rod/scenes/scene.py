@@ -6,6 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 # the material keys that make a scene a 3-D rod scene (RodModel)
 ROD_KEYS = ("stiffness", "viscosity", "density", "section_inertia", "drag")
 
@@ -56,6 +58,10 @@ def _plain(v: Any) -> Any:
     """Validated values (dataclasses, tuples, floats) as JSON data (lists, dicts)."""
     if hasattr(v, "__dataclass_fields__"):
         return {f: _plain(getattr(v, f)) for f in v.__dataclass_fields__}
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
     if isinstance(v, (list, tuple)):
         return [_plain(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return v.tolist()
     return v

@@ -98,6 +98,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "reference_stretch": Key(vector3(), (0.0, 0.0, 1.0),
                                  R + "stretch v_ref of the stress-free initial shape "
                                  "(v_ref,3 > 0)"),
+        "rotations": Key(choice("auto", "quaternion", "rotation_vector"), "auto",
+                         R + "rotation unknowns: auto = rotation_vector (6 unknowns per "
+                         "node, generalized-alpha on the rotation group; the fast default) "
+                         "for a dynamic rod with the local variant, no constraint, the "
+                         "stepper and time.scheme unset or generalized_alpha; quaternion "
+                         "(+ gauge, velocities: any scheme or PETSc TS) otherwise"),
     },
     "material": {
         "variant": Key(choice(*VARIANTS), "local", "local | uniform evolution law of the "
@@ -172,7 +178,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "t_end": Key(real(0.0, True), REQUIRED, "final time"),
         "dt": Key(real(0.0, True), REQUIRED, "time step (also the output interval of the ODE; "
                   "the initial step of adaptive TS)"),
-        "scheme": Key(scheme_name, "bdf2", "a name of integrators.schemes (stepper)"),
+        "scheme": Key(scheme_name, "bdf2", "a name of integrators.schemes (stepper); not "
+                      "given, a dynamic rod with rotation vectors (geometry.rotations) uses "
+                      "generalized-alpha on the rotation group, rho_inf = 0.8"),
         "integrator": Key(choice("stepper", "ts"), "stepper", "stepper | ts (PETSc TS)"),
         "ts_type": Key(ts_type_name, None, "ts: a PETSc TS type of integrators.ts, e.g. "
                        "\"arkimex:4\", \"bdf:3\", \"alpha:0.5\", \"alpha2\" (dynamic torsion); "
