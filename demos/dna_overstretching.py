@@ -116,11 +116,11 @@ def twist_relaxation(folder: pathlib.Path) -> dict | None:
     alpha_d = scn["material"]["stiffness"]["A_d"].at(0)[2, 2]
     mu_d = scn["material"]["viscosity"]["M_d"].at(0)[2, 2]
     u0 = scn["boundary"]["end_rotation"].value[2] / L
-    u0_h = 4 * np.tan(u0 * L / n / 4) / (L / n)
+    u0_h, factor = closed_forms.p1_twist(u0, L, n)     # the end node's reaction
     t = np.array(rows["time"][1:])                      # t >= dt (the step at t = 0)
     return {"t": t, "m": np.array(rows["reaction_couple_right_z"][1:]),
             "m_closed_form": closed_forms.relaxation(t, u0, alpha, alpha_d, mu_d)[1],
-            "m_discrete": closed_forms.relaxation(t, u0_h, alpha, alpha_d, mu_d)[1],
+            "m_discrete": factor * closed_forms.relaxation(t, u0_h, alpha, alpha_d, mu_d)[1],
             "m0": alpha * u0}
 
 

@@ -38,10 +38,11 @@
 # ## Discrete expectations
 # * Space: P1 quaternions interpolating a rotation dphi = Phi0/N per element have the
 #   midpoint twist u_h = 4 tan(dphi/4)/h = u0 (1 + dphi^2/48 + ...), and the reaction
-#   couple (the residual tested with a virtual rotation of the end node) equals the
-#   element torque GJ (u_h - u_d) (checked to round-off at t = 0+).  So the space error
-#   is the relative dphi^2/48 = 2.0e-4 here (N = 16, dphi = pi/32), and the discrete
-#   closed form (u0 -> u_h) removes it, leaving the time error.
+#   couple (the residual at the end node: the discrete rod's torque conjugate to the end
+#   rotation) is the element torque GJ (u_h - u_d) times sec^2(dphi/4) = 1 + dphi^2/16
+#   (`closed_forms.p1_twist`).  So the space error is the relative dphi^2/12 = 8.0e-4
+#   here (N = 16, dphi = pi/32), and the discrete closed form (u0 -> u_h, times
+#   sec^2(dphi/4)) removes it, leaving the time error.
 # * Time: BDF2 with k dt = 0.025 after one backward-Euler start step: ~(k dt)^2 = 6e-4
 #   relative to m(0+).  The scene starts from the straight rod at t = 0; its first step
 #   (backward Euler) twists the rod and starts the relaxation from u_d = 0, as a run from
@@ -79,7 +80,7 @@ stiff, visc = scene["material"]["stiffness"], scene["material"]["viscosity"]
 alpha, alpha_d = stiff["A"].at(0)[2, 2], stiff["A_d"].at(0)[2, 2]     # GJ, A_d,33
 mu_d = visc["M_d"].at(0)[2, 2]
 u0 = scene["boundary"]["end_rotation"].value[2] / L                   # Phi0 / L
-u0_h = 4 * np.tan(u0 * L / n_cells / 4) / (L / n_cells)               # discrete twist
+u0_h, reaction_factor = closed_forms.p1_twist(u0, L, n_cells)         # discrete twist
 
 
 # ## Both evolution laws
@@ -116,6 +117,7 @@ if comm.rank == 0:
     t = hist["local"]["t"]
     ud_exact, m_exact = closed_forms.relaxation(t, u0, alpha, alpha_d, mu_d)
     ud_h, m_h = closed_forms.relaxation(t, u0_h, alpha, alpha_d, mu_d)
+    m_h = reaction_factor * m_h                            # the end node's reaction
     m0 = alpha * u0                                        # m(0+)
     report = {
         "err": {v: float(np.abs(h["m"] - m_exact).max() / m0) for v, h in hist.items()},
@@ -152,7 +154,7 @@ if comm.rank == 0:
     print(f"wrote {OUT}/torque.csv, torque.png and the run folders local/, uniform/")
 report = comm.bcast(report, root=0)
 
-# Space dphi^2/48 = 2e-4 plus BDF2's ~(k dt)^2 = 6e-4: allow 1.5e-3; the discrete closed
+# Space dphi^2/12 = 8e-4 plus BDF2's ~(k dt)^2 = 6e-4: allow 1.5e-3; the discrete closed
 # form leaves the time error only; the energy balance is BDF2 + trapezoidal, O(dt^2).
 assert max(report["err"].values()) < 1.5e-3, report
 assert max(report["err_h"].values()) < 1e-3, report

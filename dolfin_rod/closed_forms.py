@@ -33,6 +33,7 @@ __all__ = [
     "creep_matrix",
     "creep_response",
     "equilibrium_twists",
+    "p1_twist",
     "relaxation",
     "relaxation_impulse",
     "relaxed_torsion",
@@ -84,6 +85,19 @@ def relaxed_torsion(u0: float, alpha: float, alpha_d: float) -> float:
 
 
 # --- stress relaxation -----------------------------------------------------------------
+
+
+def p1_twist(u0: float, length: float, n_cells: int) -> tuple[float, float]:
+    """The 3-D rod's discrete counterpart of a uniform twist u0 (rod/, P1 rotations):
+    ``(u_h, factor)``.  Nodal rotations dphi = u0 L/N apart about the axis give every
+    element the midpoint twist u_h = 4 tan(dphi/4)/h (= u0 (1 + dphi^2/48 + ...)); the
+    end reaction couple, the residual at the end node, is d/dphi of h psi(u_h) = m(u_h)
+    du_h/d(dphi) h, i.e. the element torque m(u_h) times factor = sec^2(dphi/4)
+    (= 1 + dphi^2/16 + ...).  So a closed form m(t) of the continuum becomes the
+    reaction factor * m(t; u0 -> u_h) of the discrete rod."""
+    dphi = _finite("u0", u0) * length / n_cells
+    h = length / n_cells
+    return 4.0 * np.tan(dphi / 4.0) / h, 1.0 / np.cos(dphi / 4.0) ** 2
 
 
 def relaxation_impulse(u0: float, mu: float) -> float:
