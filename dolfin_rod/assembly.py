@@ -80,6 +80,10 @@ class _System:
             (self.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         self._scratch = [np.zeros_like(y.x.array) for y in self.groups[0]]
         self.A.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
+        # MPI: after the first assembly the off-rank entries go to the same ranks, and each
+        # rank zeroes only its own (owned) rows: no rendezvous (BuildTwoSided) per Jacobian
+        self.A.setOption(PETSc.Mat.Option.SUBSET_OFF_PROC_ENTRIES, True)
+        self.A.setOption(PETSc.Mat.Option.NO_OFF_PROC_ZERO_ROWS, True)
 
     def _bc_values(self) -> np.ndarray:
         vals = []
@@ -157,7 +161,9 @@ class MonolithicSystem(_System):
             F_mixed += ufl.replace(Fi, {**mapping, arg: v[i]})
         dw = ufl.TrialFunction(W)
         # One kernel per quadrature rule: FFCx 0.9 miscompiles mixed-element kernels that
-        # combine the vertex rule with Gauss rules (wrong vertex-rule terms, measured).
+        # combine the vertex rule with Gauss rules (wrong vertex-rule terms, measured), and
+        # also some that combine the 1- and 2-point Gauss rules (the prototype's earlier
+        # strain formula: a wrong Jacobian, Newton stalls; measured 2026-11-23).
         residuals, jacobians = [], []
         for part in _split_by_rule(F_mixed):
             residuals.append(part)

@@ -98,17 +98,20 @@ class BlockSNES:
                                in ("true", "1", "yes") for k in ("jacobian", "preconditioner"))
         self.iterations = 0
         self.timings = {"residual": 0.0, "jacobian": 0.0}  # seconds spent in assembly
+        self.counts = {"residual": 0, "jacobian": 0}      # assemblies
 
     def _residual(self, snes, x, b):
         t0 = time.perf_counter()
         self.system.set(0, x)
         self.system.residual(x, b)
         self.timings["residual"] += time.perf_counter() - t0
+        self.counts["residual"] += 1
 
     def _jacobian(self, snes, x, A, P):
         t0 = time.perf_counter()
         self.system.jacobian(A)
         self.timings["jacobian"] += time.perf_counter() - t0
+        self.counts["jacobian"] += 1
 
     def _set_persists(self, flags) -> None:
         opts = PETSc.Options()

@@ -172,6 +172,23 @@ def test_cached_step_forms_give_the_fresh_forms_results():
     assert len(keys) == 2  # the structure, not the mesh size, decides
 
 
+@pytest.mark.mpi
+def test_step_forms_from_the_disk_cache_give_the_fresh_forms_results():
+    form_cache.clear()
+    fresh = _three_steps(PARAMS, 5)             # compiles; records the kernels on disk
+    rod = _rod(PARAMS, n_cells=5,
+               distributed_loads=[DistributedLoad("force", (-3.0, 0.0, 1.0))])
+    key = TimeStepper(rod.problem).structure_key
+    form_cache.clear(disk=False)                # as a new process: memory empty
+    # serial: the entry comes from disk; under MPI the disk cache is off (a rank's miss
+    # would deadlock the collective JIT of the others' hit), so nothing is found
+    assert (form_cache.lookup(key) is not None) == (rod.mesh.comm.size == 1)
+    form_cache.clear(disk=False)
+    from_disk = _three_steps(PARAMS, 5)
+    # the same kernels on the same data: equal to round-off (see the test above)
+    assert np.allclose(from_disk, fresh, rtol=0, atol=1e-14 * np.abs(fresh).max())
+
+
 # -- the rod's physics with rotation vectors ----------------------------------------------
 
 

@@ -10,9 +10,10 @@ current step, c the normalised Cayley map
 and after each accepted step q_n <- q_n c(theta), theta <- 0 (``commit``).  The strains
 are those of the quaternion discretisation (kinematics.py: the P1 interpolant q of the
 nodal quaternions, u = 2 vec(conj(q) q_s)/|q|^2 and v = R(q)^T r_s at the cell midpoint),
-written with the relative rotation p = conj(q_a) q_b of the cell:
+written with m = 2 |k_a| conj(q_n,a) q_mid and d = h |k_a| conj(q_n,a) q_s (``strains``;
+k = (2, theta), c = k/|k|; both strains are homogeneous of degree 0 in (m, d)):
 
-    u = 4 vec(p) / (h (1 + p_0)),    v = R(1 + p)^T R(q_a)^T r_s,
+    u = 4 vec(conj(m) d) / (h |m|^2),    v = R(m)^T R(q_n,a)^T r_s,
 
 where in 1-D the nodal values of a P1 field are UFL expressions at any point of the cell,
 f_a = f(s) + (s_a - s) f_s(s), and q_n,a, p_n = conj(q_n,a) q_n,b are per-cell (DG0)
@@ -33,15 +34,14 @@ import numpy as np
 import ufl
 
 from ..kinematics import strain_rates
-from ..rotations import conj, np_qmul, qmul, rotation_matrix, vec
+from ..rotations import np_qmul, qmul, rotation_matrix, vec
 
 E3 = ufl.as_vector((0.0, 0.0, 1.0))
 
 
 def cayley(theta):
     """Unit quaternion of the rotation vector theta by the normalised Cayley map (UFL)."""
-    return (ufl.as_vector((2.0, theta[0], theta[1], theta[2]))
-            / ufl.sqrt(4.0 + ufl.dot(theta, theta)))
+    return _k(theta) / ufl.sqrt(4.0 + ufl.dot(theta, theta))
 
 
 def np_cayley(theta):
@@ -63,6 +63,41 @@ def tangent(theta, dtheta):
 
 def _RT(q):
     return ufl.transpose(rotation_matrix(q))
+
+
+def rotate_back(m, y):
+    """R(m/|m|)^T y for any quaternion m != 0: y + 2 (mv x (mv x y) - m_0 mv x y)/|m|^2."""
+    mv = vec(m)
+    c = ufl.cross(mv, y)
+    return y + 2.0 / ufl.dot(m, m) * (ufl.cross(mv, c) - m[0] * c)
+
+
+def strains(k_a, k_b, r_s, q_n_a, p_n, h):
+    """(u, v) of one cell: the strains of the P1 quaternion interpolant at the midpoint,
+    q_mid = (q_a + q_b)/2, for the nodal rotations q_a = q_n,a k_a/|k_a|,
+    q_b = q_n,b k_b/|k_b| (k_a, k_b quaternions of any norm: k = (2, theta) for the
+    Cayley map; q_n,a and p_n = conj(q_n,a) q_n,b unit, per cell; h the cell length).
+    With m = k_a + (|k_a|/|k_b|) p_n k_b = 2 |k_a| conj(q_n,a) q_mid and
+    d = (|k_a|/|k_b|) p_n k_b - k_a = h |k_a| conj(q_n,a) q_s:
+
+        u = 2 vec(conj(q_mid) q_s)/|q_mid|^2 = 4 vec(conj(m) d)/(h |m|^2),
+        v = R(q_mid)^T r_s = R(m)^T R(q_n,a)^T r_s.
+
+    One square root, one quaternion product, one rotation of the unknowns: the Jacobian
+    kernel (the second derivative of this graph) has 14.1k flops against 27.2k for
+    p = conj(c_a) p_n c_b, u = 4 vec(p)/(h (1 + p_0)), v = R(1 + p)^T R(c_a)^T R(q_n,a)^T r_s
+    (same strains to round-off; docs/performance.md).
+    """
+    pk_b = ufl.sqrt(ufl.dot(k_a, k_a) / ufl.dot(k_b, k_b)) * qmul(p_n, k_b)
+    m, d = k_a + pk_b, pk_b - k_a
+    mv, dv = vec(m), vec(d)
+    u = 4 * (m[0] * dv - d[0] * mv - ufl.cross(mv, dv)) / (h * ufl.dot(m, m))
+    return u, rotate_back(m, ufl.dot(_RT(q_n_a), r_s))
+
+
+def _k(theta):
+    """(2, theta): the Cayley map before its normalisation, c(theta) = k/|k|."""
+    return ufl.as_vector((2.0, theta[0], theta[1], theta[2]))
 
 
 class RotationVectorChart:
@@ -99,15 +134,10 @@ class RotationVectorChart:
             return f + (s_node - s) * f.dx(0)
 
         ends = (self.s_mid - h / 2, self.s_mid + h / 2)
-        c_a, c_b = (cayley(nodal(self.theta, e)) for e in ends)
+        k_a, k_b = (_k(nodal(self.theta, e)) for e in ends)
         if body_rates:
-            c_a, c_b = (qmul(c, cayley(nodal(self.eta, e))) for c, e in zip((c_a, c_b), ends))
-        p = qmul(qmul(conj(c_a), self.p_n), c_b)          # conj(q_a) q_b
-        # q_mid = (q_a + q_b)/2 = q_a (1 + p)/2 (module docstring)
-        u = 4 * vec(p) / (h * (1 + p[0]))
-        one_p = ufl.as_vector((1 + p[0], p[1], p[2], p[3]))
-        v = ufl.dot(_RT(one_p), ufl.dot(_RT(c_a), ufl.dot(_RT(self.qa_n), E3 + x.dx(0))))
-        return u, v
+            k_a, k_b = (qmul(k, _k(nodal(self.eta, e))) for k, e in zip((k_a, k_b), ends))
+        return strains(k_a, k_b, E3 + x.dx(0), self.qa_n, self.p_n, h)
 
     def strain_rates(self, u, v, x, V, W):
         """(u_t, v_t) along the velocity V and material angular velocity W (nodal)."""
