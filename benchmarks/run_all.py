@@ -3,7 +3,10 @@
     ./rodenv python3 benchmarks/run_all.py           # full (about 10-15 min on 2 cores)
     ./rodenv python3 benchmarks/run_all.py --quick   # smaller sizes (a few minutes)
 
-1. peer_pyelastica.py   work-precision vs PyElastica, elastic and creep cantilevers
+0. defaults.py         what a user gets without options: per step, set-up, the CLI run
+   rod_scaling.py       cost per cell and Newton iteration at 1e3..1e5 cells (defaults),
+                        1 and 2 ranks at 1e5 cells (the MPI speed-up, identical tips)
+1. peer_pyelastica.py   work-precision vs PyElastica on six gravity-cantilever scenes
    peer_pyelastica_long.py  part "peer_long": the creep_long scene (tau = 10 s, T = 30 s,
                         same drag on both sides; ~10 min, PyElastica dominates)
 2. scaling.py           time per step / Newton iteration, 1e2 .. 1e5 cells, split into
@@ -72,12 +75,20 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--parts", nargs="*",
-                    default=["peer", "peer_long", "scaling", "mpi", "model_selection"])
+                    default=["defaults", "rod_scaling", "peer", "peer_long", "scaling", "mpi",
+                             "model_selection"])
     args = ap.parse_args()
     quick = ["--quick"] if args.quick else []
     py = sys.executable
     OUT.mkdir(parents=True, exist_ok=True)
     wall = {}
+    if "defaults" in args.parts:
+        wall["defaults"] = run([py, str(HERE / "defaults.py")])
+    if "rod_scaling" in args.parts:
+        sizes = ["--sizes", *(["1000", "20000"] if args.quick else ["1000", "10000", "100000"])]
+        wall["rod_scaling"] = run([py, str(HERE / "rod_scaling.py"), *sizes])
+        wall["rod_scaling_np2"] = run(["mpirun", "-n", "2", py, str(HERE / "rod_scaling.py"),
+                                       "--sizes", sizes[-1]])
     if "peer" in args.parts:
         wall["peer_pyelastica"] = run([py, str(HERE / "peer_pyelastica.py"), *quick])
     if "peer_long" in args.parts:

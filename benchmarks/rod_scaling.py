@@ -11,9 +11,9 @@ flops of the Jacobian kernel (counted in the generated C) and bytes of assembly.
 Also the set-up time of a model whose structure is compiled already (form_cache) and,
 under mpirun, the tip position (serial == 2 ranks).
 
-    ./rodenv python3 benchmarks/incremental_scaling.py [--sizes 1000 10000 100000]
-    ./rodenv mpirun -n 2 python3 benchmarks/incremental_scaling.py --sizes 100000
-Writes results/bench/incremental_scaling_np{size}.json.
+    ./rodenv python3 benchmarks/rod_scaling.py [--sizes 1000 10000 100000]
+    ./rodenv mpirun -n 2 python3 benchmarks/rod_scaling.py --sizes 100000
+Writes results/bench/rod_scaling_np{size}.json.
 """
 
 from __future__ import annotations
@@ -115,7 +115,7 @@ def main():
         print("limits:", limits, "load average:", load)
         folder = ROOT / "results" / "bench"
         folder.mkdir(parents=True, exist_ok=True)
-        (folder / f"incremental_scaling_np{comm.size}.json").write_text(
+        (folder / f"rod_scaling_np{comm.size}.json").write_text(
             json.dumps({"rows": rows, "limits": limits, "load_average": load}, indent=1))
 
 
