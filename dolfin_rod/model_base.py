@@ -52,18 +52,34 @@ def scalar_coefficient(value: float | Callable, mesh, s):
     return value(s) if callable(value) else fem.Constant(mesh, float(value))
 
 
-def nodal_residual(form: fem.Form, space, s_node: float) -> np.ndarray:
-    """The assembled residual of one block at the node at s_node (its components),
-    summed over the ranks: the residual tested with the node's unit nodal motions."""
+class NodeValues:
+    """Entries (bs components) of dof arrays of one space at fixed nodes s_nodes, from
+    their owners, summed over the ranks (one buffer reduction per call)."""
+
+    def __init__(self, space, s_nodes):
+        self.bs, self.comm = space.dofmap.index_map_bs, space.mesh.comm
+        owned = space.dofmap.index_map.size_local
+        self.rows = [(k, d) for k, s_node in enumerate(s_nodes)
+                     for d in fem.locate_dofs_geometrical(space,
+                                                          lambda x: np.isclose(x[0], s_node))
+                     if d < owned]
+        self.shape = (len(s_nodes), self.bs)
+
+    def __call__(self, array: np.ndarray) -> np.ndarray:
+        local = np.zeros(self.shape)
+        for k, d in self.rows:
+            local[k] += array[self.bs * d: self.bs * (d + 1)]
+        total = np.empty_like(local)
+        self.comm.Allreduce(local, total, op=MPI.SUM)
+        return total
+
+
+def nodal_residual(form: fem.Form, nodes: NodeValues) -> np.ndarray:
+    """The assembled residual of one block at the nodes: the residual tested with each
+    node's unit nodal motions (one assembly)."""
     b = fem.assemble_vector(form)
     b.scatter_reverse(la.InsertMode.add)
-    bs = space.dofmap.index_map_bs
-    owned = space.dofmap.index_map.size_local
-    local = np.zeros(bs)
-    for d in fem.locate_dofs_geometrical(space, lambda x: np.isclose(x[0], s_node)):
-        if d < owned:
-            local += b.array[bs * d: bs * (d + 1)]
-    return space.mesh.comm.allreduce(local, op=MPI.SUM)
+    return nodes(b.array)
 
 
 class FEModel:

@@ -19,7 +19,7 @@ import dolfinx.fem as fem
 import numpy as np
 
 from .. import loads
-from ..model_base import ENDS, end_coordinate, nodal_residual
+from ..model_base import ENDS, NodeValues, end_coordinate, nodal_residual
 from ..rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 from .rotation_vector import np_inverse_cayley
 
@@ -127,10 +127,14 @@ class EndSupports:
         unit nodal translation, or a nodal spatial rotation e: delta q = (0, e) q_end / 2
         (quaternions) or delta theta = R(q_end)^T e (rotation vectors, theta = 0)."""
         out, power = {}, 0.0
-        for end in ENDS:
-            node = {block: nodal_residual(self._compiled(residual, block), spaces[block],
-                                          end_coordinate(end, length))
-                    for block in ("displacement", rotation_block)
+        ends = [e for e in ENDS if any((b, e) in self.values
+                                       for b in ("displacement", rotation_block))]
+        at_ends = {block: dict(zip(ends, nodal_residual(
+            *self._compiled(residual, block, spaces[block], ends, length))))
+            for block in ("displacement", rotation_block)
+            if any((block, e) in self.values for e in ends)}
+        for end in ends:
+            node = {block: values[end] for block, values in at_ends.items()
                     if (block, end) in self.values}
             q_end = self.prescribed(end, t)[1]
             for i, comp in enumerate("xyz"):
@@ -147,10 +151,11 @@ class EndSupports:
             out["reaction_power"] = power
         return out
 
-    def _compiled(self, residual: dict, block: str):
-        """The block's residual form, compiled at the first diagnostics."""
+    def _compiled(self, residual: dict, block: str, space, ends, length: float):
+        """The block's residual form and its end nodes, made at the first diagnostics."""
         if block not in self._residual_forms:
-            self._residual_forms[block] = fem.form(residual[block])
+            self._residual_forms[block] = (fem.form(residual[block]), NodeValues(
+                space, [end_coordinate(e, length) for e in ends]))
         return self._residual_forms[block]
 
     def set_motion_rates(self, t: float) -> None:

@@ -1,12 +1,15 @@
 """The rod's diagnostic forms: free and kinetic energy, dissipation rate (eq. disspw, with
-drag), power of the loads, tip position and quaternion; and the tip rotation angle."""
+drag), power of the loads; the tip position and quaternion (nodal values) and the tip
+rotation angle."""
 
 from __future__ import annotations
 
 import ufl
 
 from ..dissipation import dissipation_rate
-from ..rotations import np_rotation_angle
+from ..model_base import NodeValues
+from ..rotations import np_qmul, np_rotation_angle
+from .rotation_vector import np_cayley
 
 
 def dissipation_density(resp, c: dict, natural_pairs: list):
@@ -19,8 +22,7 @@ def dissipation_density(resp, c: dict, natural_pairs: list):
 
 
 def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation) -> dict:
-    """free_energy, dissipation_rate, kinetic_energy, load_power, tip_position_{xyz},
-    tip_quaternion_{0..3}."""
+    """free_energy, dissipation_rate, kinetic_energy, load_power."""
     V, W, dx_r = unk.V, unk.W, disc.dx_r
     dynamic = unk.dynamic
     kinetic = 0.5 * (c["rho_A"] * ufl.inner(V, V) + ufl.inner(W, ufl.dot(c["J"], W)))
@@ -28,13 +30,31 @@ def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation) -> dict:
              "dissipation_rate": xi * dx_r + drag_dissipation,
              "kinetic_energy": kinetic * disc.dx if dynamic else 0 * resp.psi * dx_r,
              "load_power": 0 * resp.psi * dx_r + power}
-    tip = disc.ds_end["right"]
-    r_tip = ufl.as_vector((0.0, 0.0, disc.s)) + unk.f["displacement"]
-    for i, comp in enumerate("xyz"):
-        forms[f"tip_position_{comp}"] = r_tip[i] * tip
-    for i in range(4):
-        forms[f"tip_quaternion_{i}"] = unk.q[i] * tip
     return forms
+
+
+class Tip:
+    """tip_position_{xyz} (r = L e_3 + x) and tip_quaternion_{0..3} at s = L: nodal
+    values (rotation vectors: q_n c(theta))."""
+
+    def __init__(self, unk, length: float):
+        self.unk, self.length = unk, length
+        q_space = (unk.f["quaternion"] if unk.chart is None else unk.chart.q_n).function_space
+        self.x_node = NodeValues(unk.f["displacement"].function_space, [length])
+        self.q_node = NodeValues(q_space, [length])
+
+    def __call__(self) -> dict:
+        unk = self.unk
+        if unk.chart is None:
+            q_array = unk.f["quaternion"].x.array
+        else:
+            q_array = np_qmul(unk.chart.q_n.x.array.reshape(-1, 4),
+                              np_cayley(unk.f[unk.rotation].x.array.reshape(-1, 3))).ravel()
+        x, q = self.x_node(unk.f["displacement"].x.array)[0], self.q_node(q_array)[0]
+        d = {f"tip_position_{c}": x[i] for i, c in enumerate("xyz")}
+        d["tip_position_z"] += self.length
+        d.update({f"tip_quaternion_{i}": q[i] for i in range(4)})
+        return d
 
 
 def tip_rotation_angle(d: dict) -> float:

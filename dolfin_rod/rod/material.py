@@ -54,7 +54,8 @@ def is_zero(value) -> bool:
 
 
 def _sample(name, value, length):
-    s = sample_points(length)
+    """(s, values): at the sample points for a function of s, once for a constant."""
+    s = sample_points(length) if callable(value) else np.zeros(1)
     try:
         vals = [np.asarray(value(si) if callable(value) else value, dtype=float) for si in s]
     except Exception as err:  # noqa: BLE001 - reported with the parameter's name

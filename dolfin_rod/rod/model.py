@@ -99,6 +99,7 @@ class RodModel(FEModel):
         self.problem = self._problem()
 
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
+        self.tip = diagnostics.Tip(unk, self.length)
         self.set_diagnostic_forms(
             diagnostics.energy_forms(resp, self.xi, c, unk, disc, power, drag_dissipation))
 
@@ -146,6 +147,7 @@ class RodModel(FEModel):
         reactions at supported ends."""
         self.supports.set_motion_rates(t)
         d = self.assembled_diagnostics(t)
+        d.update(self.tip())
         d.update(self.supports.reactions(self.residual, self.unknowns.spaces,
                                          self.unknowns.rotation, self.length, t))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
