@@ -53,8 +53,11 @@ _ids = itertools.count()
 
 
 def petsc_options(comm, options: dict | None) -> dict:
-    """DEFAULT_OPTIONS updated by ``options``; PETSc's LU on several ranks is an error."""
+    """DEFAULT_OPTIONS updated by ``options`` (without the default LU's solver type when
+    ``options`` choose another preconditioner); PETSc's LU on several ranks is an error."""
     merged = {**DEFAULT_OPTIONS, **(options or {})}
+    if merged.get("pc_type") != "lu" and "pc_factor_mat_solver_type" not in (options or {}):
+        del merged["pc_factor_mat_solver_type"]     # the default LU's: unused otherwise
     if comm.size > 1 and merged.get("pc_type") == "lu" and \
             merged.get("pc_factor_mat_solver_type") == "petsc":
         raise ValueError("pc_factor_mat_solver_type 'petsc' (NATIVE_LU) is serial; under "
