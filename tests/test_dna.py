@@ -33,6 +33,7 @@ from make_dna_data import TRUE_M_D, dna_twist_torque, noise_sd  # noqa: E402
 
 PULL = ROOT / "scenes/dna_overstretching.toml"
 TWIST = ROOT / "scenes/dna_twist_relaxation.toml"
+TWIST_FIT = ROOT / "examples/fit/dna_twist.toml"     # the same scene, l2 line search
 QUIET = {"outputs.fields": False, "outputs.animation": False, "outputs.plots": False,
          "outputs.progress": False}
 P = dna.DNA
@@ -244,7 +245,7 @@ def test_fit_recovers_the_natural_twist_viscosity():
     m = dna_twist_torque(t, TRUE_M_D, n_cells)
     data = MeasuredSeries(t, np.full_like(t, np.pi),
                           m + np.random.default_rng(16).normal(0, noise_sd(), t.size))
-    result = fit_scene(load_scene(TWIST, {"geometry.n_cells": n_cells}), data, "M_d[2]")
+    result = fit_scene(load_scene(TWIST_FIT, {"geometry.n_cells": n_cells}), data, "M_d[2]")
     assert result.status == "identified" and result.n_data == t.size - 1, result.message
     (value,), (sigma,) = result.values, result.std_errors
     assert abs(value - TRUE_M_D) < 3 * sigma, (value, sigma)

@@ -3,6 +3,7 @@ twist relaxation"): scenes/dna_twist_relaxation.toml's half turn Phi0 = pi held 
 bead, the reaction couple about the axis measured.
 
     ./rodenv python3 examples/fit/make_dna_data.py      # writes dna_twist.csv here
+    ./rodenv dolfin-rod fit examples/fit/dna_twist.toml examples/fit/dna_twist.csv --params "material.viscosity.M_d[2]"
 
 The reference is Section 5's torsion closed form (eq. stressrelax,
 closed_forms.relaxation) with alpha = C - g^2/S (dna.zero_tension_twist_stiffness),
