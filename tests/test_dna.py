@@ -20,15 +20,20 @@ from ufl.algorithms import expand_derivatives
 
 from dolfin_rod import closed_forms, dna
 from dolfin_rod.cli import run_scene
+from dolfin_rod.fit import fit_scene
+from dolfin_rod.fit_inputs import MeasuredSeries
 from dolfin_rod.natural_state import check_natural_state, stationarity_and_hessian
 from dolfin_rod.scenes import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "demos"))
+sys.path.insert(0, str(ROOT / "examples" / "fit"))
 from dna_overstretching import loop  # noqa: E402  (the demo's loading cycle)
+from make_dna_data import TRUE_M_D, dna_twist_torque, noise_sd  # noqa: E402
 
 PULL = ROOT / "scenes/dna_overstretching.toml"
 TWIST = ROOT / "scenes/dna_twist_relaxation.toml"
+TWIST_FIT = ROOT / "examples/fit/dna_twist.toml"     # the same scene, l2 line search
 QUIET = {"outputs.fields": False, "outputs.animation": False, "outputs.plots": False,
          "outputs.progress": False}
 P = dna.DNA
@@ -224,6 +229,31 @@ def test_twist_relaxation_is_the_torsion_closed_form(tmp_path):
     w = -P.stretch_modulus * e / (P.twist_stretch_coupling * (1 - (e / P.stretch_limit) ** 2))
     m_pred = P.twist_stiffness * w + P.twist_stretch_coupling * e
     assert np.abs(m_pred - m).max() < 1e-6 * m0
+
+
+def test_fit_recovers_the_natural_twist_viscosity():
+    """Torque-relaxation data of the twist scene (examples/fit/make_dna_data.py: eq.
+    stressrelax for the discrete rod, M_d,33 = 1.5 x the scene's, noise 1 % of m(0+)),
+    here for the scene with 4 cells (the data use the same n_cells; 4x cheaper than 16)
+    and another seed: the fit of material.viscosity.M_d[2] from the scene's 616.5 must
+    recover the truth within 3 standard errors (BDF2 at k dt = 0.017 errs by ~(k dt)^2 =
+    3e-4 of m(0+), 0.03 of the noise: no bias).  The stated standard error must be the
+    linearised one, SD / |dm/dlog M_d| (the closed form's sensitivity, central
+    differences) times M_d, up to s's scatter: s^2 estimates SD^2 with relative sd
+    sqrt(2/(n - 1)), so sigma within 3 sqrt(1/(2 (n - 1))) = 30 % for n = 50."""
+    n_cells, t = 4, np.round(np.arange(0.0, 5.0 + 1e-9, 0.1), 10)
+    m = dna_twist_torque(t, TRUE_M_D, n_cells)
+    data = MeasuredSeries(t, np.full_like(t, np.pi),
+                          m + np.random.default_rng(16).normal(0, noise_sd(), t.size))
+    result = fit_scene(load_scene(TWIST_FIT, {"geometry.n_cells": n_cells}), data, "M_d[2]")
+    assert result.status == "identified" and result.n_data == t.size - 1, result.message
+    (value,), (sigma,) = result.values, result.std_errors
+    assert abs(value - TRUE_M_D) < 3 * sigma, (value, sigma)
+    used = t[1:]                                     # a rod's t = 0 row is not used
+    dm = (dna_twist_torque(used, TRUE_M_D * np.exp(1e-5), n_cells)
+          - dna_twist_torque(used, TRUE_M_D * np.exp(-1e-5), n_cells)) / 2e-5
+    expected = noise_sd() / np.linalg.norm(dm) * TRUE_M_D
+    assert abs(sigma / expected - 1) < 3 * np.sqrt(1 / (2 * (used.size - 1))), (sigma, expected)
 
 
 # --- the scene under mpirun -----------------------------------------------------------------
