@@ -263,14 +263,19 @@ def prepare_fit(scene: Scene, data: MeasuredSeries, params: list[str] | str,
 
 def run_fit(problem: FitProblem, max_evaluations: int = 200) -> FitResult:
     """Least squares from the scene's values, then the covariance and identifiability at
-    the optimum; FitError if the model fails at the initial parameters."""
+    the optimum; FitError if the model fails at the initial parameters or where the
+    least-squares Jacobian needs it."""
     from scipy.optimize import least_squares
     theta0 = np.log([p.initial for p in problem.params])
     if not np.all(np.isfinite(problem(theta0))):
         raise FitError(f"the {problem.choice.model} model fails at the initial parameters: "
                        f"{problem.last_error or 'non-finite response'}")
-    res = least_squares(problem, theta0, method="trf", diff_step=1e-6, x_scale=1.0,
-                        ftol=1e-10, xtol=1e-10, gtol=1e-10, max_nfev=max_evaluations)
+    try:
+        res = least_squares(problem, theta0, method="trf", diff_step=1e-6, x_scale=1.0,
+                            ftol=1e-10, xtol=1e-10, gtol=1e-10, max_nfev=max_evaluations)
+    except ValueError as err:     # a model failure inside scipy's finite differences
+        raise FitError(f"the {problem.choice.model} model failed during the fit "
+                       f"({problem.last_error or err}); try other initial values") from err
     r = problem(res.x)
     s = float(np.sqrt(r @ r / (r.size - res.x.size)))
     return _result(problem, res, r, s, central_jacobian(problem, res.x))

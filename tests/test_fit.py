@@ -330,3 +330,24 @@ def test_cli_under_mpirun_rank0_writes(tmp_path):
     bad = cli("fit", EXAMPLES / "relaxation.toml", EXAMPLES / "relaxation.csv",
               "--params", "alpha,beta", mpi=2)
     assert bad.returncode == 2 and bad.stderr.count("parameter 'beta'") == 1
+
+
+def test_a_model_failure_inside_the_least_squares_is_a_fit_error():
+    """scipy's finite-difference Jacobian cannot take the infinite residual of a failed
+    model run (ValueError from its SVD; seen with the DNA twist scene's first step at some
+    trial viscosities): run_fit reports a FitError naming the model and its last error."""
+    from types import SimpleNamespace
+
+    from dolfin_rod.fit import FitError, run_fit
+
+    class FailsNextToTheStart:
+        params = [SimpleNamespace(initial=1.0, name="p")]
+        choice = SimpleNamespace(model="torsion")
+        last_error = "SolverError: SNES failed"
+        used = np.ones(5, bool)
+
+        def __call__(self, theta):
+            return np.full(5, 0.5) if theta[0] == 0.0 else np.full(5, np.inf)
+
+    with pytest.raises(FitError, match="torsion model failed during the fit.*SNES failed"):
+        run_fit(FailsNextToTheStart())
