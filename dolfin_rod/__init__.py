@@ -4,9 +4,10 @@ The public API (what a user imports); names load on first use, so ``import dolfi
 stays cheap (e.g. for ``dolfin-rod check``):
 
     from dolfin_rod import RodModel, RodParameters, EndLoad, TimeStepper, loads
-    model = RodModel(RodParameters(rho_A=1.0), end_loads=[EndLoad("force", (1, 0, 0))])
+    model = RodModel(RodParameters(rho_A=1.0, I11=0.01, I22=0.01),
+                     end_loads=[EndLoad("force", (1, 0, 0))])
     model.set_initial_state()
-    TimeStepper(model.problem, "bdf2").run(0.0, 1.0, 0.01, observer)
+    TimeStepper(model.problem).run(0.0, 1.0, 0.01, observer)   # the defaults: fast
 """
 
 from importlib import import_module
