@@ -56,3 +56,24 @@ def profile_violation(values: np.ndarray, s: np.ndarray, strict: bool) -> str | 
     if not strict and (values == 0).any() and (values > 0).any():
         return "must be either > 0 everywhere or 0 everywhere"
     return None
+
+
+ROTATIONS = ("auto", "quaternion", "rotation_vector")
+
+
+def choose_rotations(rotations: str, dynamic: bool, variant: str, constraint,
+                     lie_integrator: bool = True) -> str:
+    """The rod's rotation unknowns (rod/discretisation.py): "auto" takes rotation vectors
+    for a dynamic rod with the local variant and no constraint, advanced by the
+    rotation-group integrator (``lie_integrator``: not a first-order scheme or PETSc TS),
+    quaternions otherwise; an explicit choice is checked (ValueError)."""
+    if rotations not in ROTATIONS:
+        raise ValueError(f"rotations must be one of {ROTATIONS}, got {rotations!r}")
+    fits = dynamic and variant == "local" and constraint is None
+    if rotations == "auto":
+        return "rotation_vector" if fits and lie_integrator else "quaternion"
+    if rotations == "rotation_vector" and not (fits and lie_integrator):
+        raise ValueError("rotations = 'rotation_vector' needs a dynamic rod (rho_A > 0) with "
+                         "the local variant and no constraint, advanced by "
+                         "generalized_alpha[:rho_inf] (TimeStepper); use 'quaternion'")
+    return rotations

@@ -60,10 +60,7 @@ class EndSupports:
         self.committed_time = 0.0                # rotation vectors: time of q_n
         self._time_set = 0.0
         spaces, mesh, L = model.unknowns.spaces, model.mesh, model.length
-        rate_size = 4 if self.block == "quaternion" else 3
-        self.motion_rates = {end: (fem.Constant(mesh, np.zeros(3)),
-                                   fem.Constant(mesh, np.zeros(rate_size)))
-                             for end in ENDS if end in self.displacement or end in self.rotation}
+        self.spaces, self.length = spaces, L
         self._residual_forms: dict = {}
         for end, kind in zip(ENDS, self.ends):
             blocks = []
@@ -119,20 +116,18 @@ class EndSupports:
         if key in self.values:
             self.values[key].value[:] = value
 
-    def reactions(self, residual: dict, spaces: dict, rotation_block: str, length: float,
-                  t: float) -> dict:
+    def reactions(self, residual: dict, t: float) -> dict:
         """reaction_force_{end}_{xyz}, reaction_couple_{end}_{xyz} at supported ends and the
         reaction_power of moving ends, at t (between steps): the assembled residual of
         the balance blocks at the end node (MPI-summed), i.e. the residual tested with a
         unit nodal translation, or a nodal spatial rotation e: delta q = (0, e) q_end / 2
         (quaternions) or delta theta = R(q_end)^T e (rotation vectors, theta = 0)."""
-        out, power = {}, 0.0
+        out, power, rotation_block = {}, 0.0, self.block
         ends = [e for e in ENDS if any((b, e) in self.values
                                        for b in ("displacement", rotation_block))]
-        at_ends = {block: dict(zip(ends, nodal_residual(
-            *self._compiled(residual, block, spaces[block], ends, length))))
-            for block in ("displacement", rotation_block)
-            if any((block, e) in self.values for e in ends)}
+        at_ends = {block: dict(zip(ends, nodal_residual(*self._compiled(residual, block, ends))))
+                   for block in ("displacement", rotation_block)
+                   if any((block, e) in self.values for e in ends)}
         for end in ends:
             node = {block: values[end] for block, values in at_ends.items()
                     if (block, end) in self.values}
@@ -143,28 +138,26 @@ class EndSupports:
                 if rotation_block in node:
                     out[f"reaction_couple_{end}_{comp}"] = node[rotation_block] @ \
                         _nodal_rotation(rotation_block, q_end, np.eye(3)[i])
-            if end in self.motion_rates:
-                x_t, rot_t = (c.value for c in self.motion_rates[end])
-                power += sum(node[b] @ v for b, v in (("displacement", x_t),
-                                                      (rotation_block, rot_t)) if b in node)
-        if self.motion_rates:
+            if end in self.displacement or end in self.rotation:
+                power += sum(node[b] @ v for b, v in self._motion_rates(end, t).items()
+                             if b in node)
+        if self.displacement or self.rotation:
             out["reaction_power"] = power
         return out
 
-    def _compiled(self, residual: dict, block: str, space, ends, length: float):
+    def _compiled(self, residual: dict, block: str, ends):
         """The block's residual form and its end nodes, made at the first diagnostics."""
         if block not in self._residual_forms:
             self._residual_forms[block] = (fem.form(residual[block]), NodeValues(
-                space, [end_coordinate(e, length) for e in ends]))
+                self.spaces[block], [end_coordinate(e, self.length) for e in ends]))
         return self._residual_forms[block]
 
-    def set_motion_rates(self, t: float) -> None:
-        """For the reactions at t (between steps): x_t and q_t (quaternions) or W
-        (rotation vectors, theta = 0: the nodal test value) of the moving ends."""
-        for end, (x_t, rot_t) in self.motion_rates.items():
-            x_t.value[:] = loads.rate(lambda s: self.prescribed(end, s)[0], t)
-            rot_t.value[:] = (loads.rate(lambda s: self.prescribed(end, s)[1], t)
-                              if self.block == "quaternion" else self._angular_velocity(end, t))
+    def _motion_rates(self, end: str, t: float) -> dict:
+        """The nodal test values of a moving end's motion at t (between steps): x_t, and
+        q_t (quaternions) or W (rotation vectors, theta = 0)."""
+        return {"displacement": loads.rate(lambda s: self.prescribed(end, s)[0], t),
+                self.block: (loads.rate(lambda s: self.prescribed(end, s)[1], t)
+                             if self.block == "quaternion" else self._angular_velocity(end, t))}
 
 
 def _nodal_rotation(block: str, q_end, e) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The rod's finite elements: mesh of [0, L], end measures, quadrature rules, spaces and
 the unknowns (fields, rates, test functions) of each block.
 
-Two kinds of rotation unknowns (``ROTATIONS``):
+Two kinds of rotation unknowns (``validation.ROTATIONS``):
 
 "quaternion"       blocks (in this order): displacement x (P1, 3), quaternion q (P1, 4),
                    gauge multiplier (P1), natural curvature u_d and natural stretch v_d
@@ -13,7 +13,7 @@ Two kinds of rotation unknowns (``ROTATIONS``):
                    quaternions (rotation_vector.py), natural strains (DG0): 6 unknowns
                    per node, no saddle point; velocities and accelerations are the
                    integrator's (integrators/lie_alpha.py): dynamic rods, local variant,
-                   no constraint.  The default for those (``choose_rotations``).
+                   no constraint.  The default for those (``validation.choose_rotations``).
 
 Locking: the strain-dependent terms are integrated with the 1-point Gauss rule ``dx_r``,
 where the P1 element's 6 strains are independent functions of its 6 deformation modes
@@ -33,22 +33,6 @@ from ..evolution import real_space
 from ..model_base import end_measures, vertex_measure
 from ..rotations import material_derivative_vector
 from .rotation_vector import RotationVectorChart
-
-ROTATIONS = ("auto", "quaternion", "rotation_vector")
-
-
-def choose_rotations(rotations: str, dynamic: bool, variant: str, constraint) -> str:
-    """"auto": rotation vectors for a dynamic rod with the local variant and no
-    constraint, quaternions otherwise; an explicit choice is checked."""
-    if rotations not in ROTATIONS:
-        raise ValueError(f"rotations must be one of {ROTATIONS}, got {rotations!r}")
-    fits = dynamic and variant == "local" and constraint is None
-    if rotations == "auto":
-        return "rotation_vector" if fits else "quaternion"
-    if rotations == "rotation_vector" and not fits:
-        raise ValueError("rotations = 'rotation_vector' needs a dynamic rod (rho_A > 0) with "
-                         "the local variant and no constraint; use 'quaternion'")
-    return rotations
 
 
 @dataclass

@@ -24,10 +24,11 @@ from ..evolution import check_variant
 from ..model_base import FEModel, check_n_cells
 from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..rotations import rotation_matrix
+from ..validation import choose_rotations
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports, check_supports
 from .constitutive import check_model, energy_function, section_response
-from .discretisation import choose_rotations, discretise, function_spaces, unknowns
+from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, check_loads
 from .material import RodParameters, check_parameters, coefficients, is_zero
 
@@ -145,11 +146,9 @@ class RodModel(FEModel):
         (incl. drag), power of the applied loads and of the reactions at ends with a
         prescribed motion (load_power; the latter also alone as reaction_power),
         reactions at supported ends."""
-        self.supports.set_motion_rates(t)
         d = self.assembled_diagnostics(t)
         d.update(self.tip())
-        d.update(self.supports.reactions(self.residual, self.unknowns.spaces,
-                                         self.unknowns.rotation, self.length, t))
+        d.update(self.supports.reactions(self.residual, t))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         return d

@@ -77,10 +77,10 @@ class FESimulation:
         self.comm = self.problem.comm
         self.fields = list(self.problem.fields)
         self._initial_state = initial_state
-        options = solver_options(scene, second_order=isinstance(self.problem,
-                                                                SecondOrderProblem))
-        scheme = tim["scheme"] if "scheme" in scene.given["time"] or not isinstance(
-            self.problem, SecondOrderProblem) else None     # None: the integrator's default
+        lie = isinstance(self.problem, SecondOrderProblem)   # rotation vectors (rules.py)
+        options = solver_options(scene, second_order=lie)
+        # not given, a rod with rotation vectors takes its integrator's default scheme
+        scheme = None if lie and "scheme" not in scene.given["time"] else tim["scheme"]
         self.stepper = TimeStepper(self.problem, scheme, options,
                                    max_cuts=tim["max_step_cuts"], predictor=tim["predictor"])
         self.integrator = tim["integrator"]

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..integrators.schemes import get_scheme
-from ..validation import sample_points
+from ..validation import choose_rotations, sample_points
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
 
@@ -207,19 +207,16 @@ def rod_rotations(scene: Scene) -> str:
     for a dynamic rod with the local variant, no constraint, the stepper integrator and
     time.scheme not given or a generalized_alpha; quaternions otherwise."""
     tim, mat = scene["time"], scene["material"]
-    wanted = scene["geometry"]["rotations"]
-    scheme_fits = ("scheme" not in scene.given["time"]
-                   or tim["scheme"].startswith("generalized_alpha"))
-    fits = (mat["dynamic"] and mat["variant"] == "local" and mat["constraints"] == "none"
-            and tim["integrator"] == "stepper")
-    if wanted == "rotation_vector" and not (fits and scheme_fits):
-        key = "geometry.rotations" if not fits else "time.scheme"
-        raise scene.error(key, "rotation_vector needs a dynamic rod (density > 0), the local "
-                               "variant, no constraint, integrator = \"stepper\" and "
-                               "time.scheme = generalized_alpha[:rho_inf] (or none)")
-    if wanted == "auto":
-        return "rotation_vector" if fits and scheme_fits else "quaternion"
-    return wanted
+    lie = tim["integrator"] == "stepper" and (
+        "scheme" not in scene.given["time"] or tim["scheme"].startswith("generalized_alpha"))
+    constraint = None if mat["constraints"] == "none" else mat["constraints"]
+    args = (mat["dynamic"], mat["variant"], constraint)
+    try:
+        return choose_rotations(scene["geometry"]["rotations"], *args, lie_integrator=lie)
+    except ValueError as err:
+        key = "time.scheme" if choose_rotations("auto", *args) == "rotation_vector" \
+            else "geometry.rotations"
+        raise scene.error(key, str(err)) from err
 
 
 def _check_rod_ends(scene: Scene) -> None:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+from ..validation import ROTATIONS
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
@@ -98,7 +99,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "reference_stretch": Key(vector3(), (0.0, 0.0, 1.0),
                                  R + "stretch v_ref of the stress-free initial shape "
                                  "(v_ref,3 > 0)"),
-        "rotations": Key(choice("auto", "quaternion", "rotation_vector"), "auto",
+        "rotations": Key(choice(*ROTATIONS), "auto",
                          R + "rotation unknowns: auto = rotation_vector (6 unknowns per "
                          "node, generalized-alpha on the rotation group; the fast default) "
                          "for a dynamic rod with the local variant, no constraint, the "
