@@ -220,7 +220,6 @@ def test_reactions_equal_the_quaternion_rods_reactions():
     clamp = np.isclose(chart.node_s, 0.0)
     th[clamp] = 0.0                                    # the clamp: theta = 0, q_n = 1
     q_nodes[clamp] = chart.q_n.x.array.reshape(-1, 4)[clamp] = (1.0, 0, 0, 0)
-    chart.refresh()
     x = rod.f["displacement"].x.array.reshape(-1, 3)
     x[clamp] = 0.0
     ref = RodModel(PARAMS, n_cells=6, model="hyperelastic", rotations="quaternion",
@@ -314,3 +313,47 @@ def test_stress_free_helix_stays_at_rest():
     assert max(_series(h, "kinetic_energy")) < 1e-20
     tips = np.array([[d[f"tip_position_{c}"] for c in "xyz"] for d in h])
     assert np.abs(tips - tips[0]).max() < 1e-13
+
+
+@pytest.mark.mpi
+def test_one_point_rule_is_the_two_point_gauss_rule():
+    """RotationVectorChart.one_point_rule evaluates a 2-point Gauss integral as a 1-point
+    integral of the integrand at the two Gauss points: the residual and Jacobian of a
+    nonlinear integrand of P1 fields, a per-cell field and s (the terms of the inertia:
+    T(theta) dTheta, products of the unknowns) equal DOLFINx's own 2-point Gauss rule."""
+    import dolfinx.fem as fem
+    import dolfinx.fem.petsc as fem_petsc
+    import ufl
+    from mpi4py import MPI
+
+    from dolfin_rod.rod.rotation_vector import tangent
+    rod = _rod(n_cells=7)
+    _deformed(rod)
+    theta, x = rod.f["rotation_increment"], rod.f["displacement"]
+    mesh, chart = rod.mesh, rod.unknowns.chart
+    cell_field = fem.Function(fem.functionspace(mesh, ("DG", 0)))
+    cell_field.x.array[:] = 1.0 + np.arange(len(cell_field.x.array)) % 3
+    s = ufl.SpatialCoordinate(mesh)[0]
+    dx_2 = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 2})
+    dx_1 = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 1})
+    v = ufl.TestFunction(theta.function_space)
+    g = (cell_field * (1 + s * s) * ufl.inner(ufl.cross(theta, x) + x, tangent(theta, v))
+         + ufl.dot(chart.q, chart.q) * ufl.inner(x, v))
+    reference = g * dx_2
+    mine = chart.one_point_rule(reference, dx_1)
+    assert all(itg.metadata() == dx_1.metadata() for itg in mine.integrals())
+    comm = mesh.comm
+    for form in (lambda F: F, lambda F: ufl.derivative(F, theta)):
+        values = []
+        for F in (reference, mine):
+            compiled = fem.form(form(F))
+            if compiled.rank == 1:
+                values.append(fem.assemble_vector(compiled).array.copy())
+            else:
+                A = fem_petsc.assemble_matrix(compiled)
+                A.assemble()
+                values.append(A.convert("dense").getDenseArray().copy())
+        size = comm.allreduce(np.abs(values[0]).max(), op=MPI.MAX)
+        error = comm.allreduce(np.abs(values[1] - values[0]).max(), op=MPI.MAX)
+        # same quadrature, other evaluation order: round-off (1e-13 of the entries' size)
+        assert error <= 1e-13 * size and size > 0.1

@@ -95,6 +95,7 @@ class RodModel(FEModel):
         residual.zero_diagonals(F, unk, disc)
         self.loads, power = external_forces.apply_loads(F, unk, disc, self.end_loads,
                                                         self.distributed_loads)
+        residual.one_quadrature_rule(F, unk, disc)
         self.supports = EndSupports(self, ends, end_displacement, end_rotation)
         self.residual = {name: F[name] for name in self.names}
         self.problem = self._problem()
@@ -130,7 +131,6 @@ class RodModel(FEModel):
     def restore_state(self, state: dict) -> None:
         """After the checkpoint's functions were read (checkpoint_state)."""
         if self.unknowns.chart is not None:
-            self.unknowns.chart.refresh()
             self.supports.committed_time = float(state["rotations_committed_at"])
 
     def set_initial_state(self, natural_curvature=None, natural_stretch=None) -> None:

@@ -99,3 +99,13 @@ def zero_diagonals(F: dict, unk: Unknowns, disc: Discretisation) -> None:
                  "angular_velocity"):
         if name in F:
             F[name] += zero * ufl.inner(unk.f[name], unk.t[name]) * disc.dx_v
+
+
+def one_quadrature_rule(F: dict, unk: Unknowns, disc: Discretisation) -> None:
+    """Rotation vectors: the 2-point Gauss integrals (inertia, loads, drag) as 1-point
+    integrals of their values at the Gauss points (RotationVectorChart.one_point_rule, the
+    same quadrature), so that each block's cell integrals form one kernel."""
+    if unk.chart is None:
+        return
+    for name, form in F.items():
+        F[name] = unk.chart.one_point_rule(form, disc.dx_r)

@@ -16,8 +16,7 @@ k = (2, theta), c = k/|k|; both strains are homogeneous of degree 0 in (m, d)):
     u = 4 vec(conj(m) d) / (h |m|^2),    v = R(m)^T R(q_n,a)^T r_s,
 
 where in 1-D the nodal values of a P1 field are UFL expressions at any point of the cell,
-f_a = f(s) + (s_a - s) f_s(s), and q_n,a, p_n = conj(q_n,a) q_n,b are per-cell (DG0)
-data refreshed at each commit.  The strains depend only on the current nodal unit
+f_a = f(s) + (s_a - s) f_s(s) (also for q_n,a, q_n,b and p_n = conj(q_n,a) q_n,b).  The strains depend only on the current nodal unit
 quaternions: objectivity (q -> q_Q q) and path independence are exact.
 
 A virtual rotation of the unknown, delta theta, is the material virtual rotation
@@ -33,10 +32,15 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
+from ufl.algorithms.analysis import extract_arguments_and_coefficients
+from ufl.corealg.traversal import unique_pre_traversal
+
 from ..kinematics import strain_rates
-from ..rotations import np_qmul, qmul, rotation_matrix, vec
+from ..rotations import conj, np_qmul, qmul, rotation_matrix, vec
 
 E3 = ufl.as_vector((0.0, 0.0, 1.0))
+_CONJ = np.array([1.0, -1.0, -1.0, -1.0])
+GAUSS_2 = 0.5 / np.sqrt(3.0)     # the 2-point Gauss points: s_mid -+ GAUSS_2 h
 
 
 def cayley(theta):
@@ -76,7 +80,8 @@ def strains(k_a, k_b, r_s, q_n_a, p_n, h):
     """(u, v) of one cell: the strains of the P1 quaternion interpolant at the midpoint,
     q_mid = (q_a + q_b)/2, for the nodal rotations q_a = q_n,a k_a/|k_a|,
     q_b = q_n,b k_b/|k_b| (k_a, k_b quaternions of any norm: k = (2, theta) for the
-    Cayley map; q_n,a and p_n = conj(q_n,a) q_n,b unit, per cell; h the cell length).
+    Cayley map; q_n,a and p_n = conj(q_n,a) q_n,b unit, fixed in a step; h the cell
+    length).
     With m = k_a + (|k_a|/|k_b|) p_n k_b = 2 |k_a| conj(q_n,a) q_mid and
     d = (|k_a|/|k_b|) p_n k_b - k_a = h |k_a| conj(q_n,a) q_s:
 
@@ -95,6 +100,17 @@ def strains(k_a, k_b, r_s, q_n_a, p_n, h):
     return u, rotate_back(m, ufl.dot(_RT(q_n_a), r_s))
 
 
+def _pointwise(g) -> bool:
+    """No derivatives in g, and its fields are of degree <= 1 on a cell."""
+    for node in unique_pre_traversal(g):
+        if isinstance(node, ufl.classes.Derivative):
+            return False
+        if isinstance(node, (ufl.Argument, ufl.Coefficient)) and \
+                node.ufl_element().embedded_superdegree > 1:
+            return False
+    return True
+
+
 def _k(theta):
     """(2, theta): the Cayley map before its normalisation, c(theta) = k/|k|."""
     return ufl.as_vector((2.0, theta[0], theta[1], theta[2]))
@@ -111,33 +127,56 @@ class RotationVectorChart:
         self.s_mid = fem.Function(fem.functionspace(mesh, ("DG", 0)), name="cell_midpoint")
         self.s_mid.interpolate(lambda X: X[0])
         Q = fem.functionspace(mesh, ("Lagrange", 1, (4,)))
-        tdim = mesh.topology.dim
-        ncell = mesh.topology.index_map(tdim).size_local + mesh.topology.index_map(tdim).num_ghosts
-        nodes = Q.dofmap.list[:ncell]
-        sx = Q.tabulate_dof_coordinates()[:, 0]
-        swap = sx[nodes[:, 0]] > sx[nodes[:, 1]]
-        self.node_s = sx
+        self.node_s = Q.tabulate_dof_coordinates()[:, 0]
         self.q_n = fem.Function(Q, name="stored_rotation")
-        self._cell_nodes = (np.where(swap, nodes[:, 1], nodes[:, 0]),
-                            np.where(swap, nodes[:, 0], nodes[:, 1]))
-        S4 = fem.functionspace(mesh, ("DG", 0, (4,)))
-        self.qa_n = fem.Function(S4, name="stored_rotation_left")
-        self.p_n = fem.Function(S4, name="stored_relative_rotation")
         self.eta = fem.Function(theta.function_space, name="body_rate_perturbation")
         self.q = qmul(self.q_n, cayley(theta))          # q at any point (loads, tip, R)
+        # views of the arrays commit() updates after every step (fetched once)
+        self._theta_nodes = theta.x.array.reshape(-1, 3)
+        self._q_nodes = self.q_n.x.array.reshape(-1, 4)
+        self._k = np.full((len(self._theta_nodes), 4), 2.0)
 
     def strains(self, x, body_rates: bool = False):
         """(u, v) at the cell midpoint from the nodal q_a = q_n,a c(theta_a) (c(eta_a))."""
-        s, h = ufl.SpatialCoordinate(self.mesh)[0], ufl.CellVolume(self.mesh)
-
-        def nodal(f, s_node):
-            return f + (s_node - s) * f.dx(0)
-
+        h = ufl.CellVolume(self.mesh)
         ends = (self.s_mid - h / 2, self.s_mid + h / 2)
-        k_a, k_b = (_k(nodal(self.theta, e)) for e in ends)
+        k_a, k_b = (_k(self._value_at(self.theta, e)) for e in ends)
         if body_rates:
-            k_a, k_b = (qmul(k, _k(nodal(self.eta, e))) for k, e in zip((k_a, k_b), ends))
-        return strains(k_a, k_b, E3 + x.dx(0), self.qa_n, self.p_n, h)
+            k_a, k_b = (qmul(k, _k(self._value_at(self.eta, e))) for k, e in zip((k_a, k_b),
+                                                                                   ends))
+        q_a, q_b = (self._value_at(self.q_n, e) for e in ends)
+        return strains(k_a, k_b, E3 + x.dx(0), q_a, qmul(conj(q_a), q_b), h)
+
+    def _value_at(self, f, s_point):
+        """f(s_point) for a field f linear on the cell, as a UFL expression at any point s
+        of the cell: f + (s_point - s) f_s."""
+        return f + (s_point - ufl.SpatialCoordinate(self.mesh)[0]) * f.dx(0)
+
+    def one_point_rule(self, form: ufl.Form, dx_r: ufl.Measure) -> ufl.Form:
+        """``form`` with its 2-point Gauss integrals (inertia, loads, drag) written as
+        1-point integrals of (g(s_1) + g(s_2))/2, s_1,2 = s_mid -+ h/(2 sqrt 3): the same
+        quadrature (to round-off), so that the step's residual and Jacobian are one kernel
+        each (docs/performance.md: one assembly call instead of two).  g(s_k) replaces
+        each field f of degree <= 1 on the cell (P1, DG0) by f(s_k) (``_value_at``: exact)
+        and s by s_k; an integral whose integrand has derivatives or other data stays."""
+        integrals = []
+        for itg in form.integrals():
+            g = itg.integrand()
+            if itg.integral_type() == "cell" and itg.metadata() != dx_r.metadata() \
+                    and _pointwise(g):
+                h, x = ufl.CellVolume(self.mesh), ufl.SpatialCoordinate(self.mesh)
+                arguments, coefficients = extract_arguments_and_coefficients(g)
+                linear = [f for f in arguments + coefficients
+                          if f.ufl_element().embedded_superdegree == 1]
+                values = []
+                for s_k in (self.s_mid - GAUSS_2 * h, self.s_mid + GAUSS_2 * h):
+                    mapping = {f: self._value_at(f, s_k) for f in linear}
+                    mapping[x] = ufl.as_vector((s_k,))
+                    values.append(ufl.replace(g, mapping))
+                itg = itg.reconstruct(integrand=0.5 * (values[0] + values[1]),
+                                      metadata=dx_r.metadata())
+            integrals.append(itg)
+        return ufl.Form(integrals)
 
     def strain_rates(self, u, v, x, V, W):
         """(u_t, v_t) along the velocity V and material angular velocity W (nodal)."""
@@ -147,21 +186,15 @@ class RotationVectorChart:
         return tangent(self.theta, dtheta)
 
     def commit(self) -> None:
-        """q_n <- q_n c(theta) nodally, theta <- 0 (after an accepted step)."""
-        th = self.theta.x.array.reshape(-1, 3)
-        qn = np_qmul(self.q_n.x.array.reshape(-1, 4), np_cayley(th))
+        """q_n <- q_n c(theta) nodally, theta <- 0 (after an accepted step).  With
+        k = (2, theta) = |k| c(theta): q_n k / |q_n k| (one product, no square root of
+        the map)."""
+        th, k = self._theta_nodes, self._k
+        k[:, 1:] = th
+        qn = np_qmul(self._q_nodes, k)
         th[:] = 0.0
-        self.set_nodal_rotations(qn / np.linalg.norm(qn, axis=1)[:, None])
+        self.set_nodal_rotations(qn / np.sqrt(np.einsum("ij,ij->i", qn, qn))[:, None])
 
     def set_nodal_rotations(self, q) -> None:
-        """q_n := q (rows for local + ghost nodes, or a callable of the nodes' s), and
-        per cell the left node's q_n,a and p_n = conj(q_n,a) q_n,b."""
-        qn = self.q_n.x.array.reshape(-1, 4)
-        qn[:] = q(self.node_s) if callable(q) else q
-        left, right = self._cell_nodes
-        self.qa_n.x.array.reshape(-1, 4)[:] = qn[left]
-        self.p_n.x.array.reshape(-1, 4)[:] = np_qmul(qn[left] * [1, -1, -1, -1], qn[right])
-
-    def refresh(self) -> None:
-        """Per-cell data from q_n as it is (after q_n was read from a checkpoint)."""
-        self.set_nodal_rotations(self.q_n.x.array.reshape(-1, 4).copy())
+        """q_n := q (rows for local + ghost nodes, or a callable of the nodes' s)."""
+        self._q_nodes[:] = q(self.node_s) if callable(q) else q
