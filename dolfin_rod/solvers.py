@@ -80,12 +80,21 @@ class BlockSNES:
     ``options`` are PETSc options under a private prefix (defaults: Newton with an exact
     line search off and MUMPS LU, which suits 1-D rods' banded systems).
     ``cache``: (key, objects) to share compiled forms (assembly.block_system).
+
+    Option ``jacobian_reuse_ratio`` r (not a PETSc option): the Jacobian and its LU are
+    kept, across solves too, as long as every Newton iteration reduces the residual norm
+    by at least the factor r; after a slower iteration (or a failed solve, or
+    ``solve(fresh_jacobian=True)``) the next iteration builds a new one.  PETSc's
+    snes_lag_* options are then overridden.
     """
 
     def __init__(self, F: list[ufl.Form] | None, y: list[fem.Function], bcs=(), options=None,
                  prefix: str | None = None, cache=None):
         self.y = y
         settings = petsc_options(y[0].function_space.mesh.comm, options)
+        self.reuse_ratio = settings.pop("jacobian_reuse_ratio", None)
+        if self.reuse_ratio is not None:   # PETSc asks every iteration, _jacobian decides
+            settings.update(snes_lag_jacobian=1, snes_lag_preconditioner=1)
         self.system = block_system(F, [y], bcs=bcs, cache=cache)
         self.x = self.system.x
         self.snes = PETSc.SNES().create(self.x.getComm())
@@ -97,6 +106,7 @@ class BlockSNES:
         for k, v in settings.items():
             opts[self.prefix + k] = v
         self.snes.setFromOptions()
+        self._fresh, self._slow, self._last_norm = True, False, np.inf
         self._persists = tuple(str(settings.get(f"snes_lag_{k}_persists", False)).lower()
                                in ("true", "1", "yes") for k in ("jacobian", "preconditioner"))
         self.iterations = 0
@@ -111,10 +121,22 @@ class BlockSNES:
         self.counts["residual"] += 1
 
     def _jacobian(self, snes, x, A, P):
+        if self.reuse_ratio is not None and not self._new_jacobian_needed(snes):
+            return      # A unchanged: PETSc keeps its LU as well (PCSetUp: same state)
         t0 = time.perf_counter()
         self.system.jacobian(A)
         self.timings["jacobian"] += time.perf_counter() - t0
         self.counts["jacobian"] += 1
+
+    def _new_jacobian_needed(self, snes) -> bool:
+        """jacobian_reuse_ratio: a new Jacobian after an iteration that reduced the
+        residual norm by less than the ratio, or at the start of a solve after such a
+        solve (or one that failed, or when asked)."""
+        norm = snes.getFunctionNorm()
+        slow = snes.getIterationNumber() > 0 and norm > self.reuse_ratio * self._last_norm
+        self._last_norm, self._slow = norm, self._slow or slow
+        needed, self._fresh = self._fresh or slow, False
+        return needed
 
     def _set_persists(self, flags) -> None:
         opts = PETSc.Options()
@@ -129,6 +151,8 @@ class BlockSNES:
         solves (JACOBIAN_REUSE): the caller knows the forms changed, e.g. a new dt.
         """
         self.system.get(0, self.x)
+        if self.reuse_ratio is not None:
+            return self._solve_reusing(fresh_jacobian)
         fresh = fresh_jacobian and any(self._persists)
         if fresh:  # (petsc4py 3.22 has no SNESSetLag*Persists: via the options database)
             self._set_persists((False, False))
@@ -137,6 +161,19 @@ class BlockSNES:
         finally:
             if fresh:
                 self._set_persists(self._persists)
+        return self._result()
+
+    def _solve_reusing(self, fresh_jacobian: bool) -> int:
+        self._fresh = self._fresh or fresh_jacobian or self._slow
+        self._slow = False
+        try:
+            self.snes.solve(None, self.x)
+            return self._result()
+        except SolverError:
+            self._fresh = True
+            raise
+
+    def _result(self) -> int:
         reason = self.snes.getConvergedReason()
         self.iterations = self.snes.getIterationNumber()
         if reason <= 0 or not np.isfinite(self.snes.getFunctionNorm()):
