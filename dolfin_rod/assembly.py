@@ -85,17 +85,19 @@ class _System:
         self.A.setOption(PETSc.Mat.Option.SUBSET_OFF_PROC_ENTRIES, True)
         self.A.setOption(PETSc.Mat.Option.NO_OFF_PROC_ZERO_ROWS, True)
 
-    def _bc_values(self) -> np.ndarray:
+    def bc_values(self) -> np.ndarray:
+        """The prescribed values of the Dirichlet rows (in bc_rows' order), as set now."""
         vals = []
         for bc, j, owned in self._bcs:
             bc.set(self._scratch[j])
             vals.append(self._scratch[j][owned])
         return np.concatenate(vals) if vals else np.zeros(0)
 
-    def _replace_bc_rows(self, x, b) -> None:
+    def _replace_bc_rows(self, x, b, bc_values) -> None:
         if len(self.bc_rows):
             xa = x.getArray(readonly=True)
-            b.array_w[self.bc_rows] = xa[self.bc_rows] - self._bc_values()
+            values = self.bc_values() if bc_values is None else bc_values
+            b.array_w[self.bc_rows] = xa[self.bc_rows] - values
 
     def _identity_bc_rows(self, A) -> None:
         A.zeroRows(self._bc_global, diag=1.0)
@@ -183,12 +185,13 @@ class MonolithicSystem(_System):
             v.flags.writeable = False
         return views
 
-    def set(self, k: int, x) -> None:
-        """Vector -> group k (mixed Function and its block Functions, ghosts updated)."""
+    def set(self, k: int, x, blocks: bool = True) -> None:
+        """Vector -> group k (mixed Function and, if ``blocks``, its block Functions;
+        ghosts updated).  The forms read the mixed Function only."""
         w = self.w[k]
         w.x.array[:self._n_owned] = x.getArray(readonly=True)
         w.x.scatter_forward()
-        for f, m in zip(self.groups[k], self._maps):
+        for f, m in zip(self.groups[k], self._maps) if blocks else ():
             f.x.array[:] = w.x.array[m]
 
     def get(self, k: int, x) -> None:
@@ -198,13 +201,14 @@ class MonolithicSystem(_System):
             w.x.array[m] = f.x.array
         x.array_w[:] = w.x.array[:self._n_owned]
 
-    def residual(self, x, b) -> None:
+    def residual(self, x, b, bc_values=None) -> None:
+        """b = F(x), Dirichlet rows x - g (g: ``bc_values`` if given, else bc_values())."""
         with b.localForm() as bl:
             bl.set(0.0)
         for form in self.F:
             fem_petsc.assemble_vector(b, form)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self._replace_bc_rows(x, b)
+        self._replace_bc_rows(x, b, bc_values)
 
     def jacobian(self, A) -> None:
         A.zeroEntries()
@@ -232,7 +236,7 @@ class BlockedSystem(_System):
         self._sizes = sizes
         self._setup_bc_rows(bcs, lambda j, dofs: (offsets[j] + dofs).astype(np.int32))
 
-    def set(self, k: int, x) -> None:
+    def set(self, k: int, x, blocks: bool = True) -> None:
         offset = 0
         xa = x.getArray(readonly=True)
         for f, n in zip(self.groups[k], self._sizes):
@@ -243,11 +247,11 @@ class BlockedSystem(_System):
     def get(self, k: int, x) -> None:
         compat.functions_to_block_vector(self.groups[k], x)
 
-    def residual(self, x, b) -> None:
+    def residual(self, x, b, bc_values=None) -> None:
         with b.localForm() as bl:
             bl.set(0.0)
         compat.assemble_block_vector(b, self.F, self.J)
-        self._replace_bc_rows(x, b)
+        self._replace_bc_rows(x, b, bc_values)
 
     def jacobian(self, A) -> None:
         A.zeroEntries()

@@ -107,6 +107,7 @@ class BlockSNES:
             opts[self.prefix + k] = v
         self.snes.setFromOptions()
         self._fresh, self._slow, self._last_norm = True, False, np.inf
+        self._bc_values = None
         self._persists = tuple(str(settings.get(f"snes_lag_{k}_persists", False)).lower()
                                in ("true", "1", "yes") for k in ("jacobian", "preconditioner"))
         self.iterations = 0
@@ -115,8 +116,8 @@ class BlockSNES:
 
     def _residual(self, snes, x, b):
         t0 = time.perf_counter()
-        self.system.set(0, x)
-        self.system.residual(x, b)
+        self.system.set(0, x, blocks=False)     # the block Functions: once solved
+        self.system.residual(x, b, self._bc_values)
         self.timings["residual"] += time.perf_counter() - t0
         self.counts["residual"] += 1
 
@@ -151,6 +152,7 @@ class BlockSNES:
         solves (JACOBIAN_REUSE): the caller knows the forms changed, e.g. a new dt.
         """
         self.system.get(0, self.x)
+        self._bc_values = self.system.bc_values()      # fixed during a solve
         if self.reuse_ratio is not None:
             return self._solve_reusing(fresh_jacobian)
         fresh = fresh_jacobian and any(self._persists)
@@ -174,9 +176,9 @@ class BlockSNES:
             raise
 
     def _result(self) -> int:
+        self.system.set(0, self.x)
         reason = self.snes.getConvergedReason()
         self.iterations = self.snes.getIterationNumber()
         if reason <= 0 or not np.isfinite(self.snes.getFunctionNorm()):
             raise SolverError(_REASONS.get(reason, str(reason)), self.iterations)
-        self.system.set(0, self.x)
         return self.iterations

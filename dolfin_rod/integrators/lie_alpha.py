@@ -255,7 +255,7 @@ class LieGeneralizedAlpha:
         fresh, self._dt_last = h != self._dt_last, h
         try:
             its = self.solver.solve(fresh_jacobian=fresh)
-            if not all(np.isfinite(f.x.array).all() for f in p.fields):
+            if not all(np.isfinite(arrays[0]).all() for arrays in self._arrays):
                 raise SolverError("non-finite solution", its)
         except SolverError:
             self._restore()
