@@ -40,7 +40,9 @@ def api_run(rotations: str, scheme=None, n_cells=32, steps=100, dt=0.005) -> dic
     wall = time.perf_counter() - t0
     return {"rotations": model.rotations, "method": stepper.description, "setup_s": setup,
             "per_step_ms": 1e3 * wall / stepper.stats.steps,
-            "newton_per_step": stepper.stats.newton_iterations / stepper.stats.steps}
+            "newton_per_step": stepper.stats.newton_iterations / stepper.stats.steps,
+            "jacobians_per_step": (stepper.solver.counts["jacobian"] / stepper.stats.steps
+                                   if hasattr(stepper, "solver") else None)}
 
 
 def api(rotations: str, scheme=None) -> dict:

@@ -81,11 +81,11 @@ class BlockSNES:
     line search off and MUMPS LU, which suits 1-D rods' banded systems).
     ``cache``: (key, objects) to share compiled forms (assembly.block_system).
 
-    Option ``jacobian_reuse_ratio`` r (not a PETSc option): the Jacobian and its LU are
-    kept, across solves too, as long as every Newton iteration reduces the residual norm
-    by at least the factor r; after a slower iteration (or a failed solve, or
-    ``solve(fresh_jacobian=True)``) the next iteration builds a new one.  PETSc's
-    snes_lag_* options are then overridden.
+    Option ``jacobian_reuse_ratio`` r (not a PETSc option): each solve starts with a new
+    Jacobian and LU and keeps them while every Newton iteration reduces the residual norm
+    by at least the factor r; after a slower iteration the next one builds a new one.  A
+    solve's result depends on its start only (a resumed run equals an uninterrupted
+    one); PETSc's snes_lag_* options are overridden.
     """
 
     def __init__(self, F: list[ufl.Form] | None, y: list[fem.Function], bcs=(), options=None,
@@ -106,7 +106,7 @@ class BlockSNES:
         for k, v in settings.items():
             opts[self.prefix + k] = v
         self.snes.setFromOptions()
-        self._fresh, self._slow, self._last_norm = True, False, np.inf
+        self._last_norm = np.inf
         self._bc_values = None
         self._persists = tuple(str(settings.get(f"snes_lag_{k}_persists", False)).lower()
                                in ("true", "1", "yes") for k in ("jacobian", "preconditioner"))
@@ -130,14 +130,11 @@ class BlockSNES:
         self.counts["jacobian"] += 1
 
     def _new_jacobian_needed(self, snes) -> bool:
-        """jacobian_reuse_ratio: a new Jacobian after an iteration that reduced the
-        residual norm by less than the ratio, or at the start of a solve after such a
-        solve (or one that failed, or when asked)."""
-        norm = snes.getFunctionNorm()
-        slow = snes.getIterationNumber() > 0 and norm > self.reuse_ratio * self._last_norm
-        self._last_norm, self._slow = norm, self._slow or slow
-        needed, self._fresh = self._fresh or slow, False
-        return needed
+        """jacobian_reuse_ratio: a new Jacobian at the first iteration of a solve and after
+        an iteration that reduced the residual norm by less than the ratio."""
+        norm, last = snes.getFunctionNorm(), self._last_norm
+        self._last_norm = norm
+        return snes.getIterationNumber() == 0 or norm > self.reuse_ratio * last
 
     def _set_persists(self, flags) -> None:
         opts = PETSc.Options()
@@ -153,8 +150,6 @@ class BlockSNES:
         """
         self.system.get(0, self.x)
         self._bc_values = self.system.bc_values()      # fixed during a solve
-        if self.reuse_ratio is not None:
-            return self._solve_reusing(fresh_jacobian)
         fresh = fresh_jacobian and any(self._persists)
         if fresh:  # (petsc4py 3.22 has no SNESSetLag*Persists: via the options database)
             self._set_persists((False, False))
@@ -163,19 +158,6 @@ class BlockSNES:
         finally:
             if fresh:
                 self._set_persists(self._persists)
-        return self._result()
-
-    def _solve_reusing(self, fresh_jacobian: bool) -> int:
-        self._fresh = self._fresh or fresh_jacobian or self._slow
-        self._slow = False
-        try:
-            self.snes.solve(None, self.x)
-            return self._result()
-        except SolverError:
-            self._fresh = True
-            raise
-
-    def _result(self) -> int:
         self.system.set(0, self.x)
         reason = self.snes.getConvergedReason()
         self.iterations = self.snes.getIterationNumber()

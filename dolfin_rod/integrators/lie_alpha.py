@@ -39,13 +39,12 @@ def default_options(comm) -> dict:
     GMRES converges in a few iterations (2.6x cheaper than MUMPS at 2e4 cells on 2 ranks,
     same tip to all digits, docs/performance.md).  Newton: rtol 1e-6 (the predictor's
     residual is O(dt^3) small already: the benchmark tip errors are unchanged to 4
-    digits); the Jacobian and its LU are kept, across steps too, while every iteration
-    reduces the residual 100-fold (solvers.BlockSNES, jacobian_reuse_ratio; a new one
-    after a slower iteration or step, and for a new dt): 1.0-1.2 Jacobians per step on
-    the benchmark scenes instead of 1.9-2.6 with a refresh every second iteration, and
-    fewer step cuts (docs/performance.md).
+    digits); each step's Newton starts with a new Jacobian and LU and keeps them while
+    every iteration reduces the residual 10-fold (solvers.BlockSNES,
+    jacobian_reuse_ratio): 1.0-1.5 Jacobians per step on the benchmark scenes instead of
+    1.9-2.6 with a refresh every second iteration, fewer step cuts (docs/performance.md).
     """
-    options = {"jacobian_reuse_ratio": 0.01, "snes_rtol": 1e-6}
+    options = {"jacobian_reuse_ratio": 0.1, "snes_rtol": 1e-6}
     if comm.size == 1:
         options.update(pc_factor_mat_solver_type="petsc", pc_factor_mat_ordering_type="natural")
     else:
