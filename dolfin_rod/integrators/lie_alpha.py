@@ -53,6 +53,15 @@ def default_options(comm) -> dict:
     return options
 
 
+def solver_settings(comm, solver_options: dict | None) -> dict:
+    """default_options updated by ``solver_options``; options that set PETSc's Jacobian
+    lags (e.g. solvers.JACOBIAN_REUSE) replace the default rule (jacobian_reuse_ratio)."""
+    options = default_options(comm)
+    if any(k.startswith("snes_lag_") for k in solver_options or {}):
+        del options["jacobian_reuse_ratio"]
+    return {**options, **(solver_options or {})}
+
+
 def alpha_parameters(rho_inf: float):
     if not 0.0 <= rho_inf <= 1.0:
         raise ValueError(f"rho_inf must be in [0, 1], got {rho_inf}")
@@ -95,7 +104,7 @@ class LieGeneralizedAlpha:
         objects = [*self._model_objects, *self.y_n, *self.v_n,
                    *(a for a in self.acc_n if a is not None), *self.alg_n, self.dt]
         F = None if form_cache.lookup(self.structure_key) else self._step_forms()
-        self.options = options = {**default_options(mesh.comm), **(solver_options or {})}
+        self.options = options = solver_settings(mesh.comm, solver_options)
         self.solver = BlockSNES(F, y, problem.bcs, options,
                                 cache=(self.structure_key, objects))
         self._arrays = self._views()
