@@ -16,8 +16,9 @@ k = (2, theta), c = k/|k|; both strains are homogeneous of degree 0 in (m, d)):
     u = 4 vec(conj(m) d) / (h |m|^2),    v = R(m)^T R(q_n,a)^T r_s,
 
 where in 1-D the nodal values of a P1 field are UFL expressions at any point of the cell,
-f_a = f(s) + (s_a - s) f_s(s) (also for q_n,a, q_n,b and p_n = conj(q_n,a) q_n,b).  The strains depend only on the current nodal unit
-quaternions: objectivity (q -> q_Q q) and path independence are exact.
+f_a = f(s) + (s_a - s) f_s(s) (also for q_n,a, q_n,b and p_n = conj(q_n,a) q_n,b).
+The strains depend only on the current nodal unit quaternions: objectivity (q -> q_Q q)
+and path independence are exact.
 
 A virtual rotation of the unknown, delta theta, is the material virtual rotation
 dTheta = T(theta) delta theta with T(theta) = 4/(4 + |theta|^2) (I - [theta]x/2)
@@ -32,14 +33,13 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from ufl.algorithms.analysis import extract_arguments_and_coefficients
+from ufl.algorithms.analysis import extract_arguments, extract_coefficients
 from ufl.corealg.traversal import unique_pre_traversal
 
 from ..kinematics import strain_rates
 from ..rotations import conj, np_qmul, qmul, rotation_matrix, vec
 
 E3 = ufl.as_vector((0.0, 0.0, 1.0))
-_CONJ = np.array([1.0, -1.0, -1.0, -1.0])
 GAUSS_2 = 0.5 / np.sqrt(3.0)     # the 2-point Gauss points: s_mid -+ GAUSS_2 h
 
 
@@ -165,8 +165,7 @@ class RotationVectorChart:
             if itg.integral_type() == "cell" and itg.metadata() != dx_r.metadata() \
                     and _pointwise(g):
                 h, x = ufl.CellVolume(self.mesh), ufl.SpatialCoordinate(self.mesh)
-                arguments, coefficients = extract_arguments_and_coefficients(g)
-                linear = [f for f in arguments + coefficients
+                linear = [f for f in extract_arguments(g) + extract_coefficients(g)
                           if f.ufl_element().embedded_superdegree == 1]
                 values = []
                 for s_k in (self.s_mid - GAUSS_2 * h, self.s_mid + GAUSS_2 * h):
