@@ -85,17 +85,25 @@ class TimeStepper:
 
     def __new__(cls, problem: SemiDiscreteProblem, scheme: str | None = None,
                 solver_options: dict | None = None, max_cuts: int = 6,
-                predictor: str = "linear"):
+                predictor: str = "linear", tolerance: float | None = None):
         """A SecondOrderProblem (a rod with rotation-vector unknowns, rod/model.py) is
-        advanced by generalized-alpha on the rotation group (lie_alpha.py) instead."""
+        advanced by generalized-alpha on the rotation group (lie_alpha.py) instead;
+        ``tolerance`` (e.g. 1e-3) switches its error-controlled steps on
+        (lie_alpha.LieGeneralizedAlpha), None keeps run's fixed dt."""
         if isinstance(problem, SecondOrderProblem):
             from .lie_alpha import LieGeneralizedAlpha
-            return LieGeneralizedAlpha.for_scheme(problem, scheme, solver_options, max_cuts)
+            return LieGeneralizedAlpha.for_scheme(problem, scheme, solver_options, max_cuts,
+                                                  tolerance)
         return super().__new__(cls)
 
     def __init__(self, problem: SemiDiscreteProblem, scheme: str | None = None,
                  solver_options: dict | None = None, max_cuts: int = 6,
-                 predictor: str = "linear"):
+                 predictor: str = "linear", tolerance: float | None = None):
+        if tolerance is not None:
+            raise ValueError("tolerance: error-controlled steps exist for a rod with "
+                             "rotation-vector unknowns (generalized-alpha on the rotation "
+                             "group) only; this problem is advanced with fixed steps (or "
+                             "use TSIntegrator(..., adaptive=True))")
         if predictor not in self.PREDICTORS:
             raise ValueError(f"predictor must be one of {self.PREDICTORS}, got {predictor!r}")
         self.predictor = predictor

@@ -1,5 +1,6 @@
 """What every integrator shares: argument checks, the clipping of the final step, the
-step-cut and growth rules, the statistics and the error of a run that stopped early.
+step-cut and growth rules, the local-error step controller, the statistics and the error
+of a run that stopped early.
 
 TimeStepper (per-step schemes) drives its own loop with these rules; TSIntegrator hands
 them to PETSc TS through its post-step callback (TS cuts a failed step itself, by
@@ -25,6 +26,37 @@ class IntegrationError(RuntimeError):
     def __init__(self, message: str, t: float):
         super().__init__(message)
         self.t = t
+
+
+@dataclass(frozen=True)
+class StepControl:
+    """The standard step-size controller of a local error estimate of order ``order``
+    (err ~ h^order per step; Hairer, Norsett & Wanner, Solving ODE I, sec. II.4):
+    ``err`` is the estimate in the weighted norm of rtol and atol (err <= 1 accepts), the
+    next step is h min(max_growth, max(min_growth, safety err^(-1/order))); after a
+    rejected step the next one does not grow (growth capped at 1).  ``rtol``, ``atol``:
+    the integrator documents what they scale (lie_alpha.LocalError)."""
+
+    rtol: float
+    atol: float
+    order: int = 3
+    safety: float = 0.9
+    min_growth: float = 0.2
+    max_growth: float = 2.0
+
+    def __post_init__(self):
+        for name in ("rtol", "atol"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0 < value < 1):
+                raise ValueError(f"{name} (the local error tolerance) must be in (0, 1), "
+                                 f"got {value!r}")
+
+    def growth(self, err: float, after_rejection: bool = False) -> float:
+        """The factor of the next step after a step with weighted error ``err``."""
+        top = 1.0 if after_rejection else self.max_growth
+        if err <= 0.0:
+            return top
+        return min(top, max(self.min_growth, self.safety * err ** (-1.0 / self.order)))
 
 
 @dataclass
