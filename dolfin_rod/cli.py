@@ -267,6 +267,8 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
         from .scenes.rules import rod_rotations
         print_on_root(comm, f"rotations: {rod_rotations(scene)} (geometry.rotations = "
                             f"{scene['geometry']['rotations']!r})")
+    from .scenes.rules import time_stepping
+    print_on_root(comm, f"time stepping: {time_stepping(scene)}")
     _warn_if_unstable(scene, comm)
 
 
