@@ -112,6 +112,16 @@ def test_steps_grow_in_a_smooth_phase_and_shrink_at_a_sudden_load():
     assert stepper.stats.rejected >= 1         # the step over the jump was redone
 
 
+def test_too_many_rejections_stop_at_the_last_accepted_step():
+    from dolfin_rod.integrators.stepping import IntegrationError
+    rod = _rod(lambda t: t / T + (20.0 if t >= 0.1 else 0.0))
+    stepper = TimeStepper(rod.problem, solver_options=TIGHT, tolerance=1e-4, max_cuts=0)
+    times = []
+    with pytest.raises(IntegrationError, match="local error") as info:
+        stepper.run(0.0, 0.15, 0.001, observer=lambda t, _: times.append(t))
+    assert info.value.t == times[-1] and stepper.stats.steps == len(times) - 1
+
+
 @pytest.mark.mpi
 def test_adaptive_steps_are_the_same_on_every_partition():
     """The weighted norm is an MPI max over owned dofs: the step sequence and the tip

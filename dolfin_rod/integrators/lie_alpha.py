@@ -30,7 +30,7 @@ from .. import form_cache
 from ..solvers import BlockSNES, SolverError
 from .schemes import alpha_rho_inf
 from .stepping import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
-                       clip_to_end, nominal_steps, reached)
+                       march, nominal_steps)
 
 
 def default_options(comm) -> dict:
@@ -185,6 +185,7 @@ class LieGeneralizedAlpha:
         self.local_error = None if self.control is None else LocalError(self, self.control)
         self.last_error = 0.0     # weighted local error of the last solved step
         self.next_dt = None       # error control: the controller's next step
+        self._rejections = 0      # error control: rejected steps in a row
 
     @classmethod
     def for_scheme(cls, problem, scheme: str | None, solver_options=None, max_cuts: int = 6,
@@ -305,29 +306,28 @@ class LieGeneralizedAlpha:
         return t_end
 
     def _run_adaptive(self, t: float, t_end: float, h: float, observer) -> float:
-        rejections = 0
-        while not reached(t, t_end, h):
-            h_try = clip_to_end(t, t_end, h)
-            try:
-                self.step(t, h_try)
-            except SolverError as err:
-                rejections += 1
-                h = self._rejected(t, h_try, rejections, err)
-                continue
-            t = t_end if h_try == t_end - t else t + h_try
-            if observer:
-                observer(t, self)
-            proposal = h_try * self.control.growth(self.last_error, rejections > 0)
-            # a step clipped to t_end does not shrink the next one
-            h = max(proposal, h) if h_try < h and not rejections else proposal
-            rejections = 0
-        self.next_dt = h
-        return t_end
+        self._rejections = 0
 
-    def _rejected(self, t: float, h: float, rejections: int, err: SolverError) -> float:
+        def succeeded(t_new: float, h_try: float, h: float) -> float:
+            if observer:
+                observer(t_new, self)
+            return self._next_step(h_try, h)
+
+        t, self.next_dt = march(t, t_end, h, self.step, self._rejected, succeeded)
+        return t
+
+    def _next_step(self, h_try: float, h: float) -> float:
+        """The step after an accepted one of h_try (h: the step before clipping)."""
+        proposal = h_try * self.control.growth(self.last_error, self._rejections > 0)
+        after_rejection, self._rejections = self._rejections, 0
+        # a step clipped to t_end does not shrink the next one
+        return max(proposal, h) if h_try < h and not after_rejection else proposal
+
+    def _rejected(self, t: float, h: float, err: SolverError) -> float:
         """The step after a rejected one (IntegrationError after max_cuts in a row)."""
         self.stats.rejected += 1
-        if rejections > self.max_cuts:
+        self._rejections += 1
+        if self._rejections > self.max_cuts:
             raise IntegrationError(f"time step failed at t = {t:.6g} after {self.max_cuts} "
                                    f"step cuts (last dt = {h:.3g}): {err}", t) from err
         if isinstance(err, StepRejected):

@@ -15,8 +15,8 @@ import ufl
 from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..solvers import BlockSNES, SolverError
 from .schemes import Scheme, get_scheme
-from .stepping import (CUT_FACTOR, IntegrationError, StepStats, check_run, clip_to_end, grown,
-                       nominal_steps, reached)
+from .stepping import (CUT_FACTOR, IntegrationError, StepStats, check_run, grown, march,
+                       nominal_steps)
 
 __all__ = ["TimeStepper", "IntegrationError", "StepStats", "step_forms"]
 
@@ -211,22 +211,22 @@ class TimeStepper:
         check_run(t0, t_end, dt)
         if observer:
             observer(t0, self)
-        t, h, cuts = t0, dt, 0
-        for _ in range(100 * nominal_steps(t0, t_end, dt) + 10 * self.max_cuts):
-            if reached(t, t_end, dt):
-                return t
-            h_try = clip_to_end(t, t_end, h)
-            try:
-                self.step(t, h_try)
-            except SolverError as err:
-                cuts += 1
-                h = self._cut(t, h_try, cuts, err)
-                continue
-            t = t_end if h_try == t_end - t else t + h_try
+        cuts = 0
+
+        def failed(t: float, h_try: float, err: SolverError) -> float:
+            nonlocal cuts
+            cuts += 1
+            return self._cut(t, h_try, cuts, err)
+
+        def succeeded(t: float, h_try: float, h: float) -> float:
+            nonlocal cuts
             if observer:
                 observer(t, self)
             if h < dt and cuts:  # grow back towards the nominal step after a success
-                h = grown(h, dt)
                 self.history_steps = 0
                 cuts = max(cuts - 1, 0)
-        raise IntegrationError(f"step budget exhausted at t = {t:.6g}", t)
+                return grown(h, dt)
+            return h
+
+        budget = 100 * nominal_steps(t0, t_end, dt) + 10 * self.max_cuts
+        return march(t0, t_end, dt, self.step, failed, succeeded, budget, scale=dt)[0]

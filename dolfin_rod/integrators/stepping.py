@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
+
+from ..solvers import SolverError
 
 # Relative round-off of a time summed from steps: a remaining interval below
 # ROUND_OFF * dt is "at t_end", and a step within (1 + ROUND_OFF) of the remaining
@@ -97,3 +100,28 @@ def clip_to_end(t: float, t_end: float, h: float) -> float:
 def grown(h: float, dt: float) -> float:
     """The step after a success that followed a cut: back towards the nominal dt."""
     return min(GROWTH_FACTOR * h, dt)
+
+
+def march(t: float, t_end: float, h: float, attempt: Callable[[float, float], object],
+          failed: Callable, succeeded: Callable, max_attempts: int | None = None,
+          scale: float | None = None) -> tuple[float, float]:
+    """The loop of a per-step integrator from t to t_end: steps of h, each clipped to
+    t_end (clip_to_end).  ``attempt(t, h_try)`` takes a step (SolverError: it failed, the
+    state at t restored); ``failed(t, h_try, err)`` returns the step to retry with (or
+    raises IntegrationError), ``succeeded(t_new, h_try, h)`` the next step.  t_end is
+    reached up to ROUND_OFF * ``scale`` (default: the current step).  Returns (t, the
+    next step); IntegrationError after ``max_attempts`` attempts."""
+    attempts = 0
+    while not reached(t, t_end, scale or h):
+        if max_attempts is not None and attempts >= max_attempts:
+            raise IntegrationError(f"step budget exhausted at t = {t:.6g}", t)
+        attempts += 1
+        h_try = clip_to_end(t, t_end, h)
+        try:
+            attempt(t, h_try)
+        except SolverError as err:
+            h = failed(t, h_try, err)
+            continue
+        t = t_end if h_try == t_end - t else t + h_try
+        h = succeeded(t, h_try, h)
+    return t, h
