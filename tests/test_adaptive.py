@@ -250,3 +250,13 @@ def test_adaptive_scene_runs_the_python_api_and_resumes_exactly(tmp_path):
                 if x[k] and y[k]:
                     # the restart re-reads the state and next_dt exactly: round-off
                     assert abs(float(x[k]) - float(y[k])) <= 1e-12 * max(1.0, abs(float(x[k])))
+
+
+def test_max_step_bounds_the_steps_of_a_quiet_phase():
+    # at rest without load the estimate is 0: the steps double up to max_step
+    rod = _rod(lambda t: 0.0)
+    stepper = TimeStepper(rod.problem, tolerance=StepControl(1e-3, 1e-3, max_step=0.05))
+    times = []
+    stepper.run(0.0, 0.4, 0.01, observer=lambda t, _: times.append(t))
+    assert np.diff(times) == pytest.approx([0.01, 0.02, 0.04] + [0.05] * 6 + [0.03],
+                                           rel=1e-12)

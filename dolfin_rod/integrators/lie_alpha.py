@@ -117,6 +117,9 @@ class LocalError:
                 dofmap = f.function_space.dofmap
                 owned = dofmap.index_map.size_local * dofmap.index_map_bs
                 self.blocks.append((i, owned, 1.0 if "rotation" in f.name else extent))
+        if not self.blocks:
+            raise ValueError("tolerance: the error estimate needs a second-order block "
+                             "(time_orders 2); this problem has none")
 
     def __call__(self, h: float, arrays: list) -> float:
         """The weighted error of the solved step, from the integrator's block arrays
@@ -298,7 +301,8 @@ class LieGeneralizedAlpha:
         if observer:
             observer(t0, self)
         if self.control is not None:
-            return self._run_adaptive(t0, t_end, self.next_dt or dt, observer)
+            return self._run_adaptive(t0, t_end, self.control.limited(self.next_dt or dt),
+                                      observer)
         n = nominal_steps(t0, t_end, dt)
         h = (t_end - t0) / n
         for k in range(n):
@@ -321,7 +325,8 @@ class LieGeneralizedAlpha:
         proposal = h_try * self.control.growth(self.last_error, self._rejections > 0)
         after_rejection, self._rejections = self._rejections, 0
         # a step clipped to t_end does not shrink the next one
-        return max(proposal, h) if h_try < h and not after_rejection else proposal
+        return self.control.limited(max(proposal, h) if h_try < h and not after_rejection
+                                    else proposal)
 
     def _rejected(self, t: float, h: float, err: SolverError) -> float:
         """The step after a rejected one (IntegrationError after max_cuts in a row)."""

@@ -38,7 +38,9 @@ class StepControl:
     ``err`` is the estimate in the weighted norm of rtol and atol (err <= 1 accepts), the
     next step is h min(max_growth, max(min_growth, safety err^(-1/order))); after a
     rejected step the next one does not grow (growth capped at 1).  ``rtol``, ``atol``:
-    the integrator documents what they scale (lie_alpha.LocalError)."""
+    the integrator documents what they scale (lie_alpha.LocalError).  ``max_step``: the
+    largest step (None: unbounded; loads are sampled at the step ends only, so a pulse
+    shorter than the step can be stepped over in a quiet phase where steps grow)."""
 
     rtol: float
     atol: float
@@ -46,6 +48,7 @@ class StepControl:
     safety: float = 0.9
     min_growth: float = 0.2
     max_growth: float = 2.0
+    max_step: float | None = None
 
     def __post_init__(self):
         for name in ("rtol", "atol"):
@@ -60,6 +63,10 @@ class StepControl:
         if err <= 0.0:
             return top
         return min(top, max(self.min_growth, self.safety * err ** (-1.0 / self.order)))
+
+    def limited(self, h: float) -> float:
+        """h within max_step."""
+        return h if self.max_step is None else min(h, self.max_step)
 
 
 @dataclass
