@@ -201,7 +201,7 @@ class TimeStepper:
         if self.scheme.startup and get_scheme(self.scheme.startup).order < self.scheme.order:
             warnings.warn(f"step at t = {t:.6g} cut to dt = {h:.3g} ({err}); "
                           f"{self.scheme.name} restarts with {self.scheme.startup}, "
-                          "which is first-order accurate", RuntimeWarning, stacklevel=3)
+                          "which is first-order accurate", RuntimeWarning, stacklevel=5)
         self.history_steps = 0
         return h
 
