@@ -69,7 +69,9 @@ def time_stepping(scene: Scene) -> str:
     if adaptive_stepper(scene):
         return (f"stepper, error-controlled steps (time.tolerance = {tim['tolerance']:g}) "
                 f"within each output interval dt = {tim['dt']:g}")
-    return f"stepper, fixed steps dt = {tim['dt']:g} (time.adaptive = false)"
+    lie = scene.is_rod_material and rod_rotations(scene) == "rotation_vector"
+    return f"stepper, fixed steps dt = {tim['dt']:g}" + (
+        " (time.adaptive = true: error-controlled steps)" if lie else "")
 
 
 def _check_time(scene: Scene) -> None:
