@@ -314,3 +314,29 @@ def test_stress_free_helix_stays_at_rest():
     assert max(_series(h, "kinetic_energy")) < 1e-20
     tips = np.array([[d[f"tip_position_{c}"] for c in "xyz"] for d in h])
     assert np.abs(tips - tips[0]).max() < 1e-13
+
+
+QUASI_STATIC = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2))
+
+
+@pytest.mark.parametrize("make, match", [
+    # an unknown name, and rotation vectors where the rotation-group integrator cannot go
+    (lambda: RodModel(PARAMS, n_cells=2, model="hyperelastic", rotations="euler"),
+     "rotations must be one of"),
+    (lambda: RodModel(QUASI_STATIC, n_cells=2, model="hyperelastic",
+                      rotations="rotation_vector"), "needs a dynamic rod"),
+    (lambda: RodModel(PARAMS, n_cells=2, model="hyperelastic", variant="uniform",
+                      rotations="rotation_vector"), "needs a dynamic rod"),
+])
+def test_rotation_choice_is_checked(make, match):
+    with pytest.raises(ValueError, match=match):
+        make()
+
+
+def test_other_integrators_refuse_rotation_vectors_naming_the_way_out():
+    from dolfin_rod.integrators.ts import TSIntegrator
+    rod = _rod(n_cells=2)
+    for build in (lambda: TimeStepper(rod.problem, "bdf2"), lambda: TSIntegrator(rod.problem)):
+        with pytest.raises(ValueError, match="rotations='quaternion'"):
+            build()
+    assert TimeStepper(rod.problem, "generalized_alpha:0.5").rho_inf == 0.5
