@@ -128,14 +128,17 @@ class TipProbe:
 
 
 def run_dolfin_rod(n_cells: int, dt: float, scene: str, scheme: str | None = None,
-                   options=None, comm=None, rotations: str = "auto") -> dict:
+                   options=None, comm=None, rotations: str = "auto",
+                   tolerance: float | None = None) -> dict:
     """Tip positions at the scene's samples; set-up (model, stepper, step forms; JIT or
     cache load) and stepping timed apart.  scheme None, options None, rotations "auto":
-    what a user gets by default (TimeStepper(model.problem))."""
+    what a user gets by default (TimeStepper(model.problem)); ``tolerance``: its
+    error-controlled steps (dt is then the first step)."""
     from dolfin_rod.integrators.stepper import TimeStepper
     t0 = time.perf_counter()
     model = dolfin_rod_model(n_cells, scene, comm, rotations)
-    stepper = TimeStepper(model.problem, scheme, solver_options=options)
+    stepper = TimeStepper(model.problem, scheme, solver_options=options,
+                          **({} if tolerance is None else {"tolerance": tolerance}))
     probe = TipProbe(model)
     stepper.compile()                          # compile the step forms before timing
     t1 = time.perf_counter()
@@ -144,7 +147,8 @@ def run_dolfin_rod(n_cells: int, dt: float, scene: str, scheme: str | None = Non
         t = stepper.run(t, ts, dt, observer=None)
         tips.append(probe().tolist())
     t2 = time.perf_counter()
-    return {"code": "dolfin_rod", "n_cells": n_cells, "dt": dt, "rotations": model.rotations,
+    return {"code": "dolfin_rod", "n_cells": n_cells, "dt": dt, "tolerance": tolerance,
+            "rotations": model.rotations,
             "method": stepper.description, "setup_s": t1 - t0, "wall_s": t2 - t1,
             "steps": stepper.stats.steps, "newton_iterations": stepper.stats.newton_iterations,
             "rejected_steps": stepper.stats.rejected, "tips": tips}

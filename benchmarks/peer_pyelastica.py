@@ -16,6 +16,11 @@ compilation excluded and reported separately; median of repeats).
                     vectors, generalized-alpha on the rotation group, its solver
                     defaults), n = 4 .. 128 cells, dt ~ 0.16/n; reference n = 256
                     (128 --quick)
+    dolfin_rod (adaptive)  the same with error-controlled steps,
+                    TimeStepper(model.problem, tolerance=adaptive_tolerance(n)): the
+                    tolerance follows the mesh so that the time error ~ tol^(2/3) falls
+                    like the space error ~ n^-2: tol = (2/n)^3 (n = 4: 1/8, 16: 2e-3,
+                    64: 3e-5; the first step 0.16/n); the reference is the fixed-step one
     quaternion      the previous default for comparison: RodModel(rotations =
                     "quaternion"), generalized-alpha (rho_inf = 0.5), default options;
                     "quaternion (tuned)": PETSc's own LU, Jacobian reuse, rtol 1e-6
@@ -42,10 +47,18 @@ from dolfin_rod.solvers import JACOBIAN_REUSE, NATIVE_LU  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 TUNED = {**NATIVE_LU, **JACOBIAN_REUSE, "snes_rtol": 1e-6, "snes_atol": 1e-9}
 REF_OPTIONS = {"snes_atol": 1e-8, "snes_rtol": 1e-10}
-# (scheme, options, rotations) per configuration; None: the defaults
-CONFIGS = {"dolfin_rod": (None, None, "auto"),
-           "quaternion": ("generalized_alpha", None, "quaternion"),
-           "quaternion (tuned)": ("generalized_alpha", TUNED, "quaternion")}
+
+
+def adaptive_tolerance(n: int) -> float:
+    """The local error tolerance of the adaptive runs at n cells (module docstring)."""
+    return (2.0 / n) ** 3
+
+
+# (scheme, options, rotations, tolerance rule) per configuration; None: the defaults
+CONFIGS = {"dolfin_rod": (None, None, "auto", None),
+           "dolfin_rod (adaptive)": (None, None, "auto", adaptive_tolerance),
+           "quaternion": ("generalized_alpha", None, "quaternion", None),
+           "quaternion (tuned)": ("generalized_alpha", TUNED, "quaternion", None)}
 
 
 def dolfin_dt(n):
@@ -91,24 +104,28 @@ def _pyelastica(scene, quick, out):
     out["codes"]["pyelastica"] = {"reference": ref, "runs": rows}
 
 
-def _dolfin(scene, quick, label, scheme, opts, rotations, out):
+def _dolfin(scene, quick, label, scheme, opts, rotations, tolerance, out):
     dr_sizes = [4, 8, 16, 32, 64] + ([] if quick else [128])
     dr_ref = 128 if quick else 256
 
-    def run(n, dt, scene, options=None):
-        return cant.run_dolfin_rod(n, dt, scene, scheme, options, rotations=rotations)
+    def run(n, dt, scene, options=None, adaptive=True):
+        tol = tolerance(n) if tolerance and adaptive else None
+        return cant.run_dolfin_rod(n, dt, scene, scheme, options, rotations=rotations,
+                                   tolerance=tol)
     run(4, 0.05, scene)                        # JIT/cache load (excluded)
     # atol above round-off: with the default atol = 1e-11 the n = 256 residual stalls at
     # round-off (~ EA n eps), SNES "fails", and every rejected step restarts
     # generalized-alpha with a first-order backward Euler step, spoiling the reference
-    ref = run(dr_ref, dolfin_dt(dr_ref), scene, options={**(opts or {}), **REF_OPTIONS})
+    ref = run(dr_ref, dolfin_dt(dr_ref), scene, options={**(opts or {}), **REF_OPTIONS},
+              adaptive=False)
     print(f"  [{scene}] {label} reference n={dr_ref} rejected={ref['rejected_steps']}")
     rows = []
     for n in dr_sizes:
         r = timed(lambda: run(n, dolfin_dt(n), scene, options=opts), 3 if n <= 16 else 1)
         r["error"] = cant.tip_error(r["tips"], ref["tips"])
         rows.append(r)
-        print(f"  [{scene}] {label:18s} n={n:4d} dt={r['dt']:.2e} wall={r['wall_s']:8.3f} s "
+        print(f"  [{scene}] {label:18s} n={n:4d} dt={r['dt']:.2e} tol={r['tolerance']} "
+              f"steps={r['steps']} wall={r['wall_s']:8.3f} s "
               f"setup={r['setup_s']:.3f} s its/step={r['newton_iterations'] / r['steps']:.2f} "
               f"rejected={r['rejected_steps']} err={r['error']:.2e}", flush=True)
     out["codes"][label] = {"reference": ref, "runs": rows, "options": opts}
@@ -141,7 +158,7 @@ def plot(results, path):
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, len(results), figsize=(5.5 * len(results), 4.2))
     for ax, res in zip(np.atleast_1d(axes), results):
-        for (label, data), mk in zip(res["codes"].items(), "osD"):
+        for (label, data), mk in zip(res["codes"].items(), "osD^"):
             e = [r["error"] for r in data["runs"]]
             w = [r["wall_s"] for r in data["runs"]]
             ax.loglog(w, e, marker=mk, label=label)

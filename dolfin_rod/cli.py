@@ -267,6 +267,9 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
         from .scenes.rules import rod_rotations
         print_on_root(comm, f"rotations: {rod_rotations(scene)} (geometry.rotations = "
                             f"{scene['geometry']['rotations']!r})")
+    if choice.model != "ode":                      # (the ODE prints its own solution)
+        from .scenes.rules import time_stepping
+        print_on_root(comm, f"time stepping: {time_stepping(scene)}")
     _warn_if_unstable(scene, comm)
 
 

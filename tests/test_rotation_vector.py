@@ -385,3 +385,29 @@ def test_default_jacobian_reuse_solves_the_same_steps():
     # both converged to rtol 1e-10 of a residual whose Jacobian is O(1) well conditioned
     # at this size: the displacements (O(0.1)) agree to ~1e-10, 1e-8 leaves 100x margin
     assert np.allclose(np.concatenate(x_reuse), np.concatenate(x_full), rtol=0, atol=1e-8)
+
+
+QUASI_STATIC = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2))
+
+
+@pytest.mark.parametrize("make, match", [
+    # an unknown name, and rotation vectors where the rotation-group integrator cannot go
+    (lambda: RodModel(PARAMS, n_cells=2, model="hyperelastic", rotations="euler"),
+     "rotations must be one of"),
+    (lambda: RodModel(QUASI_STATIC, n_cells=2, model="hyperelastic",
+                      rotations="rotation_vector"), "needs a dynamic rod"),
+    (lambda: RodModel(PARAMS, n_cells=2, model="hyperelastic", variant="uniform",
+                      rotations="rotation_vector"), "needs a dynamic rod"),
+])
+def test_rotation_choice_is_checked(make, match):
+    with pytest.raises(ValueError, match=match):
+        make()
+
+
+def test_other_integrators_refuse_rotation_vectors_naming_the_way_out():
+    from dolfin_rod.integrators.ts import TSIntegrator
+    rod = _rod(n_cells=2)
+    for build in (lambda: TimeStepper(rod.problem, "bdf2"), lambda: TSIntegrator(rod.problem)):
+        with pytest.raises(ValueError, match="rotations='quaternion'"):
+            build()
+    assert TimeStepper(rod.problem, "generalized_alpha:0.5").rho_inf == 0.5

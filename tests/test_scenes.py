@@ -460,6 +460,14 @@ ROD_BAD = [
      "explicit"),
     (ROD_BASE + "[initial]\nnatural_twist = 0.1\n", "initial.natural_twist",
      "torsion model only"),
+    # rotation vectors need a dynamic rod advanced by the rotation-group integrator
+    (ROD_BASE.replace("n_cells = 4", 'n_cells = 4\nrotations = "rotation_vector"'),
+     "geometry.rotations", "needs a dynamic rod"),
+    (ROD_BASE.replace("n_cells = 4", 'n_cells = 4\nrotations = "euler_angles"'),
+     "geometry.rotations", "one of"),
+    (ROD_BASE.replace("n_cells = 4", 'n_cells = 4\nrotations = "rotation_vector"')
+     .replace("[material]", "[material]\ndensity = 1.0\nsection_inertia = 0.01")
+     .replace("[time]", '[time]\nscheme = "bdf2"'), "time.scheme", "generalized_alpha"),
 ]
 
 

@@ -15,6 +15,9 @@ d = h ((1 - gamma) b_n + gamma b_{n+1}) and the same filter between b and y'.
 alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1), gamma = 1/2 + alpha_f - alpha_m,
 beta = (gamma + 1/2)^2 / 4: second order, unconditionally stable, high-frequency
 spectral radius rho_inf.  The start needs consistent accelerations (solved at t0).
+
+Error control (``tolerance``): the local error of the positions and rotation increments
+is estimated per step (LocalError) and the step sizes follow it (stepping.StepControl).
 """
 
 from __future__ import annotations
@@ -26,7 +29,8 @@ import ufl
 from .. import form_cache
 from ..solvers import BlockSNES, SolverError
 from .schemes import alpha_rho_inf
-from .stepping import IntegrationError, StepStats, check_run, nominal_steps
+from .stepping import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
+                       march, nominal_steps)
 
 
 def default_options(comm) -> dict:
@@ -48,8 +52,12 @@ def default_options(comm) -> dict:
     if comm.size == 1:
         options.update(pc_factor_mat_solver_type="petsc", pc_factor_mat_ordering_type="natural")
     else:
-        options.update(ksp_type="gmres", ksp_rtol=1e-12, ksp_atol=1e-14, pc_type="bjacobi",
-                       sub_pc_type="lu", sub_pc_factor_mat_ordering_type="natural")
+        # right preconditioning: ksp_atol applies to the true residual (left: to the
+        # preconditioned one, ~ beta h^2 / rho_A of it, below 1e-14 at small steps, where
+        # GMRES then stopped after 0 iterations and Newton stalled: dt = 1e-4, 4 cells)
+        options.update(ksp_type="gmres", ksp_rtol=1e-12, ksp_atol=1e-14, ksp_pc_side="right",
+                       pc_type="bjacobi", sub_pc_type="lu",
+                       sub_pc_factor_mat_ordering_type="natural")
     return options
 
 
@@ -72,6 +80,77 @@ def alpha_parameters(rho_inf: float):
     return am, af, gamma, beta
 
 
+class StepRejected(SolverError):
+    """The step's local error estimate exceeds the tolerance (state restored)."""
+
+    def __init__(self, error: float):
+        RuntimeError.__init__(self, f"local error {error:.3g} x tolerance")
+        self.reason, self.iterations, self.error = "local error above tolerance", 0, error
+
+
+def error_coefficient(gamma: float, beta: float) -> float:
+    """c of the local position error h^2 c (a_{n+1} - a_n) of generalized-alpha.
+
+    Zienkiewicz & Xie (1991, Earthquake Eng. Struct. Dyn. 20:871) estimate Newmark's
+    local displacement error as h^2 (beta - 1/6)(a_{n+1} - a_n): a Taylor expansion of
+    d = h v_n + h^2 ((1/2 - beta) a_n + beta a_{n+1}) with a_n = y''(t_n) leaves
+    h^3 y'''(t_n) (beta - 1/6), and h y''' = a_{n+1} - a_n + O(h^2).  In
+    generalized-alpha the algorithmic acceleration approximates the acceleration at a
+    shifted time, a_n = y''(t_n + delta h) + O(h^2), delta = alpha_m - alpha_f =
+    1/2 - gamma (Arnold & Bruls 2007, Multibody Syst. Dyn. 18:185, sec. 3).  Then
+    d = h v_n + h^2/2 y'' + h^3 y''' (beta + delta/2) + O(h^4) against the exact
+    h v_n + h^2/2 y'' + h^3/6 y''': the local error is h^3 y''' (beta + delta/2 - 1/6)
+    = h^2 (beta - gamma/2 + 1/12)(a_{n+1} - a_n).  Newmark (gamma = 1/2) gives back
+    beta - 1/6; rho_inf = 0.8 gives 0.086."""
+    return abs(beta - gamma / 2 + 1.0 / 12.0)
+
+
+class LocalError:
+    """The weighted local error of a step (<= 1: within the tolerance).
+
+    Per second-order block (displacements, rotation increments; the first-order blocks,
+    e.g. natural strains, follow the controlled strains and are not controlled
+    themselves) e = error_coefficient h^2 (a_{n+1} - a_n), weighted by
+        w = atol * scale + rtol * max(|y_n|, |y_{n+1}|),
+    ``scale`` the mesh's extent L for a displacement [length] and 1 for a rotation [rad]
+    (a field whose name contains "rotation"; its value is the step's increment, so atol
+    rules it).  The norm is max |e_i| / w_i over each rank's owned dofs, reduced by MPI
+    MAX: the same on every rank and for every partition.  Prescribed (Dirichlet) dofs are
+    included: their a is that of the prescribed motion, smooth in time."""
+
+    def __init__(self, integrator, control: StepControl):
+        from mpi4py import MPI
+        self.ig, self.control, self.op = integrator, control, MPI.MAX
+        self.c = error_coefficient(integrator.gamma, integrator.beta)
+        mesh = integrator.problem.fields[0].function_space.mesh
+        self.comm = comm = mesh.comm
+        x = mesh.geometry.x[:, 0]
+        extent = comm.allreduce(x.max(), op=MPI.MAX) - comm.allreduce(x.min(), op=MPI.MIN)
+        self.blocks = []
+        for i, f in enumerate(integrator.problem.fields):
+            if integrator.order[i] == 2:
+                dofmap = f.function_space.dofmap
+                owned = dofmap.index_map.size_local * dofmap.index_map_bs
+                self.blocks.append((i, owned, 1.0 if "rotation" in f.name else extent))
+        if not self.blocks:
+            raise ValueError("tolerance: the error estimate needs a second-order block "
+                             "(time_orders 2); this problem has none")
+
+    def __call__(self, h: float, arrays: list) -> float:
+        """The weighted error of the solved step, from the integrator's block arrays
+        (step(): y solved, the history still at t_n)."""
+        ctl, worst = self.control, 0.0
+        for i, owned, scale in self.blocks:
+            y, _, y_n, _, alg, _, _ = arrays[i]
+            a_new = self.ig._np_update(i, y - y_n, h)[0]
+            e = self.c * h * h * np.abs(a_new[:owned] - alg[:owned])
+            w = ctl.atol * scale + ctl.rtol * np.maximum(np.abs(y[:owned]),
+                                                         np.abs(y_n[:owned]))
+            if owned:
+                worst = max(worst, float(np.max(e / w)))
+        return self.comm.allreduce(worst, op=self.op)
+
+
 def _copy(f, tag):
     g = fem.Function(f.function_space, name=f"{f.name}_{tag}")
     g.x.array[:] = f.x.array
@@ -82,9 +161,18 @@ class LieGeneralizedAlpha:
     """Advance a second-order problem; ``problem.after_step`` moves the rotation
     increments into the stored rotations (and resets them to 0).  The interface of
     TimeStepper (run, step, stats, checkpoint_state), which returns this integrator for a
-    SecondOrderProblem."""
+    SecondOrderProblem.
 
-    def __init__(self, problem, rho_inf: float = 0.8, solver_options=None, max_cuts: int = 6):
+    ``tolerance`` None: fixed steps (run's dt).  A number tol in (0, 1): error-controlled
+    steps, rtol = atol = tol in LocalError's norm (displacements to tol (L + |x|),
+    rotation increments to tol rad per step); a StepControl for other rtol/atol or
+    controller constants.  The global error then scales as tol^(2/3) (h ~ tol^(1/3),
+    error ~ h^2; tests/test_adaptive.py)."""
+
+    def __init__(self, problem, rho_inf: float = 0.8, solver_options=None, max_cuts: int = 6,
+                 tolerance: float | StepControl | None = None):
+        self.control = (tolerance if isinstance(tolerance, StepControl) or tolerance is None
+                        else StepControl(tolerance, tolerance))
         self.problem = problem
         self.rho_inf, self.max_cuts = rho_inf, max_cuts
         self.am, self.af, self.gamma, self.beta = alpha_parameters(rho_inf)
@@ -112,9 +200,14 @@ class LieGeneralizedAlpha:
         self._started = False
         self._dt_last = None
         self._initial_solver = None
+        self.local_error = None if self.control is None else LocalError(self, self.control)
+        self.last_error = 0.0     # weighted local error of the last solved step
+        self.next_dt = None       # error control: the controller's next step
+        self._rejections = 0      # error control: rejected steps in a row
 
     @classmethod
-    def for_scheme(cls, problem, scheme: str | None, solver_options=None, max_cuts: int = 6):
+    def for_scheme(cls, problem, scheme: str | None, solver_options=None, max_cuts: int = 6,
+                   tolerance=None):
         """TimeStepper's arguments: ``scheme`` None (rho_inf 0.8) or 'generalized_alpha'
         ['RHO'] (schemes.alpha_rho_inf); a first-order scheme is refused."""
         if scheme is not None and not scheme.startswith("generalized_alpha"):
@@ -123,11 +216,15 @@ class LieGeneralizedAlpha:
                              "only; for another scheme build RodModel(..., "
                              "rotations='quaternion')")
         rho_inf = 0.8 if scheme is None else alpha_rho_inf(scheme)
-        return cls(problem, rho_inf, solver_options, max_cuts)
+        return cls(problem, rho_inf, solver_options, max_cuts, tolerance)
 
     @property
     def description(self) -> str:
-        return f"generalized-alpha on the rotation group (rho_inf = {self.rho_inf:g})"
+        text = f"generalized-alpha on the rotation group (rho_inf = {self.rho_inf:g})"
+        if self.control is None:
+            return text
+        return f"{text}, adaptive steps (rtol = {self.control.rtol:g}, atol = " \
+               f"{self.control.atol:g})"
 
     def _step_forms(self):
         p = self.problem
@@ -205,20 +302,57 @@ class LieGeneralizedAlpha:
                 p.accelerations[i].x.array[:] = self.acc_n[i].x.array
 
     def run(self, t0: float, t_end: float, dt: float, observer=None) -> float:
-        """Equal steps of at most dt from t0 to t_end (stepping.nominal_steps of them);
-        ``observer(t, self)`` at t0 and after every accepted step.  A step whose Newton
-        fails is redone as two half steps, at most ``max_cuts`` halvings deep
-        (IntegrationError after that, the last accepted state kept)."""
+        """From t0 to t_end; ``observer(t, self)`` at t0 and after every accepted step.
+        Fixed steps (no tolerance): equal steps of at most dt (stepping.nominal_steps of
+        them); a step whose Newton fails is redone as two half steps, at most
+        ``max_cuts`` halvings deep.  Error control: dt is the first step (later runs
+        continue with the controller's ``next_dt``), steps clipped to t_end; a step is
+        redone smaller if its local error exceeds the tolerance or its Newton fails, at
+        most ``max_cuts`` times in a row.  IntegrationError when that is exhausted, the
+        last accepted state kept."""
         check_run(t0, t_end, dt)
         if not self._started:
             self.initial_accelerations(t0)
         if observer:
             observer(t0, self)
+        if self.control is not None:
+            return self._run_adaptive(t0, t_end, self.control.limited(self.next_dt or dt),
+                                      observer)
         n = nominal_steps(t0, t_end, dt)
         h = (t_end - t0) / n
         for k in range(n):
             self._substep(t0 + k * h, h, self.max_cuts, observer)
         return t_end
+
+    def _run_adaptive(self, t: float, t_end: float, h: float, observer) -> float:
+        self._rejections = 0
+
+        def succeeded(t_new: float, h_try: float, h: float) -> float:
+            if observer:
+                observer(t_new, self)
+            return self._next_step(h_try, h)
+
+        t, self.next_dt = march(t, t_end, h, self.step, self._rejected, succeeded)
+        return t
+
+    def _next_step(self, h_try: float, h: float) -> float:
+        """The step after an accepted one of h_try (h: the step before clipping)."""
+        proposal = h_try * self.control.growth(self.last_error, self._rejections > 0)
+        after_rejection, self._rejections = self._rejections, 0
+        # a step clipped to t_end does not shrink the next one
+        return self.control.limited(max(proposal, h) if h_try < h and not after_rejection
+                                    else proposal)
+
+    def _rejected(self, t: float, h: float, err: SolverError) -> float:
+        """The step after a rejected one (IntegrationError after max_cuts in a row)."""
+        self.stats.rejected += 1
+        self._rejections += 1
+        if self._rejections > self.max_cuts:
+            raise IntegrationError(f"time step failed at t = {t:.6g} after {self.max_cuts} "
+                                   f"step cuts (last dt = {h:.3g}): {err}", t) from err
+        if isinstance(err, StepRejected):
+            return h * self.control.growth(err.error)
+        return CUT_FACTOR * h
 
     def _substep(self, t: float, h: float, cuts_left: int, observer) -> None:
         try:
@@ -268,6 +402,8 @@ class LieGeneralizedAlpha:
         except SolverError:
             self._restore()
             raise
+        if self.local_error is not None:     # error control: accept or reject
+            self._check_local_error(h)
         for i, (y, r, y_n, _, alg, acc, _) in enumerate(self._arrays):
             alg_new, r[:], acc_new = self._np_update(i, y - y_n, h)
             alg[:] = alg_new
@@ -278,20 +414,31 @@ class LieGeneralizedAlpha:
         self.stats.steps += 1
         return its
 
+    def _check_local_error(self, h: float) -> None:
+        """StepRejected (state restored) if the solved step's local error exceeds the
+        tolerance; its weighted value in ``last_error``."""
+        self.last_error = self.local_error(h, self._arrays)
+        if not self.last_error <= 1.0:
+            self._restore()
+            raise StepRejected(self.last_error)
+
     def assembly_timings(self) -> dict[str, float]:
         """Seconds spent so far in residual and Jacobian assembly."""
         return dict(self.solver.timings)
 
     def checkpoint_state(self) -> dict:
         """Functions (besides problem.fields) a checkpoint stores: rates, accelerations,
-        algorithmic accelerations (one-step method: nothing else)."""
+        algorithmic accelerations (one-step method: nothing else), and the error
+        control's next step."""
         p = self.problem
         functions = {f"rate_{i}": r for i, r in enumerate(p.rates)}
         functions |= {f"acceleration_{i}": a for i, a in enumerate(p.accelerations)
                       if a is not None}
         functions |= {f"algorithmic_{i}": a for i, a in enumerate(self.alg_n)}
-        return {"functions": functions, "history_steps": 0}
+        return {"functions": functions, "history_steps": 0, "next_dt": self.next_dt}
 
     def restore_state(self, state: dict) -> None:
-        """After the checkpoint's functions were read: no initial solve again."""
+        """After the checkpoint's functions were read: no initial solve again; error
+        control continues with the checkpoint's next step."""
         self._started = True
+        self.next_dt = state.get("next_dt")

@@ -15,8 +15,8 @@ import ufl
 from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..solvers import BlockSNES, SolverError
 from .schemes import Scheme, get_scheme
-from .stepping import (CUT_FACTOR, IntegrationError, StepStats, check_run, clip_to_end, grown,
-                       nominal_steps, reached)
+from .stepping import (CUT_FACTOR, IntegrationError, StepStats, check_run, grown, march,
+                       nominal_steps)
 
 __all__ = ["TimeStepper", "IntegrationError", "StepStats", "step_forms"]
 
@@ -85,17 +85,25 @@ class TimeStepper:
 
     def __new__(cls, problem: SemiDiscreteProblem, scheme: str | None = None,
                 solver_options: dict | None = None, max_cuts: int = 6,
-                predictor: str = "linear"):
+                predictor: str = "linear", tolerance: float | None = None):
         """A SecondOrderProblem (a rod with rotation-vector unknowns, rod/model.py) is
-        advanced by generalized-alpha on the rotation group (lie_alpha.py) instead."""
+        advanced by generalized-alpha on the rotation group (lie_alpha.py) instead;
+        ``tolerance`` (e.g. 1e-3) switches its error-controlled steps on
+        (lie_alpha.LieGeneralizedAlpha), None keeps run's fixed dt."""
         if isinstance(problem, SecondOrderProblem):
             from .lie_alpha import LieGeneralizedAlpha
-            return LieGeneralizedAlpha.for_scheme(problem, scheme, solver_options, max_cuts)
+            return LieGeneralizedAlpha.for_scheme(problem, scheme, solver_options, max_cuts,
+                                                  tolerance)
         return super().__new__(cls)
 
     def __init__(self, problem: SemiDiscreteProblem, scheme: str | None = None,
                  solver_options: dict | None = None, max_cuts: int = 6,
-                 predictor: str = "linear"):
+                 predictor: str = "linear", tolerance: float | None = None):
+        if tolerance is not None:
+            raise ValueError("tolerance: error-controlled steps exist for a rod with "
+                             "rotation-vector unknowns (generalized-alpha on the rotation "
+                             "group) only; this problem is advanced with fixed steps (or "
+                             "use TSIntegrator(..., adaptive=True))")
         if predictor not in self.PREDICTORS:
             raise ValueError(f"predictor must be one of {self.PREDICTORS}, got {predictor!r}")
         self.predictor = predictor
@@ -193,7 +201,7 @@ class TimeStepper:
         if self.scheme.startup and get_scheme(self.scheme.startup).order < self.scheme.order:
             warnings.warn(f"step at t = {t:.6g} cut to dt = {h:.3g} ({err}); "
                           f"{self.scheme.name} restarts with {self.scheme.startup}, "
-                          "which is first-order accurate", RuntimeWarning, stacklevel=3)
+                          "which is first-order accurate", RuntimeWarning, stacklevel=5)
         self.history_steps = 0
         return h
 
@@ -203,22 +211,22 @@ class TimeStepper:
         check_run(t0, t_end, dt)
         if observer:
             observer(t0, self)
-        t, h, cuts = t0, dt, 0
-        for _ in range(100 * nominal_steps(t0, t_end, dt) + 10 * self.max_cuts):
-            if reached(t, t_end, dt):
-                return t
-            h_try = clip_to_end(t, t_end, h)
-            try:
-                self.step(t, h_try)
-            except SolverError as err:
-                cuts += 1
-                h = self._cut(t, h_try, cuts, err)
-                continue
-            t = t_end if h_try == t_end - t else t + h_try
+        cuts = 0
+
+        def failed(t: float, h_try: float, err: SolverError) -> float:
+            nonlocal cuts
+            cuts += 1
+            return self._cut(t, h_try, cuts, err)
+
+        def succeeded(t: float, h_try: float, h: float) -> float:
+            nonlocal cuts
             if observer:
                 observer(t, self)
             if h < dt and cuts:  # grow back towards the nominal step after a success
-                h = grown(h, dt)
                 self.history_steps = 0
                 cuts = max(cuts - 1, 0)
-        raise IntegrationError(f"step budget exhausted at t = {t:.6g}", t)
+                return grown(h, dt)
+            return h
+
+        budget = 100 * nominal_steps(t0, t_end, dt) + 10 * self.max_cuts
+        return march(t0, t_end, dt, self.step, failed, succeeded, budget, scale=dt)[0]

@@ -1,5 +1,6 @@
 """What every integrator shares: argument checks, the clipping of the final step, the
-step-cut and growth rules, the statistics and the error of a run that stopped early.
+step-cut and growth rules, the local-error step controller, the statistics and the error
+of a run that stopped early.
 
 TimeStepper (per-step schemes) drives its own loop with these rules; TSIntegrator hands
 them to PETSc TS through its post-step callback (TS cuts a failed step itself, by
@@ -10,6 +11,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
+
+from ..solvers import SolverError
 
 # Relative round-off of a time summed from steps: a remaining interval below
 # ROUND_OFF * dt is "at t_end", and a step within (1 + ROUND_OFF) of the remaining
@@ -25,6 +29,44 @@ class IntegrationError(RuntimeError):
     def __init__(self, message: str, t: float):
         super().__init__(message)
         self.t = t
+
+
+@dataclass(frozen=True)
+class StepControl:
+    """The standard step-size controller of a local error estimate of order ``order``
+    (err ~ h^order per step; Hairer, Norsett & Wanner, Solving ODE I, sec. II.4):
+    ``err`` is the estimate in the weighted norm of rtol and atol (err <= 1 accepts), the
+    next step is h min(max_growth, max(min_growth, safety err^(-1/order))); after a
+    rejected step the next one does not grow (growth capped at 1).  ``rtol``, ``atol``:
+    the integrator documents what they scale (lie_alpha.LocalError).  ``max_step``: the
+    largest step (None: unbounded; loads are sampled at the step ends only, so a pulse
+    shorter than the step can be stepped over in a quiet phase where steps grow)."""
+
+    rtol: float
+    atol: float
+    order: int = 3
+    safety: float = 0.9
+    min_growth: float = 0.2
+    max_growth: float = 2.0
+    max_step: float | None = None
+
+    def __post_init__(self):
+        for name in ("rtol", "atol"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0 < value < 1):
+                raise ValueError(f"{name} (the local error tolerance) must be in (0, 1), "
+                                 f"got {value!r}")
+
+    def growth(self, err: float, after_rejection: bool = False) -> float:
+        """The factor of the next step after a step with weighted error ``err``."""
+        top = 1.0 if after_rejection else self.max_growth
+        if err <= 0.0:
+            return top
+        return min(top, max(self.min_growth, self.safety * err ** (-1.0 / self.order)))
+
+    def limited(self, h: float) -> float:
+        """h within max_step."""
+        return h if self.max_step is None else min(h, self.max_step)
 
 
 @dataclass
@@ -65,3 +107,28 @@ def clip_to_end(t: float, t_end: float, h: float) -> float:
 def grown(h: float, dt: float) -> float:
     """The step after a success that followed a cut: back towards the nominal dt."""
     return min(GROWTH_FACTOR * h, dt)
+
+
+def march(t: float, t_end: float, h: float, attempt: Callable[[float, float], object],
+          failed: Callable, succeeded: Callable, max_attempts: int | None = None,
+          scale: float | None = None) -> tuple[float, float]:
+    """The loop of a per-step integrator from t to t_end: steps of h, each clipped to
+    t_end (clip_to_end).  ``attempt(t, h_try)`` takes a step (SolverError: it failed, the
+    state at t restored); ``failed(t, h_try, err)`` returns the step to retry with (or
+    raises IntegrationError), ``succeeded(t_new, h_try, h)`` the next step.  t_end is
+    reached up to ROUND_OFF * ``scale`` (default: the current step).  Returns (t, the
+    next step); IntegrationError after ``max_attempts`` attempts."""
+    attempts = 0
+    while not reached(t, t_end, scale or h):
+        if max_attempts is not None and attempts >= max_attempts:
+            raise IntegrationError(f"step budget exhausted at t = {t:.6g}", t)
+        attempts += 1
+        h_try = clip_to_end(t, t_end, h)
+        try:
+            attempt(t, h_try)
+        except SolverError as err:
+            h = failed(t, h_try, err)
+            continue
+        t = t_end if h_try == t_end - t else t + h_try
+        h = succeeded(t, h_try, h)
+    return t, h

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..problem import SecondOrderProblem
 from .ode import OdeTorsion
-from .rules import rod_rotations
+from .rules import adaptive_stepper, rod_rotations
 from .schema import Scene, SceneError
 
 __all__ = ["Simulation", "MODELS", "register_model", "build", "OdeTorsion", "FESimulation"]
@@ -81,8 +81,9 @@ class FESimulation:
         options = solver_options(scene, second_order=lie)
         # not given, a rod with rotation vectors takes its integrator's default scheme
         scheme = None if lie and "scheme" not in scene.given["time"] else tim["scheme"]
-        self.stepper = TimeStepper(self.problem, scheme, options,
-                                   max_cuts=tim["max_step_cuts"], predictor=tim["predictor"])
+        tolerance = tim["tolerance"] if adaptive_stepper(scene) else None
+        self.stepper = TimeStepper(self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
+                                   predictor=tim["predictor"], tolerance=tolerance)
         self.integrator = tim["integrator"]
         self.ts = None
         if self.integrator == "ts":

@@ -44,16 +44,47 @@ def check_combinations(scene: Scene) -> None:
         _check_rod_ends(scene)
     else:
         _check_torsion(scene)
+    if scene["time"]["adaptive"] and not adaptive_stepper(scene) \
+            and scene["time"]["integrator"] == "stepper":
+        raise scene.error("time.adaptive", "the stepper's error-controlled steps are those of "
+                                           "generalized-alpha on the rotation group: a dynamic "
+                                           "3-D rod with rotation vectors (geometry.rotations); "
+                                           "otherwise use integrator = \"ts\"")
+
+
+def adaptive_stepper(scene: Scene) -> bool:
+    """The stepper advances the scene with error-controlled steps: time.adaptive, the
+    stepper integrator and a dynamic rod with rotation vectors."""
+    return bool(scene["time"]["adaptive"] and scene["time"]["integrator"] == "stepper"
+                and scene.is_rod_material and rod_rotations(scene) == "rotation_vector")
+
+
+def time_stepping(scene: Scene) -> str:
+    """One line for ``dolfin-rod check``: the integrator and how its steps are chosen."""
+    tim = scene["time"]
+    if tim["integrator"] == "ts":
+        steps = (f"adaptive (ts_rtol = {tim['ts_rtol']:g}, ts_atol = {tim['ts_atol']:g})"
+                 if tim["adaptive"] else f"fixed dt = {tim['dt']:g}")
+        return f"PETSc TS, {steps}"
+    if adaptive_stepper(scene):
+        return (f"stepper, error-controlled steps (time.tolerance = {tim['tolerance']:g}) "
+                f"within each output interval dt = {tim['dt']:g}")
+    lie = scene.is_rod_material and rod_rotations(scene) == "rotation_vector"
+    return f"stepper, fixed steps dt = {tim['dt']:g}" + (
+        " (time.adaptive = true: error-controlled steps)" if lie else "")
 
 
 def _check_time(scene: Scene) -> None:
     tim, given, err = scene["time"], scene.given["time"], scene.error
     ts = tim["integrator"] == "ts"
-    for key in ("ts_type", "adaptive", "ts_rtol", "ts_atol"):
+    for key in ("ts_type", "ts_rtol", "ts_atol"):
         if key in given and not ts:
             raise err(f"time.{key}", "applies to integrator = \"ts\" only")
-    if ts and "predictor" in given:
-        raise err("time.predictor", "applies to integrator = \"stepper\" only")
+    for key in ("predictor", "tolerance"):
+        if ts and key in given:
+            raise err(f"time.{key}", "applies to integrator = \"stepper\" only")
+    if "tolerance" in given and not tim["adaptive"]:
+        raise err("time.tolerance", "the error tolerance of adaptive steps: set adaptive = true")
     if ts and "ts_type" in given and "scheme" in given:
         raise err("time.scheme", "give either time.scheme (per-step schemes) or time.ts_type "
                                  "(PETSc TS), not both")

@@ -186,8 +186,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "ts_type": Key(ts_type_name, None, "ts: a PETSc TS type of integrators.ts, e.g. "
                        "\"arkimex:4\", \"bdf:3\", \"alpha:0.5\", \"alpha2\" (dynamic torsion); "
                        "default: the scheme's counterpart"),
-        "adaptive": Key(boolean, False, "ts: adaptive time steps (error control with "
-                        "ts_rtol, ts_atol; outputs at each accepted step)"),
+        "adaptive": Key(boolean, False, "error-controlled time steps: ts (with ts_rtol, "
+                        "ts_atol; outputs at each accepted step) or, for a dynamic rod with "
+                        "rotation vectors, the stepper (with tolerance; steps within each "
+                        "output interval dt, clipped to the output times)"),
+        "tolerance": Key(real(0.0, True, 0.5), 1e-3, "stepper, adaptive: local error "
+                         "tolerance per step of generalized-alpha on the rotation group "
+                         "(displacements to tolerance (L + |x|), rotations to tolerance rad)"),
         "ts_rtol": Key(real(0.0, True, 1.0), 1e-6, "ts, adaptive: relative local error "
                        "tolerance"),
         "ts_atol": Key(real(0.0, True, 1.0), 1e-8, "ts, adaptive: absolute local error "
