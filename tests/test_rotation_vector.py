@@ -390,6 +390,7 @@ def test_default_jacobian_reuse_solves_the_same_steps():
 QUASI_STATIC = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2))
 
 
+@pytest.mark.mpi       # under mpirun: both ranks refuse alike, none hangs
 @pytest.mark.parametrize("make, match", [
     # an unknown name, and rotation vectors where the rotation-group integrator cannot go
     (lambda: RodModel(PARAMS, n_cells=2, model="hyperelastic", rotations="euler"),
@@ -404,6 +405,7 @@ def test_rotation_choice_is_checked(make, match):
         make()
 
 
+@pytest.mark.mpi
 def test_other_integrators_refuse_rotation_vectors_naming_the_way_out():
     from dolfin_rod.integrators.ts import TSIntegrator
     rod = _rod(n_cells=2)

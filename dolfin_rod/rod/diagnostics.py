@@ -35,22 +35,24 @@ def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation) -> dict:
 
 class Tip:
     """tip_position_{xyz} (r = L e_3 + x) and tip_quaternion_{0..3} at s = L: nodal
-    values (rotation vectors: q_n c(theta))."""
+    values (rotation vectors: q_n c(theta) of the tip node only)."""
 
     def __init__(self, unk, length: float):
         self.unk, self.length = unk, length
-        q_space = (unk.f["quaternion"] if unk.chart is None else unk.chart.q_n).function_space
         self.x_node = NodeValues(unk.f["displacement"].function_space, [length])
-        self.q_node = NodeValues(q_space, [length])
+        q = unk.f["quaternion"] if unk.chart is None else unk.chart.q_n
+        self.q_node = NodeValues(q.function_space, [length])
+        self.theta_node = (None if unk.chart is None else
+                           NodeValues(unk.f[unk.rotation].function_space, [length]))
 
     def __call__(self) -> dict:
         unk = self.unk
+        x = self.x_node(unk.f["displacement"].x.array)[0]
         if unk.chart is None:
-            q_array = unk.f["quaternion"].x.array
-        else:
-            q_array = np_qmul(unk.chart.q_n.x.array.reshape(-1, 4),
-                              np_cayley(unk.f[unk.rotation].x.array.reshape(-1, 3))).ravel()
-        x, q = self.x_node(unk.f["displacement"].x.array)[0], self.q_node(q_array)[0]
+            q = self.q_node(unk.f["quaternion"].x.array)[0]
+        else:       # NodeValues sums over the ranks: the owner's values
+            theta = self.theta_node(unk.f[unk.rotation].x.array)
+            q = np_qmul(self.q_node(unk.chart.q_n.x.array), np_cayley(theta))[0]
         d = {f"tip_position_{c}": x[i] for i, c in enumerate("xyz")}
         d["tip_position_z"] += self.length
         d.update({f"tip_quaternion_{i}": q[i] for i in range(4)})
