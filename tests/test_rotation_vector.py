@@ -408,7 +408,7 @@ def test_rotation_choice_is_checked(make, match):
 @pytest.mark.mpi
 def test_other_integrators_refuse_rotation_vectors_naming_the_way_out():
     from dolfin_rod.integrators.ts import TSIntegrator
-    rod = _rod(n_cells=2)
+    rod = _rod(n_cells=4)       # >= 2 cells per rank under mpirun -n 2
     for build in (lambda: TimeStepper(rod.problem, "bdf2"), lambda: TSIntegrator(rod.problem)):
         with pytest.raises(ValueError, match="rotations='quaternion'"):
             build()
