@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import itertools
 import time
+import weakref
 
 import dolfinx.fem as fem
 import numpy as np
@@ -65,6 +66,12 @@ def petsc_options(comm, options: dict | None) -> dict:
     return merged
 
 
+def _forget_options(prefix: str, keys: list[str]) -> None:
+    opts = PETSc.Options()
+    for k in keys:
+        opts.delValue(prefix + k)
+
+
 class SolverError(RuntimeError):
     """SNES did not converge; ``reason`` is PETSc's converged-reason name."""
 
@@ -106,6 +113,11 @@ class BlockSNES:
         for k, v in settings.items():
             opts[self.prefix + k] = v
         self.snes.setFromOptions()
+        # the options go with the solver (also at exit, before PETSc's own finalisation):
+        # the sub-solver options of block Jacobi (MPI) are read at the first solve only,
+        # and PETSc reports every option left unread ("WARNING! There are options you set
+        # that were not used!") for a solver that never solved
+        weakref.finalize(self, _forget_options, self.prefix, list(settings))
         self._last_norm = np.inf
         self._bc_values = None
         self._persists = tuple(str(settings.get(f"snes_lag_{k}_persists", False)).lower()

@@ -140,3 +140,25 @@ def test_native_lu_gives_the_mumps_states_and_is_refused_in_parallel():
         states.append(model.f["displacement"].x.array.copy())
     assert np.abs(states[0]).max() > 0.05
     assert states[1] == pytest.approx(states[0], abs=1e-8)
+
+
+@pytest.mark.mpi
+def test_a_solver_takes_its_options_away():
+    """A solver's PETSc options leave the options database with it: under mpirun the
+    default block-Jacobi sub-solver options are read at the first solve only, and PETSc
+    printed "WARNING! There are options you set that were not used!" at exit for every
+    stepper that never stepped."""
+    import gc
+
+    from petsc4py import PETSc
+    model = RodModel(RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2),
+                                   rho_A=2.0, I11=1e-3, I22=1e-3), n_cells=4)
+    stepper = TimeStepper(model.problem)
+    prefix = stepper.solver.prefix
+
+    def left():
+        return [k for k in PETSc.Options().getAll() if k.startswith(prefix)]
+    assert "snes_rtol" in [k[len(prefix):] for k in left()]
+    del stepper
+    gc.collect()
+    assert left() == []
