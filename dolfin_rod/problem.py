@@ -72,9 +72,13 @@ class SecondOrderProblem(SemiDiscreteProblem):
     lie_group:     the fields include rotation increments reset by after_step (a rod
                    with rotation vectors): only generalized-alpha on the rotation group
                    (integrators/lie_alpha.py) advances it, not PETSc TS.
+    error_scales:  per block the size its local time error is measured against (error
+                   control, lie_alpha.LocalError: atol times it): a length for
+                   displacements, 1 (rad) for angles; empty: the mesh's extent for each.
     """
 
     accelerations: list[fem.Function] = field(default_factory=list)
     after_step: Callable[[], None] = lambda: None
     time_orders: list[int] = field(default_factory=list)
     lie_group: bool = False
+    error_scales: list[float] = field(default_factory=list)

@@ -112,9 +112,9 @@ class LocalError:
     e.g. natural strains, follow the controlled strains and are not controlled
     themselves) e = error_coefficient h^2 (a_{n+1} - a_n), weighted by
         w = atol * scale + rtol * max(|y_n|, |y_{n+1}|),
-    ``scale`` the mesh's extent L for a displacement [length] and 1 for a rotation [rad]
-    (a field whose name contains "rotation"; its value is the step's increment, so atol
-    rules it).  The norm is max |e_i| / w_i over each rank's owned dofs, reduced by MPI
+    ``scale`` the problem's ``error_scales`` (the rod: its length for a displacement, 1
+    rad for a rotation increment, whose value is the step's increment, so atol rules it;
+    else the mesh's extent).  The norm is max |e_i| / w_i over each rank's owned dofs, reduced by MPI
     MAX: the same on every rank and for every partition.  Prescribed (Dirichlet) dofs are
     included: their a is that of the prescribed motion, smooth in time."""
 
@@ -126,12 +126,14 @@ class LocalError:
         self.comm = comm = mesh.comm
         x = mesh.geometry.x[:, 0]
         extent = comm.allreduce(x.max(), op=MPI.MAX) - comm.allreduce(x.min(), op=MPI.MIN)
+        fields = integrator.problem.fields
+        scales = integrator.problem.error_scales or [extent] * len(fields)
         self.blocks = []
-        for i, f in enumerate(integrator.problem.fields):
+        for i, (f, scale) in enumerate(zip(fields, scales)):
             if integrator.order[i] == 2:
                 dofmap = f.function_space.dofmap
                 owned = dofmap.index_map.size_local * dofmap.index_map_bs
-                self.blocks.append((i, owned, 1.0 if "rotation" in f.name else extent))
+                self.blocks.append((i, owned, scale))
         if not self.blocks:
             raise ValueError("tolerance: the error estimate needs a second-order block "
                              "(time_orders 2); this problem has none")

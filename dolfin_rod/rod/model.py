@@ -114,7 +114,8 @@ class RodModel(FEModel):
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
             after_step=self.commit_rotations,
-            time_orders=[2 if n in unk.acc else 1 for n in self.names], lie_group=True)
+            time_orders=[2 if n in unk.acc else 1 for n in self.names], lie_group=True,
+            error_scales=[1.0 if n == unk.rotation else self.length for n in self.names])
 
     def commit_rotations(self) -> None:
         """Rotation vectors, after an accepted step: q_n <- q_n c(theta), theta <- 0."""
