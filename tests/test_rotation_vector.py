@@ -144,6 +144,39 @@ def test_lie_generalized_alpha_is_second_order():
     assert orders == pytest.approx([2.0, 2.0], abs=0.1), (errors, orders)
 
 
+@pytest.mark.mpi
+def test_the_start_solves_the_mass_matrix_for_the_accelerations():
+    """A straight rod at rest under a uniform force per length f, clamped at s = 0:
+    the start's accelerations solve M a = F with the consistent P1 mass matrix
+    rho_A h/6 [[2, 1], [1, 2]] per cell (the 2-point Gauss rule is exact for it),
+    F_i = f h (interior nodes), f h/2 (the free end), a = 0 at the clamped node,
+    assembled here by hand; the rotations do not accelerate (no couple: at rest the
+    contact force is 0).  With the integrator's own solver (one rank: PETSc's LU;
+    several: block Jacobi and GMRES)."""
+    f, n = np.array([-3.0, 0.5, 1.0]), 6
+    rod = _rod(n_cells=n, distributed_loads=[DistributedLoad("force", tuple(f))])
+    rod.set_initial_state()
+    stepper = TimeStepper(rod.problem)
+    stepper.initial_accelerations(0.0)
+    h, rho_A = PARAMS.length / n, PARAMS.rho_A
+    M = np.diag(np.full(n + 1, 4.0)) + np.diag(np.ones(n), 1) + np.diag(np.ones(n), -1)
+    M[-1, -1] = 2.0
+    M *= rho_A * h / 6
+    F = np.outer(np.r_[np.ones(n), 0.5] * h, f)
+    F[0] = 0.0
+    M[0], M[:, 0], M[0, 0] = 0.0, 0.0, 1.0       # a_0 = 0 (the column of a_0 drops out)
+    expected = np.linalg.solve(M, F)
+    acc = rod.problem.accelerations
+    s = acc[0].function_space.tabulate_dof_coordinates()[:, 0]
+    rows = rod.mesh.comm.allgather(np.column_stack([s, acc[0].x.array.reshape(-1, 3),
+                                                    acc[1].x.array.reshape(-1, 3)]))
+    nodes = np.unique(np.vstack(rows), axis=0)    # ghost copies of a node are equal rows
+    assert len(nodes) == n + 1
+    # direct solves of an O(1)-conditioned 7x7 system: round-off (GMRES: rtol 1e-12)
+    assert nodes[:, 1:4] == pytest.approx(expected, abs=1e-10)
+    assert np.abs(nodes[:, 4:]).max() < 1e-10
+
+
 def _three_steps(params, n_cells):
     rod = _rod(params, n_cells=n_cells,
                distributed_loads=[DistributedLoad("force", (-3.0, 0.0, 1.0))])

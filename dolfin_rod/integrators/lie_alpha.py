@@ -272,7 +272,7 @@ class LieGeneralizedAlpha:
             key = self.structure_key + "initial"
             F = None if form_cache.lookup(key) else self.problem.residual
             self._initial_solver = BlockSNES(F, self._unknowns_at_start(), self.problem.bcs,
-                                             cache=(key, self._model_objects))
+                                             self.options, cache=(key, self._model_objects))
 
     def initial_accelerations(self, t0: float) -> None:
         """Solve the residual at t0 for the accelerations (second order) and rates (first
