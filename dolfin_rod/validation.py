@@ -62,18 +62,21 @@ ROTATIONS = ("auto", "quaternion", "rotation_vector")
 
 
 def choose_rotations(rotations: str, dynamic: bool, variant: str, constraint,
-                     lie_integrator: bool = True) -> str:
+                     lie_integrator: bool = True, rotary_inertia: bool = True) -> str:
     """The rod's rotation unknowns (rod/discretisation.py): "auto" takes rotation vectors
-    for a dynamic rod with the local variant and no constraint, advanced by the
-    rotation-group integrator (``lie_integrator``: not a first-order scheme or PETSc TS),
-    quaternions otherwise; an explicit choice is checked (ValueError)."""
+    for a dynamic rod with rotary inertia (``rotary_inertia``: I11, I22 > 0; the
+    integrator's start solves the mass matrices for the accelerations), the local
+    variant and no constraint, advanced by the rotation-group integrator
+    (``lie_integrator``: not a first-order scheme or PETSc TS), quaternions otherwise; an
+    explicit choice is checked (ValueError)."""
     if rotations not in ROTATIONS:
         raise ValueError(f"rotations must be one of {ROTATIONS}, got {rotations!r}")
-    fits = dynamic and variant == "local" and constraint is None
+    fits = dynamic and rotary_inertia and variant == "local" and constraint is None
     if rotations == "auto":
         return "rotation_vector" if fits and lie_integrator else "quaternion"
     if rotations == "rotation_vector" and not (fits and lie_integrator):
-        raise ValueError("rotations = 'rotation_vector' needs a dynamic rod (rho_A > 0) with "
-                         "the local variant and no constraint, advanced by "
-                         "generalized_alpha[:rho_inf] (TimeStepper); use 'quaternion'")
+        raise ValueError("rotations = 'rotation_vector' needs a dynamic rod (rho_A > 0, and "
+                         "rotary inertia I11, I22 > 0) with the local variant and no "
+                         "constraint, advanced by generalized_alpha[:rho_inf] (TimeStepper); "
+                         "use 'quaternion'")
     return rotations

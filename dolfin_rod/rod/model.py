@@ -41,7 +41,8 @@ class RodModel(FEModel):
     "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
     boundary_conditions.py; end_loads, distributed_loads: external_forces.py; rotations:
     "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
-    vectors for a dynamic rod, local variant, no constraint: 6 unknowns per node).
+    vectors for a dynamic rod with rotary inertia, local variant, no constraint: 6
+    unknowns per node).
 
     ``problem`` is a SemiDiscreteProblem (quaternions: any scheme of TimeStepper or
     TSIntegrator) or a SecondOrderProblem (rotation vectors: generalized-alpha on the
@@ -67,7 +68,9 @@ class RodModel(FEModel):
         self.length = float(params.length)
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(params.rho_A)
-        self.rotations = choose_rotations(rotations, self.dynamic, variant, constraint)
+        self.rotations = choose_rotations(
+            rotations, self.dynamic, variant, constraint,
+            rotary_inertia=not (is_zero(params.I11) or is_zero(params.I22)))
         disc = discretise(comm, n_cells, self.length, self.rotations)
         super().__init__(disc.mesh)
         self.ds_end, self.dx, self.dx_r = disc.ds_end, disc.dx, disc.dx_r
