@@ -74,6 +74,33 @@ class NodeValues:
         return total
 
 
+class FormSums:
+    """Scalar forms assembled together: form k's integrands times component k of a DG0
+    test function, so one vector assembly gives every cell's contributions to every
+    form; the owned cells' sums, reduced over the ranks in one call.  (k separate scalar
+    assemblies cost k coefficient packings, kernel calls and reductions: 105 against
+    ~25 us for the rod's four at 16 cells.)"""
+
+    def __init__(self, mesh, forms: list[ufl.Form]):
+        V = fem.functionspace(mesh, ("DG", 0, (max(1, len(forms)),)))
+        w = ufl.TestFunction(V)
+        integrals = [itg.reconstruct(integrand=itg.integrand() * w[k])
+                     for k, form in enumerate(forms) for itg in form.integrals()]
+        self.form = fem.form(ufl.Form(integrals)) if integrals else None
+        self.n, self.comm = len(forms), mesh.comm
+        self.owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+
+    def __call__(self) -> np.ndarray:
+        local = np.zeros(self.n)
+        if self.form is not None:
+            b = fem.assemble_vector(self.form)
+            b.scatter_reverse(la.InsertMode.add)     # facet terms of ghost cells
+            local += b.array[:self.owned].reshape(-1, self.n).sum(axis=0)
+        total = np.empty_like(local)
+        self.comm.Allreduce(local, total, op=MPI.SUM)
+        return total
+
+
 def nodal_residual(form: fem.Form, nodes: NodeValues) -> np.ndarray:
     """The assembled residual of one block at the nodes: the residual tested with each
     node's unit nodal motions (one assembly)."""
@@ -94,8 +121,8 @@ class FEModel:
         self.mesh = mesh
         self.bcs: list[fem.DirichletBC] = []                   # in order of creation
         self.block_bcs: dict[str, list[fem.DirichletBC]] = {}
-        self.diagnostic_forms: dict = {}                        # compiled on first use
-        self._diagnostic_ufl: dict = {}
+        self.diagnostic_forms: dict = {}                        # UFL, by key
+        self._diagnostic_sums: FormSums | None = None           # compiled on first use
 
     def dirichlet(self, block: str, space, end: str, length: float, value) -> fem.DirichletBC:
         """A Dirichlet condition value at an end on the block's space, recorded in
@@ -112,22 +139,18 @@ class FEModel:
         return list(self.block_bcs.get(block, []))
 
     def set_diagnostic_forms(self, forms: dict[str, ufl.Form]) -> None:
-        """The diagnostics' UFL forms; compiled at the first ``assemble`` (a model that is
-        only stepped never pays for them)."""
-        self._diagnostic_ufl = dict(forms)
-        self.diagnostic_forms = {}
-
-    def assemble(self, key: str) -> float:
-        """One diagnostic form, assembled and summed over the ranks."""
-        if not self.diagnostic_forms:
-            self.diagnostic_forms = {k: fem.form(f) for k, f in self._diagnostic_ufl.items()}
-        local = fem.assemble_scalar(self.diagnostic_forms[key])
-        return self.mesh.comm.allreduce(local, op=MPI.SUM)
+        """The diagnostics' UFL forms; compiled at the first ``assembled_diagnostics`` (a
+        model that is only stepped never pays for them)."""
+        self.diagnostic_forms = dict(forms)
+        self._diagnostic_sums = None
 
     def assembled_diagnostics(self, t: float) -> dict[str, float]:
-        """Every diagnostic form at time t (loads set to t), and the time."""
+        """Every diagnostic form at time t (loads set to t), summed over the ranks (one
+        assembly: FormSums), and the time."""
         self.problem.set_loads(t)
-        d = {key: self.assemble(key) for key in self._diagnostic_ufl}
+        if self._diagnostic_sums is None:
+            self._diagnostic_sums = FormSums(self.mesh, list(self.diagnostic_forms.values()))
+        d = dict(zip(self.diagnostic_forms, self._diagnostic_sums().tolist()))
         d["time"] = t
         return d
 

@@ -162,3 +162,41 @@ def test_a_solver_takes_its_options_away():
     del stepper
     gc.collect()
     assert left() == []
+
+
+def _random_state(model, seed):
+    """Every unknown and rate of the model at random values (a state no test shortcut
+    can make simple: every diagnostic form is then nonzero), from the initial state
+    (rotation vectors: the stored rotations)."""
+    model.set_initial_state()
+    rng = np.random.default_rng(seed)
+    for f in [*model.problem.fields, *model.problem.rates]:
+        f.x.array[:] = 0.05 * rng.standard_normal(f.x.array.shape)
+        f.x.scatter_forward()
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("build", [
+    creeping_cantilever,
+    lambda: RodModel(RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2),
+                                   rho_A=2.0, I11=1e-3, I22=2e-3, drag=0.3), n_cells=4,
+                     model="hyperelastic", end_loads=[EndLoad("force", (0.0, 1.0, -2.0))],
+                     distributed_loads=[DistributedLoad("force", (-5.0, 0.0, 1.0))]),
+    lambda: TorsionModel(TorsionParameters(mu=0.1, mu_d=0.5, nu=0.2), n_cells=4,
+                         variant="uniform", end_torsion=loads.constant(1.0))],
+    ids=["quaternions, creep", "rotation vectors, drag", "torsion, uniform variant"])
+def test_diagnostics_in_one_assembly_equal_the_forms_one_by_one(build):
+    """model_base.FormSums (all diagnostic forms in one vector assembly) against DOLFINx's
+    scalar assembly of each form, MPI-summed: the same sums of the same quadrature
+    points, so equal to round-off (1e-12 relative to the largest value)."""
+    from mpi4py import MPI
+    model = build()
+    _random_state(model, seed=4)
+    fused = model.assembled_diagnostics(0.2)
+    one_by_one = {key: model.mesh.comm.allreduce(fem.assemble_scalar(fem.form(form)),
+                                                 op=MPI.SUM)
+                  for key, form in model.diagnostic_forms.items()}
+    scale = max(abs(v) for v in one_by_one.values())
+    assert scale > 1e-3
+    for key, value in one_by_one.items():
+        assert fused[key] == pytest.approx(value, rel=0, abs=1e-12 * scale), key
