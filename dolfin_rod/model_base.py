@@ -101,6 +101,26 @@ class FormSums:
         return total
 
 
+def near_nodes(form: ufl.Form, mesh, s_nodes) -> ufl.Form:
+    """``form`` with its cell integrals restricted to the cells that touch the nodes at
+    ``s_nodes`` (O(1) cells): at those nodes its assembled vector is the full form's,
+    since their test functions vanish on every other cell.  A form whose cell integrals
+    already have subdomains is returned as it is."""
+    cell_integrals = [itg for itg in form.integrals() if itg.integral_type() == "cell"]
+    if any(itg.subdomain_data() is not None for itg in cell_integrals):
+        return form
+    tdim = mesh.topology.dim
+    vertices = dolfinx.mesh.locate_entities(
+        mesh, 0, lambda x: np.any([np.isclose(x[0], s) for s in s_nodes], axis=0))
+    mesh.topology.create_connectivity(0, tdim)
+    to_cells = mesh.topology.connectivity(0, tdim)
+    cells = np.unique(np.concatenate([to_cells.links(v) for v in vertices] +
+                                     [np.zeros(0, dtype=np.int32)])).astype(np.int32)
+    tags = dolfinx.mesh.meshtags(mesh, tdim, cells, np.ones_like(cells))
+    return ufl.Form([itg.reconstruct(subdomain_id=1, subdomain_data=tags)
+                     if itg.integral_type() == "cell" else itg for itg in form.integrals()])
+
+
 def nodal_residual(form: fem.Form, nodes: NodeValues) -> np.ndarray:
     """The assembled residual of one block at the nodes: the residual tested with each
     node's unit nodal motions (one assembly)."""

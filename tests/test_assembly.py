@@ -200,3 +200,25 @@ def test_diagnostics_in_one_assembly_equal_the_forms_one_by_one(build):
     assert scale > 1e-3
     for key, value in one_by_one.items():
         assert fused[key] == pytest.approx(value, rel=0, abs=1e-12 * scale), key
+
+
+@pytest.mark.mpi
+def test_a_residual_near_its_nodes_is_the_full_residual_there():
+    """model_base.near_nodes (cell integrals on the cells touching the given nodes only,
+    as the reactions use it) against the full residual at those nodes (both ends and an
+    interior node), at a random state: their test functions vanish on every other cell,
+    so the values agree to round-off; elsewhere the restricted vector is mostly 0."""
+    from dolfin_rod.model_base import NodeValues, near_nodes, nodal_residual
+    model = creeping_cantilever(n_cells=6)
+    _random_state(model, seed=7)
+    s_nodes = [0.0, 0.5, 1.0]
+    for block in ("displacement", "quaternion"):
+        form = model.residual[block]
+        V = model.problem.fields[model.names.index(block)].function_space
+        nodes = NodeValues(V, s_nodes)
+        full = nodal_residual(fem.form(form), nodes)
+        near = nodal_residual(fem.form(near_nodes(form, model.mesh, s_nodes)), nodes)
+        assert np.abs(full).max() > 1e-3
+        assert near == pytest.approx(full, rel=0, abs=1e-12 * np.abs(full).max())
+        elsewhere = nodal_residual(fem.form(near_nodes(form, model.mesh, [0.0])), nodes)
+        assert np.abs(elsewhere[1]).max() < 1e-12 < np.abs(full[1]).max()

@@ -19,7 +19,7 @@ import dolfinx.fem as fem
 import numpy as np
 
 from .. import loads
-from ..model_base import ENDS, NodeValues, end_coordinate, nodal_residual
+from ..model_base import ENDS, NodeValues, end_coordinate, near_nodes, nodal_residual
 from ..rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 from .rotation_vector import np_inverse_cayley
 
@@ -139,13 +139,13 @@ class EndSupports:
         for end in ends:
             node = {block: values[end] for block, values in at_ends.items()
                     if (block, end) in self.values}
-            q_end = self.prescribed(end, t)[1]
-            for i, comp in enumerate("xyz"):
-                if "displacement" in node:
-                    out[f"reaction_force_{end}_{comp}"] = node["displacement"][i]
-                if rotation_block in node:
-                    out[f"reaction_couple_{end}_{comp}"] = node[rotation_block] @ \
-                        _nodal_rotation(rotation_block, q_end, np.eye(3)[i])
+            if "displacement" in node:
+                out.update(zip((f"reaction_force_{end}_{c}" for c in "xyz"),
+                               node["displacement"].tolist()))
+            if rotation_block in node:
+                couple = _nodal_rotations(rotation_block, self.prescribed(end, t)[1]) @ \
+                    node[rotation_block]
+                out.update(zip((f"reaction_couple_{end}_{c}" for c in "xyz"), couple.tolist()))
             if end in self.displacement or end in self.rotation:
                 power += sum(node[b] @ v for b, v in self._motion_rates(end, t).items()
                              if b in node)
@@ -156,8 +156,10 @@ class EndSupports:
     def _compiled(self, residual: dict, block: str, ends):
         """The block's residual form and its end nodes, made at the first diagnostics."""
         if block not in self._residual_forms:
-            self._residual_forms[block] = (fem.form(residual[block]), NodeValues(
-                self.spaces[block], [end_coordinate(e, self.length) for e in ends]))
+            s_ends = [end_coordinate(e, self.length) for e in ends]
+            form = near_nodes(residual[block], self.spaces[block].mesh, s_ends)
+            self._residual_forms[block] = (fem.form(form), NodeValues(self.spaces[block],
+                                                                      s_ends))
         return self._residual_forms[block]
 
     def _motion_rates(self, end: str, t: float) -> dict:
@@ -168,8 +170,12 @@ class EndSupports:
                              if self.block == "quaternion" else self._angular_velocity(end, t))}
 
 
-def _nodal_rotation(block: str, q_end, e) -> np.ndarray:
-    """The end node's test value of a spatial virtual rotation e (module docstring)."""
+_SPATIAL_AXES = np.hstack([np.zeros((3, 1)), np.eye(3)])     # (0, e_i) as quaternions
+
+
+def _nodal_rotations(block: str, q_end) -> np.ndarray:
+    """Row i: the end node's test value of the spatial virtual rotation e_i (see
+    ``reactions``): (0, e_i) q_end / 2 (quaternions), R(q_end)^T e_i (rotation vectors)."""
     if block == "quaternion":
-        return 0.5 * np_qmul(np.concatenate([[0.0], e]), q_end)
-    return np_rotation_matrix(q_end).T @ e
+        return 0.5 * np_qmul(_SPATIAL_AXES, q_end)
+    return np_rotation_matrix(q_end)
