@@ -130,6 +130,11 @@ class MonolithicSystem(_System):
             m[unrolled.ravel()] = W.sub(j).dofmap.list[:ncells].ravel()
             self._maps.append(m)
         self._n_owned = W.dofmap.index_map.size_local
+        # views fetched once (a DOLFINx array property costs ~1 us; set/get run 6-7
+        # times per time step)
+        self._w_arrays = [w.x.array for w in self.w]
+        self._block_arrays = [[f.x.array for f in group] for group in groups]
+        self._ghosted = mesh.comm.size > 1
         key, objects = cache if cache else (None, ())
         objects = [*objects, *self.w]
         entry = form_cache.lookup(key)
@@ -188,18 +193,19 @@ class MonolithicSystem(_System):
     def set(self, k: int, x, blocks: bool = True) -> None:
         """Vector -> group k (mixed Function and, if ``blocks``, its block Functions;
         ghosts updated).  The forms read the mixed Function only."""
-        w = self.w[k]
-        w.x.array[:self._n_owned] = x.getArray(readonly=True)
-        w.x.scatter_forward()
-        for f, m in zip(self.groups[k], self._maps) if blocks else ():
-            f.x.array[:] = w.x.array[m]
+        w = self._w_arrays[k]
+        w[:self._n_owned] = x.getArray(readonly=True)
+        if self._ghosted:
+            self.w[k].x.scatter_forward()
+        for f, m in zip(self._block_arrays[k], self._maps) if blocks else ():
+            f[:] = w[m]
 
     def get(self, k: int, x) -> None:
         """Group k's block Functions -> vector."""
-        w = self.w[k]
-        for f, m in zip(self.groups[k], self._maps):
-            w.x.array[m] = f.x.array
-        x.array_w[:] = w.x.array[:self._n_owned]
+        w = self._w_arrays[k]
+        for f, m in zip(self._block_arrays[k], self._maps):
+            w[m] = f
+        x.array_w[:] = w[:self._n_owned]
 
     def residual(self, x, b, bc_values=None) -> None:
         """b = F(x), Dirichlet rows x - g (g: ``bc_values`` if given, else bc_values())."""
