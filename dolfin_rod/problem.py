@@ -82,3 +82,11 @@ class SecondOrderProblem(SemiDiscreteProblem):
     time_orders: list[int] = field(default_factory=list)
     lie_group: bool = False
     error_scales: list[float] = field(default_factory=list)
+
+    def __post_init__(self):
+        super().__post_init__()
+        for name in ("accelerations", "time_orders", "error_scales"):
+            given = getattr(self, name)
+            if given and len(given) != len(self.fields):
+                raise ValueError(f"{name}: one entry per field ({len(self.fields)}), got "
+                                 f"{len(given)}")

@@ -157,14 +157,18 @@ def test_next_step_survives_a_checkpoint():
     assert resumed.next_dt == stepper.next_dt
 
 
+@pytest.mark.mpi
 def test_errors_are_measured_in_the_rod_length_and_in_radians():
     """atol is relative to the rod's length for displacements and to 1 rad for rotation
-    increments, whatever the fields are called (problem.error_scales)."""
+    increments, whatever the fields are called (problem.error_scales); a list of scales
+    that does not match the fields is refused."""
     from dataclasses import replace
     rod = RodModel(replace(PARAMS, length=2.5), n_cells=4, model="hyperelastic")
     assert rod.problem.error_scales == [2.5, 1.0]
     stepper = TimeStepper(rod.problem, tolerance=1e-3)
     assert [scale for _, _, scale in stepper.local_error.blocks] == [2.5, 1.0]
+    with pytest.raises(ValueError, match="error_scales: one entry per field"):
+        replace(rod.problem, error_scales=[2.5])
 
 
 def test_tolerance_is_checked():
