@@ -69,6 +69,9 @@ class SecondOrderProblem(SemiDiscreteProblem):
                    form, which its diagnostics read).
     time_orders:   per block 2 (its accelerations enter) or 1 (only its rate; the
                    accelerations entry is None); empty: all 2.
+    check_step:    called when a step's Newton has converged (its state in fields): a
+                   reason to reject the step (it is then redone smaller), or None; e.g.
+                   a rotation increment no resolved step makes (a spurious root).
     lie_group:     the fields include rotation increments reset by after_step (a rod
                    with rotation vectors): only generalized-alpha on the rotation group
                    (integrators/lie_alpha.py) advances it, not PETSc TS.
@@ -79,6 +82,7 @@ class SecondOrderProblem(SemiDiscreteProblem):
 
     accelerations: list[fem.Function] = field(default_factory=list)
     after_step: Callable[[], None] = lambda: None
+    check_step: Callable[[], str | None] = lambda: None
     time_orders: list[int] = field(default_factory=list)
     lie_group: bool = False
     error_scales: list[float] = field(default_factory=list)

@@ -177,6 +177,44 @@ def test_the_start_solves_the_mass_matrix_for_the_accelerations():
     assert np.abs(nodes[:, 4:]).max() < 1e-10
 
 
+@pytest.mark.mpi
+def test_a_step_that_rotates_a_node_by_more_than_a_quarter_turn_is_refused():
+    """RotationVectorChart.check_increment: |theta| = 2.5 at one node is a rotation by
+    2 atan(1.25) = 1.790 rad in one step (> pi/2): a reason on every rank (MPI MAX),
+    none for |theta| = 1.9 (1.517 rad)."""
+    rod = _rod(n_cells=4)
+    rod.set_initial_state()
+    chart, theta = rod.unknowns.chart, rod.f["rotation_increment"]
+    s = theta.function_space.tabulate_dof_coordinates()[:, 0]
+    for size, expected in ((1.9, None), (2.5, "a node rotated by 1.79 rad in one step")):
+        theta.x.array[:] = 0.0
+        theta.x.array.reshape(-1, 3)[np.isclose(s, 0.75), 1] = size
+        reason = chart.check_increment()
+        assert rod.mesh.comm.allgather(reason) == [expected and
+                                                   f"{expected} (more than pi/2)"] * \
+            rod.mesh.comm.size
+
+
+@pytest.mark.mpi
+def test_a_refused_step_is_redone_as_two_half_steps():
+    """problem.check_step refusing the first attempt (as check_increment refuses a
+    spurious root): the state is restored and the step done as two half steps, the same
+    (to round-off) as two steps of half the size from the start."""
+    def displacements(dt, refuse_first):
+        rod = _rod(end_loads=[EndLoad("force", (-2.0, 0.5, 0.0))])
+        rod.set_initial_state()
+        refusals = [refuse_first]       # the first call's answer, then None
+        rod.problem.check_step = lambda: "refused" if refusals and refusals.pop() else None
+        stepper = TimeStepper(rod.problem)
+        stepper.run(0.0, 0.02, dt)
+        x = np.concatenate(rod.mesh.comm.allgather(rod.f["displacement"].x.array))
+        return x, stepper.stats
+    (x_cut, cut), (x_half, half) = displacements(0.02, True), displacements(0.01, False)
+    assert (cut.rejected, cut.steps, half.rejected, half.steps) == (1, 2, 0, 2)
+    assert np.abs(x_half).max() > 1e-4
+    assert np.allclose(x_cut, x_half, rtol=0, atol=1e-13)
+
+
 def _three_steps(params, n_cells):
     rod = _rod(params, n_cells=n_cells,
                distributed_loads=[DistributedLoad("force", (-3.0, 0.0, 1.0))])

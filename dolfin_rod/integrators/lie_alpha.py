@@ -401,6 +401,9 @@ class LieGeneralizedAlpha:
             its = self.solver.solve(fresh_jacobian=fresh)
             if not all(np.isfinite(arrays[0]).all() for arrays in self._arrays):
                 raise SolverError("non-finite solution", its)
+            reason = p.check_step()
+            if reason:
+                raise SolverError(reason, its)
         except SolverError:
             self._restore()
             raise

@@ -116,7 +116,7 @@ class RodModel(FEModel):
             return SemiDiscreteProblem(*blocks)
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
-            after_step=self.commit_rotations,
+            after_step=self.commit_rotations, check_step=unk.chart.check_increment,
             time_orders=[2 if n in unk.acc else 1 for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names])
 
