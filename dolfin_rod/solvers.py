@@ -28,8 +28,11 @@ DEFAULT_OPTIONS = {
     "snes_max_it": 25,
     "ksp_type": "preonly",
     "pc_type": "lu",
-    "pc_factor_mat_solver_type": "mumps",
 }
+# The default LU: SuperLU on one rank (partial pivoting, so the multipliers' zero
+# diagonals need no heuristic; 1.3-1.6x cheaper than MUMPS on the quaternion rods and the
+# torsion model from 8 to 512 cells, docs/performance.md), MUMPS on several ranks.
+DEFAULT_LU = {1: "superlu", "parallel": "mumps"}
 # PETSc's own LU, one rank only: 5-8x cheaper factorisations than MUMPS on the rods'
 # banded systems, 16 to 4096 cells (docs/performance.md).  It does not pivot: the zero
 # diagonals of the multipliers (gauge, constraints) are permuted off the diagonal first,
@@ -53,12 +56,17 @@ JACOBIAN_REUSE = {
 _ids = itertools.count()
 
 
+def default_lu(comm) -> str:
+    """The default LU's solver type on ``comm`` (DEFAULT_LU)."""
+    return DEFAULT_LU[1] if comm.size == 1 else DEFAULT_LU["parallel"]
+
+
 def petsc_options(comm, options: dict | None) -> dict:
-    """DEFAULT_OPTIONS updated by ``options`` (without the default LU's solver type when
-    ``options`` choose another preconditioner); PETSc's LU on several ranks is an error."""
+    """DEFAULT_OPTIONS and the default LU (DEFAULT_LU, for pc_type lu only) updated by
+    ``options``; PETSc's LU on several ranks is an error."""
     merged = {**DEFAULT_OPTIONS, **(options or {})}
-    if merged.get("pc_type") != "lu" and "pc_factor_mat_solver_type" not in (options or {}):
-        del merged["pc_factor_mat_solver_type"]     # the default LU's: unused otherwise
+    if merged.get("pc_type") == "lu":
+        merged.setdefault("pc_factor_mat_solver_type", default_lu(comm))
     if comm.size > 1 and merged.get("pc_type") == "lu" and \
             merged.get("pc_factor_mat_solver_type") == "petsc":
         raise ValueError("pc_factor_mat_solver_type 'petsc' (NATIVE_LU) is serial; under "
@@ -84,8 +92,8 @@ class SolverError(RuntimeError):
 class BlockSNES:
     """Solve F_i(y) = 0 (one form per block) for the block Functions ``y`` with SNES.
 
-    ``options`` are PETSc options under a private prefix (defaults: Newton with an exact
-    line search off and MUMPS LU, which suits 1-D rods' banded systems).
+    ``options`` are PETSc options under a private prefix (defaults: Newton without a
+    line search and an LU, SuperLU on one rank and MUMPS on several: DEFAULT_LU).
     ``cache``: (key, objects) to share compiled forms (assembly.block_system).
 
     Option ``jacobian_reuse_ratio`` r (not a PETSc option): each solve starts with a new

@@ -35,6 +35,7 @@ from .evolution import check_variant, evolution_residual, real_space
 from .model_base import (FEModel, check_n_cells, end_measures, scalar_coefficient,
                          vertex_measure)
 from .problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
+from .solvers import default_lu
 from .validation import profile_violation, sample_points
 
 Coefficient = float | Callable
@@ -280,7 +281,8 @@ class TorsionModel(FEModel):
         self._set_bcs(0.0)
         bcs = self.bcs_of("twist_angle")
         solver = compat.linear_problem(a, L, bcs, self.phi, {
-            "ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"})
+            "ksp_type": "preonly", "pc_type": "lu",
+            "pc_factor_mat_solver_type": default_lu(self.mesh.comm)})
         solver.solve()
         if self.viscous:  # the impulse of the end torsion: int mu dphi_s ds
             return self.mesh.comm.allreduce(

@@ -3,8 +3,8 @@
 References: DOLFINx's blocked assembly (BlockedSystem), which the mixed-element layout
 (MonolithicSystem) must reproduce block by block at a random state (residual, and the
 Jacobian's action on a random vector); full Newton from the constant predictor with
-MUMPS, which the linear predictor and PETSc's own LU (solvers.NATIVE_LU) must reproduce
-to the Newton tolerance.
+the default LU, which the linear predictor and PETSc's own LU (solvers.NATIVE_LU) must
+reproduce to the Newton tolerance.
 """
 
 from __future__ import annotations
@@ -126,7 +126,8 @@ def test_linear_predictor_saves_newton_iterations_not_accuracy():
 @pytest.mark.mpi
 def test_native_lu_gives_the_mumps_states_and_is_refused_in_parallel():
     """PETSc's LU with the multipliers' zero diagonals permuted away solves the same
-    Newton systems as MUMPS (pivoting): same states to the Newton tolerance.  Under MPI
+    Newton systems as the default LU (SuperLU, pivoting): same states to the Newton
+    tolerance.  Under MPI
     it does not exist, and asking for it is a ValueError before any assembly."""
     model = creeping_cantilever(8)
     if model.mesh.comm.size > 1:
@@ -222,3 +223,20 @@ def test_a_residual_near_its_nodes_is_the_full_residual_there():
         assert near == pytest.approx(full, rel=0, abs=1e-12 * np.abs(full).max())
         elsewhere = nodal_residual(fem.form(near_nodes(form, model.mesh, [0.0])), nodes)
         assert np.abs(elsewhere[1]).max() < 1e-12 < np.abs(full[1]).max()
+
+
+@pytest.mark.mpi
+def test_the_default_lu_pivots_on_one_rank_and_is_mumps_on_several():
+    """solvers.petsc_options: SuperLU (partial pivoting) serially, MUMPS under MPI; a
+    user's solver type wins; another preconditioner gets no LU solver type (PETSc would
+    report it unused)."""
+    from mpi4py import MPI
+
+    from dolfin_rod.solvers import petsc_options
+    comm = MPI.COMM_WORLD
+    assert petsc_options(comm, None)["pc_factor_mat_solver_type"] == \
+        ("superlu" if comm.size == 1 else "mumps")
+    assert petsc_options(MPI.COMM_SELF, None)["pc_factor_mat_solver_type"] == "superlu"
+    chosen = {"pc_factor_mat_solver_type": "superlu_dist"}
+    assert petsc_options(comm, chosen)["pc_factor_mat_solver_type"] == "superlu_dist"
+    assert "pc_factor_mat_solver_type" not in petsc_options(comm, {"pc_type": "jacobi"})

@@ -209,7 +209,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "solver": {
         "preset": Key(choice("default", "native_lu", "jacobian_reuse"), "default",
-                      "default (Newton, MUMPS LU) | native_lu (PETSc LU, serial only) | "
+                      "default (Newton; LU: SuperLU on one rank, MUMPS under MPI; a dynamic "
+                      "rod with rotation vectors: its integrator's own) | native_lu (PETSc "
+                      "LU, serial only) | "
                       "jacobian_reuse (modified Newton, dynamics with small steps); "
                       "solvers.py"),
         "options": Key(petsc_table, None, "PETSc options (without prefix) over the preset, "
