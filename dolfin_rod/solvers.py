@@ -32,7 +32,7 @@ DEFAULT_OPTIONS = {
 # The default LU: SuperLU on one rank (partial pivoting, so the multipliers' zero
 # diagonals need no heuristic; 1.3-1.6x cheaper than MUMPS on the quaternion rods and the
 # torsion model from 8 to 512 cells, docs/performance.md), MUMPS on several ranks.
-DEFAULT_LU = {1: "superlu", "parallel": "mumps"}
+DEFAULT_LU = {"serial": "superlu", "parallel": "mumps"}
 # PETSc's own LU, one rank only: 5-8x cheaper factorisations than MUMPS on the rods'
 # banded systems, 16 to 4096 cells (docs/performance.md).  It does not pivot: the zero
 # diagonals of the multipliers (gauge, constraints) are permuted off the diagonal first,
@@ -58,7 +58,7 @@ _ids = itertools.count()
 
 def default_lu(comm) -> str:
     """The default LU's solver type on ``comm`` (DEFAULT_LU)."""
-    return DEFAULT_LU[1] if comm.size == 1 else DEFAULT_LU["parallel"]
+    return DEFAULT_LU["serial" if comm.size == 1 else "parallel"]
 
 
 def petsc_options(comm, options: dict | None) -> dict:

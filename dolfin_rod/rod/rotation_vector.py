@@ -32,6 +32,7 @@ from __future__ import annotations
 import dolfinx.fem as fem
 import numpy as np
 import ufl
+from mpi4py import MPI
 
 from ufl.algorithms.analysis import extract_arguments, extract_coefficients
 from ufl.corealg.traversal import unique_pre_traversal
@@ -192,7 +193,6 @@ class RotationVectorChart:
         converge there, to a spurious root: a whip at 11 cells took a step with
         |theta| ~ 1e7 (angular velocity 5e8 rad/s) and went on from it.  A resolved
         step rotates far less (the benchmark scenes: < 0.8 rad)."""
-        from mpi4py import MPI
         local = np.sqrt(np.max(np.sum(self._theta_nodes ** 2, axis=1), initial=0.0))
         largest = self.mesh.comm.allreduce(local, op=MPI.MAX)
         if largest <= MAX_INCREMENT:
