@@ -44,11 +44,11 @@ def default_options(comm) -> dict:
     same tip to all digits, docs/performance.md).  Newton: rtol 1e-6 (the predictor's
     residual is O(dt^3) small already: the benchmark tip errors are unchanged to 4
     digits); each step's Newton starts with a new Jacobian and LU and keeps them while
-    every iteration reduces the residual 10-fold (solvers.BlockSNES,
-    jacobian_reuse_ratio): 1.0-1.5 Jacobians per step on the benchmark scenes instead of
+    every iteration reduces the residual 10-fold (BlockSNES's default,
+    solvers.REUSE_RATIO): 1.0-1.5 Jacobians per step on the benchmark scenes instead of
     1.9-2.6 with a refresh every second iteration, fewer step cuts (docs/performance.md).
     """
-    options = {"jacobian_reuse_ratio": 0.1, "snes_rtol": 1e-6}
+    options = {"snes_rtol": 1e-6}
     if comm.size == 1:
         options.update(pc_factor_mat_solver_type="petsc", pc_factor_mat_ordering_type="natural")
     else:
@@ -62,12 +62,8 @@ def default_options(comm) -> dict:
 
 
 def solver_settings(comm, solver_options: dict | None) -> dict:
-    """default_options updated by ``solver_options``; options that set PETSc's Jacobian
-    lags (e.g. solvers.JACOBIAN_REUSE) replace the default rule (jacobian_reuse_ratio)."""
-    options = default_options(comm)
-    if any(k.startswith("snes_lag_") for k in solver_options or {}):
-        del options["jacobian_reuse_ratio"]
-    return {**options, **(solver_options or {})}
+    """default_options updated by ``solver_options``."""
+    return {**default_options(comm), **(solver_options or {})}
 
 
 def alpha_parameters(rho_inf: float):
