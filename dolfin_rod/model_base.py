@@ -113,9 +113,7 @@ def near_nodes(form: ufl.Form, mesh, s_nodes) -> ufl.Form:
     vertices = dolfinx.mesh.locate_entities(
         mesh, 0, lambda x: np.any([np.isclose(x[0], s) for s in s_nodes], axis=0))
     mesh.topology.create_connectivity(0, tdim)
-    to_cells = mesh.topology.connectivity(0, tdim)
-    cells = np.unique(np.concatenate([to_cells.links(v) for v in vertices] +
-                                     [np.zeros(0, dtype=np.int32)])).astype(np.int32)
+    cells = dolfinx.mesh.compute_incident_entities(mesh.topology, vertices, 0, tdim)
     tags = dolfinx.mesh.meshtags(mesh, tdim, cells, np.ones_like(cells))
     return ufl.Form([itg.reconstruct(subdomain_id=1, subdomain_data=tags)
                      if itg.integral_type() == "cell" else itg for itg in form.integrals()])
