@@ -4,6 +4,7 @@
     ./rodenv python3 benchmarks/run_all.py --quick   # smaller sizes (a few minutes)
 
 0. defaults.py         what a user gets without options: per step, set-up, the CLI run
+   quasi_static.py      quasi-static rods' defaults (rotation vectors) vs quaternions
    rod_scaling.py       cost per cell and Newton iteration at 1e3..1e5 cells (defaults),
                         1 and 2 ranks at 1e5 cells (the MPI speed-up, identical tips)
 1. peer_pyelastica.py   work-precision vs PyElastica on six gravity-cantilever scenes
@@ -75,8 +76,8 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--parts", nargs="*",
-                    default=["defaults", "rod_scaling", "peer", "peer_long", "scaling", "mpi",
-                             "model_selection"])
+                    default=["defaults", "quasi_static", "rod_scaling", "peer", "peer_long",
+                             "scaling", "mpi", "model_selection"])
     args = ap.parse_args()
     quick = ["--quick"] if args.quick else []
     py = sys.executable
@@ -84,6 +85,8 @@ def main():
     wall = {}
     if "defaults" in args.parts:
         wall["defaults"] = run([py, str(HERE / "defaults.py")])
+    if "quasi_static" in args.parts:
+        wall["quasi_static"] = run([py, str(HERE / "quasi_static.py"), *quick])
     if "rod_scaling" in args.parts:
         sizes = ["--sizes", *(["1000", "20000"] if args.quick else ["1000", "10000", "100000"])]
         wall["rod_scaling"] = run([py, str(HERE / "rod_scaling.py"), *sizes])

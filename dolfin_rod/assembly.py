@@ -281,6 +281,12 @@ def _combine(terms, i, j):
     return sum(forms[1:], forms[0]) if forms else None
 
 
+def monolithic_layout(fields) -> bool:
+    """Whether block_system assembles ``fields`` in one mixed element (no real space);
+    only that layout shares compiled forms (form_cache)."""
+    return not any(_is_real(f.function_space) for f in fields)
+
+
 def block_system(F: list[ufl.Form] | None, groups: list[list[fem.Function]],
                  jacobian_terms=((1.0, 0),), bcs=(), monolithic: bool | None = None,
                  cache=None):
@@ -295,7 +301,7 @@ def block_system(F: list[ufl.Form] | None, groups: list[list[fem.Function]],
                      (form_cache; mixed-element layout only; F may be None on a hit).
     """
     if monolithic is None:
-        monolithic = not any(_is_real(f.function_space) for f in groups[0])
+        monolithic = monolithic_layout(groups[0])
     groups = [list(g) for g in groups]
     if monolithic:
         return MonolithicSystem(F and list(F), groups, list(jacobian_terms), list(bcs), cache)

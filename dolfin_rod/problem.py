@@ -37,6 +37,11 @@ class SemiDiscreteProblem:
     loads:     constants in ``residual`` set from their histories at each evaluation time.
     bcs:       Dirichlet conditions on the blocks of ``fields``.
     set_bcs:   sets the prescribed values of ``bcs`` (and their rates) at time t.
+    after_step:  called after an accepted step, with its state in fields/rates, to update
+                 what the model derives from them (e.g. a rod's stored rotations).
+    check_step:  called when a step's Newton has converged (its state in fields): a
+                 reason to reject the step (it is then redone smaller), or None; e.g. a
+                 rotation increment no resolved step makes (a spurious root).
     """
 
     fields: list[fem.Function]
@@ -45,6 +50,8 @@ class SemiDiscreteProblem:
     loads: list[TimeDependentValue] = field(default_factory=list)
     bcs: list[fem.DirichletBC] = field(default_factory=list)
     set_bcs: Callable[[float], None] = lambda t: None
+    after_step: Callable[[], None] = lambda: None
+    check_step: Callable[[], str | None] = lambda: None
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):
@@ -53,6 +60,11 @@ class SemiDiscreteProblem:
     @property
     def comm(self):
         return self.fields[0].function_space.mesh.comm
+
+    def configuration_norm(self) -> float:
+        """The norm of a configuration of the problem's size for Newton's step test
+        (solvers.BlockSNES step_scale); 0: the unknowns carry their own size."""
+        return 0.0
 
     def set_loads(self, t: float) -> None:
         for load in self.loads:
@@ -64,25 +76,20 @@ class SecondOrderProblem(SemiDiscreteProblem):
     """F(t, y, dy/dt, d^2y/dt^2) = 0 for second-order time integrators (PETSc TSALPHA2).
 
     accelerations: placeholders for d^2y/dt^2 in ``residual`` (same spaces as ``fields``).
-    after_step:    called with the accepted state in fields/rates, to update what the
-                   model derives from them (e.g. the velocity fields of its first-order
-                   form, which its diagnostics read).
-    time_orders:   per block 2 (its accelerations enter) or 1 (only its rate; the
-                   accelerations entry is None); empty: all 2.
-    check_step:    called when a step's Newton has converged (its state in fields): a
-                   reason to reject the step (it is then redone smaller), or None; e.g.
-                   a rotation increment no resolved step makes (a spurious root).
+    time_orders:   per block 2 (its accelerations enter), 1 (only its rate; the
+                   accelerations entry is None) or 0 (algebraic: neither enters); empty:
+                   all 2.
     lie_group:     the fields include rotation increments reset by after_step (a rod
-                   with rotation vectors): only generalized-alpha on the rotation group
-                   (integrators/lie_alpha.py) advances it, not PETSc TS.
+                   with rotation vectors): generalized-alpha on the rotation group
+                   (integrators/lie_alpha.py) advances it, not PETSc TS; without a
+                   second-order block those increments are algebraic (a quasi-static
+                   rod), and TimeStepper's per-step schemes advance it too.
     error_scales:  per block the size its local time error is measured against (error
                    control, lie_alpha.LocalError: atol times it): a length for
                    displacements, 1 (rad) for angles; empty: the mesh's extent for each.
     """
 
     accelerations: list[fem.Function] = field(default_factory=list)
-    after_step: Callable[[], None] = lambda: None
-    check_step: Callable[[], str | None] = lambda: None
     time_orders: list[int] = field(default_factory=list)
     lie_group: bool = False
     error_scales: list[float] = field(default_factory=list)
@@ -94,3 +101,31 @@ class SecondOrderProblem(SemiDiscreteProblem):
             if given and len(given) != len(self.fields):
                 raise ValueError(f"{name}: one entry per field ({len(self.fields)}), got "
                                  f"{len(given)}")
+
+    def configuration_norm(self) -> float:
+        """Rotation increments (lie_group) and displacements are 0 at rest: the norm of a
+        state with every dof of its block's error scale, sqrt(sum_i dofs_i scale_i^2)
+        (the mesh's extent where no scales are given), over all ranks."""
+        if not self.lie_group:
+            return 0.0
+        return float(np.sqrt(sum(f.function_space.dofmap.index_map.size_global
+                                 * f.function_space.dofmap.index_map_bs * scale ** 2
+                                 for f, scale in zip(self.fields, self.block_scales()))))
+
+    def block_scales(self) -> list[float]:
+        """Per block its size: ``error_scales``, else the mesh's extent along x."""
+        if self.error_scales:
+            return list(self.error_scales)
+        from mpi4py import MPI
+        mesh = self.fields[0].function_space.mesh
+        x, comm = mesh.geometry.x[:, 0], mesh.comm
+        extent = comm.allreduce(x.max(), op=MPI.MAX) - comm.allreduce(x.min(), op=MPI.MIN)
+        return [extent] * len(self.fields)
+
+    @property
+    def per_step_schemes(self) -> bool:
+        """TimeStepper's per-step schemes apply: no block is of second order (the
+        rotation increments of a quasi-static rod are algebraic: their rate enters
+        nowhere, and a stage state a theta is a rotation between q_n and q_n c(theta))."""
+        return 2 not in (self.time_orders or [2])
+

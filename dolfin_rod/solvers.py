@@ -100,6 +100,12 @@ class BlockSNES:
     ``options`` are PETSc options under a private prefix (defaults: Newton without a
     line search and an LU, SuperLU on one rank and MUMPS on several: DEFAULT_LU).
     ``cache``: (key, objects) to share compiled forms (assembly.block_system).
+    ``step_scale``: for unknowns without a size of their own (a rod's displacements and
+    rotation increments: 0 at rest) the norm of a configuration of the problem's size,
+    added to |y| in the step test |dy| < snes_stol (|y| + step_scale) (_converged; 0:
+    PETSc's test, |dy| < snes_stol |y|).  Without it Newton at a residual's round-off
+    floor (stiff axial terms: E A eps, above a small load's snes_rtol) only stops at
+    snes_max_it, where the quaternion rod, whose unit quaternions are part of |y|, stops.
 
     Option ``jacobian_reuse_ratio`` r (not a PETSc option; default REUSE_RATIO, 0: a new
     Jacobian every iteration): each solve starts with a new Jacobian and LU and keeps
@@ -110,7 +116,7 @@ class BlockSNES:
     """
 
     def __init__(self, F: list[ufl.Form] | None, y: list[fem.Function], bcs=(), options=None,
-                 prefix: str | None = None, cache=None):
+                 prefix: str | None = None, cache=None, step_scale: float = 0.0):
         self.y = y
         settings = petsc_options(y[0].function_space.mesh.comm, options)
         lagged = any(k.startswith("snes_lag_") for k in options or {})
@@ -129,6 +135,9 @@ class BlockSNES:
         for k, v in settings.items():
             opts[self.prefix + k] = v
         self.snes.setFromOptions()
+        self.step_scale = step_scale
+        if step_scale > 0.0:
+            self.snes.setConvergenceTest(self._converged)
         # the options go with the solver (also at exit, before PETSc's own finalisation):
         # the sub-solver options of block Jacobi (MPI) are read at the first solve only,
         # and PETSc reports every option left unread ("WARNING! There are options you set
@@ -163,6 +172,29 @@ class BlockSNES:
         norm, last = snes.getFunctionNorm(), self._last_norm
         self._last_norm = norm
         return snes.getIterationNumber() == 0 or norm > self.reuse_ratio * last
+
+    def _converged(self, snes, it: int, norms) -> int:
+        """PETSc's default test (SNESConvergedDefault: NaN, atol, rtol, step, divergence;
+        snes_max_it is PETSc's own check) with |y| + step_scale in the step test."""
+        xnorm, ynorm, fnorm = norms
+        rtol, atol, stol, _ = snes.getTolerances()
+        reasons = PETSc.SNES.ConvergedReason
+        if it == 0:
+            self._fnorm0 = fnorm
+        if not np.isfinite(fnorm):
+            return reasons.DIVERGED_FNORM_NAN
+        if fnorm < atol:
+            return reasons.CONVERGED_FNORM_ABS
+        if it == 0:
+            return reasons.ITERATING
+        if fnorm <= rtol * self._fnorm0:
+            return reasons.CONVERGED_FNORM_RELATIVE
+        if ynorm < stol * (xnorm + self.step_scale):
+            return reasons.CONVERGED_SNORM_RELATIVE
+        divtol = snes.getDivergenceTolerance()
+        if divtol > 0 and fnorm > divtol * self._fnorm0:
+            return reasons.DIVERGED_DTOL
+        return reasons.ITERATING
 
     def _set_persists(self, flags) -> None:
         opts = PETSc.Options()

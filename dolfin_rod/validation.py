@@ -61,22 +61,47 @@ def profile_violation(values: np.ndarray, s: np.ndarray, strict: bool) -> str | 
 ROTATIONS = ("auto", "quaternion", "rotation_vector")
 
 
-def choose_rotations(rotations: str, dynamic: bool, variant: str, constraint,
-                     lie_integrator: bool = True, rotary_inertia: bool = True) -> str:
+def rotation_vector_obstacle(dynamic: bool, variant: str, constraint,
+                             rotary_inertia: bool = True, rate_dependent: bool = False,
+                             rotation_held: bool = True) -> str | None:
+    """Why rotation vectors (rod/rotation_vector.py) do not fit a rod, or None.  They
+    need the local variant (the uniform one's real-space natural strains take the
+    blocked assembly) and no constraint (its multipliers make a saddle point); a dynamic
+    rod needs rotary inertia I11, I22 > 0 (the integrator's start solves the mass
+    matrices for the accelerations); a quasi-static rod needs no rate-dependent force
+    (``rate_dependent``: Kelvin-Voigt viscosity M, N or drag; its positions and rotations
+    are then algebraic unknowns) and an end that holds its rotation (``rotation_held``:
+    else a free spin is a null mode of the unpivoted banded LU)."""
+    if variant != "local":
+        return "the uniform variant (use the local one)"
+    if constraint is not None:
+        return f"a constrained rod ({constraint})"
+    if dynamic and not rotary_inertia:
+        return "a dynamic rod without rotary inertia I11, I22 > 0"
+    if not dynamic and rate_dependent:
+        return "a quasi-static rod with Kelvin-Voigt viscosity (M, N) or drag"
+    if not dynamic and not rotation_held:
+        return "a quasi-static rod whose rotation no end holds (clamped or end_rotation)"
+    return None
+
+
+def choose_rotations(rotations: str, obstacle: str | None, lie_integrator: bool = True,
+                     rotation_jumps: bool = False) -> str:
     """The rod's rotation unknowns (rod/discretisation.py): "auto" takes rotation vectors
-    for a dynamic rod with rotary inertia (``rotary_inertia``: I11, I22 > 0; the
-    integrator's start solves the mass matrices for the accelerations), the local
-    variant and no constraint, advanced by the rotation-group integrator
-    (``lie_integrator``: not a first-order scheme or PETSc TS), quaternions otherwise; an
-    explicit choice is checked (ValueError)."""
+    where nothing stands against them (``obstacle``: rotation_vector_obstacle), the
+    integrator advances them (``lie_integrator``: generalized-alpha on the rotation
+    group for a dynamic rod, any scheme of TimeStepper for a quasi-static one; not PETSc
+    TS) and no prescribed end rotation jumps (``rotation_jumps``: a step's nodal
+    increment must stay below a quarter turn, RotationVectorChart.check_increment);
+    quaternions otherwise.  An explicit choice is checked (ValueError)."""
     if rotations not in ROTATIONS:
         raise ValueError(f"rotations must be one of {ROTATIONS}, got {rotations!r}")
-    fits = dynamic and rotary_inertia and variant == "local" and constraint is None
     if rotations == "auto":
-        return "rotation_vector" if fits and lie_integrator else "quaternion"
-    if rotations == "rotation_vector" and not (fits and lie_integrator):
-        raise ValueError("rotations = 'rotation_vector' needs a dynamic rod (rho_A > 0, and "
-                         "rotary inertia I11, I22 > 0) with the local variant and no "
-                         "constraint, advanced by generalized_alpha[:rho_inf] (TimeStepper); "
-                         "use 'quaternion'")
+        return "rotation_vector" if obstacle is None and lie_integrator \
+            and not rotation_jumps else "quaternion"
+    if rotations == "rotation_vector" and (obstacle or not lie_integrator):
+        why = obstacle or ("PETSc TS or a first-order scheme of a dynamic rod (rotation "
+                           "vectors: generalized_alpha[:rho_inf] of TimeStepper)")
+        raise ValueError(f"rotations = 'rotation_vector' does not apply to {why}; use "
+                         "'quaternion'")
     return rotations

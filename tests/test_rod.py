@@ -450,7 +450,7 @@ def test_ten_turn_helix_has_no_2pi_failure_and_is_in_equilibrium():
                                             "snes_stol": 1e-12})[-1]
         assert d["time"] == pytest.approx(1.0)
         s = ufl.SpatialCoordinate(model.mesh)[0]
-        m_spatial = model.pointwise(ufl.dot(rotation_matrix(model.f["quaternion"]), model.m))
+        m_spatial = model.pointwise(ufl.dot(rotation_matrix(model.unknowns.q), model.m))
         r_mid = model.pointwise(ufl.as_vector((0, 0, s)) + model.f["displacement"])
         ref = C + np.cross(tip(d) - r_mid, F)
         errors.append(np.linalg.norm(m_spatial - ref, axis=1).max() / np.linalg.norm(C))

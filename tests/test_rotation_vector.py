@@ -459,21 +459,25 @@ def test_default_jacobian_reuse_solves_the_same_steps():
 
 
 QUASI_STATIC = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2))
+KELVIN_VOIGT = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2),
+                             M=(0.1, 0.1, 0.1))
 NO_ROTARY_INERTIA = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2),
                                   rho_A=2.0, I11=1e-3)
 
 
 @pytest.mark.mpi       # under mpirun: both ranks refuse alike, none hangs
 @pytest.mark.parametrize("make, match", [
-    # an unknown name, and rotation vectors where the rotation-group integrator cannot go
+    # an unknown name, and rotation vectors where they do not apply
     (lambda: RodModel(PARAMS, n_cells=2, model="hyperelastic", rotations="euler"),
      "rotations must be one of"),
-    (lambda: RodModel(QUASI_STATIC, n_cells=2, model="hyperelastic",
-                      rotations="rotation_vector"), "needs a dynamic rod"),
+    (lambda: RodModel(KELVIN_VOIGT, n_cells=2, model="kelvin_voigt",
+                      rotations="rotation_vector"), "Kelvin-Voigt viscosity"),
+    (lambda: RodModel(QUASI_STATIC, n_cells=2, model="hyperelastic", ends=("pinned", "pinned"),
+                      rotations="rotation_vector"), "no end holds"),
     (lambda: RodModel(PARAMS, n_cells=2, model="hyperelastic", variant="uniform",
-                      rotations="rotation_vector"), "needs a dynamic rod"),
+                      rotations="rotation_vector"), "uniform variant"),
     (lambda: RodModel(NO_ROTARY_INERTIA, n_cells=2, model="hyperelastic",
-                      rotations="rotation_vector"), "rotary inertia I11, I22 > 0"),
+                      rotations="rotation_vector"), "without rotary inertia I11, I22 > 0"),
 ])
 def test_rotation_choice_is_checked(make, match):
     with pytest.raises(ValueError, match=match):

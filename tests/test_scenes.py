@@ -360,20 +360,49 @@ def test_dynamic_rod_scene_runs_the_default_api_and_resumes_exactly(tmp_path):
         assert full["final"][f"tip_position_{c}"] == pytest.approx(
             d[f"tip_position_{c}"], abs=1e-13)
     assert abs(d["tip_position_x"]) > 1e-3                   # it moved
+    _assert_resumed_run_is_the_full_run(scene, folder, 9)
+
+
+def _assert_resumed_run_is_the_full_run(scene, folder: Path, rows: int) -> list[dict]:
+    """Run ``scene`` stopped after 5 steps and resumed from its checkpoint, in
+    folder/part, against the uninterrupted run in folder/full: the same ``rows`` rows,
+    equal to round-off (resume_bound: the restart re-reads the state exactly).  Returns
+    the full run's rows (on rank 0; [] elsewhere)."""
     part = run_scene(scene, folder / "part", stop_after=5, quiet=True)
     assert part["status"] == "stopped"
     resumed = run_scene(scene, folder / "part", resume=True, quiet=True)
     assert resumed["status"] == "completed"
-    if MPI.COMM_WORLD.rank == 0:
-        a = _read_csv(folder / "full" / "timeseries.csv")
-        b = _read_csv(folder / "part" / "timeseries.csv")
-        assert len(a) == len(b) == 9
-        for i, (x, y) in enumerate(zip(a, b)):
-            for k in x:
-                if not (math.isnan(x[k]) and math.isnan(y[k])):
-                    # the restart re-reads the state exactly: round-off (resume_bound)
-                    assert abs(x[k] - y[k]) <= resume_bound(x, a[i - 1] if i else None, k), \
-                        (k, x, y)
+    if MPI.COMM_WORLD.rank != 0:
+        return []
+    a = _read_csv(folder / "full" / "timeseries.csv")
+    b = _read_csv(folder / "part" / "timeseries.csv")
+    assert len(a) == len(b) == rows
+    for i, (x, y) in enumerate(zip(a, b)):
+        for k in x:
+            if not (math.isnan(x[k]) and math.isnan(y[k])):
+                assert abs(x[k] - y[k]) <= resume_bound(x, a[i - 1] if i else None, k), \
+                    (k, x, y)
+    return a
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("scheme, method", [("generalized_alpha", "rotation group"),
+                                            ("bdf2", "bdf2")])
+def test_quasi_static_rod_scene_resumes_exactly(tmp_path, scheme, method):
+    """The bundled quasi-static cantilever creep on its default rotation vectors, by the
+    rotation-group integrator (algebraic positions and rotations) and by a named BDF2:
+    a run stopped after 5 steps and resumed from its checkpoint (stored rotations, the
+    integrator's history) equals the uninterrupted one (round-off, resume_bound), and
+    the tip creeps (the natural curvature follows the bent shape)."""
+    folder = shared_folder(tmp_path) / scheme
+    scene = load_scene(ROOT / "scenes" / "cantilever_creep.toml", {
+        "time.t_end": 0.4, "time.scheme": scheme, "outputs.checkpoint_every": 3,
+        "outputs.plots": False, "outputs.animation": False})
+    full = run_scene(scene, folder / "full", quiet=True)
+    assert full["status"] == "completed" and method in full["method"], full["method"]
+    rows = _assert_resumed_run_is_the_full_run(scene, folder, 9)
+    if rows:
+        assert rows[-1]["tip_position_x"] > 1.05 * rows[1]["tip_position_x"] > 0   # creeps
 
 
 @pytest.mark.mpi
@@ -462,9 +491,14 @@ ROD_BAD = [
      "explicit"),
     (ROD_BASE + "[initial]\nnatural_twist = 0.1\n", "initial.natural_twist",
      "torsion model only"),
-    # rotation vectors need a dynamic rod advanced by the rotation-group integrator
-    (ROD_BASE.replace("n_cells = 4", 'n_cells = 4\nrotations = "rotation_vector"'),
-     "geometry.rotations", "needs a dynamic rod"),
+    # rotation vectors: not with Kelvin-Voigt viscosity in a quasi-static rod, not with
+    # the uniform variant, and for a dynamic rod by the rotation-group integrator only
+    (ROD_BASE.replace("n_cells = 4", 'n_cells = 4\nrotations = "rotation_vector"')
+     .replace("M_d = [1.0", "M = [0.1, 0.1, 0.1], M_d = [1.0"), "geometry.rotations",
+     "Kelvin-Voigt"),
+    (ROD_BASE.replace("n_cells = 4", 'n_cells = 4\nrotations = "rotation_vector"')
+     .replace("[material]", '[material]\nvariant = "uniform"'), "geometry.rotations",
+     "uniform variant"),
     (ROD_BASE.replace("n_cells = 4", 'n_cells = 4\nrotations = "euler_angles"'),
      "geometry.rotations", "one of"),
     (ROD_BASE.replace("n_cells = 4", 'n_cells = 4\nrotations = "rotation_vector"')

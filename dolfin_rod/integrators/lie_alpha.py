@@ -11,7 +11,12 @@ of the nodal rotations),
     (1 - alpha_m) a_{n+1} + alpha_m a_n = (1 - alpha_f) ydd_{n+1} + alpha_f ydd_n,
 
 and the residual holds at t_{n+1} with (v_{n+1}, ydd_{n+1}); a first-order block has
-d = h ((1 - gamma) b_n + gamma b_{n+1}) and the same filter between b and y'.
+d = h ((1 - gamma) b_n + gamma b_{n+1}) and the same filter between b and y'; an
+algebraic block (time order 0: neither its rate nor its acceleration enters, e.g. the
+positions and rotations of a quasi-static rod) is solved at t_{n+1}, and its rate after
+the step is d/h (diagnostics, the predictor).  The start then solves the algebraic
+blocks and the other blocks' rates together: the consistent initial state of the
+index-1 DAE (a quasi-static rod in equilibrium with its loads at t0).
 alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1), gamma = 1/2 + alpha_f - alpha_m,
 beta = (gamma + 1/2)^2 / 4: second order, unconditionally stable, high-frequency
 spectral radius rho_inf.  The start needs consistent accelerations (solved at t0).
@@ -26,31 +31,38 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from .. import form_cache
+from .. import compat, form_cache
 from ..solvers import BlockSNES, SolverError
 from .schemes import alpha_rho_inf
 from .stepping import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
                        march, nominal_steps)
 
 
-def default_options(comm) -> dict:
+def default_options(comm, second_order: bool = True) -> dict:
     """The integrator's solver defaults.
 
     One rank: PETSc's own LU in the natural order (the banded order of a 1-D mesh; safe
-    without pivoting: there is no saddle point).  Several ranks: GMRES preconditioned by
+    without pivoting: there is no saddle point).  Several ranks, quasi-static (no
+    second-order block): MUMPS.  Several ranks, dynamic: GMRES preconditioned by
     that LU on each rank's diagonal block (block Jacobi): the preconditioned operator is
     the identity plus a rank <= 2 b (ranks - 1) coupling through the interface nodes, so
     GMRES converges in a few iterations (2.6x cheaper than MUMPS at 2e4 cells on 2 ranks,
-    same tip to all digits, docs/performance.md).  Newton: rtol 1e-6 (the predictor's
-    residual is O(dt^3) small already: the benchmark tip errors are unchanged to 4
-    digits); each step's Newton starts with a new Jacobian and LU and keeps them while
+    same tip to all digits, docs/performance.md).  Newton: rtol 1e-6 with a second-order
+    block (the predictor's residual is O(dt^3) small already: the benchmark tip errors
+    are unchanged to 4 digits), else BlockSNES's 1e-10 (a quasi-static step's first
+    residual is the load increment); each step's Newton starts with a new Jacobian and LU and keeps them while
     every iteration reduces the residual 10-fold (BlockSNES's default,
     solvers.REUSE_RATIO): 1.0-1.5 Jacobians per step on the benchmark scenes instead of
     1.9-2.6 with a refresh every second iteration, fewer step cuts (docs/performance.md).
     """
-    options = {"snes_rtol": 1e-6}
+    options = {"snes_rtol": 1e-6} if second_order else {}
     if comm.size == 1:
         options.update(pc_factor_mat_solver_type="petsc", pc_factor_mat_ordering_type="natural")
+    elif not second_order:
+        # a stiffness matrix alone (no mass to keep it well conditioned): MUMPS, whose
+        # direct solve holds where GMRES cannot reduce a residual at its round-off floor
+        # (E A / E I ~ 1e8: DIVERGED_LINEAR_SOLVE, tests/test_rod.py's locking test)
+        options.update(pc_factor_mat_solver_type="mumps")
     else:
         # right preconditioning: ksp_atol applies to the true residual (left: to the
         # preconditioned one, ~ beta h^2 / rho_A of it, below 1e-14 at small steps, where
@@ -61,9 +73,9 @@ def default_options(comm) -> dict:
     return options
 
 
-def solver_settings(comm, solver_options: dict | None) -> dict:
+def solver_settings(comm, solver_options: dict | None, second_order: bool = True) -> dict:
     """default_options updated by ``solver_options``."""
-    return {**default_options(comm), **(solver_options or {})}
+    return {**default_options(comm, second_order), **(solver_options or {})}
 
 
 def alpha_parameters(rho_inf: float):
@@ -118,12 +130,9 @@ class LocalError:
         from mpi4py import MPI
         self.ig, self.control, self.op = integrator, control, MPI.MAX
         self.c = error_coefficient(integrator.gamma, integrator.beta)
-        mesh = integrator.problem.fields[0].function_space.mesh
-        self.comm = comm = mesh.comm
-        x = mesh.geometry.x[:, 0]
-        extent = comm.allreduce(x.max(), op=MPI.MAX) - comm.allreduce(x.min(), op=MPI.MIN)
+        self.comm = integrator.problem.comm
         fields = integrator.problem.fields
-        scales = integrator.problem.error_scales or [extent] * len(fields)
+        scales = integrator.problem.block_scales()
         self.blocks = []
         for i, (f, scale) in enumerate(zip(fields, scales)):
             if integrator.order[i] == 2:
@@ -132,7 +141,8 @@ class LocalError:
                 self.blocks.append((i, owned, scale))
         if not self.blocks:
             raise ValueError("tolerance: the error estimate needs a second-order block "
-                             "(time_orders 2); this problem has none")
+                             "(time_orders 2: the displacements and rotations of a dynamic "
+                             "rod); this problem has none (a quasi-static rod: fixed steps)")
 
     def __call__(self, h: float, arrays: list) -> float:
         """The weighted error of the solved step, from the integrator's block arrays
@@ -190,9 +200,9 @@ class LieGeneralizedAlpha:
         objects = [*self._model_objects, *self.y_n, *self.v_n,
                    *(a for a in self.acc_n if a is not None), *self.alg_n, self.dt]
         F = None if form_cache.lookup(self.structure_key) else self._step_forms()
-        self.options = options = solver_settings(mesh.comm, solver_options)
-        self.solver = BlockSNES(F, y, problem.bcs, options,
-                                cache=(self.structure_key, objects))
+        self.options = options = solver_settings(mesh.comm, solver_options, 2 in self.order)
+        self.solver = BlockSNES(F, y, problem.bcs, options, cache=(self.structure_key, objects),
+                                step_scale=problem.configuration_norm())
         self._arrays = self._views()
         self.stats = StepStats()
         self._started = False
@@ -209,9 +219,9 @@ class LieGeneralizedAlpha:
         """TimeStepper's arguments: ``scheme`` None (rho_inf 0.8) or 'generalized_alpha'
         ['RHO'] (schemes.alpha_rho_inf); a first-order scheme is refused."""
         if scheme is not None and not scheme.startswith("generalized_alpha"):
-            raise ValueError(f"scheme {scheme!r}: a rod with rotation-vector unknowns is "
-                             "advanced by generalized_alpha[:rho_inf] on the rotation group "
-                             "only; for another scheme build RodModel(..., "
+            raise ValueError(f"scheme {scheme!r}: a dynamic rod with rotation-vector unknowns "
+                             "is advanced by generalized_alpha[:rho_inf] on the rotation "
+                             "group only; for another scheme build RodModel(..., "
                              "rotations='quaternion')")
         rho_inf = 0.8 if scheme is None else alpha_rho_inf(scheme)
         return cls(problem, rho_inf, solver_options, max_cuts, tolerance)
@@ -238,6 +248,8 @@ class LieGeneralizedAlpha:
         """(rate, acceleration) at t_{n+1} as UFL expressions of the increment d."""
         h, am, af, g, b = self.dt, self.am, self.af, self.gamma, self.beta
         vn, alg = self.v_n[i], self.alg_n[i]
+        if self.order[i] == 0:
+            return d / h, None
         if self.order[i] == 2:
             a_new = (d - h * vn - h * h * (0.5 - b) * alg) / (h * h * b)
             v_new = vn + h * ((1 - g) * alg + g * a_new)
@@ -249,6 +261,8 @@ class LieGeneralizedAlpha:
     def _np_update(self, i, d, h):
         am, af, g, b = self.am, self.af, self.gamma, self.beta
         vn, alg = self.v_n[i].x.array, self.alg_n[i].x.array
+        if self.order[i] == 0:
+            return d / h, d / h, None
         if self.order[i] == 2:
             a_new = (d - h * vn - h * h * (0.5 - b) * alg) / (h * h * b)
             v_new = vn + h * ((1 - g) * alg + g * a_new)
@@ -258,8 +272,11 @@ class LieGeneralizedAlpha:
         return b_new, ((1 - am) * b_new + am * alg - af * vn) / (1 - af), None
 
     def _unknowns_at_start(self) -> list:
+        """Per block what the start solves for: the acceleration (order 2), the rate
+        (order 1) or the field itself (order 0, algebraic)."""
         p = self.problem
-        return [a if a is not None else r for a, r in zip(p.accelerations, p.rates)]
+        return [f if k == 0 else a if a is not None else r
+                for f, r, a, k in zip(p.fields, p.rates, p.accelerations, self.order)]
 
     def compile(self) -> None:
         """Compile the start's forms now (the step forms are compiled already), e.g.
@@ -268,27 +285,49 @@ class LieGeneralizedAlpha:
             key = self.structure_key + "initial"
             F = None if form_cache.lookup(key) else self.problem.residual
             self._initial_solver = BlockSNES(F, self._unknowns_at_start(), self.problem.bcs,
-                                             self.options, cache=(key, self._model_objects))
+                                             self.options, cache=(key, self._model_objects),
+                                             step_scale=self.problem.configuration_norm())
 
     def initial_accelerations(self, t0: float) -> None:
         """Solve the residual at t0 for the accelerations (second order) and rates (first
-        order) with the state fixed, zero at the Dirichlet dofs (the rod starts at rest,
-        rod/boundary_conditions.py)."""
+        order), zero at the Dirichlet dofs (the rod starts at rest,
+        rod/boundary_conditions.py), with the differential state fixed and the algebraic
+        blocks (order 0) solved with them at their prescribed values (_start_algebraic
+        then commits them)."""
         p = self.problem
         p.set_loads(t0)
         p.set_bcs(t0)
         self.compile()
-        values = [np.array(bc.g.value) for bc in p.bcs]
-        for bc in p.bcs:
+        rates = [f.function_space for f, k in zip(p.fields, self.order) if k]
+        zeroed = [bc for bc in p.bcs if any(compat.contains(V, bc) for V in rates)]
+        values = [np.array(bc.g.value) for bc in zeroed]
+        for bc in zeroed:
             bc.g.value[...] = 0.0
         try:
             self._initial_solver.solve()
         finally:
-            for bc, value in zip(p.bcs, values):
+            for bc, value in zip(zeroed, values):
                 bc.g.value[...] = value
+        if 0 in self.order:
+            self._start_algebraic(t0)
         for i, a in enumerate(self._unknowns_at_start()):
-            self.alg_n[i].x.array[:] = a.x.array
+            if self.order[i]:
+                self.alg_n[i].x.array[:] = a.x.array
         self._started = True
+
+    def _start_algebraic(self, t0: float) -> None:
+        """After the start's solve: its algebraic state is checked (check_step; a refusal
+        is an IntegrationError: a step cannot be cut at t0) and committed (after_step),
+        and the algebraic blocks' rates are 0 (t0 is their first state)."""
+        reason = self.problem.check_step()
+        if reason:
+            raise IntegrationError(f"the start at t = {t0:.6g}: {reason}; apply such loads "
+                                   "or end motions gradually (a ramp or smooth_step "
+                                   "history)", t0)
+        self.problem.after_step()
+        for i, k in enumerate(self.order):
+            if k == 0:
+                self.problem.rates[i].x.array[:] = 0.0
 
     def _restore(self) -> None:
         """Back to the state at the start of the failed step (one-step method: exact)."""
@@ -388,8 +427,9 @@ class LieGeneralizedAlpha:
             y_n[:], v_n[:] = y, r
             if acc is not None:
                 acc_n[:] = acc
-            # predictor: algorithmic acceleration / rate kept
-            y += h * v_n + 0.5 * h * h * alg if self.order[i] == 2 else h * alg
+            # predictor: algorithmic acceleration / rate kept (algebraic: the last rate)
+            y += (h * v_n + 0.5 * h * h * alg if self.order[i] == 2
+                  else h * alg if self.order[i] == 1 else h * v_n)
         p.set_loads(t + h)
         p.set_bcs(t + h)
         fresh, self._dt_last = h != self._dt_last, h

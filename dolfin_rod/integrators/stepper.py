@@ -12,8 +12,11 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
+from .. import form_cache
+from ..assembly import monolithic_layout
 from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..solvers import BlockSNES, SolverError
+from .lie_alpha import LieGeneralizedAlpha, solver_settings
 from .schemes import Scheme, get_scheme
 from .stepping import (CUT_FACTOR, IntegrationError, StepStats, check_run, grown, march,
                        nominal_steps)
@@ -27,36 +30,46 @@ def _copy(f: fem.Function) -> fem.Function:
     return g
 
 
-def step_forms(problem: SemiDiscreteProblem, scheme: Scheme, history, dt):
+def stage_loads(problem: SemiDiscreteProblem, scheme: Scheme) -> list:
+    """Per stage (c_k, [(stage load constant, TimeDependentValue)]): the loads of stage k
+    are set at t_n + c_k dt."""
+    mesh = problem.fields[0].function_space.mesh
+    return [(st.c, [(fem.Constant(mesh, np.array(load.constant.value, dtype=float)), load)
+                    for load in problem.loads]) for st in scheme.stages]
+
+
+def step_forms(problem: SemiDiscreteProblem, scheme: Scheme, history, dt, loads=None):
     """The UFL residual of one step, sum_k w_k F(t_k, Y_k, Ydot_k) (schemes.py), one form
-    per block, and per stage (c_k, [(stage load constant, TimeDependentValue)])."""
+    per block, and the stages' loads (``loads``, else new: stage_loads)."""
     y, ydot = problem.fields, problem.rates
     y_n, y_nm1, ydot_n = history
-    mesh = y[0].function_space.mesh
-    stage_loads = []
+    loads = loads or stage_loads(problem, scheme)
     F = [0] * len(y)
-    for st in scheme.stages:
-        mapping = {}
+    for st, (_, stage) in zip(scheme.stages, loads):
+        mapping = {load.constant: c for c, load in stage}
         for i in range(len(y)):
             mapping[y[i]] = st.state(y[i], y_n[i], y_nm1[i])
             mapping[ydot[i]] = st.rate(y[i], y_n[i], y_nm1[i], ydot_n[i], dt)
-        loads = []
-        for load in problem.loads:
-            c = fem.Constant(mesh, np.array(load.constant.value, dtype=float))
-            mapping[load.constant] = c
-            loads.append((c, load))
-        stage_loads.append((st.c, loads))
         F = [Fi + st.w * ufl.replace(Ri, mapping) for Fi, Ri in zip(F, problem.residual)]
-    return F, stage_loads
+    return F, loads
 
 
 class _StepResidual:
-    """The compiled step residual of one scheme (dt, loads and stage times are Constants)."""
+    """The compiled step residual of one scheme (dt, loads and stage times are Constants),
+    its kernels shared by every problem of the same structure (form_cache)."""
 
     def __init__(self, problem: SemiDiscreteProblem, scheme: Scheme, history, dt, options):
         self.problem, self.scheme = problem, scheme
-        F, self.stage_loads = step_forms(problem, scheme, history, dt)
-        self.solver = BlockSNES(F, problem.fields, problem.bcs, options)
+        self.stage_loads = stage_loads(problem, scheme)
+        # the layout in the key: scifem's real space has DG0's UFL signature (DOLFINx 0.9)
+        cached = monolithic_layout(problem.fields)
+        self.key = key = form_cache.structure_key(problem.residual, "step", scheme.name, cached)
+        objects = [*form_cache.registry(problem.residual), *(f for h in history for f in h), dt,
+                   *(c for _, stage in self.stage_loads for c, _ in stage)]
+        F = None if cached and form_cache.lookup(key) else step_forms(
+            problem, scheme, history, dt, self.stage_loads)[0]
+        self.solver = BlockSNES(F, problem.fields, problem.bcs, options, cache=(key, objects),
+                                step_scale=problem.configuration_norm())
         self._dt_last = None
 
     def solve(self, t_n: float, dt: float) -> int:
@@ -87,11 +100,14 @@ class TimeStepper:
                 solver_options: dict | None = None, max_cuts: int = 6,
                 predictor: str = "linear", tolerance: float | None = None):
         """A SecondOrderProblem (a rod with rotation-vector unknowns, rod/model.py) is
-        advanced by generalized-alpha on the rotation group (lie_alpha.py) instead;
-        ``tolerance`` (e.g. 1e-3) switches its error-controlled steps on
+        advanced by generalized-alpha on the rotation group (lie_alpha.py) instead, unless
+        it has no second-order block and a per-step scheme is named (a quasi-static rod:
+        its rotation increments are algebraic, ``per_step_schemes``); ``tolerance`` (e.g.
+        1e-3) switches the error-controlled steps of a dynamic rod on
         (lie_alpha.LieGeneralizedAlpha), None keeps run's fixed dt."""
-        if isinstance(problem, SecondOrderProblem):
-            from .lie_alpha import LieGeneralizedAlpha
+        if isinstance(problem, SecondOrderProblem) and not (
+                problem.per_step_schemes and scheme is not None
+                and not scheme.startswith("generalized_alpha")):
             return LieGeneralizedAlpha.for_scheme(problem, scheme, solver_options, max_cuts,
                                                   tolerance)
         return super().__new__(cls)
@@ -109,7 +125,10 @@ class TimeStepper:
         self.predictor = predictor
         self.problem = problem
         self.scheme = get_scheme(scheme or "backward_euler")
-        self.options = solver_options
+        # rotation vectors (no saddle point): the banded LU of the rotation-group integrator
+        lie = isinstance(problem, SecondOrderProblem) and problem.lie_group
+        self.options = solver_settings(problem.comm, solver_options, False) if lie \
+            else solver_options
         self.max_cuts = max_cuts
         self.y_n = [_copy(f) for f in problem.fields]
         self.y_nm1 = [_copy(f) for f in problem.fields]
@@ -132,6 +151,11 @@ class TimeStepper:
         self._residual(self.scheme)
         if self.scheme.startup:
             self._residual(get_scheme(self.scheme.startup))
+
+    @property
+    def structure_key(self) -> str:
+        """The form-cache key of this stepper's step forms (form_cache.py)."""
+        return self._residual(self.scheme).key
 
     def step_forms(self, scheme: Scheme | None = None) -> list:
         """The UFL step residual (one form per block) of ``scheme`` (default: this
@@ -181,11 +205,16 @@ class TimeStepper:
         if not all(np.isfinite(f.x.array).all() for f in self.problem.fields):
             self._restore()
             raise SolverError("non-finite solution", its)
+        reason = self.problem.check_step()
+        if reason:
+            self._restore()
+            raise SolverError(reason, its)
         for f, fn, fnm1, rate, rate_n in zip(self.problem.fields, self.y_n, self.y_nm1,
                                               self.problem.rates, self.ydot_n):
             rate.x.array[:] = scheme.rate_after_step(f.x.array, fn.x.array, fnm1.x.array,
                                                      rate_n.x.array, dt)
             fnm1.x.array[:] = fn.x.array
+        self.problem.after_step()
         self.history_steps = min(self.history_steps + 1, 2)
         self.stats.steps += 1
         self.stats.newton_iterations += its

@@ -36,11 +36,17 @@ def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False) 
         for end, history in (motion or {}).items():
             if end not in ENDS:
                 raise ValueError(f"{name}: unknown end {end!r}")
-            if dynamic and (np.any(np.asarray(history(0.0), float) != 0.0)
-                            or any(size for _, size in getattr(history, "jumps", ()))):
+            if dynamic and jumps(history):
                 raise ValueError(f"{name}[{end!r}] jumps (at t = 0 it must be 0: the rod "
                                  "starts at rest), but rho_A > 0: a rod with inertia cannot "
                                  "follow a jump of its end; use a smooth_step or a ramp")
+
+
+def jumps(motion) -> bool:
+    """Whether a prescribed end motion jumps: nonzero at t = 0 (it is 0 before) or with
+    jumps (loads.PiecewiseSmoothLoad); other jumps of a callable cannot be detected."""
+    return bool(np.any(np.asarray(motion(0.0), float) != 0.0)
+                or any(size for _, size in getattr(motion, "jumps", ())))
 
 
 class EndSupports:
@@ -48,7 +54,8 @@ class EndSupports:
 
     Rotation vectors (discretisation.py): a clamped or rotated end holds theta_end =
     c^-1(conj(q_n,end) q_end(t)), with q_n,end = q_end(t_n) the end's rotation at the
-    last accepted step t_n (``commit``), so that q_n,end c(theta_end) = q_end(t)."""
+    last accepted step t_n (``commit``; before the first, its initial rotation: a motion
+    may jump at t0 in a quasi-static rod), so that q_n,end c(theta_end) = q_end(t)."""
 
     def __init__(self, model, ends, end_displacement, end_rotation):
         self.ends = tuple(ends)
@@ -57,7 +64,7 @@ class EndSupports:
         self.initial = {end: (np.zeros(3), _IDENTITY.copy()) for end in ENDS}  # (x, q)
         self.values: dict = {}
         self.block = model.unknowns.rotation
-        self.committed_time = 0.0                # rotation vectors: time of q_n
+        self.committed_time = None      # rotation vectors: time of q_n (None: initial)
         self._time_set = 0.0
         self._fixed_values_of: dict = {}      # end -> the initial (x, q) its values hold
         spaces, mesh, L = model.unknowns.spaces, model.mesh, model.length
@@ -101,7 +108,8 @@ class EndSupports:
             self._set(("displacement", end), xe)
             self._set(("quaternion", end), qe)
             if ("rotation_increment", end) in self.values:
-                q_n = self.prescribed(end, self.committed_time)[1]
+                q_n = self.initial[end][1] if self.committed_time is None \
+                    else self.prescribed(end, self.committed_time)[1]
                 self._set(("rotation_increment", end),
                           np_inverse_cayley(np_qmul(q_n * _CONJ, qe)))
             if ("velocity", end) in self.values:

@@ -30,19 +30,20 @@ import ufl
 
 from .. import constraints
 from ..evolution import real_space
-from ..model_base import end_measures, vertex_measure
+from ..model_base import vertex_measure
 from ..rotations import material_derivative_vector
 from .rotation_vector import RotationVectorChart
 
 
 @dataclass
 class Discretisation:
-    """Mesh, the coordinate s, end measures and the three quadrature rules."""
+    """Mesh, the coordinate s, the end points and the three quadrature rules."""
 
     mesh: dolfinx.mesh.Mesh
     length: float
     s: ufl.core.expr.Expr
-    ds_end: dict
+    ds: ufl.Measure       # the two end points (the exterior facets of the interval)
+    end_weight: dict      # per end an expression 1 there and 0 at the other end
     dx: ufl.Measure       # inertia, loads, drag: degree 4 (quaternions), or the 2-point
                           # Gauss rule (rotation vectors: exact for the P1 mass matrix)
     dx_r: ufl.Measure     # 1-point Gauss: strains, psi, xi, evolution, constraints
@@ -52,8 +53,13 @@ class Discretisation:
 def discretise(comm, n_cells: int, length: float, rotations: str) -> Discretisation:
     mesh = dolfinx.mesh.create_interval(comm, n_cells, [0.0, length])
     degree = 2 if rotations == "rotation_vector" else 4
+    s = ufl.SpatialCoordinate(mesh)[0]
+    # the outward normal is -1 at s = 0 and +1 at s = L: untagged end points (a form with
+    # tagged subdomains cannot be shared by the form cache) and no L in the forms
+    normal = ufl.FacetNormal(mesh)[0]
+    end_weight = {"left": (1.0 - normal) / 2, "right": (1.0 + normal) / 2}
     return Discretisation(
-        mesh, length, ufl.SpatialCoordinate(mesh)[0], end_measures(mesh, length),
+        mesh, length, s, ufl.Measure("ds", domain=mesh), end_weight,
         ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": degree}),
         ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 1}),
         vertex_measure(mesh))

@@ -66,12 +66,12 @@ def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, end_loads, distrib
     histories (TimeDependentValue) and the power of the loads (a UFL form, or 0)."""
     q, dTheta = unk.q, unk.dTheta
     histories, power = [], 0
-    placed = [(load, disc.ds_end[load.end]) for load in end_loads] + [
-        (load, disc.dx) for load in distributed_loads]
-    for load, measure in placed:
+    placed = [(load, disc.end_weight[load.end], disc.ds) for load in end_loads] + [
+        (load, 1.0, disc.dx) for load in distributed_loads]
+    for load, weight, measure in placed:
         amp = fem.Constant(disc.mesh, 0.0)
         histories.append(TimeDependentValue(amp, load.history))
-        val = amp * _load_value(load, disc)
+        val = weight * amp * _load_value(load, disc)
         if load.kind == "force":
             F["displacement"] -= balance.force_work(
                 val, q, unk.t["displacement"], load.follower) * measure

@@ -45,7 +45,7 @@ def set_initial_state(model, natural_curvature=None, natural_stretch=None) -> No
         lambda X: (helix(X[0], u0, v0)[0] - np.outer(X[0], [0, 0, 1.0])).T)
     if unk.chart is not None:
         unk.chart.set_nodal_rotations(lambda s: helix(s, u0, v0)[1])
-        model.supports.committed_time = 0.0
+        model.supports.committed_time = None
     else:
         f["quaternion"].interpolate(lambda X: helix(X[0], u0, v0)[1].T)
     for end in ENDS:

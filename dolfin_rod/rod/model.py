@@ -18,15 +18,16 @@ from typing import Sequence
 import dolfinx.fem as fem
 import ufl
 from mpi4py import MPI
+from ufl.algorithms.analysis import extract_coefficients
 
 from .. import constraints
 from ..evolution import check_variant
 from ..model_base import FEModel, check_n_cells
 from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..rotations import rotation_matrix
-from ..validation import choose_rotations
+from ..validation import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
-from .boundary_conditions import EndSupports, check_supports
+from .boundary_conditions import EndSupports, check_supports, jumps
 from .constitutive import check_model, energy_function, section_response
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, check_loads
@@ -41,8 +42,9 @@ class RodModel(FEModel):
     "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
     boundary_conditions.py; end_loads, distributed_loads: external_forces.py; rotations:
     "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
-    vectors for a dynamic rod with rotary inertia, local variant, no constraint: 6
-    unknowns per node).
+    vectors for the local variant without a constraint, a dynamic rod with rotary
+    inertia or a quasi-static one without Kelvin-Voigt viscosity and drag: 6 unknowns
+    per node).
 
     ``problem`` is a SemiDiscreteProblem (quaternions: any scheme of TimeStepper or
     TSIntegrator) or a SecondOrderProblem (rotation vectors: generalized-alpha on the
@@ -68,12 +70,16 @@ class RodModel(FEModel):
         self.length = float(params.length)
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(params.rho_A)
-        self.rotations = choose_rotations(
-            rotations, self.dynamic, variant, constraint,
-            rotary_inertia=not (is_zero(params.I11) or is_zero(params.I22)))
+        obstacle = rotation_vector_obstacle(
+            self.dynamic, variant, constraint,
+            rotary_inertia=not (is_zero(params.I11) or is_zero(params.I22)),
+            rate_dependent=not all(is_zero(v) for v in (params.M, params.N, params.drag)),
+            rotation_held="clamped" in ends or bool(end_rotation))
+        self.rotations = choose_rotations(rotations, obstacle, rotation_jumps=any(
+            jumps(motion) for motion in (end_rotation or {}).values()))
         disc = discretise(comm, n_cells, self.length, self.rotations)
         super().__init__(disc.mesh)
-        self.ds_end, self.dx, self.dx_r = disc.ds_end, disc.dx, disc.dx_r
+        self.dx, self.dx_r = disc.dx, disc.dx_r
         self.unknowns = unk = unknowns(function_spaces(
             disc.mesh, self.evolving, variant, constraint, self.dynamic, self.rotations),
             self.dynamic)
@@ -114,10 +120,12 @@ class RodModel(FEModel):
                   list(self.residual.values()), self.loads, self.bcs, self.supports.set)
         if unk.chart is None:
             return SemiDiscreteProblem(*blocks)
+        rates_used = {c for F in self.residual.values() for c in extract_coefficients(F)}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
             after_step=self.commit_rotations, check_step=unk.chart.check_increment,
-            time_orders=[2 if n in unk.acc else 1 for n in self.names], lie_group=True,
+            time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
+                         for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names])
 
     def commit_rotations(self) -> None:
@@ -135,7 +143,8 @@ class RodModel(FEModel):
     def restore_state(self, state: dict) -> None:
         """After the checkpoint's functions were read (checkpoint_state)."""
         if self.unknowns.chart is not None:
-            self.supports.committed_time = float(state["rotations_committed_at"])
+            committed = state["rotations_committed_at"]
+            self.supports.committed_time = None if committed is None else float(committed)
 
     def set_initial_state(self, natural_curvature=None, natural_stretch=None) -> None:
         """Rest in the stress-free configuration of the reference strains (a straight rod

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..integrators.schemes import get_scheme
-from ..validation import choose_rotations, sample_points
+from ..validation import choose_rotations, rotation_vector_obstacle, sample_points
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
 
@@ -56,7 +56,8 @@ def adaptive_stepper(scene: Scene) -> bool:
     """The stepper advances the scene with error-controlled steps: time.adaptive, the
     stepper integrator and a dynamic rod with rotation vectors."""
     return bool(scene["time"]["adaptive"] and scene["time"]["integrator"] == "stepper"
-                and scene.is_rod_material and rod_rotations(scene) == "rotation_vector")
+                and scene.is_rod_material and scene["material"]["dynamic"]
+                and rod_rotations(scene) == "rotation_vector")
 
 
 def time_stepping(scene: Scene) -> str:
@@ -69,7 +70,8 @@ def time_stepping(scene: Scene) -> str:
     if adaptive_stepper(scene):
         return (f"stepper, error-controlled steps (time.tolerance = {tim['tolerance']:g}) "
                 f"within each output interval dt = {tim['dt']:g}")
-    lie = scene.is_rod_material and rod_rotations(scene) == "rotation_vector"
+    lie = scene.is_rod_material and scene["material"]["dynamic"] \
+        and rod_rotations(scene) == "rotation_vector"
     return f"stepper, fixed steps dt = {tim['dt']:g}" + (
         " (time.adaptive = true: error-controlled steps)" if lie else "")
 
@@ -234,19 +236,29 @@ def _check_rod_inertia(scene: Scene) -> None:
 
 def rod_rotations(scene: Scene) -> str:
     """The rod's rotation unknowns (rod/discretisation.py) for geometry.rotations: "auto"
-    takes rotation vectors (6 unknowns per node, generalized-alpha on the rotation group)
-    for a dynamic rod with the local variant, no constraint, the stepper integrator and
-    time.scheme not given or a generalized_alpha; quaternions otherwise."""
+    takes rotation vectors (6 unknowns per node) for the local variant, no constraint and
+    the stepper integrator: a dynamic rod with time.scheme not given or a
+    generalized_alpha (on the rotation group), or a quasi-static one without Kelvin-Voigt
+    viscosity and drag, with any scheme (validation.choose_rotations); quaternions
+    otherwise."""
     tim, mat = scene["time"], scene["material"]
     lie = tim["integrator"] == "stepper" and (
-        "scheme" not in scene.given["time"] or tim["scheme"].startswith("generalized_alpha"))
+        not mat["dynamic"] or "scheme" not in scene.given["time"]
+        or tim["scheme"].startswith("generalized_alpha"))
     constraint = None if mat["constraints"] == "none" else mat["constraints"]
-    args = (mat["dynamic"], mat["variant"], constraint)
+    visc = mat["viscosity"] or {}
+    rate_dependent = any(k in visc and not visc[k].is_zero for k in ("M", "N")) or not (
+        mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0))
+    motions = [scene["boundary"][f"{end}_rotation"] for end in ("start", "end")]
+    rotation_jumps = any(spec is not None and (spec.type == "step" or np.any(
+        spec.vector()(0.0) != 0.0)) for spec in motions)
+    obstacle = rotation_vector_obstacle(mat["dynamic"], mat["variant"], constraint,
+                                        rate_dependent=rate_dependent)
     try:
-        return choose_rotations(scene["geometry"]["rotations"], *args, lie_integrator=lie)
+        return choose_rotations(scene["geometry"]["rotations"], obstacle, lie_integrator=lie,
+                                rotation_jumps=rotation_jumps)
     except ValueError as err:
-        key = "time.scheme" if choose_rotations("auto", *args) == "rotation_vector" \
-            else "geometry.rotations"
+        key = "geometry.rotations" if obstacle else "time.scheme"
         raise scene.error(key, str(err)) from err
 
 
