@@ -108,9 +108,6 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
             print_on_root(comm, f"resumed at step {meta['step']}, t = {meta['time']:g}")
     else:
         writer.open()
-        writer.record(0, 0.0, sim.diagnostics(0.0))
-        if scene["outputs"]["every"]:
-            writer.write_fields(0.0)
     t_run = time.perf_counter()
     status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
                                     meta["step"], stop_after, quiet)
@@ -125,6 +122,17 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     elif not quiet:
         print_on_root(comm, line)
     return summary
+
+
+def _first_row(sim, writer, t0: float, fields: bool) -> None:
+    """Row 0 after the integrator's start (sim.begin, where it has one), also when that
+    fails (then the state as given, and the error goes on)."""
+    try:
+        getattr(sim, "begin", lambda t: None)(t0)
+    finally:
+        writer.record(0, t0, sim.diagnostics(t0))
+        if fields:
+            writer.write_fields(t0)
 
 
 def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | None,
@@ -162,6 +170,8 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
 
     status, message = "completed", ""
     try:
+        if done == 0:
+            _first_row(sim, writer, times[0], outs["every"])
         bound = EnergyBound(writer.balance.previous)
         if getattr(sim, "ts", None) is not None:      # PETSc TS drives the whole run
             sim.run_all(times[0], tim["t_end"], tim["dt"], after_step)

@@ -218,3 +218,30 @@ def test_the_uniform_variant_does_not_bind_the_local_variants_kernels():
     fresh = _natural_curvature_after_two_steps("uniform")
     assert np.abs(fresh[:, 0]).min() > 1e-3 and np.ptp(fresh[:, 0]) < 1e-12    # uniform
     assert np.allclose(after_local, fresh, rtol=0, atol=1e-14)
+
+
+@pytest.mark.mpi
+def test_a_scene_whose_start_fails_ends_failed_with_its_first_row(tmp_path):
+    """dolfin-rod run of scenes/cantilever_creep.toml (the rotation-group integrator) with
+    a step end couple that would bend the tip by ~2.5 rad at t = 0: status "failed" on
+    every rank (no hang), the
+    message names the start and the remedy, and the first row holds the state as given
+    (the rod at rest)."""
+    import csv
+    from pathlib import Path
+
+    from mpi4py import MPI
+
+    from dolfin_rod.cli import run_scene
+    from dolfin_rod.scenes import load_scene
+    folder = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0)) / "run"
+    scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "cantilever_creep.toml",
+                       {"loads.end_force": None,
+                        "loads.end_couple": {"type": "step", "value": [2.5, 0.0, 0.0]},
+                        "time.scheme": "generalized_alpha", "outputs.plots": False, "outputs.animation": False})
+    summary = run_scene(scene, folder, quiet=True)
+    assert summary["status"] == "failed"
+    assert "start at t = 0" in summary["message"] and "ramp" in summary["message"]
+    if MPI.COMM_WORLD.rank == 0:
+        rows = list(csv.DictReader(open(folder / "timeseries.csv")))
+        assert len(rows) == 1 and float(rows[0]["tip_position_y"]) == 0.0

@@ -293,7 +293,8 @@ class LieGeneralizedAlpha:
         order), zero at the Dirichlet dofs (the rod starts at rest,
         rod/boundary_conditions.py), with the differential state fixed and the algebraic
         blocks (order 0) solved with them at their prescribed values (_start_algebraic
-        then commits them)."""
+        then commits them).  A failed start (no step can be cut at t0) is an
+        IntegrationError, the fields as they were given."""
         p = self.problem
         p.set_loads(t0)
         p.set_bcs(t0)
@@ -301,29 +302,34 @@ class LieGeneralizedAlpha:
         rates = [f.function_space for f, k in zip(p.fields, self.order) if k]
         zeroed = [bc for bc in p.bcs if any(compat.contains(V, bc) for V in rates)]
         values = [np.array(bc.g.value) for bc in zeroed]
+        initial = [f.x.array.copy() for f in p.fields]
         for bc in zeroed:
             bc.g.value[...] = 0.0
         try:
             self._initial_solver.solve()
+            if 0 in self.order:
+                self._start_algebraic(t0)
+        except (SolverError, IntegrationError) as err:
+            for f, array in zip(p.fields, initial):     # the state as it was given
+                f.x.array[:] = array
+            raise IntegrationError(f"the start at t = {t0:.6g}: {err}" + (
+                "; apply such loads or end motions gradually (a ramp or smooth_step "
+                "history)" if 0 in self.order else ""), t0) from err
         finally:
             for bc, value in zip(zeroed, values):
                 bc.g.value[...] = value
-        if 0 in self.order:
-            self._start_algebraic(t0)
         for i, a in enumerate(self._unknowns_at_start()):
             if self.order[i]:
                 self.alg_n[i].x.array[:] = a.x.array
         self._started = True
 
     def _start_algebraic(self, t0: float) -> None:
-        """After the start's solve: its algebraic state is checked (check_step; a refusal
-        is an IntegrationError: a step cannot be cut at t0) and committed (after_step),
-        and the algebraic blocks' rates are 0 (t0 is their first state)."""
+        """After the start's solve: its algebraic state is checked (check_step: a
+        refusal is a SolverError) and committed (after_step), and the algebraic blocks'
+        rates are 0 (t0 is their first state)."""
         reason = self.problem.check_step()
         if reason:
-            raise IntegrationError(f"the start at t = {t0:.6g}: {reason}; apply such loads "
-                                   "or end motions gradually (a ramp or smooth_step "
-                                   "history)", t0)
+            raise SolverError(reason, 0)
         self.problem.after_step()
         for i, k in enumerate(self.order):
             if k == 0:

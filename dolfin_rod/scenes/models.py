@@ -107,6 +107,12 @@ class FESimulation:
     def start(self) -> float:
         return float(self._initial_state() or 0.0)
 
+    def begin(self, t0: float) -> None:
+        """The integrator's start before the first row: the rotation-group integrator's
+        consistent state at t0 (a quasi-static rod in equilibrium with its loads)."""
+        if self.ts is None and hasattr(self.stepper, "initial_accelerations"):
+            self.stepper.initial_accelerations(t0)
+
     def advance(self, t: float, t_next: float) -> None:
         self.stepper.run(t, t_next, t_next - t)
 
