@@ -101,10 +101,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                  "(v_ref,3 > 0)"),
         "rotations": Key(choice(*ROTATIONS), "auto",
                          R + "rotation unknowns: auto = rotation_vector (6 unknowns per "
-                         "node, generalized-alpha on the rotation group; the fast default) "
-                         "for a dynamic rod with the local variant, no constraint, the "
-                         "stepper and time.scheme unset or generalized_alpha; quaternion "
-                         "(+ gauge, velocities: any scheme or PETSc TS) otherwise"),
+                         "node; the fast default) for the local variant, no constraint and "
+                         "the stepper: a dynamic rod with time.scheme unset or "
+                         "generalized_alpha (on the rotation group), or a quasi-static rod "
+                         "without Kelvin-Voigt viscosity M, N and drag whose end rotations "
+                         "do not jump (any scheme; unset: generalized-alpha with algebraic "
+                         "positions and rotations, the start in equilibrium with the loads "
+                         "at t = 0); quaternion (+ gauge, velocities: any scheme or PETSc "
+                         "TS) otherwise"),
     },
     "material": {
         "variant": Key(choice(*VARIANTS), "local", "local | uniform evolution law of the "
@@ -180,7 +184,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "dt": Key(real(0.0, True), REQUIRED, "time step (also the output interval of the ODE; "
                   "the initial step of adaptive TS)"),
         "scheme": Key(scheme_name, "bdf2", "a name of integrators.schemes (stepper); not "
-                      "given, a dynamic rod with rotation vectors (geometry.rotations) uses "
+                      "given, a rod with rotation vectors (geometry.rotations) uses "
                       "generalized-alpha on the rotation group, rho_inf = 0.8"),
         "integrator": Key(choice("stepper", "ts"), "stepper", "stepper | ts (PETSc TS)"),
         "ts_type": Key(ts_type_name, None, "ts: a PETSc TS type of integrators.ts, e.g. "
