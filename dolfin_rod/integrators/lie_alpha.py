@@ -30,6 +30,7 @@ from __future__ import annotations
 import dolfinx.fem as fem
 import numpy as np
 import ufl
+from mpi4py import MPI
 
 from .. import compat, form_cache
 from ..solvers import BlockSNES, SolverError
@@ -127,7 +128,6 @@ class LocalError:
     included: their a is that of the prescribed motion, smooth in time."""
 
     def __init__(self, integrator, control: StepControl):
-        from mpi4py import MPI
         self.ig, self.control, self.op = integrator, control, MPI.MAX
         self.c = error_coefficient(integrator.gamma, integrator.beta)
         self.comm = integrator.problem.comm
@@ -156,7 +156,10 @@ class LocalError:
                                                          np.abs(y_n[:owned]))
             if owned:
                 worst = max(worst, float(np.max(e / w)))
-        return self.comm.allreduce(worst, op=self.op)
+        buf = np.array([worst])
+        if self.comm.size > 1:    # a buffer, not a pickled float (see check_increment)
+            self.comm.Allreduce(MPI.IN_PLACE, buf, op=self.op)
+        return float(buf[0])
 
 
 def _copy(f, tag):
