@@ -14,6 +14,7 @@ from typing import Callable
 import dolfinx.fem as fem
 import numpy as np
 import ufl
+from mpi4py import MPI
 
 
 @dataclass
@@ -116,7 +117,6 @@ class SecondOrderProblem(SemiDiscreteProblem):
         """Per block its size: ``error_scales``, else the mesh's extent along x."""
         if self.error_scales:
             return list(self.error_scales)
-        from mpi4py import MPI
         mesh = self.fields[0].function_space.mesh
         x, comm = mesh.geometry.x[:, 0], mesh.comm
         extent = comm.allreduce(x.max(), op=MPI.MAX) - comm.allreduce(x.min(), op=MPI.MIN)

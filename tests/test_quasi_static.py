@@ -235,10 +235,11 @@ def test_a_scene_whose_start_fails_ends_failed_with_its_first_row(tmp_path):
     from dolfin_rod.cli import run_scene
     from dolfin_rod.scenes import load_scene
     folder = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0)) / "run"
-    scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "cantilever_creep.toml",
-                       {"loads.end_force": None,
-                        "loads.end_couple": {"type": "step", "value": [2.5, 0.0, 0.0]},
-                        "time.scheme": "generalized_alpha", "outputs.plots": False, "outputs.animation": False})
+    path = Path(__file__).resolve().parents[1] / "scenes" / "cantilever_creep.toml"
+    scene = load_scene(path, {"loads.end_force": None,
+                              "loads.end_couple": {"type": "step", "value": [2.5, 0.0, 0.0]},
+                              "time.scheme": "generalized_alpha", "outputs.plots": False,
+                              "outputs.animation": False})
     summary = run_scene(scene, folder, quiet=True)
     assert summary["status"] == "failed"
     assert "start at t = 0" in summary["message"] and "ramp" in summary["message"]

@@ -51,10 +51,11 @@ def default_options(comm, second_order: bool = True) -> dict:
     same tip to all digits, docs/performance.md).  Newton: rtol 1e-6 with a second-order
     block (the predictor's residual is O(dt^3) small already: the benchmark tip errors
     are unchanged to 4 digits), else BlockSNES's 1e-10 (a quasi-static step's first
-    residual is the load increment); each step's Newton starts with a new Jacobian and LU and keeps them while
-    every iteration reduces the residual 10-fold (BlockSNES's default,
-    solvers.REUSE_RATIO): 1.0-1.5 Jacobians per step on the benchmark scenes instead of
-    1.9-2.6 with a refresh every second iteration, fewer step cuts (docs/performance.md).
+    residual is the load increment); each step's Newton starts with a new Jacobian and
+    LU and keeps them while every iteration reduces the residual 10-fold (BlockSNES's
+    default, solvers.REUSE_RATIO): 1.0-1.5 Jacobians per step on the benchmark scenes
+    instead of 1.9-2.6 with a refresh every second iteration, fewer step cuts
+    (docs/performance.md).
     """
     options = {"snes_rtol": 1e-6} if second_order else {}
     if comm.size == 1:
