@@ -58,10 +58,30 @@ def material_derivative_vector(q, dq):
 # -- numpy twins ----------------------------------------------------------------------------
 
 
+def _hamilton_tensor() -> np.ndarray:
+    """H with (p q)_i = H_ijk p_j q_k."""
+    h = np.zeros((4, 4, 4))
+    for j, k, i, sign in ((0, 0, 0, 1), (1, 1, 0, -1), (2, 2, 0, -1), (3, 3, 0, -1),
+                          (0, 1, 1, 1), (1, 0, 1, 1), (2, 3, 1, 1), (3, 2, 1, -1),
+                          (0, 2, 2, 1), (1, 3, 2, -1), (2, 0, 2, 1), (3, 1, 2, 1),
+                          (0, 3, 3, 1), (1, 2, 3, 1), (2, 1, 3, -1), (3, 0, 3, 1)):
+        h[i, j, k] = sign
+    return h
+
+
+_HAMILTON = _hamilton_tensor()
+_FEW = 256     # entries up to which one einsum call beats 28 array operations
+
+
 def np_qmul(p, q):
-    """Hamilton product p q by components (3x faster than with np.cross at 1e5 nodes)."""
+    """Hamilton product p q (broadcasting over leading axes): for few quaternions one
+    einsum with the structure tensor (9.6 us at 9 nodes, the rod's commit after every
+    step), else by components (31 us at 9 nodes, 3.4x faster than einsum at 1e5 and 3x
+    faster than with np.cross)."""
     p = np.asarray(p, dtype=float)
     q = np.asarray(q, dtype=float)
+    if p.size <= _FEW and q.size <= _FEW:
+        return np.einsum("ijk,...j,...k->...i", _HAMILTON, p, q)
     a0, a1, a2, a3 = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
     b0, b1, b2, b3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.stack([a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,

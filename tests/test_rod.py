@@ -476,6 +476,13 @@ def test_quaternion_rotation_matches_scipy_and_small_angles_are_exact():
         assert np_rotation_matrix(3.0 * q) == pytest.approx(np_rotation_matrix(q), abs=1e-14)
         if np.linalg.norm(theta) < np.pi:
             assert np_rotation_vector(q) == pytest.approx(theta, abs=1e-14)
+    # the Hamilton product composes rotations, R(p q) = R(p) R(q), for few quaternions
+    # (one einsum) and for many (by components), as scipy composes them
+    for n in (9, 1000):
+        a, b = rng.normal(size=(2, n, 3))
+        pq = np_qmul(np_quaternion_from_rotation_vector(a), np_quaternion_from_rotation_vector(b))
+        assert np.array([np_rotation_matrix(x) for x in pq]) == pytest.approx(
+            (Rotation.from_rotvec(a) * Rotation.from_rotvec(b)).as_matrix(), abs=1e-13)
     q = np.array([0.3, -0.5, 0.2, 0.9])
     U = ufl.as_vector(q.tolist())
     R = np.array([[float(ufl.algorithms.apply_algebra_lowering.apply_algebra_lowering(
