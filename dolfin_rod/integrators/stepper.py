@@ -126,7 +126,7 @@ class TimeStepper:
         self.problem = problem
         self.scheme = get_scheme(scheme or "backward_euler")
         # rotation vectors (no saddle point): the banded LU of the rotation-group integrator
-        lie = isinstance(problem, SecondOrderProblem) and problem.lie_group
+        self._charted = lie = isinstance(problem, SecondOrderProblem) and problem.lie_group
         self.options = solver_settings(problem.comm, solver_options, False) if lie \
             else solver_options
         self.max_cuts = max_cuts
@@ -214,10 +214,23 @@ class TimeStepper:
             rate.x.array[:] = scheme.rate_after_step(f.x.array, fn.x.array, fnm1.x.array,
                                                      rate_n.x.array, dt)
             fnm1.x.array[:] = fn.x.array
-        self.problem.after_step()
+        self._after_step()
         self.history_steps = min(self.history_steps + 1, 2)
         self.stats.steps += 1
         self.stats.newton_iterations += its
+
+    def _after_step(self) -> None:
+        """problem.after_step, and the history moved with what it changes: a rotation
+        increment theta goes into the stored rotations (q_{n+1} = q_n c(theta), theta <- 0),
+        so the state before the step is -theta in the new chart (q_n = q_{n+1} c(-theta),
+        exact for the Cayley map), which multistep rates (BDF2) and the predictor read."""
+        if not self._charted:
+            self.problem.after_step()
+            return
+        before = [f.x.array.copy() for f in self.problem.fields]
+        self.problem.after_step()
+        for f, fnm1, b in zip(self.problem.fields, self.y_nm1, before):
+            fnm1.x.array[:] += f.x.array - b
 
     def _cut(self, t: float, h_try: float, cuts: int, err: SolverError) -> float:
         """The step after a failure at t (IntegrationError after max_cuts cuts)."""
