@@ -23,6 +23,7 @@ __all__ = [
     "constant",
     "from_callable",
     "jump_at",
+    "jumps",
     "rate",
     "ramp",
     "smooth_step",
@@ -130,6 +131,14 @@ def central_difference(motion: Callable, t: float):
 def jump_at(history: LoadHistory, t: ArrayLike) -> FloatOrArray:
     """Jump ``f(t+) - f(t-)`` of a load history at time(s) t (0 where it is continuous)."""
     return history(t) - history.left_limit(t)
+
+
+def jumps(motion: Callable) -> bool:
+    """Whether a prescribed motion (or load) starting from rest jumps: nonzero at t = 0
+    (it is 0 before) or with jumps (PiecewiseSmoothLoad); other jumps of a callable
+    cannot be detected."""
+    return bool(np.any(np.asarray(motion(0.0), float) != 0.0)
+                or any(size for _, size in getattr(motion, "jumps", ())))
 
 
 def constant(v: float) -> PiecewiseSmoothLoad:

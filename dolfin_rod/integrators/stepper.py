@@ -62,11 +62,11 @@ class _StepResidual:
         self.problem, self.scheme = problem, scheme
         self.stage_loads = stage_loads(problem, scheme)
         # the layout in the key: scifem's real space has DG0's UFL signature (DOLFINx 0.9)
-        cached = monolithic_layout(problem.fields)
-        self.key = key = form_cache.structure_key(problem.residual, "step", scheme.name, cached)
+        shared = monolithic_layout(problem.fields)     # only that layout shares kernels
+        self.key = key = form_cache.structure_key(problem.residual, "step", scheme.name, shared)
         objects = [*form_cache.registry(problem.residual), *(f for h in history for f in h), dt,
                    *(c for _, stage in self.stage_loads for c, _ in stage)]
-        F = None if cached and form_cache.lookup(key) else step_forms(
+        F = None if shared and form_cache.lookup(key) else step_forms(
             problem, scheme, history, dt, self.stage_loads)[0]
         self.solver = BlockSNES(F, problem.fields, problem.bcs, options, cache=(key, objects),
                                 step_scale=problem.configuration_norm())

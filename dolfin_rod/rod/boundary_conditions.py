@@ -36,17 +36,10 @@ def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False) 
         for end, history in (motion or {}).items():
             if end not in ENDS:
                 raise ValueError(f"{name}: unknown end {end!r}")
-            if dynamic and jumps(history):
+            if dynamic and loads.jumps(history):
                 raise ValueError(f"{name}[{end!r}] jumps (at t = 0 it must be 0: the rod "
                                  "starts at rest), but rho_A > 0: a rod with inertia cannot "
                                  "follow a jump of its end; use a smooth_step or a ramp")
-
-
-def jumps(motion) -> bool:
-    """Whether a prescribed end motion jumps: nonzero at t = 0 (it is 0 before) or with
-    jumps (loads.PiecewiseSmoothLoad); other jumps of a callable cannot be detected."""
-    return bool(np.any(np.asarray(motion(0.0), float) != 0.0)
-                or any(size for _, size in getattr(motion, "jumps", ())))
 
 
 class EndSupports:

@@ -21,13 +21,14 @@ from mpi4py import MPI
 from ufl.algorithms.analysis import extract_coefficients
 
 from .. import constraints
+from .. import loads as load_histories
 from ..evolution import check_variant
 from ..model_base import FEModel, check_n_cells
 from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..rotations import rotation_matrix
 from ..validation import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
-from .boundary_conditions import EndSupports, check_supports, jumps
+from .boundary_conditions import EndSupports, check_supports
 from .constitutive import check_model, energy_function, section_response
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, check_loads
@@ -76,7 +77,7 @@ class RodModel(FEModel):
             rate_dependent=not all(is_zero(v) for v in (params.M, params.N, params.drag)),
             rotation_held="clamped" in ends or bool(end_rotation))
         self.rotations = choose_rotations(rotations, obstacle, rotation_jumps=any(
-            jumps(motion) for motion in (end_rotation or {}).values()))
+            load_histories.jumps(motion) for motion in (end_rotation or {}).values()))
         disc = discretise(comm, n_cells, self.length, self.rotations)
         super().__init__(disc.mesh)
         self.dx, self.dx_r = disc.dx, disc.dx_r

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..validation import choose_rotations, rotation_vector_obstacle, sample_points
 from .scene import ROD_KEYS, Scene
@@ -250,8 +251,8 @@ def rod_rotations(scene: Scene) -> str:
     rate_dependent = any(k in visc and not visc[k].is_zero for k in ("M", "N")) or not (
         mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0))
     motions = [scene["boundary"][f"{end}_rotation"] for end in ("start", "end")]
-    rotation_jumps = any(spec is not None and (spec.type == "step" or np.any(
-        spec.vector()(0.0) != 0.0)) for spec in motions)
+    rotation_jumps = any(spec is not None and spec.is_vector and any(
+        load_histories.jumps(spec.build(i)) for i in range(3)) for spec in motions)
     obstacle = rotation_vector_obstacle(mat["dynamic"], mat["variant"], constraint,
                                         rate_dependent=rate_dependent)
     try:
