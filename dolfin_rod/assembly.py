@@ -178,7 +178,7 @@ class MonolithicSystem(_System):
                                         for c, k in jacobian_terms))
             if not Jp.empty():
                 jacobians.append(Jp)
-        return ([fem.form(f) for f in residuals], [fem.form(f) for f in jacobians],
+        return (form_cache.compile_forms(residuals), form_cache.compile_forms(jacobians),
                 residuals + jacobians)
 
     @property
@@ -232,7 +232,7 @@ class BlockedSystem(_System):
         y = groups[0]
         terms = [(c, jacobian_blocks(F, y, wrt=groups[k])) for c, k in jacobian_terms]
         J = [[_combine(terms, i, j) for j in range(len(y))] for i in range(len(y))]
-        self.F, self.J = fem.form(F), fem.form(J)
+        self.F, self.J = form_cache.compile_forms(F), form_cache.compile_forms(J)
         self.x = compat.block_vector(self.F)
         self.b = compat.block_vector(self.F)
         self.A = compat.block_matrix(self.J)
