@@ -10,9 +10,11 @@ constants, its position in an ordered list of the objects of the instance (the
 integrator's and the assembler's own).  A new instance with the same key binds the
 compiled kernels to its own objects, mesh and spaces without building any UFL.
 
-The step kernels (residual and Jacobian, ``compile_forms``) are compiled with -O3 and,
+The step kernels (residual and Jacobian, ``compile_forms``) are compiled with -O1 and,
 on x86-64, the host's instruction set (``KERNEL_FLAGS``): the rod's Jacobian kernel, 16k
-flops per cell, 4.25 -> 3.29 us per cell (docs/performance.md).  A macro naming the host
+flops of straight-line code per cell, 4.20 (DOLFINx's -O2) -> 3.27 us per cell, as fast
+as -O3 -march=native, and compiled in 6 s instead of 7 s (-O2) or 25 s (-O3
+-march=native, longer than the 10 s another process waits for it; docs/performance.md).  A macro naming the host
 CPU (model and instruction-set flags) is part of the flags, so FFCx's cache key differs
 between CPUs: a cache shared by several machines (a home folder on NFS) never hands one
 a kernel built for another.  ``DOLFIN_ROD_KERNEL_FLAGS`` (space-separated compiler
@@ -67,12 +69,12 @@ def _host_cpu() -> str:
 
 
 def kernel_flags() -> list[str]:
-    """DOLFIN_ROD_KERNEL_FLAGS if set, else -O3 and, on x86-64, -march=native."""
+    """DOLFIN_ROD_KERNEL_FLAGS if set, else -O1 and, on x86-64, -march=native."""
     given = os.environ.get("DOLFIN_ROD_KERNEL_FLAGS")
     if given is not None:
         return given.split()
     native = ["-march=native"] if platform.machine() in ("x86_64", "AMD64") else []
-    return ["-O3", *native, "-g0"]
+    return ["-O1", *native, "-g0"]
 
 
 KERNEL_FLAGS = [*kernel_flags(), f"-DDOLFIN_ROD_HOST_CPU={_host_cpu()}"]
