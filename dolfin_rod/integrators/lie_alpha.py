@@ -30,13 +30,12 @@ from __future__ import annotations
 import dolfinx.fem as fem
 import numpy as np
 import ufl
-from mpi4py import MPI
 
 from .. import compat, form_cache
 from ..solvers import BlockSNES, SolverError
 from .schemes import alpha_rho_inf
 from .stepping import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
-                       march, nominal_steps)
+                       largest_on_ranks, march, nominal_steps)
 
 
 def default_options(comm, second_order: bool = True) -> dict:
@@ -131,7 +130,7 @@ class LocalError:
     included: their a is that of the prescribed motion, smooth in time."""
 
     def __init__(self, integrator, control: StepControl):
-        self.ig, self.control, self.op = integrator, control, MPI.MAX
+        self.ig, self.control = integrator, control
         self.c = error_coefficient(integrator.gamma, integrator.beta)
         self.comm = integrator.problem.comm
         fields = integrator.problem.fields
@@ -159,10 +158,7 @@ class LocalError:
                                                          np.abs(y_n[:owned]))
             if owned:
                 worst = max(worst, float(np.max(e / w)))
-        buf = np.array([worst])
-        if self.comm.size > 1:    # a buffer, not a pickled float (see check_increment)
-            self.comm.Allreduce(MPI.IN_PLACE, buf, op=self.op)
-        return float(buf[0])
+        return largest_on_ranks(self.comm, worst)
 
 
 def _copy(f, tag):

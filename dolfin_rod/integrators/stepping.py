@@ -13,6 +13,9 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
+import numpy as np
+from mpi4py import MPI
+
 from ..solvers import SolverError
 
 # Relative round-off of a time summed from steps: a remaining interval below
@@ -132,3 +135,12 @@ def march(t: float, t_end: float, h: float, attempt: Callable[[float, float], ob
         t = t_end if h_try == t_end - t else t + h_try
         h = succeeded(t, h_try, h)
     return t, h
+
+
+def largest_on_ranks(comm, value: float) -> float:
+    """The maximum of ``value`` over the ranks of ``comm`` (itself on one rank), by a
+    buffer Allreduce: a pickled float's ``allreduce`` cost ~90 us per step."""
+    buf = np.array([value], dtype=float)
+    if comm.size > 1:
+        comm.Allreduce(MPI.IN_PLACE, buf, op=MPI.MAX)
+    return float(buf[0])

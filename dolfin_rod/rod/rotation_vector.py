@@ -32,11 +32,11 @@ from __future__ import annotations
 import dolfinx.fem as fem
 import numpy as np
 import ufl
-from mpi4py import MPI
 
 from ufl.algorithms.analysis import extract_arguments, extract_coefficients
 from ufl.corealg.traversal import unique_pre_traversal
 
+from ..integrators.stepping import largest_on_ranks
 from ..kinematics import strain_rates
 from ..rotations import conj, np_qmul, qmul, rotation_matrix, vec
 
@@ -195,10 +195,7 @@ class RotationVectorChart:
         step rotates far less (the benchmark scenes: < 0.8 rad)."""
         th = self._theta_nodes
         local = np.sqrt(np.max(np.einsum("ij,ij->i", th, th), initial=0.0))
-        comm, buf = self.mesh.comm, np.array([local])
-        if comm.size > 1:        # a buffer, not a pickled float: ~90 us per step otherwise
-            comm.Allreduce(MPI.IN_PLACE, buf, op=MPI.MAX)
-        largest = float(buf[0])
+        largest = largest_on_ranks(self.mesh.comm, local)
         if largest <= MAX_INCREMENT:
             return None
         angle = 2 * np.arctan(largest / 2)
