@@ -81,8 +81,15 @@ KERNEL_FLAGS = [*kernel_flags(), f"-DDOLFIN_ROD_HOST_CPU={_host_cpu()}"]
 
 
 def compile_forms(forms):
-    """fem.form of a form or (nested) list of forms, with the step kernels' flags."""
-    return fem.form(forms, jit_options={"cffi_extra_compile_args": KERNEL_FLAGS})
+    """fem.form of a form or (nested) list of forms, with the step kernels' flags; flags a
+    user gave (DOLFIN_ROD_KERNEL_FLAGS) that do not compile are named in the error."""
+    try:
+        return fem.form(forms, jit_options={"cffi_extra_compile_args": KERNEL_FLAGS})
+    except Exception as err:
+        if "DOLFIN_ROD_KERNEL_FLAGS" not in os.environ:
+            raise
+        raise RuntimeError(f"DOLFIN_ROD_KERNEL_FLAGS={os.environ['DOLFIN_ROD_KERNEL_FLAGS']!r}:"
+                           f" the step kernels did not compile with these flags ({err})") from err
 
 
 @dataclass(frozen=True)

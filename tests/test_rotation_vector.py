@@ -293,6 +293,11 @@ def test_step_kernels_are_kept_apart_per_cpu_and_flags(monkeypatch):
     form_cache.clear(disk=False)
     monkeypatch.setenv("DOLFIN_ROD_KERNEL_FLAGS", "-O2 -g0")
     assert form_cache.kernel_flags() == ["-O2", "-g0"]
+    # flags the compiler refuses: an error naming the variable
+    monkeypatch.setenv("DOLFIN_ROD_KERNEL_FLAGS", "-fno-such-flag-for-dolfin-rod")
+    monkeypatch.setattr(form_cache, "KERNEL_FLAGS", form_cache.kernel_flags())
+    with pytest.raises(RuntimeError, match="DOLFIN_ROD_KERNEL_FLAGS='-fno-such-flag"):
+        form_cache.compile_forms(2.0 * f * ufl.dx)
 
 # -- the rod's physics with rotation vectors ----------------------------------------------
 
