@@ -16,7 +16,7 @@ __version__ = "0.1.0"
 
 _WHERE = {
     # models and their data
-    "RodModel": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
+    "RodModel": "rod", "RodSystem": "rod", "Rod": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
     "TorsionModel": "torsion", "TorsionParameters": "torsion",
     "SemiDiscreteProblem": "problem", "SecondOrderProblem": "problem",
     # integrators and solvers

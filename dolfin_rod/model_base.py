@@ -145,7 +145,10 @@ class FEModel:
     def dirichlet(self, block: str, space, end: str, length: float, value) -> fem.DirichletBC:
         """A Dirichlet condition value at an end on the block's space, recorded in
         ``block_bcs[block]`` (e.g. for a sub-problem of some blocks)."""
-        s_end = end_coordinate(end, length)
+        return self.dirichlet_at(block, space, end_coordinate(end, length), value)
+
+    def dirichlet_at(self, block: str, space, s_end: float, value) -> fem.DirichletBC:
+        """``dirichlet`` at the node s = s_end (e.g. an end of one rod of several)."""
         dofs = fem.locate_dofs_geometrical(space, lambda x: np.isclose(x[0], s_end))
         bc = fem.dirichletbc(value, dofs, space)
         self.bcs.append(bc)
