@@ -41,7 +41,8 @@ class RodModel(FEModel):
     model: "evolving", "kelvin_voigt" or "hyperelastic" (constitutive.py); variant:
     "local" or "uniform" (evolution.py); constraint: None, "unshearable" or
     "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
-    boundary_conditions.py; end_loads, distributed_loads: external_forces.py; rotations:
+    boundary_conditions.py (end_slide: {end: axis}, a clamped or pinned end sliding
+    along a coordinate axis); end_loads, distributed_loads: external_forces.py; rotations:
     "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
     vectors for the local variant without a constraint, a dynamic rod with rotary
     inertia or a quasi-static one without Kelvin-Voigt viscosity and drag: 6 unknowns
@@ -58,11 +59,13 @@ class RodModel(FEModel):
                  end_loads: Sequence[EndLoad] = (),
                  distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
-                 rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD):
+                 rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD,
+                 end_slide: dict | None = None):
         check_model(model, params)
         check_variant(variant)
         check_n_cells(n_cells)
-        check_supports(ends, end_displacement, end_rotation, not is_zero(params.rho_A))
+        check_supports(ends, end_displacement, end_rotation, not is_zero(params.rho_A),
+                       end_slide)
         check_parameters(params, model == "evolving", model != "hyperelastic", variant)
         constraints.check_constraint(constraint, dynamic=not is_zero(params.rho_A))
         check_loads(end_loads, distributed_loads)
@@ -106,7 +109,7 @@ class RodModel(FEModel):
         self.loads, power = external_forces.apply_loads(F, unk, disc, self.end_loads,
                                                         self.distributed_loads)
         residual.one_quadrature_rule(F, unk, disc)
-        self.supports = EndSupports(self, ends, end_displacement, end_rotation)
+        self.supports = EndSupports(self, ends, end_displacement, end_rotation, end_slide)
         self.residual = {name: F[name] for name in self.names}
         self.problem = self._problem()
 
