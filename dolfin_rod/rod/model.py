@@ -43,7 +43,8 @@ class RodModel(FEModel):
     model: "evolving", "kelvin_voigt" or "hyperelastic" (constitutive.py); variant:
     "local" or "uniform" (evolution.py); constraint: None, "unshearable" or
     "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
-    boundary_conditions.py; end_loads, distributed_loads: external_forces.py; rotations:
+    boundary_conditions.py (end_slide: {end: axis}, a clamped or pinned end sliding
+    along a coordinate axis); end_loads, distributed_loads: external_forces.py; rotations:
     "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
     vectors for the local variant without a constraint, a dynamic rod with rotary
     inertia or a quasi-static one without Kelvin-Voigt viscosity and drag: 6 unknowns
@@ -61,9 +62,10 @@ class RodModel(FEModel):
                  end_loads: Sequence[EndLoad] = (),
                  distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
-                 rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD):
+                 rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD,
+                 end_slide: dict | None = None):
         rod = Rod(params, n_cells, ends, end_loads, distributed_loads, end_displacement,
-                  end_rotation)
+                  end_rotation, end_slide)
         self._build([rod], model, variant, constraint, rotations, comm)
 
     def _build(self, rods: list[Rod], model: str, variant: str, constraint: str | None,
@@ -126,7 +128,7 @@ class RodModel(FEModel):
             [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads])
         residual.one_quadrature_rule(F, unk, disc)
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
-                                         rod.end_rotation, layout.span(k))
+                                         rod.end_rotation, rod.end_slide, layout.span(k))
                              for k, rod in enumerate(rods)]
         self.residual = {name: F[name] for name in self.names}
         self.problem = self._problem()

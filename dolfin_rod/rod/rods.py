@@ -33,6 +33,7 @@ class Rod:
     distributed_loads: Sequence[DistributedLoad] = ()
     end_displacement: dict | None = None
     end_rotation: dict | None = None
+    end_slide: dict | None = None
     position: Sequence[float] = (0.0, 0.0, 0.0)
     orientation: Sequence[float] = (0.0, 0.0, 0.0)
     name: str = "rod"
@@ -83,7 +84,7 @@ def check_rods(rods: list[Rod], model: str, variant: str) -> None:
 def _check_rod(rod: Rod, model: str, variant: str) -> None:
     check_n_cells(rod.n_cells)
     check_supports(rod.ends, rod.end_displacement, rod.end_rotation,
-                   not is_zero(rod.params.rho_A))
+                   not is_zero(rod.params.rho_A), rod.end_slide)
     check_parameters(rod.params, model == "evolving", model != "hyperelastic", variant)
     check_loads(rod.end_loads, rod.distributed_loads)
     for name in ("position", "orientation"):

@@ -162,6 +162,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "end_displacement": Key(history(True), None, R + "prescribed displacement of s = L "
                                 "from its initial position (value = [x, y, z])"),
         "start_displacement": Key(history(True), None, R + "as end_displacement, at s = 0"),
+        "end_slide": Key(vector3(), None, R + "axis [x, y, z] (a unit coordinate axis, e.g. "
+                         "[0, 0, 1]) along which the clamped or pinned end s = L slides "
+                         "freely: its position is held (or end_displacement prescribed) "
+                         "across the axis only; a clamped end keeps its rotation (or "
+                         "follows end_rotation, e.g. turning about the axis); an end_force "
+                         "along the axis acts on it (a weight on a sliding clamp)"),
+        "start_slide": Key(vector3(), None, R + "as end_slide, at s = 0"),
     },
     "loads": {
         "end_torsion": Key(history(False), None, T + "applied torsion m(t) at s = 1"),
