@@ -16,12 +16,9 @@ __version__ = "0.1.0"
 
 _WHERE = {
     # models and their data
-<<<<<<< HEAD
-    "RodModel": "rod", "RodSystem": "rod", "Rod": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
-=======
     "RodModel": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
+    "RodSystem": "rod", "Rod": "rod",    # several rods in one model (docs/systems.md)
     "sections": "rod",      # cross-sections and materials -> RodParameters (rod/sections.py)
->>>>>>> main
     "TorsionModel": "torsion", "TorsionParameters": "torsion",
     "SemiDiscreteProblem": "problem", "SecondOrderProblem": "problem",
     # integrators and solvers
