@@ -23,7 +23,10 @@ def check_contact_keys(scene: Scene) -> None:
             raise err(f"contact.{sorted(given)[0]}", "applies to rods with [[obstacles]]")
         return
     if contact["radius"] is None:
-        raise err("contact.radius", "missing: [[obstacles]] need the rod's radius")
+        contact["radius"] = section_radius(scene)
+    if contact["radius"] is None:
+        raise err("contact.radius", "missing: [[obstacles]] need the rod's radius (or a "
+                                    "circle or tube [section])")
     if contact["gap"] is not None and contact["gap"] >= contact["radius"]:
         raise err("contact.gap", f"must be < contact.radius = {contact['radius']:g} (the "
                                  f"barrier acts within the gap), got {contact['gap']:g}")
@@ -42,6 +45,12 @@ def check_contact_keys(scene: Scene) -> None:
         if ob["friction"] > 0 and not scene["material"]["dynamic"]:
             raise err(f"{name}.friction", "friction depends on the velocity: it needs a "
                                           "dynamic rod (material.density > 0)")
+
+
+def section_radius(scene: Scene) -> float | None:
+    """The radius of a circle or tube [section], else None."""
+    sec = scene["section"]
+    return {"circle": sec["radius"], "tube": sec["outer_radius"]}.get(sec["shape"])
 
 
 def obstacles(scene: Scene) -> list:
