@@ -61,7 +61,7 @@ class RodModel(FEModel):
                  rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD):
         check_model(model, params)
         check_variant(variant)
-        check_n_cells(n_cells)
+        check_n_cells(n_cells, comm.size)
         check_supports(ends, end_displacement, end_rotation, not is_zero(params.rho_A))
         check_parameters(params, model == "evolving", model != "hyperelastic", variant)
         constraints.check_constraint(constraint, dynamic=not is_zero(params.rho_A))
