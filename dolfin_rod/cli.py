@@ -220,6 +220,8 @@ def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> d
         "total_dissipation": writer.balance.total_dissipation,
         "title": f"{scene.name}: {choice.model} model",
     }
+    if scene.is_rod_material and scene["material"]["derived"]:
+        summary["derived"] = scene["material"]["derived"]    # from the physical input
     stats = getattr(sim, "stats", None)
     if stats is not None:
         summary["newton_iterations"] = stats.newton_iterations
@@ -312,7 +314,9 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
     choice = _choose(scene, ranks)
     lines = [f"{scene.source}: OK", f"model: {choice.model}", f"why: {choice.reason}"]
     if choice.model == "rod":
+        from .scenes.physical import describe
         from .scenes.rules import rod_rotations
+        lines += [f"derived: {line}" for line in describe(scene["material"]["derived"] or {})]
         lines.append(f"rotations: {rod_rotations(scene)} (geometry.rotations = "
                      f"{scene['geometry']['rotations']!r})")
     if choice.model != "ode":                      # (the ODE prints its own solution)

@@ -70,7 +70,8 @@ def shared_folder(tmp_path) -> Path:
 BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "cantilever_creep.toml": "rod", "gravity_cantilever.toml": "rod",
                   "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod",
-                  "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod"}
+                  "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
+                  "hanging_twist.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
@@ -233,13 +234,15 @@ def test_selection_picks_the_least_model():
 
 
 def _run(scene, model):
+    """Diagnostics at the output times min(k dt, t_end) (the last step clipped)."""
     sim = build(scene, model)
     sim.start()
-    dt, n = scene["time"]["dt"], round(scene["time"]["t_end"] / scene["time"]["dt"])
+    dt, t_end = scene["time"]["dt"], scene["time"]["t_end"]
+    times = [min(k * dt, t_end) for k in range(math.ceil(t_end / dt - 1e-9) + 1)]
     out = [sim.diagnostics(0.0)]
-    for k in range(1, n + 1):
-        sim.advance((k - 1) * dt, k * dt)
-        out.append(sim.diagnostics(k * dt))
+    for t, t_next in zip(times[:-1], times[1:]):
+        sim.advance(t, t_next)
+        out.append(sim.diagnostics(t_next))
     return out
 
 
@@ -253,6 +256,9 @@ CASES = {
     "creep_kelvin_voigt": {"boundary__end": "free", "boundary__end_rotation": None,
                            "loads__end_torsion": {"type": "step", "value": 1.0},
                            "material__mu": 0.2},
+    "creep_clipped_last_step": {"boundary__end": "free", "boundary__end_rotation": None,
+                                "loads__end_torsion": {"type": "step", "value": 1.0},
+                                "material__mu": 0.2, "time__t_end": 0.1033},
     "creep_inviscid_table": {"boundary__end": "free", "boundary__end_rotation": None,
                              "loads__end_torsion": {"type": "table", "times": [0.0, 0.05, 0.1],
                                                     "values": [0.0, 1.0, 0.5]},

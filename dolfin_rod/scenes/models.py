@@ -215,7 +215,9 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
                          end_loads=end_loads, distributed_loads=distributed_loads,
                          end_displacement=motions["displacement"],
                          end_rotation=motions["rotation"], rotations=rod_rotations(scene),
-                         comm=comm or MPI.COMM_WORLD)
+                         comm=comm or MPI.COMM_WORLD,
+                         end_slide={side: axis for key, side in ends.items()
+                                    if (axis := scene["boundary"][f"{key}_slide"]) is not None})
     except ValueError as err:
         key = "material.energy" if str(err).startswith("energy") else "scene.model"
         raise scene.error(key, f"the 'rod' model rejected the scene: {err}") from err
