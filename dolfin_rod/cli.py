@@ -135,7 +135,11 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
 
 
 def _remove_if_empty(folder: Path) -> None:
+    """Remove a run folder that holds nothing but its marker."""
+    from .run_folders import MARKER
     try:
+        if [p.name for p in folder.iterdir()] == [MARKER]:
+            (folder / MARKER).unlink()
         folder.rmdir()
     except OSError:
         pass
