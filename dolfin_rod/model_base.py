@@ -147,7 +147,11 @@ class FEModel:
         """A Dirichlet condition value at an end on the block's space (or on one
         component of a vector block: a scalar value), recorded in ``block_bcs[block]``
         (e.g. for a sub-problem of some blocks)."""
-        s_end = end_coordinate(end, length)
+        return self.dirichlet_at(block, space, end_coordinate(end, length), value, component)
+
+    def dirichlet_at(self, block: str, space, s_end: float, value,
+                     component: int | None = None) -> fem.DirichletBC:
+        """``dirichlet`` at the node s = s_end (e.g. an end of one rod of several)."""
         at_end = lambda x: np.isclose(x[0], s_end)   # noqa: E731
         if component is None:
             dofs = fem.locate_dofs_geometrical(space, at_end)

@@ -283,11 +283,12 @@ def plot_histories(rows: list[dict], path: Path, title: str = "") -> None:
         ax[0, 0].plot(t, col("end_torsion")); ax[0, 0].set_ylabel("end torsion m")
         ax[0, 1].plot(t, col("end_rotation"), label="end rotation phi(1)")
         ax[0, 1].plot(t, col("mean_natural_twist"), label="mean natural twist")
-    else:                              # 3-D rod
-        for c in "xyz":
-            ax[0, 0].plot(t, col(f"tip_position_{c}"), label=f"tip {c}")
-        ax[0, 0].legend()
-        ax[0, 1].plot(t, col("tip_rotation_angle"), label="tip rotation angle")
+    else:                              # 3-D rod; a rod system: each rod's "<name>.tip_..."
+        for rod in [k[:-len("tip_position_x")] for k in rows[0] if k.endswith("tip_position_x")]:
+            for c in "xyz":
+                ax[0, 0].plot(t, col(f"{rod}tip_position_{c}"), label=f"{rod}tip {c}")
+            ax[0, 1].plot(t, col(f"{rod}tip_rotation_angle"), label=f"{rod}tip rotation angle")
+        ax[0, 0].legend(fontsize="small")
     ax[0, 1].legend()
     ax[1, 0].plot(t, col("free_energy") + col("kinetic_energy"), label="K + Psi")
     ax[1, 0].plot(t, col("total_dissipation"), label="int D dt")

@@ -24,7 +24,7 @@ import dolfinx.fem as fem
 import numpy as np
 
 from .. import loads
-from ..model_base import ENDS, NodeValues, end_coordinate, near_nodes, nodal_residual
+from ..model_base import ENDS, NodeValues, near_nodes, nodal_residual
 from ..rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 from .rotation_vector import np_inverse_cayley
 
@@ -92,7 +92,8 @@ class EndSupports:
     last accepted step t_n (``commit``; before the first, its initial rotation: a motion
     may jump at t0 in a quasi-static rod), so that q_n,end c(theta_end) = q_end(t)."""
 
-    def __init__(self, model, ends, end_displacement, end_rotation, end_slide=None):
+    def __init__(self, model, ends, end_displacement, end_rotation, end_slide,
+                 span: tuple[float, float]):
         self.ends = tuple(ends)
         self.displacement = dict(end_displacement or {})
         self.rotation = dict(end_rotation or {})
@@ -103,8 +104,9 @@ class EndSupports:
         self.committed_time = None      # rotation vectors: time of q_n (None: initial)
         self._time_set = 0.0
         self._fixed_values_of: dict = {}      # end -> the initial (x, q) its values hold
-        spaces, mesh, L = model.unknowns.spaces, model.mesh, model.length
-        self.spaces, self.length = spaces, L
+        spaces, mesh = model.unknowns.spaces, model.mesh
+        self.spaces = spaces
+        self.s_ends = dict(zip(ENDS, span))     # the rod's ends on the mesh (layout.py)
         self._residual_forms: dict = {}
         for end, kind in zip(ENDS, self.ends):
             blocks = []
@@ -120,11 +122,12 @@ class EndSupports:
                     held = HeldComponents(mesh, np.flatnonzero(self.slide[end] == 0.0))
                     self.values[(block, end)] = held
                     for i, const in zip(held.components, held.constants):
-                        model.dirichlet(block, spaces[block], end, L, const, component=i)
+                        model.dirichlet_at(block, spaces[block], self.s_ends[end], const,
+                                           component=i)
                     continue
                 const = fem.Constant(mesh, np.zeros(shape) if shape else 0.0)
                 self.values[(block, end)] = const
-                model.dirichlet(block, spaces[block], end, L, const)
+                model.dirichlet_at(block, spaces[block], self.s_ends[end], const)
 
     def prescribed(self, end: str, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(x, q) of an end at time t."""
@@ -210,7 +213,7 @@ class EndSupports:
     def _compiled(self, residual: dict, block: str, ends):
         """The block's residual form and its end nodes, made at the first diagnostics."""
         if block not in self._residual_forms:
-            s_ends = [end_coordinate(e, self.length) for e in ends]
+            s_ends = [self.s_ends[e] for e in ends]
             form = near_nodes(residual[block], self.spaces[block].mesh, s_ends)
             self._residual_forms[block] = (fem.form(form), NodeValues(self.spaces[block],
                                                                       s_ends))

@@ -11,6 +11,7 @@ import numpy as np
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..validation import choose_rotations, rotation_vector_obstacle, sample_points
+from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
 
@@ -19,6 +20,8 @@ TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
     ("geometry", "degree"), ("initial", "natural_twist"), ("loads", "end_torsion")}
 ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints")} | {
+    ("section", k) for k in ("shape", "radius", "semi_axes", "sides", "outer_radius",
+                             "inner_radius", "shear_factor")} | {
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
     ("geometry", "rotations"),
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
@@ -159,6 +162,7 @@ def _sampled(value, L: float) -> list[np.ndarray]:
 def _check_rod_material(scene: Scene) -> None:
     """3-D rod material: the tensors each model needs, and only those."""
     d, err = scene.data, scene.error
+    apply_physical_input(scene)
     mat, L = d["material"], d["geometry"]["length"]
     evolving = mat["model"] == "evolving"
     stiff, visc = mat["stiffness"] or {}, mat["viscosity"] or {}

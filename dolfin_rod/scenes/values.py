@@ -324,6 +324,16 @@ def section_inertia(v) -> tuple[float, float]:
     return (x, x)
 
 
+def positive_pair(v) -> tuple[float, float]:
+    """A number (both entries) or [x_1, x_2], each > 0."""
+    if isinstance(v, list):
+        if len(v) != 2:
+            raise BadValue(f"must be a number or an array of 2 numbers, got {v!r}")
+        return (real(0.0, True)(v[0]), real(0.0, True)(v[1]))
+    x = real(0.0, True)(v)
+    return (x, x)
+
+
 def ts_type_name(v) -> str:
     from ..integrators.ts import parse_ts_type
     v = string(v)
