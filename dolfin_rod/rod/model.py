@@ -90,8 +90,8 @@ class RodModel(FEModel):
         obstacle = rotation_vector_obstacle(
             self.dynamic, variant, constraint,
             rotary_inertia=not any(is_zero(p.I11) or is_zero(p.I22) for p in all_params),
-            rate_dependent=not all(is_zero(v) for p in all_params
-                                   for v in (p.M, p.N, p.drag)),
+            rate_dependent=not all(is_zero(v) for p in all_params for v in (
+                p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
             rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
                               for rod in rods))
         self.rotations = choose_rotations(rotations, obstacle, rotation_jumps=any(
