@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..rod.sections import SHAPES as SECTION_SHAPES
-from ..validation import ROTATIONS
+from ..validation import MIN_LENGTH, ROTATIONS
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
@@ -106,7 +106,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "model": Key(choice(*MODEL_NAMES), "auto", "auto | ode | torsion | rod"),
     },
     "geometry": {
-        "length": Key(real(0.0, True), 1.0, "rod length L (torsion: dimensionless, must be 1)"),
+        "length": Key(real(MIN_LENGTH), 1.0, f"rod length L >= {MIN_LENGTH:g} (torsion: "
+                      "dimensionless, must be 1)"),
         "n_cells": Key(integer(1, 100_000), 32, "number of cells along s"),
         "degree": Key(integer(1, 3), 1, T + "Lagrange degree of phi (the rod is P1)"),
         "reference_curvature": Key(vector3(), (0.0, 0.0, 0.0),

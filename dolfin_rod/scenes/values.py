@@ -311,6 +311,8 @@ def load_entry_point(spec: str, folder: Path | None = None):
         obj = getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError) as err:
         raise BadValue(f"cannot import {spec!r}: {err}") from None
+    except Exception as err:     # the module's own code failed: a SyntaxError, a raise
+        raise BadValue(f"cannot import {spec!r}: {type(err).__name__}: {err}") from None
     finally:
         if added:
             sys.path.remove(str(folder))
