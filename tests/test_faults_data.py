@@ -210,3 +210,44 @@ def test_resume_refuses_an_edited_or_damaged_checkpoint(tmp_path, capsys, damage
         assert err.startswith(f"error: cannot resume from {_checkpoint(run)}: ") \
             and message in err and "nothing was changed" in err and out == "", err
         assert snapshot(run) == before
+
+
+# --- item 6: SNES "converged" is checked against the true residual ----------------------
+
+# cantilever_creep's rod, a large step end force, 4 cells, two quasi-static steps
+STATIC_ROD = """
+[geometry]
+n_cells = 4
+[material]
+variant = "local"
+stiffness = { A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0], A_d = [1.0, 1.0, 1.0], B_d = [100.0, 100.0, 100.0] }
+viscosity = { M = [0.0, 0.0, 0.0], N = [0.0, 0.0, 0.0], M_d = [1.0, 1.0, 1.0], N_d = [1.0, 1.0, 1.0] }
+[loads]
+end_force = { type = "step", value = [0.8, 0.0, 0.0] }
+[time]
+t_end = 0.1
+dt = 0.05
+max_step_cuts = 1
+[outputs]
+plots = false
+fields = false
+animation = false
+"""
+
+
+@pytest.mark.mpi
+def test_one_linear_solve_reported_as_converged_is_a_failed_run(tmp_path, capsys):
+    """snes_type = "ksponly" (one Newton step, reported CONVERGED_ITS) on a large
+    deflection: exit 3 naming the residual and the options, not a wrong tip with exit 0.
+    The same scene with the default options completes (the check passes real solutions)."""
+    folder = shared(tmp_path)
+    good = write(folder / "good.toml", STATIC_ROD)
+    assert run_main(capsys, "run", good, "--out", folder / "good", "--quiet")[0] == 0
+    bad = write(folder / "bad.toml", STATIC_ROD + '[solver]\noptions = {snes_type = "ksponly"}\n')
+    code, out, err = run_main(capsys, "run", bad, "--out", folder / "bad", "--quiet")
+    assert code == 3
+    if COMM.rank == 0:
+        assert err.startswith("failed: t = 0,") and "CONVERGED_ITS but the residual norm at " \
+            "the solution is" in err and "check the solver options" in err, err
+        summary = json.loads((folder / "bad" / "summary.json").read_text())
+        assert summary["status"] == "failed" and summary["t_end_reached"] == 0.0

@@ -14,7 +14,7 @@ import numpy as np
 import ufl
 
 from ..model_base import scalar_coefficient
-from ..validation import sample_points
+from ..validation import rod_length, sample_points
 
 Tensor = Sequence | np.ndarray | Callable | None
 TENSORS = ("A", "B", "A_d", "B_d", "M", "N", "M_d", "N_d")
@@ -92,9 +92,7 @@ def check_scalar(name: str, value, length: float) -> None:
 def check_parameters(params: RodParameters, evolving: bool, viscous: bool,
                      variant: str) -> None:
     """The rules of every parameter of the chosen model (see RodModel)."""
-    L = params.length
-    if not (np.isfinite(L) and L > 0):
-        raise ValueError(f"length must be > 0, got {L}")
+    L = rod_length(params.length)
     for name in ("A", "B") + (("A_d", "B_d", "M_d", "N_d") if evolving else ()):
         check_tensor(name, getattr(params, name), L)
     if evolving and variant == "uniform":

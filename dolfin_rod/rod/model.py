@@ -23,7 +23,7 @@ from ufl.algorithms.analysis import extract_coefficients
 from .. import constraints
 from .. import loads as load_histories
 from ..evolution import check_variant
-from ..model_base import FEModel
+from ..model_base import FEModel, check_n_cells
 from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..rotations import rotation_matrix
 from ..validation import choose_rotations, rotation_vector_obstacle
@@ -77,6 +77,7 @@ class RodModel(FEModel):
         constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.rho_A))
         check_rods(rods, model, variant)
         check_joints(list(joints), rods)
+        check_n_cells(sum(rod.n_cells for rod in rods), comm.size)   # cells per rank
         self.rods = rods
         self.params, self.model, self.variant, self.constraint = (rods[0].params, model,
                                                                   variant, constraint)

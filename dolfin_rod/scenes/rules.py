@@ -137,10 +137,9 @@ def _check_torsion(scene: Scene) -> None:
         raise err("boundary.end_rotation", "given but boundary.end is \"free\": set "
                                            "boundary.end = \"rotation\"")
     couple = lds["distributed_couple"]
-    for k in ("value", "follower"):
-        if couple is not None and couple[k] not in (None, False):
-            raise err(f"loads.distributed_couple.{k}", "torsion: the couple is "
-                                                       "profile(s) history(t), a number")
+    if couple is not None and (couple.is_vector or couple.follower):
+        raise err("loads.distributed_couple." + ("follower" if couple.follower else "value"),
+                  "torsion: the couple is value profile(s) history(t), a number")
     if d["geometry"]["length"] != 1.0:
         raise err("geometry.length", "torsion scenes are dimensionless on s in [0, 1] "
                                      "(Section 5.1): length must be 1")
@@ -333,8 +332,9 @@ def _check_rod_ends(scene: Scene) -> None:
                                                  f"(boundary.{end} = {kind!r}): the support "
                                                  "takes it")
     for k in ("distributed_force", "distributed_couple"):
-        if lds[k] is not None and lds[k]["value"] is None:
-            raise err(f"loads.{k}.value", "missing: 3-D rod: value = [x, y, z]")
+        if lds[k] is not None and not lds[k].is_vector:
+            raise err(f"loads.{k}.value", "3-D rod: a vector value = [x, y, z] (or a table "
+                                          "of 3-vectors)")
     if not scene["material"]["dynamic"] and not (any(fixed_x) and any(fixed_q)):
         raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "
                                     "rotation somewhere (e.g. start = \"clamped\"); rigid "

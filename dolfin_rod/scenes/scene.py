@@ -21,6 +21,9 @@ class SceneError(ValueError):
         where = f"[{key}]: " if key else ""
         super().__init__(f"{self.source}: {where}{reason}")
 
+    def __reduce__(self):                  # pickled to other ranks (mpi.agree)
+        return (type(self), (self.source, self.key, self.reason))
+
 
 @dataclass
 class Scene:

@@ -300,6 +300,8 @@ def load_entry_point(spec: str, folder: Path | None = None):
         obj = getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError) as err:
         raise BadValue(f"cannot import {spec!r}: {err}") from None
+    except Exception as err:     # the module's own code failed: a SyntaxError, a raise
+        raise BadValue(f"cannot import {spec!r}: {type(err).__name__}: {err}") from None
     finally:
         if added:
             sys.path.remove(str(folder))
@@ -308,10 +310,26 @@ def load_entry_point(spec: str, folder: Path | None = None):
     return obj
 
 
-def refuse_unknown(table: dict, known: set[str]) -> None:
+def toml_value(v) -> str:
+    """A value as inline TOML (for scene.toml and for error messages that show a key's
+    new spelling)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    return "{ " + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + " }"
+
+
+def refuse_unknown(table: dict, known: set[str], also=()) -> None:
+    """BadValue naming the first key not in ``known`` (the message lists ``also``, keys
+    checked before, as known too)."""
     for k in table:
         if k not in known:
-            raise BadValue(f"unknown key (known: {', '.join(sorted(known))})", k)
+            raise BadValue(f"unknown key (known: {', '.join(sorted({*known, *also}))})", k)
 
 
 def section_inertia(v) -> tuple[float, float]:
