@@ -256,3 +256,54 @@ def test_rodenv_mpirun_runs_more_ranks_than_cores():
                          capture_output=True, text=True, timeout=MPI_TIMEOUT, cwd=ROOT, env=env)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == [str(ranks)] * ranks, out.stdout + out.stderr
+
+
+# --- item 16: PETSc options that PETSc rejects or never reads ----------------------------
+
+
+@pytest.mark.parametrize("option, reason", [
+    ('snes_type = "foo"', "PETSc rejects it"), ('ksp_type = "bar"', "PETSc rejects it"),
+    ('snes_max_it = "abc"', "PETSc rejects it"), ("snes_fooo = 1", "spelling mistake")])
+def test_bad_petsc_option_is_refused_by_check_and_run(tmp_path, capsys, option, reason):
+    """Item 16: check said OK, run crashed in SNES setFromOptions (and "rod.bp Destroyed
+    without a prior Close()"); an unknown name was silently ignored.  The options are
+    tried on a throwaway SNES (or TS) at check."""
+    scene = tmp_path / "opt.toml"
+    scene.write_text(ROD.replace("[time]", f"[solver]\noptions = {{ {option} }}\n[time]"))
+    key = "solver.options." + option.split(" =")[0]
+    for command in ("check", "run"):
+        code, out, err = run_main(capsys, command, scene, "--out", tmp_path / "run")
+        assert_one_error(code, out, err, key, reason)
+    assert not (tmp_path / "run").exists()
+
+
+def test_petsc_options_read_later_or_by_ts_are_accepted():
+    """Item 16, the other side: options PETSc reads (SNES, line search, KSP, PC, TS) and
+    those read only at set-up (factorisation packages, sub-solvers, viewers) pass."""
+    from dolfin_rod.solvers import option_problem
+    assert option_problem({"snes_max_it": 50, "snes_linesearch_type": "l2",
+                           "ksp_type": "preonly", "pc_type": "lu",
+                           "pc_factor_mat_solver_type": "mumps", "mat_mumps_icntl_14": 50,
+                           "sub_pc_type": "lu", "snes_lag_jacobian": 10, "ksp_view": ""}) is None
+    assert option_problem({"ts_type": "bdf", "ts_max_snes_failures": -1}) is None
+    assert option_problem({"ts_typo": 1})[0] == "ts_typo"
+
+
+# --- item 17: a polynomial tensor that overflows ------------------------------------------
+
+
+@pytest.mark.parametrize("table, value, key", [
+    ("stiffness", "A = {polynomial = [[1.0, 1.0, 1.0], [0.0, 0.0, 0.0], [1e307, 1e307, "
+     "1e307]]}", "material.stiffness.A"),
+    ("density", "{polynomial = [1.0, 1e308]}", "material.density")])
+def test_overflowing_polynomial_is_one_error_in_check(tmp_path, capsys, table, value, key):
+    """Item 17: A = T0 + T2 s^2 with T2 = 1e307 on L = 10 overflows to inf: check raised
+    numpy's LinAlgError (eigenvalues of an inf matrix); now one error naming the key."""
+    text = ROD.replace("n_cells = 4", "n_cells = 4\nlength = 10.0")
+    if table == "stiffness":
+        text = text.replace("A = [1.0, 1.0, 1.0], B", value + ", B")
+    else:
+        text = text.replace("[loads]", f"density = {value}\nsection_inertia = 0.01\n[loads]")
+    (tmp_path / "poly.toml").write_text(text)
+    code, out, err = run_main(capsys, "check", tmp_path / "poly.toml")
+    assert_one_error(code, out, err, key, "must be finite on [0, 10]; it overflows at s = ")

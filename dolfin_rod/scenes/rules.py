@@ -49,12 +49,23 @@ def check_combinations(scene: Scene) -> None:
         _check_rod_ends(scene)
     else:
         _check_torsion(scene)
+    _check_solver_options(scene)
     if scene["time"]["adaptive"] and not adaptive_stepper(scene) \
             and scene["time"]["integrator"] == "stepper":
         raise scene.error("time.adaptive", "the stepper's error-controlled steps are those of "
                                            "generalized-alpha on the rotation group: a dynamic "
                                            "3-D rod with rotation vectors (geometry.rotations); "
                                            "otherwise use integrator = \"ts\"")
+
+
+def _check_solver_options(scene: Scene) -> None:
+    """PETSc reads every option of solver.options and accepts its value (tried on a
+    throwaway solver: a bad one failed the run after check said OK)."""
+    if scene["solver"]["options"]:
+        from ..solvers import option_problem
+        problem = option_problem(scene["solver"]["options"])
+        if problem:
+            raise scene.error(f"solver.options.{problem[0]}", problem[1])
 
 
 def adaptive_stepper(scene: Scene) -> bool:
@@ -154,8 +165,17 @@ def _check_torsion(scene: Scene) -> None:
 
 
 def _sampled(value, L: float) -> list[np.ndarray]:
-    return [np.asarray(value(s) if callable(value) else value, dtype=float)
-            for s in sample_points(L)]
+    with np.errstate(over="ignore", invalid="ignore"):     # overflow: checked by callers
+        return [np.asarray(value(s) if callable(value) else value, dtype=float)
+                for s in sample_points(L)]
+
+
+def _not_finite(samples: list[np.ndarray], L: float) -> str | None:
+    """Why sampled values are unusable (an overflowing polynomial), or None."""
+    for si, a in zip(sample_points(L), samples):
+        if not np.all(np.isfinite(a)):
+            return f"must be finite on [0, {L:g}]; it overflows at s = {si:g}"
+    return None
 
 
 def _check_rod_material(scene: Scene) -> None:
@@ -183,7 +203,10 @@ def _check_rod_material(scene: Scene) -> None:
     for table, have in (("stiffness", stiff), ("viscosity", visc)):
         for k, t in have.items():
             semidefinite = k in ("M", "N")
-            for si, a in zip(sample_points(L), _sampled(t.at, L)):
+            samples = _sampled(t.at, L)
+            if _not_finite(samples, L):
+                raise err(f"material.{table}.{k}", _not_finite(samples, L))
+            for si, a in zip(sample_points(L), samples):
                 low = np.linalg.eigvalsh(a).min()
                 if low < 0 or (low == 0 and not semidefinite):
                     rule = "positive semidefinite" if semidefinite else "positive definite"
@@ -216,7 +239,10 @@ def _check_rod_inertia(scene: Scene) -> None:
     L = scene["geometry"]["length"]
     for k in ("density", "drag"):
         c = mat[k]
-        if c is not None and min(np.min(v) for v in _sampled(c, L)) < 0:
+        samples = _sampled(c, L) if c is not None else []
+        if _not_finite(samples, L):
+            raise err(f"material.{k}", _not_finite(samples, L))
+        if samples and min(np.min(v) for v in samples) < 0:
             raise err(f"material.{k}", "must be >= 0 on [0, L]")
     inertia = mat["section_inertia"] or (0.0, 0.0)
     density = mat["density"] or Coefficient(constant=0.0)
