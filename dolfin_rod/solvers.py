@@ -17,6 +17,7 @@ import ufl
 from petsc4py import PETSc
 
 from .assembly import block_system
+from .fem.multipoint import ConstrainedSystem
 
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
 DEFAULT_OPTIONS = {
@@ -193,7 +194,7 @@ class BlockSNES:
     """
 
     def __init__(self, F: list[ufl.Form] | None, y: list[fem.Function], bcs=(), options=None,
-                 prefix: str | None = None, cache=None, step_scale: float = 0.0):
+                 prefix: str | None = None, cache=None, step_scale: float = 0.0, links=()):
         self.y = y
         settings = petsc_options(y[0].function_space.mesh.comm, options)
         lagged = any(k.startswith("snes_lag_") for k in options or {})
@@ -202,6 +203,8 @@ class BlockSNES:
         if self.reuse_ratio is not None:   # PETSc asks every iteration, _jacobian decides
             settings.update(snes_lag_jacobian=1, snes_lag_preconditioner=1)
         self.system = block_system(F, [y], bcs=bcs, cache=cache)
+        if links:       # joints: Newton on the free dofs (fem/multipoint.py)
+            self.system = ConstrainedSystem(self.system, y, list(links))
         self.x = self.system.x
         self.snes = PETSc.SNES().create(self.x.getComm())
         self.snes.setFunction(self._residual, self.system.b)

@@ -242,6 +242,9 @@ def rod_parameters(scene: Scene):
     if mat["energy"] is not None:
         folder = Path(scene.source).parent if Path(scene.source).is_file() else None
         energy = load_entry_point(mat["energy"], folder)
+    if mat["rotational_drag"] is not None:
+        frame = "" if mat["rotational_drag_frame"] == "material" else "spatial_"
+        tensors[frame + "rotational_drag"] = mat["rotational_drag"].value()
     return RodParameters(length=geo["length"], **tensors, rho_A=scalars.get("density", 0.0),
                          drag=scalars.get("drag", 0.0), I11=I11, I22=I22, energy=energy,
                          reference_curvature=geo["reference_curvature"],

@@ -19,7 +19,8 @@ TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 # keys of one model family only: (table, key) -> the family that reads it
 TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
     ("geometry", "degree"), ("initial", "natural_twist"), ("loads", "end_torsion")}
-ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints")} | {
+ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints",
+                                                 "rotational_drag_frame")} | {
     ("section", k) for k in ("shape", "radius", "semi_axes", "sides", "outer_radius",
                              "inner_radius", "shear_factor")} | {
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
@@ -244,6 +245,9 @@ def _check_rod_inertia(scene: Scene) -> None:
             raise err(f"material.{k}", _not_finite(samples, L))
         if samples and min(np.min(v) for v in samples) < 0:
             raise err(f"material.{k}", "must be >= 0 on [0, L]")
+    if "rotational_drag_frame" in scene.given["material"] and mat["rotational_drag"] is None:
+        raise err("material.rotational_drag_frame", "the frame of material.rotational_drag, "
+                                                    "which is not given")
     inertia = mat["section_inertia"] or (0.0, 0.0)
     density = mat["density"] or Coefficient(constant=0.0)
     dynamic = not (density.is_constant and density.constant == 0.0)
@@ -279,7 +283,8 @@ def rod_rotations(scene: Scene) -> str:
     constraint = None if mat["constraints"] == "none" else mat["constraints"]
     visc = mat["viscosity"] or {}
     rate_dependent = any(k in visc and not visc[k].is_zero for k in ("M", "N")) or not (
-        mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0))
+        mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0)) \
+        or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
     motions = [scene["boundary"][f"{end}_rotation"] for end in ("start", "end")]
     rotation_jumps = any(spec is not None and spec.is_vector and any(
         load_histories.jumps(spec.build(i)) for i in range(3)) for spec in motions)

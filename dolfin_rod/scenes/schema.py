@@ -32,7 +32,8 @@ from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
-                     entry_point, integer, load_entry_point, path_problem, path_text,
+                     damping_tensor, entry_point, integer, load_entry_point, path_problem,
+                     path_text,
                      petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
                      section_inertia, string, tensor_table, toml_value, ts_type_name,
                      type_name, vector3)
@@ -184,6 +185,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "section_inertia": Key(section_inertia, None, R + "I_11 = I_22 (a number) or [I_11, I_22]: "
                                "section mass moments per length (rho J, Section 2.2)"),
         "drag": Key(coefficient(False), None, R + "linear drag f = -c dr/dt (c per length)"),
+        "rotational_drag": Key(damping_tensor, None, R + "rotational damping C (N m s per "
+                               "length): the couple -C W per length, W the angular velocity "
+                               "(a number c: C = c I; [c_1, c_2, c_3] or a tensor); its "
+                               "dissipation W.C W is in dissipation_rate"),
+        "rotational_drag_frame": Key(choice("material", "spatial"), "material",
+                                     R + "components of rotational_drag: material (C W, "
+                                     "W and C in the directors' frame) | spatial (C w, w = R W "
+                                     "and C in the fixed frame)"),
         "constraints": Key(choice(*CONSTRAINTS), "none",
                            R + "none | unshearable | inextensible_unshearable"),
     },

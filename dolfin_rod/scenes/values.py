@@ -278,6 +278,17 @@ def tensor(v) -> Tensor:
     return Tensor(terms)
 
 
+def damping_tensor(v) -> Tensor:
+    """A number c (c I), [c_1, c_2, c_3] (diagonal) or a symmetric 3x3 array, positive
+    semidefinite."""
+    if isinstance(v, dict):
+        raise BadValue("must be a number, [c_1, c_2, c_3] or a 3x3 array")
+    t = tensor(v) if isinstance(v, list) else Tensor((real(0.0)(v) * np.eye(3),))
+    if np.linalg.eigvalsh(t.terms[0]).min() < 0:
+        raise BadValue(f"must be positive semidefinite, got {t.terms[0].tolist()}")
+    return t
+
+
 def entry_point(v) -> str:
     """"package.module:function": imported (from the scene's folder or sys.path)."""
     v = string(v)
