@@ -132,10 +132,18 @@ class RunWriter:
         missing: a resume never reports a complete run with a hole in its history)."""
         path = self.folder / "timeseries.csv"
         if path.exists():
-            with path.open() as f:
-                reader = csv.DictReader(f)
-                self.columns = list(reader.fieldnames or [])
-                self._kept = [r for r in reader if int(r["step"]) <= keep_until_step]
+            try:
+                with path.open() as f:
+                    reader = csv.DictReader(f)
+                    self.columns = list(reader.fieldnames or [])
+                    self._kept = [r for r in reader if int(r["step"]) <= keep_until_step]
+            except (csv.Error, KeyError, TypeError) as err:     # NUL bytes, no step column
+                raise OutputError(f"cannot resume: {path} is damaged ({err}); nothing was "
+                                  "changed") from None
+        for r in self._kept:
+            if None in r.values() or None in r:     # too few or too many fields
+                raise OutputError(f"cannot resume: {path}: the row of step {r['step']} is "
+                                  "incomplete (a half-written file?); nothing was changed")
         steps = [int(r["step"]) for r in self._kept]
         if steps != list(range(keep_until_step + 1)):
             missing = sorted(set(range(keep_until_step + 1)) - set(steps))
