@@ -38,6 +38,7 @@ from .joints import Joint, JointReactions, check_joints, joint_nodes, node_links
 from .layout import RodLayout
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
+from .segments import PassThroughCheck
 
 
 class RodModel(FEModel):
@@ -161,6 +162,10 @@ class RodModel(FEModel):
             forms.update(self.contact.diagnostic_forms())
             forms["friction_dissipation"] = friction_dissipation or 0 * resp.psi * disc.dx_r
         self.set_diagnostic_forms(forms)
+        h = min(length / n for length, n in zip(layout.lengths, layout.n_cells))
+        self.pass_through = PassThroughCheck(
+            unk.f["displacement"], distance=h, exclusion=3 * h,
+            hint="self-contact is not modelled: the rod passes through itself (issue 26)")
 
     def _obstacle_contact(self, obstacles, law, disc) -> ObstacleContact | None:
         if not obstacles:
@@ -257,6 +262,7 @@ class RodModel(FEModel):
         d.update(self.supports.reactions(self.residual, t))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
+        self.pass_through(t)
         if self.contact:
             d["min_gap"] = self.contact.closest()[0]
         return d
