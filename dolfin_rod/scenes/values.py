@@ -300,6 +300,9 @@ def load_entry_point(spec: str, folder: Path | None = None):
         obj = getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError) as err:
         raise BadValue(f"cannot import {spec!r}: {err}") from None
+    except SystemExit as err:    # the module ends the program when imported
+        raise BadValue(f"cannot import {spec!r}: importing it calls sys.exit({err.code!r})") \
+            from None
     finally:
         if added:
             sys.path.remove(str(folder))
