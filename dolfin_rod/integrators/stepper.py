@@ -69,7 +69,8 @@ class _StepResidual:
         F = None if shared and form_cache.lookup(key) else step_forms(
             problem, scheme, history, dt, self.stage_loads)[0]
         self.solver = BlockSNES(F, problem.fields, problem.bcs, options, cache=(key, objects),
-                                step_scale=problem.configuration_norm())
+                                step_scale=problem.configuration_norm(),
+                                links=problem.links)
         self._dt_last = None
 
     def solve(self, t_n: float, dt: float) -> int:

@@ -23,7 +23,7 @@ from ufl.algorithms.analysis import extract_coefficients
 from .. import constraints
 from .. import loads as load_histories
 from ..evolution import check_variant
-from ..model_base import FEModel
+from ..model_base import FEModel, check_n_cells
 from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..rotations import rotation_matrix
 from ..validation import choose_rotations, rotation_vector_obstacle
@@ -32,6 +32,7 @@ from .boundary_conditions import EndSupports
 from .constitutive import check_model, energy_function, section_response
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad
+from .joints import Joint, JointReactions, check_joints, joint_nodes, node_links
 from .layout import RodLayout
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
@@ -69,12 +70,14 @@ class RodModel(FEModel):
         self._build([rod], model, variant, constraint, rotations, comm)
 
     def _build(self, rods: list[Rod], model: str, variant: str, constraint: str | None,
-               rotations: str, comm) -> None:
-        """The model of one or several rods (see system.RodSystem)."""
+               rotations: str, comm, joints: Sequence[Joint] = ()) -> None:
+        """The model of one or several rods and their joints (see system.RodSystem)."""
         check_model(model, rods[0].params)
         check_variant(variant)
         constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.rho_A))
         check_rods(rods, model, variant)
+        check_joints(list(joints), rods)
+        check_n_cells(sum(rod.n_cells for rod in rods), comm.size)   # cells per rank
         self.rods = rods
         self.params, self.model, self.variant, self.constraint = (rods[0].params, model,
                                                                   variant, constraint)
@@ -90,13 +93,19 @@ class RodModel(FEModel):
         obstacle = rotation_vector_obstacle(
             self.dynamic, variant, constraint,
             rotary_inertia=not any(is_zero(p.I11) or is_zero(p.I22) for p in all_params),
-            rate_dependent=not all(is_zero(v) for p in all_params
-                                   for v in (p.M, p.N, p.drag)),
+            rate_dependent=not all(is_zero(v) for p in all_params for v in (
+                p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
             rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
                               for rod in rods))
+        if joints and obstacle:
+            raise ValueError(f"joints need rotation-vector unknowns, which this system "
+                             f"cannot have: {obstacle}")
         self.rotations = choose_rotations(rotations, obstacle, rotation_jumps=any(
             load_histories.jumps(motion) for rod in rods
             for motion in (rod.end_rotation or {}).values()))
+        if joints and self.rotations != "rotation_vector":
+            raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
+                             f"'rotation_vector'), got {rotations!r}")
         disc = discretise(comm, layout, self.rotations)
         super().__init__(disc.mesh)
         self.dx, self.dx_r = disc.dx, disc.dx_r
@@ -131,7 +140,10 @@ class RodModel(FEModel):
                                          rod.end_rotation, rod.end_slide, layout.span(k))
                              for k, rod in enumerate(rods)]
         self.residual = {name: F[name] for name in self.names}
-        self.problem = self._problem()
+        self.joints = list(joints)
+        nodes = joint_nodes(self, self.joints)
+        self.problem = self._problem(node_links(self, self.joints, nodes))
+        self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
 
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
         self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(rods))]
@@ -148,7 +160,7 @@ class RodModel(FEModel):
         for supports in self.end_supports:
             supports.set(t)
 
-    def _problem(self) -> SemiDiscreteProblem:
+    def _problem(self, links: list) -> SemiDiscreteProblem:
         unk = self.unknowns
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
                   list(self.residual.values()), self.loads, self.bcs, self.set_supports)
@@ -160,7 +172,8 @@ class RodModel(FEModel):
             after_step=self.commit_rotations, check_step=unk.chart.check_increment,
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
-            error_scales=[1.0 if n == unk.rotation else self.length for n in self.names])
+            error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
+            links=links)
 
     def commit_rotations(self) -> None:
         """Rotation vectors, after an accepted step: q_n <- q_n c(theta), theta <- 0."""
@@ -181,6 +194,10 @@ class RodModel(FEModel):
             committed = state["rotations_committed_at"]
             for supports in self.end_supports:
                 supports.committed_time = None if committed is None else float(committed)
+
+    def stress_free(self, s):
+        """(r, q) of the initial stress-free configuration at parameter values s."""
+        return initial_state.stress_free(self, s)
 
     def set_initial_state(self, natural_curvature=None, natural_stretch=None) -> None:
         """Rest in the stress-free configuration of the reference strains (a straight rod

@@ -10,7 +10,8 @@ import numpy as np
 
 # the material keys that make a scene a 3-D rod scene (RodModel)
 ROD_KEYS = ("stiffness", "viscosity", "density", "section_inertia", "drag", "youngs_modulus",
-            "shear_modulus", "poisson_ratio", "natural_stiffness_ratio", "relaxation_time")
+            "shear_modulus", "poisson_ratio", "natural_stiffness_ratio", "relaxation_time",
+            "rotational_drag")
 
 
 class SceneError(ValueError):
@@ -20,6 +21,9 @@ class SceneError(ValueError):
         self.source, self.key, self.reason = str(source), key, reason
         where = f"[{key}]: " if key else ""
         super().__init__(f"{self.source}: {where}{reason}")
+
+    def __reduce__(self):                  # pickled to other ranks (mpi.agree)
+        return (type(self), (self.source, self.key, self.reason))
 
 
 @dataclass

@@ -27,15 +27,16 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..rod.sections import SHAPES as SECTION_SHAPES
-from ..validation import ROTATIONS
+from ..validation import MIN_LENGTH, ROTATIONS
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
-                     entry_point, integer, load_entry_point, path_problem, path_text,
+                     damping_tensor, entry_point, integer, load_entry_point, path_problem,
+                     path_text,
                      petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
-                     section_inertia, string, tensor_table, ts_type_name, type_name,
-                     vector3)
+                     section_inertia, string, tensor_table, toml_value, ts_type_name,
+                     type_name, vector3)
 
 __all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "Tensor", "load_scene",
            "parse_scene", "load_entry_point", "SCHEMA", "SCHEMA_NOTES", "MODEL_NAMES",
@@ -75,10 +76,18 @@ is an SI example).  Giving a tensor and the physical key that derives it is an e
 mu, mu_d, nu; s in [0, 1], errata item 5).  Keys marked "3-D rod:" or "torsion:" belong to
 one kind; giving one to the other kind is an error.
 
-**Values.** A load history is a table `{type = "step" | "ramp" | "smooth_step" | "table" |
-"constant", ...}` with `value`, `t0` (step), `duration` (ramp, smooth step), `times` and
-`values` (table); rod loads and end motions take `value = [x, y, z]` (a table: `values` of
-3-vectors), end loads also `follower = true` (components in the end's material frame).
+**Values: one load syntax.** Every load and prescribed motion is a table `{type =
+"constant" | "step" | "ramp" | "smooth_step" | "table", value, t0, duration, follower,
+profile}`: `value` (a number; rod loads and end motions a vector `[x, y, z]`), `t0` (the
+step's time, the ramp's and smooth step's start; default 0), `duration` (ramp, smooth
+step), or `times` and `values` (table: piecewise linear; rod: `values` of 3-vectors);
+`follower = true` for rod loads (components in the material frame, rotating with the
+section), `profile` (a number or `{polynomial}` in s) for distributed loads, which are
+value profile(s) history(t) per unit length.  `type` defaults to "constant".  E.g.
+`end_force = { type = "ramp", value = [0.0, 0.0, 2.0], t0 = 1.0, duration = 0.5 }`,
+`distributed_force = { type = "step", value = [0.1, 0.0, 0.0], profile = { polynomial =
+[1.0, -1.0] } }`.  The old distributed form `{value, profile, history = {...}}` is an
+error that shows its new spelling.
 A torsion coefficient or a density/drag/profile is a number or `{polynomial = [c0, c1,
 ...]}` in s.  A rod tensor (A, B, A_d, B_d, M, N, M_d, N_d) is `[a, b, c]` (diagonal),
 `[[..], [..], [..]]` (a full symmetric 3x3 matrix) or `{polynomial = [T0, T1, ...]}`
@@ -97,7 +106,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "model": Key(choice(*MODEL_NAMES), "auto", "auto | ode | torsion | rod"),
     },
     "geometry": {
-        "length": Key(real(0.0, True), 1.0, "rod length L (torsion: dimensionless, must be 1)"),
+        "length": Key(real(MIN_LENGTH), 1.0, f"rod length L >= {MIN_LENGTH:g} (torsion: "
+                      "dimensionless, must be 1)"),
         "n_cells": Key(integer(1, 100_000), 32, "number of cells along s"),
         "degree": Key(integer(1, 3), 1, T + "Lagrange degree of phi (the rod is P1)"),
         "reference_curvature": Key(vector3(), (0.0, 0.0, 0.0),
@@ -175,6 +185,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "section_inertia": Key(section_inertia, None, R + "I_11 = I_22 (a number) or [I_11, I_22]: "
                                "section mass moments per length (rho J, Section 2.2)"),
         "drag": Key(coefficient(False), None, R + "linear drag f = -c dr/dt (c per length)"),
+        "rotational_drag": Key(damping_tensor, None, R + "rotational damping C (N m s per "
+                               "length): the couple -C W per length, W the angular velocity "
+                               "(a number c: C = c I; [c_1, c_2, c_3] or a tensor); its "
+                               "dissipation W.C W is in dissipation_rate"),
+        "rotational_drag_frame": Key(choice("material", "spatial"), "material",
+                                     R + "components of rotational_drag: material (C W, "
+                                     "W and C in the directors' frame) | spatial (C w, w = R W "
+                                     "and C in the fixed frame)"),
         "constraints": Key(choice(*CONSTRAINTS), "none",
                            R + "none | unshearable | inextensible_unshearable"),
     },
@@ -209,15 +227,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "loads": {
         "end_torsion": Key(history(False), None, T + "applied torsion m(t) at s = 1"),
         "distributed_couple": Key(distributed, None,
-                                  "l(s, t) = value profile(s) history(t) per length (torsion: "
-                                  "no value; rod: value = [x, y, z], follower = true for "
+                                  "l(s, t) per length, {type, value, t0, duration, follower, "
+                                  "profile} = value profile(s) history(t) (torsion: value a "
+                                  "number; rod: value = [x, y, z], follower = true for "
                                   "material components)"),
         "distributed_force": Key(distributed, None, R + "as distributed_couple, a force"),
         "gravity": Key(vector3(), None, R + "g = [x, y, z]: the distributed force rho_A g "
                        "(needs density > 0)"),
-        "end_force": Key(history(True, True), None, R + "force at s = L: a history with value "
-                         "= [x, y, z] (or a table of 3-vectors); follower = true: material "
-                         "components (rotating with the end)"),
+        "end_force": Key(history(True, True), None, R + "force at s = L, {type, value, t0, "
+                         "duration, follower}: value = [x, y, z] (or a table of 3-vectors); "
+                         "follower = true: material components (rotating with the end)"),
         "end_couple": Key(history(True, True), None, R + "couple at s = L (as end_force)"),
         "start_force": Key(history(True, True), None, R + "force at s = 0 (as end_force)"),
         "start_couple": Key(history(True, True), None, R + "couple at s = 0 (as end_force)"),
@@ -329,20 +348,10 @@ def parse_scene(text: str, source: str = "<string>", default_name: str = "scene"
 
 def to_toml(raw: dict) -> str:
     """A scene dict as TOML (tables of keys with inline values), for scene.toml."""
-    def value(v) -> str:
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, (int, float)):
-            return repr(v)
-        if isinstance(v, str):
-            return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-        if isinstance(v, (list, tuple)):
-            return "[" + ", ".join(value(x) for x in v) + "]"
-        return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
     out = []
     for table, keys in raw.items():
         out.append(f"[{table}]")
-        out += [f"{k if k.replace('_', '').isalnum() else value(k)} = {value(v)}"
+        out += [f"{k if k.replace('_', '').isalnum() else toml_value(k)} = {toml_value(v)}"
                 for k, v in keys.items()]
         out.append("")
     return "\n".join(out)
