@@ -338,16 +338,7 @@ def test_sigterm_mid_run_stops_like_ctrl_c(tmp_path):
     _assert_interrupted(run, err)
 
 
-@pytest.mark.skipif(COMM.size > 1, reason="signals one process")
-def test_sigterm_during_start_up_is_a_clean_interruption(tmp_path):
-    scene = write(tmp_path / "s.toml", CREEP.replace("n_cells = 4", "n_cells = 5"))
-    proc = _start("run", str(scene), "--out", str(tmp_path / "run"))
-    line = proc.stdout.readline()           # "model: ..." is printed before the build
-    assert line.startswith("model: torsion"), line
-    proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130, err
-    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted")
+# SIGTERM during start-up: tests/test_faults.py, test_ctrl_c_during_start_up_is_a_clean_...
 
 
 def _children(pid: int) -> list[int]:
