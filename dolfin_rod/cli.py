@@ -273,10 +273,11 @@ def _parser() -> argparse.ArgumentParser:
 
 def schema_markdown() -> str:
     """The scene schema as Markdown tables (docs/scenes.md is generated from it)."""
-    from .scenes.schema import REQUIRED, SCHEMA, SCHEMA_NOTES
+    from .scenes.schema import ARRAY_TABLES, REQUIRED, SCHEMA, SCHEMA_NOTES
     lines = [SCHEMA_NOTES]
     for table, keys in SCHEMA.items():
-        lines += [f"### [{table}]", "", "| key | default | meaning |", "|---|---|---|"]
+        title = f"[[{table}]] (an array of tables)" if table in ARRAY_TABLES else f"[{table}]"
+        lines += [f"### {title}", "", "| key | default | meaning |", "|---|---|---|"]
         for name, key in keys.items():
             default = "required" if key.default is REQUIRED else (
                 "-" if key.default is None else f"`{key.default!r}`")

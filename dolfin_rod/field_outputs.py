@@ -20,7 +20,8 @@ class FieldOutputs:
         out.finish("title")                         # rank 0: close rod.bp, draw
     """
 
-    POINT = ("centre_line", "d1", "d2", "d3", "phi")    # vertex values; others per cell
+    POINT = ("centre_line", "d1", "d2", "d3", "phi",    # vertex values; others per cell
+             "contact_force")
 
     def __init__(self, folder: Path, model, comm, fields: bool = True, animation: bool = True):
         self.folder, self.comm = Path(folder), comm
