@@ -215,22 +215,45 @@ class RunWriter:
 
     # -- the end --------------------------------------------------------------------------
     def finish(self, summary: dict, timings: dict) -> None:
+        """Rank 0: the time series closed, timeseries.json, the pictures, timings.json and
+        summary.json.  Ctrl-C while the pictures are drawn (every step is done) stops the
+        drawing only: the picture being drawn is removed and the summary records
+        ``"pictures": "interrupted"`` with the ones missing."""
         if self.rank != 0:
             return
         if self._csv is not None:
             self._csv_file.close()
+        if self.lines is not None:
+            self.lines.close()
         series = {k: [r.get(k) for r in self.rows] for k in (self.columns or [])}
         _dump(self.folder / "timeseries.json", _finite(series))
-        if self.outputs["plots"] and len(self.rows) > 1:
-            plot_histories(self.rows, self.folder / "histories.png", summary.get("title", ""))
-        if self.lines is not None:
-            t0 = time.perf_counter()
-            self.lines.finish(summary.get("title", ""))
-            self.timings["pictures"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        missing = self._draw(summary.get("title", ""))
+        self.timings["pictures"] = time.perf_counter() - t0
+        summary["pictures"] = "interrupted" if missing else "complete"
+        if missing:
+            summary["pictures_missing"] = missing
         _dump(self.folder / "timings.json", {**timings, **self.timings})
         files = sorted(set(files_in(self.folder)) | {"summary.json"})
         _dump(self.folder / "summary.json", _finite({**summary, "versions": versions(),
                                                      "files": files}))
+
+    def _draw(self, title: str) -> list[str]:
+        """Rank 0: draw the pictures; the names of those not drawn (Ctrl-C)."""
+        pictures = []
+        if self.outputs["plots"] and len(self.rows) > 1:
+            pictures.append(("histories.png",
+                             lambda: plot_histories(self.rows, self.folder / "histories.png",
+                                                    title)))
+        if self.lines is not None:
+            pictures += self.lines.pictures(title)
+        for i, (name, draw) in enumerate(pictures):
+            try:
+                draw()
+            except KeyboardInterrupt:
+                (self.folder / name).unlink(missing_ok=True)     # half drawn
+                return [n for n, _ in pictures[i:]]
+        return []
 
 
 def _ranges(numbers: list[int]) -> str:
