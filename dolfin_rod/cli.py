@@ -22,11 +22,11 @@ import sys
 import time
 from pathlib import Path
 
-from .divergence import EnergyBound
+from .output.divergence import EnergyBound
 from .integrators.stepper import IntegrationError
 from .scenes import Scene, SceneError, build, load_scene, select_model
-from .scenes.stability import explicit_stability_warning
-from .solvers import SolverError
+from .torsion.stability import explicit_stability_warning
+from .fem.solvers import SolverError
 
 __all__ = ["main", "run_scene"]
 
@@ -62,7 +62,7 @@ class _InterruptFlag:
 
 def _run_folder(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool) -> Path:
     """The results folder, ready on rank 0 (errors on every rank as OutputError)."""
-    from .run_folders import new_run_folder, on_root, prepare_run_folder
+    from .output.run_folders import new_run_folder, on_root, prepare_run_folder
     if out is None:
         parent = Path(scene["outputs"]["directory"])
         return Path(on_root(comm, lambda: str(new_run_folder(parent, scene.name)),
@@ -85,8 +85,8 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     """
     from mpi4py import MPI
 
-    from .checkpoints import read_checkpoint_meta
-    from .output import RunWriter
+    from .output.checkpoints import read_checkpoint_meta
+    from .output.writer import RunWriter
     comm = comm or MPI.COMM_WORLD
     clock = {"start": time.perf_counter()}
     choice = select_model(scene)
@@ -141,8 +141,8 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     with t the time of the last recorded row."""
     from mpi4py import MPI
 
-    from .output import show_progress
-    from .run_folders import OutputError
+    from .output.writer import show_progress
+    from .output.run_folders import OutputError
     tim, outs = scene["time"], scene["outputs"]
     n_steps = max(1, math.ceil(tim["t_end"] / tim["dt"] - 1e-9))
     times = [min(k * tim["dt"], tim["t_end"]) for k in range(n_steps + 1)]
@@ -234,7 +234,7 @@ def _parser() -> argparse.ArgumentParser:
                                                           "are still reported on stderr)")
     sub.add_parser("schema", help="print every scene key with its default and meaning "
                                   "(Markdown, as in docs/scenes.md)")
-    from .fit_cli import add_fit_parser
+    from .fit.command import add_fit_parser
     add_fit_parser(sub)
     return p
 
@@ -262,7 +262,7 @@ def _warn_if_unstable(scene: Scene, comm) -> None:
 
 def _check(scene: Scene, out: Path | None, comm) -> None:
     """``dolfin-rod check``: the scene, its model and the output location."""
-    from .run_folders import OutputError, folder_problem
+    from .output.run_folders import OutputError, folder_problem
     choice = select_model(scene)
     target = out if out is not None else Path(scene["outputs"]["directory"])
     problem = folder_problem(target) if comm.rank == 0 else None
@@ -303,8 +303,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None, comm) -> int:
-    from .fit_cli import FitInputError, fit_command
-    from .run_folders import OutputError
+    from .fit.command import FitInputError, fit_command
+    from .output.run_folders import OutputError
     args = _parser().parse_args(argv)
     if args.command == "schema":
         print_on_root(comm, schema_markdown())

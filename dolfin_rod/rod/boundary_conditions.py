@@ -19,8 +19,8 @@ import dolfinx.fem as fem
 import numpy as np
 
 from .. import loads
-from ..model_base import ENDS, NodeValues, end_coordinate, near_nodes, nodal_residual
-from ..rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
+from ..fem.fe_model import ENDS, NodeValues, end_coordinate, near_nodes, nodal_residual
+from ..theory.rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 from .rotation_vector import np_inverse_cayley
 
 END_TYPES = ("clamped", "pinned", "free")

@@ -14,9 +14,9 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from .. import balance
-from ..model_base import ENDS
-from ..problem import TimeDependentValue
+from ..theory import balance
+from ..fem.fe_model import ENDS
+from ..fem.problem import TimeDependentValue
 from .discretisation import Discretisation, Unknowns
 from .material import is_zero
 

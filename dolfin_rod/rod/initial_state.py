@@ -10,9 +10,9 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from .. import compat
-from ..rotations import np_quaternion_from_rotation_vector
-from ..model_base import ENDS, end_coordinate
+from ..fem import compat
+from ..theory.rotations import np_quaternion_from_rotation_vector
+from ..fem.fe_model import ENDS, end_coordinate
 
 
 def helix(s, u0, v0):

@@ -10,7 +10,8 @@ import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
-from ..validation import choose_rotations, rotation_vector_obstacle, sample_points
+from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
+from ..checks import sample_points
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
 

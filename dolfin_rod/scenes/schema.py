@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..validation import ROTATIONS
+from ..rod.rotation_choice import ROTATIONS
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError

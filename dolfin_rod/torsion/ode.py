@@ -16,10 +16,10 @@ import math
 
 import numpy as np
 
-from .. import closed_forms
+from . import closed_forms
 from ..integrators.schemes import get_scheme
 from ..loads import rate as load_rate
-from .schema import Scene
+from ..scenes.schema import Scene
 
 __all__ = ["OdeTorsion"]
 

@@ -39,7 +39,7 @@ def folder_problem(path: Path) -> str | None:
     long, an existing file, a file or an unwritable folder on the way.  Writability is
     probed by creating and removing a temporary folder (permission bits do not tell a
     root user about read-only file systems)."""
-    from .scenes.values import path_problem
+    from ..scenes.values import path_problem
     problem = path_problem(str(path))
     if problem:
         return f"{str(path)[:80]!r}: {problem}"

@@ -17,8 +17,8 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from ..problem import SecondOrderProblem
-from .ode import OdeTorsion
+from ..fem.problem import SecondOrderProblem
+from ..torsion.ode import OdeTorsion
 from .rules import adaptive_stepper, rod_rotations
 from .schema import Scene, SceneError
 
@@ -147,7 +147,7 @@ def solver_options(scene: Scene, second_order: bool = False) -> dict:
     """PETSc options of a scene: tolerances of [time] (given ones only for a rod with
     rotation vectors, whose integrator has its own defaults, lie_alpha.default_options),
     the [solver] preset, its options."""
-    from .. import solvers
+    from ..fem import solvers
     tim, sol = scene["time"], scene["solver"]
     preset = {"default": {}, "native_lu": solvers.NATIVE_LU,
               "jacobian_reuse": solvers.JACOBIAN_REUSE}[sol["preset"]]
@@ -173,7 +173,7 @@ def ts_type(scene: Scene) -> str:
 def build_torsion(scene: Scene, comm=None) -> FESimulation:
     from mpi4py import MPI
 
-    from ..torsion import TorsionModel, TorsionParameters
+    from ..torsion.model import TorsionModel, TorsionParameters
     mat, geo, lds = scene["material"], scene["geometry"], scene["loads"]
     kwargs = {}
     couple = lds["distributed_couple"]
