@@ -203,6 +203,8 @@ def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> d
         "total_dissipation": writer.balance.total_dissipation,
         "title": f"{scene.name}: {choice.model} model",
     }
+    if scene.is_rod_material and scene["material"]["derived"]:
+        summary["derived"] = scene["material"]["derived"]    # from the physical input
     stats = getattr(sim, "stats", None)
     if stats is not None:
         summary["newton_iterations"] = stats.newton_iterations
@@ -274,7 +276,10 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
     print_on_root(comm, f"model: {choice.model}")
     print_on_root(comm, f"why: {choice.reason}")
     if choice.model == "rod":
+        from .scenes.physical import describe
         from .scenes.rules import rod_rotations
+        for line in describe(scene["material"]["derived"] or {}):
+            print_on_root(comm, f"derived: {line}")
         print_on_root(comm, f"rotations: {rod_rotations(scene)} (geometry.rotations = "
                             f"{scene['geometry']['rotations']!r})")
     if choice.model != "ode":                      # (the ODE prints its own solution)

@@ -483,11 +483,11 @@ def test_ode_output_lookup_finds_every_output_time_and_refuses_others():
 
 def test_couple_profile_may_change_sign_and_reach_zero():
     text = CREEP.replace("[loads]", "[loads]\ndistributed_couple = { profile = "
-                         "{polynomial = [1.0, -1.0]}, history = { type = \"constant\", "
-                         "value = 1.0 } }").replace('end_torsion = { type = "step", '
+                         "{polynomial = [1.0, -1.0]}, type = \"constant\", "
+                         "value = 1.0 }").replace('end_torsion = { type = "step", '
                                                     'value = 1.0 }', "")
     scene = parse_scene(text, "couple.toml")
-    profile = scene["loads"]["distributed_couple"]["profile"]
+    profile = scene["loads"]["distributed_couple"].profile
     assert profile.polynomial == (1.0, -1.0) and profile(0.25) == 0.75
     assert select_model(scene).model == "torsion"
 

@@ -142,12 +142,24 @@ class FEModel:
         self.diagnostic_forms: dict = {}                        # UFL, by key
         self._diagnostic_sums: FormSums | None = None           # compiled on first use
 
-    def dirichlet(self, block: str, space, end: str, length: float, value) -> fem.DirichletBC:
-        """A Dirichlet condition value at an end on the block's space, recorded in
-        ``block_bcs[block]`` (e.g. for a sub-problem of some blocks)."""
-        s_end = end_coordinate(end, length)
-        dofs = fem.locate_dofs_geometrical(space, lambda x: np.isclose(x[0], s_end))
-        bc = fem.dirichletbc(value, dofs, space)
+    def dirichlet(self, block: str, space, end: str, length: float, value,
+                  component: int | None = None) -> fem.DirichletBC:
+        """A Dirichlet condition value at an end on the block's space (or on one
+        component of a vector block: a scalar value), recorded in ``block_bcs[block]``
+        (e.g. for a sub-problem of some blocks)."""
+        return self.dirichlet_at(block, space, end_coordinate(end, length), value, component)
+
+    def dirichlet_at(self, block: str, space, s_end: float, value,
+                     component: int | None = None) -> fem.DirichletBC:
+        """``dirichlet`` at the node s = s_end (e.g. an end of one rod of several)."""
+        at_end = lambda x: np.isclose(x[0], s_end)   # noqa: E731
+        if component is None:
+            dofs = fem.locate_dofs_geometrical(space, at_end)
+            bc = fem.dirichletbc(value, dofs, space)
+        else:
+            sub = space.sub(component)
+            dofs = fem.locate_dofs_geometrical((sub, sub.collapse()[0]), at_end)[0]
+            bc = fem.dirichletbc(value, dofs, sub)
         self.bcs.append(bc)
         self.block_bcs.setdefault(block, []).append(bc)
         return bc

@@ -113,6 +113,13 @@ class BlockSNES:
     r; after a slower iteration the next one builds a new one.  A solve's result depends
     on its start only (a resumed run equals an uninterrupted one).  Given PETSc
     snes_lag_* options (e.g. JACOBIAN_REUSE) replace the rule.
+
+    A solve SNES reports as converged is checked against the residual at the solution
+    (_verify_residual): it must meet snes_atol or snes_rtol (times the initial norm),
+    except after a step test, where the residual must not have grown (Newton stopped at
+    the residual's round-off floor, e.g. 1e-8 on stiff rods, measured); else
+    SolverError.  Options that stop without testing the residual (snes_type ksponly,
+    snes_max_it with snes_convergence_test skip) thus never return a wrong answer.
     """
 
     def __init__(self, F: list[ufl.Form] | None, y: list[fem.Function], bcs=(), options=None,
@@ -144,6 +151,8 @@ class BlockSNES:
         # that were not used!") for a solver that never solved
         weakref.finalize(self, _forget_options, self.prefix, list(settings))
         self._last_norm = np.inf
+        self._x_at_residual, self._r = self.x.duplicate(), self.system.b.duplicate()
+        self._residual_norm, self._initial_norm = np.inf, None
         self._bc_values = None
         self._persists = tuple(str(settings.get(f"snes_lag_{k}_persists", False)).lower()
                                in ("true", "1", "yes") for k in ("jacobian", "preconditioner"))
@@ -155,6 +164,10 @@ class BlockSNES:
         t0 = time.perf_counter()
         self.system.set(0, x, blocks=False)     # the block Functions: once solved
         self.system.residual(x, b, self._bc_values)
+        x.copy(self._x_at_residual)             # (_verify_residual: the norm at x)
+        self._residual_norm = b.norm()
+        if self._initial_norm is None:
+            self._initial_norm = self._residual_norm
         self.timings["residual"] += time.perf_counter() - t0
         self.counts["residual"] += 1
 
@@ -210,6 +223,7 @@ class BlockSNES:
         """
         self.system.get(0, self.x)
         self._bc_values = self.system.bc_values()      # fixed during a solve
+        self._initial_norm = None
         fresh = fresh_jacobian and any(self._persists)
         if fresh:  # (petsc4py 3.22 has no SNESSetLag*Persists: via the options database)
             self._set_persists((False, False))
@@ -223,4 +237,22 @@ class BlockSNES:
         self.iterations = self.snes.getIterationNumber()
         if reason <= 0 or not np.isfinite(self.snes.getFunctionNorm()):
             raise SolverError(_REASONS.get(reason, str(reason)), self.iterations)
+        self._verify_residual(reason)
         return self.iterations
+
+    def _verify_residual(self, reason: int) -> None:
+        """SNES reported convergence: the residual at the solution must meet the
+        tolerances, whatever the options (ksponly, a loose linear solve, a convergence
+        test that trusts a small step); else SolverError with the norms."""
+        if not self.x.equal(self._x_at_residual):
+            self.snes.computeFunction(self.x, self._r)   # -> _residual at the solution
+        norm, initial = self._residual_norm, self._initial_norm
+        rtol, atol, _, _ = self.snes.getTolerances()
+        if norm <= max(atol, rtol * initial):
+            return
+        if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and norm <= initial:
+            return     # Newton stopped moving at the residual's round-off floor
+        raise SolverError(f"{_REASONS.get(reason, reason)} but the residual norm at the "
+                          f"solution is {norm:.3g}, above the tolerance "
+                          f"{max(atol, rtol * initial):.3g} (snes_atol, or snes_rtol times "
+                          "the initial norm; check the solver options),", self.iterations)

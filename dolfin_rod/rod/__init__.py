@@ -1,9 +1,14 @@
-"""The 3-D special Cosserat rod (Sections 2-4): ``RodModel`` composed in model.py."""
+"""The 3-D special Cosserat rod (Sections 2-4): ``RodModel`` composed in model.py;
+several rods in one model: ``RodSystem`` (system.py)."""
 
+from . import sections
 from .boundary_conditions import END_TYPES
 from .constitutive import MODELS
 from .external_forces import DistributedLoad, EndLoad
 from .material import RodParameters
 from .model import RodModel
+from .rods import Rod
+from .system import RodSystem
 
-__all__ = ["RodModel", "RodParameters", "EndLoad", "DistributedLoad", "MODELS", "END_TYPES"]
+__all__ = ["RodModel", "RodSystem", "Rod", "RodParameters", "EndLoad", "DistributedLoad",
+           "MODELS", "END_TYPES", "sections"]

@@ -11,8 +11,8 @@ import ufl
 from mpi4py import MPI
 
 from ..fem import compat
-from ..theory.rotations import np_quaternion_from_rotation_vector
-from ..fem.fe_model import ENDS, end_coordinate
+from ..fem.fe_model import ENDS
+from ..theory.rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 
 
 def helix(s, u0, v0):
@@ -33,25 +33,43 @@ def helix(s, u0, v0):
     return r, q
 
 
+def stress_free(model, s) -> tuple[np.ndarray, np.ndarray]:
+    """(r, q) at parameter values s: each rod's helix of its reference strains, turned by
+    its orientation and moved to its position (rods.Rod; layout.py for s)."""
+    s = np.asarray(s, float)
+    if model.layout.single and not model.rods[0].placed:
+        p = model.params
+        return helix(s, p.reference_curvature, p.reference_stretch)
+    r, q = np.zeros((len(s), 3)), np.zeros((len(s), 4))
+    rod_of = model.layout.rod_of(s)
+    for k, rod in enumerate(model.rods):
+        on = rod_of == k
+        r_k, q_k = helix(s[on] - model.layout.starts[k], rod.params.reference_curvature,
+                         rod.params.reference_stretch)
+        turn = np_quaternion_from_rotation_vector(np.asarray(rod.orientation, float))
+        r[on] = np.asarray(rod.position, float) + r_k @ np_rotation_matrix(turn).T
+        q[on] = np_qmul(turn, q_k)
+    return r, q
+
+
 def set_initial_state(model, natural_curvature=None, natural_stretch=None) -> None:
     """See RodModel.set_initial_state."""
     unk = model.unknowns
     f = unk.f
     for g in [*f.values(), *unk.r.values(), *unk.acc.values()]:
         g.x.array[:] = 0.0
-    u0 = np.asarray(model.params.reference_curvature, float)
-    v0 = np.asarray(model.params.reference_stretch, float)
     f["displacement"].interpolate(
-        lambda X: (helix(X[0], u0, v0)[0] - np.outer(X[0], [0, 0, 1.0])).T)
+        lambda X: (stress_free(model, X[0])[0] - np.outer(X[0], [0, 0, 1.0])).T)
     if unk.chart is not None:
-        unk.chart.set_nodal_rotations(lambda s: helix(s, u0, v0)[1])
-        model.supports.committed_time = None
+        unk.chart.set_nodal_rotations(lambda s: stress_free(model, s)[1])
     else:
-        f["quaternion"].interpolate(lambda X: helix(X[0], u0, v0)[1].T)
-    for end in ENDS:
-        e_s = end_coordinate(end, model.length)
-        r, qq = helix(np.array([e_s]), u0, v0)
-        model.supports.initial[end] = (r[0] - np.array([0, 0, e_s]), qq[0])
+        f["quaternion"].interpolate(lambda X: stress_free(model, X[0])[1].T)
+    for supports in model.end_supports:
+        supports.committed_time = None
+        for end in ENDS:
+            e_s = supports.s_ends[end]
+            r, qq = stress_free(model, np.array([e_s]))
+            supports.initial[end] = (r[0] - np.array([0, 0, e_s]), qq[0])
     for g in f.values():
         g.x.scatter_forward()
     u_ref, v_ref = model.reference
@@ -67,7 +85,7 @@ def set_initial_state(model, natural_curvature=None, natural_stretch=None) -> No
             _fill_natural(model, "natural_stretch", natural_stretch, v_ref)
         for g in f.values():
             g.x.scatter_forward()
-    model.supports.set(0.0)
+    model.set_supports(0.0)
 
 
 def _mean(model, field) -> np.ndarray:

@@ -133,12 +133,41 @@ def ufl_tensor(value, mesh, s):
     return fem.Constant(mesh, np.diag(a) if a.shape == (3,) else a)
 
 
-def coefficients(params: RodParameters, mesh, s) -> dict:
+def coefficients(params: list[RodParameters], pieces) -> dict:
     """Every nonzero tensor and every scalar as UFL, by parameter name, and the section's
-    rotary inertia J = diag(I22, I11, I11 + I22) (rho J of Section 2.2)."""
-    c = {n: ufl_tensor(getattr(params, n), mesh, s) for n in TENSORS
-         if not is_zero(getattr(params, n))}
-    for n in SCALARS:
-        c[n] = scalar_coefficient(getattr(params, n), mesh, s)
+    rotary inertia J = diag(I22, I11, I11 + I22) (rho J of Section 2.2).  Several rods
+    (``params`` per rod, ``pieces``: layout.Pieces): each rod's value on its cells, a
+    DG0 field where every rod gives a constant, else sum_k chi_k value_k(s - a_k)."""
+    if len(params) == 1:
+        mesh, s = pieces.mesh, pieces.s
+        c = {n: ufl_tensor(getattr(params[0], n), mesh, s) for n in TENSORS
+             if not is_zero(getattr(params[0], n))}
+        for n in SCALARS:
+            c[n] = scalar_coefficient(getattr(params[0], n), mesh, s)
+    else:
+        c = {n: _piecewise(n, [getattr(p, n) for p in params], pieces, (3, 3))
+             for n in TENSORS if not all(is_zero(getattr(p, n)) for p in params)}
+        c.update({n: _piecewise(n, [getattr(p, n) for p in params], pieces, ())
+                  for n in SCALARS})
     c["J"] = ufl.diag(ufl.as_vector((c["I22"], c["I11"], c["I11"] + c["I22"])))
     return c
+
+
+def _piecewise(name: str, values: list, pieces, shape: tuple[int, ...]):
+    """A parameter of several rods (None or zero: 0 on that rod)."""
+    def constant(v):
+        if is_zero(v):
+            return np.zeros(shape)
+        a = np.asarray(v, dtype=float)
+        return np.diag(a) if shape == (3, 3) and a.shape == (3,) else a
+
+    if not any(callable(v) for v in values):
+        return pieces.cellwise([constant(v) for v in values], shape, name)
+    total = 0
+    for k, v in enumerate(values):
+        if not is_zero(v):
+            s_k = pieces.local_s(k)
+            part = ufl_tensor(v, pieces.mesh, s_k) if shape else \
+                scalar_coefficient(v, pieces.mesh, s_k)
+            total = total + pieces.indicator(k) * part
+    return total

@@ -12,6 +12,7 @@ from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
 from ..checks import sample_points
+from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
 
@@ -20,11 +21,14 @@ TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
     ("geometry", "degree"), ("initial", "natural_twist"), ("loads", "end_torsion")}
 ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints")} | {
+    ("section", k) for k in ("shape", "radius", "semi_axes", "sides", "outer_radius",
+                             "inner_radius", "shear_factor")} | {
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
     ("geometry", "rotations"),
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
-    ("boundary", "start_displacement"), ("loads", "distributed_force"), ("loads", "gravity"),
+    ("boundary", "start_displacement"), ("boundary", "start_slide"),
+    ("boundary", "end_slide"), ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
     ("loads", "start_couple")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
@@ -134,10 +138,9 @@ def _check_torsion(scene: Scene) -> None:
         raise err("boundary.end_rotation", "given but boundary.end is \"free\": set "
                                            "boundary.end = \"rotation\"")
     couple = lds["distributed_couple"]
-    for k in ("value", "follower"):
-        if couple is not None and couple[k] not in (None, False):
-            raise err(f"loads.distributed_couple.{k}", "torsion: the couple is "
-                                                       "profile(s) history(t), a number")
+    if couple is not None and (couple.is_vector or couple.follower):
+        raise err("loads.distributed_couple." + ("follower" if couple.follower else "value"),
+                  "torsion: the couple is value profile(s) history(t), a number")
     if d["geometry"]["length"] != 1.0:
         raise err("geometry.length", "torsion scenes are dimensionless on s in [0, 1] "
                                      "(Section 5.1): length must be 1")
@@ -159,6 +162,7 @@ def _sampled(value, L: float) -> list[np.ndarray]:
 def _check_rod_material(scene: Scene) -> None:
     """3-D rod material: the tensors each model needs, and only those."""
     d, err = scene.data, scene.error
+    apply_physical_input(scene)
     mat, L = d["material"], d["geometry"]["length"]
     evolving = mat["model"] == "evolving"
     stiff, visc = mat["stiffness"] or {}, mat["viscosity"] or {}
@@ -264,6 +268,35 @@ def rod_rotations(scene: Scene) -> str:
         raise scene.error(key, str(err)) from err
 
 
+def _slide_axis(scene: Scene, end: str):
+    """The slide axis of an end (boundary.<end>_slide) after its checks, or None."""
+    from ..rod.boundary_conditions import slide_axis_problem
+    bnd, key = scene["boundary"], f"boundary.{end}_slide"
+    axis = bnd[f"{end}_slide"]
+    if axis is None:
+        return None
+    if bnd[end] not in ("clamped", "pinned"):
+        raise scene.error(key, f"boundary.{end} is {bnd[end]!r}: only a clamped or pinned "
+                               "end slides in its support")
+    problem = slide_axis_problem(axis)
+    if problem:
+        raise scene.error(key, problem)
+    motion = bnd[f"{end}_displacement"]
+    if motion is not None and motion.is_vector and _along_and_across(motion, axis)[0]:
+        raise scene.error(f"boundary.{end}_displacement", f"the end slides freely along "
+                                                          f"{list(axis)} ({key}): prescribe "
+                                                          "its motion across that axis only")
+    return np.asarray(axis)
+
+
+def _along_and_across(spec, axis) -> tuple[bool, bool]:
+    """Whether a vector history has a component along the axis, and one across it."""
+    values = np.array(spec.values if spec.type == "table" else (spec.value,), float)
+    a = np.asarray(axis)
+    along = values @ a
+    return bool(np.any(along != 0.0)), bool(np.any(values - np.outer(along, a) != 0.0))
+
+
 def _check_rod_ends(scene: Scene) -> None:
     """Supports, prescribed end motions and end loads of the 3-D rod."""
     bnd, lds, err = scene["boundary"], scene["loads"], scene.error
@@ -277,9 +310,10 @@ def _check_rod_ends(scene: Scene) -> None:
             spec = bnd[f"{end}_{motion}"]
             if spec is not None and not spec.is_vector:
                 raise err(f"boundary.{end}_{motion}.value", "3-D rod: a vector [x, y, z]")
+        axis = _slide_axis(scene, end)
         x = kind in ("clamped", "pinned") or bnd[f"{end}_displacement"] is not None
         q = kind == "clamped" or bnd[f"{end}_rotation"] is not None
-        fixed_x.append(x), fixed_q.append(q)
+        fixed_x.append(x and axis is None), fixed_q.append(q)
         for load, fixed, what in (("force", x, "position"), ("couple", q, "rotation")):
             spec = lds[f"{end}_{load}"]
             if spec is None:
@@ -287,13 +321,21 @@ def _check_rod_ends(scene: Scene) -> None:
             if not spec.is_vector:
                 raise err(f"loads.{end}_{load}.value", "3-D rod: a vector value = [x, y, z] "
                                                        "(or a table of 3-vectors)")
+            if load == "force" and axis is not None:
+                if spec.follower or _along_and_across(spec, axis)[1]:
+                    raise err(f"loads.{end}_{load}", f"the end slides along {list(axis)} "
+                                                     f"(boundary.{end}_slide): only a dead "
+                                                     "force along that axis acts on it, the "
+                                                     "support takes the rest")
+                continue
             if fixed:
                 raise err(f"loads.{end}_{load}", f"acts where the {what} is prescribed "
                                                  f"(boundary.{end} = {kind!r}): the support "
                                                  "takes it")
     for k in ("distributed_force", "distributed_couple"):
-        if lds[k] is not None and lds[k]["value"] is None:
-            raise err(f"loads.{k}.value", "missing: 3-D rod: value = [x, y, z]")
+        if lds[k] is not None and not lds[k].is_vector:
+            raise err(f"loads.{k}.value", "3-D rod: a vector value = [x, y, z] (or a table "
+                                          "of 3-vectors)")
     if not scene["material"]["dynamic"] and not (any(fixed_x) and any(fixed_q)):
         raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "
                                     "rotation somewhere (e.g. start = \"clamped\"); rigid "

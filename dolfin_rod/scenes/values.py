@@ -308,10 +308,26 @@ def load_entry_point(spec: str, folder: Path | None = None):
     return obj
 
 
-def refuse_unknown(table: dict, known: set[str]) -> None:
+def toml_value(v) -> str:
+    """A value as inline TOML (for scene.toml and for error messages that show a key's
+    new spelling)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    return "{ " + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + " }"
+
+
+def refuse_unknown(table: dict, known: set[str], also=()) -> None:
+    """BadValue naming the first key not in ``known`` (the message lists ``also``, keys
+    checked before, as known too)."""
     for k in table:
         if k not in known:
-            raise BadValue(f"unknown key (known: {', '.join(sorted(known))})", k)
+            raise BadValue(f"unknown key (known: {', '.join(sorted({*known, *also}))})", k)
 
 
 def section_inertia(v) -> tuple[float, float]:
@@ -321,6 +337,16 @@ def section_inertia(v) -> tuple[float, float]:
             raise BadValue(f"must be a number or [I_11, I_22], got {v!r}")
         return (real(0.0)(v[0]), real(0.0)(v[1]))
     x = real(0.0)(v)
+    return (x, x)
+
+
+def positive_pair(v) -> tuple[float, float]:
+    """A number (both entries) or [x_1, x_2], each > 0."""
+    if isinstance(v, list):
+        if len(v) != 2:
+            raise BadValue(f"must be a number or an array of 2 numbers, got {v!r}")
+        return (real(0.0, True)(v[0]), real(0.0, True)(v[1]))
+    x = real(0.0, True)(v)
     return (x, x)
 
 
