@@ -17,7 +17,7 @@ __version__ = "0.1.0"
 _WHERE = {
     # models and their data
     "RodModel": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
-    "RodSystem": "rod", "Rod": "rod",    # several rods in one model (docs/systems.md)
+    "RodSystem": "rod", "Rod": "rod", "Joint": "rod",   # rod systems (docs/systems.md)
     "sections": "rod",      # cross-sections and materials -> RodParameters (rod/sections.py)
     "TorsionModel": "torsion.model", "TorsionParameters": "torsion.model",
     "SemiDiscreteProblem": "fem.problem", "SecondOrderProblem": "fem.problem",

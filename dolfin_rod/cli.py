@@ -9,15 +9,20 @@
 
 Exit status: 0 success, 2 a bad scene, folder or checkpoint (SceneError, OutputError:
 one line on stderr, nothing written), 3 the integration failed or diverged (what was
-computed before is kept), 130 interrupted.  Failures always go to stderr, --quiet or
-not.  Under MPI every error ends every rank: expected errors are raised collectively,
-anything else calls MPI_Abort, so no rank is left waiting.
+computed before is kept), 130 interrupted (Ctrl-C or SIGTERM; also while the pictures
+are drawn after the last step: summary.json says "pictures": "interrupted").  Failures
+always go to stderr, --quiet or not.  Under MPI every error ends every rank and reaches
+the user whichever rank saw it: expected errors are raised collectively (mpi.agree), or,
+seen by one rank inside collective work, reported by that rank with MPI_Abort(2)
+(mpi.alone); anything else calls MPI_Abort, so no rank is left waiting.  A scene needs
+2 cells per rank.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -38,25 +43,28 @@ def print_on_root(comm, *args, file=None) -> None:
 
 
 class _InterruptFlag:
-    """SIGINT sets a flag; the run stops after the current step (a step is never cut in
-    half, and PETSc callbacks never see a KeyboardInterrupt)."""
+    """SIGINT or SIGTERM sets a flag; the run stops after the current step (a step is
+    never cut in half, and PETSc callbacks never see a KeyboardInterrupt)."""
+
+    SIGNALS = ("SIGINT", "SIGTERM")
 
     def __init__(self):
         import signal
         import threading
         self.raised = False
-        self._old = None
+        self._old = {}
         if threading.current_thread() is threading.main_thread():
-            self._old = signal.signal(signal.SIGINT, self._handle)
+            self._old = {name: signal.signal(getattr(signal, name), self._handle)
+                         for name in self.SIGNALS}
 
     def _handle(self, signum, frame):
         self.raised = True
 
     def restore(self):
         import signal
-        if self._old is not None:
-            signal.signal(signal.SIGINT, self._old)
-            self._old = None
+        for name, old in self._old.items():
+            signal.signal(getattr(signal, name), old)
+        self._old = {}
 
 
 
@@ -86,19 +94,26 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     from mpi4py import MPI
 
     from .output.checkpoints import read_checkpoint_meta
+    from .mpi import agree
     from .output.writer import RunWriter
     comm = comm or MPI.COMM_WORLD
     clock = {"start": time.perf_counter()}
-    choice = select_model(scene)
+    choice = agree(comm, lambda: _choose(scene, comm.size), (SceneError,))
     if (resume or stop_after is not None) and scene["time"]["integrator"] == "ts":
         raise scene.error("time.integrator", "resume/stop_after need integrator = \"stepper\"")
     meta = read_checkpoint_meta(Path(out), comm, scene) if resume else None
+    made = not resume and (out is None or not os.path.exists(out))   # (False on errors)
     folder = _run_folder(scene, None if out is None else Path(out), comm, resume, overwrite)
     if not quiet:
         print_on_root(comm, f"model: {choice.model} ({choice.reason})")
     _warn_if_unstable(scene, comm)
-    sim = build(scene, choice.model, comm)
-    impulse = sim.start()
+    try:
+        sim = build(scene, choice.model, comm)
+        impulse = sim.start()
+    except BaseException:
+        if made and comm.rank == 0:              # nothing half-written: no empty folder
+            _remove_if_empty(folder)
+        raise
     clock["setup"] = time.perf_counter() - clock["start"]
     writer = RunWriter(folder, scene, choice, sim, comm, resume=resume)
     if meta is not None:
@@ -115,13 +130,28 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
     clock["total"] = time.perf_counter() - clock["start"]
     writer.finish(summary, {k: v for k, v in clock.items() if k != "start"})
+    summary["pictures"] = comm.bcast(summary.get("pictures"), root=0)
     summary["folder"] = str(folder)
+    if summary["pictures"] == "interrupted":
+        message = "; ".join([*filter(None, [message]), "interrupted while drawing the "
+                             "pictures: summary.json lists the ones missing"])
     line = f"{status}: t = {t:g}, results in {folder}" + (f" ({message})" if message else "")
-    if status in ("failed", "interrupted"):          # never hidden, never on stdout
+    if status in ("failed", "interrupted") or summary["pictures"] == "interrupted":
         print_on_root(comm, line, file=sys.stderr)
     elif not quiet:
         print_on_root(comm, line)
     return summary
+
+
+def _remove_if_empty(folder: Path) -> None:
+    """Remove a run folder that holds nothing but its marker."""
+    from .output.run_folders import MARKER
+    try:
+        if [p.name for p in folder.iterdir()] == [MARKER]:
+            (folder / MARKER).unlink()
+        folder.rmdir()
+    except OSError:
+        pass
 
 
 def _first_row(sim, writer, t0: float, fields: bool) -> None:
@@ -243,10 +273,11 @@ def _parser() -> argparse.ArgumentParser:
 
 def schema_markdown() -> str:
     """The scene schema as Markdown tables (docs/scenes.md is generated from it)."""
-    from .scenes.schema import REQUIRED, SCHEMA, SCHEMA_NOTES
+    from .scenes.schema import ARRAY_TABLES, REQUIRED, SCHEMA, SCHEMA_NOTES
     lines = [SCHEMA_NOTES]
     for table, keys in SCHEMA.items():
-        lines += [f"### [{table}]", "", "| key | default | meaning |", "|---|---|---|"]
+        title = f"[[{table}]] (an array of tables)" if table in ARRAY_TABLES else f"[{table}]"
+        lines += [f"### {title}", "", "| key | default | meaning |", "|---|---|---|"]
         for name, key in keys.items():
             default = "required" if key.default is REQUIRED else (
                 "-" if key.default is None else f"`{key.default!r}`")
@@ -263,38 +294,71 @@ def _warn_if_unstable(scene: Scene, comm) -> None:
 
 
 def _check(scene: Scene, out: Path | None, comm) -> None:
-    """``dolfin-rod check``: the scene, its model and the output location."""
+    """``dolfin-rod check``: the scene, its model and the output location; "OK" only when
+    every rank found the scene fine (mpi.agree)."""
+    from .mpi import agree
     from .output.run_folders import OutputError, folder_problem
-    choice = select_model(scene)
+    lines = agree(comm, lambda: _check_lines(scene, comm.size), (SceneError,))
     target = out if out is not None else Path(scene["outputs"]["directory"])
     problem = folder_problem(target) if comm.rank == 0 else None
     problem = comm.bcast(problem, root=0)
     if problem:
         what = "--out" if out is not None else f"{scene.source}: [outputs.directory]"
         raise OutputError(f"{what} {problem}")
-    print_on_root(comm, f"{scene.source}: OK")
-    print_on_root(comm, f"model: {choice.model}")
-    print_on_root(comm, f"why: {choice.reason}")
+    for line in lines:
+        print_on_root(comm, line)
+    _warn_if_unstable(scene, comm)
+
+
+def _choose(scene: Scene, ranks: int):
+    """The scene's model (select_model), refused with a SceneError naming
+    geometry.n_cells if an FE model would leave a rank too few cells."""
+    from .fem.fe_model import check_n_cells
+    choice = select_model(scene)
+    if choice.model != "ode":
+        try:
+            check_n_cells(scene["geometry"]["n_cells"], ranks)
+        except ValueError as err:
+            raise scene.error("geometry.n_cells", str(err)) from None
+    return choice
+
+
+def _check_lines(scene: Scene, ranks: int) -> list[str]:
+    """What ``check`` prints for a valid scene: OK, the model, why, how it steps."""
+    choice = _choose(scene, ranks)
+    lines = [f"{scene.source}: OK", f"model: {choice.model}", f"why: {choice.reason}"]
     if choice.model == "rod":
         from .scenes.physical import describe
         from .scenes.rules import rod_rotations
-        for line in describe(scene["material"]["derived"] or {}):
-            print_on_root(comm, f"derived: {line}")
-        print_on_root(comm, f"rotations: {rod_rotations(scene)} (geometry.rotations = "
-                            f"{scene['geometry']['rotations']!r})")
+        lines += [f"derived: {line}" for line in describe(scene["material"]["derived"] or {})]
+        lines.append(f"rotations: {rod_rotations(scene)} (geometry.rotations = "
+                     f"{scene['geometry']['rotations']!r})")
     if choice.model != "ode":                      # (the ODE prints its own solution)
         from .scenes.rules import time_stepping
-        print_on_root(comm, f"time stepping: {time_stepping(scene)}")
-    _warn_if_unstable(scene, comm)
+        lines.append(f"time stepping: {time_stepping(scene)}")
+    return lines
 
 
 def main(argv: list[str] | None = None) -> int:
     """The command line; every error ends every rank: expected ones (a bad scene or
-    folder) collectively with exit 2, anything else by MPI_Abort after its traceback."""
+    folder) with exit 2, collectively where every rank saw them, else by MPI_Abort(2)
+    from the rank that saw one (mpi.alone); anything else by MPI_Abort after its
+    traceback."""
     from mpi4py import MPI
+
+    from .fit.command import FitInputError
+    from .mpi import alone
+    from .output.run_folders import OutputError
     comm = MPI.COMM_WORLD
+    guard = comm.Dup() if comm.size > 1 else None    # for mpi.alone only
     try:
         return _main(argv, comm)
+    except (SceneError, OutputError, FitInputError) as err:
+        if alone(guard):
+            print(f"error: {err} (seen on rank {comm.rank} only)", file=sys.stderr, flush=True)
+            comm.Abort(2)                          # the other ranks may wait in a collective
+        print_on_root(comm, f"error: {err}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:                      # Ctrl-C before the run loop
         print_on_root(comm, "interrupted", file=sys.stderr)
         return 130
@@ -308,26 +372,24 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None, comm) -> int:
-    from .fit.command import FitInputError, fit_command
-    from .output.run_folders import OutputError
+    from .fit.command import fit_command
+    from .mpi import agree
     args = _parser().parse_args(argv)
     if args.command == "schema":
         print_on_root(comm, schema_markdown())
         return 0
-    try:
-        if args.command == "fit":
-            return fit_command(args, comm)
-        scene = load_scene(args.scene)
-        if args.command == "check":
-            _check(scene, args.out, comm)
-            return 0
-        if args.resume and args.out is None:
-            raise SceneError(str(args.scene), "", "--resume needs --out (the run folder)")
-        summary = run_scene(scene, args.out, comm, resume=args.resume, quiet=args.quiet,
-                            overwrite=args.overwrite)
-    except (SceneError, OutputError, FitInputError) as err:
-        print_on_root(comm, f"error: {err}", file=sys.stderr)
-        return 2
+    if args.command == "fit":
+        return fit_command(args, comm)
+    scene = agree(comm, lambda: load_scene(args.scene), (SceneError,))
+    if args.command == "check":
+        _check(scene, args.out, comm)
+        return 0
+    if args.resume and args.out is None:
+        raise SceneError(str(args.scene), "", "--resume needs --out (the run folder)")
+    summary = run_scene(scene, args.out, comm, resume=args.resume, quiet=args.quiet,
+                        overwrite=args.overwrite)
+    if summary["pictures"] == "interrupted" and summary["status"] != "failed":
+        return 130
     return {"completed": 0, "stopped": 0, "interrupted": 130}.get(summary["status"], 3)
 
 

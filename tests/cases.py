@@ -24,3 +24,9 @@ def rod_system(comm=MPI.COMM_WORLD) -> dict[str, float]:
     system's diagnostics after 10 steps."""
     from rod_systems import two_rods, run_system
     return run_system(two_rods(placed=True, comm=comm))
+
+
+def joint_frame(comm=MPI.COMM_WORLD) -> dict[str, float]:
+    """The L-frame of tests/rod_systems.py under a large load (tests/test_joints.py)."""
+    from rod_systems import solve_frame
+    return solve_frame(6, 1.5, steps=3, comm=comm)

@@ -7,8 +7,9 @@ from .constitutive import MODELS
 from .external_forces import DistributedLoad, EndLoad
 from .material import RodParameters
 from .model import RodModel
+from .joints import Joint
 from .rods import Rod
 from .system import RodSystem
 
-__all__ = ["RodModel", "RodSystem", "Rod", "RodParameters", "EndLoad", "DistributedLoad",
+__all__ = ["RodModel", "RodSystem", "Rod", "Joint", "RodParameters", "EndLoad", "DistributedLoad",
            "MODELS", "END_TYPES", "sections"]

@@ -200,7 +200,7 @@ class EndSupports:
                 out.update(zip((f"reaction_force_{end}_{c}" for c in "xyz"),
                                node["displacement"].tolist()))
             if rotation_block in node:
-                couple = _nodal_rotations(rotation_block, self.prescribed(end, t)[1]) @ \
+                couple = spatial_rotations(rotation_block, self.prescribed(end, t)[1]) @ \
                     node[rotation_block]
                 out.update(zip((f"reaction_couple_{end}_{c}" for c in "xyz"), couple.tolist()))
             if end in self.displacement or end in self.rotation:
@@ -230,7 +230,7 @@ class EndSupports:
 _SPATIAL_AXES = np.hstack([np.zeros((3, 1)), np.eye(3)])     # (0, e_i) as quaternions
 
 
-def _nodal_rotations(block: str, q_end) -> np.ndarray:
+def spatial_rotations(block: str, q_end) -> np.ndarray:
     """Row i: the end node's test value of the spatial virtual rotation e_i (see
     ``reactions``): (0, e_i) q_end / 2 (quaternions), R(q_end)^T e_i (rotation vectors)."""
     if block == "quaternion":

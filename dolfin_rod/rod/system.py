@@ -16,6 +16,9 @@ rod's motion equals its run alone to round-off (tests/test_rod_system.py).
     TimeStepper(system.problem).run(0.0, 1.0, 0.01)
     system.diagnostics(t)   # totals (energies, powers) and per rod "rod0.tip_position_x"
 
+Joints (joints.py: rigid, ball) tie a node of one rod to a node of another exactly
+(fem/multipoint.py: Newton on the free dofs); their reactions are in the diagnostics.
+
 Per rod the cells and nodes are those of its parameter range ``layout.span(k)``
 (``layout.rod_of_cells(mesh)``: the rod of every local cell).
 """
@@ -28,18 +31,21 @@ from mpi4py import MPI
 
 from . import diagnostics
 from .model import RodModel
+from .joints import Joint
 from .rods import Rod
 
 
 class RodSystem(RodModel):
-    """Several rods (rods.Rod) in one model; model, variant, constraint, rotations as
-    RodModel (common to all rods).  Diagnostics: the system's energies and powers under
-    the single rod's names, each rod's tip and reactions as ``<name>.<key>``."""
+    """Several rods (rods.Rod) in one model, joined by ``joints`` (joints.Joint); model,
+    variant, constraint, rotations as RodModel (common to all rods).  Diagnostics: the
+    system's energies and powers under the single rod's names, each rod's tip and
+    reactions as ``<name>.<key>``, each joint's reactions as ``joint_<name>_...``."""
 
-    def __init__(self, rods: Sequence[Rod], model: str = "evolving", variant: str = "local",
+    def __init__(self, rods: Sequence[Rod], joints: Sequence[Joint] = (),
+                 model: str = "evolving", variant: str = "local",
                  constraint: str | None = None, rotations: str = "auto",
                  comm: MPI.Comm = MPI.COMM_WORLD):
-        self._build(list(rods), model, variant, constraint, rotations, comm)
+        self._build(list(rods), model, variant, constraint, rotations, comm, joints)
 
     def diagnostics(self, t: float) -> dict[str, float]:
         """MPI-reduced scalars at time t: free and kinetic energy, dissipation rate, load
@@ -55,6 +61,8 @@ class RodSystem(RodModel):
             reaction_power += own.pop("reaction_power", 0.0)
             own["tip_rotation_angle"] = diagnostics.tip_rotation_angle(own)
             d.update({f"{rod.name}.{key}": value for key, value in own.items()})
+        if self.joint_reactions is not None:
+            d.update(self.joint_reactions())
         if moving:
             d["reaction_power"] = reaction_power
             d["load_power"] += reaction_power

@@ -12,6 +12,7 @@ from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
 from ..checks import sample_points
+from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
@@ -20,7 +21,8 @@ TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 # keys of one model family only: (table, key) -> the family that reads it
 TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
     ("geometry", "degree"), ("initial", "natural_twist"), ("loads", "end_torsion")}
-ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints")} | {
+ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints",
+                                                 "rotational_drag_frame")} | {
     ("section", k) for k in ("shape", "radius", "semi_axes", "sides", "outer_radius",
                              "inner_radius", "shear_factor")} | {
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
@@ -30,7 +32,8 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("boundary", "start_displacement"), ("boundary", "start_slide"),
     ("boundary", "end_slide"), ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
-    ("loads", "start_couple")}
+    ("loads", "start_couple"), ("obstacles", "shape")} | {
+    ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
 
 
@@ -48,14 +51,26 @@ def check_combinations(scene: Scene) -> None:
     if rod:
         _check_rod_material(scene)
         _check_rod_ends(scene)
+        check_contact_keys(scene)
     else:
         _check_torsion(scene)
+    _check_solver_options(scene)
     if scene["time"]["adaptive"] and not adaptive_stepper(scene) \
             and scene["time"]["integrator"] == "stepper":
         raise scene.error("time.adaptive", "the stepper's error-controlled steps are those of "
                                            "generalized-alpha on the rotation group: a dynamic "
                                            "3-D rod with rotation vectors (geometry.rotations); "
                                            "otherwise use integrator = \"ts\"")
+
+
+def _check_solver_options(scene: Scene) -> None:
+    """PETSc reads every option of solver.options and accepts its value (tried on a
+    throwaway solver: a bad one failed the run after check said OK)."""
+    if scene["solver"]["options"]:
+        from ..fem.solvers import option_problem
+        problem = option_problem(scene["solver"]["options"])
+        if problem:
+            raise scene.error(f"solver.options.{problem[0]}", problem[1])
 
 
 def adaptive_stepper(scene: Scene) -> bool:
@@ -155,8 +170,17 @@ def _check_torsion(scene: Scene) -> None:
 
 
 def _sampled(value, L: float) -> list[np.ndarray]:
-    return [np.asarray(value(s) if callable(value) else value, dtype=float)
-            for s in sample_points(L)]
+    with np.errstate(over="ignore", invalid="ignore"):     # overflow: checked by callers
+        return [np.asarray(value(s) if callable(value) else value, dtype=float)
+                for s in sample_points(L)]
+
+
+def _not_finite(samples: list[np.ndarray], L: float) -> str | None:
+    """Why sampled values are unusable (an overflowing polynomial), or None."""
+    for si, a in zip(sample_points(L), samples):
+        if not np.all(np.isfinite(a)):
+            return f"must be finite on [0, {L:g}]; it overflows at s = {si:g}"
+    return None
 
 
 def _check_rod_material(scene: Scene) -> None:
@@ -184,7 +208,10 @@ def _check_rod_material(scene: Scene) -> None:
     for table, have in (("stiffness", stiff), ("viscosity", visc)):
         for k, t in have.items():
             semidefinite = k in ("M", "N")
-            for si, a in zip(sample_points(L), _sampled(t.at, L)):
+            samples = _sampled(t.at, L)
+            if _not_finite(samples, L):
+                raise err(f"material.{table}.{k}", _not_finite(samples, L))
+            for si, a in zip(sample_points(L), samples):
                 low = np.linalg.eigvalsh(a).min()
                 if low < 0 or (low == 0 and not semidefinite):
                     rule = "positive semidefinite" if semidefinite else "positive definite"
@@ -217,8 +244,14 @@ def _check_rod_inertia(scene: Scene) -> None:
     L = scene["geometry"]["length"]
     for k in ("density", "drag"):
         c = mat[k]
-        if c is not None and min(np.min(v) for v in _sampled(c, L)) < 0:
+        samples = _sampled(c, L) if c is not None else []
+        if _not_finite(samples, L):
+            raise err(f"material.{k}", _not_finite(samples, L))
+        if samples and min(np.min(v) for v in samples) < 0:
             raise err(f"material.{k}", "must be >= 0 on [0, L]")
+    if "rotational_drag_frame" in scene.given["material"] and mat["rotational_drag"] is None:
+        raise err("material.rotational_drag_frame", "the frame of material.rotational_drag, "
+                                                    "which is not given")
     inertia = mat["section_inertia"] or (0.0, 0.0)
     density = mat["density"] or Coefficient(constant=0.0)
     dynamic = not (density.is_constant and density.constant == 0.0)
@@ -254,7 +287,8 @@ def rod_rotations(scene: Scene) -> str:
     constraint = None if mat["constraints"] == "none" else mat["constraints"]
     visc = mat["viscosity"] or {}
     rate_dependent = any(k in visc and not visc[k].is_zero for k in ("M", "N")) or not (
-        mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0))
+        mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0)) \
+        or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
     motions = [scene["boundary"][f"{end}_rotation"] for end in ("start", "end")]
     rotation_jumps = any(spec is not None and spec.is_vector and any(
         load_histories.jumps(spec.build(i)) for i in range(3)) for spec in motions)

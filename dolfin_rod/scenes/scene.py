@@ -10,7 +10,8 @@ import numpy as np
 
 # the material keys that make a scene a 3-D rod scene (RodModel)
 ROD_KEYS = ("stiffness", "viscosity", "density", "section_inertia", "drag", "youngs_modulus",
-            "shear_modulus", "poisson_ratio", "natural_stiffness_ratio", "relaxation_time")
+            "shear_modulus", "poisson_ratio", "natural_stiffness_ratio", "relaxation_time",
+            "rotational_drag")
 
 
 class SceneError(ValueError):
@@ -20,6 +21,9 @@ class SceneError(ValueError):
         self.source, self.key, self.reason = str(source), key, reason
         where = f"[{key}]: " if key else ""
         super().__init__(f"{self.source}: {where}{reason}")
+
+    def __reduce__(self):                  # pickled to other ranks (mpi.agree)
+        return (type(self), (self.source, self.key, self.reason))
 
 
 @dataclass
@@ -51,8 +55,8 @@ class Scene:
         (what a checkpoint must match to be resumed): everything but the name and
         description, the outputs table, t_end (a run may be extended) and the requested
         model (the chosen model is compared instead)."""
-        return {table: {k: _plain(v) for k, v in keys.items()
-                        if not (table == "time" and k == "t_end")}
+        return {table: _plain(keys) if isinstance(keys, list) else
+                {k: _plain(v) for k, v in keys.items() if not (table == "time" and k == "t_end")}
                 for table, keys in self.data.items() if table not in ("scene", "outputs")}
 
 

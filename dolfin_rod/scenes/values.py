@@ -278,6 +278,17 @@ def tensor(v) -> Tensor:
     return Tensor(terms)
 
 
+def damping_tensor(v) -> Tensor:
+    """A number c (c I), [c_1, c_2, c_3] (diagonal) or a symmetric 3x3 array, positive
+    semidefinite."""
+    if isinstance(v, dict):
+        raise BadValue("must be a number, [c_1, c_2, c_3] or a 3x3 array")
+    t = tensor(v) if isinstance(v, list) else Tensor((real(0.0)(v) * np.eye(3),))
+    if np.linalg.eigvalsh(t.terms[0]).min() < 0:
+        raise BadValue(f"must be positive semidefinite, got {t.terms[0].tolist()}")
+    return t
+
+
 def entry_point(v) -> str:
     """"package.module:function": imported (from the scene's folder or sys.path)."""
     v = string(v)
@@ -300,6 +311,11 @@ def load_entry_point(spec: str, folder: Path | None = None):
         obj = getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError) as err:
         raise BadValue(f"cannot import {spec!r}: {err}") from None
+    except Exception as err:     # the module's own code failed: a SyntaxError, a raise
+        raise BadValue(f"cannot import {spec!r}: {type(err).__name__}: {err}") from None
+    except SystemExit as err:    # the module ends the program when imported
+        raise BadValue(f"cannot import {spec!r}: importing it calls sys.exit({err.code!r})") \
+            from None
     finally:
         if added:
             sys.path.remove(str(folder))
