@@ -37,7 +37,7 @@ import ufl
 from .. import loads
 from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
 from ..theory.rotations import (conj, np_qmul, np_quaternion_from_rotation_vector,
-                         np_rotation_matrix, qmul, vec)
+                                np_rotation_matrix, qmul, vec)
 from .rotation_vector import np_inverse_cayley
 
 END_TYPES = ("clamped", "pinned", "free")
