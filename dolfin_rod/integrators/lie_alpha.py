@@ -32,10 +32,10 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from .. import compat, form_cache
-from ..solvers import BlockSNES, SolverError
+from ..fem import compat, form_cache
+from ..fem.solvers import BlockSNES, SolverError
 from .schemes import alpha_rho_inf
-from .stepping import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
+from .step_control import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
                        largest_on_ranks, march, nominal_steps)
 
 

@@ -22,13 +22,13 @@ import ufl
 from mpi4py import MPI
 from ufl.algorithms.analysis import extract_coefficients
 
-from .. import constraints
+from ..theory import constraints
 from .. import loads as load_histories
-from ..evolution import check_variant
-from ..model_base import FEModel, check_n_cells
-from ..problem import SecondOrderProblem, SemiDiscreteProblem
-from ..rotations import rotation_matrix
-from ..validation import choose_rotations, rotation_vector_obstacle
+from ..theory.evolution import check_variant
+from ..fem.fe_model import FEModel, check_n_cells
+from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
+from ..theory.rotations import rotation_matrix
+from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports
 from .constitutive import check_model, energy_function, section_response
@@ -39,6 +39,7 @@ from .joints import Joint, JointReactions, check_joints, joint_nodes, node_links
 from .layout import RodLayout
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
+from .segments import PassThroughCheck
 
 
 class RodModel(FEModel):
@@ -179,6 +180,10 @@ class RodModel(FEModel):
             forms.update(self.contact.diagnostic_forms())
             forms["friction_dissipation"] = friction_dissipation or 0 * resp.psi * disc.dx_r
         self.set_diagnostic_forms(forms)
+        h = min(length / n for length, n in zip(layout.lengths, layout.n_cells))
+        self.pass_through = PassThroughCheck(
+            unk.f["displacement"], distance=h, exclusion=3 * h,
+            hint="self-contact is not modelled: the rod passes through itself (issue 26)")
 
     def _obstacle_contact(self, obstacles, law, disc) -> ObstacleContact | None:
         if not obstacles:
@@ -275,6 +280,7 @@ class RodModel(FEModel):
         d.update(self.supports.reactions(self.residual, t))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
+        self.pass_through(t)
         if self.contact:
             d["min_gap"] = self.contact.closest()[0]
         return d
