@@ -71,7 +71,9 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "cantilever_creep.toml": "rod", "gravity_cantilever.toml": "rod",
                   "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod",
                   "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
-                  "hanging_twist.toml": "rod", "frame.toml": "rod",
+                  "hanging_twist.toml": "rod", "spin_up.toml": "rod",
+                  "sprung_cantilever.toml": "rod", "rod_on_incline.toml": "rod",
+                  "rope_on_floor.toml": "rod", "frame.toml": "rod",
                   "double_pendulum.toml": "rod", "tripod.toml": "rod"}
 
 

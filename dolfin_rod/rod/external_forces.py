@@ -15,10 +15,11 @@ import numpy as np
 import ufl
 
 from .. import balance
+from ..rotations import rotation_matrix
 from ..model_base import ENDS
 from ..problem import TimeDependentValue
 from .discretisation import Discretisation, Unknowns
-from .material import is_zero
+from .material import DAMPING, is_zero
 
 
 @dataclass
@@ -87,9 +88,20 @@ def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, end_loads, distrib
 
 
 def drag(F: dict, unk: Unknowns, c: dict, params: list, disc: Discretisation):
-    """Linear drag f = -c V in the displacement block; returns its dissipation density
-    c V.V integrated (0 without drag on every rod)."""
-    if all(is_zero(p.drag) for p in params):
-        return 0
-    F["displacement"] += c["drag"] * ufl.inner(unk.V, unk.t["displacement"]) * disc.dx
-    return c["drag"] * ufl.inner(unk.V, unk.V) * disc.dx
+    """Linear drag f = -c V in the displacement block and rotational damping, the couple
+    per length -C W (material: ``rotational_drag``) or -C_s w (spatial, w = R W:
+    ``spatial_rotational_drag``, i.e. C = R^T C_s R) in the rotation block; returns
+    their dissipation c V.V + W.C W integrated (0 without any on every rod)."""
+    dissipation = []
+    if not all(is_zero(p.drag) for p in params):
+        F["displacement"] += c["drag"] * ufl.inner(unk.V, unk.t["displacement"]) * disc.dx
+        dissipation.append(c["drag"] * ufl.inner(unk.V, unk.V) * disc.dx)
+    for name in DAMPING:
+        if name in c:
+            C = c[name]
+            if name.startswith("spatial"):
+                R = rotation_matrix(unk.q)
+                C = ufl.dot(ufl.transpose(R), ufl.dot(C, R))
+            F[unk.rotation] += ufl.inner(ufl.dot(C, unk.W), unk.dTheta) * disc.dx
+            dissipation.append(ufl.inner(unk.W, ufl.dot(C, unk.W)) * disc.dx)
+    return sum(dissipation[1:], dissipation[0]) if dissipation else 0

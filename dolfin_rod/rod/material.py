@@ -17,7 +17,9 @@ from ..model_base import scalar_coefficient
 from ..validation import rod_length, sample_points
 
 Tensor = Sequence | np.ndarray | Callable | None
-TENSORS = ("A", "B", "A_d", "B_d", "M", "N", "M_d", "N_d")
+TENSORS = ("A", "B", "A_d", "B_d", "M", "N", "M_d", "N_d", "rotational_drag",
+           "spatial_rotational_drag")
+DAMPING = ("rotational_drag", "spatial_rotational_drag")
 SCALARS = ("rho_A", "I11", "I22", "drag")
 
 
@@ -39,6 +41,8 @@ class RodParameters:
     I11: float | Callable = 0.0      # section mass moments (rho J, Section 2.2)
     I22: float | Callable = 0.0
     drag: float | Callable = 0.0     # linear drag f = -c dr/dt
+    rotational_drag: Tensor = None   # couple -C W per length (material W, C); None: 0
+    spatial_rotational_drag: Tensor = None   # couple -C w per length (spatial w = R W, C)
     energy: Callable | None = None   # psi(u_d, v_d, u, v); None: quadratic_energy
     reference_curvature: Sequence[float] = (0.0, 0.0, 0.0)  # stress-free strains at t = 0
     reference_stretch: Sequence[float] = (0.0, 0.0, 1.0)
@@ -106,6 +110,9 @@ def check_parameters(params: RodParameters, evolving: bool, viscous: bool,
             if not viscous and not is_zero(value):
                 raise ValueError(f"{name} must be None for the hyperelastic model")
             check_tensor(name, value, L, semidefinite=True)
+    for name in DAMPING:
+        if getattr(params, name) is not None:
+            check_tensor(name, getattr(params, name), L, semidefinite=True)
     for name in SCALARS:
         check_scalar(name, getattr(params, name), L)
     if is_zero(params.rho_A):

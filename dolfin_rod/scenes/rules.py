@@ -11,6 +11,7 @@ import numpy as np
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..validation import choose_rotations, rotation_vector_obstacle, sample_points
+from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
@@ -19,7 +20,8 @@ TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 # keys of one model family only: (table, key) -> the family that reads it
 TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
     ("geometry", "degree"), ("initial", "natural_twist"), ("loads", "end_torsion")}
-ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints")} | {
+ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints",
+                                                 "rotational_drag_frame")} | {
     ("section", k) for k in ("shape", "radius", "semi_axes", "sides", "outer_radius",
                              "inner_radius", "shear_factor")} | {
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
@@ -27,9 +29,11 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
     ("boundary", "start_displacement"), ("boundary", "start_slide"),
-    ("boundary", "end_slide"), ("loads", "distributed_force"), ("loads", "gravity"),
+    ("boundary", "end_slide"), ("boundary", "start_spring"), ("boundary", "end_spring"),
+    ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
-    ("loads", "start_couple")}
+    ("loads", "start_couple"), ("obstacles", "shape")} | {
+    ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
 
 
@@ -47,6 +51,7 @@ def check_combinations(scene: Scene) -> None:
     if rod:
         _check_rod_material(scene)
         _check_rod_ends(scene)
+        check_contact_keys(scene)
     else:
         _check_torsion(scene)
     _check_solver_options(scene)
@@ -244,6 +249,9 @@ def _check_rod_inertia(scene: Scene) -> None:
             raise err(f"material.{k}", _not_finite(samples, L))
         if samples and min(np.min(v) for v in samples) < 0:
             raise err(f"material.{k}", "must be >= 0 on [0, L]")
+    if "rotational_drag_frame" in scene.given["material"] and mat["rotational_drag"] is None:
+        raise err("material.rotational_drag_frame", "the frame of material.rotational_drag, "
+                                                    "which is not given")
     inertia = mat["section_inertia"] or (0.0, 0.0)
     density = mat["density"] or Coefficient(constant=0.0)
     dynamic = not (density.is_constant and density.constant == 0.0)
@@ -279,7 +287,8 @@ def rod_rotations(scene: Scene) -> str:
     constraint = None if mat["constraints"] == "none" else mat["constraints"]
     visc = mat["viscosity"] or {}
     rate_dependent = any(k in visc and not visc[k].is_zero for k in ("M", "N")) or not (
-        mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0))
+        mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0)) \
+        or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
     motions = [scene["boundary"][f"{end}_rotation"] for end in ("start", "end")]
     rotation_jumps = any(spec is not None and spec.is_vector and any(
         load_histories.jumps(spec.build(i)) for i in range(3)) for spec in motions)
@@ -291,6 +300,20 @@ def rod_rotations(scene: Scene) -> str:
     except ValueError as err:
         key = "geometry.rotations" if obstacle else "time.scheme"
         raise scene.error(key, str(err)) from err
+
+
+def _spring(scene: Scene, end: str, position_held: bool, rotation_held: bool) -> dict:
+    """The spring table of an end (boundary.<end>_spring, {} if none) after its checks:
+    each part where that motion is free."""
+    bnd = scene["boundary"]
+    spring = bnd[f"{end}_spring"] or {}
+    for part, held, what in (("translational", position_held, "position"),
+                             ("rotational", rotation_held, "rotation")):
+        if np.any(spring.get(part, 0.0)) and held:
+            raise scene.error(f"boundary.{end}_spring.{part}", f"the end's {what} is held or "
+                                                               "prescribed: the support "
+                                                               "takes the spring's place")
+    return spring
 
 
 def _slide_axis(scene: Scene, end: str):
@@ -338,7 +361,9 @@ def _check_rod_ends(scene: Scene) -> None:
         axis = _slide_axis(scene, end)
         x = kind in ("clamped", "pinned") or bnd[f"{end}_displacement"] is not None
         q = kind == "clamped" or bnd[f"{end}_rotation"] is not None
-        fixed_x.append(x and axis is None), fixed_q.append(q)
+        spring = _spring(scene, end, x and axis is None, q)
+        fixed_x.append((x and axis is None) or np.all(spring.get("translational", 0.0)))
+        fixed_q.append(q or np.all(spring.get("rotational", 0.0)))
         for load, fixed, what in (("force", x, "position"), ("couple", q, "rotation")):
             spec = lds[f"{end}_{load}"]
             if spec is None:

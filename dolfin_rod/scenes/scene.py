@@ -10,7 +10,8 @@ import numpy as np
 
 # the material keys that make a scene a 3-D rod scene (RodModel)
 ROD_KEYS = ("stiffness", "viscosity", "density", "section_inertia", "drag", "youngs_modulus",
-            "shear_modulus", "poisson_ratio", "natural_stiffness_ratio", "relaxation_time")
+            "shear_modulus", "poisson_ratio", "natural_stiffness_ratio", "relaxation_time",
+            "rotational_drag")
 
 
 class SceneError(ValueError):
@@ -57,8 +58,9 @@ class Scene:
         (what a checkpoint must match to be resumed): everything but the name and
         description, the outputs table, t_end (a run may be extended) and the requested
         model (the chosen model is compared instead)."""
-        physics = {table: {k: _plain(v) for k, v in keys.items()
-                           if not (table == "time" and k == "t_end")}
+        physics = {table: _plain(keys) if isinstance(keys, list) else
+                   {k: _plain(v) for k, v in keys.items()
+                    if not (table == "time" and k == "t_end")}
                    for table, keys in self.data.items() if table not in ("scene", "outputs")}
         if self.rods:
             physics["rods"] = [{"name": r.name, "position": _plain(r.position),

@@ -33,9 +33,11 @@ from .rules import check_combinations
 from .scene import Scene, SceneError
 from .systems import validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
-                     entry_point, integer, load_entry_point, path_problem, path_text,
+                     damping_tensor, entry_point, integer, load_entry_point, path_problem,
+                     path_text,
                      petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
-                     section_inertia, string, tensor_table, toml_value, ts_type_name,
+                     section_inertia, spring_table, string, tensor_table, toml_value,
+                     ts_type_name,
                      type_name, vector3)
 
 __all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "Tensor", "load_scene",
@@ -47,6 +49,7 @@ VARIANTS = ("local", "uniform")
 ROD_MODELS = ("evolving", "kelvin_voigt", "hyperelastic")
 ROD_ENDS = ("clamped", "pinned", "free")
 CONSTRAINTS = ("none", "unshearable", "inextensible_unshearable")
+OBSTACLE_SHAPES = ("plane", "sphere", "cylinder")
 
 
 REQUIRED = object()
@@ -197,6 +200,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "section_inertia": Key(section_inertia, None, R + "I_11 = I_22 (a number) or [I_11, I_22]: "
                                "section mass moments per length (rho J, Section 2.2)"),
         "drag": Key(coefficient(False), None, R + "linear drag f = -c dr/dt (c per length)"),
+        "rotational_drag": Key(damping_tensor, None, R + "rotational damping C (N m s per "
+                               "length): the couple -C W per length, W the angular velocity "
+                               "(a number c: C = c I; [c_1, c_2, c_3] or a tensor); its "
+                               "dissipation W.C W is in dissipation_rate"),
+        "rotational_drag_frame": Key(choice("material", "spatial"), "material",
+                                     R + "components of rotational_drag: material (C W, "
+                                     "W and C in the directors' frame) | spatial (C w, w = R W "
+                                     "and C in the fixed frame)"),
         "constraints": Key(choice(*CONSTRAINTS), "none",
                            R + "none | unshearable | inextensible_unshearable"),
     },
@@ -227,6 +238,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "follows end_rotation, e.g. turning about the axis); an end_force "
                          "along the axis acts on it (a weight on a sliding clamp)"),
         "start_slide": Key(vector3(), None, R + "as end_slide, at s = 0"),
+        "end_spring": Key(spring_table, None, R + "a compliant support at s = L: "
+                          "{translational = k or [k_x, k_y, k_z] (N/m, spatial), rotational = "
+                          "k or [k_1, k_2, k_3] (N m/rad, material)} about the end's initial "
+                          "position and rotation (energy 1/2 k |x - x_0|^2 + k (1 - cos phi) "
+                          "per axis); translational where the position is free (or slides), "
+                          "rotational where the rotation is free"),
+        "start_spring": Key(spring_table, None, R + "as end_spring, at s = 0"),
     },
     "loads": {
         "end_torsion": Key(history(False), None, T + "applied torsion m(t) at s = 1"),
@@ -302,8 +320,35 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                                "integrator = \"stepper\" only)"),
         "progress": Key(boolean, True, "tqdm progress bar (rank 0, TTY, not CI)"),
     },
+    "contact": {
+        "radius": Key(real(0.0, True), None, R + "the rod's radius r: its centre line keeps "
+                      "r from an obstacle (needed by [[obstacles]]; default: the radius of "
+                      "a circle or tube [section]; docs/contact.md)"),
+        "gap": Key(real(0.0, True), None, R + "the barrier's gap delta (< radius): the contact "
+                   "force acts where the surfaces are closer than delta and is 0 beyond "
+                   "(default radius / 10)"),
+        "stiffness": Key(real(0.0, True), None, R + "the barrier's stiffness kappa (default: "
+                         "from density / dt^2 and EI / h^4, docs/contact.md)"),
+        "slip_tolerance": Key(real(0.0, True), None, R + "friction: the slip velocity eps "
+                              "below which friction is smoothed; a rod held by static "
+                              "friction creeps slower than eps (default 1e-3 L / t_end)"),
+    },
+    "obstacles": {
+        "shape": Key(choice(*OBSTACLE_SHAPES), REQUIRED, R + "plane (a half-space) | sphere "
+                     "| cylinder (finite, solid)"),
+        "point": Key(vector3(), None, "plane: a point of its surface"),
+        "normal": Key(vector3(), None, "plane: the outward normal (the solid is behind it)"),
+        "centre": Key(vector3(), None, "sphere, cylinder: the centre"),
+        "axis": Key(vector3(), None, "cylinder: the axis direction"),
+        "radius": Key(real(0.0, True), None, "sphere, cylinder: the radius"),
+        "length": Key(real(0.0, True), None, "cylinder: the length along the axis"),
+        "friction": Key(real(0.0), 0.0, "Coulomb friction coefficient mu >= 0 (needs "
+                        "density > 0)"),
+    },
 }
 REQUIRED_TABLES = ("time",)
+# tables written as arrays of tables ([[obstacles]]): each entry checked against the keys
+ARRAY_TABLES = ("obstacles",)
 RENAMED = {("geometry", "reference_twist"): "initial.natural_twist (u_d at t = 0 is an "
                                             "initial natural strain, not a reference shape)"}
 
@@ -354,15 +399,12 @@ def to_toml(raw: dict) -> str:
     """A scene dict as TOML (tables of keys with inline values), for scene.toml."""
     out = []
     for table, keys in raw.items():
-        if isinstance(keys, list):          # [[rods]], [[joints]]
-            out += [f"[[{table}]]\n" + "\n".join(f"{k} = {toml_value(v)}"
-                                                  for k, v in entry.items()) + "\n"
-                    for entry in keys]
-            continue
-        out.append(f"[{table}]")
-        out += [f"{k if k.replace('_', '').isalnum() else toml_value(k)} = {toml_value(v)}"
-                for k, v in keys.items()]
-        out.append("")
+        entries = keys if isinstance(keys, list) else [keys]
+        for entry in entries:
+            out.append(f"[[{table}]]" if isinstance(keys, list) else f"[{table}]")
+            out += [f"{k if k.replace('_', '').isalnum() else toml_value(k)} = "
+                    f"{toml_value(v)}" for k, v in entry.items()]
+            out.append("")
     return "\n".join(out)
 
 
@@ -388,35 +430,48 @@ def _validate_tables(raw: dict, source: str, default_name: str,
     for table in REQUIRED_TABLES:
         if table not in raw:
             raise SceneError(source, table, "missing required table")
-    data: dict[str, dict[str, Any]] = {}
+    data: dict[str, Any] = {}
     given: dict[str, set[str]] = {}
     for table, keys in SCHEMA.items():
-        section = raw.get(table, {})
+        section = raw.get(table, [] if table in ARRAY_TABLES else {})
+        if table in ARRAY_TABLES:
+            if not (isinstance(section, list) and all(isinstance(e, dict) for e in section)):
+                raise SceneError(source, table, f"must be an array of tables ([[{table}]]), "
+                                                f"got {type_name(section)}")
+            data[table] = [_table(e, keys, f"{table}[{k}]", source)
+                           for k, e in enumerate(section)]
+            given[table] = {key for e in section for key in e}
+            continue
         if not isinstance(section, dict):
             raise SceneError(source, table, f"must be a table, got {type_name(section)}")
         given[table] = set(section)
-        out = {}
-        for k in section:
-            if (table, k) in RENAMED:
-                raise SceneError(source, f"{table}.{k}", f"renamed: use {RENAMED[table, k]}")
-            if k not in keys:
-                raise SceneError(source, f"{table}.{k}",
-                                 f"unknown key (known in [{table}]: {', '.join(keys)})")
-        for k, spec in keys.items():
-            path = f"{table}.{k}"
-            if k not in section:
-                if spec.default is REQUIRED:
-                    raise SceneError(source, path, f"missing required key ({spec.doc})")
-                out[k] = spec.default
-                continue
-            try:
-                out[k] = spec.check(section[k])
-            except BadValue as bad:
-                raise SceneError(source, f"{path}.{bad.key}" if bad.key else path,
-                                 bad.reason) from None
-        data[table] = out
+        data[table] = _table(section, keys, table, source)
     if data["scene"]["name"] is None:
         data["scene"]["name"] = safe_name(default_name)
     scene = Scene(data, source, given=given, joined=joined)
     check_combinations(scene)
     return scene
+
+
+def _table(section: dict, keys: dict[str, Key], table: str, source: str) -> dict:
+    """One table's keys checked, defaults filled in (``table``: its path in errors)."""
+    out = {}
+    for k in section:
+        if (table, k) in RENAMED:
+            raise SceneError(source, f"{table}.{k}", f"renamed: use {RENAMED[table, k]}")
+        if k not in keys:
+            raise SceneError(source, f"{table}.{k}",
+                             f"unknown key (known in [{table}]: {', '.join(keys)})")
+    for k, spec in keys.items():
+        path = f"{table}.{k}"
+        if k not in section:
+            if spec.default is REQUIRED:
+                raise SceneError(source, path, f"missing required key ({spec.doc})")
+            out[k] = spec.default
+            continue
+        try:
+            out[k] = spec.check(section[k])
+        except BadValue as bad:
+            raise SceneError(source, f"{path}.{bad.key}" if bad.key else path,
+                             bad.reason) from None
+    return out

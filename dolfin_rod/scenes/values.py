@@ -278,6 +278,33 @@ def tensor(v) -> Tensor:
     return Tensor(terms)
 
 
+def spring_table(v) -> dict:
+    """{translational = k or [k_x, k_y, k_z], rotational = k or [k_1, k_2, k_3]}, each
+    >= 0 (rod/boundary_conditions.EndSpring)."""
+    if not isinstance(v, dict):
+        raise BadValue(f"must be a table {{translational = ..., rotational = ...}}, got "
+                       f"{type_name(v)}")
+    refuse_unknown(v, {"translational", "rotational"})
+    out = {}
+    for k, x in v.items():
+        try:
+            out[k] = vector3(0.0)(x) if isinstance(x, list) else real(0.0)(x)
+        except BadValue as bad:
+            raise BadValue(bad.reason, k) from None
+    return out
+
+
+def damping_tensor(v) -> Tensor:
+    """A number c (c I), [c_1, c_2, c_3] (diagonal) or a symmetric 3x3 array, positive
+    semidefinite."""
+    if isinstance(v, dict):
+        raise BadValue("must be a number, [c_1, c_2, c_3] or a 3x3 array")
+    t = tensor(v) if isinstance(v, list) else Tensor((real(0.0)(v) * np.eye(3),))
+    if np.linalg.eigvalsh(t.terms[0]).min() < 0:
+        raise BadValue(f"must be positive semidefinite, got {t.terms[0].tolist()}")
+    return t
+
+
 def entry_point(v) -> str:
     """"package.module:function": imported (from the scene's folder or sys.path)."""
     v = string(v)
@@ -302,6 +329,9 @@ def load_entry_point(spec: str, folder: Path | None = None):
         raise BadValue(f"cannot import {spec!r}: {err}") from None
     except Exception as err:     # the module's own code failed: a SyntaxError, a raise
         raise BadValue(f"cannot import {spec!r}: {type(err).__name__}: {err}") from None
+    except SystemExit as err:    # the module ends the program when imported
+        raise BadValue(f"cannot import {spec!r}: importing it calls sys.exit({err.code!r})") \
+            from None
     finally:
         if added:
             sys.path.remove(str(folder))
