@@ -22,13 +22,13 @@ import ufl
 from mpi4py import MPI
 from ufl.algorithms.analysis import extract_coefficients
 
-from .. import constraints
+from ..theory import constraints
 from .. import loads as load_histories
-from ..evolution import check_variant
-from ..model_base import FEModel, check_n_cells
-from ..problem import SecondOrderProblem, SemiDiscreteProblem
-from ..rotations import rotation_matrix
-from ..validation import choose_rotations, rotation_vector_obstacle
+from ..theory.evolution import check_variant
+from ..fem.fe_model import FEModel, check_n_cells
+from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
+from ..theory.rotations import rotation_matrix
+from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports
 from .constitutive import check_model, energy_function, section_response
@@ -115,6 +115,13 @@ class RodModel(FEModel):
         if joints and self.rotations != "rotation_vector":
             raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
+        if self.dynamic and self.rotations == "quaternion" and any(
+                load_histories.jumps(motion) for rod in rods
+                for motion in (rod.end_displacement or {}).values()):
+            raise ValueError("end_displacement starts away from 0 on a dynamic rod: its "
+                             "consistent start (at rest in equilibrium with the displaced "
+                             "end) is that of rotation-vector unknowns (rotations = "
+                             f"'rotation_vector'), not of {self.rotations!r}")
         disc = discretise(comm, layout, self.rotations)
         super().__init__(disc.mesh)
         self.dx, self.dx_r = disc.dx, disc.dx_r

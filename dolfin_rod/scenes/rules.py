@@ -10,7 +10,8 @@ import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
-from ..validation import choose_rotations, rotation_vector_obstacle, sample_points
+from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
+from ..checks import sample_points
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
@@ -67,7 +68,7 @@ def _check_solver_options(scene: Scene) -> None:
     """PETSc reads every option of solver.options and accepts its value (tried on a
     throwaway solver: a bad one failed the run after check said OK)."""
     if scene["solver"]["options"]:
-        from ..solvers import option_problem
+        from ..fem.solvers import option_problem
         problem = option_problem(scene["solver"]["options"])
         if problem:
             raise scene.error(f"solver.options.{problem[0]}", problem[1])
@@ -358,6 +359,12 @@ def _check_rod_ends(scene: Scene) -> None:
             spec = bnd[f"{end}_{motion}"]
             if spec is not None and not spec.is_vector:
                 raise err(f"boundary.{end}_{motion}.value", "3-D rod: a vector [x, y, z]")
+            if spec is not None and spec.type == "step" and spec.t0 > 0 and \
+                    scene["material"]["dynamic"]:
+                raise err(f"boundary.{end}_{motion}", f"a step at t0 = {spec.t0:g}, but a rod "
+                                                      "with inertia cannot follow a jump of its "
+                                                      "end: use type = \"smooth_step\" or "
+                                                      "\"ramp\" (with t0)")
         axis = _slide_axis(scene, end)
         x = kind in ("clamped", "pinned") or bnd[f"{end}_displacement"] is not None
         q = kind == "clamped" or bnd[f"{end}_rotation"] is not None
