@@ -19,17 +19,21 @@ ROOT = Path(__file__).resolve().parents[1]
 FRAME = (ROOT / "scenes" / "frame.toml").read_text()
 
 
+def run_to_one(name: str, steps: int) -> dict:
+    """A bundled scene built and advanced to t = 1 in its ``steps`` steps: diagnostics."""
+    sim = build(load_scene(ROOT / "scenes" / name), "rod")
+    sim.start()
+    sim.begin(0.0)
+    for k in range(steps):
+        sim.advance(k / steps, (k + 1) / steps)
+    return sim.diagnostics(1.0)
+
+
 def test_frame_scene_is_the_api_frame():
     """scenes/frame.toml and the same frame through the Python API: the same beam tip
     after the load ramp (the same model, stepped alike: to round-off, 1e-12 of ~2 m),
     the knee's vertical force the load, 1e4 N (Newton's tolerance: 1e-6 relative)."""
-    scene = load_scene(ROOT / "scenes" / "frame.toml")
-    sim = build(scene, "rod")
-    sim.start()
-    sim.begin(0.0)
-    for k in range(10):                       # the scene's steps, dt = 0.1
-        sim.advance(0.1 * k, 0.1 * (k + 1))
-    here = sim.diagnostics(1.0)
+    here = run_to_one("frame.toml", 10)
     A, B = (4.0e4, 4.0e4, 2.4e4), (2.05e7, 2.05e7, 1.2e8)
     top = (0.0, 0.0, 2.0)
     api = RodSystem([
@@ -81,13 +85,7 @@ def test_tripod_scene_carries_its_load():
     leg3's tip): the three clamps' reactions balance F (reaction = -F summed, measured
     to 1e-9 relative: Newton's tolerance) and the joints pass on what leg2 and leg3
     carry; every leg's tip stays at the head (the joints hold to round-off)."""
-    scene = load_scene(ROOT / "scenes" / "tripod.toml")
-    sim = build(scene, "rod")
-    sim.start()
-    sim.begin(0.0)
-    for k in range(4):
-        sim.advance(0.25 * k, 0.25 * (k + 1))
-    d = sim.diagnostics(1.0)
+    d = run_to_one("tripod.toml", 4)
     force = np.array([200.0, 0.0, -2000.0])
     reactions = sum(np.array([d[f"leg{i}.reaction_force_left_{c}"] for c in "xyz"])
                     for i in (1, 2, 3))

@@ -152,7 +152,7 @@ def _joint(entry: dict, k: int, source: str, names: list[str]) -> JointEntry:
 def rods_and_joints(scene: Scene) -> tuple[list, list]:
     """The scene's rods (rod.Rod, from each rod's scene) and joints (rod.Joint)."""
     from ..rod import Joint, Rod
-    from .models import rod_arguments, rod_parameters
+    from .builders import rod_arguments, rod_parameters
     rods = [Rod(rod_parameters(entry.scene), **rod_arguments(entry.scene), name=entry.name,
                 position=entry.position, orientation=entry.orientation)
             for entry in scene.rods]
