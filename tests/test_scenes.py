@@ -70,7 +70,8 @@ def shared_folder(tmp_path) -> Path:
 BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "cantilever_creep.toml": "rod", "gravity_cantilever.toml": "rod",
                   "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod",
-                  "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod"}
+                  "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
+                  "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])

@@ -5,5 +5,7 @@ from .constitutive import MODELS
 from .external_forces import DistributedLoad, EndLoad
 from .material import RodParameters
 from .model import RodModel
+from .start import Arc, Helix, Polyline, StartingState, Straight
 
-__all__ = ["RodModel", "RodParameters", "EndLoad", "DistributedLoad", "MODELS", "END_TYPES"]
+__all__ = ["RodModel", "RodParameters", "EndLoad", "DistributedLoad", "MODELS", "END_TYPES",
+           "StartingState", "Straight", "Arc", "Helix", "Polyline"]

@@ -7,7 +7,8 @@
     residual.py            balance, gauge, constraints, evolution, inertia
     external_forces.py     end and distributed loads, drag
     boundary_conditions.py clamped, pinned, prescribed motions, reactions
-    initial_state.py       the stress-free initial configuration
+    initial_state.py       the stress-free configuration, the state at t = 0
+    start.py               starting states: placement, curves, velocities
     diagnostics.py         energies, powers, tip
 """
 
@@ -33,6 +34,7 @@ from .constitutive import check_model, energy_function, section_response
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, check_loads
 from .material import RodParameters, check_parameters, coefficients, is_zero
+from .start import StartingState, check_start
 
 
 class RodModel(FEModel):
@@ -68,7 +70,7 @@ class RodModel(FEModel):
         check_loads(end_loads, distributed_loads)
         self.params, self.model, self.variant, self.constraint = params, model, variant, constraint
         self.end_loads, self.distributed_loads = list(end_loads), list(distributed_loads)
-        self.length = float(params.length)
+        self.length, self.n_cells = float(params.length), int(n_cells)
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(params.rho_A)
         obstacle = rotation_vector_obstacle(
@@ -147,12 +149,19 @@ class RodModel(FEModel):
             committed = state["rotations_committed_at"]
             self.supports.committed_time = None if committed is None else float(committed)
 
-    def set_initial_state(self, natural_curvature=None, natural_stretch=None) -> None:
-        """Rest in the stress-free configuration of the reference strains (a straight rod
-        along e_3, or the helix/circle of constant reference_curvature), natural strains
-        equal to the discrete reference strains (uniform variant: their mean) unless given
-        (3-vectors), rates zero: no stress at t = 0."""
-        initial_state.set_initial_state(self, natural_curvature, natural_stretch)
+    def set_initial_state(self, natural_curvature=None, natural_stretch=None,
+                          start: StartingState | None = None) -> None:
+        """Natural strains equal to the discrete reference strains of the stress-free
+        configuration (a straight rod along e_3, or the helix/circle of constant
+        reference_curvature; uniform variant: their mean) unless given (3-vectors).
+        ``start`` None: the rod rests in that configuration, no stress at t = 0;
+        a StartingState (rod/start.py): placed at its position and orientation, on its
+        starting curve (e.g. Arc, Helix, Polyline, a Straight one stretched), with its
+        velocities (dynamic rods), or settled in static equilibrium with the loads at
+        t = 0 (``equilibrium``); the stress-free shape is unchanged."""
+        check_start(start, self.length, self.dynamic, rotation_held=(
+            "clamped" in self.supports.ends or bool(self.supports.rotation)))
+        initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
 
     def diagnostics(self, t: float) -> dict[str, float]:
         """MPI-reduced scalars at time t: tip position and quaternion, tip rotation angle

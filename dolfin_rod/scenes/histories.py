@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from .. import loads as load_histories
-from .values import (BadValue, boolean, choice, number, profile, real, refuse_unknown,
+from .values import (BadValue, boolean, number, profile, real, refuse_unknown, table_type,
                      type_name, vector3)
 
 HISTORY_TYPES = ("step", "ramp", "smooth_step", "table", "constant")
@@ -89,12 +89,7 @@ def history(vector_ok: bool, follower_ok: bool = False):
                 follower = boolean(v.pop("follower"))
             except BadValue as bad:
                 raise BadValue(bad.reason, "follower") from None
-        if "type" not in v:
-            raise BadValue(f"missing required key (one of {', '.join(HISTORY_TYPES)})", "type")
-        try:
-            kind = choice(*HISTORY_TYPES)(v["type"])
-        except BadValue as bad:
-            raise BadValue(bad.reason, "type") from None
+        kind = table_type(v, HISTORY_TYPES)
         keys = _HISTORY_KEYS[kind]
         refuse_unknown(v, {"type", *keys})
         for k, required in keys.items():

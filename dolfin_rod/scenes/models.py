@@ -19,7 +19,7 @@ import numpy as np
 
 from ..problem import SecondOrderProblem
 from .ode import OdeTorsion
-from .rules import adaptive_stepper, rod_rotations
+from .rules import START_KEYS, adaptive_stepper, rod_rotations
 from .schema import Scene, SceneError
 
 __all__ = ["Simulation", "MODELS", "register_model", "build", "OdeTorsion", "FESimulation"]
@@ -222,7 +222,25 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     initial = scene["initial"]
     return FESimulation("rod", model, scene, lambda: model.set_initial_state(
         natural_curvature=initial["natural_curvature"],
-        natural_stretch=initial["natural_stretch"]))
+        natural_stretch=initial["natural_stretch"], start=starting_state(scene)))
+
+
+def starting_state(scene: Scene):
+    """The rod's StartingState of [initial] (rules.START_KEYS), None if none is given."""
+    from ..rod import start
+    ini = scene["initial"]
+    if not any(k in scene.given["initial"] for k in START_KEYS):
+        return None
+    shape = dict(ini["shape"] or {})
+    kind = shape.pop("type", None)
+    curves = {"straight": start.Straight, "arc": start.Arc, "helix": start.Helix,
+              "polyline": start.Polyline}
+    zero = (0.0, 0.0, 0.0)
+    return start.StartingState(
+        shape=curves[kind](**shape) if kind else None, position=ini["position"] or zero,
+        orientation=ini["orientation"] or zero, velocity=ini["velocity"] or zero,
+        angular_velocity=ini["angular_velocity"] or zero,
+        rotation_centre=ini["rotation_centre"], equilibrium=ini["equilibrium"])
 
 
 def rod_parameters(scene: Scene):
