@@ -9,7 +9,7 @@ NP      ?= 2
 RELEASES = $(or $(DOLFINX),$(shell python3 -c 'import dolfinx; \
     print(".".join(dolfinx.__version__.split(".")[:2]))' 2>/dev/null),0.9 0.11)
 
-.PHONY: demo demos test test-serial test-mpi test-interrupt test-long bench work-precision stability env shell clean
+.PHONY: demo demos test test-serial test-mpi test-interrupt test-paths test-long bench work-precision stability env shell clean
 
 demo:            ## the flagship demo: viscoelastic cantilever creep and recovery (results/)
 	$(RODENV) python3 demos/cantilever_creep.py
@@ -19,8 +19,9 @@ demos:           ## every demo as a user runs it, serially and under mpirun
 
 test:            ## the CI suite on each release: serial run, then the MPI run on $(NP) ranks
 	@for v in $(RELEASES); do \
-	    echo "== DOLFINx $$v: make test-serial test-mpi test-interrupt"; \
+	    echo "== DOLFINx $$v: make test-serial test-mpi test-interrupt test-paths"; \
 	    DOLFINX=$$v $(MAKE) --no-print-directory test-serial test-mpi test-interrupt \
+	        test-paths \
 	        || exit 1; \
 	done
 
@@ -32,6 +33,9 @@ test-mpi:
 
 test-interrupt:  ## Ctrl-C through ./rodenv: dolfin-rod stops, writes its summary, exits 130
 	tests/rodenv_interrupt.sh
+
+test-paths:      ## ./rodenv sees and writes the user's paths (outside the project, /tmp)
+	tests/rodenv_paths.sh
 
 test-long:       ## long verification runs (convergence studies, long horizons)
 	$(RODENV) $(PYTEST) -m slow

@@ -87,8 +87,15 @@ def _setup_3d(ax, box, title=""):
 
 
 def _segments(sample) -> np.ndarray:
-    r = sample.point["centre_line"]
-    return np.stack([r[:-1], r[1:]], axis=1)
+    return sample.point["centre_line"][sample.segments()]
+
+
+def _plot_lines(ax, sample, **style) -> None:
+    """The centre line, one line per rod (the label on the first)."""
+    for k, nodes in enumerate(sample.lines()):
+        r = sample.point["centre_line"][nodes]
+        ax.plot(r[:, 0], r[:, 1], r[:, 2], **(style if k == 0 else
+                                               {**style, "label": None}))
 
 
 def rod_animation(frames: list, path: Path, title: str = "") -> None:
@@ -105,7 +112,9 @@ def rod_animation(frames: list, path: Path, title: str = "") -> None:
     box = _box(frames)
     current = Line3DCollection([], cmap="viridis", linewidths=3)
     current.set_clim(0.0, vmax)
-    trail = [ax.plot([], [], [], color="0.5", lw=1)[0] for _ in range(TRAIL)]
+    trail = [Line3DCollection([], colors="0.5", linewidths=1) for _ in range(TRAIL)]
+    for line in trail:
+        ax.add_collection(line)
     ax.add_collection(current)
     fig.colorbar(current, ax=ax, shrink=0.6, label=label)
     _setup_3d(ax, box)
@@ -115,8 +124,7 @@ def rod_animation(frames: list, path: Path, title: str = "") -> None:
         current.set_segments(_segments(sample))
         current.set_array(_colour(sample, label))
         for j, line in enumerate(trail):
-            r = shown[max(k - j - 1, 0)][1].point["centre_line"]
-            line.set_data_3d(r[:, 0], r[:, 1], r[:, 2])
+            line.set_segments(_segments(shown[max(k - j - 1, 0)][1]))
             line.set_alpha(0.5 * (TRAIL - j) / TRAIL if k - j - 1 >= 0 else 0.0)
         ax.set_title(f"{title}  t = {t:.4g}", fontsize=9)
         return [current, *trail]
@@ -137,9 +145,11 @@ def rod_snapshots(frames: list, path: Path, title: str = "", n: int = 6) -> None
     colours = plt.cm.plasma(np.linspace(0.0, 0.85, len(pick)))
     for c, i in zip(colours, pick):
         t, sample = frames[i]
-        r = sample.point["centre_line"]
-        ax.plot(r[:, 0], r[:, 1], r[:, 2], color=c, lw=2, label=f"t = {t:.3g}")
-        ax2.step(sample.s_cells, _colour(sample, label), where="mid", color=c)
+        _plot_lines(ax, sample, color=c, lw=2, label=f"t = {t:.3g}")
+        colour, first_nodes = _colour(sample, label), sample.segments()[:, 0]
+        for nodes in sample.lines():      # one rod at a time: no step across a gap
+            cells = (first_nodes >= nodes.start) & (first_nodes < nodes.stop)
+            ax2.step(sample.s_cells[cells], colour[cells], where="mid", color=c)
     _setup_3d(ax, _box(frames), "centre line r(s, t)")
     ax.legend(fontsize=7, loc="upper left")
     ax2.set_xlabel("s"), ax2.set_ylabel(label)

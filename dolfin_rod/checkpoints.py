@@ -1,15 +1,22 @@
 """Checkpoints of a run: ``<run>/checkpoint/step-N/`` (adios4dolfinx ``state.bp`` and
 ``meta.json``), written into ``step-N.partial`` and published by one atomic rename, then
-older ones removed: a crash at any moment leaves the last complete checkpoint, never a
-state of one step with the metadata of another.  Resuming verifies that the scene's
-physics (``Scene.physics``), the model and the number of degrees of freedom are those of
-the checkpoint (a fingerprint), before anything is written.
+the older ones of this run removed: a crash at any moment leaves the last complete
+checkpoint, never a state of one step with the metadata of another.  Clean-up deletes
+only the checkpoints this run wrote or resumed from, never through a symbolic link (a
+``checkpoint/`` that links to a shared folder keeps everything else in it).
+
+meta.json holds the SHA-256 of every file of state.bp and of its own content; resuming
+verifies both before opening state.bp (an edited step or time, a truncated or flipped
+data file is refused), then that the scene's physics (``Scene.physics``), the model and
+the number of degrees of freedom are those of the checkpoint (a fingerprint), before
+anything is written.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -22,6 +29,7 @@ class Checkpoints:
 
     def __init__(self, folder: Path, scene, sim, comm):
         self.folder, self.scene, self.sim, self.comm = Path(folder), scene, sim, comm
+        self.own: list[Path] = []     # checkpoints of this run: the only ones removed
 
     def _named_functions(self) -> tuple[dict, dict]:
         """The model's checkpointed functions by name, and the rest of its state."""
@@ -49,7 +57,7 @@ class Checkpoints:
 
         def make_partial():
             root.mkdir(exist_ok=True)
-            shutil.rmtree(partial, ignore_errors=True)
+            remove_without_following(partial)     # left by a crash of this run
             partial.mkdir()
         on_root(self.comm, make_partial, f"cannot write a checkpoint in {root}")
         named, state = self._named_functions()
@@ -66,11 +74,13 @@ class Checkpoints:
                 "balance": balance, "fingerprint": self.fingerprint()}
 
         def publish():
-            write_checkpoint_meta(partial, meta)
+            meta["state_sha256"] = file_digests(partial / "state.bp")
+            write_checkpoint_meta(partial, {**meta, "sha256": meta_digest(meta)})
             partial.rename(final)
-            for old in root.iterdir():
+            for old in self.own:
                 if old != final:
-                    shutil.rmtree(old, ignore_errors=True)
+                    remove_without_following(old)
+            self.own = [final]
         self.comm.barrier()                            # every rank's state.bp is written
         on_root(self.comm, publish, f"cannot write a checkpoint in {root}")
 
@@ -91,7 +101,52 @@ class Checkpoints:
                                             name=name)
             f.x.scatter_forward()
         self.sim.restore(meta["sim"])
+        self.own = [Path(meta["folder"])]            # replaced by this run's next one
         return meta["balance"]
+
+
+def file_digests(folder: Path) -> dict[str, str]:
+    """SHA-256 of every file under ``folder`` (state.bp), by relative path."""
+    digests = {}
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+        with path.open("rb") as f:
+            digests[str(path.relative_to(folder))] = hashlib.file_digest(f, "sha256") \
+                .hexdigest()
+    return digests
+
+
+def meta_digest(meta: dict) -> str:
+    """SHA-256 of meta.json's content without its own ``sha256`` entry."""
+    data = {k: v for k, v in meta.items() if k != "sha256"}
+    return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
+
+
+def integrity_problem(folder: Path, meta) -> str | None:
+    """Why the checkpoint in ``folder`` (its meta.json content ``meta``) is not the one
+    written (an edit, a truncated or flipped file), or None if its checksums match."""
+    if not isinstance(meta, dict) or "sha256" not in meta or "state_sha256" not in meta:
+        return "its meta.json has no checksums (damaged, or written by an older dolfin-rod)"
+    if meta_digest(meta) != meta["sha256"]:
+        return "its meta.json does not match the checksum written with it (edited or damaged)"
+    try:
+        found = file_digests(folder / "state.bp")
+    except OSError as err:
+        return f"its state.bp cannot be read ({err.strerror or err})"
+    expected = meta["state_sha256"]
+    changed = sorted(set(found) ^ set(expected)) or [
+        name for name in sorted(found) if found[name] != expected[name]]
+    if changed:
+        return (f"its state.bp ({', '.join(changed[:3])}) does not match the checksums in "
+                "meta.json (truncated, edited or damaged)")
+    return None
+
+
+def remove_without_following(path: Path) -> None:
+    """Delete a checkpoint folder; a symbolic link is unlinked, never followed."""
+    if path.is_symlink():
+        path.unlink()
+    elif path.is_dir():
+        shutil.rmtree(path)
 
 
 def write_checkpoint_meta(folder: Path, meta: dict) -> None:
@@ -111,7 +166,12 @@ def read_checkpoint_meta(run: Path, comm, scene) -> dict:
         if not done:
             raise OutputError(f"--resume: no complete checkpoint in {root} (the scene "
                               "needs outputs.checkpoint_every > 0)")
-        return {**json.loads((done[-1] / "meta.json").read_text()), "folder": str(done[-1])}
+        meta = json.loads((done[-1] / "meta.json").read_text())
+        problem = integrity_problem(done[-1], meta)
+        if problem:
+            raise OutputError(f"cannot resume from {done[-1]}: {problem}; nothing was "
+                              "changed")
+        return {**meta, "folder": str(done[-1])}
     meta = on_root(comm, newest, f"--resume: cannot read the checkpoint of {run}")
     theirs = meta.get("fingerprint", {}).get("scene")
     mine = json.loads(json.dumps(scene.physics()))

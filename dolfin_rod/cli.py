@@ -10,14 +10,17 @@
 Exit status: 0 success, 2 a bad scene, folder or checkpoint (SceneError, OutputError:
 one line on stderr, nothing written), 3 the integration failed or diverged (what was
 computed before is kept), 130 interrupted.  Failures always go to stderr, --quiet or
-not.  Under MPI every error ends every rank: expected errors are raised collectively,
-anything else calls MPI_Abort, so no rank is left waiting.
+not.  Under MPI every error ends every rank and reaches the user whichever rank saw it:
+expected errors are raised collectively (mpi.agree), or, seen by one rank inside
+collective work, reported by that rank with MPI_Abort(2) (mpi.alone); anything else
+calls MPI_Abort, so no rank is left waiting.  A scene needs 2 cells per rank.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -86,19 +89,26 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     from mpi4py import MPI
 
     from .checkpoints import read_checkpoint_meta
+    from .mpi import agree
     from .output import RunWriter
     comm = comm or MPI.COMM_WORLD
     clock = {"start": time.perf_counter()}
-    choice = select_model(scene)
+    choice = agree(comm, lambda: _choose(scene, comm.size), (SceneError,))
     if (resume or stop_after is not None) and scene["time"]["integrator"] == "ts":
         raise scene.error("time.integrator", "resume/stop_after need integrator = \"stepper\"")
     meta = read_checkpoint_meta(Path(out), comm, scene) if resume else None
+    made = not resume and (out is None or not os.path.exists(out))   # (False on errors)
     folder = _run_folder(scene, None if out is None else Path(out), comm, resume, overwrite)
     if not quiet:
         print_on_root(comm, f"model: {choice.model} ({choice.reason})")
     _warn_if_unstable(scene, comm)
-    sim = build(scene, choice.model, comm)
-    impulse = sim.start()
+    try:
+        sim = build(scene, choice.model, comm)
+        impulse = sim.start()
+    except BaseException:
+        if made and comm.rank == 0:              # nothing half-written: no empty folder
+            _remove_if_empty(folder)
+        raise
     clock["setup"] = time.perf_counter() - clock["start"]
     writer = RunWriter(folder, scene, choice, sim, comm, resume=resume)
     if meta is not None:
@@ -122,6 +132,17 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     elif not quiet:
         print_on_root(comm, line)
     return summary
+
+
+def _remove_if_empty(folder: Path) -> None:
+    """Remove a run folder that holds nothing but its marker."""
+    from .run_folders import MARKER
+    try:
+        if [p.name for p in folder.iterdir()] == [MARKER]:
+            (folder / MARKER).unlink()
+        folder.rmdir()
+    except OSError:
+        pass
 
 
 def _first_row(sim, writer, t0: float, fields: bool) -> None:
@@ -203,6 +224,8 @@ def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> d
         "total_dissipation": writer.balance.total_dissipation,
         "title": f"{scene.name}: {choice.model} model",
     }
+    if scene.is_rod_material and scene["material"]["derived"]:
+        summary["derived"] = scene["material"]["derived"]    # from the physical input
     stats = getattr(sim, "stats", None)
     if stats is not None:
         summary["newton_iterations"] = stats.newton_iterations
@@ -261,35 +284,71 @@ def _warn_if_unstable(scene: Scene, comm) -> None:
 
 
 def _check(scene: Scene, out: Path | None, comm) -> None:
-    """``dolfin-rod check``: the scene, its model and the output location."""
+    """``dolfin-rod check``: the scene, its model and the output location; "OK" only when
+    every rank found the scene fine (mpi.agree)."""
+    from .mpi import agree
     from .run_folders import OutputError, folder_problem
-    choice = select_model(scene)
+    lines = agree(comm, lambda: _check_lines(scene, comm.size), (SceneError,))
     target = out if out is not None else Path(scene["outputs"]["directory"])
     problem = folder_problem(target) if comm.rank == 0 else None
     problem = comm.bcast(problem, root=0)
     if problem:
         what = "--out" if out is not None else f"{scene.source}: [outputs.directory]"
         raise OutputError(f"{what} {problem}")
-    print_on_root(comm, f"{scene.source}: OK")
-    print_on_root(comm, f"model: {choice.model}")
-    print_on_root(comm, f"why: {choice.reason}")
+    for line in lines:
+        print_on_root(comm, line)
+    _warn_if_unstable(scene, comm)
+
+
+def _choose(scene: Scene, ranks: int):
+    """The scene's model (select_model), refused with a SceneError naming
+    geometry.n_cells if an FE model would leave a rank too few cells."""
+    from .model_base import check_n_cells
+    choice = select_model(scene)
+    if choice.model != "ode":
+        try:
+            check_n_cells(scene["geometry"]["n_cells"], ranks)
+        except ValueError as err:
+            raise scene.error("geometry.n_cells", str(err)) from None
+    return choice
+
+
+def _check_lines(scene: Scene, ranks: int) -> list[str]:
+    """What ``check`` prints for a valid scene: OK, the model, why, how it steps."""
+    choice = _choose(scene, ranks)
+    lines = [f"{scene.source}: OK", f"model: {choice.model}", f"why: {choice.reason}"]
     if choice.model == "rod":
+        from .scenes.physical import describe
         from .scenes.rules import rod_rotations
-        print_on_root(comm, f"rotations: {rod_rotations(scene)} (geometry.rotations = "
-                            f"{scene['geometry']['rotations']!r})")
+        lines += [f"derived: {line}" for line in describe(scene["material"]["derived"] or {})]
+        lines.append(f"rotations: {rod_rotations(scene)} (geometry.rotations = "
+                     f"{scene['geometry']['rotations']!r})")
     if choice.model != "ode":                      # (the ODE prints its own solution)
         from .scenes.rules import time_stepping
-        print_on_root(comm, f"time stepping: {time_stepping(scene)}")
-    _warn_if_unstable(scene, comm)
+        lines.append(f"time stepping: {time_stepping(scene)}")
+    return lines
 
 
 def main(argv: list[str] | None = None) -> int:
     """The command line; every error ends every rank: expected ones (a bad scene or
-    folder) collectively with exit 2, anything else by MPI_Abort after its traceback."""
+    folder) with exit 2, collectively where every rank saw them, else by MPI_Abort(2)
+    from the rank that saw one (mpi.alone); anything else by MPI_Abort after its
+    traceback."""
     from mpi4py import MPI
+
+    from .fit_cli import FitInputError
+    from .mpi import alone
+    from .run_folders import OutputError
     comm = MPI.COMM_WORLD
+    guard = comm.Dup() if comm.size > 1 else None    # for mpi.alone only
     try:
         return _main(argv, comm)
+    except (SceneError, OutputError, FitInputError) as err:
+        if alone(guard):
+            print(f"error: {err} (seen on rank {comm.rank} only)", file=sys.stderr, flush=True)
+            comm.Abort(2)                          # the other ranks may wait in a collective
+        print_on_root(comm, f"error: {err}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:                      # Ctrl-C before the run loop
         print_on_root(comm, "interrupted", file=sys.stderr)
         return 130
@@ -303,26 +362,22 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None, comm) -> int:
-    from .fit_cli import FitInputError, fit_command
-    from .run_folders import OutputError
+    from .fit_cli import fit_command
+    from .mpi import agree
     args = _parser().parse_args(argv)
     if args.command == "schema":
         print_on_root(comm, schema_markdown())
         return 0
-    try:
-        if args.command == "fit":
-            return fit_command(args, comm)
-        scene = load_scene(args.scene)
-        if args.command == "check":
-            _check(scene, args.out, comm)
-            return 0
-        if args.resume and args.out is None:
-            raise SceneError(str(args.scene), "", "--resume needs --out (the run folder)")
-        summary = run_scene(scene, args.out, comm, resume=args.resume, quiet=args.quiet,
-                            overwrite=args.overwrite)
-    except (SceneError, OutputError, FitInputError) as err:
-        print_on_root(comm, f"error: {err}", file=sys.stderr)
-        return 2
+    if args.command == "fit":
+        return fit_command(args, comm)
+    scene = agree(comm, lambda: load_scene(args.scene), (SceneError,))
+    if args.command == "check":
+        _check(scene, args.out, comm)
+        return 0
+    if args.resume and args.out is None:
+        raise SceneError(str(args.scene), "", "--resume needs --out (the run folder)")
+    summary = run_scene(scene, args.out, comm, resume=args.resume, quiet=args.quiet,
+                        overwrite=args.overwrite)
     return {"completed": 0, "stopped": 0, "interrupted": 130}.get(summary["status"], 3)
 
 

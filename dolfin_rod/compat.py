@@ -8,6 +8,8 @@ The rest of the package calls these functions and never checks a version.
                        COMM_WORLD); 0.10+: basix's ``real_element`` (on the mesh's comm)
     element data       0.9: ``interpolation_points()`` a method; 0.10+: a property
     LinearProblem      0.10+: needs ``petsc_options_prefix``
+    create_mesh        0.9: (comm, cells, x, domain); 0.10+: (comm, cells, element, x);
+                       0.10+'s partitioner takes the facet-to-cell link limit
 """
 
 from __future__ import annotations
@@ -105,6 +107,26 @@ def real_space(mesh, shape: tuple[int, ...] = ()) -> fem.FunctionSpace:
     element = basix.ufl.real_element(mesh.basix_cell(), value_shape=tuple(shape),
                                      dtype=mesh.geometry.x.dtype)
     return fem.functionspace(mesh, element)
+
+
+def interval_components(comm, nodes, cells) -> dolfinx.mesh.Mesh:
+    """An interval mesh of several components: node coordinates (n,) and cells (m, 2) of
+    vertex indices, given on rank 0 and distributed (ghosted across shared facets, as
+    ``create_interval``)."""
+    import basix.ufl
+    import numpy as np
+    import ufl
+    domain = ufl.Mesh(basix.ufl.element("Lagrange", "interval", 1, shape=(1,)))
+    if comm.rank == 0:
+        x, c = np.asarray(nodes, float).reshape(-1, 1), np.asarray(cells, np.int64)
+    else:
+        x, c = np.zeros((0, 1)), np.zeros((0, 2), dtype=np.int64)
+    ghosts = dolfinx.mesh.GhostMode.shared_facet
+    if _BLOCK_ASSEMBLERS:
+        return dolfinx.mesh.create_mesh(
+            comm, c, x, domain, partitioner=dolfinx.mesh.create_cell_partitioner(ghosts))
+    return dolfinx.mesh.create_mesh(
+        comm, c, domain, x, partitioner=dolfinx.mesh.create_cell_partitioner(ghosts, 2))
 
 
 def linear_problem(a, L, bcs, u: fem.Function, petsc_options: dict):

@@ -42,7 +42,7 @@ class FieldOutputs:
         if self.frames is None:
             self._start()
         if self.outputs["fields"]:
-            self.vtx.write(t, _geometry(sample), *self._data(sample))
+            self.vtx.write(t, _geometry(sample), *self._data(sample), sample.segments())
         self.frames.add(t, sample)
 
     def _start(self) -> None:
@@ -93,4 +93,5 @@ def _sample_from_vtx(step: dict):
     s_nodes = point.pop("s")
     if "phi" not in point:
         point["centre_line"] = step["points"]
-    return LineSample(s_nodes, 0.5 * (s_nodes[1:] + s_nodes[:-1]), point, dict(step["cell"]))
+    cells = np.asarray(step["cells"], dtype=int)
+    return LineSample(s_nodes, s_nodes[cells].mean(axis=1), point, dict(step["cell"]), cells)

@@ -25,12 +25,29 @@ __all__ = ["LineSample", "LineSampler"]
 
 @dataclass
 class LineSample:
-    """Values along s (rank 0): nodes s_0 < ... < s_N, cells between them."""
+    """Values along s (rank 0): nodes s_0 < ... < s_M, cells between them; a mesh of
+    several rods (rod/layout.py) has one run of nodes per rod, with a gap in s between
+    them (``cells``: the two nodes of each cell)."""
 
-    s_nodes: np.ndarray                       # (N + 1,)
+    s_nodes: np.ndarray                       # (M + 1,)
     s_cells: np.ndarray                       # (N,) cell midpoints
-    point: dict[str, np.ndarray]              # name -> (N + 1, k) or (N + 1,)
+    point: dict[str, np.ndarray]              # name -> (M + 1, k) or (M + 1,)
     cell: dict[str, np.ndarray]               # name -> (N, k) or (N,)
+    cells: np.ndarray | None = None           # (N, 2) node indices; None: i, i + 1
+
+    def segments(self) -> np.ndarray:
+        """(N, 2): the nodes of each cell."""
+        if self.cells is not None:
+            return self.cells
+        n = len(self.s_cells)
+        return np.column_stack([np.arange(n), np.arange(1, n + 1)])
+
+    def lines(self) -> list[slice]:
+        """The runs of consecutive nodes, one per rod (a single rod: all nodes)."""
+        seg = self.segments()
+        starts = np.concatenate([[0], seg[1:, 0][seg[1:, 0] != seg[:-1, 1]]])
+        stops = np.concatenate([starts[1:], [len(self.s_nodes)]])
+        return [slice(a, b) for a, b in zip(starts, stops)]
 
 
 def _components(expr) -> list:
@@ -95,9 +112,21 @@ class LineSampler:
         p, c = p[order], c[order]
         left = np.where(p[:, 0, 0] <= p[:, 1, 0], 0, 1)     # the vertex with the smaller s
         rows = np.arange(len(p))
-        nodes = np.concatenate([p[rows, left], p[-1:, 1 - left[-1]]])
+        nodes, cells = _nodes(p[rows, left], p[rows, 1 - left])
         return LineSample(nodes[:, 0], c[:, 0], _unpack(nodes, self.point_layout),
-                          _unpack(c, self.cell_layout))
+                          _unpack(c, self.cell_layout), cells)
+
+
+def _nodes(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The nodes of cells sorted by s (values at their left and right vertices, s
+    first): every left vertex, and the right vertex of the last cell of each run of
+    cells that share vertices (one run per rod); and each cell's two node indices."""
+    last = np.append(left[1:, 0] != right[:-1, 0], True)
+    first_node = np.arange(len(left)) + np.concatenate([[0], np.cumsum(last[:-1])])
+    nodes = np.empty((len(left) + int(last.sum()), left.shape[1]))
+    nodes[first_node] = left
+    nodes[first_node[last] + 1] = right[last]
+    return nodes, np.column_stack([first_node, first_node + 1])
 
 
 def _unpack(values: np.ndarray, layout: dict) -> dict[str, np.ndarray]:

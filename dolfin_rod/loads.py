@@ -156,33 +156,40 @@ def step(v: float, t0: float = 0.0) -> PiecewiseSmoothLoad:
                                np.zeros_like)
 
 
-def ramp(v: float, t_ramp: float) -> PiecewiseSmoothLoad:
-    """The linear ramp: 0 for t < 0, ``v t / t_ramp`` on [0, t_ramp], v afterwards (continuous)."""
+def ramp(v: float, t_ramp: float, t0: float = 0.0) -> PiecewiseSmoothLoad:
+    """The linear ramp starting at t0: 0 for t < t0, ``v (t - t0) / t_ramp`` on
+    [t0, t0 + t_ramp], v afterwards (continuous)."""
     v = _finite("v", v)
     t_ramp = _positive("t_ramp", t_ramp)
-    return PiecewiseSmoothLoad(lambda t: v * np.clip(t / t_ramp, 0.0, 1.0), (), f"ramp to {v} over {t_ramp}",
-                               lambda t: np.where((t >= 0.0) & (t < t_ramp), v / t_ramp, 0.0))
+    t0 = _finite("t0", t0)
+    return PiecewiseSmoothLoad(lambda t: v * np.clip((t - t0) / t_ramp, 0.0, 1.0), (),
+                               f"ramp to {v} over {t_ramp}" + (f" from t = {t0}" if t0 else ""),
+                               lambda t: np.where((t >= t0) & (t < t0 + t_ramp), v / t_ramp, 0.0))
 
 
-def smooth_step(v: float, width: float) -> PiecewiseSmoothLoad:
-    """A C^1 regularisation of the step ``v H(t)``, like the paper's ``u_n``, ``m_n`` (width 1/n).
+def smooth_step(v: float, width: float, t0: float = 0.0) -> PiecewiseSmoothLoad:
+    """A C^1 regularisation of the step ``v H(t - t0)``, like the paper's ``u_n``, ``m_n``
+    (width 1/n).
 
-    ``f(t) = v S(t / width)`` with the cubic Hermite "smoothstep" ``S(x) = x^2 (3 - 2x)``
-    on [0, 1], S = 0 for x < 0 and S = 1 for x > 1: S(0) = S'(0) = S'(1) = 0, S(1) = 1 and
-    S' >= 0, so f is continuously differentiable and monotone (non-decreasing for v >= 0).
+    ``f(t) = v S((t - t0) / width)`` with the cubic Hermite "smoothstep" ``S(x) = x^2 (3 -
+    2x)`` on [0, 1], S = 0 for x < 0 and S = 1 for x > 1: S(0) = S'(0) = S'(1) = 0,
+    S(1) = 1 and S' >= 0, so f is continuously differentiable and monotone
+    (non-decreasing for v >= 0).
     """
     v = _finite("v", v)
     width = _positive("width", width)
+    t0 = _finite("t0", t0)
 
     def values(t: NDArray[np.float64]) -> NDArray[np.float64]:
-        x = np.clip(t / width, 0.0, 1.0)
+        x = np.clip((t - t0) / width, 0.0, 1.0)
         return v * x * x * (3.0 - 2.0 * x)
 
     def slopes(t: NDArray[np.float64]) -> NDArray[np.float64]:
-        x = np.clip(t / width, 0.0, 1.0)
+        x = np.clip((t - t0) / width, 0.0, 1.0)
         return v * 6.0 * x * (1.0 - x) / width
 
-    return PiecewiseSmoothLoad(values, (), f"smooth step to {v} over {width}", slopes)
+    return PiecewiseSmoothLoad(values, (), f"smooth step to {v} over {width}"
+                               + (f" from t = {t0}" if t0 else ""), slopes)
 
 
 def table(times: ArrayLike, values: ArrayLike) -> PiecewiseSmoothLoad:

@@ -18,9 +18,22 @@ ENDS = ("left", "right")
 _TAGS = {"left": 1, "right": 2}
 
 
-def check_n_cells(n_cells) -> int:
+# Under MPI a rank with fewer cells has no cell at all (DOLFINx's reshape errors) or its
+# Dirichlet dof is a ghost of the mixed space (assembly.py); with 2 it runs.
+MIN_CELLS_PER_RANK = 2
+
+
+def check_n_cells(n_cells, ranks: int = 1) -> int:
+    """n_cells as an int; ValueError unless it is a positive integer and, on more than
+    one MPI rank, gives every rank MIN_CELLS_PER_RANK cells."""
     if not (isinstance(n_cells, (int, np.integer)) and n_cells >= 1):
         raise ValueError(f"n_cells must be a positive integer, got {n_cells!r}")
+    if ranks > 1 and n_cells < MIN_CELLS_PER_RANK * ranks:
+        fit = max(1, n_cells // MIN_CELLS_PER_RANK)
+        raise ValueError(f"n_cells = {n_cells} is too few for {ranks} MPI ranks: each rank "
+                         f"needs {MIN_CELLS_PER_RANK} cells, so n_cells >= "
+                         f"{MIN_CELLS_PER_RANK * ranks} (or run on {fit} rank"
+                         f"{'s' if fit > 1 else ''})")
     return int(n_cells)
 
 
@@ -29,10 +42,19 @@ def end_coordinate(end: str, length: float) -> float:
     return 0.0 if end == "left" else float(length)
 
 
+def at_node(mesh, s_node: float):
+    """The marker of the points at s = s_node, to a tolerance relative to the mesh's
+    cells (np.isclose's absolute 1e-8 found every node of a rod of length 1e-9 at both
+    ends: silently wrong results)."""
+    x = np.unique(mesh.geometry.x[:, 0])
+    tol = 1e-6 * (np.min(np.diff(x)) if len(x) > 1 else 1.0)
+    return lambda p: np.abs(p[0] - s_node) <= tol
+
+
 def end_measures(mesh, length: float) -> dict[str, ufl.Measure]:
     """{end: ds restricted to that end point}: point values and point loads in parallel."""
     facets = {end: dolfinx.mesh.locate_entities_boundary(
-        mesh, 0, lambda x, e=end_coordinate(end, length): np.isclose(x[0], e)) for end in ENDS}
+        mesh, 0, at_node(mesh, end_coordinate(end, length))) for end in ENDS}
     idx = np.concatenate([facets[e] for e in ENDS]).astype(np.int32)
     val = np.concatenate([np.full(len(facets[e]), _TAGS[e]) for e in ENDS]).astype(np.int32)
     order = np.argsort(idx)
@@ -60,8 +82,7 @@ class NodeValues:
         self.bs, self.comm = space.dofmap.index_map_bs, space.mesh.comm
         owned = space.dofmap.index_map.size_local
         self.rows = [(k, d) for k, s_node in enumerate(s_nodes)
-                     for d in fem.locate_dofs_geometrical(space,
-                                                          lambda x: np.isclose(x[0], s_node))
+                     for d in fem.locate_dofs_geometrical(space, at_node(space.mesh, s_node))
                      if d < owned]
         self.shape = (len(s_nodes), self.bs)
 
@@ -110,8 +131,9 @@ def near_nodes(form: ufl.Form, mesh, s_nodes) -> ufl.Form:
     if any(itg.subdomain_data() is not None for itg in cell_integrals):
         return form
     tdim = mesh.topology.dim
+    near = [at_node(mesh, s) for s in s_nodes]
     vertices = dolfinx.mesh.locate_entities(
-        mesh, 0, lambda x: np.any([np.isclose(x[0], s) for s in s_nodes], axis=0))
+        mesh, 0, lambda x: np.any([at(x) for at in near], axis=0))
     mesh.topology.create_connectivity(0, tdim)
     cells = dolfinx.mesh.compute_incident_entities(mesh.topology, vertices, 0, tdim)
     tags = dolfinx.mesh.meshtags(mesh, tdim, cells, np.ones_like(cells))
@@ -142,12 +164,24 @@ class FEModel:
         self.diagnostic_forms: dict = {}                        # UFL, by key
         self._diagnostic_sums: FormSums | None = None           # compiled on first use
 
-    def dirichlet(self, block: str, space, end: str, length: float, value) -> fem.DirichletBC:
-        """A Dirichlet condition value at an end on the block's space, recorded in
-        ``block_bcs[block]`` (e.g. for a sub-problem of some blocks)."""
-        s_end = end_coordinate(end, length)
-        dofs = fem.locate_dofs_geometrical(space, lambda x: np.isclose(x[0], s_end))
-        bc = fem.dirichletbc(value, dofs, space)
+    def dirichlet(self, block: str, space, end: str, length: float, value,
+                  component: int | None = None) -> fem.DirichletBC:
+        """A Dirichlet condition value at an end on the block's space (or on one
+        component of a vector block: a scalar value), recorded in ``block_bcs[block]``
+        (e.g. for a sub-problem of some blocks)."""
+        return self.dirichlet_at(block, space, end_coordinate(end, length), value, component)
+
+    def dirichlet_at(self, block: str, space, s_end: float, value,
+                     component: int | None = None) -> fem.DirichletBC:
+        """``dirichlet`` at the node s = s_end (e.g. an end of one rod of several)."""
+        at_end = at_node(space.mesh, s_end)
+        if component is None:
+            dofs = fem.locate_dofs_geometrical(space, at_end)
+            bc = fem.dirichletbc(value, dofs, space)
+        else:
+            sub = space.sub(component)
+            dofs = fem.locate_dofs_geometrical((sub, sub.collapse()[0]), at_end)[0]
+            bc = fem.dirichletbc(value, dofs, sub)
         self.bcs.append(bc)
         self.block_bcs.setdefault(block, []).append(bc)
         return bc

@@ -45,7 +45,7 @@ import numpy as np
 
 from .checkpoints import Checkpoints
 from .field_outputs import FieldOutputs
-from .run_folders import files_in, on_root
+from .run_folders import OutputError, files_in, on_root
 
 
 def versions() -> dict[str, str]:
@@ -119,16 +119,29 @@ class RunWriter:
 
     # -- time series ------------------------------------------------------------------
     def open(self, keep_until_step: int | None = None) -> None:
-        """Start the CSV (keeping rows <= keep_until_step of an earlier run when resuming);
-        the header is written with the first record, from the model's diagnostics."""
-        if self.rank != 0 or keep_until_step is None:
-            return
+        """Start the CSV (keeping rows <= keep_until_step of an earlier run when resuming,
+        which must all be there); the header is written with the first record, from the
+        model's diagnostics."""
+        if keep_until_step is not None:
+            on_root(self.comm, lambda: self._keep_rows(keep_until_step),
+                    f"cannot resume: {self.folder / 'timeseries.csv'}")
+
+    def _keep_rows(self, keep_until_step: int) -> None:
+        """Rank 0: rows 0 .. keep_until_step of the earlier run (OutputError if any is
+        missing: a resume never reports a complete run with a hole in its history)."""
         path = self.folder / "timeseries.csv"
         if path.exists():
             with path.open() as f:
                 reader = csv.DictReader(f)
                 self.columns = list(reader.fieldnames or [])
                 self._kept = [r for r in reader if int(r["step"]) <= keep_until_step]
+        steps = [int(r["step"]) for r in self._kept]
+        if steps != list(range(keep_until_step + 1)):
+            missing = sorted(set(range(keep_until_step + 1)) - set(steps))
+            what = (f"lacks the rows of steps {_ranges(missing)}" if missing
+                    else "has rows out of order or repeated")
+            raise OutputError(f"cannot resume: {path} {what} before the checkpoint (step "
+                              f"{keep_until_step}); nothing was changed")
         for r in self._kept:
             self.rows.append({k: (int(v) if k == "step" else _csv_float(v))
                               for k, v in r.items()})
@@ -136,14 +149,24 @@ class RunWriter:
             self.lines.keep_until = self.rows[-1]["time"]
 
     def _start_csv(self, row: dict) -> None:
+        """The CSV with its header; on resume the kept rows go into a new file that
+        replaces the old one by a rename once on disk, so a crash at any moment leaves
+        either the old file or the new one, never a cut history."""
         if self.columns is None:
             self.columns = list(row)
-        self._csv_file = (self.folder / "timeseries.csv").open("w", newline="")
+        path = self.folder / "timeseries.csv"
+        target = path.with_suffix(".csv-new") if self._kept else path
+        self._csv_file = target.open("w", newline="")
         self._csv = csv.DictWriter(self._csv_file, fieldnames=self.columns,
                                    extrasaction="ignore", lineterminator="\n")
         self._csv.writeheader()
         for r in self._kept:
             self._csv.writerow(r)
+        if self._kept:
+            self._csv_file.flush()
+            os.fsync(self._csv_file.fileno())
+            target.replace(path)
+            _sync_folder(self.folder)
 
     def record(self, step: int, t: float, diag: dict) -> dict:
         t0 = time.perf_counter()
@@ -201,6 +224,27 @@ class RunWriter:
                                                      "files": files}))
 
 
+def _ranges(numbers: list[int]) -> str:
+    """[3, 4, 5, 9] -> '3-5, 9' (at most five ranges shown)."""
+    spans: list[list[int]] = []
+    for n in numbers:
+        if spans and n == spans[-1][1] + 1:
+            spans[-1][1] = n
+        else:
+            spans.append([n, n])
+    text = [f"{a}-{b}" if b > a else f"{a}" for a, b in spans[:5]]
+    return ", ".join(text) + (", ..." if len(spans) > 5 else "")
+
+
+def _sync_folder(folder: Path) -> None:
+    """fsync a folder, so that a rename in it survives a power cut."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
 def _csv_text(value) -> str:
     """A CSV field: repr of a finite float (round trip exact), empty if not a number."""
     x = float(value)
@@ -239,11 +283,12 @@ def plot_histories(rows: list[dict], path: Path, title: str = "") -> None:
         ax[0, 0].plot(t, col("end_torsion")); ax[0, 0].set_ylabel("end torsion m")
         ax[0, 1].plot(t, col("end_rotation"), label="end rotation phi(1)")
         ax[0, 1].plot(t, col("mean_natural_twist"), label="mean natural twist")
-    else:                              # 3-D rod
-        for c in "xyz":
-            ax[0, 0].plot(t, col(f"tip_position_{c}"), label=f"tip {c}")
-        ax[0, 0].legend()
-        ax[0, 1].plot(t, col("tip_rotation_angle"), label="tip rotation angle")
+    else:                              # 3-D rod; a rod system: each rod's "<name>.tip_..."
+        for rod in [k[:-len("tip_position_x")] for k in rows[0] if k.endswith("tip_position_x")]:
+            for c in "xyz":
+                ax[0, 0].plot(t, col(f"{rod}tip_position_{c}"), label=f"{rod}tip {c}")
+            ax[0, 1].plot(t, col(f"{rod}tip_rotation_angle"), label=f"{rod}tip rotation angle")
+        ax[0, 0].legend(fontsize="small")
     ax[0, 1].legend()
     ax[1, 0].plot(t, col("free_energy") + col("kinetic_energy"), label="K + Psi")
     ax[1, 0].plot(t, col("total_dissipation"), label="int D dt")

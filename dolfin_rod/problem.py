@@ -43,6 +43,8 @@ class SemiDiscreteProblem:
     check_step:  called when a step's Newton has converged (its state in fields): a
                  reason to reject the step (it is then redone smaller), or None; e.g. a
                  rotation increment no resolved step makes (a spurious root).
+    links:       linear multi-point constraints between nodes (fem/multipoint.NodeLink:
+                 joints of a rod system), eliminated by the solvers.
     """
 
     fields: list[fem.Function]
@@ -53,6 +55,7 @@ class SemiDiscreteProblem:
     set_bcs: Callable[[float], None] = lambda t: None
     after_step: Callable[[], None] = lambda: None
     check_step: Callable[[], str | None] = lambda: None
+    links: list = field(default_factory=list)
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):

@@ -2,6 +2,10 @@
 folder (``prepare_run_folder``, ``new_run_folder``), the files it holds (``files_in``),
 and file-system errors raised on every rank (``on_root``, :class:`OutputError`), so no
 rank waits in a collective call for one that failed.
+
+Every folder made here carries the marker file ``.dolfin-rod-run``; ``--overwrite``
+replaces only a folder with that marker (never a user's folder that happens to hold a
+``scene.toml``), and never through a symbolic link.
 """
 
 from __future__ import annotations
@@ -59,12 +63,26 @@ def folder_problem(path: Path) -> str | None:
     return None
 
 
-RUN_FILES = ("scene.toml", "timeseries.csv", "summary.json", "checkpoint")
+MARKER = ".dolfin-rod-run"
+
+
+def mark_run_folder(folder: Path) -> None:
+    """Rank 0: the marker that makes ``folder`` replaceable by ``--overwrite``."""
+    from . import __version__
+    (folder / MARKER).write_text(f"dolfin-rod {__version__} made this run folder; "
+                                 "`dolfin-rod run --overwrite` may replace it\n")
+
+
+def is_run_folder(folder: Path) -> bool:
+    """``folder`` (not a link) holds the marker this program wrote (mark_run_folder)."""
+    marker = folder / MARKER
+    return not folder.is_symlink() and marker.is_file() and not marker.is_symlink()
 
 
 def prepare_run_folder(folder: Path, resume: bool, overwrite: bool) -> None:
     """Rank 0: make ``folder`` ready; a non-empty folder is reused only to resume, or
-    replaced with ``overwrite`` if it is a run folder (never any other folder)."""
+    replaced with ``overwrite`` if this program made it (its marker; never any other
+    folder, never through a symbolic link)."""
     problem = folder_problem(folder)
     if problem:
         raise OutputError(f"--out {problem}")
@@ -76,11 +94,17 @@ def prepare_run_folder(folder: Path, resume: bool, overwrite: bool) -> None:
         if not overwrite:
             raise OutputError(f"{folder} is not empty: pass --resume to continue its run or "
                               "--overwrite to replace it")
-        if not any((folder / name).exists() for name in RUN_FILES):
-            raise OutputError(f"--overwrite: {folder} is not a dolfin-rod run folder (none of "
-                              f"{', '.join(RUN_FILES)}); refusing to delete it")
+        if folder.is_symlink():
+            raise OutputError(f"--overwrite: {folder} is a symbolic link (to "
+                              f"{os.readlink(folder)}); give the run folder itself, "
+                              "nothing was deleted")
+        if not is_run_folder(folder):
+            raise OutputError(f"--overwrite: {folder} is not a dolfin-rod run folder (it "
+                              f"has no {MARKER} marker, which every run folder gets); "
+                              "refusing to delete it")
         shutil.rmtree(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    mark_run_folder(folder)
 
 
 def new_run_folder(parent: Path, name: str) -> Path:
@@ -95,6 +119,7 @@ def new_run_folder(parent: Path, name: str) -> Path:
         folder = parent / (f"{name}-{stamp}" + (f"-{n}" if n > 1 else ""))
         try:
             folder.mkdir()
+            mark_run_folder(folder)
             return folder
         except FileExistsError:
             continue

@@ -6,6 +6,7 @@ variant's natural strains are solved monolithically with the fields, serially an
 
 from __future__ import annotations
 
+import functools
 import itertools
 import time
 import weakref
@@ -16,6 +17,7 @@ import ufl
 from petsc4py import PETSc
 
 from .assembly import block_system
+from .fem.multipoint import ConstrainedSystem
 
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
 DEFAULT_OPTIONS = {
@@ -79,6 +81,75 @@ def petsc_options(comm, options: dict | None) -> dict:
     return merged
 
 
+# options read only when a solver is set up or solves (block Jacobi's sub-solvers, the
+# factorisation packages, viewers) and this package's own: not probed by option_problem
+LATE_OPTIONS = ("sub_", "mat_", "jacobian_reuse_ratio")
+
+
+def option_problem(options: dict) -> tuple[str, str] | None:
+    """(name, reason) of the first option PETSc rejects (a value or type it does not
+    know) or never reads (a name no SNES, its line search, KSP or PC knows, nor a TS if
+    ts_ options are given), tried on a throwaway solver of one rank; None if all are
+    fine.  Options read only later (LATE_OPTIONS, *_view*) are not judged."""
+    def rejected(subset: dict) -> str | None:
+        prefix = f"dolfin_rod_probe_{next(_ids)}_"
+        opts = PETSc.Options()
+        for k, v in subset.items():
+            opts[prefix + k] = v
+        ts = any(k.startswith("ts_") for k in subset)
+        solver = (PETSc.TS() if ts else PETSc.SNES()).create(PETSc.COMM_SELF)
+        solver.setOptionsPrefix(prefix)
+        try:
+            solver.setFromOptions()
+            unread = [k for k in subset if not _used(prefix + k)]
+        except PETSc.Error as err:
+            return f"PETSc rejects it (error code {err.ierr}: an unknown type or a value " \
+                   "of the wrong kind)"
+        finally:
+            solver.destroy()
+            _forget_options(prefix, list(subset))
+        return UNREAD if unread else None
+
+    judged = {k: v for k, v in options.items()
+              if not (k.startswith(LATE_OPTIONS) or "_view" in k)}
+    if not judged or rejected(judged) is None:
+        return None
+    for k, v in judged.items():         # which one: each alone
+        reason = rejected({k: v})
+        if reason is not None:
+            return k, reason
+    return next(iter(judged)), "PETSc rejects this combination of options"
+
+
+UNREAD = "not an option that PETSc's SNES, KSP, PC, line search or TS reads (a spelling " \
+         "mistake?)"
+
+
+@functools.cache
+def _petsc_library():
+    """The loaded PETSc library (ctypes), found in this process's memory map (Linux);
+    None elsewhere."""
+    import ctypes
+    try:
+        with open("/proc/self/maps") as maps:
+            path = next(line.split()[-1] for line in maps if "libpetsc" in line)
+    except (OSError, StopIteration):
+        return None
+    return ctypes.CDLL(path)
+
+
+def _used(name: str) -> bool:
+    """The option was read (PETSc's PetscOptionsUsed, which petsc4py lacks); True where
+    that cannot be known."""
+    import ctypes
+    lib = _petsc_library()
+    if lib is None:
+        return True
+    used = ctypes.c_int(0)
+    lib.PetscOptionsUsed(None, name.encode(), ctypes.byref(used))
+    return bool(used.value)
+
+
 def _forget_options(prefix: str, keys: list[str]) -> None:
     opts = PETSc.Options()
     for k in keys:
@@ -113,10 +184,17 @@ class BlockSNES:
     r; after a slower iteration the next one builds a new one.  A solve's result depends
     on its start only (a resumed run equals an uninterrupted one).  Given PETSc
     snes_lag_* options (e.g. JACOBIAN_REUSE) replace the rule.
+
+    A solve SNES reports as converged is checked against the residual at the solution
+    (_verify_residual): it must meet snes_atol or snes_rtol (times the initial norm),
+    except after a step test, where the residual must not have grown (Newton stopped at
+    the residual's round-off floor, e.g. 1e-8 on stiff rods, measured); else
+    SolverError.  Options that stop without testing the residual (snes_type ksponly,
+    snes_max_it with snes_convergence_test skip) thus never return a wrong answer.
     """
 
     def __init__(self, F: list[ufl.Form] | None, y: list[fem.Function], bcs=(), options=None,
-                 prefix: str | None = None, cache=None, step_scale: float = 0.0):
+                 prefix: str | None = None, cache=None, step_scale: float = 0.0, links=()):
         self.y = y
         settings = petsc_options(y[0].function_space.mesh.comm, options)
         lagged = any(k.startswith("snes_lag_") for k in options or {})
@@ -125,6 +203,8 @@ class BlockSNES:
         if self.reuse_ratio is not None:   # PETSc asks every iteration, _jacobian decides
             settings.update(snes_lag_jacobian=1, snes_lag_preconditioner=1)
         self.system = block_system(F, [y], bcs=bcs, cache=cache)
+        if links:       # joints: Newton on the free dofs (fem/multipoint.py)
+            self.system = ConstrainedSystem(self.system, y, list(links))
         self.x = self.system.x
         self.snes = PETSc.SNES().create(self.x.getComm())
         self.snes.setFunction(self._residual, self.system.b)
@@ -144,6 +224,8 @@ class BlockSNES:
         # that were not used!") for a solver that never solved
         weakref.finalize(self, _forget_options, self.prefix, list(settings))
         self._last_norm = np.inf
+        self._x_at_residual, self._r = self.x.duplicate(), self.system.b.duplicate()
+        self._residual_norm, self._initial_norm = np.inf, None
         self._bc_values = None
         self._persists = tuple(str(settings.get(f"snes_lag_{k}_persists", False)).lower()
                                in ("true", "1", "yes") for k in ("jacobian", "preconditioner"))
@@ -155,6 +237,10 @@ class BlockSNES:
         t0 = time.perf_counter()
         self.system.set(0, x, blocks=False)     # the block Functions: once solved
         self.system.residual(x, b, self._bc_values)
+        x.copy(self._x_at_residual)             # (_verify_residual: the norm at x)
+        self._residual_norm = b.norm()
+        if self._initial_norm is None:
+            self._initial_norm = self._residual_norm
         self.timings["residual"] += time.perf_counter() - t0
         self.counts["residual"] += 1
 
@@ -210,6 +296,7 @@ class BlockSNES:
         """
         self.system.get(0, self.x)
         self._bc_values = self.system.bc_values()      # fixed during a solve
+        self._initial_norm = None
         fresh = fresh_jacobian and any(self._persists)
         if fresh:  # (petsc4py 3.22 has no SNESSetLag*Persists: via the options database)
             self._set_persists((False, False))
@@ -223,4 +310,22 @@ class BlockSNES:
         self.iterations = self.snes.getIterationNumber()
         if reason <= 0 or not np.isfinite(self.snes.getFunctionNorm()):
             raise SolverError(_REASONS.get(reason, str(reason)), self.iterations)
+        self._verify_residual(reason)
         return self.iterations
+
+    def _verify_residual(self, reason: int) -> None:
+        """SNES reported convergence: the residual at the solution must meet the
+        tolerances, whatever the options (ksponly, a loose linear solve, a convergence
+        test that trusts a small step); else SolverError with the norms."""
+        if not self.x.equal(self._x_at_residual):
+            self.snes.computeFunction(self.x, self._r)   # -> _residual at the solution
+        norm, initial = self._residual_norm, self._initial_norm
+        rtol, atol, _, _ = self.snes.getTolerances()
+        if norm <= max(atol, rtol * initial):
+            return
+        if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and norm <= initial:
+            return     # Newton stopped moving at the residual's round-off floor
+        raise SolverError(f"{_REASONS.get(reason, reason)} but the residual norm at the "
+                          f"solution is {norm:.3g}, above the tolerance "
+                          f"{max(atol, rtol * initial):.3g} (snes_atol, or snes_rtol times "
+                          "the initial norm; check the solver options),", self.iterations)

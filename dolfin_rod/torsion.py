@@ -81,7 +81,7 @@ class TorsionModel(FEModel):
     def __init__(self, params: TorsionParameters, n_cells: int = 64, variant: str = "local",
                  end_torsion: Callable | None = None, end_rotation: Callable | None = None,
                  degree: int = 1, comm: MPI.Comm = MPI.COMM_WORLD):
-        self._validate(params, n_cells, variant, end_torsion, end_rotation, degree)
+        self._validate(params, n_cells, variant, end_torsion, end_rotation, degree, comm.size)
         self.params, self.variant, self.degree = params, variant, degree
         self.end_torsion, self.end_rotation = end_torsion, end_rotation
         self.dynamic = not params.is_zero("nu")
@@ -100,13 +100,13 @@ class TorsionModel(FEModel):
         self._diagnostic_forms(ufl.Measure("dx", domain=self.mesh))
 
     @staticmethod
-    def _validate(params, n_cells, variant, end_torsion, end_rotation, degree):
+    def _validate(params, n_cells, variant, end_torsion, end_rotation, degree, ranks):
         check_variant(variant)
         params.validate(variant)
         if (end_torsion is None) == (end_rotation is None):
             raise ValueError("give exactly one of end_torsion (applied torsion m(t)) and "
                              "end_rotation (prescribed Phi(t)) at s = 1")
-        check_n_cells(n_cells)
+        check_n_cells(n_cells, ranks)
         if degree not in (1, 2, 3):
             raise ValueError(f"degree must be 1, 2 or 3, got {degree!r}")
         if not params.is_zero("nu") and end_rotation is not None and _jump(end_rotation) != 0.0:

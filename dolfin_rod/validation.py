@@ -34,6 +34,21 @@ def nonnegative(name: str, value: float) -> float:
     return x
 
 
+# The shortest rod: DOLFINx refuses intervals shorter than machine epsilon, and below
+# this the solvers' absolute tolerances exceed the rod's residuals (a rod of 2 cells
+# and length 1e-12 gives the tip displacement of length 1 scaled by 1e-12; 1e-15 fails).
+MIN_LENGTH = 1e-12
+
+
+def rod_length(value: float) -> float:
+    """The rod's length as a float, or ValueError naming the rule."""
+    x = finite("length", value)
+    if not x >= MIN_LENGTH:
+        raise ValueError(f"length must be >= {MIN_LENGTH:g} (choose a smaller length "
+                         f"unit), got {x:g}")
+    return x
+
+
 # Coefficients given as functions of s are checked at this many equally spaced points
 # (rod, torsion and the scene schema alike).
 COEFFICIENT_SAMPLES = 257

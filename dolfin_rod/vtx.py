@@ -11,7 +11,7 @@ ParaView 5.13 (ADIOS2 2.10).  ``keep_until`` (resume): the steps of an existing 
 up to that time are kept and the new steps appended after them.
 
     w = LineVTX(path); w.write(t, points, {"d1": ...}, {"u": ...}); w.close()
-    steps = read_vtx(path)     # [{"time", "points", "point", "cell"}, ...]
+    steps = read_vtx(path)     # [{"time", "points", "cells", "point", "cell"}, ...]
 """
 
 from __future__ import annotations
@@ -68,20 +68,25 @@ class LineVTX:
         self._stream = adios2.Stream(io, str(self.path), "w")
         self._schema_written = False
         for s in kept:
-            self.write(s["time"], s["points"], s["point"], s["cell"])
+            self.write(s["time"], s["points"], s["point"], s["cell"], s["cells"])
         self.kept = kept
 
-    def write(self, t: float, points: np.ndarray, point_data: dict, cell_data: dict) -> None:
+    def write(self, t: float, points: np.ndarray, point_data: dict, cell_data: dict,
+              cells: np.ndarray | None = None) -> None:
+        """One step; ``cells``: the two point indices of each line (None: the points in
+        order, one line through all)."""
         n = len(points)
+        if cells is None:
+            cells = np.column_stack([np.arange(n - 1), np.arange(1, n)])
         st = self._stream
         st.begin_step()
         if not self._schema_written:
             st.write_attribute("vtk.xml", _schema(list(point_data), list(cell_data)))
             self._schema_written = True
         st.write("NumberOfNodes", np.array(n, dtype=np.uint32))
-        st.write("NumberOfCells", np.array(n - 1, dtype=np.uint32))
+        st.write("NumberOfCells", np.array(len(cells), dtype=np.uint32))
         st.write("types", np.array(VTK_LINE, dtype=np.uint32))
-        conn = np.column_stack([np.full(n - 1, 2), np.arange(n - 1), np.arange(1, n)])
+        conn = np.column_stack([np.full(len(cells), 2), cells])
         _local(st, "connectivity", conn.astype(np.int64))
         _local(st, "geometry", np.ascontiguousarray(points, dtype=np.float64))
         st.write("step", np.array(t, dtype=np.float64))
@@ -113,6 +118,7 @@ def read_vtx(path: Path) -> list[dict]:
             read = lambda v: f.read(v, step_selection=[k, 1])   # noqa: E731
             steps.append({"time": float(np.ravel(read("step"))[0]),
                           "points": read("geometry"),
+                          "cells": np.asarray(read("connectivity")).reshape(-1, 3)[:, 1:],
                           "point": {n: read(n) for n in names["PointData"]},
                           "cell": {n: read(n) for n in names["CellData"]}})
     return steps

@@ -17,3 +17,16 @@ def torsion_inhomogeneous(variant: str, comm=MPI.COMM_WORLD) -> dict[str, list[f
     h = run(p, 0.5, 0.05, "bdf2", comm=comm, n_cells=17, variant=variant,
             end_torsion=loads.smooth_step(1.0, 0.2))
     return {k: [d[k] for d in h] for k in KEYS}
+
+
+def rod_system(comm=MPI.COMM_WORLD) -> dict[str, float]:
+    """Two unjoined dynamic rods in one RodSystem (tests/test_rod_system.py): the
+    system's diagnostics after 10 steps."""
+    from rod_systems import two_rods, run_system
+    return run_system(two_rods(placed=True, comm=comm))
+
+
+def joint_frame(comm=MPI.COMM_WORLD) -> dict[str, float]:
+    """The L-frame of tests/rod_systems.py under a large load (tests/test_joints.py)."""
+    from rod_systems import solve_frame
+    return solve_frame(6, 1.5, steps=3, comm=comm)

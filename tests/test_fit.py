@@ -216,7 +216,7 @@ def test_fit_through_the_rod_reaction_couple():
 def test_a_rod_fit_needs_one_load():
     scene = load_scene(ROOT / "scenes" / "gravity_cantilever.toml")
     with pytest.raises(FitInputError, match="a rod fit needs exactly one of"):
-        fit_scene(scene, creep_data(grid(1.0, 0.1), 0), "M_d[0]")
+        fit_scene(scene, creep_data(grid(1.0, 0.1), 0), "material.relaxation_time")
 
 
 # --- bad input ---------------------------------------------------------------------------

@@ -142,3 +142,17 @@ BAD_CALLS = [
 def test_bad_input_names_the_parameter_and_the_rule(call, error, message):
     with pytest.raises(error, match=message):
         call()
+
+
+def test_ramp_and_smooth_step_start_at_t0():
+    """Shifted by t0: ramp v (t - t0)/T on [t0, t0 + T] with slope v/T there and 0
+    outside; the smooth step v S((t - t0)/w), S(1/2) = 1/2, S'(1/2) = 3/2."""
+    r = loads.ramp(2.0, 0.5, t0=1.0)
+    assert r(np.array([0.5, 1.0, 1.25, 1.5, 3.0])) == pytest.approx([0, 0, 1.0, 2.0, 2.0],
+                                                                     rel=EXACT)
+    assert loads.rate(r, 1.25) == 4.0 and loads.rate(r, 0.9) == 0.0 and loads.rate(r, 1.6) == 0.0
+    assert r.start_limits == (0.0, 0.0) and not loads.jumps(r)
+    s = loads.smooth_step(2.0, 0.4, t0=1.0)
+    assert s(1.2) == pytest.approx(1.0, rel=EXACT) and s(0.99) == 0.0 and s(1.5) == 2.0
+    assert loads.rate(s, 1.2) == pytest.approx(2.0 * 1.5 / 0.4, rel=EXACT)
+    assert loads.ramp(2.0, 0.5)(0.25) == loads.ramp(2.0, 0.5, t0=0.0)(0.25) == 1.0

@@ -332,10 +332,12 @@ def test_local_equals_uniform_for_homogeneous_bending_and_differs_otherwise():
 # -- power balance -----------------------------------------------------------------------
 
 
-def power_defect(scheme, dt, dynamic=False):
+def power_defect(scheme, dt, dynamic=False, **damping):
     """|E(T) - E(0) + int xi dt - int P dt| with E = free + kinetic energy, integrals by
-    the trapezoidal rule over the scheme's end-point rate estimates."""
+    the trapezoidal rule over the scheme's end-point rate estimates; ``damping``: more
+    RodParameters (rotational drag)."""
     extra = {"rho_A": 1.0, "I11": 0.01, "I22": 0.01, "drag": 0.3} if dynamic else {}
+    extra.update(damping)
     p = RodParameters(A=(1.0, 1.0, 1.0), B=(50.0, 50.0, 50.0), M=(0.1, 0.1, 0.1),
                       N=(0.1, 0.1, 0.1), M_d=(0.5,) * 3, N_d=(5.0,) * 3, **extra)
     gravity = [DistributedLoad("force", (0.0, -0.3, 0.0), loads.smooth_step(1.0, 0.3)),
@@ -365,6 +367,20 @@ def test_power_balance_to_the_order_of_the_scheme(scheme, order, dynamic):
     defects = [power_defect(scheme, dt, dynamic) for dt in (0.05, 0.025)]
     rate = np.log2(defects[0] / defects[1])
     assert rate > order - 0.2, (defects, rate)
+
+
+@pytest.mark.parametrize("frame", ["rotational_drag", "spatial_rotational_drag"])
+def test_power_balance_with_rotational_damping(frame):
+    """The dynamic case above with an anisotropic rotational damping (a full SPD C, in
+    material or spatial components) as well: its dissipation W.C W enters the balance,
+    which closes at second order (implicit midpoint).  Measured relative defects at
+    dt = 0.05, 0.025: material 2.44e-3, 5.72e-4 (2.09); spatial 2.44e-3, 5.73e-4 (2.09).
+    Without the damping's dissipation in xi the defect stays 4.6e-2, 4.8e-2."""
+    C = ((0.05, 0.01, 0.0), (0.01, 0.03, 0.0), (0.0, 0.0, 0.02))
+    defects = [power_defect("implicit_midpoint", dt, True, **{frame: C})
+               for dt in (0.05, 0.025)]
+    rate = np.log2(defects[0] / defects[1])
+    assert rate > 1.8, (defects, rate)
 
 
 # -- validation ------------------------------------------------------------------------------

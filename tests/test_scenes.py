@@ -71,6 +71,7 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "cantilever_creep.toml": "rod", "gravity_cantilever.toml": "rod",
                   "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod",
                   "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
+                  "hanging_twist.toml": "rod", "spin_up.toml": "rod",
                   "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod"}
 
 
@@ -234,13 +235,15 @@ def test_selection_picks_the_least_model():
 
 
 def _run(scene, model):
+    """Diagnostics at the output times min(k dt, t_end) (the last step clipped)."""
     sim = build(scene, model)
     sim.start()
-    dt, n = scene["time"]["dt"], round(scene["time"]["t_end"] / scene["time"]["dt"])
+    dt, t_end = scene["time"]["dt"], scene["time"]["t_end"]
+    times = [min(k * dt, t_end) for k in range(math.ceil(t_end / dt - 1e-9) + 1)]
     out = [sim.diagnostics(0.0)]
-    for k in range(1, n + 1):
-        sim.advance((k - 1) * dt, k * dt)
-        out.append(sim.diagnostics(k * dt))
+    for t, t_next in zip(times[:-1], times[1:]):
+        sim.advance(t, t_next)
+        out.append(sim.diagnostics(t_next))
     return out
 
 
@@ -254,6 +257,9 @@ CASES = {
     "creep_kelvin_voigt": {"boundary__end": "free", "boundary__end_rotation": None,
                            "loads__end_torsion": {"type": "step", "value": 1.0},
                            "material__mu": 0.2},
+    "creep_clipped_last_step": {"boundary__end": "free", "boundary__end_rotation": None,
+                                "loads__end_torsion": {"type": "step", "value": 1.0},
+                                "material__mu": 0.2, "time__t_end": 0.1033},
     "creep_inviscid_table": {"boundary__end": "free", "boundary__end_rotation": None,
                              "loads__end_torsion": {"type": "table", "times": [0.0, 0.05, 0.1],
                                                     "values": [0.0, 1.0, 0.5]},
@@ -538,9 +544,8 @@ def test_distributed_force_profile_statics(tmp_path):
     """distributed_force = {value, profile = 1 - s (the polynomial issue 13 item 14 found
     rejected)}: R n of cell [a, b] = int_a^b p(s) (s - a)/h ds + int_b^L p ds, p = q (1 - s)."""
     q = 0.2
-    scene = _rod("[loads]\ndistributed_force = { value = [0.2, 0.0, 0.0], "
-                 "profile = { polynomial = [1.0, -1.0] }, history = { type = \"step\", "
-                 "value = 1.0 } }\n")
+    scene = _rod("[loads]\ndistributed_force = { type = \"step\", value = [0.2, 0.0, 0.0], "
+                 "profile = { polynomial = [1.0, -1.0] } }\n")
     last = _final_fields(scene, tmp_path)
     if last is None:
         return
@@ -686,3 +691,48 @@ def test_bundled_scene_runs(path, tmp_path):
             assert {"rod.bp", "animation.gif", "snapshots.png"} <= files
         elif summary["model"] == "torsion":
             assert {"rod.bp", "spacetime.png"} <= files
+
+
+# --- one load syntax (issue 25 item 6) ------------------------------------------------------
+
+
+@pytest.mark.parametrize("old, new", [
+    ("{ value = [0.0, 0.0, 2.0], history = { type = \"ramp\", value = 0.5, duration = 1.0 } }",
+     "{ type = \"ramp\", value = [0.0, 0.0, 1.0], duration = 1.0 }"),
+    ("{ value = [1.0, 0.0, 0.0], profile = 2.0, follower = true }",
+     None),      # no history: already the new syntax (type "constant")
+    ("{ value = [1.0, 0.0, 0.0], profile = 2.0, history = { type = \"table\", times = [0.0, "
+     "1.0], values = [0.0, 3.0] } }",
+     "{ type = \"table\", times = [0.0, 1.0], values = [[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]], "
+     "profile = 2.0 }"),
+])
+def test_old_distributed_load_form_is_an_error_showing_the_new_one(old, new):
+    """The error's suggestion is itself a valid load with the same value(s) history(t)."""
+    text = ROD_BASE + f"[loads]\ndistributed_force = {old}\n"
+    if new is None:
+        assert parse_scene(text)["loads"]["distributed_force"].value == (1.0, 0.0, 0.0)
+        return
+    with pytest.raises(SceneError) as info:
+        parse_scene(text)
+    assert info.value.key == "loads.distributed_force.history"
+    assert info.value.reason.endswith(f"write {new}"), info.value.reason
+    spec = parse_scene(ROD_BASE + f"[loads]\ndistributed_force = {new}\n")[
+        "loads"]["distributed_force"]
+    assert spec.vector()(0.5) == pytest.approx([0.0, 0.0, 0.5] if "ramp" in new
+                                               else [1.5, 0.0, 0.0], rel=1e-15)
+
+
+def test_one_load_syntax_for_end_and_distributed_loads_with_ramp_t0():
+    """The same table {type, value, t0, duration, follower} at an end and along the rod
+    (with profile); ramp from t0: value (t - t0)/duration."""
+    load = "{ type = \"ramp\", value = [0.0, 0.0, 2.0], t0 = 1.0, duration = 0.5, follower = true"
+    scene = parse_scene(ROD_BASE + f"[loads]\nend_force = {load} }}\n"
+                        f"distributed_couple = {load}, profile = {{ polynomial = [1.0, 1.0] }} }}\n")
+    end, distributed = scene["loads"]["end_force"], scene["loads"]["distributed_couple"]
+    for spec in (end, distributed):
+        assert spec.follower and spec.vector()(1.25) == pytest.approx([0.0, 0.0, 1.0])
+        assert spec.vector()(1.0) == pytest.approx([0.0, 0.0, 0.0])
+        assert spec.breakpoints() == (1.0, 1.5)
+    assert distributed.profile(0.5) == 1.5 and end.profile is None
+    with pytest.raises(SceneError, match=r"\[loads.end_force.profile\]: a profile along s"):
+        parse_scene(ROD_BASE + f"[loads]\nend_force = {load}, profile = 2.0 }}\n")

@@ -204,7 +204,8 @@ class LieGeneralizedAlpha:
         F = None if form_cache.lookup(self.structure_key) else self._step_forms()
         self.options = options = solver_settings(mesh.comm, solver_options, 2 in self.order)
         self.solver = BlockSNES(F, y, problem.bcs, options, cache=(self.structure_key, objects),
-                                step_scale=problem.configuration_norm())
+                                step_scale=problem.configuration_norm(),
+                                links=problem.links)
         self._arrays = self._views()
         self._matrices = {}
         self.stats = StepStats()
@@ -306,7 +307,8 @@ class LieGeneralizedAlpha:
             F = None if form_cache.lookup(key) else self.problem.residual
             self._initial_solver = BlockSNES(F, self._unknowns_at_start(), self.problem.bcs,
                                              self.options, cache=(key, self._model_objects),
-                                             step_scale=self.problem.configuration_norm())
+                                             step_scale=self.problem.configuration_norm(),
+                                             links=self.problem.links)
 
     def initial_accelerations(self, t0: float) -> None:
         """Solve the residual at t0 for the accelerations (second order) and rates (first

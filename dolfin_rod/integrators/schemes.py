@@ -43,15 +43,22 @@ class Scheme:
     startup: str | None = None  # first step (two-step schemes, and those carrying ydot_n)
     second: str | None = None   # second step, if it differs (a rate rule that needs ydot_n)
 
-    def for_step(self, history: int) -> "Scheme":
-        """The scheme of the next step after ``history`` accepted steps of the current dt
-        (0: first step, or after a step change): the startup scheme on the first, the
-        second-step scheme (if any) on the second, this one after that."""
+    def for_step(self, history: int, same_step: bool = True) -> "Scheme":
+        """The scheme of the next step after ``history`` accepted steps (0: first step,
+        or a restart): the startup scheme on the first, the second-step scheme (if any)
+        on the second, this one after that; ``same_step`` False (the step's size differs
+        from the last one's: a cut, a clipped final step) restarts one that reads
+        y_{n-1} (its constant-dt formula would take y_{n-1} at the wrong time)."""
         if history == 0 and self.startup:
             return get_scheme(self.startup)
-        if history == 1 and self.second:
-            return get_scheme(self.second)
-        return self
+        chosen = get_scheme(self.second) if history == 1 and self.second else self
+        return self.for_step(0) if chosen.uses_previous and not same_step else chosen
+
+    @property
+    def uses_previous(self) -> bool:
+        """The step or its rate rule reads y_{n-1}: valid only after a step of the same
+        size (constant-dt formulas), else the integrator restarts (``startup``)."""
+        return self.rate[2] != 0 or any(st.a[2] or st.b[2] for st in self.stages)
 
     def rate_after_step(self, y, y_n, y_nm1, ydot_n, dt):
         """ydot_{n+1} = (r0 y + r1 y_n + r2 y_{n-1}) / dt + rg ydot_n (arrays)."""

@@ -18,8 +18,8 @@ from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..solvers import BlockSNES, SolverError
 from .lie_alpha import LieGeneralizedAlpha, solver_settings
 from .schemes import Scheme, get_scheme
-from .stepping import (CUT_FACTOR, IntegrationError, StepStats, check_run, grown, march,
-                       nominal_steps)
+from .stepping import (CUT_FACTOR, ROUND_OFF, IntegrationError, StepStats, check_run, grown,
+                       largest_on_ranks, march, nominal_steps, same_step)
 
 __all__ = ["TimeStepper", "IntegrationError", "StepStats", "step_forms"]
 
@@ -69,7 +69,8 @@ class _StepResidual:
         F = None if shared and form_cache.lookup(key) else step_forms(
             problem, scheme, history, dt, self.stage_loads)[0]
         self.solver = BlockSNES(F, problem.fields, problem.bcs, options, cache=(key, objects),
-                                step_scale=problem.configuration_norm())
+                                step_scale=problem.configuration_norm(),
+                                links=problem.links)
         self._dt_last = None
 
     def solve(self, t_n: float, dt: float) -> int:
@@ -89,9 +90,13 @@ class TimeStepper:
     predictor:  Newton's initial guess, "linear" y_n + dt dy/dt_n (an O(dt^2) guess:
                 about one Newton iteration fewer per step on smooth dynamics) or
                 "constant" y_n.
-    history_steps: accepted steps of the current dt since the start or the last step
-                change, capped at 2 (Scheme.for_step picks the startup and second-step
-                schemes from it); part of a checkpoint's state.
+    history_steps: accepted steps since the start or the last restart, capped at 2
+                (Scheme.for_step picks the startup and second-step schemes from it);
+                part of a checkpoint's state.  The history restarts (0) after a failed
+                step and at a run() that does not continue the last one (its t0 is not
+                where that run ended, or the state was changed in between); a scheme
+                that reads y_{n-1} (BDF2) restarts for a step whose size differs from
+                the last one's (the growth after a cut, a clipped final step).
     """
 
     PREDICTORS = ("linear", "constant")
@@ -137,6 +142,8 @@ class TimeStepper:
         self._residuals: dict[str, _StepResidual] = {}
         self.stats = StepStats()
         self.history_steps = 0
+        self._last_step: float | None = None    # size of the last accepted step
+        self._end: tuple[float, list] | None = None   # where the last run ended: t, state
 
     def _residual(self, scheme: Scheme) -> _StepResidual:
         if scheme.name not in self._residuals:
@@ -179,10 +186,28 @@ class TimeStepper:
         """Functions (besides problem.fields) and flags a checkpoint stores."""
         return {"functions": {**{f"rate_{i}": r for i, r in enumerate(self.problem.rates)},
                               **{f"previous_{i}": p for i, p in enumerate(self.y_nm1)}},
-                "history_steps": self.history_steps}
+                "history_steps": self.history_steps, "last_step": self._last_step,
+                "end_time": None if self._end is None else self._end[0]}
 
     def restore_state(self, state: dict) -> None:
+        """After the checkpoint's functions were read: the next run from the
+        checkpoint's time continues its history."""
         self.history_steps = int(state["history_steps"])
+        self._last_step = state.get("last_step")
+        end = state.get("end_time")
+        self._end = None if end is None else (end, self._state())
+
+    def _state(self) -> list[np.ndarray]:
+        return [f.x.array.copy() for f in self.problem.fields]
+
+    def _continues(self, t0: float, dt: float) -> bool:
+        """run(t0, ...) continues the last run: it ended at t0 with the state as it is
+        now (the same on every rank)."""
+        if self._end is None or abs(t0 - self._end[0]) > ROUND_OFF * dt:
+            return False
+        changed = any(not np.array_equal(f.x.array, y)
+                      for f, y in zip(self.problem.fields, self._end[1]))
+        return largest_on_ranks(self.problem.comm, float(changed)) == 0.0
 
     def _restore(self) -> None:
         for fn, f in zip(self.y_n, self.problem.fields):
@@ -190,7 +215,7 @@ class TimeStepper:
 
     def step(self, t: float, dt: float) -> None:
         """One step from t (state in problem.fields) to t + dt; raises SolverError."""
-        scheme = self.scheme.for_step(self.history_steps)
+        scheme = self.scheme.for_step(self.history_steps, same_step(dt, self._last_step))
         for fn, f, rn, r in zip(self.y_n, self.problem.fields, self.ydot_n, self.problem.rates):
             fn.x.array[:] = f.x.array
             rn.x.array[:] = r.x.array
@@ -216,6 +241,7 @@ class TimeStepper:
             fnm1.x.array[:] = fn.x.array
         self._after_step()
         self.history_steps = min(self.history_steps + 1, 2)
+        self._last_step = dt
         self.stats.steps += 1
         self.stats.newton_iterations += its
 
@@ -249,8 +275,12 @@ class TimeStepper:
 
     def run(self, t0: float, t_end: float, dt: float,
             observer: Callable[[float, "TimeStepper"], None] | None = None) -> float:
-        """Integrate from t0 to t_end with nominal step dt, cutting steps on failure."""
+        """Integrate from t0 to t_end with nominal step dt, cutting steps on failure.
+        A run from where the last one ended, on its end state, continues its history;
+        any other starts afresh (the startup scheme)."""
         check_run(t0, t_end, dt)
+        if not self._continues(t0, dt):
+            self.history_steps = 0
         if observer:
             observer(t0, self)
         cuts = 0
@@ -265,10 +295,15 @@ class TimeStepper:
             if observer:
                 observer(t, self)
             if h < dt and cuts:  # grow back towards the nominal step after a success
-                self.history_steps = 0
                 cuts = max(cuts - 1, 0)
                 return grown(h, dt)
             return h
 
         budget = 100 * nominal_steps(t0, t_end, dt) + 10 * self.max_cuts
-        return march(t0, t_end, dt, self.step, failed, succeeded, budget, scale=dt)[0]
+        try:
+            t = march(t0, t_end, dt, self.step, failed, succeeded, budget, scale=dt)[0]
+        except IntegrationError as err:
+            self._end = (err.t, self._state())
+            raise
+        self._end = (t, self._state())
+        return t

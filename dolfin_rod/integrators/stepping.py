@@ -107,6 +107,11 @@ def clip_to_end(t: float, t_end: float, h: float) -> float:
     return remaining if remaining < h * (1 + ROUND_OFF) else h
 
 
+def same_step(h: float, last: float | None) -> bool:
+    """h is the last accepted step's size (None: no step yet) up to round-off."""
+    return last is not None and abs(h - last) <= ROUND_OFF * h
+
+
 def grown(h: float, dt: float) -> float:
     """The step after a success that followed a cut: back towards the nominal dt."""
     return min(GROWTH_FACTOR * h, dt)

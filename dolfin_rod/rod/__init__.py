@@ -1,11 +1,17 @@
-"""The 3-D special Cosserat rod (Sections 2-4): ``RodModel`` composed in model.py."""
+"""The 3-D special Cosserat rod (Sections 2-4): ``RodModel`` composed in model.py;
+several rods in one model: ``RodSystem`` (system.py)."""
 
+from . import sections
 from .boundary_conditions import END_TYPES
 from .constitutive import MODELS
 from .external_forces import DistributedLoad, EndLoad
 from .material import RodParameters
 from .model import RodModel
+from .joints import Joint
+from .rods import Rod
 from .start import Arc, Helix, Polyline, StartingState, Straight
+from .system import RodSystem
 
-__all__ = ["RodModel", "RodParameters", "EndLoad", "DistributedLoad", "MODELS", "END_TYPES",
-           "StartingState", "Straight", "Arc", "Helix", "Polyline"]
+__all__ = ["RodModel", "RodSystem", "Rod", "Joint", "RodParameters", "EndLoad", "DistributedLoad",
+           "MODELS", "END_TYPES", "sections", "StartingState", "Straight", "Arc", "Helix",
+           "Polyline"]

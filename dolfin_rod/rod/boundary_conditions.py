@@ -9,6 +9,11 @@ is not 0 at t = 0 (the rod starts at rest in its initial configuration) or that 
 jumps (``jumps``, as loads.PiecewiseSmoothLoad) is refused, as TorsionModel refuses a
 step in the end rotation; other jumps of an arbitrary callable cannot be detected.
 
+end_slide: {end: axis}: a clamped or pinned end that slides freely along a coordinate
+axis (a unit vector +-e_1, +-e_2 or +-e_3): its position is held (or prescribed) across
+the axis only, its rotation as a clamped (or pinned) end's; a force along the axis acts
+on it (a weight on a sliding clamp, cosseratbench's twist experiment).
+
 Reactions at a supported end: the assembled residual at that end node, i.e. the residual
 tested with a unit virtual translation or spatial rotation of the node only.
 """
@@ -19,7 +24,7 @@ import dolfinx.fem as fem
 import numpy as np
 
 from .. import loads
-from ..model_base import ENDS, NodeValues, end_coordinate, near_nodes, nodal_residual
+from ..model_base import ENDS, NodeValues, near_nodes, nodal_residual
 from ..rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 from .rotation_vector import np_inverse_cayley
 
@@ -28,9 +33,19 @@ _IDENTITY = np.array([1.0, 0, 0, 0])
 _CONJ = np.array([1.0, -1, -1, -1])
 
 
-def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False) -> None:
+def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False,
+                   end_slide=None) -> None:
     if len(ends) != 2 or any(e not in END_TYPES for e in ends):
         raise ValueError(f"ends must be two of {END_TYPES}, got {ends!r}")
+    for end, axis in (end_slide or {}).items():
+        if end not in ENDS:
+            raise ValueError(f"end_slide: unknown end {end!r}")
+        if dict(zip(ENDS, ends))[end] == "free":
+            raise ValueError(f"end_slide[{end!r}]: a free end has no support to slide in; "
+                             "make it clamped or pinned")
+        problem = slide_axis_problem(axis)
+        if problem:
+            raise ValueError(f"end_slide[{end!r}] {problem}")
     for name, motion in (("end_displacement", end_displacement),
                          ("end_rotation", end_rotation)):
         for end, history in (motion or {}).items():
@@ -42,6 +57,33 @@ def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False) 
                                  "follow a jump of its end; use a smooth_step or a ramp")
 
 
+def slide_axis_problem(axis) -> str | None:
+    """Why ``axis`` cannot be a slide axis (None if it can): not a finite unit 3-vector
+    along a coordinate axis (Dirichlet conditions on the other two components)."""
+    a = np.asarray(axis, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        return f"must be a finite 3-vector, got {axis!r}"
+    if abs(np.linalg.norm(a) - 1.0) > 1e-12:
+        return f"must be a unit vector, got {a.tolist()} (length {np.linalg.norm(a):.6g})"
+    if np.count_nonzero(a) != 1:
+        return (f"must be a coordinate axis (+-e_1, +-e_2 or +-e_3), got {a.tolist()}: "
+                "an end sliding along a direction off the axes is not supported")
+    return None
+
+
+class HeldComponents:
+    """The Dirichlet values of some components of a vector block at an end (a sliding
+    end: the components across its axis), one scalar constant each."""
+
+    def __init__(self, mesh, components):
+        self.components = tuple(components)
+        self.constants = [fem.Constant(mesh, 0.0) for _ in self.components]
+
+    def assign(self, value) -> None:
+        for i, const in zip(self.components, self.constants):
+            const.value = value[i]
+
+
 class EndSupports:
     """The Dirichlet conditions of both ends and their values at time t.
 
@@ -50,18 +92,21 @@ class EndSupports:
     last accepted step t_n (``commit``; before the first, its initial rotation: a motion
     may jump at t0 in a quasi-static rod), so that q_n,end c(theta_end) = q_end(t)."""
 
-    def __init__(self, model, ends, end_displacement, end_rotation):
+    def __init__(self, model, ends, end_displacement, end_rotation, end_slide,
+                 span: tuple[float, float]):
         self.ends = tuple(ends)
         self.displacement = dict(end_displacement or {})
         self.rotation = dict(end_rotation or {})
+        self.slide = {end: np.asarray(a, float) for end, a in (end_slide or {}).items()}
         self.initial = {end: (np.zeros(3), _IDENTITY.copy()) for end in ENDS}  # (x, q)
         self.values: dict = {}
         self.block = model.unknowns.rotation
         self.committed_time = None      # rotation vectors: time of q_n (None: initial)
         self._time_set = 0.0
         self._fixed_values_of: dict = {}      # end -> the initial (x, q) its values hold
-        spaces, mesh, L = model.unknowns.spaces, model.mesh, model.length
-        self.spaces, self.length = spaces, L
+        spaces, mesh = model.unknowns.spaces, model.mesh
+        self.spaces = spaces
+        self.s_ends = dict(zip(ENDS, span))     # the rod's ends on the mesh (layout.py)
         self._residual_forms: dict = {}
         for end, kind in zip(ENDS, self.ends):
             blocks = []
@@ -71,10 +116,18 @@ class EndSupports:
                 blocks += [("quaternion", (4,)), ("gauge_multiplier", ()),
                            ("angular_velocity", (3,)), ("rotation_increment", (3,))]
             for block, shape in blocks:
-                if block in spaces:
-                    const = fem.Constant(mesh, np.zeros(shape) if shape else 0.0)
-                    self.values[(block, end)] = const
-                    model.dirichlet(block, spaces[block], end, L, const)
+                if block not in spaces:
+                    continue
+                if end in self.slide and block in ("displacement", "velocity"):
+                    held = HeldComponents(mesh, np.flatnonzero(self.slide[end] == 0.0))
+                    self.values[(block, end)] = held
+                    for i, const in zip(held.components, held.constants):
+                        model.dirichlet_at(block, spaces[block], self.s_ends[end], const,
+                                           component=i)
+                    continue
+                const = fem.Constant(mesh, np.zeros(shape) if shape else 0.0)
+                self.values[(block, end)] = const
+                model.dirichlet_at(block, spaces[block], self.s_ends[end], const)
 
     def prescribed(self, end: str, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(x, q) of an end at time t."""
@@ -122,8 +175,11 @@ class EndSupports:
         return 2 * np_qmul(qe * _CONJ, qdot)[1:] / (qe @ qe)
 
     def _set(self, key, value) -> None:
-        if key in self.values:
-            self.values[key].value[:] = value
+        target = self.values.get(key)
+        if isinstance(target, HeldComponents):
+            target.assign(value)
+        elif target is not None:
+            target.value[:] = value
 
     def reactions(self, residual: dict, t: float) -> dict:
         """reaction_force_{end}_{xyz}, reaction_couple_{end}_{xyz} at supported ends and the
@@ -144,7 +200,7 @@ class EndSupports:
                 out.update(zip((f"reaction_force_{end}_{c}" for c in "xyz"),
                                node["displacement"].tolist()))
             if rotation_block in node:
-                couple = _nodal_rotations(rotation_block, self.prescribed(end, t)[1]) @ \
+                couple = spatial_rotations(rotation_block, self.prescribed(end, t)[1]) @ \
                     node[rotation_block]
                 out.update(zip((f"reaction_couple_{end}_{c}" for c in "xyz"), couple.tolist()))
             if end in self.displacement or end in self.rotation:
@@ -157,7 +213,7 @@ class EndSupports:
     def _compiled(self, residual: dict, block: str, ends):
         """The block's residual form and its end nodes, made at the first diagnostics."""
         if block not in self._residual_forms:
-            s_ends = [end_coordinate(e, self.length) for e in ends]
+            s_ends = [self.s_ends[e] for e in ends]
             form = near_nodes(residual[block], self.spaces[block].mesh, s_ends)
             self._residual_forms[block] = (fem.form(form), NodeValues(self.spaces[block],
                                                                       s_ends))
@@ -174,7 +230,7 @@ class EndSupports:
 _SPATIAL_AXES = np.hstack([np.zeros((3, 1)), np.eye(3)])     # (0, e_i) as quaternions
 
 
-def _nodal_rotations(block: str, q_end) -> np.ndarray:
+def spatial_rotations(block: str, q_end) -> np.ndarray:
     """Row i: the end node's test value of the spatial virtual rotation e_i (see
     ``reactions``): (0, e_i) q_end / 2 (quaternions), R(q_end)^T e_i (rotation vectors)."""
     if block == "quaternion":

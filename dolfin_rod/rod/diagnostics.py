@@ -34,16 +34,17 @@ def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation) -> dict:
 
 
 class Tip:
-    """tip_position_{xyz} (r = L e_3 + x) and tip_quaternion_{0..3} at s = L: nodal
-    values (rotation vectors: q_n c(theta) of the tip node only)."""
+    """tip_position_{xyz} (r = s_tip e_3 + x) and tip_quaternion_{0..3} at the tip node
+    s = s_tip (a rod's right end: L, or its end on a system's mesh): nodal values
+    (rotation vectors: q_n c(theta) of the tip node only)."""
 
-    def __init__(self, unk, length: float):
-        self.unk, self.length = unk, length
-        self.x_node = NodeValues(unk.f["displacement"].function_space, [length])
+    def __init__(self, unk, s_tip: float):
+        self.unk, self.length = unk, s_tip
+        self.x_node = NodeValues(unk.f["displacement"].function_space, [s_tip])
         q = unk.f["quaternion"] if unk.chart is None else unk.chart.q_n
-        self.q_node = NodeValues(q.function_space, [length])
+        self.q_node = NodeValues(q.function_space, [s_tip])
         self.theta_node = (None if unk.chart is None else
-                           NodeValues(unk.f[unk.rotation].function_space, [length]))
+                           NodeValues(unk.f[unk.rotation].function_space, [s_tip]))
 
     def __call__(self) -> dict:
         unk = self.unk

@@ -1,4 +1,4 @@
-"""The rod's finite elements: mesh of [0, L], end measures, quadrature rules, spaces and
+"""The rod's finite elements: mesh of [0, L] (several rods: layout.py), end measures, quadrature rules, spaces and
 the unknowns (fields, rates, test functions) of each block.
 
 Two kinds of rotation unknowns (``validation.ROTATIONS``):
@@ -32,16 +32,19 @@ from .. import constraints
 from ..evolution import real_space
 from ..model_base import vertex_measure
 from ..rotations import material_derivative_vector
+from .layout import Pieces, RodLayout
 from .rotation_vector import RotationVectorChart
 
 
 @dataclass
 class Discretisation:
-    """Mesh, the coordinate s, the end points and the three quadrature rules."""
+    """Mesh, the coordinate s, the rods' places on it (layout.py), the end points and the
+    three quadrature rules."""
 
     mesh: dolfinx.mesh.Mesh
-    length: float
+    length: float         # a single rod's length (the longest rod of a system)
     s: ufl.core.expr.Expr
+    pieces: Pieces        # per-rod indicators and coefficients
     ds: ufl.Measure       # the two end points (the exterior facets of the interval)
     end_weight: dict      # per end an expression 1 there and 0 at the other end
     dx: ufl.Measure       # inertia, loads, drag: degree 4 (quaternions), or the 2-point
@@ -50,8 +53,8 @@ class Discretisation:
     dx_v: ufl.Measure     # vertex rule: gauge and kinematic equations hold nodally
 
 
-def discretise(comm, n_cells: int, length: float, rotations: str) -> Discretisation:
-    mesh = dolfinx.mesh.create_interval(comm, n_cells, [0.0, length])
+def discretise(comm, layout: RodLayout, rotations: str) -> Discretisation:
+    mesh = layout.mesh(comm)
     degree = 2 if rotations == "rotation_vector" else 4
     s = ufl.SpatialCoordinate(mesh)[0]
     # the outward normal is -1 at s = 0 and +1 at s = L: untagged end points (a form with
@@ -59,7 +62,8 @@ def discretise(comm, n_cells: int, length: float, rotations: str) -> Discretisat
     normal = ufl.FacetNormal(mesh)[0]
     end_weight = {"left": (1.0 - normal) / 2, "right": (1.0 + normal) / 2}
     return Discretisation(
-        mesh, length, s, ufl.Measure("ds", domain=mesh), end_weight,
+        mesh, max(layout.lengths), s, Pieces(layout, mesh, s), ufl.Measure("ds", domain=mesh),
+        end_weight,
         ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": degree}),
         ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 1}),
         vertex_measure(mesh))

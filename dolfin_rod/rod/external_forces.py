@@ -15,10 +15,11 @@ import numpy as np
 import ufl
 
 from .. import balance
+from ..rotations import rotation_matrix
 from ..model_base import ENDS
 from ..problem import TimeDependentValue
 from .discretisation import Discretisation, Unknowns
-from .material import is_zero
+from .material import DAMPING, is_zero
 
 
 @dataclass
@@ -54,24 +55,28 @@ def check_loads(end_loads, distributed_loads) -> None:
             raise ValueError(f"load end must be 'left' or 'right', got {load.end!r}")
 
 
-def _load_value(load, disc: Discretisation):
-    """The load's vector (a constant, or value(s) for a distributed profile)."""
+def _load_value(load, rod: int, disc: Discretisation):
+    """The load's vector (a constant, or value(s) for a distributed profile, s the rod's
+    own arc length)."""
     if callable(load.value):
-        return ufl.as_vector(list(load.value(disc.s)))
+        return ufl.as_vector(list(load.value(disc.pieces.local_s(rod))))
     return fem.Constant(disc.mesh, np.asarray(load.value, float))
 
 
 def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, end_loads, distributed_loads):
     """Subtracts each load's virtual work from its balance block; returns the load
-    histories (TimeDependentValue) and the power of the loads (a UFL form, or 0)."""
+    histories (TimeDependentValue) and the power of the loads (a UFL form, or 0).
+    end_loads, distributed_loads: (rod index, load) pairs (layout.py: a load acts on
+    its rod only)."""
     q, dTheta = unk.q, unk.dTheta
     histories, power = [], 0
-    placed = [(load, disc.end_weight[load.end], disc.ds) for load in end_loads] + [
-        (load, 1.0, disc.dx) for load in distributed_loads]
-    for load, weight, measure in placed:
+    chi = disc.pieces.indicator
+    placed = [(k, load, disc.end_weight[load.end] * chi(k), disc.ds) for k, load in end_loads]
+    placed += [(k, load, chi(k), disc.dx) for k, load in distributed_loads]
+    for rod, load, weight, measure in placed:
         amp = fem.Constant(disc.mesh, 0.0)
         histories.append(TimeDependentValue(amp, load.history))
-        val = weight * amp * _load_value(load, disc)
+        val = weight * amp * _load_value(load, rod, disc)
         if load.kind == "force":
             F["displacement"] -= balance.force_work(
                 val, q, unk.t["displacement"], load.follower) * measure
@@ -82,10 +87,21 @@ def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, end_loads, distrib
     return histories, power
 
 
-def drag(F: dict, unk: Unknowns, c: dict, params, disc: Discretisation):
-    """Linear drag f = -c V in the displacement block; returns its dissipation density
-    c V.V integrated (0 without drag)."""
-    if is_zero(params.drag):
-        return 0
-    F["displacement"] += c["drag"] * ufl.inner(unk.V, unk.t["displacement"]) * disc.dx
-    return c["drag"] * ufl.inner(unk.V, unk.V) * disc.dx
+def drag(F: dict, unk: Unknowns, c: dict, params: list, disc: Discretisation):
+    """Linear drag f = -c V in the displacement block and rotational damping, the couple
+    per length -C W (material: ``rotational_drag``) or -C_s w (spatial, w = R W:
+    ``spatial_rotational_drag``, i.e. C = R^T C_s R) in the rotation block; returns
+    their dissipation c V.V + W.C W integrated (0 without any on every rod)."""
+    dissipation = []
+    if not all(is_zero(p.drag) for p in params):
+        F["displacement"] += c["drag"] * ufl.inner(unk.V, unk.t["displacement"]) * disc.dx
+        dissipation.append(c["drag"] * ufl.inner(unk.V, unk.V) * disc.dx)
+    for name in DAMPING:
+        if name in c:
+            C = c[name]
+            if name.startswith("spatial"):
+                R = rotation_matrix(unk.q)
+                C = ufl.dot(ufl.transpose(R), ufl.dot(C, R))
+            F[unk.rotation] += ufl.inner(ufl.dot(C, unk.W), unk.dTheta) * disc.dx
+            dissipation.append(ufl.inner(unk.W, ufl.dot(C, unk.W)) * disc.dx)
+    return sum(dissipation[1:], dissipation[0]) if dissipation else 0

@@ -12,9 +12,9 @@ import ufl
 from mpi4py import MPI
 
 from .. import compat
-from ..rotations import np_qmul, np_quaternion_from_rotation_vector
+from ..model_base import ENDS
+from ..rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 from ..solvers import BlockSNES, SolverError
-from ..model_base import ENDS, end_coordinate
 
 
 def helix(s, u0, v0):
@@ -35,6 +35,25 @@ def helix(s, u0, v0):
     return r, q
 
 
+def stress_free(model, s) -> tuple[np.ndarray, np.ndarray]:
+    """(r, q) at parameter values s: each rod's helix of its reference strains, turned by
+    its orientation and moved to its position (rods.Rod; layout.py for s)."""
+    s = np.asarray(s, float)
+    if model.layout.single and not model.rods[0].placed:
+        p = model.params
+        return helix(s, p.reference_curvature, p.reference_stretch)
+    r, q = np.zeros((len(s), 3)), np.zeros((len(s), 4))
+    rod_of = model.layout.rod_of(s)
+    for k, rod in enumerate(model.rods):
+        on = rod_of == k
+        r_k, q_k = helix(s[on] - model.layout.starts[k], rod.params.reference_curvature,
+                         rod.params.reference_stretch)
+        turn = np_quaternion_from_rotation_vector(np.asarray(rod.orientation, float))
+        r[on] = np.asarray(rod.position, float) + r_k @ np_rotation_matrix(turn).T
+        q[on] = np_qmul(turn, q_k)
+    return r, q
+
+
 def set_initial_state(model, natural_curvature=None, natural_stretch=None,
                       start=None) -> None:
     """See RodModel.set_initial_state; ``start`` a rod.start.StartingState or None."""
@@ -42,13 +61,7 @@ def set_initial_state(model, natural_curvature=None, natural_stretch=None,
     f = unk.f
     for g in [*f.values(), *unk.r.values(), *unk.acc.values()]:
         g.x.array[:] = 0.0
-    u0 = np.asarray(model.params.reference_curvature, float)
-    v0 = np.asarray(model.params.reference_stretch, float)
-
-    def stress_free(s):
-        return helix(s, u0, v0)
-
-    _set_configuration(model, stress_free)
+    _set_configuration(model, lambda s: stress_free(model, s))
     for g in f.values():
         g.x.scatter_forward()
     u_ref, v_ref = model.reference
@@ -65,31 +78,32 @@ def set_initial_state(model, natural_curvature=None, natural_stretch=None,
         for g in f.values():
             g.x.scatter_forward()
     if start is not None:   # the starting state moves the rod off its stress-free shape
-        _set_configuration(model, lambda s: start.frames(s, stress_free, model.length,
-                                                         model.n_cells))
+        _set_configuration(model, lambda s: start.frames(
+            s, lambda x: stress_free(model, x), model.length, model.layout.n_cells[0]))
         _set_velocities(model, start)
         for g in [*f.values(), *unk.r.values()]:
             g.x.scatter_forward()
-    model.supports.set(0.0)
+    model.set_supports(0.0)
     if start is not None and start.equilibrium:
         settle(model, 0.0)
 
 
 def _set_configuration(model, frames) -> None:
     """Displacement x = r - s e3, the nodal rotations and the ends' initial (x, q) of the
-    configuration ``frames(s) -> (r, q)`` (nodal values at the rest arc lengths s)."""
+    configuration ``frames(s) -> (r, q)`` (nodal values at the parameter values s)."""
     unk = model.unknowns
     unk.f["displacement"].interpolate(
         lambda X: (frames(X[0])[0] - np.outer(X[0], [0, 0, 1.0])).T)
     if unk.chart is not None:
         unk.chart.set_nodal_rotations(lambda s: frames(s)[1])
-        model.supports.committed_time = None
     else:
         unk.f["quaternion"].interpolate(lambda X: frames(X[0])[1].T)
-    for end in ENDS:
-        e_s = end_coordinate(end, model.length)
-        r, qq = frames(np.array([e_s]))
-        model.supports.initial[end] = (r[0] - np.array([0, 0, e_s]), qq[0])
+    for supports in model.end_supports:
+        supports.committed_time = None
+        for end in ENDS:
+            e_s = supports.s_ends[end]
+            r, qq = frames(np.array([e_s]))
+            supports.initial[end] = (r[0] - np.array([0, 0, e_s]), qq[0])
 
 
 def _set_velocities(model, start) -> None:
@@ -107,12 +121,13 @@ def _set_velocities(model, start) -> None:
     conj = q * np.array([1.0, -1, -1, -1])
     W = np_qmul(np_qmul(conj, np.hstack([np.zeros((len(s), 1)), w])), q)[:, 1:] \
         / np.einsum("ij,ij->i", q, q)[:, None]
-    for end in ENDS:
-        at_end = np.isclose(s, end_coordinate(end, model.length))
-        if (unk.rotation, end) in model.supports.values:
-            W[at_end] = 0.0
-        if ("displacement", end) in model.supports.values:
-            v[at_end] = 0.0
+    for supports in model.end_supports:
+        for end in ENDS:
+            at_end = np.isclose(s, supports.s_ends[end])
+            if (unk.rotation, end) in supports.values:
+                W[at_end] = 0.0
+            if ("displacement", end) in supports.values:
+                v[at_end] = 0.0
     if unk.chart is not None:
         unk.r["displacement"].x.array[:] = v.ravel()
         unk.r["rotation_increment"].x.array[:] = W.ravel()

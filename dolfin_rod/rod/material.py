@@ -14,10 +14,12 @@ import numpy as np
 import ufl
 
 from ..model_base import scalar_coefficient
-from ..validation import sample_points
+from ..validation import rod_length, sample_points
 
 Tensor = Sequence | np.ndarray | Callable | None
-TENSORS = ("A", "B", "A_d", "B_d", "M", "N", "M_d", "N_d")
+TENSORS = ("A", "B", "A_d", "B_d", "M", "N", "M_d", "N_d", "rotational_drag",
+           "spatial_rotational_drag")
+DAMPING = ("rotational_drag", "spatial_rotational_drag")
 SCALARS = ("rho_A", "I11", "I22", "drag")
 
 
@@ -39,6 +41,8 @@ class RodParameters:
     I11: float | Callable = 0.0      # section mass moments (rho J, Section 2.2)
     I22: float | Callable = 0.0
     drag: float | Callable = 0.0     # linear drag f = -c dr/dt
+    rotational_drag: Tensor = None   # couple -C W per length (material W, C); None: 0
+    spatial_rotational_drag: Tensor = None   # couple -C w per length (spatial w = R W, C)
     energy: Callable | None = None   # psi(u_d, v_d, u, v); None: quadratic_energy
     reference_curvature: Sequence[float] = (0.0, 0.0, 0.0)  # stress-free strains at t = 0
     reference_stretch: Sequence[float] = (0.0, 0.0, 1.0)
@@ -92,9 +96,7 @@ def check_scalar(name: str, value, length: float) -> None:
 def check_parameters(params: RodParameters, evolving: bool, viscous: bool,
                      variant: str) -> None:
     """The rules of every parameter of the chosen model (see RodModel)."""
-    L = params.length
-    if not (np.isfinite(L) and L > 0):
-        raise ValueError(f"length must be > 0, got {L}")
+    L = rod_length(params.length)
     for name in ("A", "B") + (("A_d", "B_d", "M_d", "N_d") if evolving else ()):
         check_tensor(name, getattr(params, name), L)
     if evolving and variant == "uniform":
@@ -108,6 +110,9 @@ def check_parameters(params: RodParameters, evolving: bool, viscous: bool,
             if not viscous and not is_zero(value):
                 raise ValueError(f"{name} must be None for the hyperelastic model")
             check_tensor(name, value, L, semidefinite=True)
+    for name in DAMPING:
+        if getattr(params, name) is not None:
+            check_tensor(name, getattr(params, name), L, semidefinite=True)
     for name in SCALARS:
         check_scalar(name, getattr(params, name), L)
     if is_zero(params.rho_A):
@@ -133,12 +138,41 @@ def ufl_tensor(value, mesh, s):
     return fem.Constant(mesh, np.diag(a) if a.shape == (3,) else a)
 
 
-def coefficients(params: RodParameters, mesh, s) -> dict:
+def coefficients(params: list[RodParameters], pieces) -> dict:
     """Every nonzero tensor and every scalar as UFL, by parameter name, and the section's
-    rotary inertia J = diag(I22, I11, I11 + I22) (rho J of Section 2.2)."""
-    c = {n: ufl_tensor(getattr(params, n), mesh, s) for n in TENSORS
-         if not is_zero(getattr(params, n))}
-    for n in SCALARS:
-        c[n] = scalar_coefficient(getattr(params, n), mesh, s)
+    rotary inertia J = diag(I22, I11, I11 + I22) (rho J of Section 2.2).  Several rods
+    (``params`` per rod, ``pieces``: layout.Pieces): each rod's value on its cells, a
+    DG0 field where every rod gives a constant, else sum_k chi_k value_k(s - a_k)."""
+    if len(params) == 1:
+        mesh, s = pieces.mesh, pieces.s
+        c = {n: ufl_tensor(getattr(params[0], n), mesh, s) for n in TENSORS
+             if not is_zero(getattr(params[0], n))}
+        for n in SCALARS:
+            c[n] = scalar_coefficient(getattr(params[0], n), mesh, s)
+    else:
+        c = {n: _piecewise(n, [getattr(p, n) for p in params], pieces, (3, 3))
+             for n in TENSORS if not all(is_zero(getattr(p, n)) for p in params)}
+        c.update({n: _piecewise(n, [getattr(p, n) for p in params], pieces, ())
+                  for n in SCALARS})
     c["J"] = ufl.diag(ufl.as_vector((c["I22"], c["I11"], c["I11"] + c["I22"])))
     return c
+
+
+def _piecewise(name: str, values: list, pieces, shape: tuple[int, ...]):
+    """A parameter of several rods (None or zero: 0 on that rod)."""
+    def constant(v):
+        if is_zero(v):
+            return np.zeros(shape)
+        a = np.asarray(v, dtype=float)
+        return np.diag(a) if shape == (3, 3) and a.shape == (3,) else a
+
+    if not any(callable(v) for v in values):
+        return pieces.cellwise([constant(v) for v in values], shape, name)
+    total = 0
+    for k, v in enumerate(values):
+        if not is_zero(v):
+            s_k = pieces.local_s(k)
+            part = ufl_tensor(v, pieces.mesh, s_k) if shape else \
+                scalar_coefficient(v, pieces.mesh, s_k)
+            total = total + pieces.indicator(k) * part
+    return total

@@ -29,11 +29,14 @@ from ..problem import SecondOrderProblem, SemiDiscreteProblem
 from ..rotations import rotation_matrix
 from ..validation import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
-from .boundary_conditions import EndSupports, check_supports
+from .boundary_conditions import EndSupports
 from .constitutive import check_model, energy_function, section_response
 from .discretisation import discretise, function_spaces, unknowns
-from .external_forces import DistributedLoad, EndLoad, check_loads
-from .material import RodParameters, check_parameters, coefficients, is_zero
+from .external_forces import DistributedLoad, EndLoad
+from .joints import Joint, JointReactions, check_joints, joint_nodes, node_links
+from .layout import RodLayout
+from .material import RodParameters, coefficients, is_zero
+from .rods import Rod, check_rods
 from .start import StartingState, check_start
 
 
@@ -43,7 +46,8 @@ class RodModel(FEModel):
     model: "evolving", "kelvin_voigt" or "hyperelastic" (constitutive.py); variant:
     "local" or "uniform" (evolution.py); constraint: None, "unshearable" or
     "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
-    boundary_conditions.py; end_loads, distributed_loads: external_forces.py; rotations:
+    boundary_conditions.py (end_slide: {end: axis}, a clamped or pinned end sliding
+    along a coordinate axis); end_loads, distributed_loads: external_forces.py; rotations:
     "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
     vectors for the local variant without a constraint, a dynamic rod with rotary
     inertia or a quasi-static one without Kelvin-Voigt viscosity and drag: 6 unknowns
@@ -52,6 +56,7 @@ class RodModel(FEModel):
     ``problem`` is a SemiDiscreteProblem (quaternions: any scheme of TimeStepper or
     TSIntegrator) or a SecondOrderProblem (rotation vectors: generalized-alpha on the
     rotation group, integrators/lie_alpha.py, which TimeStepper uses for it).
+    Several rods in one model: system.RodSystem.
     """
 
     def __init__(self, params: RodParameters, n_cells: int = 32, model: str = "evolving",
@@ -60,39 +65,63 @@ class RodModel(FEModel):
                  end_loads: Sequence[EndLoad] = (),
                  distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
-                 rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD):
-        check_model(model, params)
+                 rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD,
+                 end_slide: dict | None = None):
+        rod = Rod(params, n_cells, ends, end_loads, distributed_loads, end_displacement,
+                  end_rotation, end_slide)
+        self._build([rod], model, variant, constraint, rotations, comm)
+
+    def _build(self, rods: list[Rod], model: str, variant: str, constraint: str | None,
+               rotations: str, comm, joints: Sequence[Joint] = ()) -> None:
+        """The model of one or several rods and their joints (see system.RodSystem)."""
+        check_model(model, rods[0].params)
         check_variant(variant)
-        check_n_cells(n_cells)
-        check_supports(ends, end_displacement, end_rotation, not is_zero(params.rho_A))
-        check_parameters(params, model == "evolving", model != "hyperelastic", variant)
-        constraints.check_constraint(constraint, dynamic=not is_zero(params.rho_A))
-        check_loads(end_loads, distributed_loads)
-        self.params, self.model, self.variant, self.constraint = params, model, variant, constraint
-        self.end_loads, self.distributed_loads = list(end_loads), list(distributed_loads)
-        self.length, self.n_cells = float(params.length), int(n_cells)
+        constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.rho_A))
+        check_rods(rods, model, variant)
+        check_joints(list(joints), rods)
+        check_n_cells(sum(rod.n_cells for rod in rods), comm.size)   # cells per rank
+        self.rods = rods
+        self.params, self.model, self.variant, self.constraint = (rods[0].params, model,
+                                                                  variant, constraint)
+        self.end_loads = [load for rod in rods for load in rod.end_loads]
+        self.distributed_loads = [load for rod in rods for load in rod.distributed_loads]
+        self.layout = layout = RodLayout(tuple(rod.name for rod in rods),
+                                         tuple(float(rod.params.length) for rod in rods),
+                                         tuple(rod.n_cells for rod in rods))
+        self.length = max(layout.lengths)
         self.evolving = model == "evolving"
-        self.dynamic = not is_zero(params.rho_A)
+        self.dynamic = not is_zero(rods[0].params.rho_A)
+        all_params = [rod.params for rod in rods]
         obstacle = rotation_vector_obstacle(
             self.dynamic, variant, constraint,
-            rotary_inertia=not (is_zero(params.I11) or is_zero(params.I22)),
-            rate_dependent=not all(is_zero(v) for v in (params.M, params.N, params.drag)),
-            rotation_held="clamped" in ends or bool(end_rotation))
+            rotary_inertia=not any(is_zero(p.I11) or is_zero(p.I22) for p in all_params),
+            rate_dependent=not all(is_zero(v) for p in all_params for v in (
+                p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
+            rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
+                              for rod in rods))
+        if joints and obstacle:
+            raise ValueError(f"joints need rotation-vector unknowns, which this system "
+                             f"cannot have: {obstacle}")
         self.rotations = choose_rotations(rotations, obstacle, rotation_jumps=any(
-            load_histories.jumps(motion) for motion in (end_rotation or {}).values()))
-        disc = discretise(comm, n_cells, self.length, self.rotations)
+            load_histories.jumps(motion) for rod in rods
+            for motion in (rod.end_rotation or {}).values()))
+        if joints and self.rotations != "rotation_vector":
+            raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
+                             f"'rotation_vector'), got {rotations!r}")
+        disc = discretise(comm, layout, self.rotations)
         super().__init__(disc.mesh)
         self.dx, self.dx_r = disc.dx, disc.dx_r
+        self.pieces = disc.pieces
         self.unknowns = unk = unknowns(function_spaces(
             disc.mesh, self.evolving, variant, constraint, self.dynamic, self.rotations),
             self.dynamic)
         self.names, self.f, self.r, self.t = unk.names, unk.f, unk.r, unk.t
         self.V, self.W = unk.V, unk.W
-        self.coefficients = c = coefficients(params, disc.mesh, disc.s)
+        self.coefficients = c = coefficients(all_params, disc.pieces)
         self.J = c["J"]
         S_ref = fem.functionspace(disc.mesh, ("DG", 0, (3,)))   # set by the initial state
         self.reference = (fem.Function(S_ref, name="u_ref"), fem.Function(S_ref, name="v_ref"))
-        psi_fn = energy_function(params, c, self.evolving, *self.reference)
+        psi_fn = energy_function(rods[0].params, c, self.evolving, *self.reference)
         resp = section_response(unk, c, psi_fn, self.evolving, constraint, self.reference)
         self.psi, self.m, self.u, self.v = resp.psi, resp.m, resp.u, resp.v
         self.u_d, self.v_d = resp.u_d, resp.v_d
@@ -103,24 +132,40 @@ class RodModel(FEModel):
                          if self.evolving else [])
         if self.dynamic:
             residual.inertia(F, unk, c, disc)
-        drag_dissipation = external_forces.drag(F, unk, c, params, disc)
+        drag_dissipation = external_forces.drag(F, unk, c, all_params, disc)
         residual.zero_diagonals(F, unk, disc)
-        self.loads, power = external_forces.apply_loads(F, unk, disc, self.end_loads,
-                                                        self.distributed_loads)
+        self.loads, power = external_forces.apply_loads(
+            F, unk, disc, [(k, load) for k, rod in enumerate(rods) for load in rod.end_loads],
+            [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads])
         residual.one_quadrature_rule(F, unk, disc)
-        self.supports = EndSupports(self, ends, end_displacement, end_rotation)
+        self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
+                                         rod.end_rotation, rod.end_slide, layout.span(k))
+                             for k, rod in enumerate(rods)]
         self.residual = {name: F[name] for name in self.names}
-        self.problem = self._problem()
+        self.joints = list(joints)
+        nodes = joint_nodes(self, self.joints)
+        self.problem = self._problem(node_links(self, self.joints, nodes))
+        self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
 
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
-        self.tip = diagnostics.Tip(unk, self.length)
+        self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(rods))]
         self.set_diagnostic_forms(
             diagnostics.energy_forms(resp, self.xi, c, unk, disc, power, drag_dissipation))
 
-    def _problem(self) -> SemiDiscreteProblem:
+    @property
+    def supports(self) -> EndSupports:
+        """The supports of the rod's ends (of the first rod of a system)."""
+        return self.end_supports[0]
+
+    def set_supports(self, t: float) -> None:
+        """The prescribed end values of every rod at time t."""
+        for supports in self.end_supports:
+            supports.set(t)
+
+    def _problem(self, links: list) -> SemiDiscreteProblem:
         unk = self.unknowns
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
-                  list(self.residual.values()), self.loads, self.bcs, self.supports.set)
+                  list(self.residual.values()), self.loads, self.bcs, self.set_supports)
         if unk.chart is None:
             return SemiDiscreteProblem(*blocks)
         rates_used = {c for F in self.residual.values() for c in extract_coefficients(F)}
@@ -129,12 +174,14 @@ class RodModel(FEModel):
             after_step=self.commit_rotations, check_step=unk.chart.check_increment,
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
-            error_scales=[1.0 if n == unk.rotation else self.length for n in self.names])
+            error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
+            links=links)
 
     def commit_rotations(self) -> None:
         """Rotation vectors, after an accepted step: q_n <- q_n c(theta), theta <- 0."""
         self.unknowns.chart.commit()
-        self.supports.commit()
+        for supports in self.end_supports:
+            supports.commit()
 
     def checkpoint_state(self) -> dict:
         """Rotation vectors: the stored rotations and the time they belong to."""
@@ -147,7 +194,12 @@ class RodModel(FEModel):
         """After the checkpoint's functions were read (checkpoint_state)."""
         if self.unknowns.chart is not None:
             committed = state["rotations_committed_at"]
-            self.supports.committed_time = None if committed is None else float(committed)
+            for supports in self.end_supports:
+                supports.committed_time = None if committed is None else float(committed)
+
+    def stress_free(self, s):
+        """(r, q) of the initial stress-free configuration at parameter values s."""
+        return initial_state.stress_free(self, s)
 
     def set_initial_state(self, natural_curvature=None, natural_stretch=None,
                           start: StartingState | None = None) -> None:
@@ -155,10 +207,13 @@ class RodModel(FEModel):
         configuration (a straight rod along e_3, or the helix/circle of constant
         reference_curvature; uniform variant: their mean) unless given (3-vectors).
         ``start`` None: the rod rests in that configuration, no stress at t = 0;
-        a StartingState (rod/start.py): placed at its position and orientation, on its
-        starting curve (e.g. Arc, Helix, Polyline, a Straight one stretched), with its
-        velocities (dynamic rods), or settled in static equilibrium with the loads at
-        t = 0 (``equilibrium``); the stress-free shape is unchanged."""
+        a StartingState (rod/start.py; one rod, not a system): placed at its position
+        and orientation, on its starting curve (e.g. Arc, Helix, Polyline, a Straight one
+        stretched), with its velocities (dynamic rods), or settled in static equilibrium
+        with the loads at t = 0 (``equilibrium``); the stress-free shape is unchanged."""
+        if start is not None and not self.layout.single:
+            raise ValueError("start: a StartingState is for a single rod; the rods of a "
+                             "system are placed by Rod.position and Rod.orientation")
         check_start(start, self.length, self.dynamic, rotation_held=(
             "clamped" in self.supports.ends or bool(self.supports.rotation)))
         initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
@@ -170,7 +225,7 @@ class RodModel(FEModel):
         prescribed motion (load_power; the latter also alone as reaction_power),
         reactions at supported ends."""
         d = self.assembled_diagnostics(t)
-        d.update(self.tip())
+        d.update(self.tips[0]())
         d.update(self.supports.reactions(self.residual, t))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)

@@ -1,18 +1,20 @@
-"""Load histories and distributed loads as written in a scene: ``{type = "step" |
-"ramp" | "smooth_step" | "table" | "constant", ...}`` -> :class:`HistorySpec`, which
-builds the :mod:`dolfin_rod.loads` history the models evaluate.
+"""Loads and prescribed motions as written in a scene, one syntax for all (issue 25
+item 6): ``{type = "step" | "ramp" | "smooth_step" | "table" | "constant", value, t0,
+duration, follower, profile}`` -> :class:`HistorySpec`, which builds the
+:mod:`dolfin_rod.loads` history the models evaluate.  ``follower`` is for rod loads,
+``profile`` (a function of s) for distributed loads only.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from .. import loads as load_histories
-from .values import (BadValue, boolean, number, profile, real, refuse_unknown, table_type,
-                     type_name, vector3)
+from .values import (BadValue, Coefficient, boolean, choice, number, profile, real,
+                     refuse_unknown, toml_value, type_name, vector3)
 
 HISTORY_TYPES = ("step", "ramp", "smooth_step", "table", "constant")
 
@@ -23,11 +25,12 @@ class HistorySpec:
 
     type: str
     value: float | tuple[float, ...] = 0.0
-    t0: float = 0.0            # step: time of the jump
+    t0: float = 0.0            # step: time of the jump; ramp, smooth step: start
     duration: float = 1.0      # ramp: time to reach value; smooth_step: width
     times: tuple[float, ...] = ()
     values: tuple = ()         # numbers, or 3-vectors (a vector table)
     follower: bool = False     # rod loads: components in the material (rotating) frame
+    profile: Coefficient | None = None   # distributed loads: the factor profile(s)
 
     def build(self, component: int | None = None):
         """The loads.LoadHistory (component of a vector value if given)."""
@@ -38,9 +41,9 @@ class HistorySpec:
         if self.type == "step":
             return load_histories.step(v, self.t0)
         if self.type == "ramp":
-            return load_histories.ramp(v, self.duration)
+            return load_histories.ramp(v, self.duration, self.t0)
         if self.type == "smooth_step":
-            return load_histories.smooth_step(v, self.duration)
+            return load_histories.smooth_step(v, self.duration, self.t0)
         return load_histories.constant(v)
 
     @property
@@ -63,7 +66,7 @@ class HistorySpec:
         if self.type == "step":
             return (self.t0,)
         if self.type in ("ramp", "smooth_step"):
-            return (0.0, self.duration)
+            return (self.t0, self.t0 + self.duration)
         if self.type == "table":
             return self.times
         return ()
@@ -71,27 +74,39 @@ class HistorySpec:
 
 _HISTORY_KEYS = {
     "step": {"value": True, "t0": False},
-    "ramp": {"value": True, "duration": True},
-    "smooth_step": {"value": True, "duration": True},
+    "ramp": {"value": True, "duration": True, "t0": False},
+    "smooth_step": {"value": True, "duration": True, "t0": False},
     "constant": {"value": True},
     "table": {"times": True, "values": True},
 }
 
 
-def history(vector_ok: bool, follower_ok: bool = False):
+def history(vector_ok: bool, follower_ok: bool = False, profile_ok: bool = False):
+    """The checker of a load or motion {type, value, t0, duration, times, values} (type
+    "constant" if not given), with follower (rod loads) and profile (distributed loads)
+    where they apply."""
     def check(v):
         if not isinstance(v, dict):
             raise BadValue(f"must be a table {{type = \"step\"|\"ramp\"|...}}, got {type_name(v)}")
-        follower = False
-        if follower_ok and "follower" in v:
-            v = dict(v)
-            try:
-                follower = boolean(v.pop("follower"))
-            except BadValue as bad:
-                raise BadValue(bad.reason, "follower") from None
-        kind = table_type(v, HISTORY_TYPES)
+        v, extra = dict(v), {}
+        for key, allowed, checker, where in (
+                ("follower", follower_ok, boolean, "3-D rod loads"),
+                ("profile", profile_ok, profile, "distributed loads")):
+            if key in v and not allowed:
+                raise BadValue(f"{'a profile along s' if key == 'profile' else key} is for "
+                               f"{where} only", key)
+            if key in v:
+                try:
+                    extra[key] = checker(v.pop(key))
+                except BadValue as bad:
+                    raise BadValue(bad.reason, f"{key}.{bad.key}" if bad.key else key) from None
+        try:
+            kind = choice(*HISTORY_TYPES)(v.get("type", "constant"))
+        except BadValue as bad:
+            raise BadValue(bad.reason, "type") from None
         keys = _HISTORY_KEYS[kind]
-        refuse_unknown(v, {"type", *keys})
+        refuse_unknown(v, {"type", *keys}, also=[k for k, ok in (("follower", follower_ok),
+                                                                 ("profile", profile_ok)) if ok])
         for k, required in keys.items():
             if required and k not in v:
                 raise BadValue(f"missing required key for a {kind} history", k)
@@ -120,25 +135,35 @@ def history(vector_ok: bool, follower_ok: bool = False):
                            f"{len(out['times'])} and {len(out['values'])}", "values")
             if any(b <= a for a, b in zip(out["times"], out["times"][1:])):
                 raise BadValue("must be strictly increasing", "times")
-        return HistorySpec(**out, follower=follower)
+        return HistorySpec(**out, **extra)
     return check
 
 
 def distributed(v):
-    """{value = [x, y, z] (rod) , profile = number | {polynomial}, history = {...},
-    follower = bool (rod)}: value profile(s) history(t) per unit reference length."""
-    if not isinstance(v, dict):
-        raise BadValue(f"must be a table {{profile = ..., history = {{...}}}}, got {type_name(v)}")
-    refuse_unknown(v, {"value", "profile", "history", "follower"})
-    out = {"value": None, "follower": False}
-    checks = (("value", vector3(), None), ("profile", profile, 1.0),
-              ("history", history(False), {"type": "constant", "value": 1.0}),
-              ("follower", boolean, False))
-    for k, check, default in checks:
-        if k not in v and default is None:
-            continue
-        try:
-            out[k] = check(v.get(k, default))
-        except BadValue as bad:
-            raise BadValue(bad.reason, f"{k}.{bad.key}" if bad.key else k) from None
-    return out
+    """A distributed load per unit reference length, value profile(s) history(t): the one
+    load syntax {type, value, t0, duration, follower, profile}.  The old form {value,
+    profile, history = {...}} is refused with its new spelling."""
+    if isinstance(v, dict) and "history" in v:
+        raise BadValue("the load syntax changed: the history's keys now sit in the load "
+                       f"itself, write {toml_value(_new_form(v))}", "history")
+    return history(True, follower_ok=True, profile_ok=True)(v)
+
+
+def _new_form(old: dict) -> dict:
+    """The new spelling of an old distributed load {value, profile, history, follower}:
+    the history's keys with its value (or table values) times the old value."""
+    h = old["history"] if isinstance(old["history"], dict) else {}
+    scale = old.get("value", 1.0)
+
+    def times_scale(x):
+        if isinstance(scale, list) and isinstance(x, (int, float)):
+            return [x * c for c in scale]
+        return x * scale if isinstance(x, (int, float)) and isinstance(scale, (int, float)) else x
+    new = {k: x for k, x in h.items()}
+    new.setdefault("type", "constant")
+    if "value" in h or new["type"] != "table":
+        new["value"] = times_scale(h.get("value", 1.0))
+    if "values" in h and isinstance(h["values"], list):
+        new["values"] = [times_scale(x) for x in h["values"]]
+    new.update({k: old[k] for k in ("follower", "profile") if k in old})
+    return new

@@ -21,6 +21,7 @@ from ..problem import SecondOrderProblem
 from .ode import OdeTorsion
 from .rules import START_KEYS, adaptive_stepper, rod_rotations
 from .schema import Scene, SceneError
+from .values import Coefficient
 
 __all__ = ["Simulation", "MODELS", "register_model", "build", "OdeTorsion", "FESimulation"]
 
@@ -178,10 +179,10 @@ def build_torsion(scene: Scene, comm=None) -> FESimulation:
     kwargs = {}
     couple = lds["distributed_couple"]
     if couple is not None:
-        profile = couple["profile"]
+        profile = couple.profile or Coefficient(constant=1.0)
         kwargs["couple"] = (lambda s, c=profile.constant: c + 0.0 * s) if profile.is_constant \
             else profile
-        kwargs["couple_history"] = couple["history"].build()
+        kwargs["couple_history"] = couple.build()
     params = TorsionParameters(**{k: mat[k].value() for k in ("alpha", "alpha_d", "mu", "mu_d",
                                                               "nu")}, **kwargs)
     if scene["boundary"]["end"] == "rotation":
@@ -215,7 +216,9 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
                          end_loads=end_loads, distributed_loads=distributed_loads,
                          end_displacement=motions["displacement"],
                          end_rotation=motions["rotation"], rotations=rod_rotations(scene),
-                         comm=comm or MPI.COMM_WORLD)
+                         comm=comm or MPI.COMM_WORLD,
+                         end_slide={side: axis for key, side in ends.items()
+                                    if (axis := scene["boundary"][f"{key}_slide"]) is not None})
     except ValueError as err:
         key = "material.energy" if str(err).startswith("energy") else "scene.model"
         raise scene.error(key, f"the 'rod' model rejected the scene: {err}") from err
@@ -257,6 +260,9 @@ def rod_parameters(scene: Scene):
     if mat["energy"] is not None:
         folder = Path(scene.source).parent if Path(scene.source).is_file() else None
         energy = load_entry_point(mat["energy"], folder)
+    if mat["rotational_drag"] is not None:
+        frame = "" if mat["rotational_drag_frame"] == "material" else "spatial_"
+        tensors[frame + "rotational_drag"] = mat["rotational_drag"].value()
     return RodParameters(length=geo["length"], **tensors, rho_A=scalars.get("density", 0.0),
                          drag=scalars.get("drag", 0.0), I11=I11, I22=I22, energy=energy,
                          reference_curvature=geo["reference_curvature"],
@@ -277,10 +283,11 @@ def rod_loads(scene: Scene) -> tuple[list, list]:
                                          follower=spec.follower))
     distributed = []
     for kind in ("force", "couple"):
-        load = lds[f"distributed_{kind}"]
-        if load is not None:
-            distributed.append(DistributedLoad(kind, _profiled(load["value"], load["profile"]),
-                                               load["history"].build(), load["follower"]))
+        spec = lds[f"distributed_{kind}"]
+        for value, history in _vector_parts(spec) if spec is not None else ():
+            distributed.append(DistributedLoad(
+                kind, _profiled(value, spec.profile or Coefficient(constant=1.0)), history,
+                spec.follower))
     if lds["gravity"] is not None:
         distributed.append(DistributedLoad("force", _profiled(lds["gravity"], mat["density"])))
     return end_loads, distributed

@@ -18,6 +18,7 @@ import numpy as np
 
 from .. import closed_forms
 from ..integrators.schemes import get_scheme
+from ..integrators.stepping import same_step
 from ..loads import rate as load_rate
 from .schema import Scene
 
@@ -72,7 +73,7 @@ class OdeTorsion:
         self.y = np.array([u, self.u_d0])
         self.ydot = np.zeros(2)
         self.y_nm1 = self.y.copy()
-        self.history_steps = 0
+        self.history_steps, self.last_step = 0, None
         if self.mode == "exact":
             self._solve_exact()
         self.impulse = impulse
@@ -151,7 +152,7 @@ class OdeTorsion:
     def _scheme_step(self, t: float, dt: float) -> None:
         """One step of the scheme (as TimeStepper's: same stages, startup and rate rule)
         on the linear system M y' + K y = f: J y = -r with r the residual at y = 0."""
-        scheme = self.scheme.for_step(self.history_steps)
+        scheme = self.scheme.for_step(self.history_steps, same_step(dt, self.last_step))
         M, K = self._matrices()
         y_n, y_nm1, ydot_n = self.y, self.y_nm1, self.ydot
         zero = np.zeros(2)
@@ -167,7 +168,7 @@ class OdeTorsion:
         y = np.linalg.solve(J, -r)
         self.ydot = scheme.rate_after_step(y, y_n, y_nm1, ydot_n, dt)
         self.y_nm1, self.y = y_n, y
-        self.history_steps = min(self.history_steps + 1, 2)
+        self.history_steps, self.last_step = min(self.history_steps + 1, 2), dt
 
     def advance(self, t: float, t_next: float) -> None:
         if self.mode == "scheme":
@@ -215,11 +216,12 @@ class OdeTorsion:
 
     def state(self) -> dict:
         return {"y": self.y.tolist(), "y_nm1": self.y_nm1.tolist(), "ydot": self.ydot.tolist(),
-                "history_steps": self.history_steps}
+                "history_steps": self.history_steps, "last_step": self.last_step}
 
     def restore(self, state: dict) -> None:
         self.y, self.y_nm1 = np.array(state["y"]), np.array(state["y_nm1"])
         self.ydot, self.history_steps = np.array(state["ydot"]), int(state["history_steps"])
+        self.last_step = state.get("last_step")
 
     def describe(self) -> str:
         return self.method

@@ -10,8 +10,9 @@ import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
-from ..validation import (EQUILIBRIUM_NEEDS, choose_rotations, polyline_problem, rotation_vector_obstacle,
-                          sample_points)
+from ..validation import (EQUILIBRIUM_NEEDS, choose_rotations, polyline_problem,
+                          rotation_vector_obstacle, sample_points)
+from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
 
@@ -22,13 +23,17 @@ TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 # keys of one model family only: (table, key) -> the family that reads it
 TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
     ("geometry", "degree"), ("initial", "natural_twist"), ("loads", "end_torsion")}
-ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints")} | {
+ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints",
+                                                 "rotational_drag_frame")} | {
+    ("section", k) for k in ("shape", "radius", "semi_axes", "sides", "outer_radius",
+                             "inner_radius", "shear_factor")} | {
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
     ("geometry", "rotations"),
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
     *(("initial", k) for k in START_KEYS),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
-    ("boundary", "start_displacement"), ("loads", "distributed_force"), ("loads", "gravity"),
+    ("boundary", "start_displacement"), ("boundary", "start_slide"),
+    ("boundary", "end_slide"), ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
     ("loads", "start_couple")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
@@ -50,12 +55,23 @@ def check_combinations(scene: Scene) -> None:
         _check_rod_ends(scene)
     else:
         _check_torsion(scene)
+    _check_solver_options(scene)
     if scene["time"]["adaptive"] and not adaptive_stepper(scene) \
             and scene["time"]["integrator"] == "stepper":
         raise scene.error("time.adaptive", "the stepper's error-controlled steps are those of "
                                            "generalized-alpha on the rotation group: a dynamic "
                                            "3-D rod with rotation vectors (geometry.rotations); "
                                            "otherwise use integrator = \"ts\"")
+
+
+def _check_solver_options(scene: Scene) -> None:
+    """PETSc reads every option of solver.options and accepts its value (tried on a
+    throwaway solver: a bad one failed the run after check said OK)."""
+    if scene["solver"]["options"]:
+        from ..solvers import option_problem
+        problem = option_problem(scene["solver"]["options"])
+        if problem:
+            raise scene.error(f"solver.options.{problem[0]}", problem[1])
 
 
 def adaptive_stepper(scene: Scene) -> bool:
@@ -138,10 +154,9 @@ def _check_torsion(scene: Scene) -> None:
         raise err("boundary.end_rotation", "given but boundary.end is \"free\": set "
                                            "boundary.end = \"rotation\"")
     couple = lds["distributed_couple"]
-    for k in ("value", "follower"):
-        if couple is not None and couple[k] not in (None, False):
-            raise err(f"loads.distributed_couple.{k}", "torsion: the couple is "
-                                                       "profile(s) history(t), a number")
+    if couple is not None and (couple.is_vector or couple.follower):
+        raise err("loads.distributed_couple." + ("follower" if couple.follower else "value"),
+                  "torsion: the couple is value profile(s) history(t), a number")
     if d["geometry"]["length"] != 1.0:
         raise err("geometry.length", "torsion scenes are dimensionless on s in [0, 1] "
                                      "(Section 5.1): length must be 1")
@@ -156,13 +171,23 @@ def _check_torsion(scene: Scene) -> None:
 
 
 def _sampled(value, L: float) -> list[np.ndarray]:
-    return [np.asarray(value(s) if callable(value) else value, dtype=float)
-            for s in sample_points(L)]
+    with np.errstate(over="ignore", invalid="ignore"):     # overflow: checked by callers
+        return [np.asarray(value(s) if callable(value) else value, dtype=float)
+                for s in sample_points(L)]
+
+
+def _not_finite(samples: list[np.ndarray], L: float) -> str | None:
+    """Why sampled values are unusable (an overflowing polynomial), or None."""
+    for si, a in zip(sample_points(L), samples):
+        if not np.all(np.isfinite(a)):
+            return f"must be finite on [0, {L:g}]; it overflows at s = {si:g}"
+    return None
 
 
 def _check_rod_material(scene: Scene) -> None:
     """3-D rod material: the tensors each model needs, and only those."""
     d, err = scene.data, scene.error
+    apply_physical_input(scene)
     mat, L = d["material"], d["geometry"]["length"]
     evolving = mat["model"] == "evolving"
     stiff, visc = mat["stiffness"] or {}, mat["viscosity"] or {}
@@ -184,7 +209,10 @@ def _check_rod_material(scene: Scene) -> None:
     for table, have in (("stiffness", stiff), ("viscosity", visc)):
         for k, t in have.items():
             semidefinite = k in ("M", "N")
-            for si, a in zip(sample_points(L), _sampled(t.at, L)):
+            samples = _sampled(t.at, L)
+            if _not_finite(samples, L):
+                raise err(f"material.{table}.{k}", _not_finite(samples, L))
+            for si, a in zip(sample_points(L), samples):
                 low = np.linalg.eigvalsh(a).min()
                 if low < 0 or (low == 0 and not semidefinite):
                     rule = "positive semidefinite" if semidefinite else "positive definite"
@@ -218,8 +246,14 @@ def _check_rod_inertia(scene: Scene) -> None:
     L = scene["geometry"]["length"]
     for k in ("density", "drag"):
         c = mat[k]
-        if c is not None and min(np.min(v) for v in _sampled(c, L)) < 0:
+        samples = _sampled(c, L) if c is not None else []
+        if _not_finite(samples, L):
+            raise err(f"material.{k}", _not_finite(samples, L))
+        if samples and min(np.min(v) for v in samples) < 0:
             raise err(f"material.{k}", "must be >= 0 on [0, L]")
+    if "rotational_drag_frame" in scene.given["material"] and mat["rotational_drag"] is None:
+        raise err("material.rotational_drag_frame", "the frame of material.rotational_drag, "
+                                                    "which is not given")
     inertia = mat["section_inertia"] or (0.0, 0.0)
     density = mat["density"] or Coefficient(constant=0.0)
     dynamic = not (density.is_constant and density.constant == 0.0)
@@ -278,7 +312,8 @@ def rod_rotations(scene: Scene) -> str:
     constraint = None if mat["constraints"] == "none" else mat["constraints"]
     visc = mat["viscosity"] or {}
     rate_dependent = any(k in visc and not visc[k].is_zero for k in ("M", "N")) or not (
-        mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0))
+        mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0)) \
+        or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
     motions = [scene["boundary"][f"{end}_rotation"] for end in ("start", "end")]
     rotation_jumps = any(spec is not None and spec.is_vector and any(
         load_histories.jumps(spec.build(i)) for i in range(3)) for spec in motions)
@@ -290,6 +325,35 @@ def rod_rotations(scene: Scene) -> str:
     except ValueError as err:
         key = "geometry.rotations" if obstacle else "time.scheme"
         raise scene.error(key, str(err)) from err
+
+
+def _slide_axis(scene: Scene, end: str):
+    """The slide axis of an end (boundary.<end>_slide) after its checks, or None."""
+    from ..rod.boundary_conditions import slide_axis_problem
+    bnd, key = scene["boundary"], f"boundary.{end}_slide"
+    axis = bnd[f"{end}_slide"]
+    if axis is None:
+        return None
+    if bnd[end] not in ("clamped", "pinned"):
+        raise scene.error(key, f"boundary.{end} is {bnd[end]!r}: only a clamped or pinned "
+                               "end slides in its support")
+    problem = slide_axis_problem(axis)
+    if problem:
+        raise scene.error(key, problem)
+    motion = bnd[f"{end}_displacement"]
+    if motion is not None and motion.is_vector and _along_and_across(motion, axis)[0]:
+        raise scene.error(f"boundary.{end}_displacement", f"the end slides freely along "
+                                                          f"{list(axis)} ({key}): prescribe "
+                                                          "its motion across that axis only")
+    return np.asarray(axis)
+
+
+def _along_and_across(spec, axis) -> tuple[bool, bool]:
+    """Whether a vector history has a component along the axis, and one across it."""
+    values = np.array(spec.values if spec.type == "table" else (spec.value,), float)
+    a = np.asarray(axis)
+    along = values @ a
+    return bool(np.any(along != 0.0)), bool(np.any(values - np.outer(along, a) != 0.0))
 
 
 def _check_rod_ends(scene: Scene) -> None:
@@ -305,9 +369,10 @@ def _check_rod_ends(scene: Scene) -> None:
             spec = bnd[f"{end}_{motion}"]
             if spec is not None and not spec.is_vector:
                 raise err(f"boundary.{end}_{motion}.value", "3-D rod: a vector [x, y, z]")
+        axis = _slide_axis(scene, end)
         x = kind in ("clamped", "pinned") or bnd[f"{end}_displacement"] is not None
         q = kind == "clamped" or bnd[f"{end}_rotation"] is not None
-        fixed_x.append(x), fixed_q.append(q)
+        fixed_x.append(x and axis is None), fixed_q.append(q)
         for load, fixed, what in (("force", x, "position"), ("couple", q, "rotation")):
             spec = lds[f"{end}_{load}"]
             if spec is None:
@@ -315,13 +380,21 @@ def _check_rod_ends(scene: Scene) -> None:
             if not spec.is_vector:
                 raise err(f"loads.{end}_{load}.value", "3-D rod: a vector value = [x, y, z] "
                                                        "(or a table of 3-vectors)")
+            if load == "force" and axis is not None:
+                if spec.follower or _along_and_across(spec, axis)[1]:
+                    raise err(f"loads.{end}_{load}", f"the end slides along {list(axis)} "
+                                                     f"(boundary.{end}_slide): only a dead "
+                                                     "force along that axis acts on it, the "
+                                                     "support takes the rest")
+                continue
             if fixed:
                 raise err(f"loads.{end}_{load}", f"acts where the {what} is prescribed "
                                                  f"(boundary.{end} = {kind!r}): the support "
                                                  "takes it")
     for k in ("distributed_force", "distributed_couple"):
-        if lds[k] is not None and lds[k]["value"] is None:
-            raise err(f"loads.{k}.value", "missing: 3-D rod: value = [x, y, z]")
+        if lds[k] is not None and not lds[k].is_vector:
+            raise err(f"loads.{k}.value", "3-D rod: a vector value = [x, y, z] (or a table "
+                                          "of 3-vectors)")
     if not scene["material"]["dynamic"] and not (any(fixed_x) and any(fixed_q)):
         raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "
                                     "rotation somewhere (e.g. start = \"clamped\"); rigid "

@@ -9,7 +9,9 @@ from typing import Any
 import numpy as np
 
 # the material keys that make a scene a 3-D rod scene (RodModel)
-ROD_KEYS = ("stiffness", "viscosity", "density", "section_inertia", "drag")
+ROD_KEYS = ("stiffness", "viscosity", "density", "section_inertia", "drag", "youngs_modulus",
+            "shear_modulus", "poisson_ratio", "natural_stiffness_ratio", "relaxation_time",
+            "rotational_drag")
 
 
 class SceneError(ValueError):
@@ -19,6 +21,9 @@ class SceneError(ValueError):
         self.source, self.key, self.reason = str(source), key, reason
         where = f"[{key}]: " if key else ""
         super().__init__(f"{self.source}: {where}{reason}")
+
+    def __reduce__(self):                  # pickled to other ranks (mpi.agree)
+        return (type(self), (self.source, self.key, self.reason))
 
 
 @dataclass
@@ -39,7 +44,8 @@ class Scene:
 
     @property
     def is_rod_material(self) -> bool:
-        return any(self.data["material"][k] is not None for k in ROD_KEYS)
+        return any(self.data["material"][k] is not None for k in ROD_KEYS) or \
+            self.data["section"]["shape"] is not None
 
     def error(self, key: str, reason: str) -> SceneError:
         return SceneError(self.source, key, reason)

@@ -26,14 +26,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..validation import ROTATIONS
+from ..rod.sections import SHAPES as SECTION_SHAPES
+from ..validation import MIN_LENGTH, ROTATIONS
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
-                     entry_point, integer, load_entry_point, path_problem, path_text,
-                     petsc_table, real, run_name, safe_name, scheme_name,
-                     section_inertia, starting_shape, string, tensor_table, ts_type_name,
+                     damping_tensor, entry_point, integer, load_entry_point, path_problem,
+                     path_text,
+                     petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
+                     section_inertia, starting_shape, string, tensor_table, toml_value,
+                     ts_type_name,
                      type_name, vector3)
 
 __all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "Tensor", "load_scene",
@@ -59,19 +62,33 @@ class Key:
 
 SCHEMA_NOTES = """\
 **Two kinds of scene.** A scene with `material.stiffness`/`viscosity` (or density,
-section_inertia, drag) is a **3-D rod** (RodModel): it is in the user's consistent units,
-e.g. SI: lengths in m, time in s, A = (EI_1, EI_2, GJ) in N m^2, B = (GA_1, GA_2, EA) in N,
-M, M_d in N m^2 s, N, N_d in N s, density rho A in kg/m, section_inertia rho I in kg m,
-gravity in m/s^2, forces in N, couples in N m, distributed loads per metre
-(`scenes/gravity_cantilever.toml` is an SI example).  Otherwise it is a **torsion** scene
+section_inertia, drag, or a `[section]` with `material.youngs_modulus`) is a **3-D rod**
+(RodModel): it is in the user's consistent units, e.g. SI: lengths in m, time in s,
+A = (EI_1, EI_2, GJ) in N m^2, B = (GA_1, GA_2, EA) in N, M, M_d in N m^2 s, N, N_d in
+N s, density rho A in kg/m, section_inertia rho I in kg m, gravity in m/s^2, forces in
+N, couples in N m, distributed loads per metre.  **Physical input** instead of tensors: a
+`[section]` (shape and dimensions in m) with `material.youngs_modulus` and
+`shear_modulus` or `poisson_ratio` (Pa) gives A, B; with it `material.density` is the
+mass density in kg/m^3 (rho A and section_inertia follow); `natural_stiffness_ratio`
+gives A_d, B_d and `relaxation_time` (s) M_d, N_d (rod/sections.py; `dolfin-rod check`
+prints the derived tensors, summary.json records them; `scenes/gravity_cantilever.toml`
+is an SI example).  Giving a tensor and the physical key that derives it is an error.  Otherwise it is a **torsion** scene
 (the ODE or TorsionModel): the paper's dimensionless Section 5.1 variables (alpha, alpha_d,
 mu, mu_d, nu; s in [0, 1], errata item 5).  Keys marked "3-D rod:" or "torsion:" belong to
 one kind; giving one to the other kind is an error.
 
-**Values.** A load history is a table `{type = "step" | "ramp" | "smooth_step" | "table" |
-"constant", ...}` with `value`, `t0` (step), `duration` (ramp, smooth step), `times` and
-`values` (table); rod loads and end motions take `value = [x, y, z]` (a table: `values` of
-3-vectors), end loads also `follower = true` (components in the end's material frame).
+**Values: one load syntax.** Every load and prescribed motion is a table `{type =
+"constant" | "step" | "ramp" | "smooth_step" | "table", value, t0, duration, follower,
+profile}`: `value` (a number; rod loads and end motions a vector `[x, y, z]`), `t0` (the
+step's time, the ramp's and smooth step's start; default 0), `duration` (ramp, smooth
+step), or `times` and `values` (table: piecewise linear; rod: `values` of 3-vectors);
+`follower = true` for rod loads (components in the material frame, rotating with the
+section), `profile` (a number or `{polynomial}` in s) for distributed loads, which are
+value profile(s) history(t) per unit length.  `type` defaults to "constant".  E.g.
+`end_force = { type = "ramp", value = [0.0, 0.0, 2.0], t0 = 1.0, duration = 0.5 }`,
+`distributed_force = { type = "step", value = [0.1, 0.0, 0.0], profile = { polynomial =
+[1.0, -1.0] } }`.  The old distributed form `{value, profile, history = {...}}` is an
+error that shows its new spelling.
 A torsion coefficient or a density/drag/profile is a number or `{polynomial = [c0, c1,
 ...]}` in s.  A rod tensor (A, B, A_d, B_d, M, N, M_d, N_d) is `[a, b, c]` (diagonal),
 `[[..], [..], [..]]` (a full symmetric 3x3 matrix) or `{polynomial = [T0, T1, ...]}`
@@ -90,7 +107,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "model": Key(choice(*MODEL_NAMES), "auto", "auto | ode | torsion | rod"),
     },
     "geometry": {
-        "length": Key(real(0.0, True), 1.0, "rod length L (torsion: dimensionless, must be 1)"),
+        "length": Key(real(MIN_LENGTH), 1.0, f"rod length L >= {MIN_LENGTH:g} (torsion: "
+                      "dimensionless, must be 1)"),
         "n_cells": Key(integer(1, 100_000), 32, "number of cells along s"),
         "degree": Key(integer(1, 3), 1, T + "Lagrange degree of phi (the rod is P1)"),
         "reference_curvature": Key(vector3(), (0.0, 0.0, 0.0),
@@ -109,6 +127,21 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "positions and rotations, the start in equilibrium with the loads "
                          "at t = 0); quaternion (+ gauge, velocities: any scheme or PETSc "
                          "TS) otherwise"),
+    },
+    "section": {
+        "shape": Key(choice(*SECTION_SHAPES), None, R + "circle | ellipse | rectangle | tube: "
+                     "the cross-section; with material.youngs_modulus it gives A, B, with "
+                     "material.density (then in kg/m^3) rho A and section_inertia "
+                     "(rod/sections.py; `dolfin-rod check` prints them)"),
+        "radius": Key(real(0.0, True), None, R + "circle: radius (m)"),
+        "semi_axes": Key(positive_pair, None, R + "ellipse: [a_1, a_2], semi-axes along d_1, "
+                         "d_2 (m)"),
+        "sides": Key(positive_pair, None, R + "rectangle: [b_1, b_2], sides along d_1, d_2 (m)"),
+        "outer_radius": Key(real(0.0, True), None, R + "tube: outer radius (m)"),
+        "inner_radius": Key(real(0.0), None, R + "tube: inner radius (m), < outer_radius"),
+        "shear_factor": Key(positive_pair, None, R + "k or [k_1, k_2] in B = (k_1 G a, k_2 G "
+                            "a, E a) (default: Cowper's by shape and Poisson's ratio; an "
+                            "ellipse takes the circle's)"),
     },
     "material": {
         "variant": Key(choice(*VARIANTS), "local", "local | uniform evolution law of the "
@@ -134,11 +167,33 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          R + "{M, N, M_d, N_d}: Kelvin-Voigt M, N (default 0), natural-"
                          "configuration M_d, N_d (evolving model; the uniform variant's M_d, N_d carry one "
                          "more length factor than the local ones, docs/rod.md); each a tensor"),
-        "density": Key(coefficient(False), None, R + "mass per length rho A (number or "
-                       "{polynomial}); > 0: dynamic, 0 (default): quasi-static"),
+        "youngs_modulus": Key(real(0.0, True), None, R + "E (Pa), with a [section] and "
+                              "shear_modulus or poisson_ratio: A = (E I_22, E I_11, G J), B = "
+                              "(k_1 G a, k_2 G a, E a) instead of material.stiffness"),
+        "shear_modulus": Key(real(0.0, True), None, R + "G (Pa) (or poisson_ratio)"),
+        "poisson_ratio": Key(real(-1.0, True, 0.5), None, R + "nu: G = E/(2 (1 + nu)) (or "
+                             "shear_modulus)"),
+        "natural_stiffness_ratio": Key(real(0.0, True), None, R + "r (evolving model, with "
+                                       "youngs_modulus): A_d = r A, B_d = r B"),
+        "relaxation_time": Key(positive_pair, None, R + "tau or [tau_u, tau_v] (s): the "
+                               "natural strains' relaxation times at a held strain, M_d = "
+                               "tau_u (A + A_d), N_d = tau_v (B + B_d) instead of "
+                               "viscosity.M_d, N_d (evolving model)"),
+        "density": Key(coefficient(False), None, R + "mass per length rho A (kg/m; number or "
+                       "{polynomial}); with a [section]: the mass density rho (kg/m^3, a "
+                       "number), rho A = rho a and section_inertia = rho (I_11, I_22); > 0: "
+                       "dynamic, 0 (default): quasi-static"),
         "section_inertia": Key(section_inertia, None, R + "I_11 = I_22 (a number) or [I_11, I_22]: "
                                "section mass moments per length (rho J, Section 2.2)"),
         "drag": Key(coefficient(False), None, R + "linear drag f = -c dr/dt (c per length)"),
+        "rotational_drag": Key(damping_tensor, None, R + "rotational damping C (N m s per "
+                               "length): the couple -C W per length, W the angular velocity "
+                               "(a number c: C = c I; [c_1, c_2, c_3] or a tensor); its "
+                               "dissipation W.C W is in dissipation_rate"),
+        "rotational_drag_frame": Key(choice("material", "spatial"), "material",
+                                     R + "components of rotational_drag: material (C W, "
+                                     "W and C in the directors' frame) | spatial (C w, w = R W "
+                                     "and C in the fixed frame)"),
         "constraints": Key(choice(*CONSTRAINTS), "none",
                            R + "none | unshearable | inextensible_unshearable"),
     },
@@ -188,19 +243,27 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "end_displacement": Key(history(True), None, R + "prescribed displacement of s = L "
                                 "from its initial position (value = [x, y, z])"),
         "start_displacement": Key(history(True), None, R + "as end_displacement, at s = 0"),
+        "end_slide": Key(vector3(), None, R + "axis [x, y, z] (a unit coordinate axis, e.g. "
+                         "[0, 0, 1]) along which the clamped or pinned end s = L slides "
+                         "freely: its position is held (or end_displacement prescribed) "
+                         "across the axis only; a clamped end keeps its rotation (or "
+                         "follows end_rotation, e.g. turning about the axis); an end_force "
+                         "along the axis acts on it (a weight on a sliding clamp)"),
+        "start_slide": Key(vector3(), None, R + "as end_slide, at s = 0"),
     },
     "loads": {
         "end_torsion": Key(history(False), None, T + "applied torsion m(t) at s = 1"),
         "distributed_couple": Key(distributed, None,
-                                  "l(s, t) = value profile(s) history(t) per length (torsion: "
-                                  "no value; rod: value = [x, y, z], follower = true for "
+                                  "l(s, t) per length, {type, value, t0, duration, follower, "
+                                  "profile} = value profile(s) history(t) (torsion: value a "
+                                  "number; rod: value = [x, y, z], follower = true for "
                                   "material components)"),
         "distributed_force": Key(distributed, None, R + "as distributed_couple, a force"),
         "gravity": Key(vector3(), None, R + "g = [x, y, z]: the distributed force rho_A g "
                        "(needs density > 0)"),
-        "end_force": Key(history(True, True), None, R + "force at s = L: a history with value "
-                         "= [x, y, z] (or a table of 3-vectors); follower = true: material "
-                         "components (rotating with the end)"),
+        "end_force": Key(history(True, True), None, R + "force at s = L, {type, value, t0, "
+                         "duration, follower}: value = [x, y, z] (or a table of 3-vectors); "
+                         "follower = true: material components (rotating with the end)"),
         "end_couple": Key(history(True, True), None, R + "couple at s = L (as end_force)"),
         "start_force": Key(history(True, True), None, R + "force at s = 0 (as end_force)"),
         "start_couple": Key(history(True, True), None, R + "couple at s = 0 (as end_force)"),
@@ -312,20 +375,10 @@ def parse_scene(text: str, source: str = "<string>", default_name: str = "scene"
 
 def to_toml(raw: dict) -> str:
     """A scene dict as TOML (tables of keys with inline values), for scene.toml."""
-    def value(v) -> str:
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, (int, float)):
-            return repr(v)
-        if isinstance(v, str):
-            return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-        if isinstance(v, (list, tuple)):
-            return "[" + ", ".join(value(x) for x in v) + "]"
-        return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
     out = []
     for table, keys in raw.items():
         out.append(f"[{table}]")
-        out += [f"{k if k.replace('_', '').isalnum() else value(k)} = {value(v)}"
+        out += [f"{k if k.replace('_', '').isalnum() else toml_value(k)} = {toml_value(v)}"
                 for k, v in keys.items()]
         out.append("")
     return "\n".join(out)

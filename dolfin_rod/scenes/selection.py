@@ -31,7 +31,7 @@ class Choice:
 def _needs(scene: Scene) -> tuple[str, str]:
     """The least model and why."""
     if scene.is_rod_material:
-        return "rod", "a 3-D rod material (stiffness/viscosity tensors) is given"
+        return "rod", "a 3-D rod material (stiffness/viscosity tensors or a section) is given"
     mat, lds = scene["material"], scene["loads"]
     not_constant = [k for k in ("alpha", "alpha_d", "mu", "mu_d", "nu")
                     if not mat[k].is_constant]

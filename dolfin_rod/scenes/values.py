@@ -278,6 +278,17 @@ def tensor(v) -> Tensor:
     return Tensor(terms)
 
 
+def damping_tensor(v) -> Tensor:
+    """A number c (c I), [c_1, c_2, c_3] (diagonal) or a symmetric 3x3 array, positive
+    semidefinite."""
+    if isinstance(v, dict):
+        raise BadValue("must be a number, [c_1, c_2, c_3] or a 3x3 array")
+    t = tensor(v) if isinstance(v, list) else Tensor((real(0.0)(v) * np.eye(3),))
+    if np.linalg.eigvalsh(t.terms[0]).min() < 0:
+        raise BadValue(f"must be positive semidefinite, got {t.terms[0].tolist()}")
+    return t
+
+
 def entry_point(v) -> str:
     """"package.module:function": imported (from the scene's folder or sys.path)."""
     v = string(v)
@@ -300,6 +311,8 @@ def load_entry_point(spec: str, folder: Path | None = None):
         obj = getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError) as err:
         raise BadValue(f"cannot import {spec!r}: {err}") from None
+    except Exception as err:     # the module's own code failed: a SyntaxError, a raise
+        raise BadValue(f"cannot import {spec!r}: {type(err).__name__}: {err}") from None
     finally:
         if added:
             sys.path.remove(str(folder))
@@ -308,10 +321,26 @@ def load_entry_point(spec: str, folder: Path | None = None):
     return obj
 
 
-def refuse_unknown(table: dict, known: set[str]) -> None:
+def toml_value(v) -> str:
+    """A value as inline TOML (for scene.toml and for error messages that show a key's
+    new spelling)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    return "{ " + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + " }"
+
+
+def refuse_unknown(table: dict, known: set[str], also=()) -> None:
+    """BadValue naming the first key not in ``known`` (the message lists ``also``, keys
+    checked before, as known too)."""
     for k in table:
         if k not in known:
-            raise BadValue(f"unknown key (known: {', '.join(sorted(known))})", k)
+            raise BadValue(f"unknown key (known: {', '.join(sorted({*known, *also}))})", k)
 
 
 def section_inertia(v) -> tuple[float, float]:
@@ -321,6 +350,16 @@ def section_inertia(v) -> tuple[float, float]:
             raise BadValue(f"must be a number or [I_11, I_22], got {v!r}")
         return (real(0.0)(v[0]), real(0.0)(v[1]))
     x = real(0.0)(v)
+    return (x, x)
+
+
+def positive_pair(v) -> tuple[float, float]:
+    """A number (both entries) or [x_1, x_2], each > 0."""
+    if isinstance(v, list):
+        if len(v) != 2:
+            raise BadValue(f"must be a number or an array of 2 numbers, got {v!r}")
+        return (real(0.0, True)(v[0]), real(0.0, True)(v[1]))
+    x = real(0.0, True)(v)
     return (x, x)
 
 

@@ -1,0 +1,148 @@
+"""Joints between the rods of a system (system.RodSystem): exact, no penalty.
+
+    Joint("rigid", ("a", "b"), point)   position and rotation shared: the rods' frames
+                                        keep the angle they have at the point at t = 0
+    Joint("ball", ("a", "b"), point)    position shared, rotations independent
+
+``point`` is where the joint is in the initial (stress-free, placed) configuration; it
+must be a node of both rods (an end or an interior node).  The second rod's node is
+tied to the first's (fem/multipoint.py): x_b = x_a + (s_a - s_b) e_3 (the same
+centre-line point: r = s e_3 + x) and, rigid, theta_b = R_rel^T theta_a with R_rel =
+R(q_a)^T R(q_b) at t = 0, which keeps q_b = q_a R_rel exactly (rotation_vector.py:
+conj(Q) c(theta) Q = c(R(Q)^T theta)).  The Newton unknowns are the free dofs only, so
+the system keeps the structure of its rods (no multiplier, no saddle point).  A joined
+node carries no support (the rods' joined ends are "free"); several joints at one point
+(a tripod) tie every rod to the first.
+
+Reactions: the force and couple the joint exerts on the second rod,
+``joint_<name>_force_{xyz}``, ``joint_<name>_couple_{xyz}`` (spatial components): the
+second rod's residual at its joined node (as the reactions at a support).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import dolfinx.fem as fem
+import numpy as np
+
+from ..fem.multipoint import NodeLink
+from ..model_base import ENDS, NodeValues, near_nodes, nodal_residual
+from ..rotations import np_qmul, np_rotation_matrix
+from .boundary_conditions import spatial_rotations
+
+KINDS = ("rigid", "ball")
+_CONJ = np.array([1.0, -1, -1, -1])
+
+
+@dataclass
+class Joint:
+    """A joint of ``kind`` (KINDS) between two rods (names) at ``point``."""
+
+    kind: str
+    rods: tuple[str, str]
+    point: Sequence[float]
+    name: str = ""
+
+
+def check_joints(joints: list[Joint], rods) -> None:
+    """Kinds, rod names and points (a ValueError naming ``joints[k]``)."""
+    names = [rod.name for rod in rods]
+    for k, joint in enumerate(joints):
+        where = f"joints[{k}]"
+        if joint.kind not in KINDS:
+            raise ValueError(f"{where}.kind must be one of {KINDS}, got {joint.kind!r}")
+        if len(joint.rods) != 2 or joint.rods[0] == joint.rods[1] or \
+                any(name not in names for name in joint.rods):
+            raise ValueError(f"{where}.rods must name two different rods of {names}, got "
+                             f"{joint.rods!r}")
+        point = np.asarray(joint.point, dtype=float)
+        if point.shape != (3,) or not np.all(np.isfinite(point)):
+            raise ValueError(f"{where}.point must be a finite 3-vector, got {joint.point!r}")
+    labels = [joint_label(joint) for joint in joints]
+    for k, label in enumerate(labels):
+        if labels.index(label) != k:
+            raise ValueError(f"joints[{k}].name {label!r} is used twice: give the joints "
+                             "of one pair of rods different names")
+
+
+def joint_label(joint: Joint) -> str:
+    """The joint's name in the diagnostics: its name, else "<rod a>-<rod b>"."""
+    return joint.name or f"{joint.rods[0]}-{joint.rods[1]}"
+
+
+def joint_nodes(model, joints: list[Joint]) -> list[tuple[float, float]]:
+    """(s of the first rod's node, s of the second rod's node) at each joint's point; a
+    ValueError naming the joint if the point is not a node of both rods, or a node with
+    a support."""
+    layout, names = model.layout, [rod.name for rod in model.rods]
+    tol = 1e-9 * max(layout.lengths)
+    out = []
+    for k, joint in enumerate(joints):
+        pair = []
+        for name in joint.rods:
+            i = names.index(name)
+            s = np.linspace(*layout.span(i), layout.n_cells[i] + 1)
+            r = model.stress_free(s)[0]
+            distance = np.linalg.norm(r - np.asarray(joint.point, float), axis=1)
+            node = int(np.argmin(distance))
+            if distance[node] > tol:
+                raise ValueError(
+                    f"joints[{k}].point {list(joint.point)} is not on rod {name!r}: its "
+                    f"nearest node is at {r[node].round(12).tolist()} ({distance[node]:.3g} "
+                    "away); a joint is at a node of both rods")
+            for end, s_end in zip(ENDS, layout.span(i)):
+                supports = model.end_supports[i]
+                held = any(key[1] == end for key in supports.values)
+                if np.isclose(s[node], s_end) and held:
+                    raise ValueError(f"joints[{k}]: rod {name!r} is supported at its {end} "
+                                     "end, where the joint is; a joint joins free ends or "
+                                     "interior nodes")
+            pair.append(float(s[node]))
+        out.append(tuple(pair))
+    return out
+
+
+def node_links(model, joints: list[Joint], nodes) -> list[NodeLink]:
+    """The NodeLinks of the joints (fem/multipoint.py): displacement of the second rod's
+    node = the first's; rigid: rotation increment theta_b = R_rel^T theta_a."""
+    blocks = model.names
+    links = []
+    for joint, (s_a, s_b) in zip(joints, nodes):
+        links.append(NodeLink(blocks.index("displacement"), s_a, s_b,
+                              tuple(map(tuple, np.eye(3)))))
+        if joint.kind == "rigid":
+            q_a, q_b = model.stress_free(np.array([s_a, s_b]))[1]
+            relative = np_rotation_matrix(np_qmul(q_a * _CONJ, q_b))
+            links.append(NodeLink(blocks.index(model.unknowns.rotation), s_a, s_b,
+                                  tuple(map(tuple, relative.T))))
+    return links
+
+
+class JointReactions:
+    """The force and couple of each joint on its second rod (see module), between steps
+    (rotation increments 0)."""
+
+    def __init__(self, model, joints: list[Joint], nodes):
+        self.model = model
+        self.names = [joint_label(joint) for joint in joints]
+        self.s_nodes = [s_b for _, s_b in nodes]
+        unk = model.unknowns
+        self.blocks = ("displacement", unk.rotation)
+        self.nodes = {b: NodeValues(unk.spaces[b], self.s_nodes) for b in self.blocks}
+        self.rotations = NodeValues(unk.chart.q_n.function_space, self.s_nodes)
+        self.forms = None        # compiled at the first call (a model only stepped: never)
+
+    def __call__(self) -> dict:
+        if self.forms is None:
+            self.forms = {b: fem.form(near_nodes(self.model.residual[b], self.model.mesh,
+                                                 self.s_nodes)) for b in self.blocks}
+        force, moment = (nodal_residual(self.forms[b], self.nodes[b]) for b in self.blocks)
+        q = self.rotations(self.model.unknowns.chart.q_n.x.array)
+        out = {}
+        for name, f, m, q_node in zip(self.names, force, moment, q):
+            couple = spatial_rotations(self.blocks[1], q_node) @ m
+            out.update({f"joint_{name}_force_{c}": f[i] for i, c in enumerate("xyz")})
+            out.update({f"joint_{name}_couple_{c}": couple[i] for i, c in enumerate("xyz")})
+        return out

@@ -1,0 +1,93 @@
+"""One rod of a model: its data (material, cells, ends, loads, place in space) and the
+checks of a list of them (RodModel: one rod; system.RodSystem: several)."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..model_base import check_n_cells
+from .boundary_conditions import check_supports
+from .external_forces import DistributedLoad, EndLoad, check_loads
+from .material import RodParameters, check_parameters, is_zero
+
+NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
+
+
+@dataclass
+class Rod:
+    """A rod of a system: its parameters (length, material, reference strains), cells,
+    ends and their motions, loads (end loads at its own "left" end s = 0 and "right" end
+    s = L; distributed loads and coefficients as functions of its own arc length), and
+    where it starts: ``position`` of its left end and ``orientation``, the rotation
+    vector (axis times angle) that turns e_3 into its initial tangent and e_1, e_2 into
+    its initial directors d_1, d_2 there."""
+
+    params: RodParameters
+    n_cells: int = 32
+    ends: tuple[str, str] = ("clamped", "free")
+    end_loads: Sequence[EndLoad] = ()
+    distributed_loads: Sequence[DistributedLoad] = ()
+    end_displacement: dict | None = None
+    end_rotation: dict | None = None
+    end_slide: dict | None = None
+    position: Sequence[float] = (0.0, 0.0, 0.0)
+    orientation: Sequence[float] = (0.0, 0.0, 0.0)
+    name: str = "rod"
+
+    def __post_init__(self):
+        self.end_loads, self.distributed_loads = list(self.end_loads), list(self.distributed_loads)
+
+    @property
+    def placed(self) -> bool:
+        """Moved away from the origin along e_3 (position or orientation given)."""
+        return bool(np.any(np.asarray(self.position, float))
+                    or np.any(np.asarray(self.orientation, float)))
+
+
+def check_rods(rods: list[Rod], model: str, variant: str) -> None:
+    """Each rod's own rules; across rods: one kind of dynamics, one energy, names unique.
+    A ValueError names the rod (``rods[k] 'name'``) when there are several."""
+    if not rods:
+        raise ValueError("rods: a model needs at least one rod")
+    several = len(rods) > 1
+    for k, rod in enumerate(rods):
+        try:
+            _check_rod(rod, model, variant)
+        except ValueError as err:
+            raise ValueError(f"rods[{k}] {rod.name!r}: {err}" if several else str(err)) from err
+    if not several:
+        return
+    names = [rod.name for rod in rods]
+    for k, name in enumerate(names):
+        if not (isinstance(name, str) and NAME.match(name)):
+            raise ValueError(f"rods[{k}].name must be letters, digits, '_', '-' (not first), "
+                             f"got {name!r}")
+        if names.index(name) != k:
+            raise ValueError(f"rods[{k}].name {name!r} is used twice: names must be unique")
+    dynamic = [not is_zero(rod.params.rho_A) for rod in rods]
+    if any(dynamic) and not all(dynamic):
+        k = dynamic.index(not dynamic[0])
+        raise ValueError(f"rods[{k}].params.rho_A: every rod of a system is dynamic (rho_A > 0)"
+                         " or every rod quasi-static (rho_A = 0)")
+    if any(rod.params.energy is not rods[0].params.energy for rod in rods):
+        raise ValueError("rods[k].params.energy: the rods of a system share one energy "
+                         "function (its parameters may differ per rod through A, B, ...)")
+    if variant == "uniform":
+        raise ValueError("variant 'uniform' with several rods is not implemented (each rod "
+                         "would need its own global natural strains); use 'local'")
+
+
+def _check_rod(rod: Rod, model: str, variant: str) -> None:
+    check_n_cells(rod.n_cells)
+    check_supports(rod.ends, rod.end_displacement, rod.end_rotation,
+                   not is_zero(rod.params.rho_A), rod.end_slide)
+    check_parameters(rod.params, model == "evolving", model != "hyperelastic", variant)
+    check_loads(rod.end_loads, rod.distributed_loads)
+    for name in ("position", "orientation"):
+        value = np.asarray(getattr(rod, name), dtype=float)
+        if value.shape != (3,) or not np.all(np.isfinite(value)):
+            raise ValueError(f"{name} must be a finite 3-vector, got {getattr(rod, name)!r}")

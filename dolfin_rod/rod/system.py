@@ -1,0 +1,69 @@
+"""Several rods in one model: ``RodSystem``.
+
+Each rod (rods.Rod) has its own length, cells, material and reference strains, ends,
+end motions and loads, and its place in space (position, orientation); the rods share
+the constitutive model, the evolution variant, the constraint and the rotation
+unknowns.  They live on one interval mesh with one component per rod (layout.py), so
+the whole system is one SemiDiscreteProblem: one residual, one Jacobian, one Newton
+per step for all rods, advanced by any integrator of a single rod.  Rods without joints
+are independent: the system's Jacobian is block diagonal, one block per rod, and each
+rod's motion equals its run alone to round-off (tests/test_rod_system.py).
+
+    rods = [Rod(params, n_cells=16, position=(0.1 * k, 0, 0), name=f"rod{k}",
+                end_loads=[EndLoad("force", (0, 1e-3, 0))]) for k in range(6)]
+    system = RodSystem(rods)
+    system.set_initial_state()
+    TimeStepper(system.problem).run(0.0, 1.0, 0.01)
+    system.diagnostics(t)   # totals (energies, powers) and per rod "rod0.tip_position_x"
+
+Joints (joints.py: rigid, ball) tie a node of one rod to a node of another exactly
+(fem/multipoint.py: Newton on the free dofs); their reactions are in the diagnostics.
+
+Per rod the cells and nodes are those of its parameter range ``layout.span(k)``
+(``layout.rod_of_cells(mesh)``: the rod of every local cell).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+from mpi4py import MPI
+
+from . import diagnostics
+from .model import RodModel
+from .joints import Joint
+from .rods import Rod
+
+
+class RodSystem(RodModel):
+    """Several rods (rods.Rod) in one model, joined by ``joints`` (joints.Joint); model,
+    variant, constraint, rotations as RodModel (common to all rods).  Diagnostics: the
+    system's energies and powers under the single rod's names, each rod's tip and
+    reactions as ``<name>.<key>``, each joint's reactions as ``joint_<name>_...``."""
+
+    def __init__(self, rods: Sequence[Rod], joints: Sequence[Joint] = (),
+                 model: str = "evolving", variant: str = "local",
+                 constraint: str | None = None, rotations: str = "auto",
+                 comm: MPI.Comm = MPI.COMM_WORLD):
+        self._build(list(rods), model, variant, constraint, rotations, comm, joints)
+
+    def diagnostics(self, t: float) -> dict[str, float]:
+        """MPI-reduced scalars at time t: free and kinetic energy, dissipation rate, load
+        power (with the reactions' power at moving ends) of the whole system; per rod
+        ``<name>.tip_position_{xyz}``, ``<name>.tip_quaternion_{0..3}``,
+        ``<name>.tip_rotation_angle`` and its reactions (RodModel.diagnostics)."""
+        d = self.assembled_diagnostics(t)
+        moving, reaction_power = False, 0.0
+        for rod, tip, supports in zip(self.rods, self.tips, self.end_supports):
+            own = tip()
+            own.update(supports.reactions(self.residual, t))
+            moving = moving or "reaction_power" in own
+            reaction_power += own.pop("reaction_power", 0.0)
+            own["tip_rotation_angle"] = diagnostics.tip_rotation_angle(own)
+            d.update({f"{rod.name}.{key}": value for key, value in own.items()})
+        if self.joint_reactions is not None:
+            d.update(self.joint_reactions())
+        if moving:
+            d["reaction_power"] = reaction_power
+            d["load_power"] += reaction_power
+        return d

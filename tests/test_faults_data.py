@@ -1,0 +1,253 @@
+"""Fault injection, issue 28 items 1-11, 22, 25: no silent wrong result, no lost data.
+
+Each test names the issue item it reproduces and asserts the outcome a user sees: the
+exit status, a message naming the key or file, the files left untouched.  In-process
+tests call ``cli.main`` / ``run_scene`` on COMM_WORLD (the ``mpi`` ones run again under
+``mpirun -n 2``, rank 0's tmp_path shared); tests of signals start their own processes
+with a timeout.  Item 1 (``./rodenv`` and the user's paths) runs on the host:
+tests/rodenv_paths.sh (make test).
+
+Tolerances
+* resume vs the uninterrupted run: the same floating-point operations on the same data
+  (checkpoints store the doubles exactly), so 1e-12 absolute on O(1) values.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+
+import pytest
+from mpi4py import MPI
+from test_faults import CREEP, assert_same_rows, read_csv, run_main, shared, snapshot, write
+
+from dolfin_rod import output
+from dolfin_rod.cli import run_scene
+from dolfin_rod.scenes import load_scene
+
+COMM = MPI.COMM_WORLD
+
+
+def _stopped_run(folder, text: str = CREEP, steps: int = 5):
+    """A run of ``text`` stopped after ``steps`` steps (a checkpoint at step 3), as an
+    interrupted run leaves it; returns (scene file, run folder)."""
+    scene_file = write(folder / "creep.toml", text)
+    run = folder / "run"
+    summary = run_scene(load_scene(scene_file), run, stop_after=steps, quiet=True)
+    assert summary["status"] == "stopped"
+    return scene_file, run
+
+
+# --- item 2: --overwrite replaces only a folder this program made -----------------------
+
+
+@pytest.mark.mpi
+def test_overwrite_refuses_a_users_folder_that_holds_a_scene(tmp_path, capsys):
+    folder = shared(tmp_path)
+    project = folder / "myproject"
+    if COMM.rank == 0:
+        (project / "data").mkdir(parents=True)
+        (project / "thesis.tex").write_text("precious")
+        (project / "data" / "measurements.csv").write_text("t,x\n0,1\n")
+        for name in ("summary.json", "timeseries.csv"):     # look like run outputs
+            (project / name).write_text("{}")
+    scene_file = write(project / "scene.toml", CREEP)
+    before = snapshot(project) if COMM.rank == 0 else None
+    code, out, err = run_main(capsys, "run", scene_file, "--out", project, "--overwrite")
+    assert code == 2
+    if COMM.rank == 0:
+        assert err.startswith("error: --overwrite: ") and "not a dolfin-rod run folder" in err
+        assert ".dolfin-rod-run" in err and out == "" and err.count("\n") == 1, err
+        assert snapshot(project) == before
+    # a folder the program made is replaced (stale files go)
+    run = folder / "run"
+    assert run_main(capsys, "run", scene_file, "--out", run, "--quiet")[0] == 0
+    if COMM.rank == 0:
+        (run / "stale.txt").write_text("old")
+    COMM.barrier()
+    assert run_main(capsys, "run", scene_file, "--out", run, "--overwrite", "--quiet")[0] == 0
+    if COMM.rank == 0:
+        assert not (run / "stale.txt").exists() and (run / ".dolfin-rod-run").is_file()
+
+
+# --- item 25: --out LINK --overwrite: a clear message, nothing deleted -------------------
+
+
+@pytest.mark.mpi
+def test_overwrite_through_a_symbolic_link_is_refused_clearly(tmp_path, capsys):
+    folder = shared(tmp_path)
+    scene_file = write(folder / "creep.toml", CREEP)
+    run, link = folder / "run", folder / "link"
+    assert run_main(capsys, "run", scene_file, "--out", run, "--quiet")[0] == 0
+    if COMM.rank == 0:
+        link.symlink_to(run)
+    before = snapshot(run) if COMM.rank == 0 else None
+    code, _, err = run_main(capsys, "run", scene_file, "--out", link, "--overwrite")
+    assert code == 2
+    if COMM.rank == 0:
+        assert f"--overwrite: {link} is a symbolic link (to {run})" in err, err
+        assert "Errno" not in err and "PosixPath" not in err, err
+        assert link.is_symlink() and snapshot(run) == before
+
+
+# --- item 3: a resume killed while it rewrites timeseries.csv loses no row ---------------
+
+
+class Killed(BaseException):
+    """A SIGKILL stand-in: no handler of the program catches it."""
+
+
+@pytest.mark.mpi
+def test_resume_killed_while_rewriting_the_time_series_keeps_every_row(tmp_path, capsys,
+                                                                       monkeypatch):
+    folder = shared(tmp_path)
+    scene_file, run = _stopped_run(folder)
+    full = run_scene(load_scene(scene_file), folder / "full", quiet=True)
+    before = (run / "timeseries.csv").read_bytes() if COMM.rank == 0 else None
+
+    class DyingWriter(csv.DictWriter):     # killed after writing two rows of the rewrite
+        rows = 0
+
+        def writerow(self, row):
+            DyingWriter.rows += 1
+            if DyingWriter.rows > 2:
+                raise Killed
+            return super().writerow(row)
+    monkeypatch.setattr(output.csv, "DictWriter", DyingWriter)
+    if COMM.rank == 0:
+        with pytest.raises(Killed):
+            run_scene(load_scene(scene_file), run, resume=True, quiet=True, comm=MPI.COMM_SELF)
+        assert (run / "timeseries.csv").read_bytes() == before
+    monkeypatch.undo()
+    COMM.barrier()
+    code, _, _ = run_main(capsys, "run", scene_file, "--out", run, "--resume", "--quiet")
+    assert code == 0 and full["status"] == "completed"
+    if COMM.rank == 0:
+        assert_same_rows(read_csv(folder / "full" / "timeseries.csv"),
+                         read_csv(run / "timeseries.csv"))
+        assert not (run / "timeseries.csv-new").exists()
+
+
+@pytest.mark.mpi
+def test_resume_refuses_a_time_series_with_missing_rows(tmp_path, capsys):
+    """What the killed rewrite used to leave (rows cut after step 1): resume refuses it
+    instead of reporting a complete run with a hole."""
+    folder = shared(tmp_path)
+    scene_file, run = _stopped_run(folder)
+    if COMM.rank == 0:
+        lines = (run / "timeseries.csv").read_text().splitlines(keepends=True)
+        (run / "timeseries.csv").write_text("".join(lines[:3]))     # header, steps 0, 1
+    before = snapshot(run) if COMM.rank == 0 else None
+    code, _, err = run_main(capsys, "run", scene_file, "--out", run, "--resume")
+    assert code == 2
+    if COMM.rank == 0:
+        assert "timeseries.csv lacks the rows of steps 2-3 before the checkpoint (step 3)" \
+            in err and "nothing was changed" in err, err
+        assert snapshot(run) == before
+
+
+# --- item 7: checkpoint clean-up deletes only this run's checkpoints --------------------
+
+
+@pytest.mark.mpi
+def test_symlinked_checkpoint_folder_keeps_what_others_put_there(tmp_path, capsys):
+    """The run's checkpoints moved to a shared folder and linked back; a resume writes
+    its new checkpoint there and removes the one it resumed from, nothing else."""
+    folder = shared(tmp_path)
+    scene_file, run = _stopped_run(folder)
+    store = folder / "shared_ckpt"
+    if COMM.rank == 0:
+        (store / "other_experiment").mkdir(parents=True)
+        (store / "other_experiment" / "state.txt").write_text("someone else's")
+        (run / "checkpoint" / "step-000000003").rename(store / "step-000000003")
+        (run / "checkpoint").rmdir()
+        (run / "checkpoint").symlink_to(store)
+    COMM.barrier()
+    code, _, _ = run_main(capsys, "run", scene_file, "--out", run, "--resume", "--quiet")
+    assert code == 0
+    if COMM.rank == 0:   # 8 steps, a checkpoint every 3: resumed at 3, wrote 6
+        assert sorted(p.name for p in store.iterdir()) == ["other_experiment",
+                                                           "step-000000006"]
+        assert (store / "other_experiment" / "state.txt").read_text() == "someone else's"
+        assert (run / "checkpoint").is_symlink()
+
+
+# --- item 8: checksums over meta.json and state.bp, verified on resume ------------------
+
+
+def _checkpoint(run):
+    return next(p for p in (run / "checkpoint").iterdir() if not p.name.endswith("partial"))
+
+
+def _edit_step(run) -> None:
+    meta_file = _checkpoint(run) / "meta.json"
+    meta = json.loads(meta_file.read_text())
+    meta["step"] = 1                         # the issue's 84 -> 34: rows mislabelled
+    meta_file.write_text(json.dumps(meta))
+
+
+def _truncate_state(run) -> None:
+    data = max((p for p in (_checkpoint(run) / "state.bp").iterdir() if p.is_file()),
+               key=lambda p: p.stat().st_size)
+    os.truncate(data, data.stat().st_size // 2)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("damage, message", [
+    (_edit_step, "its meta.json does not match the checksum written with it"),
+    (_truncate_state, "does not match the checksums in meta.json"),
+], ids=["edited step", "truncated state"])
+def test_resume_refuses_an_edited_or_damaged_checkpoint(tmp_path, capsys, damage, message):
+    folder = shared(tmp_path)
+    scene_file, run = _stopped_run(folder)
+    if COMM.rank == 0:
+        damage(run)
+    before = snapshot(run) if COMM.rank == 0 else None
+    code, out, err = run_main(capsys, "run", scene_file, "--out", run, "--resume")
+    assert code == 2
+    if COMM.rank == 0:
+        assert err.startswith(f"error: cannot resume from {_checkpoint(run)}: ") \
+            and message in err and "nothing was changed" in err and out == "", err
+        assert snapshot(run) == before
+
+
+# --- item 6: SNES "converged" is checked against the true residual ----------------------
+
+# cantilever_creep's rod, a large step end force, 4 cells, two quasi-static steps
+STATIC_ROD = """
+[geometry]
+n_cells = 4
+[material]
+variant = "local"
+stiffness = { A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0], A_d = [1.0, 1.0, 1.0], B_d = [100.0, 100.0, 100.0] }
+viscosity = { M = [0.0, 0.0, 0.0], N = [0.0, 0.0, 0.0], M_d = [1.0, 1.0, 1.0], N_d = [1.0, 1.0, 1.0] }
+[loads]
+end_force = { type = "step", value = [0.8, 0.0, 0.0] }
+[time]
+t_end = 0.1
+dt = 0.05
+max_step_cuts = 1
+[outputs]
+plots = false
+fields = false
+animation = false
+"""
+
+
+@pytest.mark.mpi
+def test_one_linear_solve_reported_as_converged_is_a_failed_run(tmp_path, capsys):
+    """snes_type = "ksponly" (one Newton step, reported CONVERGED_ITS) on a large
+    deflection: exit 3 naming the residual and the options, not a wrong tip with exit 0.
+    The same scene with the default options completes (the check passes real solutions)."""
+    folder = shared(tmp_path)
+    good = write(folder / "good.toml", STATIC_ROD)
+    assert run_main(capsys, "run", good, "--out", folder / "good", "--quiet")[0] == 0
+    bad = write(folder / "bad.toml", STATIC_ROD + '[solver]\noptions = {snes_type = "ksponly"}\n')
+    code, out, err = run_main(capsys, "run", bad, "--out", folder / "bad", "--quiet")
+    assert code == 3
+    if COMM.rank == 0:
+        assert err.startswith("failed: t = 0,") and "CONVERGED_ITS but the residual norm at " \
+            "the solution is" in err and "check the solver options" in err, err
+        summary = json.loads((folder / "bad" / "summary.json").read_text())
+        assert summary["status"] == "failed" and summary["t_end_reached"] == 0.0

@@ -1,0 +1,175 @@
+"""Physical input (issue 25 item 1): section constants against closed forms and
+independent quadrature, Cowper's shear factors against his published table, and a scene
+given in E, nu, radius against the same scene given in tensors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import dblquad
+
+from dolfin_rod.rod import sections
+from dolfin_rod.scenes import SceneError, build, parse_scene
+
+
+def quadrature(shape, radius_of_angle, r_in=0.0):
+    """(area, int x_1^2, int x_2^2) over a star-shaped region in polar coordinates
+    (scipy dblquad, tolerance 1e-12 relative): independent of the closed forms."""
+    def integral(f):
+        return dblquad(lambda r, th: f(r, th) * r, 0.0, 2 * np.pi,
+                       lambda th: r_in, radius_of_angle, epsabs=0, epsrel=1e-12)[0]
+    return (integral(lambda r, th: 1.0), integral(lambda r, th: (r * np.cos(th))**2),
+            integral(lambda r, th: (r * np.sin(th))**2))
+
+
+@pytest.mark.parametrize("section, radius_of_angle, r_in", [
+    (sections.circle(0.3), lambda th: 0.3, 0.0),
+    (sections.ellipse(0.5, 0.2), lambda th: 1 / np.hypot(np.cos(th) / 0.5, np.sin(th) / 0.2),
+     0.0),
+    (sections.tube(0.4, 0.3), lambda th: 0.4, 0.3),
+])
+def test_area_and_second_moments_against_quadrature(section, radius_of_angle, r_in):
+    """x_1 along d_1: I11 = int x_1^2 dA (the ellipse's semi-axis 0.5 lies along d_1)."""
+    area, I11, I22 = quadrature(section, radius_of_angle, r_in)
+    assert (section.area, section.I11, section.I22) == pytest.approx((area, I11, I22),
+                                                                     rel=1e-10)
+
+
+def test_torsion_constants_of_circle_tube_and_ellipse():
+    """Circle and tube: J is the polar moment I11 + I22 (no warping); an ellipse with
+    equal semi-axes is the circle; for a thin ellipse (b << a) pi a^3 b^3/(a^2 + b^2)
+    tends to pi a b^3 (relative error (b/a)^2)."""
+    for s in (sections.circle(0.3), sections.tube(0.4, 0.3)):
+        assert s.J == pytest.approx(s.I11 + s.I22, rel=1e-14)
+    assert sections.ellipse(0.3, 0.3).J == pytest.approx(sections.circle(0.3).J, rel=1e-14)
+    assert sections.ellipse(1.0, 1e-3).J == pytest.approx(np.pi * 1e-9, rel=1e-5)
+
+
+@pytest.mark.parametrize("ratio, beta", [(1.0, 0.141), (1.5, 0.196), (2.0, 0.229),
+                                         (3.0, 0.263), (4.0, 0.281), (5.0, 0.291),
+                                         (10.0, 0.312)])
+def test_rectangle_torsion_constant_against_the_published_table(ratio, beta):
+    """J = beta b t^3 (Timoshenko & Goodier, Theory of Elasticity, Sec. 109, table of
+    k_1 for b/t = 1 ... 10, three digits): the series summed to 50 terms."""
+    t = 0.02
+    s = sections.rectangle(t, ratio * t)          # either orientation
+    assert s.J / (ratio * t * t**3) == pytest.approx(beta, abs=6e-4)
+    assert sections.rectangle(ratio * t, t).J == s.J
+    assert s.area == pytest.approx(ratio * t * t, rel=1e-15)
+    assert (s.I11, s.I22) == pytest.approx((t**3 * ratio * t / 12, t * (ratio * t)**3 / 12),
+                                           rel=1e-14)
+
+
+def test_long_rectangle_tends_to_one_third():
+    """b/t -> infinity: J -> b t^3/3 (1 - 0.630 t/b) (the series' leading correction,
+    192/pi^5 sum 1/n^5 = 0.630)."""
+    s = sections.rectangle(1.0, 1e-3)
+    assert s.J / (1.0 * 1e-9 / 3) == pytest.approx(1 - 0.630 * 1e-3, abs=1e-6)
+
+
+@pytest.mark.parametrize("section, nu, k", [
+    (sections.circle(1.0), 0.3, 0.886), (sections.rectangle(1.0, 2.0), 0.3, 0.850),
+    (sections.circle(1.0), 0.0, 0.857), (sections.rectangle(1.0, 1.0), 0.0, 0.833),
+    (sections.tube(1.0, 0.999999), 0.3, 0.531)])
+def test_shear_factors_against_cowpers_table(section, nu, k):
+    """Cowper (1966), Table 1: solid circle 6(1+nu)/(7+6nu), rectangle
+    10(1+nu)/(12+11nu), thin-walled round tube 2(1+nu)/(4+3nu); three digits."""
+    assert section.shear_factors(nu) == pytest.approx((k, k), abs=6e-4)
+
+
+def test_material_moduli_and_bad_input():
+    assert sections.Material(2.6, poisson_ratio=0.3).moduli() == pytest.approx((2.6, 1.0, 0.3))
+    assert sections.Material(3.0, shear_modulus=1.0).moduli() == pytest.approx((3.0, 1.0, 0.5))
+    with pytest.raises(ValueError, match="exactly one of shear_modulus and poisson_ratio"):
+        sections.Material(1.0, 0.4, 0.3).moduli()
+    with pytest.raises(ValueError, match="Poisson's ratio must be in"):
+        sections.Material(1.0, shear_modulus=0.2).moduli()
+    with pytest.raises(ValueError, match="inner_radius"):
+        sections.tube(1.0, 1.0)
+
+
+E, NU, RADIUS, RHO, TAU = 2.0e6, 0.3, 0.02, 1200.0, 0.05
+PHYSICAL = f"""
+[geometry]
+length = 1.0
+n_cells = 6
+[section]
+shape = "circle"
+radius = {RADIUS}
+[material]
+youngs_modulus = {E}
+poisson_ratio = {NU}
+density = {RHO}
+natural_stiffness_ratio = 0.5
+relaxation_time = {TAU}
+[loads]
+gravity = [-9.81, 0.0, 0.0]
+[time]
+t_end = 0.03
+dt = 0.01
+"""
+
+
+def tensor_scene() -> str:
+    """The same rod in tensors, computed here from the textbook formulas."""
+    G = E / (2 * (1 + NU))
+    a, I = np.pi * RADIUS**2, np.pi * RADIUS**4 / 4
+    k = 6 * (1 + NU) / (7 + 6 * NU)
+    A, B = np.array([E * I, E * I, G * 2 * I]), np.array([k * G * a, k * G * a, E * a])
+    text = PHYSICAL.split("[section]")[0] + f"""
+[material]
+stiffness = {{ A = {A.tolist()}, B = {B.tolist()}, A_d = {(0.5 * A).tolist()}, B_d = {(0.5 * B).tolist()} }}
+viscosity = {{ M_d = {(TAU * 1.5 * A).tolist()}, N_d = {(TAU * 1.5 * B).tolist()} }}
+density = {RHO * a}
+section_inertia = {RHO * I}
+""" + "[loads]" + PHYSICAL.split("[loads]")[1]
+    return text
+
+
+def final_diagnostics(text: str) -> dict:
+    sim = build(parse_scene(text), "rod")
+    sim.start()
+    for k in range(3):
+        sim.advance(0.01 * k, 0.01 * (k + 1))
+    return sim.diagnostics(0.03)
+
+
+def test_scene_in_youngs_modulus_poisson_ratio_radius_equals_the_scene_in_tensors():
+    """Same run to round-off (1e-12 relative: the tensors differ in the last bits only)."""
+    physical, tensors = final_diagnostics(PHYSICAL), final_diagnostics(tensor_scene())
+    assert abs(physical["tip_position_x"]) > 1e-6          # it moved
+    for key, value in tensors.items():
+        assert physical[key] == pytest.approx(value, rel=1e-12, abs=1e-15), key
+
+
+def test_check_prints_and_scene_records_the_derived_tensors():
+    scene = parse_scene(PHYSICAL)
+    derived = scene["material"]["derived"]
+    G = E / (2 * (1 + NU))
+    assert derived["A"][2] == pytest.approx(G * np.pi * RADIUS**4 / 2, rel=1e-14)
+    assert derived["density"] == pytest.approx(RHO * np.pi * RADIUS**2, rel=1e-14)
+    assert derived["M_d"][0] == pytest.approx(TAU * 1.5 * E * np.pi * RADIUS**4 / 4, rel=1e-14)
+
+
+@pytest.mark.parametrize("change, key", [
+    ("[material]\nstiffness = { A = [1.0, 1.0, 1.0], B = [1.0, 1.0, 1.0] }\n",
+     "material.stiffness.A"),
+    ("[material]\nshear_modulus = 1e6\n", "material.shear_modulus"),
+    ("[material]\nviscosity = { M_d = [1.0, 1.0, 1.0] }\n", "material.viscosity.M_d"),
+    ("[material]\nsection_inertia = 1.0\n", "material.section_inertia"),
+    ("[section]\nsides = [1.0, 2.0]\n", "section.sides"),
+])
+def test_overlapping_physical_and_tensor_keys_are_one_error_naming_the_key(change, key):
+    table, line = change.split("\n", 1)
+    text = PHYSICAL.replace(table + "\n", table + "\n" + line, 1)
+    with pytest.raises(SceneError) as info:
+        parse_scene(text)
+    assert info.value.key == key, str(info.value)
+
+
+def test_missing_section_dimension_and_youngs_modulus_without_section():
+    with pytest.raises(SceneError, match=r"\[section.radius\]: missing"):
+        parse_scene(PHYSICAL.replace(f"radius = {RADIUS}\n", ""))
+    with pytest.raises(SceneError, match=r"\[material.youngs_modulus\]: needs a \[section\]"):
+        parse_scene(PHYSICAL.replace('shape = "circle"\n', "").replace(
+            f"radius = {RADIUS}\n", ""))

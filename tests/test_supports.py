@@ -1,0 +1,141 @@
+"""Supports of the 3-D rod (issue 25 item 3): a clamped or pinned end sliding along an
+axis, against closed forms re-derived in each test's docstring."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from dolfin_rod import loads
+from dolfin_rod.cli import run_scene
+from dolfin_rod.closed_forms import p1_twist
+from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
+from quick_scenes import ROOT, assert_serial_run_equal, quick_scene
+
+comm = MPI.COMM_WORLD
+
+TIGHT = {"snes_rtol": 1e-11, "snes_atol": 1e-12}
+
+
+def run(model, t_end, dt, scheme=None, options=None):
+    model.set_initial_state()
+    history = []
+    stepper = TimeStepper(model.problem, scheme, solver_options=options or TIGHT)
+    stepper.run(0.0, t_end, dt, observer=lambda t, s: history.append(model.diagnostics(t)))
+    return history
+
+
+def hanging_rod(n_cells=8, turns=1.0, slide=True, **kw):
+    """A straight rod along e_3 (the direction of the weight: a hanging rod), clamped at
+    s = 0, its end s = L in a clamp that turns by phi(t) about e_3 (a ramp) and slides
+    along e_3, loaded by its own weight p per length and a weight W at the end."""
+    L, EA, GJ, W, p = 2.0, 40.0, 3.0, 1.5, 0.25
+    params = RodParameters(length=L, A=(1.0, 1.0, GJ), B=(30.0, 30.0, EA), **kw)
+    phi = loads.ramp(turns, 1.0)
+    model = RodModel(params, n_cells=n_cells, model="hyperelastic",
+                     ends=("clamped", "clamped"),
+                     end_rotation={"right": lambda t: (0.0, 0.0, float(phi(t)))},
+                     end_slide={"right": (0.0, 0.0, 1.0)} if slide else None,
+                     end_loads=[EndLoad("force", (0.0, 0.0, W), end="right")] if slide else (),
+                     distributed_loads=[DistributedLoad("force", (0.0, 0.0, p))])
+    return model, dict(L=L, EA=EA, GJ=GJ, W=W, p=p, phi=phi)
+
+
+@pytest.mark.mpi
+def test_sliding_turning_clamp_keeps_the_tension_equal_to_the_weight():
+    """Quasi-static.  Axial balance n_3' + p = 0 with n_3(L) = W (the clamp slides freely
+    along e_3, so only the weight acts along it): n_3(s) = W + p (L - s), the top clamp
+    carries -(W + p L), the sliding clamp nothing along its axis; r_3' = 1 + n_3/EA, so
+    the end sits at L + (W L + p L^2/2)/EA (P1 bar: nodally exact).  The twist about
+    the axis decouples from the stretch (R e_3 = e_3): the top clamp's couple is the
+    discrete uniform twist's, -GJ u_h factor (closed_forms.p1_twist), whatever the
+    tension.  Tolerance: Newton's (rtol 1e-11)."""
+    model, c = hanging_rod()
+    h = run(model, 1.0, 0.25)
+    d = h[-1]
+    tension = c["W"] + c["p"] * c["L"]
+    assert d["reaction_force_left_z"] == pytest.approx(-tension, rel=1e-9)
+    assert d["tip_position_z"] == pytest.approx(
+        c["L"] + (c["W"] * c["L"] + c["p"] * c["L"] ** 2 / 2) / c["EA"], rel=1e-10)
+    for k in ("reaction_force_right_z", "tip_position_x", "tip_position_y",
+              "reaction_force_left_x", "reaction_force_right_x"):
+        assert abs(d[k]) < 1e-9, k
+    u_h, factor = p1_twist(float(c["phi"](1.0)) / c["L"], c["L"], 8)
+    assert d["reaction_couple_left_z"] == pytest.approx(-c["GJ"] * u_h * factor, rel=1e-8)
+    assert d["tip_rotation_angle"] == pytest.approx(1.0, abs=1e-10)
+
+
+@pytest.mark.mpi
+def test_dynamic_hanging_rod_on_a_sliding_clamp_settles_to_the_static_stretch():
+    """Dynamic, the same rod (rho A = 0.5, rho I = 1e-3, drag c = 5 per length), started
+    at rest unstretched: mass-proportional damping makes every axial mode decay like
+    exp(-c t/(2 rho A)) = exp(-5 t) (the lowest, ~7 rad/s, is underdamped), so at t = 4
+    the end is at the static stretch L + (W L + p L^2/2)/EA to ~1e-8 L; throughout,
+    the sliding clamp takes no force along its axis (the residual there is solved, to
+    Newton's tolerance) and the end stays on the axis."""
+    model, c = hanging_rod(n_cells=4, turns=0.0, rho_A=0.5, I11=1e-3, I22=1e-3, drag=5.0)
+    h = run(model, 4.0, 0.02)
+    static = c["L"] + (c["W"] * c["L"] + c["p"] * c["L"] ** 2 / 2) / c["EA"]
+    assert h[-1]["tip_position_z"] == pytest.approx(static, abs=1e-6)
+    assert h[-1]["reaction_force_left_z"] == pytest.approx(-(c["W"] + c["p"] * c["L"]),
+                                                           rel=1e-5)
+    assert max(abs(d["tip_position_x"]) + abs(d["tip_position_y"]) for d in h) < 1e-12
+    assert max(abs(d["reaction_force_right_z"]) for d in h) < 1e-8
+
+
+@pytest.mark.parametrize("slide, match", [
+    ((0.0, 0.0, 2.0), "must be a unit vector"),
+    ((0.6, 0.0, 0.8), "must be a coordinate axis"),
+    ((0.0, np.nan, 1.0), "must be a finite"),
+])
+def test_bad_slide_axis_is_refused_naming_it(slide, match):
+    with pytest.raises(ValueError, match=r"end_slide\['right'\] " + match):
+        RodModel(RodParameters(), n_cells=2, ends=("clamped", "clamped"),
+                 end_slide={"right": slide})
+
+
+def test_a_free_end_cannot_slide():
+    with pytest.raises(ValueError, match="free end has no support"):
+        RodModel(RodParameters(), n_cells=2, end_slide={"right": (0.0, 0.0, 1.0)})
+
+
+HANGING = ROOT / "scenes/hanging_twist.toml"
+QUIET = dict(geometry__n_cells=4, outputs__animation=False, outputs__plots=False,
+             outputs__fields=False)
+
+
+@pytest.mark.mpi
+def test_hanging_twist_scene_carries_the_weight_serially_and_on_two_ranks(tmp_path):
+    """scenes/hanging_twist.toml at 4 cells for 3 s: the top clamp carries the weight
+    below it, W + rho A g L (the sliding bottom clamp takes no vertical force), once the
+    drag has damped the start's axial oscillation (decay exp(-c t/(2 rho A)) = exp(-4.8
+    t): 6e-7 of the ~1 N start at t = 3; measured 2.5e-5 relative at 16 cells, the twist
+    settling after the turn ends at t = 2; tolerance 2e-4), and 2 ranks give the serial
+    run's time series to 1e-10 (round-off of a different summation order)."""
+    folder = Path(comm.bcast(str(tmp_path), root=0))
+    summary = run_scene(quick_scene(HANGING, 300, **QUIET), folder / "run", quiet=True)
+    weight = 0.5 + 0.31415926535897937 * 9.81
+    assert summary["final"]["reaction_force_right_z"] == pytest.approx(weight, rel=2e-4)
+    assert abs(summary["final"]["reaction_force_left_z"]) < 1e-8
+    if comm.size > 1 and comm.rank == 0:
+        assert_serial_run_equal(HANGING, folder, 300, **QUIET)
+
+
+@pytest.mark.parametrize("change, key, match", [
+    ({"boundary.start_slide": [0.0, 0.0, 2.0]}, "boundary.start_slide", "must be a unit vector"),
+    ({"boundary.start_slide": [0.0, 0.6, 0.8]}, "boundary.start_slide", "coordinate axis"),
+    ({"boundary.start": "free"}, "boundary.start_slide", "only a clamped or pinned end"),
+    ({"loads.start_force": {"type": "constant", "value": [0.1, 0.0, -0.5]}},
+     "loads.start_force", "only a dead force along that axis"),
+    ({"boundary.start_displacement": {"type": "ramp", "value": [0.0, 0.0, 0.1],
+                                      "duration": 1.0}},
+     "boundary.start_displacement", "across that axis only"),
+])
+def test_bad_sliding_support_in_a_scene_names_the_key(change, key, match):
+    from dolfin_rod.scenes import SceneError, load_scene
+    with pytest.raises(SceneError, match=rf"\[{key}\]: .*{match}"):
+        load_scene(HANGING, change)
