@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import shutil
 from pathlib import Path
@@ -141,6 +142,27 @@ def integrity_problem(folder: Path, meta) -> str | None:
     return None
 
 
+# meta.json's entries and their kinds (a resume reads each): a writer's bug or another
+# program could pass the checksum with content no resume can use
+META_KINDS = {"step": int, "time": float, "model": str, "sim": dict, "real": dict,
+              "balance": dict, "fingerprint": dict}
+
+
+def content_problem(meta: dict) -> str | None:
+    """Why meta.json's content cannot be resumed from (a missing entry, one of the wrong
+    kind, a negative step, a time that is not a finite number), or None."""
+    for key, kind in META_KINDS.items():
+        value = meta.get(key)
+        ok = (isinstance(value, (int, float)) and not isinstance(value, bool)
+              and math.isfinite(value)) if kind is float else (
+            isinstance(value, kind) and not isinstance(value, bool))
+        if not ok or (key == "step" and value < 0):
+            what = {int: "an integer >= 0", float: "a finite number", str: "a string",
+                    dict: "a table"}[kind]
+            return f"meta.json: {key} must be {what}, got {value!r}"
+    return None
+
+
 def remove_without_following(path: Path) -> None:
     """Delete a checkpoint folder; a symbolic link is unlinked, never followed."""
     if path.is_symlink():
@@ -166,8 +188,12 @@ def read_checkpoint_meta(run: Path, comm, scene) -> dict:
         if not done:
             raise OutputError(f"--resume: no complete checkpoint in {root} (the scene "
                               "needs outputs.checkpoint_every > 0)")
-        meta = json.loads((done[-1] / "meta.json").read_text())
-        problem = integrity_problem(done[-1], meta)
+        try:
+            meta = json.loads((done[-1] / "meta.json").read_bytes())
+        except ValueError as err:           # not UTF-8, not JSON
+            raise OutputError(f"cannot resume from {done[-1]}: its meta.json is not JSON "
+                              f"({err}); nothing was changed") from None
+        problem = integrity_problem(done[-1], meta) or content_problem(meta)
         if problem:
             raise OutputError(f"cannot resume from {done[-1]}: {problem}; nothing was "
                               "changed")

@@ -307,3 +307,109 @@ def test_overflowing_polynomial_is_one_error_in_check(tmp_path, capsys, table, v
     (tmp_path / "poly.toml").write_text(text)
     code, out, err = run_main(capsys, "check", tmp_path / "poly.toml")
     assert_one_error(code, out, err, key, "must be finite on [0, 10]; it overflows at s = ")
+
+
+# --- items 13, 20: damaged checkpoints and time series on resume --------------------------
+
+
+def _stopped_run(folder: Path, steps: int = 5) -> tuple[Path, Path]:
+    """CREEP stopped after ``steps`` steps (its checkpoint at step 3), as an interrupted
+    run leaves it; (scene file, run folder)."""
+    from dolfin_rod.cli import run_scene
+    from dolfin_rod.scenes import load_scene
+    scene_file = folder / "creep.toml"
+    if COMM.rank == 0:
+        scene_file.write_text(CREEP)
+    COMM.barrier()
+    summary = run_scene(load_scene(scene_file), folder / "run", stop_after=steps, quiet=True)
+    assert summary["status"] == "stopped"
+    return scene_file, folder / "run"
+
+
+def _checkpoint(run: Path) -> Path:
+    return next(p for p in (run / "checkpoint").iterdir() if not p.name.endswith("partial"))
+
+
+def _data_file(run: Path) -> Path:
+    return max((p for p in (_checkpoint(run) / "state.bp").iterdir() if p.is_file()),
+               key=lambda p: p.stat().st_size)
+
+
+def _flip_byte(run: Path) -> None:
+    data = bytearray(_data_file(run).read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    _data_file(run).write_bytes(bytes(data))
+
+
+def _rewrite_meta(run: Path, change) -> None:
+    """meta.json changed by ``change`` with its checksum recomputed (a writer's bug, or
+    another program), so only the content checks can find it."""
+    from dolfin_rod.checkpoints import meta_digest
+    path = _checkpoint(run) / "meta.json"
+    meta = json.loads(path.read_text())
+    change(meta)
+    if isinstance(meta, dict):
+        meta["sha256"] = meta_digest(meta)
+    path.write_text(json.dumps(meta))
+
+
+DAMAGE = {
+    "flipped state byte": (_flip_byte, "does not match the checksums"),
+    "truncated state": (lambda run: os.truncate(_data_file(run), 100),
+                        "does not match the checksums"),
+    "missing state.bp": (lambda run: shutil.rmtree(_checkpoint(run) / "state.bp"),
+                         "does not match the checksums"),
+    "meta.json a list": (lambda run: (_checkpoint(run) / "meta.json").write_text("[1, 2]"),
+                         "no checksums"),
+    "meta.json not JSON": (lambda run: (_checkpoint(run) / "meta.json").write_bytes(
+        b"\x00\xff{"), "its meta.json is not JSON"),
+    "string time": (lambda run: _rewrite_meta(run, lambda m: m.update(time="0.03")),
+                    "meta.json: time must be a finite number"),
+    "null field": (lambda run: _rewrite_meta(run, lambda m: m.update(balance=None)),
+                   "meta.json: balance must be"),
+    "negative step": (lambda run: _rewrite_meta(run, lambda m: m.update(step=-3)),
+                      "meta.json: step must be"),
+    "half-written time series": (
+        lambda run: (run / "timeseries.csv").write_text(
+            (run / "timeseries.csv").read_text()[:-1].rsplit("\n", 3)[0] + "\n3,0.0"),
+        "timeseries.csv: the row of step 3 is incomplete"),
+    "NUL in the time series": (lambda run: (run / "timeseries.csv").write_bytes(
+        (run / "timeseries.csv").read_bytes().replace(b"\n2,", b"\n\x002,")),
+        "timeseries.csv"),
+    "binary time series": (lambda run: (run / "timeseries.csv").write_bytes(
+        b"step,time\n\x00\x01\xff\xfe" * 10), "timeseries.csv"),
+}
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("damage", list(DAMAGE))
+def test_resume_from_a_damaged_checkpoint_is_one_error_and_changes_nothing(
+        tmp_path, capsys, damage):
+    """Items 13, 20: flipped or truncated ADIOS2 files (13: ADIOS2 waited for ever on a
+    truncated one), a missing state.bp, meta.json that is a list, a string time, a null
+    field, a half-written or binary timeseries.csv: tracebacks or hangs on resume; now
+    exit 2, one line naming the file, nothing changed, before ADIOS2 opens anything."""
+    folder = Path(COMM.bcast(str(tmp_path), root=0))
+    scene_file, run = _stopped_run(folder)
+    change, reason = DAMAGE[damage]
+    if COMM.rank == 0:
+        change(run)
+        before = {str(p): p.read_bytes() for p in run.rglob("*") if p.is_file()}
+    COMM.barrier()
+    code, out, err = run_main(capsys, "run", scene_file, "--out", run, "--resume")
+    assert code == 2, err
+    if COMM.rank == 0:
+        assert len(errors(err)) == 1 and "cannot resume" in err and reason in err, err
+        assert "Traceback" not in err and "completed" not in out
+        assert {str(p): p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
+
+
+@serial_only
+def test_resume_of_a_truncated_checkpoint_under_mpirun_ends(tmp_path):
+    """Item 13 as reported: mpirun -n 2 dolfin-rod run --resume with a truncated
+    state.bp data file waited for ever in ADIOS2; the checksums refuse it first."""
+    scene_file, run = _stopped_run(tmp_path)
+    os.truncate(_data_file(run), 100)
+    out = mpirun(2, "run", str(scene_file), "--out", str(run), "--resume")
+    assert out.returncode == 2, out.stderr
+    assert len(errors(out.stderr)) == 1 and "does not match the checksums" in out.stderr
