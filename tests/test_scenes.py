@@ -72,8 +72,9 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod",
                   "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
                   "hanging_twist.toml": "rod", "spin_up.toml": "rod",
-                  "rod_on_incline.toml": "rod", "rope_on_floor.toml": "rod",
-                  "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod"}
+                  "sprung_cantilever.toml": "rod", "rod_on_incline.toml": "rod",
+                  "rope_on_floor.toml": "rod", "sagging_cable.toml": "rod",
+                  "hanging_pendulum.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])

@@ -2,7 +2,7 @@
 several rods in one model: ``RodSystem`` (system.py)."""
 
 from . import sections
-from .boundary_conditions import END_TYPES
+from .boundary_conditions import END_TYPES, EndSpring
 from .constitutive import MODELS
 from .external_forces import DistributedLoad, EndLoad
 from .material import RodParameters
@@ -13,5 +13,5 @@ from .start import Arc, Helix, Polyline, StartingState, Straight
 from .system import RodSystem
 
 __all__ = ["RodModel", "RodSystem", "Rod", "Joint", "RodParameters", "EndLoad", "DistributedLoad",
-           "MODELS", "END_TYPES", "sections", "StartingState", "Straight", "Arc", "Helix",
-           "Polyline"]
+           "EndSpring", "MODELS", "END_TYPES", "sections", "StartingState", "Straight", "Arc",
+           "Helix", "Polyline"]

@@ -206,7 +206,7 @@ def build_torsion(scene: Scene, comm=None) -> FESimulation:
 def build_rod(scene: Scene, comm=None) -> FESimulation:
     """The 3-D rod (dolfin_rod.rod.RodModel) with every scene key mapped to its API."""
     from mpi4py import MPI
-    from ..rod import RodModel
+    from ..rod import EndSpring, RodModel
 
     mat, geo = scene["material"], scene["geometry"]
     ends = {"start": "left", "end": "right"}
@@ -226,6 +226,8 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
                          comm=comm or MPI.COMM_WORLD,
                          end_slide={side: axis for key, side in ends.items()
                                     if (axis := scene["boundary"][f"{key}_slide"]) is not None},
+                         end_springs={side: EndSpring(**spring) for key, side in ends.items()
+                                      if (spring := scene["boundary"][f"{key}_spring"])},
                          obstacles=obstacles(scene), contact=contact_law(scene, params))
     except ValueError as err:
         key = "material.energy" if str(err).startswith("energy") else "scene.model"

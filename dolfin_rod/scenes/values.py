@@ -278,6 +278,22 @@ def tensor(v) -> Tensor:
     return Tensor(terms)
 
 
+def spring_table(v) -> dict:
+    """{translational = k or [k_x, k_y, k_z], rotational = k or [k_1, k_2, k_3]}, each
+    >= 0 (rod/boundary_conditions.EndSpring)."""
+    if not isinstance(v, dict):
+        raise BadValue(f"must be a table {{translational = ..., rotational = ...}}, got "
+                       f"{type_name(v)}")
+    refuse_unknown(v, {"translational", "rotational"})
+    out = {}
+    for k, x in v.items():
+        try:
+            out[k] = vector3(0.0)(x) if isinstance(x, list) else real(0.0)(x)
+        except BadValue as bad:
+            raise BadValue(bad.reason, k) from None
+    return out
+
+
 def damping_tensor(v) -> Tensor:
     """A number c (c I), [c_1, c_2, c_3] (diagonal) or a symmetric 3x3 array, positive
     semidefinite."""
