@@ -56,7 +56,7 @@ def assert_serial_run_equal(path: Path | str, folder: Path, steps: int, atol: fl
 def resume_bound(row: dict[str, float], previous: dict[str, float] | None, key: str) -> float:
     """How far a resumed run's time-series value may lie from the uninterrupted run's:
     round-off of the state, 1e-12 relative.  The power residual is a difference quotient,
-    (E_i - E_{i-1}) / (t_i - t_{i-1}) + the means of D and P (dolfin_rod/output.py), so
+    (E_i - E_{i-1}) / (t_i - t_{i-1}) + the means of D and P (dolfin_rod/output/writer.py), so
     the same state agreement bounds it by 1e-12 times its inputs' scale,
     2 |E| / (t_i - t_{i-1}) + |D| + |P| (E = K + Psi).  Under mpirun in CI it differed by
     1.2e-12 and 1.8e-12 (3e-14 of that scale) while every state column agreed to 1e-12."""

@@ -352,7 +352,7 @@ def test_dynamic_rod_scene_runs_the_default_api_and_resumes_exactly(tmp_path):
     accelerations) equals the uninterrupted one (round-off)."""
     from dolfin_rod.integrators.stepper import TimeStepper
     from dolfin_rod.rod import RodModel
-    from dolfin_rod.scenes.models import rod_loads, rod_parameters
+    from dolfin_rod.scenes.builders import rod_loads, rod_parameters
     folder = shared_folder(tmp_path)
     scene = load_scene(ROOT / "scenes" / "gravity_cantilever.toml", {
         "geometry.n_cells": 8, "time.t_end": 0.08, "outputs.checkpoint_every": 3,
@@ -534,7 +534,7 @@ def _rod(extra: str = "", **changes):
 
 
 def _final_fields(scene, tmp_path):
-    from dolfin_rod.vtx import read_vtx
+    from dolfin_rod.output.vtx import read_vtx
     folder = shared_folder(tmp_path) / "run"
     summary = run_scene(scene, folder, quiet=True)
     assert summary["status"] == "completed", summary["message"]

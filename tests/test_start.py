@@ -11,7 +11,7 @@ import pytest
 from dolfin_rod import (Arc, Helix, Polyline, RodModel, RodParameters, StartingState,
                         Straight, TimeStepper)
 from dolfin_rod.rod import EndLoad
-from dolfin_rod.rotations import (np_quaternion_from_rotation_vector, np_rotation_matrix)
+from dolfin_rod.theory.rotations import np_quaternion_from_rotation_vector, np_rotation_matrix
 
 EA, RHO_A, I11, I22 = 50.0, 2.0, 0.03, 0.02
 PLACE = {"position": (0.4, -1.0, 2.5), "orientation": (0.3, -0.7, 1.1)}
@@ -241,7 +241,7 @@ def test_helix_scene_frame_0_is_the_curve(tmp_path):
     from mpi4py import MPI
 
     from dolfin_rod import parse_scene, run_scene
-    from dolfin_rod.vtx import read_vtx
+    from dolfin_rod.output.vtx import read_vtx
     text = SCENE + (
         "[initial]\nshape = { type = \"helix\", radius = 0.3, pitch = 0.5 }\n"
         f"position = {list(PLACE['position'])}\norientation = {list(PLACE['orientation'])}\n")

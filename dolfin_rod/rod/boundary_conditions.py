@@ -35,9 +35,9 @@ import numpy as np
 import ufl
 
 from .. import loads
-from ..model_base import ENDS, NodeValues, near_nodes, nodal_residual
-from ..rotations import (conj, np_qmul, np_quaternion_from_rotation_vector,
-                         np_rotation_matrix, qmul, vec)
+from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
+from ..theory.rotations import (conj, np_qmul, np_quaternion_from_rotation_vector,
+                                np_rotation_matrix, qmul, vec)
 from .rotation_vector import np_inverse_cayley
 
 END_TYPES = ("clamped", "pinned", "free")

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import ufl
 
-from ..dissipation import dissipation_rate
-from ..model_base import NodeValues
-from ..rotations import np_qmul, np_rotation_angle
+from ..theory.dissipation import dissipation_rate
+from ..fem.fe_model import NodeValues
+from ..theory.rotations import np_qmul, np_rotation_angle
 from .rotation_vector import np_cayley
 
 

@@ -23,13 +23,13 @@ import ufl
 from mpi4py import MPI
 from ufl.algorithms.analysis import extract_coefficients
 
-from .. import constraints
+from ..theory import constraints
 from .. import loads as load_histories
-from ..evolution import check_variant
-from ..model_base import FEModel, check_n_cells
-from ..problem import SecondOrderProblem, SemiDiscreteProblem
-from ..rotations import rotation_matrix
-from ..validation import choose_rotations, rotation_vector_obstacle
+from ..theory.evolution import check_variant
+from ..fem.fe_model import FEModel, check_n_cells
+from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
+from ..theory.rotations import rotation_matrix
+from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports
 from .constitutive import check_model, energy_function, section_response

@@ -35,9 +35,9 @@ from typing import Callable
 
 import numpy as np
 
-from ..rotations import (np_qmul, np_quaternion_from_matrix,
-                         np_quaternion_from_rotation_vector, np_rotation_matrix)
-from ..validation import EQUILIBRIUM_NEEDS, polyline_problem
+from ..checks import EQUILIBRIUM_NEEDS, polyline_problem
+from ..theory.rotations import (np_qmul, np_quaternion_from_matrix,
+                                np_quaternion_from_rotation_vector, np_rotation_matrix)
 from .initial_state import helix
 
 Field = tuple | Callable

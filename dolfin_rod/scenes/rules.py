@@ -10,8 +10,8 @@ import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
-from ..validation import (EQUILIBRIUM_NEEDS, choose_rotations, polyline_problem,
-                          rotation_vector_obstacle, sample_points)
+from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
+from ..checks import EQUILIBRIUM_NEEDS, polyline_problem, sample_points
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
@@ -72,7 +72,7 @@ def _check_solver_options(scene: Scene) -> None:
     """PETSc reads every option of solver.options and accepts its value (tried on a
     throwaway solver: a bad one failed the run after check said OK)."""
     if scene["solver"]["options"]:
-        from ..solvers import option_problem
+        from ..fem.solvers import option_problem
         problem = option_problem(scene["solver"]["options"])
         if problem:
             raise scene.error(f"solver.options.{problem[0]}", problem[1])

@@ -27,7 +27,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..rod.sections import SHAPES as SECTION_SHAPES
-from ..validation import MIN_LENGTH, ROTATIONS
+from ..rod.rotation_choice import ROTATIONS
+from ..checks import MIN_LENGTH
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..integrators.schemes import get_scheme
-from ..validation import profile_violation, sample_points
+from ..checks import profile_violation, sample_points
 
 
 class BadValue(Exception):

@@ -1,0 +1,112 @@
+"""Input checks shared by the modules: errors name the parameter and the rule."""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+
+def finite(name: str, value: float) -> float:
+    """``value`` as a float; TypeError if not a real number, ValueError if not finite."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a real number, got {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be finite, got {x}")
+    return x
+
+
+def positive(name: str, value: float) -> float:
+    """``value`` as a float, or ValueError unless it is finite and > 0."""
+    x = finite(name, value)
+    if not x > 0.0:
+        raise ValueError(f"{name} must be > 0, got {x}")
+    return x
+
+
+def nonnegative(name: str, value: float) -> float:
+    """``value`` as a float, or ValueError unless it is finite and >= 0."""
+    x = finite(name, value)
+    if not x >= 0.0:
+        raise ValueError(f"{name} must be >= 0, got {x}")
+    return x
+
+
+# The shortest rod: DOLFINx refuses intervals shorter than machine epsilon, and below
+# this the solvers' absolute tolerances exceed the rod's residuals (a rod of 2 cells
+# and length 1e-12 gives the tip displacement of length 1 scaled by 1e-12; 1e-15 fails).
+MIN_LENGTH = 1e-12
+
+
+def rod_length(value: float) -> float:
+    """The rod's length as a float, or ValueError naming the rule."""
+    x = finite("length", value)
+    if not x >= MIN_LENGTH:
+        raise ValueError(f"length must be >= {MIN_LENGTH:g} (choose a smaller length "
+                         f"unit), got {x:g}")
+    return x
+
+
+# Coefficients given as functions of s are checked at this many equally spaced points
+# (rod, torsion and the scene schema alike).
+COEFFICIENT_SAMPLES = 257
+
+
+def sample_points(length: float = 1.0) -> np.ndarray:
+    """The points s in [0, length] where coefficient functions are checked."""
+    return np.linspace(0.0, length, COEFFICIENT_SAMPLES)
+
+
+def profile_violation(values: np.ndarray, s: np.ndarray, strict: bool) -> str | None:
+    """Why a coefficient sampled at s breaks its rule (finite and > 0 if strict, else
+    >= 0 and either > 0 everywhere or 0 everywhere), or None."""
+    values = np.broadcast_to(np.asarray(values, dtype=float), s.shape)
+    bad = ~np.isfinite(values) | ((values <= 0) if strict else (values < 0))
+    if bad.any():
+        rule = "> 0" if strict else ">= 0"
+        return (f"must be {rule} on [0, {s[-1]:g}]; got {values[bad][0]:g} "
+                f"at s = {s[bad][0]:g}")
+    if not strict and (values == 0).any() and (values > 0).any():
+        return "must be either > 0 everywhere or 0 everywhere"
+    return None
+
+
+# A start in static equilibrium (rod/start.py) with only pinned or free ends is singular.
+EQUILIBRIUM_NEEDS = ("the static problem needs an end whose rotation is held (clamped, or "
+                     "a prescribed end rotation): otherwise the sections turn about their "
+                     "tangents for free")
+# A starting polyline's length against the rod's (rod/start.py; a rod of 1 m: 1 um).
+LENGTH_RTOL = 1e-6
+
+
+def polyline_problem(points, rest_arc_length, normal, length: float) -> tuple[str, str] | None:
+    """(key, reason) for a starting polyline (rod/start.Polyline) that does not fit a rod
+    of ``length``, key one of "points", "rest_arc_length", "normal"; else None."""
+    points = np.asarray(points, dtype=float)
+    if points.ndim != 2 or points.shape[1:] != (3,) or len(points) < 2 \
+            or not np.isfinite(points).all():
+        return "points", "at least two finite points [x, y, z]"
+    chords = np.diff(points, axis=0)
+    if np.any(np.linalg.norm(chords, axis=1) == 0):
+        return "points", "two consecutive points coincide"
+    if rest_arc_length is None:
+        key, what = "points", "polyline's length"
+        arc = np.concatenate(([0.0], np.cumsum(np.linalg.norm(chords, axis=1))))
+    else:
+        key, what = "rest_arc_length", "last rest arc length"
+        arc = np.asarray(rest_arc_length, dtype=float)
+        if arc.shape != (len(points),) or arc[0] != 0 or np.any(np.diff(arc) <= 0):
+            return key, f"one value per point ({len(points)}), from 0, increasing"
+    if abs(arc[-1] - length) > LENGTH_RTOL * length:
+        return key, (f"the {what} {arc[-1]:.9g} differs from the rod's length {length:.9g} "
+                     f"(geometry.length); they must agree to {LENGTH_RTOL:g} relative")
+    normal = np.asarray(normal, dtype=float)
+    if normal.shape != (3,) or not np.isfinite(normal).all():
+        return "normal", "a finite 3-vector"
+    if np.linalg.norm(np.cross(normal, chords[0])) <= 1e-9 * np.linalg.norm(normal) * \
+            np.linalg.norm(chords[0]):
+        return "normal", "parallel to the first segment (it gives d1, perpendicular to the rod)"
+    return None
+
