@@ -21,6 +21,7 @@ _WHERE = {
     "EndSpring": "rod",
     "RodSystem": "rod", "Rod": "rod", "Joint": "rod",   # rod systems (docs/systems.md)
     "sections": "rod",      # cross-sections and materials -> RodParameters (rod/sections.py)
+    "Obstacle": "rod", "ContactLaw": "rod",    # contact with obstacles (docs/contact.md)
     "TorsionModel": "torsion.model", "TorsionParameters": "torsion.model",
     "SemiDiscreteProblem": "fem.problem", "SecondOrderProblem": "fem.problem",
     # integrators and solvers
