@@ -46,12 +46,17 @@ def stress_free(model, s) -> tuple[np.ndarray, np.ndarray]:
     rod_of = model.layout.rod_of(s)
     for k, rod in enumerate(model.rods):
         on = rod_of == k
-        r_k, q_k = helix(s[on] - model.layout.starts[k], rod.params.reference_curvature,
-                         rod.params.reference_stretch)
-        turn = np_quaternion_from_rotation_vector(np.asarray(rod.orientation, float))
-        r[on] = np.asarray(rod.position, float) + r_k @ np_rotation_matrix(turn).T
-        q[on] = np_qmul(turn, q_k)
+        r[on], q[on] = placed_shape(rod, s[on] - model.layout.starts[k])
     return r, q
+
+
+def placed_shape(rod, s) -> tuple[np.ndarray, np.ndarray]:
+    """(r, q) of one rod (rods.Rod) at its own arc lengths s: the helix of its reference
+    strains, turned by its orientation, moved to its position."""
+    r, q = helix(s, rod.params.reference_curvature, rod.params.reference_stretch)
+    turn = np_quaternion_from_rotation_vector(np.asarray(rod.orientation, float))
+    return (np.asarray(rod.position, float) + r @ np_rotation_matrix(turn).T,
+            np_qmul(turn, q))
 
 
 def set_initial_state(model, natural_curvature=None, natural_stretch=None,

@@ -421,7 +421,8 @@ def _check_rod_ends(scene: Scene) -> None:
         if lds[k] is not None and not lds[k].is_vector:
             raise err(f"loads.{k}.value", "3-D rod: a vector value = [x, y, z] (or a table "
                                           "of 3-vectors)")
-    if not scene["material"]["dynamic"] and not (any(fixed_x) and any(fixed_q)):
+    if not scene["material"]["dynamic"] and not scene.joined and \
+            not (any(fixed_x) and any(fixed_q)):
         raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "
                                     "rotation somewhere (e.g. start = \"clamped\"); rigid "
                                     "motions are free otherwise")

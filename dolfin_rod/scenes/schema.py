@@ -32,6 +32,7 @@ from ..checks import MIN_LENGTH
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
+from .systems import validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
                      damping_tensor, entry_point, integer, load_entry_point, path_problem,
                      path_text,
@@ -98,6 +99,18 @@ A torsion coefficient or a density/drag/profile is a number or `{polynomial = [c
 (T(s) = T0 + T1 s + ..., each T_k diagonal or 3x3; s in [0, L]).  The uniform variant's
 law integrates over s (eq. unatevolunif), so its M_d carries a length factor:
 switching variant on a rod with L != 1 rescales time by L.
+
+**Several rods** (a RodSystem, docs/systems.md).  `[[rods]]` tables, one per rod: `name`
+(unique; the rod's output columns are `<name>.<key>`), `position` (its s = 0 end, m),
+`orientation` (a rotation vector turning e_3 into its initial tangent), and its own
+`geometry`, `section`, `material`, `boundary`, `loads` as inline tables laid over the
+scene's tables key by key (an error names `rods[k].<table>.<key>`; `material.model`,
+`variant`, `constraints`, `energy` and `geometry.rotations` are shared and given in the
+scene's tables only).  `[[joints]]` tables: `kind` ("rigid": position and rotation tied,
+"ball": position tied), `rods = [a, b]`, `point = [x, y, z]` (a node of both rods at
+t = 0, not a supported end), `name` (its reaction columns `joint_<name>_force_{xyz}`,
+`joint_<name>_couple_{xyz}`).  Examples: `scenes/frame.toml`, `double_pendulum.toml`,
+`tripod.toml`.
 """
 
 R = "3-D rod: "
@@ -426,9 +439,20 @@ def to_toml(raw: dict) -> str:
 
 
 def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> Scene:
-    """Validate an already-parsed scene dict; every failure is a SceneError."""
+    """Validate an already-parsed scene dict; every failure is a SceneError.  A scene
+    with ``[[rods]]`` is a rod system (scenes/systems.py)."""
     if not isinstance(raw, dict):
         raise SceneError(source, "", f"a scene must be a table, got {type_name(raw)}")
+    if "rods" in raw:
+        return validate_system(dict(raw), source, default_name, _validate_tables)
+    if "joints" in raw:
+        raise SceneError(source, "joints", "joints join the rods of [[rods]] tables")
+    return _validate_tables(raw, source, default_name)
+
+
+def _validate_tables(raw: dict, source: str, default_name: str,
+                     joined: bool = False) -> Scene:
+    """The tables of one scene (of one rod; ``joined``: a rod of [[rods]] with a joint)."""
     for table in raw:
         if table not in SCHEMA:
             raise SceneError(source, str(table),
@@ -454,7 +478,7 @@ def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> S
         data[table] = _table(section, keys, table, source)
     if data["scene"]["name"] is None:
         data["scene"]["name"] = safe_name(default_name)
-    scene = Scene(data, source, given=given)
+    scene = Scene(data, source, given=given, joined=joined)
     check_combinations(scene)
     return scene
 
