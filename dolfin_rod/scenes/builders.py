@@ -21,7 +21,7 @@ from ..fem.problem import SecondOrderProblem
 from ..rod.contact import InitialOverlap
 from .contact import contact_law, contact_solver_options, obstacles
 from ..torsion.ode import OdeTorsion
-from .rules import adaptive_stepper, rod_rotations
+from .rules import START_KEYS, adaptive_stepper, rod_rotations
 from .schema import Scene, SceneError
 from .values import Coefficient
 
@@ -229,7 +229,8 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
 
     def initial_state():
         model.set_initial_state(natural_curvature=initial["natural_curvature"],
-                                natural_stretch=initial["natural_stretch"])
+                                natural_stretch=initial["natural_stretch"],
+                                start=starting_state(scene))
 
     if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
         try:
@@ -237,6 +238,24 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
         except InitialOverlap as err:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
     return FESimulation("rod", model, scene, initial_state)
+
+
+def starting_state(scene: Scene):
+    """The rod's StartingState of [initial] (rules.START_KEYS), None if none is given."""
+    from ..rod import start
+    ini = scene["initial"]
+    if not any(k in scene.given["initial"] for k in START_KEYS):
+        return None
+    shape = dict(ini["shape"] or {})
+    kind = shape.pop("type", None)
+    curves = {"straight": start.Straight, "arc": start.Arc, "helix": start.Helix,
+              "polyline": start.Polyline}
+    zero = (0.0, 0.0, 0.0)
+    return start.StartingState(
+        shape=curves[kind](**shape) if kind else None, position=ini["position"] or zero,
+        orientation=ini["orientation"] or zero, velocity=ini["velocity"] or zero,
+        angular_velocity=ini["angular_velocity"] or zero,
+        rotation_centre=ini["rotation_centre"], equilibrium=ini["equilibrium"])
 
 
 def rod_arguments(scene: Scene) -> dict:

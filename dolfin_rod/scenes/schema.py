@@ -37,7 +37,8 @@ from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient
                      damping_tensor, entry_point, integer, load_entry_point, path_problem,
                      path_text,
                      petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
-                     section_inertia, spring_table, string, tensor_table, toml_value,
+                     section_inertia, spring_table, starting_shape, string, tensor_table,
+                     toml_value,
                      ts_type_name,
                      type_name, vector3)
 
@@ -218,6 +219,32 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                  "the reference strains, i.e. unstressed)"),
         "natural_stretch": Key(vector3(), None, R + "v_d at t = 0 (evolving; default: "
                                "the reference strains)"),
+        "position": Key(vector3(), None, R + "where the rod's start s = 0 is at t = 0 (a "
+                        "length; default: the origin)"),
+        "orientation": Key(vector3(), None, R + "rotation vector (rad) turning (e1, e2, e3) "
+                           "into the start's directors (d1, d2, d3) (default 0: the rod "
+                           "starts along e3)"),
+        "shape": Key(starting_shape, None,
+                     R + "starting centre line, in the start's frame (then placed by "
+                     "position, orientation); the stress-free shape stays geometry."
+                     "reference_curvature's (straight by default): {type = \"straight\", "
+                     "stretch = 1} | {type = \"arc\", radius, stretch = 1} (bending towards "
+                     "d1) | {type = \"helix\", radius, pitch, stretch = 1} | {type = "
+                     "\"polyline\", points = [[x, y, z], ...], rest_arc_length = [0, ..., "
+                     "L] (default: the polyline's own arc length, which must be L), normal = "
+                     "[1, 0, 0] (gives d1)}; stretch, rest_arc_length: a pre-stretched start "
+                     "(default: the stress-free shape)"),
+        "velocity": Key(vector3(), None, R + "velocity at t = 0 (length/time; dynamic rods; "
+                        "held ends stay at rest)"),
+        "angular_velocity": Key(vector3(), None, R + "spatial angular velocity w at t = 0 "
+                                "(rad/time; dynamic rods)"),
+        "rotation_centre": Key(vector3(), None, R + "with angular_velocity: the rod starts "
+                               "as a rigid body turning about this point, velocity + w x "
+                               "(r - rotation_centre)"),
+        "equilibrium": Key(boolean, False, R + "dynamic rods: settle the positions and "
+                           "rotations in static equilibrium with the loads at t = 0 from "
+                           "the starting shape before the dynamics (quasi-static "
+                           "pre-loading; natural strains kept)"),
     },
     "boundary": {
         "start": Key(choice(*ROD_ENDS), "clamped", "s = 0: clamped | pinned | free "
