@@ -92,6 +92,10 @@ class FESimulation:
         self.stepper = TimeStepper(self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
                                    predictor=tim["predictor"], tolerance=tolerance)
         self.integrator = tim["integrator"]
+        self.stability = None           # quasi-static 3-D rods: analysis/stability.py
+        if scene.is_rod_material and not model.dynamic and scene["stability"]["check"]:
+            from ..analysis.stability import StabilityMonitor
+            self.stability = StabilityMonitor(model)
         self.ts = None
         if self.integrator == "ts":
             from ..integrators.ts import TSIntegrator
@@ -124,7 +128,10 @@ class FESimulation:
         self.stepper.run(t, t_next, t_next - t)
 
     def diagnostics(self, t: float) -> dict[str, float]:
-        return self.model.diagnostics(t)
+        d = self.model.diagnostics(t)
+        if self.stability is not None:
+            d["negative_eigenvalues"] = float(self.stability.check(t))
+        return d
 
     def state(self) -> dict:
         """Functions a checkpoint stores (besides problem.fields): the integrator's and

@@ -284,6 +284,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "options": Key(petsc_table, None, "PETSc options (without prefix) over the preset, "
                        "e.g. {snes_max_it = 50, ksp_type = \"preonly\"}"),
     },
+    "stability": {
+        "check": Key(boolean, True, R + "quasi-static: after every step the number of negative "
+                                    "eigenvalues of the tangent stiffness (column "
+                                    "negative_eigenvalues; a warning when it changes; "
+                                    "docs/stability.md)"),
+        "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
+                                              "> 0) is a result: status \"completed\", exit 0 "
+                                              "(default: \"completed (unstable equilibrium)\", "
+                                              "exit 4)"),
+    },
     "outputs": {
         "directory": Key(path_text, "results", "parent folder of the run folders"),
         "every": Key(integer(1), 1, "write rod.bp and animation frames every N steps (and "
