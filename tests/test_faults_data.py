@@ -28,7 +28,7 @@ from mpi4py import MPI
 from test_faults import (CREEP, MPI_TIMEOUT, ROOT, _start, _wait_for, assert_same_rows,
                          read_csv, run_main, shared, snapshot, write)
 
-from dolfin_rod import output
+from dolfin_rod.output import writer as output
 from dolfin_rod.cli import run_scene
 from dolfin_rod.scenes import load_scene
 

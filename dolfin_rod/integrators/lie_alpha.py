@@ -31,10 +31,10 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from .. import compat, form_cache
-from ..solvers import BlockSNES, SolverError
+from ..fem import compat, form_cache
+from ..fem.solvers import BlockSNES, SolverError
 from .schemes import alpha_rho_inf
-from .stepping import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
+from .step_control import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
                        largest_on_ranks, march, nominal_steps)
 
 

@@ -2,7 +2,7 @@
 several rods in one model: ``RodSystem`` (system.py)."""
 
 from . import sections
-from .boundary_conditions import END_TYPES
+from .boundary_conditions import END_TYPES, EndSpring
 from .constitutive import MODELS
 from .external_forces import DistributedLoad, EndLoad
 from .material import RodParameters
@@ -12,4 +12,4 @@ from .rods import Rod
 from .system import RodSystem
 
 __all__ = ["RodModel", "RodSystem", "Rod", "Joint", "RodParameters", "EndLoad", "DistributedLoad",
-           "MODELS", "END_TYPES", "sections"]
+           "EndSpring", "MODELS", "END_TYPES", "sections"]

@@ -10,7 +10,8 @@ import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
-from ..validation import choose_rotations, rotation_vector_obstacle, sample_points
+from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
+from ..checks import sample_points
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
@@ -29,7 +30,8 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
     ("boundary", "start_displacement"), ("boundary", "start_slide"),
-    ("boundary", "end_slide"), ("loads", "distributed_force"), ("loads", "gravity"),
+    ("boundary", "end_slide"), ("boundary", "start_spring"), ("boundary", "end_spring"),
+    ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
     ("loads", "start_couple"), ("obstacles", "shape")} | {
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")} | {
@@ -67,7 +69,7 @@ def _check_solver_options(scene: Scene) -> None:
     """PETSc reads every option of solver.options and accepts its value (tried on a
     throwaway solver: a bad one failed the run after check said OK)."""
     if scene["solver"]["options"]:
-        from ..solvers import option_problem
+        from ..fem.solvers import option_problem
         problem = option_problem(scene["solver"]["options"])
         if problem:
             raise scene.error(f"solver.options.{problem[0]}", problem[1])
@@ -302,6 +304,20 @@ def rod_rotations(scene: Scene) -> str:
         raise scene.error(key, str(err)) from err
 
 
+def _spring(scene: Scene, end: str, position_held: bool, rotation_held: bool) -> dict:
+    """The spring table of an end (boundary.<end>_spring, {} if none) after its checks:
+    each part where that motion is free."""
+    bnd = scene["boundary"]
+    spring = bnd[f"{end}_spring"] or {}
+    for part, held, what in (("translational", position_held, "position"),
+                             ("rotational", rotation_held, "rotation")):
+        if np.any(spring.get(part, 0.0)) and held:
+            raise scene.error(f"boundary.{end}_spring.{part}", f"the end's {what} is held or "
+                                                               "prescribed: the support "
+                                                               "takes the spring's place")
+    return spring
+
+
 def _slide_axis(scene: Scene, end: str):
     """The slide axis of an end (boundary.<end>_slide) after its checks, or None."""
     from ..rod.boundary_conditions import slide_axis_problem
@@ -347,7 +363,9 @@ def _check_rod_ends(scene: Scene) -> None:
         axis = _slide_axis(scene, end)
         x = kind in ("clamped", "pinned") or bnd[f"{end}_displacement"] is not None
         q = kind == "clamped" or bnd[f"{end}_rotation"] is not None
-        fixed_x.append(x and axis is None), fixed_q.append(q)
+        spring = _spring(scene, end, x and axis is None, q)
+        fixed_x.append((x and axis is None) or np.all(spring.get("translational", 0.0)))
+        fixed_q.append(q or np.all(spring.get("rotational", 0.0)))
         for load, fixed, what in (("force", x, "position"), ("couple", q, "rotation")):
             spec = lds[f"{end}_{load}"]
             if spec is None:
