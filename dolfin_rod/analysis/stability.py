@@ -24,7 +24,7 @@ import numpy as np
 import ufl
 from petsc4py import PETSc
 
-from ..assembly import block_system
+from ..fem.assembly import block_system
 
 __all__ = ["Inertia", "TangentStiffness", "StabilityMonitor"]
 
@@ -56,7 +56,7 @@ class TangentStiffness:
         start = self.system.A.getOwnershipRange()[0]
         self._fixed = PETSc.IS().createGeneral(
             (self.system.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
-        self._ksp = self._factorisation(self.system.A.getComm())
+        self._ksp = None        # at the first check: its options are then read at once
 
     @staticmethod
     def _free_dofs(model, names) -> int:
@@ -88,6 +88,7 @@ class TangentStiffness:
     def inertia(self, t: float) -> Inertia:
         """The inertia of K at the current state and time t's loads."""
         K = self.matrix(t).convert("sbaij", PETSc.Mat())   # MUMPS's LDL^T reads SBAIJ
+        self._ksp = self._ksp or self._factorisation(K.getComm())
         self._ksp.setOperators(K)
         pc = self._ksp.getPC()
         pc.setUp()
