@@ -95,7 +95,7 @@ class FESimulation:
         self.stability = None           # quasi-static 3-D rods: analysis/stability.py
         if scene.is_rod_material and not model.dynamic and scene["stability"]["check"]:
             from ..analysis.stability import StabilityMonitor
-            self.stability = StabilityMonitor(model)
+            self.stability = StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
         self.ts = None
         if self.integrator == "ts":
             from ..integrators.ts import TSIntegrator
@@ -131,6 +131,8 @@ class FESimulation:
         d = self.model.diagnostics(t)
         if self.stability is not None:
             d["negative_eigenvalues"] = float(self.stability.check(t))
+            if self.stability.lowest is not None:
+                d["lowest_eigenvalue"] = self.stability.lowest
         return d
 
     def state(self) -> dict:

@@ -340,6 +340,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                     "eigenvalues of the tangent stiffness (column "
                                     "negative_eigenvalues; a warning when it changes; "
                                     "docs/stability.md)"),
+        "lowest_eigenvalue": Key(boolean, False, R + "quasi-static, rotation vectors without "
+                                              "constraints: also the lowest eigenvalue of "
+                                              "K v = lambda G v (G: the lumped L2 metric; column "
+                                              "lowest_eigenvalue; SLEPc, ~10-30 ms a step)"),
         "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
                                               "> 0) is a result: status \"completed\", exit 0 "
                                               "(default: \"completed (unstable equilibrium)\", "
