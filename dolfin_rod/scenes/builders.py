@@ -228,6 +228,8 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
                                     if (axis := scene["boundary"][f"{key}_slide"]) is not None},
                          end_springs={side: EndSpring(**spring) for key, side in ends.items()
                                       if (spring := scene["boundary"][f"{key}_spring"])},
+                         end_turn={side: axis for key, side in ends.items()
+                                   if (axis := scene["boundary"][f"{key}_turn"]) is not None},
                          obstacles=obstacles(scene), contact=contact_law(scene, params))
     except ValueError as err:
         key = "material.energy" if str(err).startswith("energy") else "scene.model"
