@@ -269,7 +269,7 @@ def starting_state(scene: Scene):
 
 def rod_arguments(scene: Scene) -> dict:
     """The arguments of one rod (RodModel, rod.Rod) besides its parameters: cells, ends,
-    end motions, slides and springs, loads."""
+    end motions, slides, turning clamps and springs, loads."""
     from ..rod import EndSpring
     ends = {"start": "left", "end": "right"}
     boundary = scene["boundary"]
@@ -283,7 +283,9 @@ def rod_arguments(scene: Scene) -> dict:
                 end_slide={side: axis for key, side in ends.items()
                            if (axis := boundary[f"{key}_slide"]) is not None},
                 end_springs={side: EndSpring(**spring) for key, side in ends.items()
-                             if (spring := boundary[f"{key}_spring"])})
+                             if (spring := boundary[f"{key}_spring"])},
+                end_turn={side: axis for key, side in ends.items()
+                          if (axis := boundary[f"{key}_turn"]) is not None})
 
 
 def rod_parameters(scene: Scene):

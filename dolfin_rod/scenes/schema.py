@@ -268,6 +268,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "follows end_rotation, e.g. turning about the axis); an end_force "
                          "along the axis acts on it (a weight on a sliding clamp)"),
         "start_slide": Key(vector3(), None, R + "as end_slide, at s = 0"),
+        "end_turn": Key(vector3(), None, R + "axis [x, y, z] (a unit coordinate axis) about "
+                        "which the clamped end s = L turns freely (a hinge; with end_slide "
+                        "along the same axis a cylindrical joint): its rotation is held "
+                        "about the other two axes only, a dead end_couple about the axis "
+                        "acts on it; its initial frame must keep the axis"),
+        "start_turn": Key(vector3(), None, R + "as end_turn, at s = 0"),
         "end_spring": Key(spring_table, None, R + "a compliant support at s = L: "
                           "{translational = k or [k_x, k_y, k_z] (N/m, spatial), rotational = "
                           "k or [k_1, k_2, k_3] (N m/rad, material)} about the end's initial "
