@@ -95,6 +95,14 @@ A torsion coefficient or a density/drag/profile is a number or `{polynomial = [c
 (T(s) = T0 + T1 s + ..., each T_k diagonal or 3x3; s in [0, L]).  The uniform variant's
 law integrates over s (eq. unatevolunif), so its M_d carries a length factor:
 switching variant on a rod with L != 1 rescales time by L.
+
+**What a run can follow** (checked by `dolfin-rod check`, exit 2 naming the key).  A rod
+with inertia (density > 0; torsion: nu > 0) cannot follow a jump of a prescribed end
+motion (a `step`, at any `t0`), nor, unless `time.adaptive`, a ramp, smooth step or
+table segment shorter than `time.dt`.  Prescribed rotations may turn one end against the
+other by less than pi per cell (`geometry.n_cells` > angle/pi).  A `material.energy`
+must be stress-free and convex at the natural strains and convex at the start strains
+(`natural_state.start_state_problem`).
 """
 
 R = "3-D rod: "
