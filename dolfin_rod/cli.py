@@ -27,11 +27,11 @@ import sys
 import time
 from pathlib import Path
 
-from .divergence import EnergyBound
+from .output.divergence import EnergyBound
 from .integrators.stepper import IntegrationError
 from .scenes import Scene, SceneError, build, load_scene, select_model
-from .scenes.stability import explicit_stability_warning
-from .solvers import SolverError
+from .torsion.stability import explicit_stability_warning
+from .fem.solvers import SolverError
 
 __all__ = ["main", "run_scene"]
 
@@ -70,7 +70,7 @@ class _InterruptFlag:
 
 def _run_folder(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool) -> Path:
     """The results folder, ready on rank 0 (errors on every rank as OutputError)."""
-    from .run_folders import new_run_folder, on_root, prepare_run_folder
+    from .output.run_folders import new_run_folder, on_root, prepare_run_folder
     if out is None:
         parent = Path(scene["outputs"]["directory"])
         return Path(on_root(comm, lambda: str(new_run_folder(parent, scene.name)),
@@ -93,9 +93,9 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     """
     from mpi4py import MPI
 
-    from .checkpoints import read_checkpoint_meta
+    from .output.checkpoints import read_checkpoint_meta
     from .mpi import agree
-    from .output import RunWriter
+    from .output.writer import RunWriter
     comm = comm or MPI.COMM_WORLD
     clock = {"start": time.perf_counter()}
     choice = agree(comm, lambda: _choose(scene, comm.size), (SceneError,))
@@ -145,7 +145,7 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
 
 def _remove_if_empty(folder: Path) -> None:
     """Remove a run folder that holds nothing but its marker."""
-    from .run_folders import MARKER
+    from .output.run_folders import MARKER
     try:
         if [p.name for p in folder.iterdir()] == [MARKER]:
             (folder / MARKER).unlink()
@@ -171,8 +171,8 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     with t the time of the last recorded row."""
     from mpi4py import MPI
 
-    from .output import show_progress
-    from .run_folders import OutputError
+    from .output.writer import show_progress
+    from .output.run_folders import OutputError
     tim, outs = scene["time"], scene["outputs"]
     n_steps = max(1, math.ceil(tim["t_end"] / tim["dt"] - 1e-9))
     times = [min(k * tim["dt"], tim["t_end"]) for k in range(n_steps + 1)]
@@ -266,7 +266,7 @@ def _parser() -> argparse.ArgumentParser:
                                                           "are still reported on stderr)")
     sub.add_parser("schema", help="print every scene key with its default and meaning "
                                   "(Markdown, as in docs/scenes.md)")
-    from .fit_cli import add_fit_parser
+    from .fit.command import add_fit_parser
     add_fit_parser(sub)
     return p
 
@@ -297,7 +297,7 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
     """``dolfin-rod check``: the scene, its model and the output location; "OK" only when
     every rank found the scene fine (mpi.agree)."""
     from .mpi import agree
-    from .run_folders import OutputError, folder_problem
+    from .output.run_folders import OutputError, folder_problem
     lines = agree(comm, lambda: _check_lines(scene, comm.size), (SceneError,))
     target = out if out is not None else Path(scene["outputs"]["directory"])
     problem = folder_problem(target) if comm.rank == 0 else None
@@ -313,7 +313,7 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
 def _choose(scene: Scene, ranks: int):
     """The scene's model (select_model), refused with a SceneError naming
     geometry.n_cells if an FE model would leave a rank too few cells."""
-    from .model_base import check_n_cells
+    from .fem.fe_model import check_n_cells
     choice = select_model(scene)
     if choice.model != "ode":
         try:
@@ -346,9 +346,9 @@ def main(argv: list[str] | None = None) -> int:
     traceback."""
     from mpi4py import MPI
 
-    from .fit_cli import FitInputError
+    from .fit.command import FitInputError
     from .mpi import alone
-    from .run_folders import OutputError
+    from .output.run_folders import OutputError
     comm = MPI.COMM_WORLD
     guard = comm.Dup() if comm.size > 1 else None    # for mpi.alone only
     try:
@@ -372,7 +372,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None, comm) -> int:
-    from .fit_cli import fit_command
+    from .fit.command import fit_command
     from .mpi import agree
     args = _parser().parse_args(argv)
     if args.command == "schema":

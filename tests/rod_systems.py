@@ -6,7 +6,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfin_rod import EndLoad, Rod, RodModel, RodParameters, RodSystem, TimeStepper
-from dolfin_rod.rotations import np_quaternion_from_rotation_vector, np_rotation_matrix
+from dolfin_rod.theory.rotations import np_quaternion_from_rotation_vector, np_rotation_matrix
 
 # Newton to round-off, so that the coupled solve stops where each rod's alone does
 ROUND_OFF = {"snes_rtol": 1e-13, "snes_atol": 1e-13}

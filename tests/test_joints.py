@@ -15,7 +15,7 @@ from serial_reference import serial
 
 from dolfin_rod import EndLoad, Rod, RodModel, RodParameters, RodSystem, TimeStepper
 from dolfin_rod.rod.joints import Joint
-from dolfin_rod.rotations import np_rotation_vector
+from dolfin_rod.theory.rotations import np_rotation_vector
 
 XYZ = "xyz"
 

@@ -10,9 +10,9 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from .. import compat
-from ..model_base import ENDS
-from ..rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
+from ..fem import compat
+from ..fem.fe_model import ENDS
+from ..theory.rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 
 
 def helix(s, u0, v0):

@@ -28,8 +28,8 @@ import dolfinx.fem as fem
 import numpy as np
 
 from ..fem.multipoint import NodeLink
-from ..model_base import ENDS, NodeValues, near_nodes, nodal_residual
-from ..rotations import np_qmul, np_rotation_matrix
+from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
+from ..theory.rotations import np_qmul, np_rotation_matrix
 from .boundary_conditions import spatial_rotations
 
 KINDS = ("rigid", "ball")

@@ -11,7 +11,8 @@ import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
-from ..validation import choose_rotations, rotation_vector_obstacle, sample_points
+from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
+from ..checks import sample_points
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
@@ -30,7 +31,8 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
     ("boundary", "start_displacement"), ("boundary", "start_slide"),
-    ("boundary", "end_slide"), ("loads", "distributed_force"), ("loads", "gravity"),
+    ("boundary", "end_slide"), ("boundary", "start_spring"), ("boundary", "end_spring"),
+    ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
     ("loads", "start_couple"), ("obstacles", "shape")} | {
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")}
@@ -67,7 +69,7 @@ def _check_solver_options(scene: Scene) -> None:
     """PETSc reads every option of solver.options and accepts its value (tried on a
     throwaway solver: a bad one failed the run after check said OK)."""
     if scene["solver"]["options"]:
-        from ..solvers import option_problem
+        from ..fem.solvers import option_problem
         problem = option_problem(scene["solver"]["options"])
         if problem:
             raise scene.error(f"solver.options.{problem[0]}", problem[1])
@@ -264,7 +266,7 @@ def _check_rod_material(scene: Scene) -> None:
 def _start_state_problem(scene: Scene, psi) -> str | None:
     """natural_state.start_state_problem at the scene's start: natural strains
     initial.natural_* (default: the reference strains), strains the reference ones."""
-    from ..natural_state import start_state_problem
+    from ..theory.natural_state import start_state_problem
     geo, ini = scene["geometry"], scene["initial"]
     start = (geo["reference_curvature"], geo["reference_stretch"])
     natural = (ini["natural_curvature"] or start[0], ini["natural_stretch"] or start[1])
@@ -366,6 +368,20 @@ def _check_turns_resolved(scene: Scene) -> None:
                           f"take n_cells >= {math.floor(angle / math.pi) + 1}")
 
 
+def _spring(scene: Scene, end: str, position_held: bool, rotation_held: bool) -> dict:
+    """The spring table of an end (boundary.<end>_spring, {} if none) after its checks:
+    each part where that motion is free."""
+    bnd = scene["boundary"]
+    spring = bnd[f"{end}_spring"] or {}
+    for part, held, what in (("translational", position_held, "position"),
+                             ("rotational", rotation_held, "rotation")):
+        if np.any(spring.get(part, 0.0)) and held:
+            raise scene.error(f"boundary.{end}_spring.{part}", f"the end's {what} is held or "
+                                                               "prescribed: the support "
+                                                               "takes the spring's place")
+    return spring
+
+
 def _slide_axis(scene: Scene, end: str):
     """The slide axis of an end (boundary.<end>_slide) after its checks, or None."""
     from ..rod.boundary_conditions import slide_axis_problem
@@ -408,10 +424,18 @@ def _check_rod_ends(scene: Scene) -> None:
             spec = bnd[f"{end}_{motion}"]
             if spec is not None and not spec.is_vector:
                 raise err(f"boundary.{end}_{motion}.value", "3-D rod: a vector [x, y, z]")
+            if spec is not None and spec.type == "step" and spec.t0 > 0 and \
+                    scene["material"]["dynamic"]:
+                raise err(f"boundary.{end}_{motion}", f"a step at t0 = {spec.t0:g}, but a rod "
+                                                      "with inertia cannot follow a jump of its "
+                                                      "end: use type = \"smooth_step\" or "
+                                                      "\"ramp\" (with t0)")
         axis = _slide_axis(scene, end)
         x = kind in ("clamped", "pinned") or bnd[f"{end}_displacement"] is not None
         q = kind == "clamped" or bnd[f"{end}_rotation"] is not None
-        fixed_x.append(x and axis is None), fixed_q.append(q)
+        spring = _spring(scene, end, x and axis is None, q)
+        fixed_x.append((x and axis is None) or np.all(spring.get("translational", 0.0)))
+        fixed_q.append(q or np.all(spring.get("rotational", 0.0)))
         for load, fixed, what in (("force", x, "position"), ("couple", q, "rotation")):
             spec = lds[f"{end}_{load}"]
             if spec is None:

@@ -27,7 +27,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..rod.sections import SHAPES as SECTION_SHAPES
-from ..validation import MIN_LENGTH, ROTATIONS
+from ..rod.rotation_choice import ROTATIONS
+from ..checks import MIN_LENGTH
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
@@ -35,7 +36,8 @@ from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient
                      damping_tensor, entry_point, integer, load_entry_point, path_problem,
                      path_text,
                      petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
-                     section_inertia, string, tensor_table, toml_value, ts_type_name,
+                     section_inertia, spring_table, string, tensor_table, toml_value,
+                     ts_type_name,
                      type_name, vector3)
 
 __all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "Tensor", "load_scene",
@@ -223,7 +225,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                             "initial rotation"),
         "start_rotation": Key(history(True), None, R + "as end_rotation, at s = 0"),
         "end_displacement": Key(history(True), None, R + "prescribed displacement of s = L "
-                                "from its initial position (value = [x, y, z])"),
+                                "from its initial position (value = [x, y, z]); on a dynamic "
+                                "rod a value at t = 0 (a constant, a step at t0 = 0) starts "
+                                "the rod at rest in equilibrium with it"),
         "start_displacement": Key(history(True), None, R + "as end_displacement, at s = 0"),
         "end_slide": Key(vector3(), None, R + "axis [x, y, z] (a unit coordinate axis, e.g. "
                          "[0, 0, 1]) along which the clamped or pinned end s = L slides "
@@ -232,6 +236,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "follows end_rotation, e.g. turning about the axis); an end_force "
                          "along the axis acts on it (a weight on a sliding clamp)"),
         "start_slide": Key(vector3(), None, R + "as end_slide, at s = 0"),
+        "end_spring": Key(spring_table, None, R + "a compliant support at s = L: "
+                          "{translational = k or [k_x, k_y, k_z] (N/m, spatial), rotational = "
+                          "k or [k_1, k_2, k_3] (N m/rad, material)} about the end's initial "
+                          "position and rotation (energy 1/2 k |x - x_0|^2 + k (1 - cos phi) "
+                          "per axis); translational where the position is free (or slides), "
+                          "rotational where the rotation is free"),
+        "start_spring": Key(spring_table, None, R + "as end_spring, at s = 0"),
     },
     "loads": {
         "end_torsion": Key(history(False), None, T + "applied torsion m(t) at s = 1"),

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..integrators.schemes import get_scheme
-from ..validation import profile_violation, sample_points
+from ..checks import profile_violation, sample_points
 
 
 class BadValue(Exception):
@@ -276,6 +276,22 @@ def tensor(v) -> Tensor:
         if not np.allclose(t, t.T, rtol=1e-12, atol=0.0):
             raise BadValue(f"must be symmetric, got {t.tolist()}")
     return Tensor(terms)
+
+
+def spring_table(v) -> dict:
+    """{translational = k or [k_x, k_y, k_z], rotational = k or [k_1, k_2, k_3]}, each
+    >= 0 (rod/boundary_conditions.EndSpring)."""
+    if not isinstance(v, dict):
+        raise BadValue(f"must be a table {{translational = ..., rotational = ...}}, got "
+                       f"{type_name(v)}")
+    refuse_unknown(v, {"translational", "rotational"})
+    out = {}
+    for k, x in v.items():
+        try:
+            out[k] = vector3(0.0)(x) if isinstance(x, list) else real(0.0)(x)
+        except BadValue as bad:
+            raise BadValue(bad.reason, k) from None
+    return out
 
 
 def damping_tensor(v) -> Tensor:

@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .scenes import Scene, validate
+from ..scenes import Scene, validate
 
 __all__ = ["FitInputError", "Parameter", "Experiment", "MeasuredSeries", "read_series",
            "parse_parameters", "experiment_of"]

@@ -17,10 +17,10 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from ..problem import SecondOrderProblem
+from ..fem.problem import SecondOrderProblem
 from ..rod.contact import InitialOverlap
 from .contact import contact_law, contact_solver_options, obstacles
-from .ode import OdeTorsion
+from ..torsion.ode import OdeTorsion
 from .rules import adaptive_stepper, rod_rotations
 from .schema import Scene, SceneError
 from .values import Coefficient
@@ -154,7 +154,7 @@ def solver_options(scene: Scene, second_order: bool = False) -> dict:
     """PETSc options of a scene: tolerances of [time] (given ones only for a rod with
     rotation vectors, whose integrator has its own defaults, lie_alpha.default_options),
     the [solver] preset, its options."""
-    from .. import solvers
+    from ..fem import solvers
     tim, sol = scene["time"], scene["solver"]
     preset = {"default": {}, "native_lu": solvers.NATIVE_LU,
               "jacobian_reuse": solvers.JACOBIAN_REUSE}[sol["preset"]]
@@ -180,7 +180,7 @@ def ts_type(scene: Scene) -> str:
 def build_torsion(scene: Scene, comm=None) -> FESimulation:
     from mpi4py import MPI
 
-    from ..torsion import TorsionModel, TorsionParameters
+    from ..torsion.model import TorsionModel, TorsionParameters
     mat, geo, lds = scene["material"], scene["geometry"], scene["loads"]
     kwargs = {}
     couple = lds["distributed_couple"]
@@ -206,7 +206,7 @@ def build_torsion(scene: Scene, comm=None) -> FESimulation:
 def build_rod(scene: Scene, comm=None) -> FESimulation:
     """The 3-D rod (dolfin_rod.rod.RodModel) with every scene key mapped to its API."""
     from mpi4py import MPI
-    from ..rod import RodModel
+    from ..rod import EndSpring, RodModel
 
     mat, geo = scene["material"], scene["geometry"]
     ends = {"start": "left", "end": "right"}
@@ -226,6 +226,8 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
                          comm=comm or MPI.COMM_WORLD,
                          end_slide={side: axis for key, side in ends.items()
                                     if (axis := scene["boundary"][f"{key}_slide"]) is not None},
+                         end_springs={side: EndSpring(**spring) for key, side in ends.items()
+                                      if (spring := scene["boundary"][f"{key}_spring"])},
                          obstacles=obstacles(scene), contact=contact_law(scene, params))
     except ValueError as err:
         key = "material.energy" if str(err).startswith("energy") else "scene.model"
