@@ -341,15 +341,16 @@ def test_sigterm_mid_run_stops_like_ctrl_c(tmp_path):
 # SIGTERM during start-up: tests/test_faults.py, test_ctrl_c_during_start_up_is_a_clean_...
 
 
-def _children(pid: int) -> list[int]:
-    """The processes whose parent is pid (mpirun's ranks), from /proc."""
+def _ranks(pid: int) -> list[int]:
+    """The dolfin_rod processes whose parent is pid (mpirun's ranks), from /proc."""
     found = []
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
             fields = stat.read_text().rsplit(")", 1)[1].split()
+            command = (stat.parent / "cmdline").read_bytes()
         except OSError:
             continue
-        if int(fields[1]) == pid:
+        if int(fields[1]) == pid and b"dolfin_rod" in command:
             found.append(int(stat.parent.name))
     return found
 
@@ -370,7 +371,7 @@ def test_signal_to_the_ranks_under_mpirun_stops_like_ctrl_c(tmp_path, sig):
                             stderr=subprocess.PIPE, text=True)
     try:
         _wait_for(_rows_written(run), "20 rows", timeout=MPI_TIMEOUT)
-        ranks = _children(proc.pid)
+        ranks = _ranks(proc.pid)
         assert len(ranks) == 2, ranks
         for rank in ranks:
             os.kill(rank, sig)
@@ -424,7 +425,7 @@ def test_dynamic_motion_jumping_or_faster_than_dt_is_refused_at_check(
 def test_dynamic_torsion_api_refuses_a_jump_after_t0():
     """The Python API: a step of the end rotation at t0 = 0.5 (not only at t = 0)."""
     from dolfin_rod import loads
-    from dolfin_rod.torsion import TorsionModel, TorsionParameters
+    from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
     params = TorsionParameters(alpha=2.0, alpha_d=1.0, mu=0.2, mu_d=0.5, nu=0.01)
     with pytest.raises(ValueError, match="end_rotation has a step at t = 0.5 but nu > 0"):
         TorsionModel(params, n_cells=4, end_rotation=loads.step(0.5, t0=0.5))
