@@ -7,7 +7,8 @@
     residual.py            balance, gauge, constraints, evolution, inertia
     external_forces.py     end and distributed loads, drag
     boundary_conditions.py clamped, pinned, prescribed motions, reactions
-    initial_state.py       the stress-free initial configuration
+    initial_state.py       the stress-free configuration, the state at t = 0
+    start.py               starting states: placement, curves, velocities
     contact.py             obstacles: barrier and Coulomb friction
     diagnostics.py         energies, powers, tip
 """
@@ -40,6 +41,7 @@ from .layout import RodLayout
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
 from .segments import PassThroughCheck
+from .start import StartingState, check_start
 
 
 class RodModel(FEModel):
@@ -259,12 +261,22 @@ class RodModel(FEModel):
         """(r, q) of the initial stress-free configuration at parameter values s."""
         return initial_state.stress_free(self, s)
 
-    def set_initial_state(self, natural_curvature=None, natural_stretch=None) -> None:
-        """Rest in the stress-free configuration of the reference strains (a straight rod
-        along e_3, or the helix/circle of constant reference_curvature), natural strains
-        equal to the discrete reference strains (uniform variant: their mean) unless given
-        (3-vectors), rates zero: no stress at t = 0."""
-        initial_state.set_initial_state(self, natural_curvature, natural_stretch)
+    def set_initial_state(self, natural_curvature=None, natural_stretch=None,
+                          start: StartingState | None = None) -> None:
+        """Natural strains equal to the discrete reference strains of the stress-free
+        configuration (a straight rod along e_3, or the helix/circle of constant
+        reference_curvature; uniform variant: their mean) unless given (3-vectors).
+        ``start`` None: the rod rests in that configuration, no stress at t = 0;
+        a StartingState (rod/start.py; one rod, not a system): placed at its position
+        and orientation, on its starting curve (e.g. Arc, Helix, Polyline, a Straight one
+        stretched), with its velocities (dynamic rods), or settled in static equilibrium
+        with the loads at t = 0 (``equilibrium``); the stress-free shape is unchanged."""
+        if start is not None and not self.layout.single:
+            raise ValueError("start: a StartingState is for a single rod; the rods of a "
+                             "system are placed by Rod.position and Rod.orientation")
+        check_start(start, self.length, self.dynamic, rotation_held=(
+            "clamped" in self.supports.ends or bool(self.supports.rotation)))
+        initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
         if self.contact:
             self.contact.check_initial()
             self.contact.update_normal_forces()

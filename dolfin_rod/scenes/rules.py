@@ -12,12 +12,15 @@ import numpy as np
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
-from ..checks import sample_points
+from ..checks import EQUILIBRIUM_NEEDS, polyline_problem, sample_points
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
 
+# the rod's starting state (rod/start.py) in [initial]
+START_KEYS = ("position", "orientation", "shape", "velocity", "angular_velocity",
+              "rotation_centre", "equilibrium")
 TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 # keys of one model family only: (table, key) -> the family that reads it
 TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
@@ -29,13 +32,15 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
     ("geometry", "rotations"),
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
+    *(("initial", k) for k in START_KEYS),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
     ("boundary", "start_displacement"), ("boundary", "start_slide"),
     ("boundary", "end_slide"), ("boundary", "start_spring"), ("boundary", "end_spring"),
     ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
     ("loads", "start_couple"), ("obstacles", "shape")} | {
-    ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")}
+    ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")} | {
+    ("stability", k) for k in ("check", "follow_unstable")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
 
 
@@ -252,6 +257,7 @@ def _check_rod_material(scene: Scene) -> None:
     if d["geometry"]["reference_stretch"][2] <= 0:
         raise err("geometry.reference_stretch", "v_ref,3 must be > 0 (eq. v3pos)")
     _check_rod_inertia(scene)
+    _check_rod_start(scene)
     if mat["energy"] is not None:
         folder = Path(scene.source).parent if Path(scene.source).is_file() else None
         try:
@@ -312,6 +318,29 @@ def _check_rod_inertia(scene: Scene) -> None:
         raise err("time.scheme", f"{scene['time']['scheme']} is explicit, but a quasi-static "
                                  "rod is differential-algebraic: use an implicit scheme")
     rod_rotations(scene)
+
+
+def _check_rod_start(scene: Scene) -> None:
+    """The starting state ([initial] START_KEYS) against the rod."""
+    ini, err = scene["initial"], scene.error
+    if not scene["material"]["dynamic"]:
+        for k in ("velocity", "angular_velocity", "equilibrium"):
+            if ini[k]:
+                raise err(f"initial.{k}", "a quasi-static rod (density 0) has no velocities "
+                                          "and is in equilibrium at every step")
+    bnd = scene["boundary"]
+    if ini["equilibrium"] and not any(bnd[end] == "clamped" or bnd[f"{end}_rotation"]
+                                      for end in ("start", "end")):
+        raise err("initial.equilibrium", EQUILIBRIUM_NEEDS)
+    if ini["rotation_centre"] is not None and ini["angular_velocity"] is None:
+        raise err("initial.rotation_centre", "needs initial.angular_velocity (the rigid "
+                                             "rotation about it)")
+    shape = ini["shape"]
+    if shape is not None and shape["type"] == "polyline":
+        problem = polyline_problem(shape["points"], shape["rest_arc_length"], shape["normal"],
+                                   scene["geometry"]["length"])
+        if problem:
+            raise err(f"initial.shape.{problem[0]}", problem[1])
 
 
 def rod_rotations(scene: Scene) -> str:
@@ -459,7 +488,8 @@ def _check_rod_ends(scene: Scene) -> None:
             raise err(f"loads.{k}.value", "3-D rod: a vector value = [x, y, z] (or a table "
                                           "of 3-vectors)")
     _check_turns_resolved(scene)
-    if not scene["material"]["dynamic"] and not (any(fixed_x) and any(fixed_q)):
+    if not scene["material"]["dynamic"] and not scene.joined and \
+            not (any(fixed_x) and any(fixed_q)):
         raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "
                                     "rotation somewhere (e.g. start = \"clamped\"); rigid "
                                     "motions are free otherwise")
