@@ -157,3 +157,32 @@ def test_a_run_that_ends_unstable_says_so(tmp_path, capsys, follow):
     summary = json.loads(open(f"{folder}/summary.json").read())
     assert summary["status"] == ("completed" if follow else "completed (unstable equilibrium)")
     assert summary["stability_check_ms_per_step"] > 0
+
+
+@pytest.mark.mpi
+def test_lowest_eigenvalue_changes_sign_at_the_critical_load():
+    """The clamped-free column of 8 cells (discrete P_cr = 1.006460 pi^2/4 by the count's
+    bisection above): the lowest eigenvalue of K v = lambda G v (G the lumped metric) is
+    double (two bending planes), positive at 0.99 P_h and negative at 1.01 P_h, and
+    K = K0 - P K_G of the straight column makes it nearly linear in P: the secant
+    through 0.9 and 1.1 P_cr meets 0 at P_h within 1e-3 (measured 1.0064 for 1.00646)."""
+    from dolfin_rod.analysis.stability import LowestEigenvalues
+    p_h = 1.006460
+    scale = [0.0]
+    rod = RodModel(STIFF, n_cells=8, model="hyperelastic",
+                   end_loads=[EndLoad("force", (0.0, 0.0, -math.pi ** 2 / 4),
+                                      lambda t: scale[0])])
+    tangent = TangentStiffness(rod)
+    lowest = LowestEigenvalues(tangent)
+
+    def eigenvalues(factor):
+        scale[0] = factor
+        rod.set_initial_state()
+        TimeStepper(rod.problem).run(0.0, 1.0, 1.0)
+        return lowest(1.0, 2)
+
+    below, above = eigenvalues(0.99 * p_h), eigenvalues(1.01 * p_h)
+    assert 0 < below[0] and above[1] < 0
+    assert below[1] == pytest.approx(below[0], rel=1e-6)      # the two planes
+    low, high = eigenvalues(0.9)[0], eigenvalues(1.1)[0]
+    assert 0.9 + 0.2 * low / (low - high) == pytest.approx(p_h, abs=1e-3)

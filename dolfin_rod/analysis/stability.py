@@ -25,8 +25,9 @@ import ufl
 from petsc4py import PETSc
 
 from ..fem.assembly import block_system
+from ..fem.fe_model import vertex_measure
 
-__all__ = ["Inertia", "TangentStiffness", "StabilityMonitor"]
+__all__ = ["Inertia", "TangentStiffness", "LowestEigenvalues", "StabilityMonitor"]
 
 MECHANICAL = ("displacement", "rotation_increment", "quaternion")
 MULTIPLIERS = ("gauge_multiplier", "constraint_multiplier")
@@ -54,7 +55,7 @@ class TangentStiffness:
         self.system = block_system(forms, [[model.f[n] for n in names]], bcs=bcs)
         self.multipliers = self._free_dofs(model, [n for n in names if n in MULTIPLIERS])
         start = self.system.A.getOwnershipRange()[0]
-        self._fixed = PETSc.IS().createGeneral(
+        self.fixed = PETSc.IS().createGeneral(
             (self.system.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         self._ksp = None        # at the first check: its options are then read at once
 
@@ -78,7 +79,7 @@ class TangentStiffness:
         system.set(0, system.x)
         system.jacobian(system.A)
         A = system.A
-        A.zeroRowsColumns(self._fixed, diag=1.0)
+        A.zeroRowsColumns(self.fixed, diag=1.0)
         K = A.transpose(PETSc.Mat())          # (without an out argument: in place)
         K.axpy(1.0, A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         K.scale(0.5)
@@ -113,14 +114,63 @@ class TangentStiffness:
         return ksp
 
 
+class LowestEigenvalues:
+    """The lowest eigenvalues of K v = lambda G v on a rod with rotation vectors (no
+    multipliers), G the lumped metric int (dx . x + L^2 dtheta . theta) ds (vertex rule:
+    diagonal; units of K per length^3, e.g. EI/L^4: independent of the mesh), by SLEPc
+    (shift-and-invert at 0, MUMPS).  Dirichlet dofs have G = 0 (infinite eigenvalues, out
+    of the way)."""
+
+    def __init__(self, tangent: TangentStiffness):
+        model = tangent.model
+        if tangent.multipliers or "rotation_increment" not in tangent.names:
+            raise ValueError("lowest eigenvalues: a rod with rotation vectors and without "
+                             "constraints (geometry.rotations = \"rotation_vector\")")
+        self.tangent = tangent
+        dx = vertex_measure(model.mesh)
+        x, theta = model.f["displacement"], model.f["rotation_increment"]
+        metric = [ufl.inner(x, model.t["displacement"]) * dx,
+                  model.length ** 2 * ufl.inner(theta, model.t["rotation_increment"]) * dx]
+        bcs = [bc for n in tangent.names for bc in model.bcs_of(n)]
+        system = block_system(metric, [[x, theta]], bcs=bcs)
+        system.jacobian(system.A)
+        system.A.zeroRowsColumns(tangent.fixed, diag=0.0)
+        self.G = system.A
+
+    def __call__(self, t: float, count: int = 1) -> list[float]:
+        """The ``count`` eigenvalues nearest 0 at time t, ascending (all of them below 0
+        when count exceeds the negative count)."""
+        from slepc4py import SLEPc
+        K = self.tangent.matrix(t)
+        eps = SLEPc.EPS().create(K.getComm())
+        eps.setOperators(K, self.G)
+        eps.setProblemType(SLEPc.EPS.ProblemType.GHEP)
+        eps.setDimensions(count)
+        eps.setTarget(0.0)
+        eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
+        st = eps.getST()
+        st.setType(SLEPc.ST.Type.SINVERT)
+        ksp = st.getKSP()
+        ksp.setType("preonly")
+        ksp.getPC().setType("lu")
+        ksp.getPC().setFactorSolverType("mumps")
+        eps.setTolerances(1e-10, 200)
+        eps.solve()
+        values = sorted(eps.getEigenvalue(i).real for i in range(eps.getConverged()))
+        eps.destroy()
+        return values[:count]
+
+
 class StabilityMonitor:
     """The inertia after every step of a quasi-static run (``check(t)``): the count of
-    negative eigenvalues, the times it changed (``changes``: (t, before, after)), and the
+    negative eigenvalues, if asked the lowest eigenvalue (``lowest``; LowestEigenvalues), the times the count changed (``changes``: (t, before, after)), and the
     cost (``seconds`` over ``checks``)."""
 
-    def __init__(self, model):
+    def __init__(self, model, lowest: bool = False):
         self.tangent = TangentStiffness(model)
+        self.eigenvalues = LowestEigenvalues(self.tangent) if lowest else None
         self.negative: int | None = None
+        self.lowest: float | None = None
         self.changes: list[tuple[float, int, int]] = []
         self.seconds, self.checks = 0.0, 0
         self.reported = 0       # changes the run has warned about
@@ -128,6 +178,8 @@ class StabilityMonitor:
     def check(self, t: float) -> int:
         start = time.perf_counter()
         negative = self.tangent.inertia(t).negative
+        if self.eigenvalues is not None:
+            self.lowest = min(self.eigenvalues(t, negative + 1), default=float("nan"))
         self.seconds += time.perf_counter() - start
         self.checks += 1
         if self.negative is not None and negative != self.negative:

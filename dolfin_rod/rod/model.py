@@ -51,7 +51,8 @@ class RodModel(FEModel):
     "local" or "uniform" (evolution.py); constraint: None, "unshearable" or
     "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
     boundary_conditions.py (end_slide: {end: axis}, a clamped or pinned end sliding
-    along a coordinate axis; end_springs: {end: EndSpring}, compliant supports); end_loads, distributed_loads: external_forces.py; rotations:
+    along a coordinate axis; end_turn: {end: axis}, a clamped end turning freely about
+    one; end_springs: {end: EndSpring}, compliant supports); end_loads, distributed_loads: external_forces.py; rotations:
     "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
     vectors for the local variant without a constraint, a dynamic rod with rotary
     inertia or a quasi-static one without Kelvin-Voigt viscosity and drag: 6 unknowns
@@ -71,9 +72,10 @@ class RodModel(FEModel):
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
                  rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD,
                  end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
-                 contact: ContactLaw | None = None, end_springs: dict | None = None):
+                 contact: ContactLaw | None = None, end_springs: dict | None = None,
+                 end_turn: dict | None = None):
         rod = Rod(params, n_cells, ends, end_loads, distributed_loads, end_displacement,
-                  end_rotation, end_slide, end_springs=end_springs)
+                  end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn)
         self._build([rod], model, variant, constraint, rotations, comm, obstacles=obstacles,
                     contact=contact)
 
@@ -159,7 +161,7 @@ class RodModel(FEModel):
         residual.one_quadrature_rule(F, unk, disc)
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, layout.span(k),
-                                         rod.end_springs)
+                                         rod.end_springs, rod.end_turn)
                              for k, rod in enumerate(rods)]
         springs = sum((supports.spring_energy(unk, disc.ds, disc.end_weight,
                                               disc.pieces.indicator(k))

@@ -95,7 +95,7 @@ class FESimulation:
         self.stability = None           # quasi-static 3-D rods: analysis/stability.py
         if scene.is_rod_material and not model.dynamic and scene["stability"]["check"]:
             from ..analysis.stability import StabilityMonitor
-            self.stability = StabilityMonitor(model)
+            self.stability = StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
         self.ts = None
         if self.integrator == "ts":
             from ..integrators.ts import TSIntegrator
@@ -131,6 +131,8 @@ class FESimulation:
         d = self.model.diagnostics(t)
         if self.stability is not None:
             d["negative_eigenvalues"] = float(self.stability.check(t))
+            if self.stability.lowest is not None:
+                d["lowest_eigenvalue"] = self.stability.lowest
         return d
 
     def state(self) -> dict:
@@ -267,7 +269,7 @@ def starting_state(scene: Scene):
 
 def rod_arguments(scene: Scene) -> dict:
     """The arguments of one rod (RodModel, rod.Rod) besides its parameters: cells, ends,
-    end motions, slides and springs, loads."""
+    end motions, slides, turning clamps and springs, loads."""
     from ..rod import EndSpring
     ends = {"start": "left", "end": "right"}
     boundary = scene["boundary"]
@@ -281,7 +283,9 @@ def rod_arguments(scene: Scene) -> dict:
                 end_slide={side: axis for key, side in ends.items()
                            if (axis := boundary[f"{key}_slide"]) is not None},
                 end_springs={side: EndSpring(**spring) for key, side in ends.items()
-                             if (spring := boundary[f"{key}_spring"])})
+                             if (spring := boundary[f"{key}_spring"])},
+                end_turn={side: axis for key, side in ends.items()
+                          if (axis := boundary[f"{key}_turn"]) is not None})
 
 
 def rod_parameters(scene: Scene):

@@ -276,6 +276,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "follows end_rotation, e.g. turning about the axis); an end_force "
                          "along the axis acts on it (a weight on a sliding clamp)"),
         "start_slide": Key(vector3(), None, R + "as end_slide, at s = 0"),
+        "end_turn": Key(vector3(), None, R + "axis [x, y, z] (a unit coordinate axis) about "
+                        "which the clamped end s = L turns freely (a hinge; with end_slide "
+                        "along the same axis a cylindrical joint): its rotation is held "
+                        "about the other two axes only, a dead end_couple about the axis "
+                        "acts on it; its initial frame must keep the axis"),
+        "start_turn": Key(vector3(), None, R + "as end_turn, at s = 0"),
         "end_spring": Key(spring_table, None, R + "a compliant support at s = L: "
                           "{translational = k or [k_x, k_y, k_z] (N/m, spatial), rotational = "
                           "k or [k_1, k_2, k_3] (N m/rad, material)} about the end's initial "
@@ -348,6 +354,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                     "eigenvalues of the tangent stiffness (column "
                                     "negative_eigenvalues; a warning when it changes; "
                                     "docs/stability.md)"),
+        "lowest_eigenvalue": Key(boolean, False, R + "quasi-static, rotation vectors without "
+                                              "constraints: also the lowest eigenvalue of "
+                                              "K v = lambda G v (G: the lumped L2 metric; column "
+                                              "lowest_eigenvalue; SLEPc, ~10-30 ms a step)"),
         "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
                                               "> 0) is a result: status \"completed\", exit 0 "
                                               "(default: \"completed (unstable equilibrium)\", "
