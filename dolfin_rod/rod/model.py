@@ -31,7 +31,7 @@ from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..theory.rotations import rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
-from .boundary_conditions import EndSupports
+from .boundary_conditions import EndSupports, spin_free
 from .constitutive import check_model, energy_function, section_response
 from .contact import ContactLaw, Obstacle, ObstacleContact
 from .discretisation import discretise, function_spaces, unknowns
@@ -107,6 +107,8 @@ class RodModel(FEModel):
             rate_dependent=not all(is_zero(v) for p in all_params for v in (
                 p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
             rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
+                              or spin_free(rod.ends, rod.end_rotation, rod.end_turn,
+                                           rod.end_springs)
                               or any(np.all(spring.stiffness("rotational"))
                                      for spring in (rod.end_springs or {}).values())
                               for rod in rods))
