@@ -17,6 +17,7 @@ __version__ = "0.1.0"
 _WHERE = {
     # models and their data
     "RodModel": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
+    "StartingState": "rod", "Straight": "rod", "Arc": "rod", "Helix": "rod", "Polyline": "rod",
     "EndSpring": "rod",
     "RodSystem": "rod", "Rod": "rod", "Joint": "rod",   # rod systems (docs/systems.md)
     "sections": "rod",      # cross-sections and materials -> RodParameters (rod/sections.py)

@@ -126,6 +126,7 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     t_run = time.perf_counter()
     status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
                                     meta["step"], stop_after, quiet)
+    status, message = _unstable_end(scene, sim, status, message)
     clock["integration"] = time.perf_counter() - t_run
     summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
     clock["total"] = time.perf_counter() - clock["start"]
@@ -136,7 +137,8 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
         message = "; ".join([*filter(None, [message]), "interrupted while drawing the "
                              "pictures: summary.json lists the ones missing"])
     line = f"{status}: t = {t:g}, results in {folder}" + (f" ({message})" if message else "")
-    if status in ("failed", "interrupted") or summary["pictures"] == "interrupted":
+    if status in ("failed", "interrupted", "completed (unstable equilibrium)") \
+            or summary["pictures"] == "interrupted":
         print_on_root(comm, line, file=sys.stderr)
     elif not quiet:
         print_on_root(comm, line)
@@ -185,6 +187,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
 
     def after_step(t_k: float) -> None:
         diag = sim.diagnostics(t_k)
+        _report_stability_changes(sim, comm)
         bound.check(diag)
         k = progress["k"] = progress["k"] + 1
         writer.record(k, t_k, diag)
@@ -222,6 +225,30 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     return status, message, progress["t"]
 
 
+def _report_stability_changes(sim, comm) -> None:
+    """A warning for each change of the tangent's negative eigenvalues not yet shown."""
+    monitor = getattr(sim, "stability", None)
+    while monitor is not None and len(monitor.changes) > monitor.reported:
+        t, before, after = monitor.changes[monitor.reported]
+        monitor.reported += 1
+        state = "unstable" if after else "stable again"
+        print_on_root(comm, f"warning: t = {t:g}: the equilibrium is {state}: {after} "
+                            f"negative eigenvalue(s) of the tangent stiffness (was {before}; "
+                            "docs/stability.md)", file=sys.stderr)
+
+
+def _unstable_end(scene, sim, status: str, message: str) -> tuple[str, str]:
+    """A completed quasi-static run that ends on an unstable equilibrium is not a result
+    unless stability.follow_unstable says so."""
+    monitor = getattr(sim, "stability", None)
+    if status != "completed" or monitor is None or not monitor.negative \
+            or scene["stability"]["follow_unstable"]:
+        return status, message
+    return "completed (unstable equilibrium)", (
+        f"the end state has {monitor.negative} negative eigenvalue(s) of the tangent "
+        "stiffness: an unstable equilibrium (stability.follow_unstable = true accepts it)")
+
+
 def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> dict:
     summary = {
         "scene": scene.name, "source": scene.source, "model": choice.model,
@@ -239,6 +266,9 @@ def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> d
     if stats is not None:
         summary["newton_iterations"] = stats.newton_iterations
         summary["rejected_steps"] = stats.rejected
+    monitor = getattr(sim, "stability", None)
+    if monitor is not None and monitor.checks:
+        summary["stability_check_ms_per_step"] = 1e3 * monitor.seconds / monitor.checks
     return summary
 
 
@@ -396,7 +426,8 @@ def _main(argv: list[str] | None, comm) -> int:
                         overwrite=args.overwrite)
     if summary["pictures"] == "interrupted" and summary["status"] != "failed":
         return 130
-    return {"completed": 0, "stopped": 0, "interrupted": 130}.get(summary["status"], 3)
+    return {"completed": 0, "stopped": 0, "interrupted": 130,
+            "completed (unstable equilibrium)": 4}.get(summary["status"], 3)
 
 
 if __name__ == "__main__":

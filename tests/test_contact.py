@@ -10,6 +10,8 @@ y eps where the smoothed law's phi(y) = tan a / mu); the signed distances agains
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -270,3 +272,23 @@ def test_contact_jacobian_is_the_residuals_derivative(shape):
     for coarse, fine in zip(remainders, remainders[1:]):
         for c, f in zip(coarse, fine):
             assert c / f == pytest.approx(4.0, rel=0.1)
+
+
+@pytest.mark.mpi
+def test_a_barrier_that_yields_fails_the_run_naming_the_obstacle(tmp_path):
+    """contact.stiffness 1e-3 (1e-7 of the default) cannot hold the rod: the steps are
+    cut, then the run fails ('failed': the CLI's exit 3) naming the obstacle, the place
+    and the key to raise; the rows computed before are kept."""
+    from mpi4py import MPI
+
+    from dolfin_rod import run_scene
+    scene = parse_scene(SCENE.replace("radius = 0.01", "radius = 0.01\nstiffness = 1e-3")
+                        .replace("t_end = 0.1", "t_end = 0.5"))
+    folder = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0)) / "run"
+    summary = run_scene(scene, folder, quiet=True)
+    assert summary["status"] == "failed"
+    assert "inside obstacles[0]" in summary["message"]
+    assert "contact.stiffness" in summary["message"]
+    if MPI.COMM_WORLD.rank == 0:
+        rows = (folder / "timeseries.csv").read_text().splitlines()
+        assert len(rows) > 2

@@ -10,7 +10,9 @@ from .material import RodParameters
 from .model import RodModel
 from .joints import Joint
 from .rods import Rod
+from .start import Arc, Helix, Polyline, StartingState, Straight
 from .system import RodSystem
 
 __all__ = ["RodModel", "RodSystem", "Rod", "Joint", "RodParameters", "EndLoad", "DistributedLoad",
-           "EndSpring", "MODELS", "END_TYPES", "sections", "Obstacle", "ContactLaw"]
+           "EndSpring", "MODELS", "END_TYPES", "sections", "Obstacle", "ContactLaw",
+           "StartingState", "Straight", "Arc", "Helix", "Polyline"]

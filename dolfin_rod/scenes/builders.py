@@ -21,7 +21,7 @@ from ..fem.problem import SecondOrderProblem
 from ..rod.contact import InitialOverlap
 from .contact import contact_law, contact_solver_options, obstacles
 from ..torsion.ode import OdeTorsion
-from .rules import adaptive_stepper, rod_rotations
+from .rules import START_KEYS, adaptive_stepper, rod_rotations
 from .schema import Scene, SceneError
 from .values import Coefficient
 
@@ -92,6 +92,10 @@ class FESimulation:
         self.stepper = TimeStepper(self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
                                    predictor=tim["predictor"], tolerance=tolerance)
         self.integrator = tim["integrator"]
+        self.stability = None           # quasi-static 3-D rods: analysis/stability.py
+        if scene.is_rod_material and not model.dynamic and scene["stability"]["check"]:
+            from ..analysis.stability import StabilityMonitor
+            self.stability = StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
         self.ts = None
         if self.integrator == "ts":
             from ..integrators.ts import TSIntegrator
@@ -124,7 +128,12 @@ class FESimulation:
         self.stepper.run(t, t_next, t_next - t)
 
     def diagnostics(self, t: float) -> dict[str, float]:
-        return self.model.diagnostics(t)
+        d = self.model.diagnostics(t)
+        if self.stability is not None:
+            d["negative_eigenvalues"] = float(self.stability.check(t))
+            if self.stability.lowest is not None:
+                d["lowest_eigenvalue"] = self.stability.lowest
+        return d
 
     def state(self) -> dict:
         """Functions a checkpoint stores (besides problem.fields): the integrator's and
@@ -229,7 +238,8 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
 
     def initial_state():
         model.set_initial_state(natural_curvature=initial["natural_curvature"],
-                                natural_stretch=initial["natural_stretch"])
+                                natural_stretch=initial["natural_stretch"],
+                                start=starting_state(scene))
 
     if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
         try:
@@ -239,9 +249,27 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     return FESimulation("rod", model, scene, initial_state)
 
 
+def starting_state(scene: Scene):
+    """The rod's StartingState of [initial] (rules.START_KEYS), None if none is given."""
+    from ..rod import start
+    ini = scene["initial"]
+    if not any(k in scene.given["initial"] for k in START_KEYS):
+        return None
+    shape = dict(ini["shape"] or {})
+    kind = shape.pop("type", None)
+    curves = {"straight": start.Straight, "arc": start.Arc, "helix": start.Helix,
+              "polyline": start.Polyline}
+    zero = (0.0, 0.0, 0.0)
+    return start.StartingState(
+        shape=curves[kind](**shape) if kind else None, position=ini["position"] or zero,
+        orientation=ini["orientation"] or zero, velocity=ini["velocity"] or zero,
+        angular_velocity=ini["angular_velocity"] or zero,
+        rotation_centre=ini["rotation_centre"], equilibrium=ini["equilibrium"])
+
+
 def rod_arguments(scene: Scene) -> dict:
     """The arguments of one rod (RodModel, rod.Rod) besides its parameters: cells, ends,
-    end motions, slides and springs, loads."""
+    end motions, slides, turning clamps and springs, loads."""
     from ..rod import EndSpring
     ends = {"start": "left", "end": "right"}
     boundary = scene["boundary"]
@@ -255,7 +283,9 @@ def rod_arguments(scene: Scene) -> dict:
                 end_slide={side: axis for key, side in ends.items()
                            if (axis := boundary[f"{key}_slide"]) is not None},
                 end_springs={side: EndSpring(**spring) for key, side in ends.items()
-                             if (spring := boundary[f"{key}_spring"])})
+                             if (spring := boundary[f"{key}_spring"])},
+                end_turn={side: axis for key, side in ends.items()
+                          if (axis := boundary[f"{key}_turn"]) is not None})
 
 
 def rod_parameters(scene: Scene):

@@ -11,12 +11,15 @@ import numpy as np
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
-from ..checks import sample_points
+from ..checks import EQUILIBRIUM_NEEDS, polyline_problem, sample_points
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
 
+# the rod's starting state (rod/start.py) in [initial]
+START_KEYS = ("position", "orientation", "shape", "velocity", "angular_velocity",
+              "rotation_centre", "equilibrium")
 TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 # keys of one model family only: (table, key) -> the family that reads it
 TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
@@ -28,13 +31,16 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
     ("geometry", "rotations"),
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
+    *(("initial", k) for k in START_KEYS),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
     ("boundary", "start_displacement"), ("boundary", "start_slide"),
     ("boundary", "end_slide"), ("boundary", "start_spring"), ("boundary", "end_spring"),
+    ("boundary", "start_turn"), ("boundary", "end_turn"),
     ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
     ("loads", "start_couple"), ("obstacles", "shape")} | {
-    ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")}
+    ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")} | {
+    ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
 
 
@@ -232,6 +238,7 @@ def _check_rod_material(scene: Scene) -> None:
     if d["geometry"]["reference_stretch"][2] <= 0:
         raise err("geometry.reference_stretch", "v_ref,3 must be > 0 (eq. v3pos)")
     _check_rod_inertia(scene)
+    _check_rod_start(scene)
     if mat["energy"] is not None:
         folder = Path(scene.source).parent if Path(scene.source).is_file() else None
         try:
@@ -272,6 +279,29 @@ def _check_rod_inertia(scene: Scene) -> None:
         raise err("time.scheme", f"{scene['time']['scheme']} is explicit, but a quasi-static "
                                  "rod is differential-algebraic: use an implicit scheme")
     rod_rotations(scene)
+
+
+def _check_rod_start(scene: Scene) -> None:
+    """The starting state ([initial] START_KEYS) against the rod."""
+    ini, err = scene["initial"], scene.error
+    if not scene["material"]["dynamic"]:
+        for k in ("velocity", "angular_velocity", "equilibrium"):
+            if ini[k]:
+                raise err(f"initial.{k}", "a quasi-static rod (density 0) has no velocities "
+                                          "and is in equilibrium at every step")
+    bnd = scene["boundary"]
+    if ini["equilibrium"] and not any(bnd[end] == "clamped" or bnd[f"{end}_rotation"]
+                                      for end in ("start", "end")):
+        raise err("initial.equilibrium", EQUILIBRIUM_NEEDS)
+    if ini["rotation_centre"] is not None and ini["angular_velocity"] is None:
+        raise err("initial.rotation_centre", "needs initial.angular_velocity (the rigid "
+                                             "rotation about it)")
+    shape = ini["shape"]
+    if shape is not None and shape["type"] == "polyline":
+        problem = polyline_problem(shape["points"], shape["rest_arc_length"], shape["normal"],
+                                   scene["geometry"]["length"])
+        if problem:
+            raise err(f"initial.shape.{problem[0]}", problem[1])
 
 
 def rod_rotations(scene: Scene) -> str:
@@ -338,6 +368,27 @@ def _slide_axis(scene: Scene, end: str):
     return np.asarray(axis)
 
 
+def _turn_axis(scene: Scene, end: str):
+    """The axis a clamped end turns about (boundary.<end>_turn) after its checks, or None."""
+    from ..rod.boundary_conditions import slide_axis_problem
+    bnd, key = scene["boundary"], f"boundary.{end}_turn"
+    axis = bnd[f"{end}_turn"]
+    if axis is None:
+        return None
+    if bnd[end] != "clamped":
+        raise scene.error(key, f"boundary.{end} is {bnd[end]!r}: only a clamped end turns "
+                               "in its support")
+    slide = bnd[f"{end}_slide"]
+    problem = slide_axis_problem(axis) or (
+        "must equal boundary." + end + "_slide" if slide is not None and slide != axis else None)
+    if problem:
+        raise scene.error(key, problem)
+    if bnd[f"{end}_rotation"] is not None:
+        raise scene.error(f"boundary.{end}_rotation", f"the end turns freely ({key}): its "
+                                                      "rotation cannot also be prescribed")
+    return np.asarray(axis)
+
+
 def _along_and_across(spec, axis) -> tuple[bool, bool]:
     """Whether a vector history has a component along the axis, and one across it."""
     values = np.array(spec.values if spec.type == "table" else (spec.value,), float)
@@ -365,12 +416,12 @@ def _check_rod_ends(scene: Scene) -> None:
                                                       "with inertia cannot follow a jump of its "
                                                       "end: use type = \"smooth_step\" or "
                                                       "\"ramp\" (with t0)")
-        axis = _slide_axis(scene, end)
+        axis, turn = _slide_axis(scene, end), _turn_axis(scene, end)
         x = kind in ("clamped", "pinned") or bnd[f"{end}_displacement"] is not None
         q = kind == "clamped" or bnd[f"{end}_rotation"] is not None
-        spring = _spring(scene, end, x and axis is None, q)
+        spring = _spring(scene, end, x and axis is None, q and turn is None)
         fixed_x.append((x and axis is None) or np.all(spring.get("translational", 0.0)))
-        fixed_q.append(q or np.all(spring.get("rotational", 0.0)))
+        fixed_q.append((q and turn is None) or np.all(spring.get("rotational", 0.0)))
         for load, fixed, what in (("force", x, "position"), ("couple", q, "rotation")):
             spec = lds[f"{end}_{load}"]
             if spec is None:
@@ -378,12 +429,15 @@ def _check_rod_ends(scene: Scene) -> None:
             if not spec.is_vector:
                 raise err(f"loads.{end}_{load}.value", "3-D rod: a vector value = [x, y, z] "
                                                        "(or a table of 3-vectors)")
-            if load == "force" and axis is not None:
-                if spec.follower or _along_and_across(spec, axis)[1]:
-                    raise err(f"loads.{end}_{load}", f"the end slides along {list(axis)} "
-                                                     f"(boundary.{end}_slide): only a dead "
-                                                     "force along that axis acts on it, the "
-                                                     "support takes the rest")
+            free_axis = axis if load == "force" else turn
+            if free_axis is not None:
+                if spec.follower or _along_and_across(spec, free_axis)[1]:
+                    how = "slides along" if load == "force" else "turns about"
+                    raise err(f"loads.{end}_{load}", f"the end {how} {list(free_axis)} "
+                                                     f"(boundary.{end}_"
+                                                     f"{'slide' if load == 'force' else 'turn'}"
+                                                     f"): only a dead {load} along that axis "
+                                                     "acts on it, the support takes the rest")
                 continue
             if fixed:
                 raise err(f"loads.{end}_{load}", f"acts where the {what} is prescribed "

@@ -37,7 +37,8 @@ from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient
                      damping_tensor, entry_point, integer, load_entry_point, path_problem,
                      path_text,
                      petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
-                     section_inertia, spring_table, string, tensor_table, toml_value,
+                     section_inertia, spring_table, starting_shape, string, tensor_table,
+                     toml_value,
                      ts_type_name,
                      type_name, vector3)
 
@@ -218,6 +219,32 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                  "the reference strains, i.e. unstressed)"),
         "natural_stretch": Key(vector3(), None, R + "v_d at t = 0 (evolving; default: "
                                "the reference strains)"),
+        "position": Key(vector3(), None, R + "where the rod's start s = 0 is at t = 0 (a "
+                        "length; default: the origin)"),
+        "orientation": Key(vector3(), None, R + "rotation vector (rad) turning (e1, e2, e3) "
+                           "into the start's directors (d1, d2, d3) (default 0: the rod "
+                           "starts along e3)"),
+        "shape": Key(starting_shape, None,
+                     R + "starting centre line, in the start's frame (then placed by "
+                     "position, orientation); the stress-free shape stays geometry."
+                     "reference_curvature's (straight by default): {type = \"straight\", "
+                     "stretch = 1} | {type = \"arc\", radius, stretch = 1} (bending towards "
+                     "d1) | {type = \"helix\", radius, pitch, stretch = 1} | {type = "
+                     "\"polyline\", points = [[x, y, z], ...], rest_arc_length = [0, ..., "
+                     "L] (default: the polyline's own arc length, which must be L), normal = "
+                     "[1, 0, 0] (gives d1)}; stretch, rest_arc_length: a pre-stretched start "
+                     "(default: the stress-free shape)"),
+        "velocity": Key(vector3(), None, R + "velocity at t = 0 (length/time; dynamic rods; "
+                        "held ends stay at rest)"),
+        "angular_velocity": Key(vector3(), None, R + "spatial angular velocity w at t = 0 "
+                                "(rad/time; dynamic rods)"),
+        "rotation_centre": Key(vector3(), None, R + "with angular_velocity: the rod starts "
+                               "as a rigid body turning about this point, velocity + w x "
+                               "(r - rotation_centre)"),
+        "equilibrium": Key(boolean, False, R + "dynamic rods: settle the positions and "
+                           "rotations in static equilibrium with the loads at t = 0 from "
+                           "the starting shape before the dynamics (quasi-static "
+                           "pre-loading; natural strains kept)"),
     },
     "boundary": {
         "start": Key(choice(*ROD_ENDS), "clamped", "s = 0: clamped | pinned | free "
@@ -241,6 +268,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "follows end_rotation, e.g. turning about the axis); an end_force "
                          "along the axis acts on it (a weight on a sliding clamp)"),
         "start_slide": Key(vector3(), None, R + "as end_slide, at s = 0"),
+        "end_turn": Key(vector3(), None, R + "axis [x, y, z] (a unit coordinate axis) about "
+                        "which the clamped end s = L turns freely (a hinge; with end_slide "
+                        "along the same axis a cylindrical joint): its rotation is held "
+                        "about the other two axes only, a dead end_couple about the axis "
+                        "acts on it; its initial frame must keep the axis"),
+        "start_turn": Key(vector3(), None, R + "as end_turn, at s = 0"),
         "end_spring": Key(spring_table, None, R + "a compliant support at s = L: "
                           "{translational = k or [k_x, k_y, k_z] (N/m, spatial), rotational = "
                           "k or [k_1, k_2, k_3] (N m/rad, material)} about the end's initial "
@@ -307,6 +340,20 @@ SCHEMA: dict[str, dict[str, Key]] = {
                       "solvers.py"),
         "options": Key(petsc_table, None, "PETSc options (without prefix) over the preset, "
                        "e.g. {snes_max_it = 50, ksp_type = \"preonly\"}"),
+    },
+    "stability": {
+        "check": Key(boolean, True, R + "quasi-static: after every step the number of negative "
+                                    "eigenvalues of the tangent stiffness (column "
+                                    "negative_eigenvalues; a warning when it changes; "
+                                    "docs/stability.md)"),
+        "lowest_eigenvalue": Key(boolean, False, R + "quasi-static, rotation vectors without "
+                                              "constraints: also the lowest eigenvalue of "
+                                              "K v = lambda G v (G: the lumped L2 metric; column "
+                                              "lowest_eigenvalue; SLEPc, ~10-30 ms a step)"),
+        "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
+                                              "> 0) is a result: status \"completed\", exit 0 "
+                                              "(default: \"completed (unstable equilibrium)\", "
+                                              "exit 4)"),
     },
     "outputs": {
         "directory": Key(path_text, "results", "parent folder of the run folders"),
