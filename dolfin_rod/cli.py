@@ -142,6 +142,7 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
         print_on_root(comm, line, file=sys.stderr)
     elif not quiet:
         print_on_root(comm, line)
+    comm.barrier()     # no rank ends (mpirun then stops the others) before rank 0 reported
     return summary
 
 

@@ -4,6 +4,7 @@ options, torsion boundary conditions, 3-D rod material, inertia and ends."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -167,13 +168,32 @@ def _check_torsion(scene: Scene) -> None:
         raise err("geometry.length", "torsion scenes are dimensionless on s in [0, 1] "
                                      "(Section 5.1): length must be 1")
     dynamic = not (mat["nu"].is_constant and mat["nu"].constant == 0.0)
-    if dynamic and bnd["end"] == "rotation" and bnd["end_rotation"].jumps_at_start:
-        raise err("boundary.end_rotation", "a step at t = 0 but nu > 0: a rod with "
-                                           "inertia cannot follow a jump in rotation; use "
-                                           "type = \"smooth_step\" or \"ramp\"")
+    if dynamic and bnd["end"] == "rotation":
+        _check_motions_resolved(scene, ["end_rotation"], "nu > 0")
     if not dynamic and get_scheme(tim["scheme"]).explicit:
         raise err("time.scheme", f"{tim['scheme']} is explicit, but quasi-static torsion "
                                  "(nu = 0) is differential-algebraic: use an implicit scheme")
+
+
+def _check_motions_resolved(scene: Scene, keys: list[str], inertia: str) -> None:
+    """A body with inertia follows a prescribed motion (boundary.<key>) only where the
+    time steps resolve it: a jump (a step, at any t0) is refused, and, unless the steps
+    adapt (time.adaptive), a ramp, smooth step or table segment shorter than time.dt
+    (the end would take an impulse the scheme cannot represent: kinetic energy 9e17
+    for a table rising within 1e-10 s, issue 28 item 5)."""
+    tim = scene["time"]
+    for key in keys:
+        spec = scene["boundary"][key]
+        fastest, what = (math.inf, "") if spec is None else spec.fastest_change()
+        if fastest == 0.0:
+            raise scene.error(f"boundary.{key}", f"a step at t = {spec.t0:g} but {inertia}: "
+                              "a rod with inertia cannot follow a jump; use type = "
+                              "\"smooth_step\" or \"ramp\" lasting at least time.dt")
+        if fastest < tim["dt"] and not tim["adaptive"]:
+            raise scene.error(f"boundary.{key}.{what}", f"the motion changes within "
+                              f"{fastest:g}, faster than time.dt = {tim['dt']:g} resolves "
+                              f"({inertia}: the end would take an impulse); let it last "
+                              f"at least time.dt, or take time.dt <= {fastest:g}")
 
 
 def _sampled(value, L: float) -> list[np.ndarray]:
@@ -242,9 +262,25 @@ def _check_rod_material(scene: Scene) -> None:
     if mat["energy"] is not None:
         folder = Path(scene.source).parent if Path(scene.source).is_file() else None
         try:
-            load_entry_point(mat["energy"], folder)
+            psi = load_entry_point(mat["energy"], folder)
         except BadValue as bad:
             raise err("material.energy", bad.reason) from None
+        problem = _start_state_problem(scene, psi)
+        if problem:
+            raise err("material.energy", problem)
+
+
+def _start_state_problem(scene: Scene, psi) -> str | None:
+    """natural_state.start_state_problem at the scene's start: natural strains
+    initial.natural_* (default: the reference strains), strains the reference ones."""
+    from ..theory.natural_state import start_state_problem
+    geo, ini = scene["geometry"], scene["initial"]
+    start = (geo["reference_curvature"], geo["reference_stretch"])
+    natural = (ini["natural_curvature"] or start[0], ini["natural_stretch"] or start[1])
+    try:
+        return start_state_problem(psi, natural, start)
+    except Exception as error:      # the user's psi fails on constant strains
+        return f"psi cannot be evaluated at the start: {type(error).__name__}: {error}"
 
 
 def _check_rod_inertia(scene: Scene) -> None:
@@ -267,6 +303,10 @@ def _check_rod_inertia(scene: Scene) -> None:
         raise err("material.section_inertia", "density and section_inertia (I_11, I_22) must "
                                               "be all > 0 (dynamic) or all 0 (quasi-static)")
     mat["dynamic"] = dynamic
+    if dynamic:
+        _check_motions_resolved(scene, [f"{end}_{motion}" for end in ("start", "end")
+                                        for motion in ("displacement", "rotation")],
+                                "density > 0")
     if dynamic and mat["constraints"] != "none":
         raise err("material.constraints", "a dynamic rod (density > 0) with constraint "
                                           "multipliers is an index-3 DAE, which no integrator "
@@ -331,6 +371,31 @@ def rod_rotations(scene: Scene) -> str:
     except ValueError as err:
         key = "geometry.rotations" if obstacle else "time.scheme"
         raise scene.error(key, str(err)) from err
+
+
+def _check_turns_resolved(scene: Scene) -> None:
+    """The prescribed end rotations turn one end against the other by at most what
+    geometry.n_cells cells represent: each cell's relative rotation stays below pi (the
+    nodal rotations' interpolation takes the shorter way round; 100 rad on 4 cells wrapped
+    silently to a wrong energy and a couple of the wrong sign, issue 28 item 4).  The
+    largest angle is taken at the histories' breakpoints up to t_end (linear or monotone
+    in between)."""
+    bnd, n = scene["boundary"], scene["geometry"]["n_cells"]
+    specs = {end: bnd[f"{end}_rotation"] for end in ("start", "end")}
+    if specs["end"] is None and specs["start"] is None:
+        return
+    t_end = scene["time"]["t_end"]
+    times = sorted({0.0, t_end} | {t for spec in specs.values() if spec is not None
+                                   for t in spec.breakpoints() if 0.0 <= t <= t_end})
+    zero = lambda t: np.zeros(3)                                     # noqa: E731
+    start, end = (spec.vector() if spec is not None else zero for spec in specs.values())
+    angle = max(float(np.linalg.norm(end(t) - start(t))) for t in times)
+    if angle >= n * math.pi:
+        key = "end" if specs["end"] is not None else "start"
+        raise scene.error(f"boundary.{key}_rotation", f"turns one end against the other by "
+                          f"{angle:.4g} rad, more than geometry.n_cells = {n} cells "
+                          "represent (each cell's relative rotation must stay below pi): "
+                          f"take n_cells >= {math.floor(angle / math.pi) + 1}")
 
 
 def _spring(scene: Scene, end: str, position_held: bool, rotation_held: bool) -> dict:
@@ -447,6 +512,7 @@ def _check_rod_ends(scene: Scene) -> None:
         if lds[k] is not None and not lds[k].is_vector:
             raise err(f"loads.{k}.value", "3-D rod: a vector value = [x, y, z] (or a table "
                                           "of 3-vectors)")
+    _check_turns_resolved(scene)
     if not scene["material"]["dynamic"] and not scene.joined and \
             not (any(fixed_x) and any(fixed_q)):
         raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "

@@ -111,6 +111,14 @@ scene's tables only).  `[[joints]]` tables: `kind` ("rigid": position and rotati
 t = 0, not a supported end), `name` (its reaction columns `joint_<name>_force_{xyz}`,
 `joint_<name>_couple_{xyz}`).  Examples: `scenes/frame.toml`, `double_pendulum.toml`,
 `tripod.toml`.
+
+**What a run can follow** (checked by `dolfin-rod check`, exit 2 naming the key).  A rod
+with inertia (density > 0; torsion: nu > 0) cannot follow a jump of a prescribed end
+motion (a `step`, at any `t0`), nor, unless `time.adaptive`, a ramp, smooth step or
+table segment shorter than `time.dt`.  Prescribed rotations may turn one end against the
+other by less than pi per cell (`geometry.n_cells` > angle/pi).  A `material.energy`
+must be stress-free and convex at the natural strains and convex at the start strains
+(`natural_state.start_state_problem`).
 """
 
 R = "3-D rod: "
