@@ -132,9 +132,10 @@ class RodModel(FEModel):
         super().__init__(disc.mesh)
         self.dx, self.dx_r = disc.dx, disc.dx_r
         self.pieces = disc.pieces
+        per_rod = variant == "uniform" and not layout.single   # each rod's global strains
         self.unknowns = unk = unknowns(function_spaces(
-            disc.mesh, self.evolving, variant, constraint, self.dynamic, self.rotations),
-            self.dynamic)
+            disc.mesh, self.evolving, variant, constraint, self.dynamic, self.rotations,
+            len(rods)), self.dynamic, disc.pieces.of_rods if per_rod else None)
         self.names, self.f, self.r, self.t = unk.names, unk.f, unk.r, unk.t
         self.V, self.W = unk.V, unk.W
         self.coefficients = c = coefficients(all_params, disc.pieces)
