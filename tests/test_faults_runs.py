@@ -413,3 +413,57 @@ def test_resume_of_a_truncated_checkpoint_under_mpirun_ends(tmp_path):
     out = mpirun(2, "run", str(scene_file), "--out", str(run), "--resume")
     assert out.returncode == 2, out.stderr
     assert len(errors(out.stderr)) == 1 and "does not match the checksums" in out.stderr
+
+
+# --- item 21: devices and huge files as scenes or fit data --------------------------------
+
+
+@pytest.mark.parametrize("what", ["scene", "data"])
+@pytest.mark.parametrize("path", ["/dev/zero", "folder", "too large"])
+def test_non_regular_or_huge_input_files_are_refused(tmp_path, capsys, monkeypatch, what,
+                                                     path):
+    """Item 21: dolfin-rod check /dev/zero (or fit data /dev/zero) read until memory ran
+    out.  Now a device, a folder or a file above the bound (16 MiB scenes, 512 MiB data;
+    the data bound lowered here to 1 MiB to keep the test small) is refused unread."""
+    from dolfin_rod import fit_inputs
+    monkeypatch.setattr(fit_inputs, "DATA_BYTES", 2**20)
+    target = {"/dev/zero": Path("/dev/zero"), "folder": tmp_path}.get(path)
+    if target is None:
+        target = tmp_path / "big"
+        with target.open("wb") as f:
+            f.truncate(17 * 2**20)            # sparse: nothing is written
+    scene = ROOT / "examples" / "fit" / "creep.toml"
+    argv = ["check", target] if what == "scene" else ["fit", scene, target, "--params",
+                                                       "mu_d", "--out", tmp_path / "fit"]
+    code, out, err = run_main(capsys, *argv)
+    reason = "larger than" if path == "too large" else "not a regular file"
+    assert code == 2 and len(errors(err)) == 1 and reason in err, err
+    assert f"{target}: cannot read the {'scene' if what == 'scene' else 'data'}" in err
+    assert not (tmp_path / "fit").exists()
+
+
+# --- item 31: scene.toml of a resumed run; two time columns in fit data -------------------
+
+
+def test_resumed_run_folder_holds_the_scene_it_was_resumed_with(tmp_path, capsys):
+    """Item 31: a run resumed with a later t_end kept the old scene.toml (t_end = 0.08
+    in the folder, results to 0.12)."""
+    scene_file, run = _stopped_run(tmp_path)
+    longer = tmp_path / "longer.toml"
+    longer.write_text(CREEP.replace("t_end = 0.08", "t_end = 0.12"))
+    code, _, err = run_main(capsys, "run", longer, "--out", run, "--resume", "--quiet")
+    assert code == 0, err
+    assert (run / "scene.toml").read_text() == longer.read_text()
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["t_end_reached"] == pytest.approx(0.12, abs=1e-12)
+    assert not (run / "scene.toml-new").exists()
+
+
+def test_fit_data_with_two_time_columns_is_refused(tmp_path, capsys):
+    """Item 31: fit silently took the first of two "time" columns."""
+    data = tmp_path / "two.csv"
+    data.write_text("time,load,response,time\n0,1,0,5\n0.1,1,0.1,6\n")
+    code, _, err = run_main(capsys, "fit", ROOT / "examples" / "fit" / "creep.toml", data,
+                            "--params", "mu_d", "--out", tmp_path / "fit")
+    assert code == 2 and len(errors(err)) == 1 and "column 'time' appears 2 times" in err
+    assert not (tmp_path / "fit").exists()

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..rod.sections import SHAPES as SECTION_SHAPES
-from ..validation import MIN_LENGTH, ROTATIONS
+from ..validation import MIN_LENGTH, ROTATIONS, SCENE_BYTES, read_regular_file
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
@@ -310,9 +310,10 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
     ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``."""
     path = Path(path)
     try:
-        raw = path.read_bytes()
-    except OSError as err:
-        raise SceneError(str(path), "", f"cannot read the scene: {err.strerror or err}") from None
+        raw = read_regular_file(path, SCENE_BYTES)
+    except (OSError, ValueError) as err:
+        reason = getattr(err, "strerror", None) or err
+        raise SceneError(str(path), "", f"cannot read the scene: {reason}") from None
     try:
         text = raw.decode("utf-8-sig")   # a UTF-8 byte-order mark is allowed
     except UnicodeDecodeError as err:
