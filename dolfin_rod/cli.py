@@ -9,11 +9,13 @@
 
 Exit status: 0 success, 2 a bad scene, folder or checkpoint (SceneError, OutputError:
 one line on stderr, nothing written), 3 the integration failed or diverged (what was
-computed before is kept), 130 interrupted.  Failures always go to stderr, --quiet or
-not.  Under MPI every error ends every rank and reaches the user whichever rank saw it:
-expected errors are raised collectively (mpi.agree), or, seen by one rank inside
-collective work, reported by that rank with MPI_Abort(2) (mpi.alone); anything else
-calls MPI_Abort, so no rank is left waiting.  A scene needs 2 cells per rank.
+computed before is kept), 130 interrupted (Ctrl-C or SIGTERM; also while the pictures
+are drawn after the last step: summary.json says "pictures": "interrupted").  Failures
+always go to stderr, --quiet or not.  Under MPI every error ends every rank and reaches
+the user whichever rank saw it: expected errors are raised collectively (mpi.agree), or,
+seen by one rank inside collective work, reported by that rank with MPI_Abort(2)
+(mpi.alone); anything else calls MPI_Abort, so no rank is left waiting.  A scene needs
+2 cells per rank.
 """
 
 from __future__ import annotations
@@ -41,25 +43,28 @@ def print_on_root(comm, *args, file=None) -> None:
 
 
 class _InterruptFlag:
-    """SIGINT sets a flag; the run stops after the current step (a step is never cut in
-    half, and PETSc callbacks never see a KeyboardInterrupt)."""
+    """SIGINT or SIGTERM sets a flag; the run stops after the current step (a step is
+    never cut in half, and PETSc callbacks never see a KeyboardInterrupt)."""
+
+    SIGNALS = ("SIGINT", "SIGTERM")
 
     def __init__(self):
         import signal
         import threading
         self.raised = False
-        self._old = None
+        self._old = {}
         if threading.current_thread() is threading.main_thread():
-            self._old = signal.signal(signal.SIGINT, self._handle)
+            self._old = {name: signal.signal(getattr(signal, name), self._handle)
+                         for name in self.SIGNALS}
 
     def _handle(self, signum, frame):
         self.raised = True
 
     def restore(self):
         import signal
-        if self._old is not None:
-            signal.signal(signal.SIGINT, self._old)
-            self._old = None
+        for name, old in self._old.items():
+            signal.signal(getattr(signal, name), old)
+        self._old = {}
 
 
 
@@ -125,9 +130,13 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
     clock["total"] = time.perf_counter() - clock["start"]
     writer.finish(summary, {k: v for k, v in clock.items() if k != "start"})
+    summary["pictures"] = comm.bcast(summary.get("pictures"), root=0)
     summary["folder"] = str(folder)
+    if summary["pictures"] == "interrupted":
+        message = "; ".join([*filter(None, [message]), "interrupted while drawing the "
+                             "pictures: summary.json lists the ones missing"])
     line = f"{status}: t = {t:g}, results in {folder}" + (f" ({message})" if message else "")
-    if status in ("failed", "interrupted"):          # never hidden, never on stdout
+    if status in ("failed", "interrupted") or summary["pictures"] == "interrupted":
         print_on_root(comm, line, file=sys.stderr)
     elif not quiet:
         print_on_root(comm, line)
@@ -264,10 +273,11 @@ def _parser() -> argparse.ArgumentParser:
 
 def schema_markdown() -> str:
     """The scene schema as Markdown tables (docs/scenes.md is generated from it)."""
-    from .scenes.schema import REQUIRED, SCHEMA, SCHEMA_NOTES
+    from .scenes.schema import ARRAY_TABLES, REQUIRED, SCHEMA, SCHEMA_NOTES
     lines = [SCHEMA_NOTES]
     for table, keys in SCHEMA.items():
-        lines += [f"### [{table}]", "", "| key | default | meaning |", "|---|---|---|"]
+        title = f"[[{table}]] (an array of tables)" if table in ARRAY_TABLES else f"[{table}]"
+        lines += [f"### {title}", "", "| key | default | meaning |", "|---|---|---|"]
         for name, key in keys.items():
             default = "required" if key.default is REQUIRED else (
                 "-" if key.default is None else f"`{key.default!r}`")
@@ -378,6 +388,8 @@ def _main(argv: list[str] | None, comm) -> int:
         raise SceneError(str(args.scene), "", "--resume needs --out (the run folder)")
     summary = run_scene(scene, args.out, comm, resume=args.resume, quiet=args.quiet,
                         overwrite=args.overwrite)
+    if summary["pictures"] == "interrupted" and summary["status"] != "failed":
+        return 130
     return {"completed": 0, "stopped": 0, "interrupted": 130}.get(summary["status"], 3)
 
 

@@ -3,6 +3,7 @@ ADIOS2VTXReader) and the frames of the animation and pictures (animation.py)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,8 @@ class FieldOutputs:
         out.finish("title")                         # rank 0: close rod.bp, draw
     """
 
-    POINT = ("centre_line", "d1", "d2", "d3", "phi")    # vertex values; others per cell
+    POINT = ("centre_line", "d1", "d2", "d3", "phi",    # vertex values; others per cell
+             "contact_force")
 
     def __init__(self, folder: Path, model, comm, fields: bool = True, animation: bool = True):
         self.folder, self.comm = Path(folder), comm
@@ -63,19 +65,29 @@ class FieldOutputs:
 
     def finish(self, title: str) -> None:
         """Rank 0: close rod.bp; the animation and pictures (outputs.animation)."""
-        from . import animation
-        if self.comm.rank != 0:
-            return
-        if self.vtx is not None:
+        self.close()
+        for _, draw in self.pictures(title):
+            draw()
+
+    def close(self) -> None:
+        """Rank 0: close rod.bp (every sample written is then readable)."""
+        if self.comm.rank == 0 and self.vtx is not None:
             self.vtx.close()
+
+    def pictures(self, title: str) -> list[tuple[str, Callable[[], None]]]:
+        """Rank 0: the pictures of outputs.animation, as (file name, draw it)."""
+        from . import animation
         frames = self.frames.all() if self.frames is not None else []
-        if not (self.outputs["animation"] and len(frames) > 1):
-            return
+        if self.comm.rank != 0 or not (self.outputs["animation"] and len(frames) > 1):
+            return []
+        path = self.folder.joinpath
         if "centre_line" in frames[0][1].point:
-            animation.rod_animation(frames, self.folder / "animation.gif", title)
-            animation.rod_snapshots(frames, self.folder / "snapshots.png", title)
-        else:
-            animation.torsion_spacetime(frames, self.folder / "spacetime.png", title)
+            return [("animation.gif", lambda: animation.rod_animation(
+                        frames, path("animation.gif"), title)),
+                    ("snapshots.png", lambda: animation.rod_snapshots(
+                        frames, path("snapshots.png"), title))]
+        return [("spacetime.png", lambda: animation.torsion_spacetime(
+            frames, path("spacetime.png"), title))]
 
 
 def _geometry(sample) -> np.ndarray:

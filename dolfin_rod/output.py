@@ -21,10 +21,10 @@ a value that does not exist (the power residual of row 0) is an empty field.
 
 Columns: the model's diagnostics (TorsionModel.diagnostics keys) plus
 ``total_dissipation`` = int_0^t int xi ds dt (trapezoidal rule) and ``power_residual`` =
-d/dt(K + Psi) + D - P on each interval [t_{k-1}, t_k]: the difference quotient of the
+d/dt(K + Psi + E_c) + D - P on each interval [t_{k-1}, t_k]: the difference quotient of the
 stored energy plus the trapezoidal means of dissipation rate D and load power P (the
-power balance of ERRATA.md).  It is O(dt^2) for smooth histories; an idealised step at
-t = 0 makes the first interval's value O(1) (the 0+ rates are not known to the FE model).
+power balance of ERRATA.md; E_c the contact energy of obstacles, rod/contact.py).  It is
+O(dt^2) for smooth histories; an idealised step at t = 0 makes the first interval's value O(1) (the 0+ rates are not known to the FE model).
 
 Only rank 0 writes files (the fields along the rod are gathered there, line_fields.py);
 adios4dolfinx checkpoint writes are collective.  A file-system error on rank 0 is raised
@@ -80,7 +80,8 @@ class PowerBalance:
         if self.previous is not None:
             p = self.previous
             h = d["time"] - p["time"]
-            energy = lambda x: x["free_energy"] + x["kinetic_energy"]   # noqa: E731
+            energy = lambda x: (x["free_energy"] + x["kinetic_energy"]   # noqa: E731
+                                + x.get("contact_energy", 0.0))
             mean_d = 0.5 * (d["dissipation_rate"] + p["dissipation_rate"])
             self.total_dissipation += h * mean_d
             residual = ((energy(d) - energy(p)) / h + mean_d
@@ -224,22 +225,45 @@ class RunWriter:
 
     # -- the end --------------------------------------------------------------------------
     def finish(self, summary: dict, timings: dict) -> None:
+        """Rank 0: the time series closed, timeseries.json, the pictures, timings.json and
+        summary.json.  Ctrl-C while the pictures are drawn (every step is done) stops the
+        drawing only: the picture being drawn is removed and the summary records
+        ``"pictures": "interrupted"`` with the ones missing."""
         if self.rank != 0:
             return
         if self._csv is not None:
             self._csv_file.close()
+        if self.lines is not None:
+            self.lines.close()
         series = {k: [r.get(k) for r in self.rows] for k in (self.columns or [])}
         _dump(self.folder / "timeseries.json", _finite(series))
-        if self.outputs["plots"] and len(self.rows) > 1:
-            plot_histories(self.rows, self.folder / "histories.png", summary.get("title", ""))
-        if self.lines is not None:
-            t0 = time.perf_counter()
-            self.lines.finish(summary.get("title", ""))
-            self.timings["pictures"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        missing = self._draw(summary.get("title", ""))
+        self.timings["pictures"] = time.perf_counter() - t0
+        summary["pictures"] = "interrupted" if missing else "complete"
+        if missing:
+            summary["pictures_missing"] = missing
         _dump(self.folder / "timings.json", {**timings, **self.timings})
         files = sorted(set(files_in(self.folder)) | {"summary.json"})
         _dump(self.folder / "summary.json", _finite({**summary, "versions": versions(),
                                                      "files": files}))
+
+    def _draw(self, title: str) -> list[str]:
+        """Rank 0: draw the pictures; the names of those not drawn (Ctrl-C)."""
+        pictures = []
+        if self.outputs["plots"] and len(self.rows) > 1:
+            pictures.append(("histories.png",
+                             lambda: plot_histories(self.rows, self.folder / "histories.png",
+                                                    title)))
+        if self.lines is not None:
+            pictures += self.lines.pictures(title)
+        for i, (name, draw) in enumerate(pictures):
+            try:
+                draw()
+            except KeyboardInterrupt:
+                (self.folder / name).unlink(missing_ok=True)     # half drawn
+                return [n for n, _ in pictures[i:]]
+        return []
 
 
 def _ranges(numbers: list[int]) -> str:

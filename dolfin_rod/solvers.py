@@ -288,30 +288,41 @@ class BlockSNES:
             opts[f"{self.prefix}snes_lag_{k}_persists"] = flag
         self.snes.setFromOptions()
 
-    def solve(self, fresh_jacobian: bool = False) -> int:
+    def solve(self, fresh_jacobian: bool = False, sub_solves: int = 1) -> int:
         """Newton from the current ``y``; on success ``y`` holds the solution.
 
         fresh_jacobian: start from a new Jacobian even if a lagged one persists across
         solves (JACOBIAN_REUSE): the caller knows the forms changed, e.g. a new dt.
+        sub_solves: n > 1 approaches the Dirichlet values from those ``y`` holds in n
+        solves (values y_bc + k/n (g - y_bc), k = 1..n, each from the last one's
+        solution): the same equations at the end, a path to them from a far start (a
+        prescribed rotation that jumps).  Returns the Newton iterations of all of them.
         """
         self.system.get(0, self.x)
-        self._bc_values = self.system.bc_values()      # fixed during a solve
-        self._initial_norm = None
+        target = self.system.bc_values()
+        start = self.x.getArray(readonly=True)[self.system.bc_rows]
         fresh = fresh_jacobian and any(self._persists)
         if fresh:  # (petsc4py 3.22 has no SNESSetLag*Persists: via the options database)
             self._set_persists((False, False))
+        self.iterations = 0
         try:
-            self.snes.solve(None, self.x)
+            for k in range(1, sub_solves + 1):
+                self._bc_values = start + (k / sub_solves) * (target - start)  # fixed in a solve
+                self._solve_once()
         finally:
             if fresh:
                 self._set_persists(self._persists)
-        self.system.set(0, self.x)
+            self.system.set(0, self.x)
+        return self.iterations
+
+    def _solve_once(self) -> None:
+        self._initial_norm = None
+        self.snes.solve(None, self.x)
         reason = self.snes.getConvergedReason()
-        self.iterations = self.snes.getIterationNumber()
+        self.iterations += self.snes.getIterationNumber()
         if reason <= 0 or not np.isfinite(self.snes.getFunctionNorm()):
             raise SolverError(_REASONS.get(reason, str(reason)), self.iterations)
         self._verify_residual(reason)
-        return self.iterations
 
     def _verify_residual(self, reason: int) -> None:
         """SNES reported convergence: the residual at the solution must meet the

@@ -4,6 +4,8 @@
 #   mid-run:     exit status 130 (dolfin_rod.cli), summary.json says "interrupted",
 #                the time series is kept
 #   start-up:    exit status 130, no Python traceback
+#   SIGTERM to ./rodenv mid-run, and Ctrl-C and SIGTERM under `./rodenv mpirun -n 2`
+#   (issue 28 item 22): the same as Ctrl-C mid-run
 # Run by `make test` for each release (DOLFINX=0.9|0.11); the first run also compiles
 # the scene's forms, so the start-up case does not interrupt a compiler.
 set -euo pipefail
@@ -20,9 +22,10 @@ fail() { echo "rodenv_interrupt: FAIL: $*" >&2; exit 1; }
 # Job control: each background job gets a process group of its own (pid = group id) and,
 # as in a terminal, SIGINT at its default (without it, a background job ignores SIGINT).
 set -m
-start() {  # start NAME
-    ./rodenv dolfin-rod run "$work/scene.toml" --out "$work/$1" >"$work/$1.out" \
-        2>"$work/$1.err" &
+start() {  # start NAME [LAUNCHER...]
+    name=$1; shift
+    ./rodenv "$@" dolfin-rod run "$work/scene.toml" --out "$work/$name" >"$work/$name.out" \
+        2>"$work/$name.err" &
     pid=$!
 }
 
@@ -43,15 +46,28 @@ interrupt() {  # SIGINT to the whole group, as Ctrl-C does; status is the run's 
     wait "$pid" || status=$?
 }
 
-rows() { [ "$(cat "$work/run/timeseries.csv" 2>/dev/null | wc -l)" -ge 20 ]; }
-start run
-wait_for "20 steps" rows
-interrupt
-[ "$status" = 130 ] || { cat "$work/run.err" >&2; fail "mid-run: exit status $status, not 130"; }
-grep -q '"status": *"interrupted"' "$work/run/summary.json" \
-    || fail "mid-run: summary.json missing or not 'interrupted'"
-grep -qi 'interrupted' "$work/run.out" "$work/run.err" \
-    || fail "mid-run: no 'interrupted' message"
+terminate() {  # SIGTERM to ./rodenv, as kill or a batch system does
+    kill -TERM "$pid"
+    status=0
+    wait "$pid" || status=$?
+}
+
+mid_run() {  # mid_run NAME SIGNAL-FUNCTION [LAUNCHER...]
+    name=$1 how=$2; shift 2
+    rows() { [ "$(cat "$work/$name/timeseries.csv" 2>/dev/null | wc -l)" -ge 20 ]; }
+    start "$name" "$@"
+    wait_for "20 steps" rows
+    "$how"
+    [ "$status" = 130 ] || { cat "$work/$name.err" >&2; fail "$name: exit status $status, not 130"; }
+    grep -q '"status": *"interrupted"' "$work/$name/summary.json" \
+        || fail "$name: summary.json missing or not 'interrupted'"
+    grep -qi 'interrupted' "$work/$name.out" "$work/$name.err" \
+        || fail "$name: no 'interrupted' message"
+}
+mid_run run interrupt
+mid_run term terminate
+mid_run mpi-int interrupt mpirun -n 2
+mid_run mpi-term terminate mpirun -n 2
 
 started() { grep -q '^model: ' "$work/startup.out"; }
 start startup
@@ -59,4 +75,5 @@ wait_for "start-up message" started
 interrupt
 [ "$status" = 130 ] || { cat "$work/startup.err" >&2; fail "start-up: exit status $status"; }
 ! grep -q Traceback "$work/startup.err" || { cat "$work/startup.err" >&2; fail "start-up: traceback"; }
-echo "rodenv_interrupt: OK (mid-run and start-up Ctrl-C: exit status 130, summary written)"
+echo "rodenv_interrupt: OK (mid-run and start-up Ctrl-C, SIGTERM, both under mpirun -n 2:" \
+    "exit status 130, summary written)"

@@ -590,14 +590,16 @@ def test_sigkill_mid_run_then_resume_equals_the_uninterrupted_run(tmp_path):
 
 
 @pytest.mark.skipif(COMM.size > 1, reason="signals one process")
-def test_ctrl_c_during_start_up_is_a_clean_interruption(tmp_path):
-    """SIGINT after the scene is read, while the model is built: exit 130, one line."""
+@pytest.mark.parametrize("name", ["SIGINT", "SIGTERM"])   # SIGTERM: issue 28 item 22
+def test_ctrl_c_during_start_up_is_a_clean_interruption(tmp_path, name):
+    """SIGINT (or SIGTERM) after the scene is read, while the model is built: exit 130,
+    one line."""
     import signal
     scene = write(tmp_path / "s.toml", CREEP.replace("n_cells = 4", "n_cells = 5"))
     proc = _start("run", str(scene), "--out", str(tmp_path / "run"))
     line = proc.stdout.readline()           # "model: ..." is printed before the build
     assert line.startswith("model: torsion"), line
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(getattr(signal, name))
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted"), err

@@ -17,10 +17,16 @@ from __future__ import annotations
 import csv
 import json
 import os
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 from mpi4py import MPI
-from test_faults import CREEP, assert_same_rows, read_csv, run_main, shared, snapshot, write
+from test_faults import (CREEP, MPI_TIMEOUT, ROOT, _start, _wait_for, assert_same_rows,
+                         read_csv, run_main, shared, snapshot, write)
 
 from dolfin_rod import output
 from dolfin_rod.cli import run_scene
@@ -251,3 +257,126 @@ def test_one_linear_solve_reported_as_converged_is_a_failed_run(tmp_path, capsys
             "the solution is" in err and "check the solver options" in err, err
         summary = json.loads((folder / "bad" / "summary.json").read_text())
         assert summary["status"] == "failed" and summary["t_end_reached"] == 0.0
+
+
+# --- item 11: a user module that calls sys.exit at import -------------------------------
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("code", [0, 3])
+def test_energy_module_calling_sys_exit_at_import_is_a_scene_error(tmp_path, capsys, code):
+    folder = shared(tmp_path)
+    write(folder / f"quitter{code}.py", f"import sys\nsys.exit({code})\n\ndef psi(*a):\n"
+                                        "    return 0\n")
+    scene = write(folder / "scene.toml", STATIC_ROD.replace(
+        '[material]\n', f'[material]\nenergy = "quitter{code}:psi"\n'))
+    for command in ("check", "run"):
+        status, out, err = run_main(capsys, command, scene, "--out", folder / "run")
+        assert status == 2, (command, out, err)
+        if COMM.rank == 0:
+            assert err.startswith("error: ") and "[material.energy]" in err \
+                and f"importing it calls sys.exit({code})" in err, err
+            assert not (folder / "run").exists()
+
+
+# --- item 10: Ctrl-C while the pictures are drawn, after every step ---------------------
+
+
+@pytest.mark.mpi
+def test_ctrl_c_while_drawing_keeps_the_complete_results(tmp_path, capsys, monkeypatch):
+    """SIGINT while spacetime.png is drawn (histories.png is done): exit 130, every row,
+    summary.json "completed" with the pictures marked interrupted, no half picture."""
+    from dolfin_rod import animation
+    folder = shared(tmp_path)
+
+    def interrupted_drawing(frames, path, title):
+        Path(path).write_bytes(b"half a picture")
+        os.kill(os.getpid(), signal.SIGINT)       # Ctrl-C (pictures: rank 0 only)
+    monkeypatch.setattr(animation, "torsion_spacetime", interrupted_drawing)
+    scene = write(folder / "creep.toml", CREEP.replace("plots = false", "plots = true"))
+    code, out, err = run_main(capsys, "run", scene, "--out", folder / "run", "--quiet")
+    assert code == 130
+    if COMM.rank == 0:
+        run = folder / "run"
+        summary = json.loads((run / "summary.json").read_text())
+        assert summary["status"] == "completed" and summary["pictures"] == "interrupted"
+        assert summary["pictures_missing"] == ["spacetime.png"]
+        assert len(read_csv(run / "timeseries.csv")) == 9          # steps 0 .. 8
+        assert (run / "histories.png").is_file() and not (run / "spacetime.png").exists()
+        assert "spacetime.png" not in summary["files"]
+        assert out == "" and "completed: t = 0.08" in err \
+            and "interrupted while drawing the pictures" in err, err
+
+
+# --- item 22: SIGTERM is handled as Ctrl-C, serially and under mpirun -------------------
+
+LONG = CREEP.replace("t_end = 0.08", "t_end = 1000.0").replace(
+    "checkpoint_every = 3", "checkpoint_every = 0\nfields = false")
+
+
+def _rows_written(run: Path, n: int = 20):
+    return lambda: (run / "timeseries.csv").is_file() and \
+        (run / "timeseries.csv").read_text().count("\n") > n
+
+
+def _assert_interrupted(run: Path, err: str) -> None:
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["status"] == "interrupted", summary
+    assert len(read_csv(run / "timeseries.csv")) == summary["steps"] + 1 > 20
+    assert "Traceback" not in err and "interrupted: t = " in err, err
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="signals one process")
+def test_sigterm_mid_run_stops_like_ctrl_c(tmp_path):
+    scene = write(tmp_path / "long.toml", LONG)
+    run = tmp_path / "run"
+    proc = _start("run", str(scene), "--out", str(run), "--quiet")
+    _wait_for(_rows_written(run), "20 rows")
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    _assert_interrupted(run, err)
+
+
+# SIGTERM during start-up: tests/test_faults.py, test_ctrl_c_during_start_up_is_a_clean_...
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is pid (mpirun's ranks), from /proc."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own mpirun -n 2")
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
+def test_signal_to_the_ranks_under_mpirun_stops_like_ctrl_c(tmp_path, sig):
+    """What ./rodenv does with Ctrl-C or SIGTERM under mpirun (tests/rodenv_interrupt.sh):
+    the signal goes to the ranks (mpirun itself would kill them within a second)."""
+    scene = write(tmp_path / "long.toml", LONG)
+    run = tmp_path / "run"
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith(("OMPI_COMM_WORLD", "PMIX_", "OMPI_MCA_ess", "PMI_"))}
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    proc = subprocess.Popen([shutil.which("mpirun") or "mpirun", "-n", "2", sys.executable,
+                             "-m", "dolfin_rod", "run", str(scene), "--out", str(run),
+                             "--quiet"], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(_rows_written(run), "20 rows", timeout=MPI_TIMEOUT)
+        ranks = _children(proc.pid)
+        assert len(ranks) == 2, ranks
+        for rank in ranks:
+            os.kill(rank, sig)
+        _, err = proc.communicate(timeout=MPI_TIMEOUT)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    _assert_interrupted(run, err)

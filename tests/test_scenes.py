@@ -71,7 +71,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "cantilever_creep.toml": "rod", "gravity_cantilever.toml": "rod",
                   "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod",
                   "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
-                  "hanging_twist.toml": "rod", "spin_up.toml": "rod"}
+                  "hanging_twist.toml": "rod", "spin_up.toml": "rod",
+                  "rod_on_incline.toml": "rod", "rope_on_floor.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])

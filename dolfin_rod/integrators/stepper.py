@@ -73,13 +73,13 @@ class _StepResidual:
                                 links=problem.links)
         self._dt_last = None
 
-    def solve(self, t_n: float, dt: float) -> int:
+    def solve(self, t_n: float, dt: float, sub_solves: int = 1) -> int:
         for c, loads in self.stage_loads:
             for const, load in loads:
                 const.value[...] = load.at(t_n + c * dt)
         self.problem.set_bcs(t_n + dt)
         fresh, self._dt_last = dt != self._dt_last, dt  # a reused Jacobian holds the old dt
-        return self.solver.solve(fresh_jacobian=fresh)
+        return self.solver.solve(fresh_jacobian=fresh, sub_solves=sub_solves)
 
 
 class TimeStepper:
@@ -144,6 +144,7 @@ class TimeStepper:
         self.history_steps = 0
         self._last_step: float | None = None    # size of the last accepted step
         self._end: tuple[float, list] | None = None   # where the last run ended: t, state
+        self._sub_solves = 1    # 2^cuts: a cut step's Dirichlet values are approached
 
     def _residual(self, scheme: Scheme) -> _StepResidual:
         if scheme.name not in self._residuals:
@@ -223,7 +224,7 @@ class TimeStepper:
                 f.x.array[:] += dt * r.x.array
         self.dt.value = dt
         try:
-            its = self._residual(scheme).solve(t, dt)
+            its = self._residual(scheme).solve(t, dt, self._sub_solves)
         except SolverError:
             self._restore()
             raise
@@ -281,6 +282,7 @@ class TimeStepper:
         check_run(t0, t_end, dt)
         if not self._continues(t0, dt):
             self.history_steps = 0
+        self._sub_solves = 1
         if observer:
             observer(t0, self)
         cuts = 0
@@ -288,7 +290,9 @@ class TimeStepper:
         def failed(t: float, h_try: float, err: SolverError) -> float:
             nonlocal cuts
             cuts += 1
-            return self._cut(t, h_try, cuts, err)
+            h = self._cut(t, h_try, cuts, err)
+            self._sub_solves = 2 ** cuts
+            return h
 
         def succeeded(t: float, h_try: float, h: float) -> float:
             nonlocal cuts
@@ -296,6 +300,7 @@ class TimeStepper:
                 observer(t, self)
             if h < dt and cuts:  # grow back towards the nominal step after a success
                 cuts = max(cuts - 1, 0)
+                self._sub_solves = 2 ** cuts
                 return grown(h, dt)
             return h
 

@@ -8,6 +8,7 @@
     external_forces.py     end and distributed loads, drag
     boundary_conditions.py clamped, pinned, prescribed motions, reactions
     initial_state.py       the stress-free initial configuration
+    contact.py             obstacles: barrier and Coulomb friction
     diagnostics.py         energies, powers, tip
 """
 
@@ -30,6 +31,7 @@ from ..validation import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports
 from .constitutive import check_model, energy_function, section_response
+from .contact import ContactLaw, Obstacle, ObstacleContact
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad
 from .joints import Joint, JointReactions, check_joints, joint_nodes, node_links
@@ -49,7 +51,7 @@ class RodModel(FEModel):
     "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
     vectors for the local variant without a constraint, a dynamic rod with rotary
     inertia or a quasi-static one without Kelvin-Voigt viscosity and drag: 6 unknowns
-    per node).
+    per node); obstacles with a contact law (contact.py; friction: dynamic rods).
 
     ``problem`` is a SemiDiscreteProblem (quaternions: any scheme of TimeStepper or
     TSIntegrator) or a SecondOrderProblem (rotation vectors: generalized-alpha on the
@@ -64,13 +66,16 @@ class RodModel(FEModel):
                  distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
                  rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD,
-                 end_slide: dict | None = None):
+                 end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
+                 contact: ContactLaw | None = None):
         rod = Rod(params, n_cells, ends, end_loads, distributed_loads, end_displacement,
                   end_rotation, end_slide)
-        self._build([rod], model, variant, constraint, rotations, comm)
+        self._build([rod], model, variant, constraint, rotations, comm, obstacles=obstacles,
+                    contact=contact)
 
     def _build(self, rods: list[Rod], model: str, variant: str, constraint: str | None,
-               rotations: str, comm, joints: Sequence[Joint] = ()) -> None:
+               rotations: str, comm, joints: Sequence[Joint] = (),
+               obstacles: Sequence[Obstacle] = (), contact: ContactLaw | None = None) -> None:
         """The model of one or several rods and their joints (see system.RodSystem)."""
         check_model(model, rods[0].params)
         check_variant(variant)
@@ -131,6 +136,9 @@ class RodModel(FEModel):
         if self.dynamic:
             residual.inertia(F, unk, c, disc)
         drag_dissipation = external_forces.drag(F, unk, c, all_params, disc)
+        self.contact = self._obstacle_contact(obstacles, contact, disc)
+        friction_dissipation = (self.contact.add_to(F, unk.t["displacement"])
+                                if self.contact else 0)
         residual.zero_diagonals(F, unk, disc)
         self.loads, power = external_forces.apply_loads(
             F, unk, disc, [(k, load) for k, rod in enumerate(rods) for load in rod.end_loads],
@@ -147,8 +155,23 @@ class RodModel(FEModel):
 
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
         self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(rods))]
-        self.set_diagnostic_forms(
-            diagnostics.energy_forms(resp, self.xi, c, unk, disc, power, drag_dissipation))
+        forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
+                                         drag_dissipation + friction_dissipation)
+        if self.contact:
+            forms.update(self.contact.diagnostic_forms())
+            forms["friction_dissipation"] = friction_dissipation or 0 * resp.psi * disc.dx_r
+        self.set_diagnostic_forms(forms)
+
+    def _obstacle_contact(self, obstacles, law, disc) -> ObstacleContact | None:
+        if not obstacles:
+            return None
+        if law is None:
+            raise ValueError("obstacles need a contact law (contact = ContactLaw(...))")
+        if any(ob.friction > 0 for ob in obstacles) and not self.dynamic:
+            raise ValueError("obstacles[k].friction needs a dynamic rod (rho_A > 0): "
+                             "the friction force depends on the velocity")
+        return ObstacleContact(obstacles, law, disc, self.unknowns.f["displacement"],
+                               self.unknowns.V if self.dynamic else None)
 
     @property
     def supports(self) -> EndSupports:
@@ -165,21 +188,35 @@ class RodModel(FEModel):
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
                   list(self.residual.values()), self.loads, self.bcs, self.set_supports)
         if unk.chart is None:
-            return SemiDiscreteProblem(*blocks)
+            return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
+                                       check_step=self.check_step)
         rates_used = {c for F in self.residual.values() for c in extract_coefficients(F)}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
-            after_step=self.commit_rotations, check_step=unk.chart.check_increment,
+            after_step=self.commit_rotations, check_step=self.check_step,
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
             links=links)
 
     def commit_rotations(self) -> None:
-        """Rotation vectors, after an accepted step: q_n <- q_n c(theta), theta <- 0."""
-        self.unknowns.chart.commit()
-        for supports in self.end_supports:
-            supports.commit()
+        """After an accepted step: rotation vectors q_n <- q_n c(theta), theta <- 0; the
+        friction's lagged normal forces."""
+        if self.unknowns.chart is not None:
+            self.unknowns.chart.commit()
+            for supports in self.end_supports:
+                supports.commit()
+        if self.contact:
+            self.contact.update_normal_forces()
+
+    def check_step(self) -> str | None:
+        """A reason to redo a converged step (rotation vectors: a rotation by more than
+        pi/2; contact: a node inside an obstacle), else None."""
+        chart = self.unknowns.chart
+        reason = chart.check_increment() if chart is not None else None
+        if reason is None and self.contact:
+            reason = self.contact.check_state()
+        return reason
 
     def checkpoint_state(self) -> dict:
         """Rotation vectors: the stored rotations and the time they belong to."""
@@ -205,6 +242,9 @@ class RodModel(FEModel):
         equal to the discrete reference strains (uniform variant: their mean) unless given
         (3-vectors), rates zero: no stress at t = 0."""
         initial_state.set_initial_state(self, natural_curvature, natural_stretch)
+        if self.contact:
+            self.contact.check_initial()
+            self.contact.update_normal_forces()
 
     def diagnostics(self, t: float) -> dict[str, float]:
         """MPI-reduced scalars at time t: tip position and quaternion, tip rotation angle
@@ -217,6 +257,8 @@ class RodModel(FEModel):
         d.update(self.supports.reactions(self.residual, t))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
+        if self.contact:
+            d["min_gap"] = self.contact.closest()[0]
         return d
 
     def observables(self) -> dict:
@@ -236,4 +278,6 @@ class RodModel(FEModel):
         out.update({"u": self.u, "v": self.v, "u_d": self.u_d, "v_d": v_d, "u_ref": u_ref,
                     "v_ref": v_ref, "n": n, "m": self.m, "n_spatial": ufl.dot(R, n),
                     "m_spatial": ufl.dot(R, self.m), "xi": self.xi})
+        if self.contact:
+            out["contact_force"] = self.contact.force_observable()
         return out

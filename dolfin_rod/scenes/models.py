@@ -18,11 +18,14 @@ from typing import Callable, Protocol
 import numpy as np
 
 from ..problem import SecondOrderProblem
+from ..rod.contact import InitialOverlap
+from .contact import contact_law, contact_solver_options, obstacles
 from .ode import OdeTorsion
 from .rules import adaptive_stepper, rod_rotations
 from .schema import Scene, SceneError
 from .values import Coefficient
 
+CONTACT_SCHEME = "generalized_alpha:0.0"   # rho_inf = 0: a barrier's impacts (docs/contact.md)
 __all__ = ["Simulation", "MODELS", "register_model", "build", "OdeTorsion", "FESimulation"]
 
 
@@ -81,7 +84,10 @@ class FESimulation:
         lie = isinstance(self.problem, SecondOrderProblem)   # rotation vectors (rules.py)
         options = solver_options(scene, second_order=lie)
         # not given, a rod with rotation vectors takes its integrator's default scheme
-        scheme = None if lie and "scheme" not in scene.given["time"] else tim["scheme"]
+        # (with obstacles: rho_inf = 0, docs/contact.md)
+        scheme = tim["scheme"]
+        if lie and "scheme" not in scene.given["time"]:
+            scheme = CONTACT_SCHEME if scene["obstacles"] and model.dynamic else None
         tolerance = tim["tolerance"] if adaptive_stepper(scene) else None
         self.stepper = TimeStepper(self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
                                    predictor=tim["predictor"], tolerance=tolerance)
@@ -154,7 +160,7 @@ def solver_options(scene: Scene, second_order: bool = False) -> dict:
               "jacobian_reuse": solvers.JACOBIAN_REUSE}[sol["preset"]]
     tolerances = {f"snes_{k}": tim[k] for k in ("rtol", "atol")
                   if not second_order or k in scene.given["time"]}
-    return {**tolerances, **preset, **(sol["options"] or {})}
+    return {**contact_solver_options(scene), **tolerances, **preset, **(sol["options"] or {})}
 
 
 def ts_type(scene: Scene) -> str:
@@ -209,8 +215,9 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
                for m in ("displacement", "rotation")}
     end_loads, distributed_loads = rod_loads(scene)
     constraint = None if mat["constraints"] == "none" else mat["constraints"]
+    params = rod_parameters(scene)
     try:
-        model = RodModel(rod_parameters(scene), n_cells=geo["n_cells"], model=mat["model"],
+        model = RodModel(params, n_cells=geo["n_cells"], model=mat["model"],
                          variant=mat["variant"], constraint=constraint,
                          ends=(scene["boundary"]["start"], scene["boundary"]["end"]),
                          end_loads=end_loads, distributed_loads=distributed_loads,
@@ -218,14 +225,23 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
                          end_rotation=motions["rotation"], rotations=rod_rotations(scene),
                          comm=comm or MPI.COMM_WORLD,
                          end_slide={side: axis for key, side in ends.items()
-                                    if (axis := scene["boundary"][f"{key}_slide"]) is not None})
+                                    if (axis := scene["boundary"][f"{key}_slide"]) is not None},
+                         obstacles=obstacles(scene), contact=contact_law(scene, params))
     except ValueError as err:
         key = "material.energy" if str(err).startswith("energy") else "scene.model"
         raise scene.error(key, f"the 'rod' model rejected the scene: {err}") from err
     initial = scene["initial"]
-    return FESimulation("rod", model, scene, lambda: model.set_initial_state(
-        natural_curvature=initial["natural_curvature"],
-        natural_stretch=initial["natural_stretch"]))
+
+    def initial_state():
+        model.set_initial_state(natural_curvature=initial["natural_curvature"],
+                                natural_stretch=initial["natural_stretch"])
+
+    if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
+        try:
+            initial_state()
+        except InitialOverlap as err:
+            raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
+    return FESimulation("rod", model, scene, initial_state)
 
 
 def rod_parameters(scene: Scene):

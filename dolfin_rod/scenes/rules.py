@@ -11,6 +11,7 @@ import numpy as np
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..validation import choose_rotations, rotation_vector_obstacle, sample_points
+from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
@@ -30,7 +31,8 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("boundary", "start_displacement"), ("boundary", "start_slide"),
     ("boundary", "end_slide"), ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
-    ("loads", "start_couple")}
+    ("loads", "start_couple"), ("obstacles", "shape")} | {
+    ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
 
 
@@ -48,6 +50,7 @@ def check_combinations(scene: Scene) -> None:
     if rod:
         _check_rod_material(scene)
         _check_rod_ends(scene)
+        check_contact_keys(scene)
     else:
         _check_torsion(scene)
     _check_solver_options(scene)

@@ -55,8 +55,8 @@ class Scene:
         (what a checkpoint must match to be resumed): everything but the name and
         description, the outputs table, t_end (a run may be extended) and the requested
         model (the chosen model is compared instead)."""
-        return {table: {k: _plain(v) for k, v in keys.items()
-                        if not (table == "time" and k == "t_end")}
+        return {table: _plain(keys) if isinstance(keys, list) else
+                {k: _plain(v) for k, v in keys.items() if not (table == "time" and k == "t_end")}
                 for table, keys in self.data.items() if table not in ("scene", "outputs")}
 
 

@@ -47,6 +47,7 @@ VARIANTS = ("local", "uniform")
 ROD_MODELS = ("evolving", "kelvin_voigt", "hyperelastic")
 ROD_ENDS = ("clamped", "pinned", "free")
 CONSTRAINTS = ("none", "unshearable", "inextensible_unshearable")
+OBSTACLE_SHAPES = ("plane", "sphere", "cylinder")
 
 
 REQUIRED = object()
@@ -298,8 +299,35 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                                "integrator = \"stepper\" only)"),
         "progress": Key(boolean, True, "tqdm progress bar (rank 0, TTY, not CI)"),
     },
+    "contact": {
+        "radius": Key(real(0.0, True), None, R + "the rod's radius r: its centre line keeps "
+                      "r from an obstacle (needed by [[obstacles]]; default: the radius of "
+                      "a circle or tube [section]; docs/contact.md)"),
+        "gap": Key(real(0.0, True), None, R + "the barrier's gap delta (< radius): the contact "
+                   "force acts where the surfaces are closer than delta and is 0 beyond "
+                   "(default radius / 10)"),
+        "stiffness": Key(real(0.0, True), None, R + "the barrier's stiffness kappa (default: "
+                         "from density / dt^2 and EI / h^4, docs/contact.md)"),
+        "slip_tolerance": Key(real(0.0, True), None, R + "friction: the slip velocity eps "
+                              "below which friction is smoothed; a rod held by static "
+                              "friction creeps slower than eps (default 1e-3 L / t_end)"),
+    },
+    "obstacles": {
+        "shape": Key(choice(*OBSTACLE_SHAPES), REQUIRED, R + "plane (a half-space) | sphere "
+                     "| cylinder (finite, solid)"),
+        "point": Key(vector3(), None, "plane: a point of its surface"),
+        "normal": Key(vector3(), None, "plane: the outward normal (the solid is behind it)"),
+        "centre": Key(vector3(), None, "sphere, cylinder: the centre"),
+        "axis": Key(vector3(), None, "cylinder: the axis direction"),
+        "radius": Key(real(0.0, True), None, "sphere, cylinder: the radius"),
+        "length": Key(real(0.0, True), None, "cylinder: the length along the axis"),
+        "friction": Key(real(0.0), 0.0, "Coulomb friction coefficient mu >= 0 (needs "
+                        "density > 0)"),
+    },
 }
 REQUIRED_TABLES = ("time",)
+# tables written as arrays of tables ([[obstacles]]): each entry checked against the keys
+ARRAY_TABLES = ("obstacles",)
 RENAMED = {("geometry", "reference_twist"): "initial.natural_twist (u_d at t = 0 is an "
                                             "initial natural strain, not a reference shape)"}
 
@@ -351,10 +379,12 @@ def to_toml(raw: dict) -> str:
     """A scene dict as TOML (tables of keys with inline values), for scene.toml."""
     out = []
     for table, keys in raw.items():
-        out.append(f"[{table}]")
-        out += [f"{k if k.replace('_', '').isalnum() else toml_value(k)} = {toml_value(v)}"
-                for k, v in keys.items()]
-        out.append("")
+        entries = keys if isinstance(keys, list) else [keys]
+        for entry in entries:
+            out.append(f"[[{table}]]" if isinstance(keys, list) else f"[{table}]")
+            out += [f"{k if k.replace('_', '').isalnum() else toml_value(k)} = "
+                    f"{toml_value(v)}" for k, v in entry.items()]
+            out.append("")
     return "\n".join(out)
 
 
@@ -369,35 +399,48 @@ def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> S
     for table in REQUIRED_TABLES:
         if table not in raw:
             raise SceneError(source, table, "missing required table")
-    data: dict[str, dict[str, Any]] = {}
+    data: dict[str, Any] = {}
     given: dict[str, set[str]] = {}
     for table, keys in SCHEMA.items():
-        section = raw.get(table, {})
+        section = raw.get(table, [] if table in ARRAY_TABLES else {})
+        if table in ARRAY_TABLES:
+            if not (isinstance(section, list) and all(isinstance(e, dict) for e in section)):
+                raise SceneError(source, table, f"must be an array of tables ([[{table}]]), "
+                                                f"got {type_name(section)}")
+            data[table] = [_table(e, keys, f"{table}[{k}]", source)
+                           for k, e in enumerate(section)]
+            given[table] = {key for e in section for key in e}
+            continue
         if not isinstance(section, dict):
             raise SceneError(source, table, f"must be a table, got {type_name(section)}")
         given[table] = set(section)
-        out = {}
-        for k in section:
-            if (table, k) in RENAMED:
-                raise SceneError(source, f"{table}.{k}", f"renamed: use {RENAMED[table, k]}")
-            if k not in keys:
-                raise SceneError(source, f"{table}.{k}",
-                                 f"unknown key (known in [{table}]: {', '.join(keys)})")
-        for k, spec in keys.items():
-            path = f"{table}.{k}"
-            if k not in section:
-                if spec.default is REQUIRED:
-                    raise SceneError(source, path, f"missing required key ({spec.doc})")
-                out[k] = spec.default
-                continue
-            try:
-                out[k] = spec.check(section[k])
-            except BadValue as bad:
-                raise SceneError(source, f"{path}.{bad.key}" if bad.key else path,
-                                 bad.reason) from None
-        data[table] = out
+        data[table] = _table(section, keys, table, source)
     if data["scene"]["name"] is None:
         data["scene"]["name"] = safe_name(default_name)
     scene = Scene(data, source, given=given)
     check_combinations(scene)
     return scene
+
+
+def _table(section: dict, keys: dict[str, Key], table: str, source: str) -> dict:
+    """One table's keys checked, defaults filled in (``table``: its path in errors)."""
+    out = {}
+    for k in section:
+        if (table, k) in RENAMED:
+            raise SceneError(source, f"{table}.{k}", f"renamed: use {RENAMED[table, k]}")
+        if k not in keys:
+            raise SceneError(source, f"{table}.{k}",
+                             f"unknown key (known in [{table}]: {', '.join(keys)})")
+    for k, spec in keys.items():
+        path = f"{table}.{k}"
+        if k not in section:
+            if spec.default is REQUIRED:
+                raise SceneError(source, path, f"missing required key ({spec.doc})")
+            out[k] = spec.default
+            continue
+        try:
+            out[k] = spec.check(section[k])
+        except BadValue as bad:
+            raise SceneError(source, f"{path}.{bad.key}" if bad.key else path,
+                             bad.reason) from None
+    return out

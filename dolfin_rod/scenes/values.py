@@ -313,6 +313,9 @@ def load_entry_point(spec: str, folder: Path | None = None):
         raise BadValue(f"cannot import {spec!r}: {err}") from None
     except Exception as err:     # the module's own code failed: a SyntaxError, a raise
         raise BadValue(f"cannot import {spec!r}: {type(err).__name__}: {err}") from None
+    except SystemExit as err:    # the module ends the program when imported
+        raise BadValue(f"cannot import {spec!r}: importing it calls sys.exit({err.code!r})") \
+            from None
     finally:
         if added:
             sys.path.remove(str(folder))

@@ -1,0 +1,358 @@
+"""Contact of the rod with rigid obstacles (issue 26; docs/contact.md): planes
+(half-spaces), spheres and finite cylinders touching the rod's centre line thickened by
+its radius r, with a smooth barrier of stated gap delta and Coulomb friction.
+
+Gap of a centre-line point p to obstacle k: g_k(p) = d_k(p) - r, d_k the signed distance
+of p to the obstacle's surface (negative inside).  Contact law (per unit length, at the
+nodes: the trapezoidal rule, so every node carries its own contact force):
+
+    energy     kappa b(g),   b(g) = -(g - delta)^2 ln(g / delta)   for 0 < g < delta,
+               b = 0 for g >= delta (C^2 there), and below g_min = XI_MIN delta its
+               second-order Taylor polynomial at g_min (finite for Newton's iterates;
+               an accepted state never has g <= 0: ``check_step`` rejects the step);
+    friction   f_t = -mu lambda phi(|v_t| / eps) v_t / |v_t|,  phi(y) = 3y/2 - y^3/2 for
+               y < 1, 1 beyond (C^1), with the normal force lambda = -kappa b'(g) of the
+               last accepted state (lagged, as in incremental potential contact), v_t the
+               centre line's velocity tangent to the obstacle and eps the slip tolerance:
+               a rod held by static friction creeps at less than eps.
+
+The normal force enters the residual as the derivative of the contact energy (its
+Jacobian by UFL: consistent), the friction force as a force; the contact energy joins
+K + Psi in the power balance, the friction's power -f_t . v_t >= 0 the dissipation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import dolfinx.fem as fem
+import numpy as np
+import ufl
+
+from .. import compat
+from ..validation import nonnegative, positive, sample_points
+
+SHAPES = ("plane", "sphere", "cylinder")
+XI_MIN = 1e-4             # g_min / delta: the barrier's exact range is [g_min, delta]
+BARRIER_CURVATURE = 2 * math.log(2) + 5.0   # b''(delta / 2) (dimensionless)
+
+
+class InitialOverlap(ValueError):
+    """The rod's initial state meets an obstacle (``obstacle``: its index)."""
+
+    def __init__(self, reason: str, obstacle: int):
+        super().__init__(reason)
+        self.obstacle = obstacle
+
+
+@dataclass
+class Obstacle:
+    """A rigid obstacle: ``shape`` "plane" (the half-space behind ``point`` against the
+    unit ``axis`` = outward normal), "sphere" (``radius`` around ``point``) or
+    "cylinder" (``radius``, ``length`` along the unit ``axis`` through its centre
+    ``point``); ``friction`` the Coulomb coefficient mu >= 0."""
+
+    shape: str
+    point: Sequence[float] = (0.0, 0.0, 0.0)
+    axis: Sequence[float] = (0.0, 0.0, 1.0)
+    radius: float = 0.0
+    length: float = 0.0
+    friction: float = 0.0
+
+
+@dataclass
+class ContactLaw:
+    """The rod's radius r, the barrier's gap delta (0 < delta < r), its stiffness kappa
+    (``default_stiffness``) and the friction's slip tolerance eps (a velocity)."""
+
+    radius: float
+    gap: float
+    stiffness: float
+    slip_tolerance: float = 1e-4
+
+
+def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
+    """ValueError naming the bad entry (obstacles[k].key, contact.key)."""
+    positive("contact.radius", law.radius)
+    positive("contact.gap", law.gap)
+    positive("contact.stiffness", law.stiffness)
+    positive("contact.slip_tolerance", law.slip_tolerance)
+    if law.gap >= law.radius:
+        raise ValueError(f"contact.gap must be < contact.radius ({law.radius:g}): the "
+                         f"barrier acts within delta of the surface, got {law.gap:g}")
+    for k, ob in enumerate(obstacles):
+        name = f"obstacles[{k}]"
+        if ob.shape not in SHAPES:
+            raise ValueError(f"{name}.shape must be one of {', '.join(SHAPES)}, got "
+                             f"{ob.shape!r}")
+        nonnegative(f"{name}.friction", ob.friction)
+        if np.shape(ob.point) != (3,) or np.shape(ob.axis) != (3,):
+            raise ValueError(f"{name}: point and axis must be 3-vectors")
+        if ob.shape != "sphere" and not np.linalg.norm(ob.axis) > 0:
+            raise ValueError(f"{name}.{'normal' if ob.shape == 'plane' else 'axis'} must "
+                             "not be zero")
+        if ob.shape != "plane":
+            positive(f"{name}.radius", ob.radius)
+        if ob.shape == "cylinder":
+            positive(f"{name}.length", ob.length)
+
+
+def default_stiffness(rho_A, bending, length: float, n_cells: int, dt: float) -> float:
+    """kappa from the rod and the time step: the barrier's stiffness per unit length at
+    g = delta / 2, kappa b''(delta / 2), equals the inertia's rho_A / dt^2 plus the
+    bending stiffness EI / h^4 of one cell (h = L / n_cells; rho_A the largest, EI the
+    smallest along s): the stiffnesses Newton already resolves (docs/contact.md)."""
+    s = sample_points(length)
+    rho = max(np.max(np.broadcast_to(rho_A(s) if callable(rho_A) else rho_A, s.shape)), 0.0)
+    A = [np.asarray(bending(si) if callable(bending) else bending, float) for si in s[::32]]
+    EI = min(float(np.min(np.diag(a) if a.ndim == 2 else a[:2])) for a in A)
+    h = length / n_cells
+    return (rho / dt**2 + EI / h**4) / BARRIER_CURVATURE
+
+
+# -- geometry: one formula for UFL (forms) and numpy (node checks) ----------------------
+
+class _Ops:
+    def __init__(self, ufl_forms: bool):
+        if ufl_forms:
+            self.dot, self.sqrt = ufl.dot, ufl.sqrt
+            self.max, self.where, self.le = ufl.max_value, ufl.conditional, ufl.le
+            self.scale = lambda z, a: z * a
+        else:
+            self.dot = lambda a, b: np.sum(a * b, axis=-1)
+            self.sqrt, self.max, self.where, self.le = np.sqrt, np.maximum, np.where, np.less_equal
+            self.scale = lambda z, a: z[..., None] * a
+
+
+UFL_OPS, NP_OPS = _Ops(True), _Ops(False)
+
+
+def unit(v) -> np.ndarray:
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)
+
+
+class Pose:
+    """An obstacle's shape and data (unit axis) as numbers, or as fem.Constants on
+    ``mesh`` (forms of the same shapes then share their kernels: form_cache)."""
+
+    def __init__(self, ob: Obstacle, mesh=None):
+        values = {"point": np.asarray(ob.point, float), "axis": unit(ob.axis)
+                  if np.linalg.norm(ob.axis) > 0 else np.array([0.0, 0.0, 1.0]),
+                  "radius": float(ob.radius), "length": float(ob.length),
+                  "friction": float(ob.friction)}
+        self.shape = ob.shape
+        for name, value in values.items():
+            setattr(self, name, value if mesh is None else
+                    fem.Constant(mesh, np.asarray(value, dtype=float)))
+
+
+def signed_distance(pose: Pose, p, ops: _Ops = UFL_OPS):
+    """Distance of the point p (UFL 3-vector, or numpy (n, 3)) to the obstacle's surface,
+    negative inside."""
+    d, a = p - pose.point, pose.axis
+    if pose.shape == "plane":
+        return ops.dot(d, a)
+    if pose.shape == "sphere":
+        return ops.sqrt(ops.dot(d, d)) - pose.radius
+    z = ops.dot(d, a)                                   # cylinder: along the axis
+    radial = d - ops.scale(z, a)
+    e_r = ops.sqrt(ops.dot(radial, radial)) - pose.radius
+    e_z = abs(z) - pose.length / 2
+    outside = ops.max(e_r, 0.0) ** 2 + ops.max(e_z, 0.0) ** 2
+    inside = ops.le(ops.max(e_r, e_z), 0.0)             # sqrt(0) has no derivative
+    return ops.where(inside, ops.max(e_r, e_z), ops.sqrt(ops.where(inside, 1.0, outside)))
+
+
+# -- the law -------------------------------------------------------------------------------
+
+def _beta(xi):
+    """-(xi - 1)^2 ln(xi), the barrier b(g) = delta^2 beta(g / delta) on [XI_MIN, 1]."""
+    return -(xi - 1.0) ** 2 * math.log(xi)
+
+
+_TAYLOR = (_beta(XI_MIN),                                   # beta and its derivatives at
+           -2 * (XI_MIN - 1) * math.log(XI_MIN) - (XI_MIN - 1) ** 2 / XI_MIN,   # XI_MIN
+           -2 * math.log(XI_MIN) - 4 * (XI_MIN - 1) / XI_MIN + (XI_MIN - 1) ** 2 / XI_MIN**2)
+
+
+def barrier(g, delta):
+    """b(g) (module docstring): the IPC barrier on [g_min, delta], 0 beyond, its Taylor
+    polynomial of degree 2 below g_min; delta a number or a UFL constant."""
+    xi = g / delta
+    exact = -(xi - 1.0) ** 2 * ufl.ln(ufl.max_value(xi, XI_MIN))
+    b0, b1, b2 = _TAYLOR
+    taylor = b0 + b1 * (xi - XI_MIN) + 0.5 * b2 * (xi - XI_MIN) ** 2
+    return delta**2 * ufl.conditional(ufl.ge(xi, 1.0), 0.0,
+                                      ufl.conditional(ufl.ge(xi, XI_MIN), exact, taylor))
+
+
+def mollifier(y2):
+    """phi(y) / y of the friction law at y^2 = (|v_t| / eps)^2: 3/2 - y^2/2 for y < 1, 1/y
+    beyond (only y^2 enters below 1: smooth at rest)."""
+    return ufl.conditional(ufl.lt(y2, 1.0), 1.5 - 0.5 * y2,
+                           1.0 / ufl.sqrt(ufl.max_value(y2, 1.0)))
+
+
+class ObstacleContact:
+    """The contact terms of a rod's residual and diagnostics, and the checks of its states.
+
+    disc: the rod's discretisation (1-point rule dx_r), x: the displacement (P1), xt its
+    test function, V the centre line's velocity (P1; None: quasi-static, no friction)."""
+
+    def __init__(self, obstacles: Sequence[Obstacle], law: ContactLaw, disc, x, V):
+        check_contact(obstacles, law)
+        self.obstacles, self.law, self.x = list(obstacles), law, x
+        self.mesh, self.dx_r = disc.mesh, disc.dx_r
+        self.poses = [Pose(ob, self.mesh) for ob in obstacles]      # UFL constants
+        self.numbers = [Pose(ob) for ob in obstacles]               # numpy values
+        self.radius, self.gap, self.stiffness, self.slip = (
+            fem.Constant(self.mesh, float(v)) for v in (law.radius, law.gap, law.stiffness,
+                                                        law.slip_tolerance))
+        s = ufl.SpatialCoordinate(self.mesh)[0]
+        self.r = ufl.as_vector((0.0, 0.0, s)) + x           # the centre line
+        P1 = fem.functionspace(self.mesh, ("Lagrange", 1))
+        self.normal_force = [fem.Function(P1, name=f"normal_force_{k}")
+                             for k in range(len(obstacles))]       # lagged lambda_k
+        self._lambda_exprs = None
+        space = x.function_space
+        self._owned = space.dofmap.index_map.size_local
+        self._nodes = space.tabulate_dof_coordinates()[: self._owned, 0]
+        self.V = V if any(ob.friction > 0 for ob in obstacles) else None
+
+    # densities at a point p of the centre line (UFL), per obstacle
+    def _gap(self, pose, p):
+        return signed_distance(pose, p) - self.radius
+
+    def energy_density(self, p):
+        return sum(self.stiffness * barrier(self._gap(pose, p), self.gap)
+                   for pose in self.poses)
+
+    def force_density(self, p):
+        """-d(energy density)/dp: the normal contact force per unit length at p."""
+        pv = ufl.variable(p)
+        return -ufl.diff(self.energy_density(pv), pv)
+
+    def _normal_parts(self, p):
+        """Per obstacle (unit outward normal n_k, normal force density lambda_k) at p."""
+        out = []
+        for pose in self.poses:
+            pv = ufl.variable(p)
+            g = self._gap(pose, pv)
+            n = ufl.diff(g, pv)
+            gv = ufl.variable(g)
+            lam = -self.stiffness * ufl.diff(barrier(gv, self.gap), gv)
+            out.append((n, lam))
+        return out
+
+    def friction_density(self, p, v, lams):
+        """Coulomb friction per unit length at p moving with velocity v, with the lagged
+        normal force densities ``lams`` (one per obstacle) there."""
+        f = ufl.as_vector((0.0, 0.0, 0.0))
+        eps = self.slip
+        for ob, pose, lam, (n, _) in zip(self.obstacles, self.poses, lams,
+                                         self._normal_parts(p)):
+            if ob.friction > 0:
+                v_t = v - ufl.dot(v, n) * n
+                f -= pose.friction * lam * mollifier(ufl.dot(v_t, v_t) / eps**2) / eps * v_t
+        return f
+
+    def _friction(self, expr_of_force):
+        """The trapezoidal integral of expr_of_force(f_friction, v, *more) at the nodes."""
+        return lambda p, v, *rest: expr_of_force(
+            self.friction_density(p, v, rest[:len(self.obstacles)]), v,
+            *rest[len(self.obstacles):])
+
+    # the trapezoidal rule on the 1-point rule's midpoint: node values f -+ h/2 f_s
+    def _nodal(self, expr_of_point, *fields):
+        h = ufl.CellVolume(self.mesh)
+        return [expr_of_point(*[f + sign * h / 2 * f.dx(0) for f in fields])
+                for sign in (-1.0, 1.0)]
+
+    def _trapezoid(self, expr_of_point, *fields):
+        a, b = self._nodal(expr_of_point, *fields)
+        return 0.5 * (a + b) * self.dx_r
+
+    def energy(self):
+        """The contact energy form (trapezoidal rule: nodal contact)."""
+        return self._trapezoid(self.energy_density, self.r)
+
+    def add_to(self, F: dict, xt) -> ufl.Form | int:
+        """Adds the contact forces' virtual work to F["displacement"] (the normal force as
+        the derivative of ``energy``); returns the friction's dissipation rate form (0
+        without friction)."""
+        F["displacement"] += ufl.derivative(self.energy(), self.x, xt)
+        if self.V is None:
+            return 0
+        lams = self.normal_force
+        F["displacement"] -= self._trapezoid(self._friction(lambda f, v, w: ufl.dot(f, w)),
+                                             self.r, self.V, *lams, xt)
+        return -self._trapezoid(self._friction(lambda f, v: ufl.dot(f, v)),
+                                self.r, self.V, *lams)
+
+    def diagnostic_forms(self) -> dict:
+        """contact_energy and the total contact force on the rod (normal and friction)."""
+        forms = {"contact_energy": self.energy()}
+        for i, c in enumerate("xyz"):
+            total = self._trapezoid(lambda p: self.force_density(p)[i], self.r)
+            if self.V is not None:
+                total += self._trapezoid(self._friction(lambda f, v: f[i]), self.r, self.V,
+                                         *self.normal_force)
+            forms[f"contact_force_{c}"] = total
+        return forms
+
+    # -- nodal values: gaps, checks, the lagged normal force ----------------------------
+
+    def gaps(self) -> np.ndarray:
+        """(owned nodes, obstacles) gaps of the current state."""
+        x = self.x.x.array.reshape(-1, 3)[: self._owned]
+        p = x + np.outer(self._nodes, (0.0, 0.0, 1.0))
+        return np.stack([signed_distance(pose, p, NP_OPS) - self.law.radius
+                         for pose in self.numbers], axis=-1).reshape(len(p), -1)
+
+    def closest(self) -> tuple[float, float, int]:
+        """(smallest gap, s of its node, obstacle) over all ranks."""
+        g = self.gaps()
+        local = (np.inf, 0.0, -1)
+        if g.size:
+            i, k = np.unravel_index(np.argmin(g), g.shape)
+            local = (float(g[i, k]), float(self._nodes[i]), int(k))
+        return min(self.mesh.comm.allgather(local))
+
+    def check_initial(self) -> None:
+        """InitialOverlap if the state (at t = 0) has a node within r of an obstacle."""
+        g, s, k = self.closest()
+        if g <= 0:
+            raise InitialOverlap(f"the rod's centre line at s = {s:.4g} is {-g:.3g} closer "
+                                 f"to obstacles[{k}] than the rod's radius at t = 0: move "
+                                 "the obstacle or the rod", k)
+
+    def check_state(self) -> str | None:
+        """A reason to reject a converged step: a node at or inside an obstacle."""
+        g, s, k = self.closest()
+        if g > 0:
+            return None
+        return (f"the centre line at s = {s:.4g} is {-g:.3g} inside obstacles[{k}] (gap "
+                f"{g:.3g}; the barrier was overcome: raise contact.stiffness)")
+
+    def update_normal_forces(self) -> None:
+        """lambda_k := the normal force density of the current state at the nodes (after
+        an accepted step: the friction's lagged normal force)."""
+        if self.V is None:
+            return
+        if self._lambda_exprs is None:
+            points = compat.interpolation_points(self.normal_force[0].function_space)
+            self._lambda_exprs = [fem.Expression(lam, points)
+                                  for _, lam in self._normal_parts(self.r)]
+        for lam, expr in zip(self.normal_force, self._lambda_exprs):
+            lam.interpolate(expr)
+
+    def force_observable(self):
+        """The contact force density (normal + friction) at a point of the rod (UFL; at
+        the vertices the nodal value)."""
+        f = self.force_density(self.r)
+        if self.V is not None:
+            f += self.friction_density(self.r, self.V, self.normal_force)
+        return f

@@ -1,0 +1,91 @@
+"""The contact keys of a rod scene ([contact], [[obstacles]]; docs/contact.md): their
+rules across keys and the obstacles and contact law they describe (rod/contact.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .scene import Scene
+
+# per shape the pose keys it needs (every other pose key is an error)
+POSE_KEYS = {"plane": ("point", "normal"), "sphere": ("centre", "radius"),
+             "cylinder": ("centre", "axis", "radius", "length")}
+DIRECTIONS = ("normal", "axis")
+
+
+def check_contact_keys(scene: Scene) -> None:
+    """[[obstacles]] need contact.radius; [contact] needs obstacles; each obstacle has the
+    pose keys of its shape; gap < radius; friction needs a dynamic rod."""
+    err, contact, obstacles = scene.error, scene["contact"], scene["obstacles"]
+    given = scene.given["contact"]
+    if not obstacles:
+        if given:
+            raise err(f"contact.{sorted(given)[0]}", "applies to rods with [[obstacles]]")
+        return
+    if contact["radius"] is None:
+        contact["radius"] = section_radius(scene)
+    if contact["radius"] is None:
+        raise err("contact.radius", "missing: [[obstacles]] need the rod's radius (or a "
+                                    "circle or tube [section])")
+    if contact["gap"] is not None and contact["gap"] >= contact["radius"]:
+        raise err("contact.gap", f"must be < contact.radius = {contact['radius']:g} (the "
+                                 f"barrier acts within the gap), got {contact['gap']:g}")
+    for k, ob in enumerate(obstacles):
+        name, needed = f"obstacles[{k}]", POSE_KEYS[ob["shape"]]
+        for key in POSE_KEYS["cylinder"] + ("point", "normal"):
+            if key in needed and ob[key] is None:
+                raise err(f"{name}.{key}", f"missing: a {ob['shape']} needs "
+                                           f"{', '.join(needed)}")
+            if key not in needed and ob[key] is not None:
+                raise err(f"{name}.{key}", f"does not apply to a {ob['shape']} (its keys: "
+                                           f"{', '.join(needed)}, friction)")
+        for key in DIRECTIONS:
+            if ob[key] is not None and not np.linalg.norm(ob[key]) > 0:
+                raise err(f"{name}.{key}", "must not be the zero vector")
+        if ob["friction"] > 0 and not scene["material"]["dynamic"]:
+            raise err(f"{name}.friction", "friction depends on the velocity: it needs a "
+                                          "dynamic rod (material.density > 0)")
+
+
+def section_radius(scene: Scene) -> float | None:
+    """The radius of a circle or tube [section], else None."""
+    sec = scene["section"]
+    return {"circle": sec["radius"], "tube": sec["outer_radius"]}.get(sec["shape"])
+
+
+def obstacles(scene: Scene) -> list:
+    """rod.contact.Obstacle of each [[obstacles]] entry."""
+    from ..rod.contact import Obstacle
+    out = []
+    for ob in scene["obstacles"]:
+        centre = ob["point"] if ob["shape"] == "plane" else ob["centre"]
+        axis = ob["normal"] if ob["shape"] == "plane" else ob["axis"] or (0.0, 0.0, 1.0)
+        out.append(Obstacle(ob["shape"], tuple(centre), tuple(axis), ob["radius"] or 0.0,
+                            ob["length"] or 0.0, ob["friction"]))
+    return out
+
+
+def contact_law(scene: Scene, params):
+    """rod.contact.ContactLaw of [contact] (defaults: gap r/10, stiffness from the rod and
+    dt, slip tolerance 1e-3 L / t_end), None without obstacles."""
+    from ..rod.contact import ContactLaw, default_stiffness
+    if not scene["obstacles"]:
+        return None
+    c, geo, tim = scene["contact"], scene["geometry"], scene["time"]
+    stiffness = c["stiffness"] or default_stiffness(params.rho_A, params.A, geo["length"],
+                                                    geo["n_cells"], tim["dt"])
+    return ContactLaw(c["radius"], c["gap"] or c["radius"] / 10, stiffness,
+                      c["slip_tolerance"] or 1e-3 * geo["length"] / tim["t_end"])
+
+
+def contact_solver_options(scene: Scene) -> dict:
+    """Obstacles: Newton to rtol 1e-8 (the dynamic rod's 1e-4 accepts a step whose
+    residual is dominated by the barrier's: docs/contact.md) unless time.rtol is given;
+    friction: with a backtracking line search (the sticking law's Newton steps overshoot
+    without one)."""
+    if not scene["obstacles"]:
+        return {}
+    options = {} if "rtol" in scene.given["time"] else {"snes_rtol": 1e-8}
+    if any(ob["friction"] > 0 for ob in scene["obstacles"]):
+        options["snes_linesearch_type"] = "bt"
+    return options

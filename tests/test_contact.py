@@ -1,0 +1,272 @@
+"""Contact with obstacles (issue 26, rod/contact.py, docs/contact.md): the barrier's
+force and gap, Coulomb friction, the scene keys and their errors.
+
+References: statics (a rod resting on a plane carries its weight; a propped cantilever
+on a sphere or a cylinder takes the reaction 3 w L / 8 - 3 EI Delta / L^3 of beam theory
+with the prop's settlement Delta); a rigid body on an incline (it slides with
+acceleration g (sin a - mu cos a) for mu < tan a; for mu > tan a it creeps at the speed
+y eps where the smoothed law's phi(y) = tan a / mu); the signed distances against their definitions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
+from dolfin_rod.rod.contact import (NP_OPS, ContactLaw, Obstacle, Pose, default_stiffness,
+                                    signed_distance)
+from dolfin_rod.scenes import SceneError, build, load_scene, parse_scene
+
+G, R, DELTA = 9.81, 0.01, 1e-3
+ROD = RodParameters(length=1.0, A=(1e-2, 1e-2, 1e-2), B=(10.0, 10.0, 10.0), rho_A=1.0,
+                    I11=1e-5, I22=1e-5)
+TIGHT = {"snes_rtol": 1e-10, "snes_atol": 1e-12}
+RHO_0 = "generalized_alpha:0.0"     # the contact scenes' integrator (docs/contact.md)
+
+
+def _lying_rod(dt, gravity, friction=0.0, n_cells=8, drag=0.0, gap0=1.5 * DELTA, eps=1e-4):
+    """A free rod along e_3 at gap gap0 above the plane x = -(r + gap0), under gravity."""
+    params = RodParameters(**{**ROD.__dict__, "drag": drag})
+    law = ContactLaw(R, DELTA, default_stiffness(params.rho_A, params.A, 1.0, n_cells, dt),
+                     slip_tolerance=eps)
+    plane = Obstacle("plane", point=(-(R + gap0), 0.0, 0.0), axis=(1.0, 0.0, 0.0),
+                     friction=friction)
+    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", ends=("free", "free"),
+                   distributed_loads=[DistributedLoad("force", tuple(gravity))],
+                   obstacles=[plane], contact=law)
+    rod.set_initial_state()
+    return rod
+
+
+def _history(rod, dt, n_steps, options=TIGHT):
+    stepper = TimeStepper(rod.problem, RHO_0, options)
+    rows = []
+    for k in range(n_steps):
+        stepper.run(k * dt, (k + 1) * dt, dt)
+        rows.append(rod.diagnostics((k + 1) * dt))
+    return rows
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("dt", [1e-3, 1e-2, 1e-1])
+def test_rod_resting_on_a_plane_carries_its_weight(dt):
+    """Dropped from 1.5 delta with drag (c = 200: the heave on the barrier decays by
+    1e-8 within 0.2 s): at rest the plane's total force is the weight
+    rho_A g L (to the solver's tolerance: 1e-8 relative), the gap stays in (0, delta)
+    at every step: no penetration, at any dt (the barrier's stiffness follows dt)."""
+    rod = _lying_rod(dt, (-G, 0.0, 0.0), drag=200.0)    # decays at 100/s at least
+    rows = _history(rod, dt, max(60, int(round(0.25 / dt))))
+    gaps = [d["min_gap"] for d in rows]
+    assert min(gaps) > 0.0
+    assert 0.0 < rows[-1]["min_gap"] < DELTA
+    assert rows[-1]["contact_force_x"] == pytest.approx(G * 1.0, rel=1e-8)
+    assert abs(rows[-1]["contact_force_y"]) + abs(rows[-1]["contact_force_z"]) < 1e-10
+
+
+@pytest.mark.mpi
+def test_rod_slides_down_an_incline_with_kinetic_friction():
+    """mu = 0.2 < tan 30 deg: the tip's acceleration along the slope (a quadratic fit of
+    its position over the last 0.5 s) is g (sin a - mu cos a) to 1e-6 (the Coulomb force
+    is exact beyond the slip tolerance; the fit's error is round-off); the friction's
+    dissipation is >= 0 at every step and the power balance closes (K, Psi, contact
+    energy, drag-free: P = D + d/dt E to 1e-5 of P)."""
+    a, mu, dt = np.radians(30.0), 0.2, 1e-2
+    rod = _lying_rod(dt, (-G * np.cos(a), 0.0, -G * np.sin(a)), friction=mu, gap0=0.9 * DELTA)
+    rows = _history(rod, dt, 100, {**TIGHT, "snes_linesearch_type": "bt"})
+    assert min(d["friction_dissipation"] for d in rows) >= 0.0
+    t = np.array([d["time"] for d in rows])
+    z = np.array([d["tip_position_z"] for d in rows])
+    late = t > 0.5
+    accel = 2 * np.polyfit(t[late], z[late], 2)[0]
+    assert accel == pytest.approx(-G * (np.sin(a) - mu * np.cos(a)), rel=1e-6)
+    assert rows[-1]["contact_force_x"] == pytest.approx(G * np.cos(a), rel=1e-8)
+    energy = [d["kinetic_energy"] + d["free_energy"] + d["contact_energy"] for d in rows]
+    for k in range(60, 99):   # the power balance on the steady slide, central differences
+        rate = (energy[k + 1] - energy[k - 1]) / (2 * dt)
+        P, D = rows[k]["load_power"], rows[k]["dissipation_rate"]
+        assert rate + D - P == pytest.approx(0.0, abs=1e-5 * P)
+
+
+@pytest.mark.mpi
+def test_rod_sticks_on_an_incline_with_static_friction():
+    """mu = 0.8 > tan 30 deg: after it settled (1 s), the rod moves less than the slip
+    tolerance eps times 10 s over 10 s: it creeps at y eps with phi(y) = tan a / mu
+    (y = 0.53, the smoothed law's root), to 1e-3; dissipation >= 0 at every step."""
+    a, mu, dt, eps = np.radians(30.0), 0.8, 5e-2, 1e-4
+    rod = _lying_rod(dt, (-G * np.cos(a), 0.0, -G * np.sin(a)), friction=mu,
+                     gap0=0.9 * DELTA, eps=eps)
+    rows = _history(rod, dt, 220, {**TIGHT, "snes_linesearch_type": "bt"})
+    assert min(d["friction_dissipation"] for d in rows) >= 0.0
+    z = {round(d["time"], 6): d["tip_position_z"] for d in rows}
+    creep = abs(z[11.0] - z[1.0])
+    assert creep < eps * 10.0
+    # the creep speed y eps: mu lambda phi(y) = weight sin a, lambda = weight cos a
+    y = brentq(lambda y: 1.5 * y - 0.5 * y**3 - np.tan(a) / mu, 0.0, 1.0)
+    assert creep == pytest.approx(y * eps * 10.0, rel=1e-3)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("shape", ["sphere", "cylinder"])
+def test_propped_cantilever_on_a_sphere_and_a_cylinder(shape):
+    """A quasi-static cantilever under w = 0.02 per length whose tip rests on a sphere
+    (cylinder across it): the contact force is beam theory's prop reaction
+    3 w L / 8 - 3 EI Delta / L^3 with the measured settlement Delta of the tip (to 1 %:
+    the FE's O(h^2) error at 16 cells and shear, 1e-3 here)."""
+    w, EI, n = 0.02, 1e-2, 16
+    params = RodParameters(length=1.0, A=(EI, EI, EI), B=(1e3, 1e3, 1e3))
+    R_obstacle, gap0 = 0.05, 0.5 * DELTA
+    centre = (-(R + gap0 + R_obstacle), 0.0, 1.0)
+    obstacle = Obstacle(shape, point=centre, axis=(0.0, 1.0, 0.0), radius=R_obstacle,
+                        length=0.2)
+    rod = RodModel(params, n_cells=n, model="hyperelastic",
+                   distributed_loads=[DistributedLoad("force", (-w, 0.0, 0.0),
+                                                      lambda t: min(t, 1.0))],
+                   obstacles=[obstacle],
+                   contact=ContactLaw(R, DELTA, default_stiffness(0.0, params.A, 1.0, n, 1.0)))
+    rod.set_initial_state()
+    stepper = TimeStepper(rod.problem, None, TIGHT)
+    stepper.initial_accelerations(0.0)
+    stepper.run(0.0, 1.0, 0.1)
+    d = rod.diagnostics(1.0)
+    settlement = -d["tip_position_x"]
+    reaction = 3 * w / 8 - 3 * EI * settlement
+    assert 0.0 < d["min_gap"] < DELTA
+    assert settlement < w / (8 * EI)       # held: the free cantilever's tip goes w/8EI
+    assert d["contact_force_x"] == pytest.approx(reaction, rel=1e-2)
+
+
+def test_signed_distances():
+    """The three shapes' signed distances at points with known distances."""
+    p = np.array([[0.0, 0.0, 2.0], [3.0, 0.0, 0.0], [0.0, 0.5, 0.0], [3.0, 0.0, 4.0]])
+    plane = Obstacle("plane", point=(0.0, 0.0, 1.0), axis=(0.0, 0.0, 2.0))
+    sphere = Obstacle("sphere", point=(0.0, 0.0, 0.0), radius=1.0)
+    cylinder = Obstacle("cylinder", point=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0),
+                        radius=1.0, length=2.0)
+    assert signed_distance(Pose(plane), p, NP_OPS) == pytest.approx([1.0, -1.0, -1.0, 3.0])
+    assert signed_distance(Pose(sphere), p, NP_OPS) == pytest.approx([1.0, 2.0, -0.5, 4.0])
+    # cylinder |z| <= 1, rho <= 1: above the lid, beside the side, inside (to the side
+    # 0.5 away), beyond the rim (distance to the edge circle: sqrt(2^2 + 3^2))
+    assert signed_distance(Pose(cylinder), p, NP_OPS) == pytest.approx(
+        [1.0, 2.0, -0.5, np.sqrt(13.0)])
+
+
+# -- scenes ----------------------------------------------------------------------------------
+
+SCENE = """
+[material]
+model = "hyperelastic"
+stiffness = { A = [1e-2, 1e-2, 1e-2], B = [10.0, 10.0, 10.0] }
+density = 1.0
+section_inertia = 1e-5
+[boundary]
+start = "free"
+end = "free"
+[loads]
+gravity = [-9.81, 0.0, 0.0]
+[contact]
+radius = 0.01
+[[obstacles]]
+shape = "plane"
+point = [-0.0105, 0.0, 0.0]
+normal = [1.0, 0.0, 0.0]
+friction = 0.3
+[time]
+t_end = 0.1
+dt = 0.01
+"""
+
+
+def _error(text: str) -> SceneError:
+    with pytest.raises(SceneError) as err:
+        scene = parse_scene(text)
+        build(scene, "rod")
+    return err.value
+
+
+@pytest.mark.parametrize("change, key, also", [
+    (("radius = 0.01", "radius = 0.01\ngap = 0.02"), "contact.gap", None),
+    (("friction = 0.3", "friction = -0.1"), "obstacles[0].friction", None),
+    (("point = [-0.0105, 0.0, 0.0]", "point = [-0.005, 0.0, 0.0]"), "obstacles[0]", None),
+    (("radius = 0.01\n", ""), "contact.radius", None),
+    (("normal = [1.0, 0.0, 0.0]", "normal = [1.0, 0.0, 0.0]\naxis = [0.0, 1.0, 0.0]"),
+     "obstacles[0].axis", None),
+    (("normal = [1.0, 0.0, 0.0]", "normal = [0.0, 0.0, 0.0]"), "obstacles[0].normal", None),
+    (("density = 1.0\nsection_inertia = 1e-5", ""), "obstacles[0].friction",
+     [("gravity = [-9.81, 0.0, 0.0]", "distributed_force = { value = [-9.81, 0.0, 0.0] }"),
+      ('start = "free"', 'start = "clamped"')]),
+])
+def test_bad_contact_input_names_the_key(change, key, also):
+    """Each mistake: one SceneError naming the key, before any solve (an obstacle that
+    cuts the rod at t = 0 included); the last: friction on a quasi-static rod."""
+    text = SCENE
+    for old, new in [change] + (also or []):
+        assert old in text
+        text = text.replace(old, new, 1)
+    assert _error(text).key == key
+
+
+def test_contact_scene_runs_and_rests():
+    """The scene above (friction 0.3): the example scene's keys map to the model, the
+    plane carries the weight after 0.1 s (to 1 %: the drop from 0.5 delta still rings)."""
+    scene = parse_scene(SCENE.replace("t_end = 0.1", "t_end = 0.5"))
+    sim = build(scene, "rod")
+    sim.start()
+    sim.begin(0.0)
+    for k in range(50):
+        sim.advance(0.01 * k, 0.01 * (k + 1))
+    d = sim.diagnostics(0.5)
+    assert d["contact_force_x"] == pytest.approx(9.81, rel=1e-2)
+    assert 0.0 < d["min_gap"] < 0.001
+
+
+def test_example_scenes_validate():
+    for name in ("rod_on_incline", "rope_on_floor"):
+        assert load_scene(f"scenes/{name}.toml")["obstacles"]
+
+
+@pytest.mark.parametrize("shape", ["plane", "sphere", "cylinder"])
+def test_contact_jacobian_is_the_residuals_derivative(shape):
+    """Taylor test of the assembled contact terms at a state inside the barrier:
+    |R(x + h dx) - R(x) - h J dx| = O(h^2) (the remainder falls 4-fold per halving of h)
+    for the residual R = dE/dx of the contact energy and its Jacobian J, as Newton
+    needs for quadratic convergence; the energy's remainder likewise with R."""
+    import dolfinx.fem as fem
+    import dolfinx.fem.petsc as fem_petsc
+    import ufl
+    rod = _lying_rod(1e-2, (-G, 0.0, 0.0), n_cells=4, gap0=0.5 * DELTA)
+    if shape != "plane":        # a sphere / cylinder under the rod's middle
+        ob = Obstacle(shape, point=(-(R + 0.5 * DELTA + 0.05), 0.0, 0.5),
+                      axis=(0.0, 1.0, 0.0), radius=0.05, length=0.1)
+        rod = RodModel(ROD, n_cells=4, model="hyperelastic", ends=("free", "free"),
+                       obstacles=[ob], contact=ContactLaw(R, DELTA, 1e3))
+        rod.set_initial_state()
+    x = rod.f["displacement"]
+    rng = np.random.default_rng(1)
+    x.x.array[:] += 1e-4 * DELTA * rng.standard_normal(x.x.array.size)
+    dx = fem.Function(x.function_space)
+    dx.x.array[:] = 0.1 * DELTA * rng.standard_normal(x.x.array.size)
+    E_form = rod.contact.energy()
+    R_form = ufl.derivative(E_form, x, ufl.TestFunction(x.function_space))
+    J_form = ufl.derivative(R_form, x, ufl.TrialFunction(x.function_space))
+    E, Rf, J = fem.form(E_form), fem.form(R_form), fem.form(J_form)
+    x0 = x.x.array.copy()
+    e0 = fem.assemble_scalar(E)
+    r0 = fem_petsc.assemble_vector(Rf).array.copy()
+    A = fem_petsc.assemble_matrix(J)
+    A.assemble()
+    Jdx = A.createVecLeft()
+    A.mult(dx.x.petsc_vec, Jdx)
+    remainders = []
+    for h in (1e-1, 5e-2, 2.5e-2):
+        x.x.array[:] = x0 + h * dx.x.array
+        r = fem_petsc.assemble_vector(Rf).array
+        e = fem.assemble_scalar(E)
+        remainders.append((np.linalg.norm(r - r0 - h * Jdx.array),
+                           abs(e - e0 - h * r0 @ dx.x.array)))
+    x.x.array[:] = x0
+    for coarse, fine in zip(remainders, remainders[1:]):
+        for c, f in zip(coarse, fine):
+            assert c / f == pytest.approx(4.0, rel=0.1)
