@@ -16,7 +16,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from dolfin_rod.output import versions
+from dolfin_rod.output.writer import versions
 from dolfin_rod.scenes import build, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -59,7 +59,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cantilever as cant  # noqa: E402
 from peer_pyelastica import time_at  # noqa: E402
 
-from dolfin_rod.solvers import NATIVE_LU  # noqa: E402
+from dolfin_rod.fem.solvers import NATIVE_LU  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TAU = 10.0
@@ -258,7 +258,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
-    from dolfin_rod.output import versions
+    from dolfin_rod.output.writer import versions
     res = sweep(args.quick)
     folder = ROOT / "results" / "bench"
     folder.mkdir(parents=True, exist_ok=True)

@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 def configs():
     """default: Newton + MUMPS; native: PETSc's LU; tuned: native + Jacobian/LU reuse."""
-    from dolfin_rod.solvers import JACOBIAN_REUSE, NATIVE_LU
+    from dolfin_rod.fem.solvers import JACOBIAN_REUSE, NATIVE_LU
     return {"default": None, "native": NATIVE_LU, "tuned": {**NATIVE_LU, **JACOBIAN_REUSE}}
 
 
@@ -109,7 +109,7 @@ def main() -> None:
     folder = ROOT / "results" / "bench"
     folder.mkdir(parents=True, exist_ok=True)
     if args.mpi_size:
-        from dolfin_rod.solvers import JACOBIAN_REUSE  # MUMPS: PETSc's LU is serial
+        from dolfin_rod.fem.solvers import JACOBIAN_REUSE  # MUMPS: PETSc's LU is serial
         r = profiled_run(args.mpi_size, 5, options=options or JACOBIAN_REUSE)
         if comm.rank == 0:
             print(json.dumps(r))

@@ -35,7 +35,7 @@ from mpi4py import MPI
 
 from dolfin_rod import closed_forms as cf
 from dolfin_rod.integrators.stepper import TimeStepper
-from dolfin_rod.field_outputs import FieldOutputs
+from dolfin_rod.output.field_outputs import FieldOutputs
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
 
 OUT = pathlib.Path("results/cantilever_creep")

@@ -24,8 +24,8 @@ from dolfin_rod import closed_forms as cf
 from dolfin_rod import loads
 from dolfin_rod.integrators.stepper import TimeStepper
 from dolfin_rod.integrators.ts import TSIntegrator
-from dolfin_rod.solvers import SolverError
-from dolfin_rod.torsion import TorsionModel, TorsionParameters
+from dolfin_rod.fem.solvers import SolverError
+from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
 
 FIG = pathlib.Path("docs/figures")
 OUT = pathlib.Path("results/stability")

@@ -49,7 +49,7 @@ import ufl
 from mpi4py import MPI
 
 from dolfin_rod.integrators.stepper import TimeStepper
-from dolfin_rod.field_outputs import FieldOutputs
+from dolfin_rod.output.field_outputs import FieldOutputs
 from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
 
 OUT = pathlib.Path("results/swinging_rod")

@@ -67,7 +67,7 @@ from mpi4py import MPI
 from dolfin_rod import closed_forms
 from dolfin_rod.cli import run_scene
 from dolfin_rod.scenes import load_scene
-from dolfin_rod.vtx import read_vtx
+from dolfin_rod.output.vtx import read_vtx
 
 SCENE = "scenes/twisted_rod_relaxation.toml"
 OUT = pathlib.Path("results/twisted_rod_relaxation")

@@ -17,21 +17,27 @@ __version__ = "0.1.0"
 _WHERE = {
     # models and their data
     "RodModel": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
+    "StartingState": "rod", "Straight": "rod", "Arc": "rod", "Helix": "rod", "Polyline": "rod",
+    "EndSpring": "rod",
     "RodSystem": "rod", "Rod": "rod", "Joint": "rod",   # rod systems (docs/systems.md)
     "sections": "rod",      # cross-sections and materials -> RodParameters (rod/sections.py)
-    "TorsionModel": "torsion", "TorsionParameters": "torsion",
-    "SemiDiscreteProblem": "problem", "SecondOrderProblem": "problem",
+    "Obstacle": "rod", "ContactLaw": "rod",    # contact with obstacles (docs/contact.md)
+    "TorsionModel": "torsion.model", "TorsionParameters": "torsion.model",
+    "SemiDiscreteProblem": "fem.problem", "SecondOrderProblem": "fem.problem",
     # integrators and solvers
     "TimeStepper": "integrators.stepper", "TSIntegrator": "integrators.ts",
-    "IntegrationError": "integrators.stepping", "SolverError": "solvers",
-    "JACOBIAN_REUSE": "solvers", "NATIVE_LU": "solvers",
+    "IntegrationError": "integrators.step_control", "SolverError": "fem.solvers",
+    "JACOBIAN_REUSE": "fem.solvers", "NATIVE_LU": "fem.solvers",
     # scenes: load, choose the model, build, run
     "load_scene": "scenes", "parse_scene": "scenes", "select_model": "scenes",
     "build": "scenes", "SceneError": "scenes", "run_scene": "cli",
     # fitting parameters to measured time series (docs/fitting.md)
-    "fit_scene": "fit", "FitResult": "fit", "read_series": "fit_inputs",
+    "fit_scene": "fit.least_squares", "FitResult": "fit.least_squares",
+    "read_series": "fit.inputs",
 }
-_MODULES = ("loads", "closed_forms", "rotations")   # modules users import as a whole
+# modules users import as a whole: name -> where it lives
+_MODULES = {"loads": "loads", "closed_forms": "torsion.closed_forms",
+            "rotations": "theory.rotations"}
 
 __all__ = sorted(_WHERE) + list(_MODULES)
 
@@ -40,7 +46,7 @@ def __getattr__(name: str):
     if name in _WHERE:
         return getattr(import_module(f".{_WHERE[name]}", __name__), name)
     if name in _MODULES:
-        return import_module(f".{name}", __name__)
+        return import_module(f".{_MODULES[name]}", __name__)
     raise AttributeError(f"module 'dolfin_rod' has no attribute {name!r}")
 
 

@@ -27,11 +27,11 @@ import sys
 import time
 from pathlib import Path
 
-from .divergence import EnergyBound
+from .output.divergence import EnergyBound
 from .integrators.stepper import IntegrationError
 from .scenes import Scene, SceneError, build, load_scene, select_model
-from .scenes.stability import explicit_stability_warning
-from .solvers import SolverError
+from .torsion.stability import explicit_stability_warning
+from .fem.solvers import SolverError
 
 __all__ = ["main", "run_scene"]
 
@@ -70,7 +70,7 @@ class _InterruptFlag:
 
 def _run_folder(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool) -> Path:
     """The results folder, ready on rank 0 (errors on every rank as OutputError)."""
-    from .run_folders import new_run_folder, on_root, prepare_run_folder
+    from .output.run_folders import new_run_folder, on_root, prepare_run_folder
     if out is None:
         parent = Path(scene["outputs"]["directory"])
         return Path(on_root(comm, lambda: str(new_run_folder(parent, scene.name)),
@@ -93,9 +93,9 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     """
     from mpi4py import MPI
 
-    from .checkpoints import read_checkpoint_meta
+    from .output.checkpoints import read_checkpoint_meta
     from .mpi import agree
-    from .output import RunWriter
+    from .output.writer import RunWriter
     comm = comm or MPI.COMM_WORLD
     clock = {"start": time.perf_counter()}
     choice = agree(comm, lambda: _choose(scene, comm.size), (SceneError,))
@@ -126,6 +126,7 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     t_run = time.perf_counter()
     status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
                                     meta["step"], stop_after, quiet)
+    status, message = _unstable_end(scene, sim, status, message)
     clock["integration"] = time.perf_counter() - t_run
     summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
     clock["total"] = time.perf_counter() - clock["start"]
@@ -136,16 +137,18 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
         message = "; ".join([*filter(None, [message]), "interrupted while drawing the "
                              "pictures: summary.json lists the ones missing"])
     line = f"{status}: t = {t:g}, results in {folder}" + (f" ({message})" if message else "")
-    if status in ("failed", "interrupted") or summary["pictures"] == "interrupted":
+    if status in ("failed", "interrupted", "completed (unstable equilibrium)") \
+            or summary["pictures"] == "interrupted":
         print_on_root(comm, line, file=sys.stderr)
     elif not quiet:
         print_on_root(comm, line)
+    comm.barrier()     # no rank ends (mpirun then stops the others) before rank 0 reported
     return summary
 
 
 def _remove_if_empty(folder: Path) -> None:
     """Remove a run folder that holds nothing but its marker."""
-    from .run_folders import MARKER
+    from .output.run_folders import MARKER
     try:
         if [p.name for p in folder.iterdir()] == [MARKER]:
             (folder / MARKER).unlink()
@@ -171,8 +174,8 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     with t the time of the last recorded row."""
     from mpi4py import MPI
 
-    from .output import show_progress
-    from .run_folders import OutputError
+    from .output.writer import show_progress
+    from .output.run_folders import OutputError
     tim, outs = scene["time"], scene["outputs"]
     n_steps = max(1, math.ceil(tim["t_end"] / tim["dt"] - 1e-9))
     times = [min(k * tim["dt"], tim["t_end"]) for k in range(n_steps + 1)]
@@ -185,6 +188,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
 
     def after_step(t_k: float) -> None:
         diag = sim.diagnostics(t_k)
+        _report_stability_changes(sim, comm)
         bound.check(diag)
         k = progress["k"] = progress["k"] + 1
         writer.record(k, t_k, diag)
@@ -222,6 +226,30 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     return status, message, progress["t"]
 
 
+def _report_stability_changes(sim, comm) -> None:
+    """A warning for each change of the tangent's negative eigenvalues not yet shown."""
+    monitor = getattr(sim, "stability", None)
+    while monitor is not None and len(monitor.changes) > monitor.reported:
+        t, before, after = monitor.changes[monitor.reported]
+        monitor.reported += 1
+        state = "unstable" if after else "stable again"
+        print_on_root(comm, f"warning: t = {t:g}: the equilibrium is {state}: {after} "
+                            f"negative eigenvalue(s) of the tangent stiffness (was {before}; "
+                            "docs/stability.md)", file=sys.stderr)
+
+
+def _unstable_end(scene, sim, status: str, message: str) -> tuple[str, str]:
+    """A completed quasi-static run that ends on an unstable equilibrium is not a result
+    unless stability.follow_unstable says so."""
+    monitor = getattr(sim, "stability", None)
+    if status != "completed" or monitor is None or not monitor.negative \
+            or scene["stability"]["follow_unstable"]:
+        return status, message
+    return "completed (unstable equilibrium)", (
+        f"the end state has {monitor.negative} negative eigenvalue(s) of the tangent "
+        "stiffness: an unstable equilibrium (stability.follow_unstable = true accepts it)")
+
+
 def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> dict:
     summary = {
         "scene": scene.name, "source": scene.source, "model": choice.model,
@@ -239,6 +267,9 @@ def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> d
     if stats is not None:
         summary["newton_iterations"] = stats.newton_iterations
         summary["rejected_steps"] = stats.rejected
+    monitor = getattr(sim, "stability", None)
+    if monitor is not None and monitor.checks:
+        summary["stability_check_ms_per_step"] = 1e3 * monitor.seconds / monitor.checks
     return summary
 
 
@@ -266,7 +297,7 @@ def _parser() -> argparse.ArgumentParser:
                                                           "are still reported on stderr)")
     sub.add_parser("schema", help="print every scene key with its default and meaning "
                                   "(Markdown, as in docs/scenes.md)")
-    from .fit_cli import add_fit_parser
+    from .fit.command import add_fit_parser
     add_fit_parser(sub)
     return p
 
@@ -297,7 +328,7 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
     """``dolfin-rod check``: the scene, its model and the output location; "OK" only when
     every rank found the scene fine (mpi.agree)."""
     from .mpi import agree
-    from .run_folders import OutputError, folder_problem
+    from .output.run_folders import OutputError, folder_problem
     lines = agree(comm, lambda: _check_lines(scene, comm.size), (SceneError,))
     target = out if out is not None else Path(scene["outputs"]["directory"])
     problem = folder_problem(target) if comm.rank == 0 else None
@@ -313,7 +344,7 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
 def _choose(scene: Scene, ranks: int):
     """The scene's model (select_model), refused with a SceneError naming
     geometry.n_cells if an FE model would leave a rank too few cells."""
-    from .model_base import check_n_cells
+    from .fem.fe_model import check_n_cells
     choice = select_model(scene)
     if choice.model != "ode":
         try:
@@ -330,7 +361,13 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
     if choice.model == "rod":
         from .scenes.physical import describe
         from .scenes.rules import rod_rotations
-        lines += [f"derived: {line}" for line in describe(scene["material"]["derived"] or {})]
+        for rod in scene.rods or [None]:          # [[rods]]: each rod's derived tensors
+            own = rod.scene if rod else scene
+            label = f"rod {rod.name}: " if rod else ""
+            lines += [f"derived: {label}{line}"
+                      for line in describe(own["material"]["derived"] or {})]
+        lines += [f"joint: {j.kind} {j.rods[0]}-{j.rods[1]} at {list(j.point)}"
+                  for j in scene.joints]
         lines.append(f"rotations: {rod_rotations(scene)} (geometry.rotations = "
                      f"{scene['geometry']['rotations']!r})")
     if choice.model != "ode":                      # (the ODE prints its own solution)
@@ -346,9 +383,9 @@ def main(argv: list[str] | None = None) -> int:
     traceback."""
     from mpi4py import MPI
 
-    from .fit_cli import FitInputError
+    from .fit.command import FitInputError
     from .mpi import alone
-    from .run_folders import OutputError
+    from .output.run_folders import OutputError
     comm = MPI.COMM_WORLD
     guard = comm.Dup() if comm.size > 1 else None    # for mpi.alone only
     try:
@@ -372,7 +409,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None, comm) -> int:
-    from .fit_cli import fit_command
+    from .fit.command import fit_command
     from .mpi import agree
     args = _parser().parse_args(argv)
     if args.command == "schema":
@@ -390,7 +427,8 @@ def _main(argv: list[str] | None, comm) -> int:
                         overwrite=args.overwrite)
     if summary["pictures"] == "interrupted" and summary["status"] != "failed":
         return 130
-    return {"completed": 0, "stopped": 0, "interrupted": 130}.get(summary["status"], 3)
+    return {"completed": 0, "stopped": 0, "interrupted": 130,
+            "completed (unstable equilibrium)": 4}.get(summary["status"], 3)
 
 
 if __name__ == "__main__":

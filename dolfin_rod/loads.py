@@ -15,7 +15,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from .validation import finite as _finite, positive as _positive
+from .checks import finite as _finite, positive as _positive
 
 __all__ = [
     "LoadHistory",

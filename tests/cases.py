@@ -5,7 +5,7 @@ from __future__ import annotations
 from mpi4py import MPI
 
 from dolfin_rod import loads
-from dolfin_rod.torsion import TorsionParameters
+from dolfin_rod.torsion.model import TorsionParameters
 from torsion_runs import run
 
 KEYS = ("end_rotation", "mean_natural_twist", "free_energy", "dissipation_rate")

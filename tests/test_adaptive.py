@@ -17,7 +17,7 @@ from mpi4py import MPI
 
 from dolfin_rod.integrators.lie_alpha import error_coefficient
 from dolfin_rod.integrators.stepper import TimeStepper
-from dolfin_rod.integrators.stepping import StepControl
+from dolfin_rod.integrators.step_control import StepControl
 from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
 from quick_scenes import resume_bound
 
@@ -118,7 +118,7 @@ def test_steps_grow_in_a_smooth_phase_and_shrink_at_a_sudden_load():
 
 
 def test_too_many_rejections_stop_at_the_last_accepted_step():
-    from dolfin_rod.integrators.stepping import IntegrationError
+    from dolfin_rod.integrators.step_control import IntegrationError
     rod = _rod(lambda t: t / T + (20.0 if t >= 0.1 else 0.0))
     stepper = TimeStepper(rod.problem, solver_options=TIGHT, tolerance=1e-4, max_cuts=0)
     times = []
@@ -236,7 +236,7 @@ def test_adaptive_scene_runs_the_python_api_and_resumes_exactly(tmp_path):
     from dolfin_rod.cli import run_scene
     from dolfin_rod.rod import RodModel
     from dolfin_rod.scenes import load_scene
-    from dolfin_rod.scenes.models import rod_loads, rod_parameters
+    from dolfin_rod.scenes.builders import rod_loads, rod_parameters
     folder = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0))
     root = Path(__file__).resolve().parents[1]
     # Newton to rtol 1e-10 (default 1e-6): two runs whose Newton paths differ (iteration

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from dolfin_rod import loads
-from dolfin_rod.assembly import BlockedSystem, MonolithicSystem, block_system
+from dolfin_rod.fem.assembly import BlockedSystem, MonolithicSystem, block_system
 from dolfin_rod.integrators.stepper import TimeStepper
 from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
-from dolfin_rod.solvers import NATIVE_LU
-from dolfin_rod.torsion import TorsionModel, TorsionParameters
+from dolfin_rod.fem.solvers import NATIVE_LU
+from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
 
 
 def creeping_cantilever(n_cells=4):
@@ -209,7 +209,7 @@ def test_a_residual_near_its_nodes_is_the_full_residual_there():
     as the reactions use it) against the full residual at those nodes (both ends and an
     interior node), at a random state: their test functions vanish on every other cell,
     so the values agree to round-off; elsewhere the restricted vector is mostly 0."""
-    from dolfin_rod.model_base import NodeValues, near_nodes, nodal_residual
+    from dolfin_rod.fem.fe_model import NodeValues, near_nodes, nodal_residual
     model = creeping_cantilever(n_cells=6)
     _random_state(model, seed=7)
     s_nodes = [0.0, 0.5, 1.0]
@@ -232,7 +232,7 @@ def test_the_default_lu_pivots_on_one_rank_and_is_mumps_on_several():
     report it unused)."""
     from mpi4py import MPI
 
-    from dolfin_rod.solvers import petsc_options
+    from dolfin_rod.fem.solvers import petsc_options
     comm = MPI.COMM_WORLD
     assert petsc_options(comm, None)["pc_factor_mat_solver_type"] == \
         ("superlu" if comm.size == 1 else "mumps")

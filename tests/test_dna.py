@@ -20,9 +20,9 @@ from ufl.algorithms import expand_derivatives
 
 from dolfin_rod import closed_forms, dna
 from dolfin_rod.cli import run_scene
-from dolfin_rod.fit import fit_scene
-from dolfin_rod.fit_inputs import MeasuredSeries
-from dolfin_rod.natural_state import check_natural_state, stationarity_and_hessian
+from dolfin_rod.fit.least_squares import fit_scene
+from dolfin_rod.fit.inputs import MeasuredSeries
+from dolfin_rod.theory.natural_state import check_natural_state, stationarity_and_hessian
 from dolfin_rod.scenes import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -70,7 +70,7 @@ def test_pyproject_declares_the_supported_dolfinx_releases():
 def test_environment_has_the_requested_dolfinx():
     import dolfinx
 
-    from dolfin_rod import compat
+    from dolfin_rod.fem import compat
     version = tuple(int(x) for x in dolfinx.__version__.split(".")[:2])
     assert compat.DOLFINX_VERSION == version
     assert (0, 9) <= version < (0, 12)

@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 from mpi4py import MPI
 
-from dolfin_rod import run_folders
+from dolfin_rod.output import run_folders
 from dolfin_rod.cli import main
 from test_faults import CREEP
 
@@ -280,7 +280,7 @@ def test_bad_petsc_option_is_refused_by_check_and_run(tmp_path, capsys, option, 
 def test_petsc_options_read_later_or_by_ts_are_accepted():
     """Item 16, the other side: options PETSc reads (SNES, line search, KSP, PC, TS) and
     those read only at set-up (factorisation packages, sub-solvers, viewers) pass."""
-    from dolfin_rod.solvers import option_problem
+    from dolfin_rod.fem.solvers import option_problem
     assert option_problem({"snes_max_it": 50, "snes_linesearch_type": "l2",
                            "ksp_type": "preonly", "pc_type": "lu",
                            "pc_factor_mat_solver_type": "mumps", "mat_mumps_icntl_14": 50,
@@ -344,7 +344,7 @@ def _flip_byte(run: Path) -> None:
 def _rewrite_meta(run: Path, change) -> None:
     """meta.json changed by ``change`` with its checksum recomputed (a writer's bug, or
     another program), so only the content checks can find it."""
-    from dolfin_rod.checkpoints import meta_digest
+    from dolfin_rod.output.checkpoints import meta_digest
     path = _checkpoint(run) / "meta.json"
     meta = json.loads(path.read_text())
     change(meta)
@@ -425,7 +425,7 @@ def test_non_regular_or_huge_input_files_are_refused(tmp_path, capsys, monkeypat
     """Item 21: dolfin-rod check /dev/zero (or fit data /dev/zero) read until memory ran
     out.  Now a device, a folder or a file above the bound (16 MiB scenes, 512 MiB data;
     the data bound lowered here to 1 MiB to keep the test small) is refused unread."""
-    from dolfin_rod import fit_inputs
+    from dolfin_rod.fit import inputs as fit_inputs
     monkeypatch.setattr(fit_inputs, "DATA_BYTES", 2**20)
     target = {"/dev/zero": Path("/dev/zero"), "folder": tmp_path}.get(path)
     if target is None:

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from dolfin_rod import closed_forms
-from dolfin_rod.fit import FitError, fit_scene
-from dolfin_rod.fit_inputs import FitInputError, MeasuredSeries, check_series, read_series
+from dolfin_rod.fit.least_squares import FitError, fit_scene
+from dolfin_rod.fit.inputs import FitInputError, MeasuredSeries, check_series, read_series
 from dolfin_rod.scenes import load_scene
 from test_cli import ROOT, cli
 
@@ -338,7 +338,7 @@ def test_a_model_failure_inside_the_least_squares_is_a_fit_error():
     trial viscosities): run_fit reports a FitError naming the model and its last error."""
     from types import SimpleNamespace
 
-    from dolfin_rod.fit import FitError, run_fit
+    from dolfin_rod.fit.least_squares import FitError, run_fit
 
     class FailsNextToTheStart:
         params = [SimpleNamespace(initial=1.0, name="p")]

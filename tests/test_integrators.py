@@ -32,8 +32,8 @@ from dolfin_rod import closed_forms as cf
 from dolfin_rod import loads
 from dolfin_rod.integrators.stepper import IntegrationError, TimeStepper
 from dolfin_rod.integrators.ts import TSIntegrator, parse_ts_type
-from dolfin_rod.problem import SemiDiscreteProblem
-from dolfin_rod.torsion import TorsionModel, TorsionParameters
+from dolfin_rod.fem.problem import SemiDiscreteProblem
+from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
 
 ALPHA, ALPHA_D, MU_D = 2.0, 1.0, 0.5
 ORDER_TOL = 0.1
@@ -280,7 +280,7 @@ def test_explicit_euler_critical_step(n):
 
 
 def _dynamic_torsion_end_rotation(dt, second_order):
-    from dolfin_rod.torsion import TorsionModel, TorsionParameters
+    from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
     p = TorsionParameters(alpha=1.0, alpha_d=1.0, mu=0.05, mu_d=1.0, nu=0.1)
     model = TorsionModel(p, n_cells=16, end_torsion=loads.smooth_step(1.0, 0.3))
     model.set_initial_state()
@@ -305,7 +305,7 @@ def test_tsalpha2_on_the_second_order_torsion_dynamics():
 
 
 def test_tsalpha2_needs_a_second_order_problem():
-    from dolfin_rod.torsion import TorsionModel, TorsionParameters
+    from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
     model = TorsionModel(TorsionParameters(nu=0.1), n_cells=4, end_torsion=loads.step(1.0))
     with pytest.raises(ValueError, match="needs a SecondOrderProblem"):
         TSIntegrator(model.problem, "alpha2")

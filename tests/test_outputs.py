@@ -27,7 +27,7 @@ from mpi4py import MPI
 
 from dolfin_rod.cli import run_scene
 from dolfin_rod.scenes import build
-from dolfin_rod.vtx import read_vtx
+from dolfin_rod.output.vtx import read_vtx
 from quick_scenes import ROOT, quick_scene, run_serially
 
 GRAVITY = ROOT / "scenes/gravity_cantilever.toml"

@@ -18,7 +18,8 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from dolfin_rod import form_cache, loads
+from dolfin_rod.fem import form_cache
+from dolfin_rod import loads
 from dolfin_rod.integrators.stepper import IntegrationError, TimeStepper
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
 

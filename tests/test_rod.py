@@ -24,9 +24,9 @@ from scipy.optimize import brentq
 from dolfin_rod import loads
 from dolfin_rod.integrators.stepper import TimeStepper
 from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
-from dolfin_rod.rotations import (np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix,
+from dolfin_rod.theory.rotations import (np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix,
                                   rotation_matrix)
-from dolfin_rod.torsion import TorsionModel, TorsionParameters
+from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
 
 TIGHT = {"snes_rtol": 1e-11, "snes_atol": 1e-13, "snes_stol": 1e-13}
 
@@ -483,7 +483,7 @@ def test_quaternion_rotation_matches_scipy_and_small_angles_are_exact():
     vs the numpy twin, to rounding (1e-14); near angle 0 no 0/0 (a 1e-20 rotation)."""
     from scipy.spatial.transform import Rotation
 
-    from dolfin_rod.rotations import np_rotation_vector
+    from dolfin_rod.theory.rotations import np_rotation_vector
     rng = np.random.default_rng(3)
     for theta in list(rng.normal(size=(5, 3)) * 2) + [np.array([1e-20, 0, -1e-20])]:
         q = np_quaternion_from_rotation_vector(theta)
@@ -565,7 +565,7 @@ def test_jacobian_reuse_gives_the_same_dynamics():
     tolerance, also across changes of dt (0.03, 0.03, 0.01: the stale Jacobian holds the
     old dt and is refreshed).  (With large quasi-static load steps, e.g. the roll-up at dt = 0.1, a
     Jacobian persisting across steps diverges: it is a preset for dynamics.)"""
-    from dolfin_rod.solvers import JACOBIAN_REUSE
+    from dolfin_rod.fem.solvers import JACOBIAN_REUSE
     tips = []
     for options in ({}, JACOBIAN_REUSE):
         p = RodParameters(length=1.0, A=(0.3, 0.3, 0.3), B=(1e3, 1e3, 2e3), rho_A=2.0,

@@ -74,8 +74,8 @@ def test_one_paraview_file_with_every_rod(tmp_path):
     """rod.bp holds every rod as its own line: the sum of the rods' nodes and cells, no
     cell between two rods, each rod's nodes where it was placed (rod b's left end at
     POSITION_B); the pictures draw each rod apart."""
-    from dolfin_rod.field_outputs import FieldOutputs
-    from dolfin_rod.vtx import read_vtx
+    from dolfin_rod.output.field_outputs import FieldOutputs
+    from dolfin_rod.output.vtx import read_vtx
     system = two_rods(placed=True)
     system.set_initial_state()
     out = FieldOutputs(tmp_path, system, MPI.COMM_WORLD)

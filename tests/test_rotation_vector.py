@@ -15,12 +15,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dolfin_rod import form_cache
+from dolfin_rod.fem import form_cache
 from dolfin_rod import loads
 from dolfin_rod.integrators.stepper import TimeStepper
 from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
 from dolfin_rod.rod.rotation_vector import np_cayley
-from dolfin_rod.rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
+from dolfin_rod.theory.rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 
 TIGHT = {"snes_lag_jacobian": 1, "snes_lag_preconditioner": 1, "snes_rtol": 1e-10}
 PARAMS = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2), rho_A=2.0,

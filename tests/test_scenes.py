@@ -72,7 +72,10 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod",
                   "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
                   "hanging_twist.toml": "rod", "spin_up.toml": "rod",
-                  "rod_on_incline.toml": "rod", "rope_on_floor.toml": "rod"}
+                  "sprung_cantilever.toml": "rod", "rod_on_incline.toml": "rod",
+                  "rope_on_floor.toml": "rod", "frame.toml": "rod",
+                  "double_pendulum.toml": "rod", "tripod.toml": "rod",
+                  "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
@@ -350,7 +353,7 @@ def test_dynamic_rod_scene_runs_the_default_api_and_resumes_exactly(tmp_path):
     accelerations) equals the uninterrupted one (round-off)."""
     from dolfin_rod.integrators.stepper import TimeStepper
     from dolfin_rod.rod import RodModel
-    from dolfin_rod.scenes.models import rod_loads, rod_parameters
+    from dolfin_rod.scenes.builders import rod_loads, rod_parameters
     folder = shared_folder(tmp_path)
     scene = load_scene(ROOT / "scenes" / "gravity_cantilever.toml", {
         "geometry.n_cells": 8, "time.t_end": 0.08, "outputs.checkpoint_every": 3,
@@ -532,7 +535,7 @@ def _rod(extra: str = "", **changes):
 
 
 def _final_fields(scene, tmp_path):
-    from dolfin_rod.vtx import read_vtx
+    from dolfin_rod.output.vtx import read_vtx
     folder = shared_folder(tmp_path) / "run"
     summary = run_scene(scene, folder, quiet=True)
     assert summary["status"] == "completed", summary["message"]

@@ -13,7 +13,7 @@ from mpi4py import MPI
 from dolfin_rod import closed_forms as cf
 from dolfin_rod import loads
 from dolfin_rod.integrators.stepper import TimeStepper
-from dolfin_rod.torsion import TorsionModel, TorsionParameters
+from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
 import cases
 from serial_reference import serial
 from torsion_runs import run, series

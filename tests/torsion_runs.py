@@ -6,7 +6,7 @@ from __future__ import annotations
 from mpi4py import MPI
 
 from dolfin_rod.integrators.stepper import TimeStepper
-from dolfin_rod.torsion import TorsionModel, TorsionParameters
+from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
 
 
 def run(params: TorsionParameters, t_end: float, dt: float, scheme: str = "bdf2",

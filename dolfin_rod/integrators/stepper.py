@@ -12,13 +12,13 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from .. import form_cache
-from ..assembly import monolithic_layout
-from ..problem import SecondOrderProblem, SemiDiscreteProblem
-from ..solvers import BlockSNES, SolverError
+from ..fem import form_cache
+from ..fem.assembly import monolithic_layout
+from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
+from ..fem.solvers import BlockSNES, SolverError
 from .lie_alpha import LieGeneralizedAlpha, solver_settings
 from .schemes import Scheme, get_scheme
-from .stepping import (CUT_FACTOR, ROUND_OFF, IntegrationError, StepStats, check_run, grown,
+from .step_control import (CUT_FACTOR, ROUND_OFF, IntegrationError, StepStats, check_run, grown,
                        largest_on_ranks, march, nominal_steps, same_step)
 
 __all__ = ["TimeStepper", "IntegrationError", "StepStats", "step_forms"]

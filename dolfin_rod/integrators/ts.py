@@ -46,10 +46,10 @@ import dolfinx.fem as fem
 import numpy as np
 from petsc4py import PETSc
 
-from ..problem import SecondOrderProblem, SemiDiscreteProblem
-from ..assembly import block_system
-from ..solvers import petsc_options
-from .stepping import (IntegrationError, StepStats, check_run, clip_to_end, grown,
+from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
+from ..fem.assembly import block_system
+from ..fem.solvers import petsc_options
+from .step_control import (IntegrationError, StepStats, check_run, clip_to_end, grown,
                        nominal_steps, reached)
 
 # Design orders of the ARKIMEX tableaux (implicit part), PETSc's TSARKIMEX names.

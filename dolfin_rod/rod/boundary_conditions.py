@@ -5,14 +5,28 @@ end_displacement, end_rotation: {end: history t -> 3-vector}: a prescribed motio
 end (displacement from its initial position; rotation vector superposed on its initial
 rotation); the end's velocities (dynamic rods) follow from loads.rate (the history's own
 derivative if it has one).  A dynamic rod cannot follow a jump of an end: a motion that
-is not 0 at t = 0 (the rod starts at rest in its initial configuration) or that declares
-jumps (``jumps``, as loads.PiecewiseSmoothLoad) is refused, as TorsionModel refuses a
-step in the end rotation; other jumps of an arbitrary callable cannot be detected.
+declares jumps after t = 0 (``jumps``, as loads.PiecewiseSmoothLoad), or a rotation not 0
+at t = 0, is refused, as TorsionModel refuses a step in the end rotation; other jumps of
+an arbitrary callable cannot be detected.  A displacement that is not 0 at t = 0 gives a
+consistent start (rotation vectors): the rod at rest in equilibrium with its ends where
+they are at t = 0 (integrators/lie_alpha.py, the start).
 
 end_slide: {end: axis}: a clamped or pinned end that slides freely along a coordinate
 axis (a unit vector +-e_1, +-e_2 or +-e_3): its position is held (or prescribed) across
 the axis only, its rotation as a clamped (or pinned) end's; a force along the axis acts
 on it (a weight on a sliding clamp, cosseratbench's twist experiment).
+
+end_turn: {end: axis}: a clamped end that turns freely about a coordinate axis (a hinge;
+with end_slide along the same axis a cylindrical joint): its rotation is held about the
+other two axes only; a couple about the axis acts on it.  Its initial rotation must keep
+the axis (R_0^T axis = axis, e.g. a straight rod along e_3 turning about e_3).
+
+end_springs: {end: EndSpring}: a compliant support, translational stiffness K (spatial
+components, N/m) about the end's initial position and rotational stiffness K_r (material
+components, N m/rad) about its initial rotation, with the energy
+1/2 (x - x_0).K (x - x_0) + 2 vec(p).K_r vec(p), p = conj(q_0) q (unit): for a rotation by
+phi about a principal axis k (1 - cos phi), linear for small rotations.  Translational
+on an end whose position is free (or slides), rotational on one whose rotation is free.
 
 Reactions at a supported end: the assembled residual at that end node, i.e. the residual
 tested with a unit virtual translation or spatial rotation of the node only.
@@ -20,23 +34,56 @@ tested with a unit virtual translation or spatial rotation of the node only.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Sequence
+
 import dolfinx.fem as fem
 import numpy as np
+import ufl
 
 from .. import loads
-from ..model_base import ENDS, NodeValues, near_nodes, nodal_residual
-from ..rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
+from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
+from ..theory.rotations import (conj, np_qmul, np_quaternion_from_rotation_vector,
+                                np_rotation_matrix, qmul, vec)
 from .rotation_vector import np_inverse_cayley
 
 END_TYPES = ("clamped", "pinned", "free")
+
+
+@dataclass(frozen=True)
+class EndSpring:
+    """Stiffnesses of a compliant end support: ``translational`` K (a number: K I, or
+    [k_x, k_y, k_z], spatial; N/m) and ``rotational`` K_r (a number or [k_1, k_2, k_3],
+    material; N m/rad); see the module docstring."""
+
+    translational: float | Sequence[float] = 0.0
+    rotational: float | Sequence[float] = 0.0
+
+    def stiffness(self, kind: str) -> np.ndarray:
+        """The diagonal (3,) of the translational or rotational stiffness."""
+        return np.broadcast_to(np.asarray(getattr(self, kind), float), (3,)).copy()
 _IDENTITY = np.array([1.0, 0, 0, 0])
 _CONJ = np.array([1.0, -1, -1, -1])
 
 
 def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False,
-                   end_slide=None) -> None:
+                   end_slide=None, end_springs=None, end_turn=None) -> None:
     if len(ends) != 2 or any(e not in END_TYPES for e in ends):
         raise ValueError(f"ends must be two of {END_TYPES}, got {ends!r}")
+    for end, axis in (end_turn or {}).items():
+        if end not in ENDS or dict(zip(ENDS, ends))[end] != "clamped":
+            raise ValueError(f"end_turn[{end!r}]: only a clamped end turns in its support "
+                             f"(ends = {ends!r})")
+        problem = slide_axis_problem(axis)
+        slide = (end_slide or {}).get(end)
+        if problem or (slide is not None and np.any(np.asarray(slide) != np.asarray(axis))):
+            raise ValueError(f"end_turn[{end!r}] " + (problem or "must equal end_slide's axis"))
+        if end in (end_rotation or {}):
+            raise ValueError(f"end_turn[{end!r}]: the end's rotation is prescribed "
+                             "(end_rotation): it cannot also turn freely")
+    for end, spring in (end_springs or {}).items():
+        _check_spring(end, spring, dict(zip(ENDS, ends)).get(end), end_slide or {},
+                      {**(end_displacement or {}), **(end_rotation or {})})
     for end, axis in (end_slide or {}).items():
         if end not in ENDS:
             raise ValueError(f"end_slide: unknown end {end!r}")
@@ -51,10 +98,29 @@ def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False,
         for end, history in (motion or {}).items():
             if end not in ENDS:
                 raise ValueError(f"{name}: unknown end {end!r}")
-            if dynamic and loads.jumps(history):
-                raise ValueError(f"{name}[{end!r}] jumps (at t = 0 it must be 0: the rod "
-                                 "starts at rest), but rho_A > 0: a rod with inertia cannot "
-                                 "follow a jump of its end; use a smooth_step or a ramp")
+            later = any(size for time, size in getattr(history, "jumps", ()) if time > 0)
+            if dynamic and (later or (name == "end_rotation" and loads.jumps(history))):
+                when = "after t = 0" if later else "at t = 0 it must be 0"
+                raise ValueError(f"{name}[{end!r}] jumps ({when}), but rho_A > 0: a rod with inertia cannot follow a jump of "
+                                 "its end; use a smooth_step or a ramp (a displacement may "
+                                 "start away from 0: the rod starts at rest in equilibrium "
+                                 "with it)")
+
+
+def _check_spring(end, spring, kind, slide: dict, moving) -> None:
+    if end not in ENDS or not isinstance(spring, EndSpring):
+        raise ValueError(f"end_springs: {{end: EndSpring}} with end 'left' or 'right', got "
+                         f"{end!r}: {spring!r}")
+    for part, held in (("translational", kind in ("clamped", "pinned") and end not in slide),
+                       ("rotational", kind == "clamped")):
+        k = np.asarray(getattr(spring, part), float)
+        if k.shape not in ((), (3,)) or not np.all(np.isfinite(k)) or np.any(k < 0):
+            raise ValueError(f"end_springs[{end!r}].{part} must be a number or 3 numbers "
+                             f">= 0, got {getattr(spring, part)!r}")
+        if np.any(k) and (held or end in moving):
+            raise ValueError(f"end_springs[{end!r}].{part}: the end's "
+                             f"{'position' if part == 'translational' else 'rotation'} is "
+                             "held or prescribed there, the support takes the spring's place")
 
 
 def slide_axis_problem(axis) -> str | None:
@@ -93,8 +159,12 @@ class EndSupports:
     may jump at t0 in a quasi-static rod), so that q_n,end c(theta_end) = q_end(t)."""
 
     def __init__(self, model, ends, end_displacement, end_rotation, end_slide,
-                 span: tuple[float, float]):
+                 span: tuple[float, float], end_springs=None, end_turn=None):
         self.ends = tuple(ends)
+        self.turn = {end: np.asarray(a, float) for end, a in (end_turn or {}).items()}
+        self.springs = dict(end_springs or {})
+        self.rest = {end: (fem.Constant(model.mesh, np.zeros(3)),
+                           fem.Constant(model.mesh, _IDENTITY.copy())) for end in self.springs}
         self.displacement = dict(end_displacement or {})
         self.rotation = dict(end_rotation or {})
         self.slide = {end: np.asarray(a, float) for end, a in (end_slide or {}).items()}
@@ -118,8 +188,9 @@ class EndSupports:
             for block, shape in blocks:
                 if block not in spaces:
                     continue
-                if end in self.slide and block in ("displacement", "velocity"):
-                    held = HeldComponents(mesh, np.flatnonzero(self.slide[end] == 0.0))
+                components = self._held_components(end, block)
+                if components is not None:
+                    held = HeldComponents(mesh, components)
                     self.values[(block, end)] = held
                     for i, const in zip(held.components, held.constants):
                         model.dirichlet_at(block, spaces[block], self.s_ends[end], const,
@@ -128,6 +199,30 @@ class EndSupports:
                 const = fem.Constant(mesh, np.zeros(shape) if shape else 0.0)
                 self.values[(block, end)] = const
                 model.dirichlet_at(block, spaces[block], self.s_ends[end], const)
+        unk = model.unknowns     # a turning end's rotation (reactions): nodal values
+        self._rotations = unk.f["quaternion"] if unk.chart is None else unk.chart.q_n
+        self._turned = {end: NodeValues(self._rotations.function_space, [self.s_ends[end]])
+                        for end in self.turn}
+
+    def _held_components(self, end: str, block: str):
+        """The components a sliding or turning end holds of a block (None: all): those
+        across the slide axis of the position and velocity, across the turning axis of
+        the rotation increment, angular velocity and quaternion vector (its gauge
+        multiplier: none)."""
+        if end in self.slide and block in ("displacement", "velocity"):
+            return np.flatnonzero(self.slide[end] == 0.0)
+        if end not in self.turn:
+            return None
+        across = np.flatnonzero(self.turn[end] == 0.0)
+        return {"rotation_increment": across, "angular_velocity": across,
+                "quaternion": 1 + across, "gauge_multiplier": ()}.get(block)
+
+    def _end_rotation(self, end: str, t: float) -> np.ndarray:
+        """The end's rotation now: prescribed, or of the state at a turning end."""
+        if end not in self.turn:
+            return self.prescribed(end, t)[1]
+        q = self._turned[end](self._rotations.x.array)[0]
+        return q / np.linalg.norm(q)
 
     def prescribed(self, end: str, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(x, q) of an end at time t."""
@@ -150,6 +245,15 @@ class EndSupports:
             if fixed and self._fixed_values_of.get(end) is self.initial[end]:
                 continue
             self._fixed_values_of[end] = self.initial[end] if fixed else None
+            if end in self.turn and not np.allclose(
+                    np_rotation_matrix(self.initial[end][1]).T @ self.turn[end],
+                    self.turn[end], rtol=0, atol=1e-12):
+                raise ValueError(f"end_turn[{end!r}]: the end's initial rotation turns the "
+                                 f"axis {self.turn[end].tolist()} away: a turning end's "
+                                 "initial frame must keep its axis")
+            if end in self.rest:                 # a spring's rest state: the initial one
+                for const, value in zip(self.rest[end], self.initial[end]):
+                    const.value[:] = value
             xe, qe = self.prescribed(end, t)
             self._set(("displacement", end), xe)
             self._set(("quaternion", end), qe)
@@ -163,6 +267,21 @@ class EndSupports:
             if ("angular_velocity", end) in self.values:
                 self._set(("angular_velocity", end), self._angular_velocity(end, t))
         self._time_set = t
+
+    def spring_energy(self, unk, ds, end_weight: dict, indicator):
+        """The springs' energy (module docstring) as a form on the end points (``ds``
+        weighted by ``end_weight[end]`` and the rod's ``indicator``), or 0."""
+        energy = 0
+        for end, spring in self.springs.items():
+            x0, q0 = self.rest[end]
+            e = unk.f["displacement"] - x0
+            p = qmul(conj(q0), unk.q)
+            K, K_r = (ufl.diag(ufl.as_vector(spring.stiffness(k).tolist()))
+                      for k in ("translational", "rotational"))
+            density = 0.5 * ufl.inner(e, ufl.dot(K, e)) + \
+                2 * ufl.inner(vec(p), ufl.dot(K_r, vec(p))) / ufl.inner(p, p)
+            energy += end_weight[end] * indicator * density * ds
+        return energy
 
     def commit(self) -> None:
         """Rotation vectors: the accepted step ends at the time last set (chart.commit)."""
@@ -200,7 +319,7 @@ class EndSupports:
                 out.update(zip((f"reaction_force_{end}_{c}" for c in "xyz"),
                                node["displacement"].tolist()))
             if rotation_block in node:
-                couple = spatial_rotations(rotation_block, self.prescribed(end, t)[1]) @ \
+                couple = spatial_rotations(rotation_block, self._end_rotation(end, t)) @ \
                     node[rotation_block]
                 out.update(zip((f"reaction_couple_{end}_{c}" for c in "xyz"), couple.tolist()))
             if end in self.displacement or end in self.rotation:

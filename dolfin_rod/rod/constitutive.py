@@ -19,9 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 import ufl
 
-from .. import constraints
-from ..energy import derivatives, quadratic_energy
-from ..kinematics import strain_rates, strains
+from ..theory import constraints
+from ..theory.energy import derivatives, quadratic_energy
+from ..theory.kinematics import strain_rates, strains
 from .material import RodParameters, is_zero
 
 MODELS = ("evolving", "kelvin_voigt", "hyperelastic")

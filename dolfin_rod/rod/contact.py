@@ -31,8 +31,8 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from .. import compat
-from ..validation import nonnegative, positive, sample_points
+from ..fem import compat
+from ..checks import nonnegative, positive, sample_points
 
 SHAPES = ("plane", "sphere", "cylinder")
 XI_MIN = 1e-4             # g_min / delta: the barrier's exact range is [g_min, delta]

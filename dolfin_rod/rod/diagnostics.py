@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import ufl
 
-from ..dissipation import dissipation_rate
-from ..model_base import NodeValues
-from ..rotations import np_qmul, np_rotation_angle
+from ..theory.dissipation import dissipation_rate
+from ..fem.fe_model import NodeValues
+from ..theory.rotations import np_qmul, np_rotation_angle
 from .rotation_vector import np_cayley
 
 
@@ -21,12 +21,14 @@ def dissipation_density(resp, c: dict, natural_pairs: list):
     return 0 * resp.psi
 
 
-def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation) -> dict:
-    """free_energy, dissipation_rate, kinetic_energy, load_power."""
+def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation,
+                 support_energy=0) -> dict:
+    """free_energy (with the springs' energy of compliant supports), dissipation_rate,
+    kinetic_energy, load_power."""
     V, W, dx_r = unk.V, unk.W, disc.dx_r
     dynamic = unk.dynamic
     kinetic = 0.5 * (c["rho_A"] * ufl.inner(V, V) + ufl.inner(W, ufl.dot(c["J"], W)))
-    forms = {"free_energy": resp.psi * dx_r,
+    forms = {"free_energy": resp.psi * dx_r + support_energy,
              "dissipation_rate": xi * dx_r + drag_dissipation,
              "kinetic_energy": kinetic * disc.dx if dynamic else 0 * resp.psi * dx_r,
              "load_power": 0 * resp.psi * dx_r + power}

@@ -28,10 +28,10 @@ import dolfinx
 import dolfinx.fem as fem
 import ufl
 
-from .. import constraints
-from ..evolution import real_space
-from ..model_base import vertex_measure
-from ..rotations import material_derivative_vector
+from ..theory import constraints
+from ..theory.evolution import real_space
+from ..fem.fe_model import vertex_measure
+from ..theory.rotations import material_derivative_vector
 from .layout import Pieces, RodLayout
 from .rotation_vector import RotationVectorChart
 

@@ -14,10 +14,10 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from .. import balance
-from ..rotations import rotation_matrix
-from ..model_base import ENDS
-from ..problem import TimeDependentValue
+from ..theory import balance
+from ..theory.rotations import rotation_matrix
+from ..fem.fe_model import ENDS
+from ..fem.problem import TimeDependentValue
 from .discretisation import Discretisation, Unknowns
 from .material import DAMPING, is_zero
 

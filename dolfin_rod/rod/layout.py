@@ -24,7 +24,7 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from .. import compat
+from ..fem import compat
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,8 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from ..model_base import scalar_coefficient
-from ..validation import rod_length, sample_points
+from ..fem.fe_model import scalar_coefficient
+from ..checks import rod_length, sample_points
 
 Tensor = Sequence | np.ndarray | Callable | None
 TENSORS = ("A", "B", "A_d", "B_d", "M", "N", "M_d", "N_d", "rotational_drag",

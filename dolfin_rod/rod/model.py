@@ -7,7 +7,8 @@
     residual.py            balance, gauge, constraints, evolution, inertia
     external_forces.py     end and distributed loads, drag
     boundary_conditions.py clamped, pinned, prescribed motions, reactions
-    initial_state.py       the stress-free initial configuration
+    initial_state.py       the stress-free configuration, the state at t = 0
+    start.py               starting states: placement, curves, velocities
     contact.py             obstacles: barrier and Coulomb friction
     diagnostics.py         energies, powers, tip
 """
@@ -17,17 +18,18 @@ from __future__ import annotations
 from typing import Sequence
 
 import dolfinx.fem as fem
+import numpy as np
 import ufl
 from mpi4py import MPI
 from ufl.algorithms.analysis import extract_coefficients
 
-from .. import constraints
+from ..theory import constraints
 from .. import loads as load_histories
-from ..evolution import check_variant
-from ..model_base import FEModel, check_n_cells
-from ..problem import SecondOrderProblem, SemiDiscreteProblem
-from ..rotations import rotation_matrix
-from ..validation import choose_rotations, rotation_vector_obstacle
+from ..theory.evolution import check_variant
+from ..fem.fe_model import FEModel, check_n_cells
+from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
+from ..theory.rotations import rotation_matrix
+from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports
 from .constitutive import check_model, energy_function, section_response
@@ -38,6 +40,8 @@ from .joints import Joint, JointReactions, check_joints, joint_nodes, node_links
 from .layout import RodLayout
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
+from .segments import PassThroughCheck
+from .start import StartingState, check_start
 
 
 class RodModel(FEModel):
@@ -47,7 +51,8 @@ class RodModel(FEModel):
     "local" or "uniform" (evolution.py); constraint: None, "unshearable" or
     "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
     boundary_conditions.py (end_slide: {end: axis}, a clamped or pinned end sliding
-    along a coordinate axis); end_loads, distributed_loads: external_forces.py; rotations:
+    along a coordinate axis; end_turn: {end: axis}, a clamped end turning freely about
+    one; end_springs: {end: EndSpring}, compliant supports); end_loads, distributed_loads: external_forces.py; rotations:
     "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
     vectors for the local variant without a constraint, a dynamic rod with rotary
     inertia or a quasi-static one without Kelvin-Voigt viscosity and drag: 6 unknowns
@@ -67,9 +72,10 @@ class RodModel(FEModel):
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
                  rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD,
                  end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
-                 contact: ContactLaw | None = None):
+                 contact: ContactLaw | None = None, end_springs: dict | None = None,
+                 end_turn: dict | None = None):
         rod = Rod(params, n_cells, ends, end_loads, distributed_loads, end_displacement,
-                  end_rotation, end_slide)
+                  end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn)
         self._build([rod], model, variant, constraint, rotations, comm, obstacles=obstacles,
                     contact=contact)
 
@@ -101,6 +107,8 @@ class RodModel(FEModel):
             rate_dependent=not all(is_zero(v) for p in all_params for v in (
                 p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
             rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
+                              or any(np.all(spring.stiffness("rotational"))
+                                     for spring in (rod.end_springs or {}).values())
                               for rod in rods))
         if joints and obstacle:
             raise ValueError(f"joints need rotation-vector unknowns, which this system "
@@ -111,6 +119,13 @@ class RodModel(FEModel):
         if joints and self.rotations != "rotation_vector":
             raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
+        if self.dynamic and self.rotations == "quaternion" and any(
+                load_histories.jumps(motion) for rod in rods
+                for motion in (rod.end_displacement or {}).values()):
+            raise ValueError("end_displacement starts away from 0 on a dynamic rod: its "
+                             "consistent start (at rest in equilibrium with the displaced "
+                             "end) is that of rotation-vector unknowns (rotations = "
+                             f"'rotation_vector'), not of {self.rotations!r}")
         disc = discretise(comm, layout, self.rotations)
         super().__init__(disc.mesh)
         self.dx, self.dx_r = disc.dx, disc.dx_r
@@ -145,8 +160,16 @@ class RodModel(FEModel):
             [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads])
         residual.one_quadrature_rule(F, unk, disc)
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
-                                         rod.end_rotation, rod.end_slide, layout.span(k))
+                                         rod.end_rotation, rod.end_slide, layout.span(k),
+                                         rod.end_springs, rod.end_turn)
                              for k, rod in enumerate(rods)]
+        springs = sum((supports.spring_energy(unk, disc.ds, disc.end_weight,
+                                              disc.pieces.indicator(k))
+                       for k, supports in enumerate(self.end_supports)), 0)
+        if any(supports.springs for supports in self.end_supports):
+            # compliant supports: their energy's variation in the balance
+            for block in ("displacement", unk.rotation):
+                F[block] += ufl.derivative(springs, unk.f[block], unk.t[block])
         self.residual = {name: F[name] for name in self.names}
         self.joints = list(joints)
         nodes = joint_nodes(self, self.joints)
@@ -156,11 +179,15 @@ class RodModel(FEModel):
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
         self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(rods))]
         forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
-                                         drag_dissipation + friction_dissipation)
+                                         drag_dissipation + friction_dissipation, springs)
         if self.contact:
             forms.update(self.contact.diagnostic_forms())
             forms["friction_dissipation"] = friction_dissipation or 0 * resp.psi * disc.dx_r
         self.set_diagnostic_forms(forms)
+        h = min(length / n for length, n in zip(layout.lengths, layout.n_cells))
+        self.pass_through = PassThroughCheck(
+            unk.f["displacement"], distance=h, exclusion=3 * h,
+            hint="self-contact is not modelled: the rod passes through itself (issue 26)")
 
     def _obstacle_contact(self, obstacles, law, disc) -> ObstacleContact | None:
         if not obstacles:
@@ -236,12 +263,22 @@ class RodModel(FEModel):
         """(r, q) of the initial stress-free configuration at parameter values s."""
         return initial_state.stress_free(self, s)
 
-    def set_initial_state(self, natural_curvature=None, natural_stretch=None) -> None:
-        """Rest in the stress-free configuration of the reference strains (a straight rod
-        along e_3, or the helix/circle of constant reference_curvature), natural strains
-        equal to the discrete reference strains (uniform variant: their mean) unless given
-        (3-vectors), rates zero: no stress at t = 0."""
-        initial_state.set_initial_state(self, natural_curvature, natural_stretch)
+    def set_initial_state(self, natural_curvature=None, natural_stretch=None,
+                          start: StartingState | None = None) -> None:
+        """Natural strains equal to the discrete reference strains of the stress-free
+        configuration (a straight rod along e_3, or the helix/circle of constant
+        reference_curvature; uniform variant: their mean) unless given (3-vectors).
+        ``start`` None: the rod rests in that configuration, no stress at t = 0;
+        a StartingState (rod/start.py; one rod, not a system): placed at its position
+        and orientation, on its starting curve (e.g. Arc, Helix, Polyline, a Straight one
+        stretched), with its velocities (dynamic rods), or settled in static equilibrium
+        with the loads at t = 0 (``equilibrium``); the stress-free shape is unchanged."""
+        if start is not None and not self.layout.single:
+            raise ValueError("start: a StartingState is for a single rod; the rods of a "
+                             "system are placed by Rod.position and Rod.orientation")
+        check_start(start, self.length, self.dynamic, rotation_held=(
+            "clamped" in self.supports.ends or bool(self.supports.rotation)))
+        initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
         if self.contact:
             self.contact.check_initial()
             self.contact.update_normal_forces()
@@ -257,6 +294,7 @@ class RodModel(FEModel):
         d.update(self.supports.reactions(self.residual, t))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
+        self.pass_through(t)
         if self.contact:
             d["min_gap"] = self.contact.closest()[0]
         return d

@@ -10,8 +10,8 @@ from __future__ import annotations
 import dolfinx.fem as fem
 import ufl
 
-from .. import balance, constraints
-from ..evolution import evolution_residual
+from ..theory import balance, constraints
+from ..theory.evolution import evolution_residual
 from .constitutive import SectionResponse
 from .discretisation import Discretisation, Unknowns
 

@@ -9,7 +9,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..model_base import check_n_cells
+from ..fem.fe_model import check_n_cells
 from .boundary_conditions import check_supports
 from .external_forces import DistributedLoad, EndLoad, check_loads
 from .material import RodParameters, check_parameters, is_zero
@@ -37,6 +37,8 @@ class Rod:
     position: Sequence[float] = (0.0, 0.0, 0.0)
     orientation: Sequence[float] = (0.0, 0.0, 0.0)
     name: str = "rod"
+    end_springs: dict | None = None      # {end: EndSpring} (boundary_conditions.py)
+    end_turn: dict | None = None         # {end: axis}: a clamped end turning freely
 
     def __post_init__(self):
         self.end_loads, self.distributed_loads = list(self.end_loads), list(self.distributed_loads)
@@ -84,7 +86,8 @@ def check_rods(rods: list[Rod], model: str, variant: str) -> None:
 def _check_rod(rod: Rod, model: str, variant: str) -> None:
     check_n_cells(rod.n_cells)
     check_supports(rod.ends, rod.end_displacement, rod.end_rotation,
-                   not is_zero(rod.params.rho_A), rod.end_slide)
+                   not is_zero(rod.params.rho_A), rod.end_slide, rod.end_springs,
+                   rod.end_turn)
     check_parameters(rod.params, model == "evolving", model != "hyperelastic", variant)
     check_loads(rod.end_loads, rod.distributed_loads)
     for name in ("position", "orientation"):

@@ -36,9 +36,9 @@ import ufl
 from ufl.algorithms.analysis import extract_arguments, extract_coefficients
 from ufl.corealg.traversal import unique_pre_traversal
 
-from ..integrators.stepping import largest_on_ranks
-from ..kinematics import strain_rates
-from ..rotations import conj, np_qmul, qmul, rotation_matrix, vec
+from ..integrators.step_control import largest_on_ranks
+from ..theory.kinematics import strain_rates
+from ..theory.rotations import conj, np_qmul, qmul, rotation_matrix, vec
 
 E3 = ufl.as_vector((0.0, 0.0, 1.0))
 GAUSS_2 = 0.5 / np.sqrt(3.0)     # the 2-point Gauss points: s_mid -+ GAUSS_2 h

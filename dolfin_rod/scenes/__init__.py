@@ -6,7 +6,7 @@ time, outputs), validated into a :class:`Scene`, mapped to the least model that 
     sim = build(scene, choice.model)                         # a models.Simulation
 """
 
-from .models import MODELS, Simulation, build, register_model
+from .builders import MODELS, Simulation, build, register_model
 from .schema import SCHEMA, Scene, SceneError, load_scene, parse_scene, validate
 from .selection import Choice, select_model
 

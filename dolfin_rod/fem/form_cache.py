@@ -184,7 +184,7 @@ def _bound_form(k: Kernel, coefficients, constants, space, mesh) -> fem.Form:
 def _disk_key(key: str) -> str:
     if "source" not in _MODULES:
         digest = hashlib.sha1(f"{dolfinx.__version__} {ffcx.__version__}".encode())
-        for path in sorted(Path(__file__).resolve().parent.rglob("*.py")):
+        for path in sorted(Path(__file__).resolve().parents[1].rglob("*.py")):
             digest.update(path.read_bytes())
         _MODULES["source"] = digest.hexdigest()
     return hashlib.sha1(f"{key}{_MODULES['source']}{KERNEL_FLAGS}".encode()).hexdigest()

@@ -29,9 +29,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fit_inputs import (Experiment, FitInputError, MeasuredSeries, Parameter,
+from .inputs import (Experiment, FitInputError, MeasuredSeries, Parameter,
                          experiment_of, parse_parameters, raw_scene, trial_scene)
-from .scenes import Scene, SceneError, build, select_model
+from ..scenes import Scene, SceneError, build, select_model
 
 __all__ = ["FitError", "FitProblem", "FitResult", "fit_scene", "prepare_fit", "run_fit",
            "simulate_response", "identifiability",

@@ -16,7 +16,7 @@ from typing import Callable
 import numpy as np
 from mpi4py import MPI
 
-from ..solvers import SolverError
+from ..fem.solvers import SolverError
 
 # Relative round-off of a time summed from steps: a remaining interval below
 # ROUND_OFF * dt is "at t_end", and a step within (1 + ROUND_OFF) of the remaining

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 
 from ..integrators.schemes import get_scheme
-from .schema import Scene
+from ..scenes.schema import Scene
 
 __all__ = ["explicit_stability_warning", "explicit_euler_limit"]
 

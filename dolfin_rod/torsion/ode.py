@@ -16,11 +16,11 @@ import math
 
 import numpy as np
 
-from .. import closed_forms
+from . import closed_forms
 from ..integrators.schemes import get_scheme
-from ..integrators.stepping import same_step
+from ..integrators.step_control import same_step
 from ..loads import rate as load_rate
-from .schema import Scene
+from ..scenes.schema import Scene
 
 __all__ = ["OdeTorsion"]
 

@@ -17,11 +17,11 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from ..problem import SecondOrderProblem
+from ..fem.problem import SecondOrderProblem
 from ..rod.contact import InitialOverlap
 from .contact import contact_law, contact_solver_options, obstacles
-from .ode import OdeTorsion
-from .rules import adaptive_stepper, rod_rotations
+from ..torsion.ode import OdeTorsion
+from .rules import START_KEYS, adaptive_stepper, rod_rotations
 from .schema import Scene, SceneError
 from .values import Coefficient
 
@@ -92,6 +92,10 @@ class FESimulation:
         self.stepper = TimeStepper(self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
                                    predictor=tim["predictor"], tolerance=tolerance)
         self.integrator = tim["integrator"]
+        self.stability = None           # quasi-static 3-D rods: analysis/stability.py
+        if scene.is_rod_material and not model.dynamic and scene["stability"]["check"]:
+            from ..analysis.stability import StabilityMonitor
+            self.stability = StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
         self.ts = None
         if self.integrator == "ts":
             from ..integrators.ts import TSIntegrator
@@ -124,7 +128,12 @@ class FESimulation:
         self.stepper.run(t, t_next, t_next - t)
 
     def diagnostics(self, t: float) -> dict[str, float]:
-        return self.model.diagnostics(t)
+        d = self.model.diagnostics(t)
+        if self.stability is not None:
+            d["negative_eigenvalues"] = float(self.stability.check(t))
+            if self.stability.lowest is not None:
+                d["lowest_eigenvalue"] = self.stability.lowest
+        return d
 
     def state(self) -> dict:
         """Functions a checkpoint stores (besides problem.fields): the integrator's and
@@ -154,7 +163,7 @@ def solver_options(scene: Scene, second_order: bool = False) -> dict:
     """PETSc options of a scene: tolerances of [time] (given ones only for a rod with
     rotation vectors, whose integrator has its own defaults, lie_alpha.default_options),
     the [solver] preset, its options."""
-    from .. import solvers
+    from ..fem import solvers
     tim, sol = scene["time"], scene["solver"]
     preset = {"default": {}, "native_lu": solvers.NATIVE_LU,
               "jacobian_reuse": solvers.JACOBIAN_REUSE}[sol["preset"]]
@@ -180,7 +189,7 @@ def ts_type(scene: Scene) -> str:
 def build_torsion(scene: Scene, comm=None) -> FESimulation:
     from mpi4py import MPI
 
-    from ..torsion import TorsionModel, TorsionParameters
+    from ..torsion.model import TorsionModel, TorsionParameters
     mat, geo, lds = scene["material"], scene["geometry"], scene["loads"]
     kwargs = {}
     couple = lds["distributed_couple"]
@@ -204,29 +213,24 @@ def build_torsion(scene: Scene, comm=None) -> FESimulation:
 
 @register_model("rod")
 def build_rod(scene: Scene, comm=None) -> FESimulation:
-    """The 3-D rod (dolfin_rod.rod.RodModel) with every scene key mapped to its API."""
+    """The 3-D rod (dolfin_rod.rod.RodModel) with every scene key mapped to its API; a
+    scene with [[rods]]: a RodSystem of its rods and joints (scenes/systems.py)."""
     from mpi4py import MPI
-    from ..rod import RodModel
+    from ..rod import RodModel, RodSystem
+    from .systems import rods_and_joints
 
-    mat, geo = scene["material"], scene["geometry"]
-    ends = {"start": "left", "end": "right"}
-    motions = {m: {side: spec.vector() for key, side in ends.items()
-                   if (spec := scene["boundary"][f"{key}_{m}"]) is not None}
-               for m in ("displacement", "rotation")}
-    end_loads, distributed_loads = rod_loads(scene)
-    constraint = None if mat["constraints"] == "none" else mat["constraints"]
+    mat = scene["material"]
     params = rod_parameters(scene)
+    common = dict(model=mat["model"], variant=mat["variant"],
+                  constraint=None if mat["constraints"] == "none" else mat["constraints"],
+                  rotations=rod_rotations(scene), comm=comm or MPI.COMM_WORLD,
+                  obstacles=obstacles(scene), contact=contact_law(scene, params))
     try:
-        model = RodModel(params, n_cells=geo["n_cells"], model=mat["model"],
-                         variant=mat["variant"], constraint=constraint,
-                         ends=(scene["boundary"]["start"], scene["boundary"]["end"]),
-                         end_loads=end_loads, distributed_loads=distributed_loads,
-                         end_displacement=motions["displacement"],
-                         end_rotation=motions["rotation"], rotations=rod_rotations(scene),
-                         comm=comm or MPI.COMM_WORLD,
-                         end_slide={side: axis for key, side in ends.items()
-                                    if (axis := scene["boundary"][f"{key}_slide"]) is not None},
-                         obstacles=obstacles(scene), contact=contact_law(scene, params))
+        if scene.rods:
+            rods, joints = rods_and_joints(scene)
+            model = RodSystem(rods, joints, **common)
+        else:
+            model = RodModel(params, **rod_arguments(scene), **common)
     except ValueError as err:
         key = "material.energy" if str(err).startswith("energy") else "scene.model"
         raise scene.error(key, f"the 'rod' model rejected the scene: {err}") from err
@@ -234,7 +238,8 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
 
     def initial_state():
         model.set_initial_state(natural_curvature=initial["natural_curvature"],
-                                natural_stretch=initial["natural_stretch"])
+                                natural_stretch=initial["natural_stretch"],
+                                start=starting_state(scene))
 
     if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
         try:
@@ -242,6 +247,45 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
         except InitialOverlap as err:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
     return FESimulation("rod", model, scene, initial_state)
+
+
+def starting_state(scene: Scene):
+    """The rod's StartingState of [initial] (rules.START_KEYS), None if none is given."""
+    from ..rod import start
+    ini = scene["initial"]
+    if not any(k in scene.given["initial"] for k in START_KEYS):
+        return None
+    shape = dict(ini["shape"] or {})
+    kind = shape.pop("type", None)
+    curves = {"straight": start.Straight, "arc": start.Arc, "helix": start.Helix,
+              "polyline": start.Polyline}
+    zero = (0.0, 0.0, 0.0)
+    return start.StartingState(
+        shape=curves[kind](**shape) if kind else None, position=ini["position"] or zero,
+        orientation=ini["orientation"] or zero, velocity=ini["velocity"] or zero,
+        angular_velocity=ini["angular_velocity"] or zero,
+        rotation_centre=ini["rotation_centre"], equilibrium=ini["equilibrium"])
+
+
+def rod_arguments(scene: Scene) -> dict:
+    """The arguments of one rod (RodModel, rod.Rod) besides its parameters: cells, ends,
+    end motions, slides, turning clamps and springs, loads."""
+    from ..rod import EndSpring
+    ends = {"start": "left", "end": "right"}
+    boundary = scene["boundary"]
+    motions = {m: {side: spec.vector() for key, side in ends.items()
+                   if (spec := boundary[f"{key}_{m}"]) is not None}
+               for m in ("displacement", "rotation")}
+    end_loads, distributed_loads = rod_loads(scene)
+    return dict(n_cells=scene["geometry"]["n_cells"], ends=(boundary["start"], boundary["end"]),
+                end_loads=end_loads, distributed_loads=distributed_loads,
+                end_displacement=motions["displacement"], end_rotation=motions["rotation"],
+                end_slide={side: axis for key, side in ends.items()
+                           if (axis := boundary[f"{key}_slide"]) is not None},
+                end_springs={side: EndSpring(**spring) for key, side in ends.items()
+                             if (spring := boundary[f"{key}_spring"])},
+                end_turn={side: axis for key, side in ends.items()
+                          if (axis := boundary[f"{key}_turn"]) is not None})
 
 
 def rod_parameters(scene: Scene):

@@ -27,16 +27,16 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from . import compat
-from . import loads as load_histories
-from .dissipation import dissipation_rate
-from .energy import derivatives, quadratic_energy
-from .evolution import check_variant, evolution_residual, real_space
-from .model_base import (FEModel, check_n_cells, end_measures, scalar_coefficient,
+from ..fem import compat
+from .. import loads as load_histories
+from ..theory.dissipation import dissipation_rate
+from ..theory.energy import derivatives, quadratic_energy
+from ..theory.evolution import check_variant, evolution_residual, real_space
+from ..fem.fe_model import (FEModel, check_n_cells, end_measures, scalar_coefficient,
                          vertex_measure)
-from .problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
-from .solvers import default_lu
-from .validation import profile_violation, sample_points
+from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
+from ..fem.solvers import default_lu
+from ..checks import profile_violation, sample_points
 
 Coefficient = float | Callable
 NAMES = ("twist_angle", "natural_twist", "angular_velocity")
@@ -109,9 +109,11 @@ class TorsionModel(FEModel):
         check_n_cells(n_cells, ranks)
         if degree not in (1, 2, 3):
             raise ValueError(f"degree must be 1, 2 or 3, got {degree!r}")
-        if not params.is_zero("nu") and end_rotation is not None and _jump(end_rotation) != 0.0:
-            raise ValueError("end_rotation has a step at t = 0 but nu > 0: a rod with "
-                             "inertia cannot follow a jump in rotation; use "
+        jumps = [] if end_rotation is None else [t for t, size in getattr(
+            end_rotation, "jumps", ()) if size] + ([0.0] if _jump(end_rotation) else [])
+        if not params.is_zero("nu") and jumps:
+            raise ValueError(f"end_rotation has a step at t = {min(jumps):g} but nu > 0: a "
+                             "rod with inertia cannot follow a jump in rotation; use "
                              "loads.smooth_step or loads.ramp")
 
     def _fields(self) -> None:

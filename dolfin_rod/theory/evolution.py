@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import ufl
 
-from . import compat
+from ..fem import compat
 
 VARIANTS = ("local", "uniform")
 

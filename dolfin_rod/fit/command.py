@@ -16,8 +16,8 @@ import json
 import sys
 from pathlib import Path
 
-from .fit import FitError, FitResult, prepare_fit, run_fit
-from .fit_inputs import FitInputError, read_series
+from .least_squares import FitError, FitResult, prepare_fit, run_fit
+from .inputs import FitInputError, read_series
 
 __all__ = ["FitInputError", "add_fit_parser", "fit_command", "result_table"]
 
@@ -38,9 +38,9 @@ def add_fit_parser(sub) -> None:
 
 def fit_command(args, comm) -> int:
     """Run ``dolfin-rod fit``; SceneError/OutputError/FitInputError propagate (exit 2)."""
-    from .cli import print_on_root
-    from .run_folders import on_root
-    from .scenes import load_scene
+    from ..cli import print_on_root
+    from ..output.run_folders import on_root
+    from ..scenes import load_scene
     scene = load_scene(args.scene)
     data = _read_on_root(args.data, comm)
     problem = prepare_fit(scene, data, args.params, comm)
@@ -75,7 +75,7 @@ def _read_on_root(path: Path, comm):
 
 
 def _fit_folder(scene, out: Path | None, comm) -> Path:
-    from .run_folders import new_run_folder, on_root, prepare_run_folder
+    from ..output.run_folders import new_run_folder, on_root, prepare_run_folder
     if out is None:
         parent = Path(scene["outputs"]["directory"])
         return Path(on_root(comm, lambda: str(new_run_folder(parent, f"fit-{scene.name}")),

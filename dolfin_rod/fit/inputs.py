@@ -44,8 +44,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .scenes import Scene, validate
-from .validation import DATA_BYTES, read_regular_file
+from ..checks import DATA_BYTES, read_regular_file
+from ..scenes import Scene, validate
 
 __all__ = ["FitInputError", "Parameter", "Experiment", "MeasuredSeries", "read_series",
            "parse_parameters", "experiment_of"]

@@ -17,7 +17,7 @@ import ufl
 from petsc4py import PETSc
 
 from .assembly import block_system
-from .fem.multipoint import ConstrainedSystem
+from .multipoint import ConstrainedSystem
 
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
 DEFAULT_OPTIONS = {

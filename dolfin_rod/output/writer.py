@@ -55,7 +55,7 @@ def versions() -> dict[str, str]:
     import scipy
     from petsc4py import PETSc
 
-    from . import __version__
+    from .. import __version__
     return {"dolfin_rod": __version__, "python": sys.version.split()[0],
             "dolfinx": dolfinx.__version__, "petsc4py": petsc4py.__version__,
             "petsc": ".".join(str(v) for v in PETSc.Sys.getVersion()),

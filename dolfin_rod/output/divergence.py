@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from .integrators.stepping import IntegrationError
+from ..integrators.step_control import IntegrationError
 
 
 class EnergyBound:

@@ -24,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import quad
-from .validation import finite as _finite, positive as _positive, nonnegative as _nonnegative
+from ..checks import finite as _finite, positive as _positive, nonnegative as _nonnegative
 
 __all__ = [
     "creep",

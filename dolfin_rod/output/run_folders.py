@@ -43,7 +43,7 @@ def folder_problem(path: Path) -> str | None:
     long, an existing file, a file or an unwritable folder on the way.  Writability is
     probed by creating and removing a temporary folder (permission bits do not tell a
     root user about read-only file systems)."""
-    from .scenes.values import path_problem
+    from ..scenes.values import path_problem
     problem = path_problem(str(path))
     if problem:
         return f"{str(path)[:80]!r}: {problem}"
@@ -68,7 +68,7 @@ MARKER = ".dolfin-rod-run"
 
 def mark_run_folder(folder: Path) -> None:
     """Rank 0: the marker that makes ``folder`` replaceable by ``--overwrite``."""
-    from . import __version__
+    from .. import __version__
     (folder / MARKER).write_text(f"dolfin-rod {__version__} made this run folder; "
                                  "`dolfin-rod run --overwrite` may replace it\n")
 

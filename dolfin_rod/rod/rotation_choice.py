@@ -1,0 +1,91 @@
+"""The rod's rotation unknowns: quaternions or rotation vectors (rod/discretisation.py),
+chosen for RodModel and scenes alike."""
+
+from __future__ import annotations
+
+
+ROTATIONS = ("auto", "quaternion", "rotation_vector")
+
+
+def rotation_vector_obstacle(dynamic: bool, variant: str, constraint,
+                             rotary_inertia: bool = True, rate_dependent: bool = False,
+                             rotation_held: bool = True) -> str | None:
+    """Why rotation vectors (rod/rotation_vector.py) do not fit a rod, or None.  They
+    need the local variant (the uniform one's real-space natural strains take the
+    blocked assembly) and no constraint (its multipliers make a saddle point); a dynamic
+    rod needs rotary inertia I11, I22 > 0 (the integrator's start solves the mass
+    matrices for the accelerations); a quasi-static rod needs no rate-dependent force
+    (``rate_dependent``: Kelvin-Voigt viscosity M, N or drag; its positions and rotations
+    are then algebraic unknowns) and an end that holds its rotation (``rotation_held``:
+    else a free spin is a null mode of the unpivoted banded LU)."""
+    if variant != "local":
+        return "the uniform variant (use the local one)"
+    if constraint is not None:
+        return f"a constrained rod ({constraint})"
+    if dynamic and not rotary_inertia:
+        return "a dynamic rod without rotary inertia I11, I22 > 0"
+    if not dynamic and rate_dependent:
+        return "a quasi-static rod with Kelvin-Voigt viscosity (M, N) or drag"
+    if not dynamic and not rotation_held:
+        return "a quasi-static rod whose rotation no end holds (clamped or end_rotation)"
+    return None
+
+
+def choose_rotations(rotations: str, obstacle: str | None, lie_integrator: bool = True,
+                     rotation_jumps: bool = False) -> str:
+    """The rod's rotation unknowns (rod/discretisation.py): "auto" takes rotation vectors
+    where nothing stands against them (``obstacle``: rotation_vector_obstacle), the
+    integrator advances them (``lie_integrator``: generalized-alpha on the rotation
+    group for a dynamic rod, any scheme of TimeStepper for a quasi-static one; not PETSc
+    TS) and no prescribed end rotation jumps (``rotation_jumps``: a step's nodal
+    increment must stay below a quarter turn, RotationVectorChart.check_increment);
+    quaternions otherwise.  An explicit choice is checked (ValueError)."""
+    if rotations not in ROTATIONS:
+        raise ValueError(f"rotations must be one of {ROTATIONS}, got {rotations!r}")
+    if rotations == "auto":
+        return "rotation_vector" if obstacle is None and lie_integrator \
+            and not rotation_jumps else "quaternion"
+    if rotations == "rotation_vector" and (obstacle or not lie_integrator):
+        why = obstacle or ("PETSc TS or a first-order scheme of a dynamic rod (rotation "
+                           "vectors: generalized_alpha[:rho_inf] of TimeStepper)")
+        raise ValueError(f"rotations = 'rotation_vector' does not apply to {why}; use "
+                         "'quaternion'")
+    return rotations
+
+
+# A start in static equilibrium (rod/start.py) with only pinned or free ends is singular.
+EQUILIBRIUM_NEEDS = ("the static problem needs an end whose rotation is held (clamped, or "
+                     "a prescribed end rotation): otherwise the sections turn about their "
+                     "tangents for free")
+# A starting polyline's length against the rod's (rod/start.py; a rod of 1 m: 1 um).
+LENGTH_RTOL = 1e-6
+
+
+def polyline_problem(points, rest_arc_length, normal, length: float) -> tuple[str, str] | None:
+    """(key, reason) for a starting polyline (rod/start.Polyline) that does not fit a rod
+    of ``length``, key one of "points", "rest_arc_length", "normal"; else None."""
+    points = np.asarray(points, dtype=float)
+    if points.ndim != 2 or points.shape[1:] != (3,) or len(points) < 2 \
+            or not np.isfinite(points).all():
+        return "points", "at least two finite points [x, y, z]"
+    chords = np.diff(points, axis=0)
+    if np.any(np.linalg.norm(chords, axis=1) == 0):
+        return "points", "two consecutive points coincide"
+    if rest_arc_length is None:
+        key, what = "points", "polyline's length"
+        arc = np.concatenate(([0.0], np.cumsum(np.linalg.norm(chords, axis=1))))
+    else:
+        key, what = "rest_arc_length", "last rest arc length"
+        arc = np.asarray(rest_arc_length, dtype=float)
+        if arc.shape != (len(points),) or arc[0] != 0 or np.any(np.diff(arc) <= 0):
+            return key, f"one value per point ({len(points)}), from 0, increasing"
+    if abs(arc[-1] - length) > LENGTH_RTOL * length:
+        return key, (f"the {what} {arc[-1]:.9g} differs from the rod's length {length:.9g} "
+                     f"(geometry.length); they must agree to {LENGTH_RTOL:g} relative")
+    normal = np.asarray(normal, dtype=float)
+    if normal.shape != (3,) or not np.isfinite(normal).all():
+        return "normal", "a finite 3-vector"
+    if np.linalg.norm(np.cross(normal, chords[0])) <= 1e-9 * np.linalg.norm(normal) * \
+            np.linalg.norm(chords[0]):
+        return "normal", "parallel to the first segment (it gives d1, perpendicular to the rod)"
+    return None

@@ -1,0 +1,123 @@
+"""The rod's centre line as segments (one per cell): closest points of segment pairs, the
+pairs near each other (broad phase), and the cheap check at output times that no two
+non-neighbouring segments passed through each other (issue 26; docs/contact.md).
+
+Narrow phase: the closest points of two segments p(s) = p0 + s (p1 - p0), q(t) = q0 +
+t (q1 - q0), s, t in [0, 1] (Ericson, Real-Time Collision Detection, 5.1.9: the
+unconstrained minimiser clamped to the square, then the other parameter re-solved and
+clamped), parallel segments included.  Broad phase: scipy's cKDTree on the segments'
+midpoints, O(N log N): two segments closer than d have midpoints closer than d + the
+longest segment.  Neighbours along a rod (closer in s than ``exclusion``) are never a
+pair: a rod of radius r cannot bend back onto itself within an arc of pi r.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+def closest_points(p0, p1, q0, q1):
+    """Parameters (s, t) in [0, 1] of the closest points of segment pairs ((n, 3) each)
+    and their distances."""
+    d1, d2, w = p1 - p0, q1 - q0, p0 - q0
+    a, e = np.einsum("ij,ij->i", d1, d1), np.einsum("ij,ij->i", d2, d2)
+    b, c, f = (np.einsum("ij,ij->i", d1, d2), np.einsum("ij,ij->i", d1, w),
+               np.einsum("ij,ij->i", d2, w))
+    denom = a * e - b * b
+    parallel = denom <= 1e-12 * a * e
+    s = np.where(parallel, 0.0, np.clip((b * f - c * e) / np.where(parallel, 1.0, denom),
+                                        0.0, 1.0))
+    t = (b * s + f) / e
+    s = np.where(t < 0.0, np.clip(-c / a, 0.0, 1.0),
+                 np.where(t > 1.0, np.clip((b - c) / a, 0.0, 1.0), s))
+    t = np.clip(t, 0.0, 1.0)
+    gap = (p0 + s[:, None] * d1) - (q0 + t[:, None] * d2)
+    return s, t, np.sqrt(np.einsum("ij,ij->i", gap, gap))
+
+
+def near_pairs(p0, p1, mid_s, distance: float, exclusion: float) -> np.ndarray:
+    """(m, 2) index pairs i < j of segments (rows of p0, p1; parameters mid_s of their
+    midpoints) whose closest points are nearer than ``distance``, excluding pairs nearer
+    than ``exclusion`` in s."""
+    mid = 0.5 * (p0 + p1)
+    longest = np.sqrt(np.max(np.einsum("ij,ij->i", p1 - p0, p1 - p0), initial=0.0))
+    pairs = cKDTree(mid).query_pairs(distance + longest, output_type="ndarray")
+    pairs = pairs[np.abs(mid_s[pairs[:, 0]] - mid_s[pairs[:, 1]]) >= exclusion]
+    if len(pairs) == 0:
+        return pairs.reshape(0, 2)
+    i, j = pairs[:, 0], pairs[:, 1]
+    return pairs[closest_points(p0[i], p1[i], p0[j], p1[j])[2] < distance]
+
+
+def crossing_sides(p0, p1, pairs) -> np.ndarray:
+    """Per pair the side on which segment j passes segment i: the sign of
+    (q(t) - p(s)) . (p1 - p0) x (q1 - q0) at the closest points; it flips when the two
+    segments pass through each other."""
+    i, j = pairs[:, 0], pairs[:, 1]
+    s, t, _ = closest_points(p0[i], p1[i], p0[j], p1[j])
+    d1, d2 = p1[i] - p0[i], p1[j] - p0[j]
+    gap = (p0[j] + t[:, None] * d2) - (p0[i] + s[:, None] * d1)
+    return np.sign(np.einsum("ij,ij->i", gap, np.cross(d1, d2)))
+
+
+class PassThroughCheck:
+    """At output times: did two non-neighbouring segments pass through each other since
+    the last check?  Pairs nearer than ``distance`` at both checks whose crossing side
+    flipped; the first such event is reported once per run (a warning on rank 0 naming
+    the time and the two places s).  Cost: one gather of the centre line, one
+    midpoint tree (none while every segment points within 60 degrees of the mean
+    direction: such a line cannot meet itself)."""
+
+    def __init__(self, x, distance: float, exclusion: float, hint: str):
+        space = x.function_space
+        self.x, self.comm, self.hint = x, space.mesh.comm, hint
+        self.distance, self.exclusion = distance, exclusion
+        n_cells = space.mesh.topology.index_map(1).size_local
+        dofs = space.dofmap.list[:n_cells]
+        self.ends = dofs[:, 0], dofs[:, 1]
+        s_nodes = space.tabulate_dof_coordinates()[:, 0]
+        self.reference = [np.outer(s_nodes[d], (0.0, 0.0, 1.0)) for d in self.ends]
+        self.mid_s = s_nodes[dofs].mean(axis=1)
+        self.nodes = self.x.x.array.reshape(-1, 3)      # a view
+        self.previous: dict | None = None
+        self.warned = False
+
+    def _segments(self):
+        """(p0, p1, s of the midpoints) of every cell, on rank 0 (None elsewhere)."""
+        p0, p1 = (self.nodes[d] + X for d, X in zip(self.ends, self.reference))
+        if self.comm.size == 1:
+            return p0, p1, self.mid_s
+        gathered = self.comm.gather((p0, p1, self.mid_s), root=0)
+        if gathered is None:
+            return None
+        return tuple(np.concatenate([g[k] for g in gathered]) for k in range(3))
+
+    def __call__(self, t: float) -> None:
+        segments = self._segments()
+        if segments is None or self.warned:
+            return
+        p0, p1, mid_s = segments
+        tangents = p1 - p0
+        mean = tangents.sum(axis=0)
+        cosines = (tangents @ mean) ** 2 / np.einsum("ij,ij->i", tangents, tangents)
+        if np.all(cosines > 0.25 * (mean @ mean)) and np.all(tangents @ mean > 0):
+            self.previous = None        # every tangent within 60 degrees of the mean
+            return
+        pairs = near_pairs(p0, p1, mid_s, self.distance, self.exclusion)
+        sides = dict(zip(map(tuple, pairs), crossing_sides(p0, p1, pairs)))
+        passed = [pair for pair, side in sides.items() if self.previous is not None
+                  and self.previous.get(pair, side) * side < 0]
+        self.previous = sides
+        if passed:
+            i, j = passed[0]
+            self.warned = True
+            warnings.warn(f"at t = {t:.6g} the rod passed through itself near s = "
+                          f"{mid_s[i]:.4g} and s = {mid_s[j]:.4g} ({self.hint})",
+                          PassThroughWarning, stacklevel=2)
+
+
+class PassThroughWarning(UserWarning):
+    """Two non-neighbouring segments of a rod passed through each other."""

@@ -1,0 +1,102 @@
+"""The rod's segments (rod/segments.py): closest points of segment pairs against a brute
+force search, the broad phase against all pairs, and the warning when a rod passes
+through itself between two output times (serial and mpirun -n 2)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from dolfin_rod.rod import RodModel, RodParameters
+from dolfin_rod.rod.segments import PassThroughWarning, closest_points, near_pairs
+
+
+def _brute(p0, p1, q0, q1, n=801):
+    """min over a fine grid of both parameters (the reference distance)."""
+    u = np.linspace(0.0, 1.0, n)
+    P = p0 + u[:, None] * (p1 - p0)
+    Q = q0 + u[:, None] * (q1 - q0)
+    return np.min(np.linalg.norm(P[:, None, :] - Q[None, :, :], axis=-1))
+
+
+CASES = {   # crossing at right angles, parallel overlapping, parallel apart, collinear,
+            # skew with a clamped end, touching ends
+    "crossing": ([0, -1, 0], [0, 1, 0], [-1, 0, 0.5], [1, 0, 0.5], 0.5),
+    "parallel": ([0, 0, 0], [2, 0, 0], [1, 0.3, 0], [3, 0.3, 0], 0.3),
+    "parallel_apart": ([0, 0, 0], [1, 0, 0], [2, 0.4, 0], [3, 0.4, 0], np.hypot(1.0, 0.4)),
+    "collinear": ([0, 0, 0], [1, 0, 0], [1.5, 0, 0], [2.5, 0, 0], 0.5),
+    "skew_clamped": ([0, 0, 0], [1, 0, 0], [2, -1, 1], [2, 1, 1], np.sqrt(2.0)),
+    "ends": ([0, 0, 0], [1, 0, 0], [1, 0, 0], [1, 1, 0], 0.0),
+}
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_closest_points_of_two_segments(name):
+    """Distances of the closed-form cases and the grid search agree (to the grid's
+    resolution 1e-6 relative of the segments' length squared); random pairs too."""
+    p0, p1, q0, q1, exact = (np.asarray(v, float) for v in CASES[name])
+    _, _, d = closest_points(p0[None], p1[None], q0[None], q1[None])
+    assert d[0] == pytest.approx(exact, abs=1e-12)
+    assert d[0] == pytest.approx(_brute(p0, p1, q0, q1), abs=1e-5)
+
+
+def test_closest_points_of_random_segments():
+    rng = np.random.default_rng(3)
+    P0, P1, Q0, Q1 = (rng.standard_normal((40, 3)) for _ in range(4))
+    _, _, d = closest_points(P0, P1, Q0, Q1)
+    brute = [_brute(*v, n=401) for v in zip(P0, P1, Q0, Q1)]
+    assert np.allclose(d, brute, atol=1e-4)
+    assert np.all(d <= np.array(brute) + 1e-12)      # the exact minimum is below the grid's
+
+
+def test_broad_phase_finds_every_near_pair():
+    """A random walk of 400 segments: the tree's pairs are those of the O(N^2) search."""
+    rng = np.random.default_rng(7)
+    nodes = np.cumsum(0.1 * rng.standard_normal((401, 3)), axis=0)
+    p0, p1 = nodes[:-1], nodes[1:]
+    s = np.arange(400) + 0.5
+    found = {tuple(p) for p in near_pairs(p0, p1, s, 0.05, 3.0)}
+    i, j = np.triu_indices(400, 1)
+    keep = np.abs(s[i] - s[j]) >= 3.0
+    i, j = i[keep], j[keep]
+    d = closest_points(p0[i], p1[i], p0[j], p1[j])[2]
+    assert found == {(a, b) for a, b in zip(i[d < 0.05], j[d < 0.05])}
+    assert len(found) > 0
+
+
+def _figure_eight(rod, height: float) -> None:
+    """The centre line a figure eight in the x-y plane, crossing itself at the origin
+    (s = 1/7 and 6/7) with the branch s = 6/7 passing 'height' above the other."""
+    x = rod.f["displacement"]
+    s = x.function_space.tabulate_dof_coordinates()[:, 0]
+    u = np.pi * (1.4 * s - 0.2)
+    r = np.stack([np.sin(u), 0.5 * np.sin(2 * u), height * (2 * s - 1)], axis=1)
+    x.x.array[:] = (r - np.outer(s, (0.0, 0.0, 1.0))).ravel()
+
+
+@pytest.mark.mpi
+def test_a_rod_passing_through_itself_is_reported_once():
+    """Between two output times the rod's branches swap sides at the crossing: one
+    warning naming the time and the two places (s = 1/7, 6/7 within a cell); nothing
+    while the branches keep their sides."""
+    rod = RodModel(RodParameters(), n_cells=28, model="hyperelastic", ends=("free", "free"),
+                   rotations="quaternion")
+    rod.set_initial_state()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for t, height in ((0.0, 0.01), (0.1, 0.012), (0.2, -0.01), (0.3, 0.01)):
+            _figure_eight(rod, height)
+            rod.diagnostics(t)
+    found = [w for w in caught if issubclass(w.category, PassThroughWarning)]
+    if MPI.COMM_WORLD.rank == 0:
+        assert len(found) == 1
+        text = str(found[0].message)
+        assert "t = 0.2 " in text and "self-contact" in text
+        places = sorted(float(v) for v in text.split("s = ")[1:3] for v in [v.split()[0]])
+        assert places[0] == pytest.approx(1 / 7, abs=1 / 28)
+        assert places[1] == pytest.approx(6 / 7, abs=1 / 28)
+    else:
+        assert not found
