@@ -55,15 +55,15 @@ TORSION = CREEP.replace("checkpoint_every = 3", "progress = false")
 MPI_TIMEOUT = 120   # s: mpirun start-up and a 4-cell model take ~10 s; a hang is for ever
 
 
-def mpirun(n: int, *args: str) -> subprocess.CompletedProcess:
-    """``mpirun -n N python3 -m dolfin_rod ARGS`` with a timeout (more ranks than cores:
-    ./rodenv's Open MPI settings, item 24)."""
+def mpirun(n: int, *args: str, module: bool = True) -> subprocess.CompletedProcess:
+    """``mpirun -n N python3 -m dolfin_rod ARGS`` (``module``; else ``python3 ARGS``)
+    with a timeout (more ranks than cores: ./rodenv's Open MPI settings, item 24)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     for k in list(env):
         if k.startswith(("OMPI_COMM_WORLD", "PMIX_", "OMPI_MCA_ess", "PMI_")):
             env.pop(k)     # a test run under mpirun itself starts a fresh job
-    cmd = [shutil.which("mpirun") or "mpirun", "-n", str(n), sys.executable, "-m",
-           "dolfin_rod", *args]
+    cmd = [shutil.which("mpirun") or "mpirun", "-n", str(n), sys.executable,
+           *(["-m", "dolfin_rod"] if module else []), *args]
     try:
         return subprocess.run(cmd, capture_output=True, text=True, timeout=MPI_TIMEOUT,
                               cwd=ROOT, env=env)
@@ -125,20 +125,48 @@ def test_energy_import_failing_on_rank_1_only_ends_every_rank_with_its_message(
 
 
 @serial_only
-def test_energy_raising_on_rank_1_only_while_the_model_is_built_ends_the_run(tmp_path):
-    """Item 12 (a user energy that raises on rank 1): rank 0 is then inside collective
-    calls of the build; rank 1 reports its error itself and aborts the job with exit 2
-    (mpi.alone), instead of both spinning until killed."""
+def test_energy_raising_on_rank_1_only_ends_every_rank_with_its_message(tmp_path):
+    """Item 12 (a user energy that raises on rank 1): both ranks spun until killed.  The
+    energy is evaluated when the scene is read (item 9), which the ranks agree on."""
     text = energy_module(tmp_path, "raises", PSI.replace(
         "    return", "    from mpi4py import MPI\n    if MPI.COMM_WORLD.rank == 1:\n"
         "        raise ValueError('energy fails on rank 1')\n    return"))
     (tmp_path / "scene.toml").write_text(text)
     out = mpirun(2, "run", str(tmp_path / "scene.toml"), "--out", str(tmp_path / "run"))
+    assert_one_error(out.returncode, out.stdout, out.stderr, "material.energy",
+                     "energy fails on rank 1")
+    assert not (tmp_path / "run").exists()
+
+
+# an expected error (a model's ValueError, reported as a SceneError) on rank 1 only while
+# rank 0 is inside the collective calls of the build
+REFUSED_ON_RANK1 = """
+import sys
+from mpi4py import MPI
+from dolfin_rod.rod import model
+original = model.RodModel._build
+def refuse(self, *args, **kwargs):
+    if MPI.COMM_WORLD.rank == 1:
+        raise ValueError("refused on rank 1 (injected)")
+    return original(self, *args, **kwargs)
+model.RodModel._build = refuse
+from dolfin_rod.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@serial_only
+def test_expected_error_of_one_rank_inside_collective_work_ends_the_run(tmp_path):
+    """Item 12, the mechanism for errors no check finds first: the rank that saw it
+    reports it and aborts the job with exit 2 (mpi.alone), within seconds."""
+    (tmp_path / "scene.toml").write_text(ROD)
+    out = mpirun(2, "-c", REFUSED_ON_RANK1, "run", str(tmp_path / "scene.toml"), "--out",
+                 str(tmp_path / "run"), module=False)
     assert out.returncode == 2, out.stdout + out.stderr
     lines = errors(out.stderr)
-    assert len(lines) == 1 and "[material.energy]" in lines[0], out.stderr
-    assert "energy fails on rank 1" in lines[0] and "seen on rank 1 only" in lines[0]
-    assert "completed" not in out.stdout
+    assert len(lines) == 1 and "[scene.model]" in lines[0], out.stderr
+    assert "refused on rank 1 (injected)" in lines[0] and "seen on rank 1 only" in lines[0]
+    assert "completed" not in out.stdout and "Traceback" not in out.stderr
     assert not (tmp_path / "run").exists() or {p.name for p in (tmp_path / "run").iterdir()
                                                } <= {run_folders.MARKER}   # no results
 
