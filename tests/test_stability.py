@@ -41,6 +41,7 @@ STIFF = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5))
 # (ends, sliding end or None, P_cr L^2 / EI)
 COLUMNS = {
     "clamped-free": (("clamped", "free"), None, math.pi ** 2 / 4),
+    "pinned-pinned": (("pinned", "pinned"), {"right": (0.0, 0.0, 1.0)}, math.pi ** 2),
     "clamped-pinned": (("clamped", "pinned"), {"right": (0.0, 0.0, 1.0)}, 4.493409457909064 ** 2),
     "clamped-clamped": (("clamped", "clamped"), {"right": (0.0, 0.0, 1.0)}, 4 * math.pi ** 2),
 }
@@ -186,3 +187,48 @@ def test_lowest_eigenvalue_changes_sign_at_the_critical_load():
     assert below[1] == pytest.approx(below[0], rel=1e-6)      # the two planes
     low, high = eigenvalues(0.9)[0], eigenvalues(1.1)[0]
     assert 0.9 + 0.2 * low / (low - high) == pytest.approx(p_h, abs=1e-3)
+
+
+@pytest.mark.mpi
+def test_pinned_pinned_catenary_solves_at_any_orientation():
+    """Issue 27 item 3: a rod pinned at both ends (the right end moved 0.3 L towards the
+    left, a transverse distributed dead load of unit magnitude ramped in, 16 cells,
+    EI = 1e-2): before, its spin about the axis was a null mode and Newton failed
+    (rotated, or with 1e-14 of sideways load).  Now it solves in any transverse direction
+    of the load, and the hanging shape is the same turned about the chord: the mid-node
+    displacement for a load along (-1, 0.3, 0)/|.| is the one along -e_1 turned (the
+    same discrete equations in turned coordinates: to the Newton tolerance, 1e-8), and
+    the equilibrium is stable (no negative eigenvalue)."""
+    from dolfin_rod import loads
+    from dolfin_rod.rod import DistributedLoad
+
+    def mid_node(direction):
+        g = np.array(direction) / np.linalg.norm(direction)
+        rod = RodModel(RodParameters(length=1.0, A=(1e-2,) * 3, B=(1e3,) * 3), n_cells=16,
+                       model="hyperelastic", ends=("pinned", "pinned"),
+                       end_displacement={"right": lambda t: np.array([0, 0, -0.3 * min(t, 1)])},
+                       distributed_loads=[DistributedLoad("force", tuple(g),
+                                                          loads.ramp(1.0, 1.0))])
+        rod.set_initial_state()
+        TimeStepper(rod.problem).run(0.0, 1.0, 0.1)
+        assert TangentStiffness(rod).inertia(1.0).negative == 0
+        return _mid_displacement(rod)
+
+    hanging = mid_node((-1.0, 0.0, 0.0))
+    assert hanging[0] < -0.3 and abs(hanging[1]) < 1e-12     # it sags along the load
+    c, s = np.array([1.0, -0.3]) / np.hypot(1.0, 0.3)       # turns e_1 into the load's -e
+    turned = np.array([c * hanging[0] - s * hanging[1], s * hanging[0] + c * hanging[1],
+                       hanging[2]])
+    assert np.allclose(mid_node((-1.0, 0.3, 0.0)), turned, atol=1e-8)
+
+
+def _mid_displacement(rod) -> np.ndarray:
+    """The displacement of the node at s = L/2, on every rank."""
+    from mpi4py import MPI
+    x = rod.f["displacement"]
+    V = x.function_space
+    coords = V.tabulate_dof_coordinates()[:, 0]
+    n_owned = V.dofmap.index_map.size_local
+    owned = np.flatnonzero(np.isclose(coords[:n_owned], 0.5))
+    local = x.x.array.reshape(-1, 3)[owned[0]] if owned.size else np.zeros(3)
+    return MPI.COMM_WORLD.allreduce(local, op=MPI.SUM)

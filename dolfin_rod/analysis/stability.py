@@ -17,7 +17,7 @@ for non-conservative loads a dynamic analysis decides, not this count).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import dolfinx.fem as fem
 import numpy as np
@@ -25,6 +25,7 @@ import ufl
 from petsc4py import PETSc
 
 from ..fem.assembly import block_system
+from ..fem.multipoint import ConstrainedSystem
 from ..fem.fe_model import vertex_measure
 
 __all__ = ["Inertia", "TangentStiffness", "LowestEigenvalues", "StabilityMonitor"]
@@ -52,7 +53,12 @@ class TangentStiffness:
         forms = [ufl.replace(model.residual[n], at_rest) for n in names]
         bcs = [bc for n in names for bc in model.bcs_of(n)]
         self.model, self.names = model, names
-        self.system = block_system(forms, [[model.f[n] for n in names]], bcs=bcs)
+        fields = [model.f[n] for n in names]
+        self.system = block_system(forms, [fields], bcs=bcs)
+        links = [replace(link, block=names.index(model.names[link.block]))
+                 for link in model.problem.links]
+        if links:           # joints of a rod system: K on the free dofs, P^T K P
+            self.system = ConstrainedSystem(self.system, fields, links)
         self.multipliers = self._free_dofs(model, [n for n in names if n in MULTIPLIERS])
         start = self.system.A.getOwnershipRange()[0]
         self.fixed = PETSc.IS().createGeneral(
@@ -134,8 +140,11 @@ class LowestEigenvalues:
         bcs = [bc for n in tangent.names for bc in model.bcs_of(n)]
         system = block_system(metric, [[x, theta]], bcs=bcs)
         system.jacobian(system.A)
-        system.A.zeroRowsColumns(tangent.fixed, diag=0.0)
-        self.G = system.A
+        G = system.A
+        if isinstance(tangent.system, ConstrainedSystem):      # joints: P^T G P
+            G = G.PtAP(tangent.system.P)
+        G.zeroRowsColumns(tangent.fixed, diag=0.0)
+        self.G = G
 
     def __call__(self, t: float, count: int = 1) -> list[float]:
         """The ``count`` eigenvalues nearest 0 at time t, ascending (all of them below 0

@@ -137,6 +137,19 @@ def slide_axis_problem(axis) -> str | None:
     return None
 
 
+def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:
+    """Both ends pinned, no end rotation, turn or spring: turning every section by one
+    angle about its director d3 (the rigid rotation about the axis of a straight rod)
+    costs no energy, a null mode of a quasi-static rod's tangent (issue 27 item 3; with
+    inertia it is a motion, left alone).  EndSupports then
+    holds the spin about d3 at s = 0 (rotation vectors: theta_3 = 0 there), which adds no
+    couple where that mode has zero energy (the reaction is the residual along it, 0);
+    where it has energy (anisotropic sections, a natural curvature) it is a torsional
+    support at s = 0."""
+    return tuple(ends) == ("pinned", "pinned") and not (end_rotation or end_turn
+                                                          or end_springs)
+
+
 class HeldComponents:
     """The Dirichlet values of some components of a vector block at an end (a sliding
     end: the components across its axis), one scalar constant each."""
@@ -199,6 +212,10 @@ class EndSupports:
                 const = fem.Constant(mesh, np.zeros(shape) if shape else 0.0)
                 self.values[(block, end)] = const
                 model.dirichlet_at(block, spaces[block], self.s_ends[end], const)
+        if "rotation_increment" in spaces and not model.dynamic and spin_free(
+                ends, self.rotation, self.turn, self.springs):   # quasi-static: a null mode
+            model.dirichlet_at(self.block, spaces[self.block], self.s_ends["left"],
+                               fem.Constant(mesh, 0.0), component=2)
         unk = model.unknowns     # a turning end's rotation (reactions): nodal values
         self._rotations = unk.f["quaternion"] if unk.chart is None else unk.chart.q_n
         self._turned = {end: NodeValues(self._rotations.function_space, [self.s_ends[end]])

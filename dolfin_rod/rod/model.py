@@ -31,7 +31,7 @@ from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..theory.rotations import rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
-from .boundary_conditions import EndSupports
+from .boundary_conditions import EndSupports, spin_free
 from .constitutive import check_model, energy_function, section_response
 from .contact import ContactLaw, Obstacle, ObstacleContact
 from .discretisation import discretise, function_spaces, unknowns
@@ -107,6 +107,8 @@ class RodModel(FEModel):
             rate_dependent=not all(is_zero(v) for p in all_params for v in (
                 p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
             rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
+                              or spin_free(rod.ends, rod.end_rotation, rod.end_turn,
+                                           rod.end_springs)
                               or any(np.all(spring.stiffness("rotational"))
                                      for spring in (rod.end_springs or {}).values())
                               for rod in rods))
@@ -130,9 +132,10 @@ class RodModel(FEModel):
         super().__init__(disc.mesh)
         self.dx, self.dx_r = disc.dx, disc.dx_r
         self.pieces = disc.pieces
+        per_rod = variant == "uniform" and not layout.single   # each rod's global strains
         self.unknowns = unk = unknowns(function_spaces(
-            disc.mesh, self.evolving, variant, constraint, self.dynamic, self.rotations),
-            self.dynamic)
+            disc.mesh, self.evolving, variant, constraint, self.dynamic, self.rotations,
+            len(rods)), self.dynamic, disc.pieces.of_rods if per_rod else None)
         self.names, self.f, self.r, self.t = unk.names, unk.f, unk.r, unk.t
         self.V, self.W = unk.V, unk.W
         self.coefficients = c = coefficients(all_params, disc.pieces)

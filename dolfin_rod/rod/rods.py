@@ -78,9 +78,6 @@ def check_rods(rods: list[Rod], model: str, variant: str) -> None:
     if any(rod.params.energy is not rods[0].params.energy for rod in rods):
         raise ValueError("rods[k].params.energy: the rods of a system share one energy "
                          "function (its parameters may differ per rod through A, B, ...)")
-    if variant == "uniform":
-        raise ValueError("variant 'uniform' with several rods is not implemented (each rod "
-                         "would need its own global natural strains); use 'local'")
 
 
 def _check_rod(rod: Rod, model: str, variant: str) -> None:

@@ -93,7 +93,10 @@ class FESimulation:
                                    predictor=tim["predictor"], tolerance=tolerance)
         self.integrator = tim["integrator"]
         self.stability = None           # quasi-static 3-D rods: analysis/stability.py
-        if scene.is_rod_material and not model.dynamic and scene["stability"]["check"]:
+        # (a system with joints: its constraints act on the assembled system, not in the
+        # forms K is made of; not checked)
+        if scene.is_rod_material and not model.dynamic and scene["stability"]["check"] \
+                and not getattr(model, "joints", None):
             from ..analysis.stability import StabilityMonitor
             self.stability = StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
         self.ts = None
