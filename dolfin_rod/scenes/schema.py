@@ -27,16 +27,16 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..rod.sections import SHAPES as SECTION_SHAPES
+from ..checks import MIN_LENGTH, SCENE_BYTES, read_regular_file
 from ..rod.rotation_choice import ROTATIONS
-from ..checks import MIN_LENGTH
 from ..output.plots import PANELS, UNITS
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
 from .systems import validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
-                     names_or_boolean, damping_tensor, entry_point, integer, load_entry_point, path_problem,
-                     path_text,
+                     names_or_boolean, damping_tensor, entry_point, integer,
+                     load_entry_point, path_problem, path_text,
                      petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
                      section_inertia, spring_table, starting_shape, string, tensor_table,
                      toml_value,
@@ -423,9 +423,10 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
     ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``."""
     path = Path(path)
     try:
-        raw = path.read_bytes()
-    except OSError as err:
-        raise SceneError(str(path), "", f"cannot read the scene: {err.strerror or err}") from None
+        raw = read_regular_file(path, SCENE_BYTES)
+    except (OSError, ValueError) as err:
+        reason = getattr(err, "strerror", None) or err
+        raise SceneError(str(path), "", f"cannot read the scene: {reason}") from None
     try:
         text = raw.decode("utf-8-sig")   # a UTF-8 byte-order mark is allowed
     except UnicodeDecodeError as err:
