@@ -35,7 +35,6 @@ end_force = {{ type = "ramp", value = [0.0, 0.0, {load}], duration = 1.0 }}
 [time]
 t_end = 1.0
 dt = 0.05
-atol = 1e-9                     # the residual's round-off floor at 256 cells: 7e-11
 [stability]
 check = {check}
 lowest_eigenvalue = {lowest}
