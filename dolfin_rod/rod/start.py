@@ -117,8 +117,12 @@ class Polyline:
         tangents /= np.linalg.norm(tangents, axis=1)[:, None]
         d1 = parallel_transport(tangents, np.asarray(self.normal, float))
         R = np.stack([d1, np.cross(tangents, d1), tangents], axis=-1)
+        q = np_quaternion_from_matrix(R)
+        for i in range(1, len(q)):      # one sign along the rod: q and -q are one rotation,
+            if q[i] @ q[i - 1] < 0:     # but the P1 interpolant between them passes 0
+                q[i] = -q[i]
         index = np.rint(np.asarray(s) * n_cells / length).astype(int)
-        return nodes[index], np_quaternion_from_matrix(R[index])
+        return nodes[index], q[index]
 
 
 def parallel_transport(tangents: np.ndarray, normal: np.ndarray) -> np.ndarray:
