@@ -27,15 +27,17 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..rod.sections import SHAPES as SECTION_SHAPES
+from ..checks import MIN_LENGTH, SCENE_BYTES, read_regular_file
 from ..rod.rotation_choice import ROTATIONS
-from ..checks import MIN_LENGTH
+from ..output.animation import COLOURS
+from ..output.plots import PANELS, UNITS
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
 from .systems import validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
-                     damping_tensor, entry_point, integer, load_entry_point, path_problem,
-                     path_text,
+                     names_or_boolean, damping_tensor, entry_point, integer,
+                     load_entry_point, path_problem, path_text,
                      petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
                      section_inertia, spring_table, starting_shape, string, tensor_table,
                      toml_value,
@@ -129,6 +131,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                    "(default: the file's stem, other characters as '_')"),
         "description": Key(string, "", "free text"),
         "model": Key(choice(*MODEL_NAMES), "auto", "auto | ode | torsion | rod"),
+        "units": Key(choice(*UNITS), None, " | ".join(UNITS) + ": the unit system the "
+                     "scene's numbers are in, shown on the axes of the plots (default: "
+                     "\"scene units\")"),
     },
     "geometry": {
         "length": Key(real(MIN_LENGTH), 1.0, f"rod length L >= {MIN_LENGTH:g} (torsion: "
@@ -371,9 +376,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                      "centre line with directors, strains, natural strains, "
                                      "forces, dissipation (FE models)"),
         "animation": Key(boolean, True, "3-D rod: animation.gif and snapshots.png of the "
-                                        "moving centre line coloured by |u_d - u_ref|; "
-                                        "torsion: spacetime.png of phi(s, t), u_d(s, t)"),
-        "plots": Key(boolean, True, "PNG plots of the main histories"),
+                                        "moving centre line (magnified when the motion is "
+                                        "small, supports and gravity drawn); torsion: "
+                                        "spacetime.png of phi(s, t), u_d(s, t)"),
+        "color": Key(choice(*COLOURS), "auto", R + "the field colouring the pictures: "
+                     "auto (the evolving natural strain, u_d or v_d, with the largest "
+                     "change; u or v if none evolves) | u | v | u_d | v_d (the change since "
+                     "t = 0) | n | m (magnitudes) | xi (docs/outputs.md)"),
+        "plots": Key(names_or_boolean(*PANELS), True, "histories.png: true (panels chosen "
+                     "from the scene's supports and loads), false (none) or a list of "
+                     "panels from " + ", ".join(PANELS) + " (docs/outputs.md)"),
         "checkpoint_every": Key(integer(0), 0, "adios4dolfinx checkpoint every N steps (0: off; "
                                                "integrator = \"stepper\" only)"),
         "progress": Key(boolean, True, "tqdm progress bar (rank 0, TTY, not CI)"),
@@ -417,9 +429,10 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
     ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``."""
     path = Path(path)
     try:
-        raw = path.read_bytes()
-    except OSError as err:
-        raise SceneError(str(path), "", f"cannot read the scene: {err.strerror or err}") from None
+        raw = read_regular_file(path, SCENE_BYTES)
+    except (OSError, ValueError) as err:
+        reason = getattr(err, "strerror", None) or err
+        raise SceneError(str(path), "", f"cannot read the scene: {reason}") from None
     try:
         text = raw.decode("utf-8-sig")   # a UTF-8 byte-order mark is allowed
     except UnicodeDecodeError as err:
