@@ -102,7 +102,8 @@ def time_stepping(scene: Scene) -> str:
     lie = scene.is_rod_material and scene["material"]["dynamic"] \
         and rod_rotations(scene) == "rotation_vector"
     return f"stepper, fixed steps dt = {tim['dt']:g}" + (
-        " (time.adaptive = true: error-controlled steps)" if lie else "")
+        " (time.adaptive is false; setting it true would choose the steps by an error "
+        "estimate)" if lie else "")
 
 
 def _check_time(scene: Scene) -> None:
