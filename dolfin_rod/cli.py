@@ -145,6 +145,9 @@ def run_scene(scene: Scene | Path | str, out: Path | str | None = None, comm=Non
         print_on_root(comm, line, file=sys.stderr)
     elif not quiet:
         print_on_root(comm, line)
+    if not quiet:
+        print_on_root(comm, "\n".join(writer.closing_lines(time.perf_counter()
+                                                            - clock["start"])))
     comm.barrier()     # no rank ends (mpirun then stops the others) before rank 0 reported
     return summary
 
