@@ -49,6 +49,27 @@ def rod_length(value: float) -> float:
     return x
 
 
+# The largest input files read: a scene (TOML, tables of load histories included) and
+# fit data (CSV: 1e6 rows of three numbers are ~60 MB)
+SCENE_BYTES = 16 * 2**20
+DATA_BYTES = 512 * 2**20
+
+
+def read_regular_file(path, limit: int) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes; ValueError naming the
+    rule for anything else (a device such as /dev/zero read until memory ran out, a
+    pipe, a folder, a larger file); OSError if it cannot be read."""
+    import os
+    import stat
+    if not stat.S_ISREG(os.stat(path).st_mode):
+        raise ValueError("not a regular file (a device, pipe or folder)")
+    with open(path, "rb") as f:
+        data = f.read(limit + 1)
+    if len(data) > limit:
+        raise ValueError(f"larger than {limit // 2**20} MiB, the bound for this input")
+    return data
+
+
 # Coefficients given as functions of s are checked at this many equally spaced points
 # (rod, torsion and the scene schema alike).
 COEFFICIENT_SAMPLES = 257

@@ -80,10 +80,11 @@ def _run_folder(scene: Scene, out: Path | None, comm, resume: bool, overwrite: b
     return Path(out)
 
 
-def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bool = False,
+def run_scene(scene: Scene | Path | str, out: Path | str | None = None, comm=None, resume: bool = False,
               stop_after: int | None = None, quiet: bool = False,
               overwrite: bool = False) -> dict:
-    """Run a validated scene; returns the summary (same on every rank).
+    """Run a scene (validated, or the path of a scene file); returns the summary (same on
+    every rank).
 
     ``out``: the results folder; if it is not empty, ``resume`` continues its run from
     its last checkpoint (verified against this scene) and ``overwrite`` replaces it.
@@ -97,6 +98,8 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     from .mpi import agree
     from .output.writer import RunWriter
     comm = comm or MPI.COMM_WORLD
+    if not isinstance(scene, Scene):                 # a scene file's path
+        scene = agree(comm, lambda: load_scene(scene), (SceneError,))
     clock = {"start": time.perf_counter()}
     choice = agree(comm, lambda: _choose(scene, comm.size), (SceneError,))
     if (resume or stop_after is not None) and scene["time"]["integrator"] == "ts":
@@ -126,6 +129,7 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     t_run = time.perf_counter()
     status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
                                     meta["step"], stop_after, quiet)
+    status, message = _unstable_end(scene, sim, status, message)
     clock["integration"] = time.perf_counter() - t_run
     summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
     clock["total"] = time.perf_counter() - clock["start"]
@@ -136,10 +140,15 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
         message = "; ".join([*filter(None, [message]), "interrupted while drawing the "
                              "pictures: summary.json lists the ones missing"])
     line = f"{status}: t = {t:g}, results in {folder}" + (f" ({message})" if message else "")
-    if status in ("failed", "interrupted") or summary["pictures"] == "interrupted":
+    if status in ("failed", "interrupted", "completed (unstable equilibrium)") \
+            or summary["pictures"] == "interrupted":
         print_on_root(comm, line, file=sys.stderr)
     elif not quiet:
         print_on_root(comm, line)
+    if not quiet:
+        print_on_root(comm, "\n".join(writer.closing_lines(time.perf_counter()
+                                                            - clock["start"])))
+    comm.barrier()     # no rank ends (mpirun then stops the others) before rank 0 reported
     return summary
 
 
@@ -185,6 +194,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
 
     def after_step(t_k: float) -> None:
         diag = sim.diagnostics(t_k)
+        _report_stability_changes(sim, comm)
         bound.check(diag)
         k = progress["k"] = progress["k"] + 1
         writer.record(k, t_k, diag)
@@ -222,6 +232,30 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     return status, message, progress["t"]
 
 
+def _report_stability_changes(sim, comm) -> None:
+    """A warning for each change of the tangent's negative eigenvalues not yet shown."""
+    monitor = getattr(sim, "stability", None)
+    while monitor is not None and len(monitor.changes) > monitor.reported:
+        t, before, after = monitor.changes[monitor.reported]
+        monitor.reported += 1
+        state = "unstable" if after else "stable again"
+        print_on_root(comm, f"warning: t = {t:g}: the equilibrium is {state}: {after} "
+                            f"negative eigenvalue(s) of the tangent stiffness (was {before}; "
+                            "docs/stability.md)", file=sys.stderr)
+
+
+def _unstable_end(scene, sim, status: str, message: str) -> tuple[str, str]:
+    """A completed quasi-static run that ends on an unstable equilibrium is not a result
+    unless stability.follow_unstable says so."""
+    monitor = getattr(sim, "stability", None)
+    if status != "completed" or monitor is None or not monitor.negative \
+            or scene["stability"]["follow_unstable"]:
+        return status, message
+    return "completed (unstable equilibrium)", (
+        f"the end state has {monitor.negative} negative eigenvalue(s) of the tangent "
+        "stiffness: an unstable equilibrium (stability.follow_unstable = true accepts it)")
+
+
 def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> dict:
     summary = {
         "scene": scene.name, "source": scene.source, "model": choice.model,
@@ -239,6 +273,9 @@ def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> d
     if stats is not None:
         summary["newton_iterations"] = stats.newton_iterations
         summary["rejected_steps"] = stats.rejected
+    monitor = getattr(sim, "stability", None)
+    if monitor is not None and monitor.checks:
+        summary["stability_check_ms_per_step"] = 1e3 * monitor.seconds / monitor.checks
     return summary
 
 
@@ -396,7 +433,8 @@ def _main(argv: list[str] | None, comm) -> int:
                         overwrite=args.overwrite)
     if summary["pictures"] == "interrupted" and summary["status"] != "failed":
         return 130
-    return {"completed": 0, "stopped": 0, "interrupted": 130}.get(summary["status"], 3)
+    return {"completed": 0, "stopped": 0, "interrupted": 130,
+            "completed (unstable equilibrium)": 4}.get(summary["status"], 3)
 
 
 if __name__ == "__main__":

@@ -4,12 +4,15 @@
     <run>/timeseries.csv    one row per output time, appended and flushed every step
     <run>/timeseries.json   the same columns, written at the end (also if interrupted)
     <run>/summary.json      model and why, status, end values, impulse, versions
-    <run>/timings.json      wall-clock seconds of setup, integration, output
-    <run>/histories.png     end torsion, end rotation, natural twist, energies, balance
+    <run>/timings.json      wall-clock seconds of setup, integration, output, pictures
+                            (and each picture's, picture_files)
+    <run>/histories.png     what the scene is about (plots.py: end torque, force-extension,
+                            tip deflection, reactions, ...), energies, relative power balance
     <run>/rod.bp            ParaView (ADIOS2VTXReader) of FE models: the deformed centre
                             line with directors d1, d2, d3 (points) and u, v, u_d, v_d, n,
                             m, xi (cells); torsion: phi (points), u, u_d, m, xi (cells)
-    <run>/animation.gif     3-D rod: the moving centre line, coloured by |u_d - u_ref|
+    <run>/animation.gif     3-D rod: the moving centre line coloured by outputs.color
+                            (animation.py), magnified when the motion is small
     <run>/snapshots.png     3-D rod: selected frames; torsion: spacetime.png (phi, u_d)
     <run>/checkpoint/step-N/  adios4dolfinx state.bp + meta.json after step N, for resume
 
@@ -44,6 +47,8 @@ from pathlib import Path
 import numpy as np
 
 from .checkpoints import Checkpoints
+from .closing import closing_lines
+from .plots import plot_histories
 from .field_outputs import FieldOutputs
 from .run_folders import OutputError, files_in, on_root
 
@@ -99,13 +104,14 @@ class RunWriter:
     """Everything a run writes; rank 0 writes files, collective writes on all ranks."""
 
     def __init__(self, folder: Path, scene, choice, sim, comm, resume: bool = False):
-        """``folder`` exists (prepare_run_folder); a resumed run keeps its scene.toml."""
+        """``folder`` exists (prepare_run_folder); a resumed run rewrites scene.toml in open()."""
         self.folder, self.scene, self.choice, self.sim, self.comm = Path(folder), scene, choice, sim, comm
         self.rank = comm.rank
         self.outputs = scene["outputs"]
         self.balance = PowerBalance()
         self.rows: list[dict] = []
         self.timings = {"output": 0.0}
+        self.written: tuple | None = None      # (summary, files) once finished
         if scene.text and not resume:
             on_root(comm, lambda: (self.folder / "scene.toml").write_text(scene.text),
                     f"cannot write {self.folder / 'scene.toml'}")
@@ -126,6 +132,16 @@ class RunWriter:
         if keep_until_step is not None:
             on_root(self.comm, lambda: self._keep_rows(keep_until_step),
                     f"cannot resume: {self.folder / 'timeseries.csv'}")
+            if self.scene.text:       # the scene as resumed (its t_end, outputs may differ)
+                on_root(self.comm, self._replace_scene_file,
+                        f"cannot write {self.folder / 'scene.toml'}")
+
+    def _replace_scene_file(self) -> None:
+        """Rank 0: scene.toml replaced by the resumed scene's text (a new file, then a
+        rename: a crash leaves the old or the new one)."""
+        new = self.folder / "scene.toml-new"
+        new.write_text(self.scene.text)
+        new.replace(self.folder / "scene.toml")
 
     def _keep_rows(self, keep_until_step: int) -> None:
         """Rank 0: rows 0 .. keep_until_step of the earlier run (OutputError if any is
@@ -237,6 +253,15 @@ class RunWriter:
         files = sorted(set(files_in(self.folder)) | {"summary.json"})
         _dump(self.folder / "summary.json", _finite({**summary, "versions": versions(),
                                                      "files": files}))
+        self.written = (summary, sorted({f.split("/")[0] for f in files
+                                         if not f.startswith(".")}))
+
+    def closing_lines(self, wall: float) -> list[str]:
+        """Rank 0 after finish: the closing summary (closing.py); [] on other ranks."""
+        if self.rank != 0 or self.written is None:
+            return []
+        summary, files = self.written
+        return closing_lines(summary, self.rows, self.scene, wall, files)
 
     def _draw(self, title: str) -> list[str]:
         """Rank 0: draw the pictures; the names of those not drawn (Ctrl-C)."""
@@ -244,16 +269,28 @@ class RunWriter:
         if self.outputs["plots"] and len(self.rows) > 1:
             pictures.append(("histories.png",
                              lambda: plot_histories(self.rows, self.folder / "histories.png",
-                                                    title)))
+                                                    self.scene, title)))
         if self.lines is not None:
-            pictures += self.lines.pictures(title)
+            pictures += self.lines.pictures(title, self._look())
+        self.timings["picture_files"] = {}
         for i, (name, draw) in enumerate(pictures):
+            t0 = time.perf_counter()
             try:
                 draw()
+                self.timings["picture_files"][name] = time.perf_counter() - t0
             except KeyboardInterrupt:
                 (self.folder / name).unlink(missing_ok=True)     # half drawn
                 return [n for n, _ in pictures[i:]]
         return []
+
+    def _look(self):
+        """What the 3-D pictures show (animation.Look): outputs.color, the supports,
+        gravity."""
+        from .animation import Look
+        boundary = self.scene["boundary"]
+        return Look(self.outputs["color"],
+                    {e: boundary[e] for e in ("start", "end") if e in boundary},
+                    self.scene["loads"].get("gravity"))
 
 
 def _ranges(numbers: list[int]) -> str:
@@ -302,32 +339,3 @@ def _dump(path: Path, data) -> None:
     tmp = path.with_suffix(".json-new")
     tmp.write_text(json.dumps(data, indent=1))
     tmp.replace(path)
-
-
-def plot_histories(rows: list[dict], path: Path, title: str = "") -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    t = np.array([r["time"] for r in rows])
-    col = lambda k: np.array([r[k] for r in rows], dtype=float)   # noqa: E731
-    fig, ax = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
-    if "end_torsion" in rows[0]:       # torsion models
-        ax[0, 0].plot(t, col("end_torsion")); ax[0, 0].set_ylabel("end torsion m")
-        ax[0, 1].plot(t, col("end_rotation"), label="end rotation phi(1)")
-        ax[0, 1].plot(t, col("mean_natural_twist"), label="mean natural twist")
-    else:                              # 3-D rod; a rod system: each rod's "<name>.tip_..."
-        for rod in [k[:-len("tip_position_x")] for k in rows[0] if k.endswith("tip_position_x")]:
-            for c in "xyz":
-                ax[0, 0].plot(t, col(f"{rod}tip_position_{c}"), label=f"{rod}tip {c}")
-            ax[0, 1].plot(t, col(f"{rod}tip_rotation_angle"), label=f"{rod}tip rotation angle")
-        ax[0, 0].legend(fontsize="small")
-    ax[0, 1].legend()
-    ax[1, 0].plot(t, col("free_energy") + col("kinetic_energy"), label="K + Psi")
-    ax[1, 0].plot(t, col("total_dissipation"), label="int D dt")
-    ax[1, 0].legend(); ax[1, 0].set_xlabel("t")
-    ax[1, 1].semilogy(t[1:], np.abs(col("power_residual")[1:]) + 1e-300)
-    ax[1, 1].set_ylabel("|d/dt(K+Psi) + D - P|"); ax[1, 1].set_xlabel("t")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)

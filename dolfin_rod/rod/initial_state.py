@@ -178,11 +178,13 @@ def settle(model, t: float) -> None:
         model.commit_rotations()
 
 
-def _mean(model, field) -> np.ndarray:
-    """(1/L) int field ds of a DG0 vector field (MPI-reduced)."""
-    parts = [fem.assemble_scalar(fem.form(field[i] * ufl.dx(domain=model.mesh)))
-             for i in range(3)]
-    return np.array(model.mesh.comm.allreduce(np.array(parts), op=MPI.SUM)) / model.length
+def _means(model, field) -> np.ndarray:
+    """(1/L_k) int_rod k field ds of a DG0 vector field, one row per rod (MPI-reduced)."""
+    chi = model.pieces.indicator
+    parts = [fem.assemble_scalar(fem.form(chi(k) * field[i] * ufl.dx(domain=model.mesh)))
+             for k in range(len(model.rods)) for i in range(3)]
+    total = np.array(model.mesh.comm.allreduce(np.array(parts), op=MPI.SUM)).reshape(-1, 3)
+    return total / np.array(model.layout.lengths)[:, None]
 
 
 def _fill_natural(model, name, given, discrete) -> None:
@@ -192,7 +194,7 @@ def _fill_natural(model, name, given, discrete) -> None:
     elif model.variant == "local":
         val = discrete.x.array.reshape(-1, 3)
     else:     # one global value: the mean of the discrete strains, so no initial stress
-        val = np.atleast_2d(_mean(model, discrete))
+        val = _means(model, discrete)
     if model.constraint == "unshearable" and name == "natural_stretch":
         g.x.array[:] = np.broadcast_to(val[:, 2], g.x.array.shape)
     else:

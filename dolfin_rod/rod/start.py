@@ -117,12 +117,16 @@ class Polyline:
         tangents /= np.linalg.norm(tangents, axis=1)[:, None]
         d1 = parallel_transport(tangents, np.asarray(self.normal, float))
         R = np.stack([d1, np.cross(tangents, d1), tangents], axis=-1)
-        q = np_quaternion_from_matrix(R)
-        for i in range(1, len(q)):      # one sign along the rod: q and -q are one rotation,
-            if q[i] @ q[i - 1] < 0:     # but the P1 interpolant between them passes 0
-                q[i] = -q[i]
         index = np.rint(np.asarray(s) * n_cells / length).astype(int)
-        return nodes[index], q[index]
+        return nodes[index], continuous(np_quaternion_from_matrix(R))[index]
+
+
+def continuous(q: np.ndarray) -> np.ndarray:
+    """Unit quaternions of nodes in order along the rod, signs chosen so that neighbours
+    lie in one hemisphere (q_k . q_k+1 > 0): the P1 interpolant of q and -q passes
+    through 0 (a polyline turning by pi gave nodes with q . q = -1: infinite strains)."""
+    flips = np.sign(np.einsum("ij,ij->i", q[1:], q[:-1]))
+    return q * np.concatenate(([1.0], np.cumprod(np.where(flips == 0, 1.0, flips))))[:, None]
 
 
 def parallel_transport(tangents: np.ndarray, normal: np.ndarray) -> np.ndarray:

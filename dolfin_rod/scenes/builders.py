@@ -92,6 +92,13 @@ class FESimulation:
         self.stepper = TimeStepper(self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
                                    predictor=tim["predictor"], tolerance=tolerance)
         self.integrator = tim["integrator"]
+        self.stability = None           # quasi-static 3-D rods: analysis/stability.py
+        # (a system with joints: its constraints act on the assembled system, not in the
+        # forms K is made of; not checked)
+        if scene.is_rod_material and not model.dynamic and scene["stability"]["check"] \
+                and not getattr(model, "joints", None):
+            from ..analysis.stability import StabilityMonitor
+            self.stability = StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
         self.ts = None
         if self.integrator == "ts":
             from ..integrators.ts import TSIntegrator
@@ -124,7 +131,12 @@ class FESimulation:
         self.stepper.run(t, t_next, t_next - t)
 
     def diagnostics(self, t: float) -> dict[str, float]:
-        return self.model.diagnostics(t)
+        d = self.model.diagnostics(t)
+        if self.stability is not None:
+            d["negative_eigenvalues"] = float(self.stability.check(t))
+            if self.stability.lowest is not None:
+                d["lowest_eigenvalue"] = self.stability.lowest
+        return d
 
     def state(self) -> dict:
         """Functions a checkpoint stores (besides problem.fields): the integrator's and
@@ -260,7 +272,7 @@ def starting_state(scene: Scene):
 
 def rod_arguments(scene: Scene) -> dict:
     """The arguments of one rod (RodModel, rod.Rod) besides its parameters: cells, ends,
-    end motions, slides and springs, loads."""
+    end motions, slides, turning clamps and springs, loads."""
     from ..rod import EndSpring
     ends = {"start": "left", "end": "right"}
     boundary = scene["boundary"]
@@ -274,7 +286,9 @@ def rod_arguments(scene: Scene) -> dict:
                 end_slide={side: axis for key, side in ends.items()
                            if (axis := boundary[f"{key}_slide"]) is not None},
                 end_springs={side: EndSpring(**spring) for key, side in ends.items()
-                             if (spring := boundary[f"{key}_spring"])})
+                             if (spring := boundary[f"{key}_spring"])},
+                end_turn={side: axis for key, side in ends.items()
+                          if (axis := boundary[f"{key}_turn"]) is not None})
 
 
 def rod_parameters(scene: Scene):

@@ -27,15 +27,17 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..rod.sections import SHAPES as SECTION_SHAPES
+from ..checks import MIN_LENGTH, SCENE_BYTES, read_regular_file
 from ..rod.rotation_choice import ROTATIONS
-from ..checks import MIN_LENGTH
+from ..output.animation import COLOURS
+from ..output.plots import PANELS, UNITS
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
 from .systems import validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
-                     damping_tensor, entry_point, integer, load_entry_point, path_problem,
-                     path_text,
+                     names_or_boolean, damping_tensor, entry_point, integer,
+                     load_entry_point, path_problem, path_text,
                      petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
                      section_inertia, spring_table, starting_shape, string, tensor_table,
                      toml_value,
@@ -111,6 +113,14 @@ scene's tables only).  `[[joints]]` tables: `kind` ("rigid": position and rotati
 t = 0, not a supported end), `name` (its reaction columns `joint_<name>_force_{xyz}`,
 `joint_<name>_couple_{xyz}`).  Examples: `scenes/frame.toml`, `double_pendulum.toml`,
 `tripod.toml`.
+
+**What a run can follow** (checked by `dolfin-rod check`, exit 2 naming the key).  A rod
+with inertia (density > 0; torsion: nu > 0) cannot follow a jump of a prescribed end
+motion (a `step`, at any `t0`), nor, unless `time.adaptive`, a ramp, smooth step or
+table segment shorter than `time.dt`.  Prescribed rotations may turn one end against the
+other by less than pi per cell (`geometry.n_cells` > angle/pi).  A `material.energy`
+must be stress-free and convex at the natural strains and convex at the start strains
+(`natural_state.start_state_problem`).
 """
 
 R = "3-D rod: "
@@ -121,6 +131,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                    "(default: the file's stem, other characters as '_')"),
         "description": Key(string, "", "free text"),
         "model": Key(choice(*MODEL_NAMES), "auto", "auto | ode | torsion | rod"),
+        "units": Key(choice(*UNITS), None, " | ".join(UNITS) + ": the unit system the "
+                     "scene's numbers are in, shown on the axes of the plots (default: "
+                     "\"scene units\")"),
     },
     "geometry": {
         "length": Key(real(MIN_LENGTH), 1.0, f"rod length L >= {MIN_LENGTH:g} (torsion: "
@@ -268,6 +281,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "follows end_rotation, e.g. turning about the axis); an end_force "
                          "along the axis acts on it (a weight on a sliding clamp)"),
         "start_slide": Key(vector3(), None, R + "as end_slide, at s = 0"),
+        "end_turn": Key(vector3(), None, R + "axis [x, y, z] (a unit coordinate axis) about "
+                        "which the clamped end s = L turns freely (a hinge; with end_slide "
+                        "along the same axis a cylindrical joint): its rotation is held "
+                        "about the other two axes only, a dead end_couple about the axis "
+                        "acts on it; its initial frame must keep the axis"),
+        "start_turn": Key(vector3(), None, R + "as end_turn, at s = 0"),
         "end_spring": Key(spring_table, None, R + "a compliant support at s = L: "
                           "{translational = k or [k_x, k_y, k_z] (N/m, spatial), rotational = "
                           "k or [k_1, k_2, k_3] (N m/rad, material)} about the end's initial "
@@ -335,6 +354,20 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "options": Key(petsc_table, None, "PETSc options (without prefix) over the preset, "
                        "e.g. {snes_max_it = 50, ksp_type = \"preonly\"}"),
     },
+    "stability": {
+        "check": Key(boolean, True, R + "quasi-static: after every step the number of negative "
+                                    "eigenvalues of the tangent stiffness (column "
+                                    "negative_eigenvalues; a warning when it changes; "
+                                    "docs/stability.md)"),
+        "lowest_eigenvalue": Key(boolean, False, R + "quasi-static, rotation vectors without "
+                                              "constraints: also the lowest eigenvalue of "
+                                              "K v = lambda G v (G: the lumped L2 metric; column "
+                                              "lowest_eigenvalue; SLEPc, ~10-30 ms a step)"),
+        "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
+                                              "> 0) is a result: status \"completed\", exit 0 "
+                                              "(default: \"completed (unstable equilibrium)\", "
+                                              "exit 4)"),
+    },
     "outputs": {
         "directory": Key(path_text, "results", "parent folder of the run folders"),
         "every": Key(integer(1), 1, "write rod.bp and animation frames every N steps (and "
@@ -343,9 +376,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                      "centre line with directors, strains, natural strains, "
                                      "forces, dissipation (FE models)"),
         "animation": Key(boolean, True, "3-D rod: animation.gif and snapshots.png of the "
-                                        "moving centre line coloured by |u_d - u_ref|; "
-                                        "torsion: spacetime.png of phi(s, t), u_d(s, t)"),
-        "plots": Key(boolean, True, "PNG plots of the main histories"),
+                                        "moving centre line (magnified when the motion is "
+                                        "small, supports and gravity drawn); torsion: "
+                                        "spacetime.png of phi(s, t), u_d(s, t)"),
+        "color": Key(choice(*COLOURS), "auto", R + "the field colouring the pictures: "
+                     "auto (the evolving natural strain, u_d or v_d, with the largest "
+                     "change; u or v if none evolves) | u | v | u_d | v_d (the change since "
+                     "t = 0) | n | m (magnitudes) | xi (docs/outputs.md)"),
+        "plots": Key(names_or_boolean(*PANELS), True, "histories.png: true (panels chosen "
+                     "from the scene's supports and loads), false (none) or a list of "
+                     "panels from " + ", ".join(PANELS) + " (docs/outputs.md)"),
         "checkpoint_every": Key(integer(0), 0, "adios4dolfinx checkpoint every N steps (0: off; "
                                                "integrator = \"stepper\" only)"),
         "progress": Key(boolean, True, "tqdm progress bar (rank 0, TTY, not CI)"),
@@ -389,9 +429,10 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
     ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``."""
     path = Path(path)
     try:
-        raw = path.read_bytes()
-    except OSError as err:
-        raise SceneError(str(path), "", f"cannot read the scene: {err.strerror or err}") from None
+        raw = read_regular_file(path, SCENE_BYTES)
+    except (OSError, ValueError) as err:
+        reason = getattr(err, "strerror", None) or err
+        raise SceneError(str(path), "", f"cannot read the scene: {reason}") from None
     try:
         text = raw.decode("utf-8-sig")   # a UTF-8 byte-order mark is allowed
     except UnicodeDecodeError as err:
