@@ -113,6 +113,9 @@ def simulate_response(scene: Scene, model: str, experiment: Experiment, comm,
         return sum((d[key + c] - (rest[key + c] if experiment.from_rest else 0.0)) * e[i]
                    for i, c in enumerate("xyz"))
 
+    series = getattr(sim, "series", lambda: None)()
+    if series is not None:                 # every output at once (the ODE's exact mode)
+        return series["time"], response(series), sim.describe()
     times, values = [0.0], [response(rest)]
 
     def record(t: float) -> None:
@@ -164,6 +167,7 @@ class FitProblem:
         self.used = data.time > 0.0 if self.model == "rod" else np.ones(data.time.size, bool)
         self.evaluations = 0
         self.last_error = self.method = ""
+        self.progress = None     # progress(evaluations, rms residual) after each model run
 
     def curve(self, p: np.ndarray) -> np.ndarray:
         """The model's response at the used sample times for parameters p."""
@@ -180,7 +184,11 @@ class FitProblem:
             self.last_error = f"{type(err).__name__}: {err}"
             out = np.full(int(self.used.sum()), np.inf)
         out = np.where(np.isfinite(out), out, np.inf)
-        return self.comm.bcast(out, root=0)
+        out = self.comm.bcast(out, root=0)
+        if self.progress is not None:
+            r = out - self.data.response[self.used]
+            self.progress(self.evaluations, float(np.sqrt(np.mean(r * r))))
+        return out
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         return self.curve(np.exp(theta)) - self.data.response[self.used]
