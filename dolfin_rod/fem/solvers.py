@@ -350,8 +350,9 @@ class BlockSNES:
         mesh = self.y[0].function_space.mesh
         comm = mesh.comm
         x = mesh.geometry.x
-        low = comm.allreduce(x.min(axis=0), op=MPI.MIN)
-        high = comm.allreduce(x.max(axis=0), op=MPI.MAX)
+        low, high = np.empty(x.shape[1]), np.empty(x.shape[1])
+        comm.Allreduce(x.min(axis=0), low, op=MPI.MIN)
+        comm.Allreduce(x.max(axis=0), high, op=MPI.MAX)
         cells = mesh.topology.index_map(mesh.topology.dim).size_global
         return float(np.linalg.norm(high - low)) / cells
 
