@@ -24,7 +24,7 @@ Columns: the model's diagnostics (TorsionModel.diagnostics keys) plus
 ``total_dissipation`` = int_0^t int xi ds dt (trapezoidal rule) and ``power_residual`` =
 d/dt(K + Psi + E_c) + D - P on each interval [t_{k-1}, t_k]: the difference quotient of the
 stored energy plus the trapezoidal means of dissipation rate D and load power P (the
-power balance of ERRATA.md; E_c the contact energy of obstacles, rod/contact.py).  It is
+power balance of docs/corrections.md; E_c the contact energy of obstacles, rod/contact.py).  It is
 O(dt^2) for smooth histories; an idealised step at t = 0 makes the first interval's value O(1) (the 0+ rates are not known to the FE model).
 
 Only rank 0 writes files (the fields along the rod are gathered there, line_fields.py);
