@@ -80,10 +80,11 @@ def _run_folder(scene: Scene, out: Path | None, comm, resume: bool, overwrite: b
     return Path(out)
 
 
-def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bool = False,
+def run_scene(scene: Scene | Path | str, out: Path | str | None = None, comm=None, resume: bool = False,
               stop_after: int | None = None, quiet: bool = False,
               overwrite: bool = False) -> dict:
-    """Run a validated scene; returns the summary (same on every rank).
+    """Run a scene (validated, or the path of a scene file); returns the summary (same on
+    every rank).
 
     ``out``: the results folder; if it is not empty, ``resume`` continues its run from
     its last checkpoint (verified against this scene) and ``overwrite`` replaces it.
@@ -97,6 +98,8 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
     from .mpi import agree
     from .output.writer import RunWriter
     comm = comm or MPI.COMM_WORLD
+    if not isinstance(scene, Scene):                 # a scene file's path
+        scene = agree(comm, lambda: load_scene(scene), (SceneError,))
     clock = {"start": time.perf_counter()}
     choice = agree(comm, lambda: _choose(scene, comm.size), (SceneError,))
     if (resume or stop_after is not None) and scene["time"]["integrator"] == "ts":
@@ -142,6 +145,9 @@ def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bo
         print_on_root(comm, line, file=sys.stderr)
     elif not quiet:
         print_on_root(comm, line)
+    if not quiet:
+        print_on_root(comm, "\n".join(writer.closing_lines(time.perf_counter()
+                                                            - clock["start"])))
     comm.barrier()     # no rank ends (mpirun then stops the others) before rank 0 reported
     return summary
 

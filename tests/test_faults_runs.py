@@ -10,13 +10,16 @@ when the suite itself runs under mpirun.
 
 from __future__ import annotations
 
+import csv
 import json
+import math
 import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mpi4py import MPI
 
@@ -495,3 +498,175 @@ def test_fit_data_with_two_time_columns_is_refused(tmp_path, capsys):
                             "--params", "mu_d", "--out", tmp_path / "fit")
     assert code == 2 and len(errors(err)) == 1 and "column 'time' appears 2 times" in err
     assert not (tmp_path / "fit").exists()
+
+
+# --- item 26: a jump of a prescribed end rotation on dynamic torsion ----------------------
+
+
+def test_dynamic_torsion_end_rotation_step_names_the_jump_not_dt(tmp_path, capsys):
+    """Item 26: a step end_rotation at t0 = 0.5 on dynamic torsion (nu > 0) failed in
+    the run blaming dt and the scheme's stability limit; the cause is the jump."""
+    text = TORSION.replace("[loads]\nend_torsion = { type = \"step\", value = 1.0 }", "") \
+        .replace("mu_d = 0.5", "mu_d = 0.5\nnu = 1.0").replace(
+            "[time]", "[boundary]\nend = \"rotation\"\nend_rotation = { type = \"step\", "
+            "value = 0.5, t0 = 0.5 }\n[time]")
+    (tmp_path / "jump.toml").write_text(text)
+    for command in ("check", "run"):
+        code, out, err = run_main(capsys, command, tmp_path / "jump.toml", "--out",
+                                  tmp_path / "run")
+        assert_one_error(code, out, err, "boundary.end_rotation", "cannot follow a jump")
+        assert "stability" not in err and "time.dt =" not in err.split("jump")[0]
+
+
+# --- item 27: an explicit scheme on a dynamic rod -----------------------------------------
+
+
+def test_explicit_scheme_on_a_dynamic_rod_is_refused_at_check(tmp_path, capsys):
+    """Item 27: explicit_euler on a dynamic rod passed check, then failed with
+    DIVERGED_LINEAR_SOLVE at t = 0 (its quaternion gauge is algebraic)."""
+    text = ROD.replace("[loads]", "density = 1.0\nsection_inertia = 0.01\n[loads]").replace(
+        "[time]", '[time]\nscheme = "explicit_euler"')
+    (tmp_path / "ee.toml").write_text(text)
+    for command in ("check", "run"):
+        code, out, err = run_main(capsys, command, tmp_path / "ee.toml", "--out",
+                                  tmp_path / "run")
+        assert_one_error(code, out, err, "time.scheme", "differential-algebraic")
+    assert not (tmp_path / "run").exists()
+
+
+# --- item 28: fit inputs that are bad input, not failed runs --------------------------------
+
+
+@pytest.mark.parametrize("case", ["integer parameter", "time span 1e12"])
+def test_fit_with_an_integer_parameter_or_a_huge_time_span_is_bad_input(tmp_path, capsys,
+                                                                         case):
+    """Item 28: exit 3 blaming [time.dt] for both; now exit 2 before any model runs,
+    naming the parameter, or the data's time span and the step it would need."""
+    scene = tmp_path / "creep.toml"
+    scene.write_text((ROOT / "examples" / "fit" / "creep.toml").read_text().replace(
+        "[time]", "[geometry]\nn_cells = 4\n[time]"))
+    data, params = ROOT / "examples" / "fit" / "creep.csv", "geometry.n_cells"
+    if case == "time span 1e12":
+        data, params = tmp_path / "span.csv", "mu_d"
+        data.write_text("time,load,response\n0,1,0\n5e11,1,0.5\n1e12,1,0.6\n")
+    code, out, err = run_main(capsys, "fit", scene, data, "--params", params, "--out",
+                              tmp_path / "fit")
+    assert code == 2 and len(errors(err)) == 1 and "Traceback" not in err, err
+    if case == "integer parameter":
+        assert "parameter 'geometry.n_cells'" in err and "is an integer" in err
+    else:
+        assert "time span (t = 0 .. 1e+12" in err and "[time.dt]" in err
+    assert not (tmp_path / "fit").exists()
+
+
+# --- item 30: the Python API ----------------------------------------------------------------
+
+
+def test_api_refuses_a_nan_end_load_and_runs_a_scene_file(tmp_path):
+    """Item 30: a NaN EndLoad was accepted; run_scene("x.toml") raised AttributeError."""
+    from dolfin_rod.cli import run_scene
+    from dolfin_rod.rod import EndLoad, RodModel, RodParameters
+    with pytest.raises(ValueError, match="EndLoad value must be finite"):
+        RodModel(RodParameters(), n_cells=2, end_loads=[EndLoad("force", [math.nan, 0, 0])])
+    with pytest.raises(ValueError, match="EndLoad history must be finite"):
+        RodModel(RodParameters(), n_cells=2,
+                 end_loads=[EndLoad("force", [1.0, 0, 0], lambda t: math.inf)])
+    (tmp_path / "creep.toml").write_text(TORSION)
+    summary = run_scene(str(tmp_path / "creep.toml"), tmp_path / "run", quiet=True)
+    assert summary["status"] == "completed"
+
+
+def test_api_run_without_the_initial_state_says_so():
+    """Item 30: a rod whose set_initial_state() was not called failed with
+    DIVERGED_FNORM_NAN and no hint (its quaternions are zero)."""
+    from dolfin_rod.integrators.stepper import TimeStepper
+    from dolfin_rod.rod import EndLoad, RodModel, RodParameters
+    model = RodModel(RodParameters(), n_cells=2, end_loads=[EndLoad("force", [0.1, 0, 0])])
+    with pytest.raises(ValueError, match=r"call model.set_initial_state\(\)"):
+        TimeStepper(model.problem, "backward_euler").run(0.0, 0.1, 0.1)
+    model.set_initial_state()
+    TimeStepper(model.problem, "backward_euler").run(0.0, 0.1, 0.1)
+    assert model.diagnostics(0.1)["tip_position_x"] > 0.0
+
+
+# --- item 29: fit on many rows: one model run without a step loop, progress ---------------
+
+
+def test_ode_series_at_every_output_time_is_the_closed_form():
+    """Item 29: a fit ran the ODE's Python step loop (diagnostics at every sample: 325 s
+    for 1e5 rows; benchmarks/fit_rows.py: now 0.29 s).  The exact mode's response at
+    all output times at once equals the creep closed form (closed_forms.creep, eq.
+    creepform: the same floating-point expression, 1e-14) and the step-by-step
+    diagnostics (the same formulas, 1e-14)."""
+    from dolfin_rod.scenes import build, parse_scene
+    from dolfin_rod.torsion import closed_forms
+    scene = parse_scene(TORSION.replace('model = "torsion"', 'model = "ode"').replace(
+        "t_end = 0.08", "t_end = 3.0"), "creep.toml")
+    sim = build(scene, "ode")
+    sim.start()
+    series = sim.series()
+    u, ud = closed_forms.creep(series["time"], 1.0, 2.0, 1.0, 0.2, 0.5)
+    assert series["time"].size == 301
+    assert np.max(np.abs(series["end_rotation"] - u)) < 1e-14
+    assert np.max(np.abs(series["mean_natural_twist"] - ud)) < 1e-14
+    for k in (0, 1, 150, 300):
+        step = sim.diagnostics(float(series["time"][k]))
+        for key, values in series.items():
+            assert values[k] == pytest.approx(step[key], rel=1e-14, abs=1e-14), key
+
+
+def test_fit_prints_progress_on_stderr(tmp_path, capsys):
+    """Item 29: no output for minutes; now a "model run N: rms residual" line on stderr
+    (the first one, then at most one every 2 s), none with --quiet."""
+    fit = ROOT / "examples" / "fit"
+    code, out, err = run_main(capsys, "fit", fit / "creep.toml", fit / "creep.csv",
+                              "--params", "alpha_d,mu_d", "--out", tmp_path / "fit")
+    assert code == 0 and "model run 1: rms residual " in err, err
+    assert "identified" in out
+    code, out, err = run_main(capsys, "fit", fit / "creep.toml", fit / "creep.csv",
+                              "--params", "alpha_d,mu_d", "--out", tmp_path / "quiet",
+                              "--quiet")
+    assert code == 0 and "model run" not in err
+
+
+# --- item 18: the disk fills up while the time series is written --------------------------
+
+
+@pytest.mark.mpi
+def test_full_disk_while_writing_the_time_series_fails_with_complete_rows(
+        tmp_path, capsys, monkeypatch):
+    """Item 18 (the CSV part): a full disk while writing timeseries.csv gave an OSError
+    traceback (MPI_Abort under mpirun), no summary and a row cut in half.  Injected: the
+    write of step 5's row stores half of it, then ENOSPC.  Now: exit 3 on every rank,
+    "No space left on device" on stderr, rows 0-4 complete, summary.json "failed"."""
+    import errno
+    from dolfin_rod.output import writer
+    folder = Path(COMM.bcast(str(tmp_path), root=0))
+    scene = folder / "creep.toml"
+    if COMM.rank == 0:
+        scene.write_text(TORSION.replace("[outputs]", "[outputs]\nfields = false"))
+    COMM.barrier()
+    real_write, rows = os.write, {"n": 0}
+
+    def full_disk(fd, data):
+        if not os.readlink(f"/proc/self/fd/{fd}").endswith("timeseries.csv"):
+            return real_write(fd, data)
+        rows["n"] += 1
+        if rows["n"] == 6:                        # step 5: half of it, then the disk is full
+            real_write(fd, data[:len(data) // 2])
+        if rows["n"] >= 6:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_write(fd, data)
+    monkeypatch.setattr(writer.os, "write", full_disk)
+    code, out, err = run_main(capsys, "run", scene, "--out", folder / "run", "--quiet")
+    monkeypatch.undo()
+    assert code == 3, err
+    if COMM.rank == 0:
+        assert "failed:" in err and "No space left on device" in err and "Traceback" not in err
+        with (folder / "run" / "timeseries.csv").open() as f:
+            table = list(csv.DictReader(f))
+        assert [int(r["step"]) for r in table] == [0, 1, 2, 3, 4]
+        assert all(None not in r.values() and "" not in (r["time"], r["end_rotation"])
+                   for r in table)
+        summary = json.loads((folder / "run" / "summary.json").read_text())
+        assert summary["status"] == "failed" and "No space left" in summary["message"]

@@ -95,10 +95,12 @@ def model_step(times: np.ndarray, scene_dt: float) -> float:
     return h / max(1, math.ceil(h / scene_dt - 1e-9))
 
 
-def simulate_response(scene: Scene, model: str, experiment: Experiment, comm
-                      ) -> tuple[np.ndarray, np.ndarray, str]:
+def simulate_response(scene: Scene, model: str, experiment: Experiment, comm,
+                      needed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, str]:
     """(times, response, method) of the scene run by ``model`` from t = 0 to t_end (the
-    same on every rank: diagnostics are MPI-reduced)."""
+    same on every rank: diagnostics are MPI-reduced).  ``needed``: the sample times the
+    caller interpolates at; the response is then recorded only at the steps next to
+    them (a diagnostic costs as much as a step; issue 30), the steps are the same."""
     sim = build(scene, model, comm)
     sim.start()
     rest = sim.diagnostics(0.0)
@@ -111,6 +113,9 @@ def simulate_response(scene: Scene, model: str, experiment: Experiment, comm
         return sum((d[key + c] - (rest[key + c] if experiment.from_rest else 0.0)) * e[i]
                    for i, c in enumerate("xyz"))
 
+    series = getattr(sim, "series", lambda: None)()
+    if series is not None:                 # every output at once (the ODE's exact mode)
+        return series["time"], response(series), sim.describe()
     times, values = [0.0], [response(rest)]
 
     def record(t: float) -> None:
@@ -123,10 +128,26 @@ def simulate_response(scene: Scene, model: str, experiment: Experiment, comm
     else:
         n = max(1, math.ceil(tim["t_end"] / tim["dt"] - 1e-9))
         grid = [min(k * tim["dt"], tim["t_end"]) for k in range(n + 1)]
-        for a, b in zip(grid[:-1], grid[1:]):
+        kept = recorded_steps(np.array(grid), needed)
+        for k, (a, b) in enumerate(zip(grid[:-1], grid[1:]), start=1):
             sim.advance(a, b)
-            record(b)
+            if kept[k]:
+                record(b)
     return np.array(times), np.array(values), getattr(sim, "describe", lambda: "")()
+
+
+def recorded_steps(grid: np.ndarray, needed: np.ndarray | None) -> np.ndarray:
+    """Which grid times linear interpolation at the ``needed`` times reads: grid[k] with
+    a needed time strictly between grid[k-1] and grid[k+1] (the exact point when a needed
+    time is a grid time, both neighbours otherwise), and the last (all if None)."""
+    if needed is None:
+        return np.ones(grid.size, bool)
+    before = np.concatenate(([-np.inf], grid[:-1]))
+    after = np.concatenate((grid[1:], [np.inf]))
+    first = np.searchsorted(needed, before, side="right")    # first needed > grid[k-1]
+    kept = (first < needed.size) & (needed[np.minimum(first, needed.size - 1)] < after)
+    kept[-1] = True
+    return kept
 
 
 class FitProblem:
@@ -146,6 +167,7 @@ class FitProblem:
         self.used = data.time > 0.0 if self.model == "rod" else np.ones(data.time.size, bool)
         self.evaluations = 0
         self.last_error = self.method = ""
+        self.progress = None     # progress(evaluations, rms residual) after each model run
 
     def curve(self, p: np.ndarray) -> np.ndarray:
         """The model's response at the used sample times for parameters p."""
@@ -155,14 +177,18 @@ class FitProblem:
                                 self.data, self.dt)
             with np.errstate(over="ignore", invalid="ignore"):    # overflow: inf, below
                 t, y, self.method = simulate_response(trial, self.model, self.experiment,
-                                                      self.comm)
+                                                      self.comm, self.data.time[self.used])
                 out = np.interp(self.data.time[self.used], t, y)
         except (SceneError, RuntimeError, ArithmeticError) as err:   # RuntimeError:
             # IntegrationError, SolverError, the ODE's solve_ivp failure
             self.last_error = f"{type(err).__name__}: {err}"
             out = np.full(int(self.used.sum()), np.inf)
         out = np.where(np.isfinite(out), out, np.inf)
-        return self.comm.bcast(out, root=0)
+        out = self.comm.bcast(out, root=0)
+        if self.progress is not None:
+            r = out - self.data.response[self.used]
+            self.progress(self.evaluations, float(np.sqrt(np.mean(r * r))))
+        return out
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         return self.curve(np.exp(theta)) - self.data.response[self.used]
@@ -258,6 +284,13 @@ def prepare_fit(scene: Scene, data: MeasuredSeries, params: list[str] | str,
     if n <= k:
         raise FitInputError(f"{data.source}: {n} usable rows for {k} parameters: need "
                             "more rows than parameters")
+    try:      # the scene with the data's load and time span, at the initial values
+        trial_scene(problem.base, scene, parameters, [p.initial for p in parameters],
+                    problem.experiment, data, problem.dt)
+    except SceneError as err:
+        raise FitInputError(f"{data.source}: the scene cannot run the data's load and "
+                            f"time span (t = 0 .. {data.time[-1]:g}, step {problem.dt:g}): "
+                            f"[{err.key}]: {err.reason}") from None
     return problem
 
 

@@ -37,13 +37,16 @@ UNITS = {
 }
 
 
+def unit(kind: str, units: str | None) -> str:
+    """The unit of a quantity kind in the scene's unit system ('scene units' without)."""
+    if kind == "angle":
+        return "rad"
+    return UNITS[units][kind] if units in UNITS else "scene units"
+
+
 def axis_label(name: str, kind: str, units: str | None) -> str:
     """'name [unit]' in the scene's unit system; 'name [scene units]' without one."""
-    if kind == "1":
-        return name
-    if kind == "angle":
-        return f"{name} [rad]"
-    return f"{name} [{UNITS[units][kind]}]" if units in UNITS else f"{name} [scene units]"
+    return f"{name} [{unit(kind, units)}]"
 
 
 def choose_panels(scene, columns) -> list[str]:
@@ -57,10 +60,10 @@ def choose_panels(scene, columns) -> list[str]:
         return ["end_torque", "twist", "energy", "power_residual"]
     boundary, loads = scene["boundary"], scene["loads"]
     panels = []
-    if loads.get("end_force") is not None and boundary["end"] == "free":
+    if loads.get("end_force") is not None and boundary["end"] == "free" \
+            and "tip_position_x" in cols:
         panels.append("force_extension")
-    if boundary.get("end_rotation") is not None and any(
-            c.endswith("reaction_couple_right_z") for c in cols):
+    if boundary.get("end_rotation") is not None and "reaction_couple_right_z" in cols:
         panels += ["end_torque", "tip_rotation"]
     if not panels and any(c.endswith("tip_position_x") for c in cols):
         panels.append("tip_deflection")
@@ -162,12 +165,14 @@ def _force_extension(ax, col, units, scene):
 
 
 def _reactions(ax, col, units, scene):
-    series = _shown({f"{kind}_{c}": col(f"reaction_{name}_left_{c}")
-                     for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"})
+    series = _shown({f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_left_{c}")
+                     for rod in col.prefixes("reaction_force_left_x")
+                     for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
+                     if f"{rod}reaction_{name}_left_{c}" in col.rows[0]})
     twin = ax.twinx()
     for label, x in series.items():
-        (ax if label[0] == "F" else twin).plot(col.t, x, "-" if label[0] == "F" else "--",
-                                                label=label)
+        force = label.split(".")[-1][0] == "F"
+        (ax if force else twin).plot(col.t, x, "-" if force else "--", label=label)
     twin.set_ylabel(axis_label("couple (dashed)", "moment", units))
     ax.legend(fontsize="small", loc="upper left")
     twin.legend(fontsize="small", loc="upper right")

@@ -4,13 +4,15 @@
     <run>/timeseries.csv    one row per output time, appended and flushed every step
     <run>/timeseries.json   the same columns, written at the end (also if interrupted)
     <run>/summary.json      model and why, status, end values, impulse, versions
-    <run>/timings.json      wall-clock seconds of setup, integration, output
+    <run>/timings.json      wall-clock seconds of setup, integration, output, pictures
+                            (and each picture's, picture_files)
     <run>/histories.png     what the scene is about (plots.py: end torque, force-extension,
                             tip deflection, reactions, ...), energies, relative power balance
     <run>/rod.bp            ParaView (ADIOS2VTXReader) of FE models: the deformed centre
                             line with directors d1, d2, d3 (points) and u, v, u_d, v_d, n,
                             m, xi (cells); torsion: phi (points), u, u_d, m, xi (cells)
-    <run>/animation.gif     3-D rod: the moving centre line, coloured by |u_d - u_ref|
+    <run>/animation.gif     3-D rod: the moving centre line coloured by outputs.color
+                            (animation.py), magnified when the motion is small
     <run>/snapshots.png     3-D rod: selected frames; torsion: spacetime.png (phi, u_d)
     <run>/checkpoint/step-N/  adios4dolfinx state.bp + meta.json after step N, for resume
 
@@ -36,6 +38,7 @@ call for one that failed.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
 import sys
@@ -45,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from .checkpoints import Checkpoints
+from .closing import closing_lines
 from .plots import plot_histories
 from .field_outputs import FieldOutputs
 from .run_folders import OutputError, files_in, on_root
@@ -108,6 +112,7 @@ class RunWriter:
         self.balance = PowerBalance()
         self.rows: list[dict] = []
         self.timings = {"output": 0.0}
+        self.written: tuple | None = None      # (summary, files) once finished
         if scene.text and not resume:
             on_root(comm, lambda: (self.folder / "scene.toml").write_text(scene.text),
                     f"cannot write {self.folder / 'scene.toml'}")
@@ -178,31 +183,49 @@ class RunWriter:
         path = self.folder / "timeseries.csv"
         target = path.with_suffix(".csv-new") if self._kept else path
         self._csv_file = target.open("w", newline="")
-        self._csv = csv.DictWriter(self._csv_file, fieldnames=self.columns,
-                                   extrasaction="ignore", lineterminator="\n")
-        self._csv.writeheader()
+        start = csv.DictWriter(self._csv_file, fieldnames=self.columns,
+                               extrasaction="ignore", lineterminator="\n")
+        start.writeheader()
         for r in self._kept:
-            self._csv.writerow(r)
+            start.writerow(r)
+        self._csv_file.flush()
+        self._line = io.StringIO()          # each later row: formatted here, one os.write
+        self._csv = csv.DictWriter(self._line, fieldnames=self.columns,
+                                   extrasaction="ignore", lineterminator="\n")
         if self._kept:
-            self._csv_file.flush()
             os.fsync(self._csv_file.fileno())
             target.replace(path)
             _sync_folder(self.folder)
+        self._csv_complete = self._csv_file.tell()      # the size of complete rows
 
     def record(self, step: int, t: float, diag: dict) -> dict:
         t0 = time.perf_counter()
         total, residual = self.balance.update(diag)
         row = {"step": step, "time": t, **{k: v for k, v in diag.items() if k != "time"},
                "total_dissipation": total, "power_residual": residual}
-        if self.rank == 0:
-            if self._csv is None:
-                self._start_csv(row)
-            self.rows.append(row)
-            self._csv.writerow({k: (_csv_text(v) if k != "step" else v)
-                                for k, v in row.items()})
-            self._csv_file.flush()
+        on_root(self.comm, lambda: self._write_row(row),      # (a full disk: every rank)
+                f"cannot write {self.folder / 'timeseries.csv'} after step {step - 1}")
         self.timings["output"] += time.perf_counter() - t0
         return row
+
+    def _write_row(self, row: dict) -> None:
+        """Rank 0: one row, on disk at once; a failed write (a full disk) is cut back to
+        the last complete row before the OSError goes on (never a row cut in half)."""
+        if self._csv is None:
+            self._start_csv(row)
+        self._line.seek(0)
+        self._line.truncate()
+        self._csv.writerow({k: (_csv_text(v) if k != "step" else v) for k, v in row.items()})
+        data, fd = self._line.getvalue().encode(), self._csv_file.fileno()
+        try:
+            while data:
+                data = data[os.write(fd, data):]
+        except OSError:
+            os.ftruncate(fd, self._csv_complete)
+            os.lseek(fd, self._csv_complete, os.SEEK_SET)
+            raise
+        self._csv_complete = os.lseek(fd, 0, os.SEEK_CUR)
+        self.rows.append(row)
 
     # -- fields along the rod: ParaView file and animation frames ------------------------
     def write_fields(self, t: float) -> None:
@@ -235,6 +258,13 @@ class RunWriter:
             return
         if self._csv is not None:
             self._csv_file.close()
+        try:
+            self._finish(summary, timings)
+        except OSError as err:                 # a full disk: the rows stay complete
+            print(f"warning: cannot write the rest of {self.folder}: "
+                  f"{err.strerror or err}", file=sys.stderr, flush=True)
+
+    def _finish(self, summary: dict, timings: dict) -> None:
         if self.lines is not None:
             self.lines.close()
         series = {k: [r.get(k) for r in self.rows] for k in (self.columns or [])}
@@ -249,6 +279,15 @@ class RunWriter:
         files = sorted(set(files_in(self.folder)) | {"summary.json"})
         _dump(self.folder / "summary.json", _finite({**summary, "versions": versions(),
                                                      "files": files}))
+        self.written = (summary, sorted({f.split("/")[0] for f in files
+                                         if not f.startswith(".")}))
+
+    def closing_lines(self, wall: float) -> list[str]:
+        """Rank 0 after finish: the closing summary (closing.py); [] on other ranks."""
+        if self.rank != 0 or self.written is None:
+            return []
+        summary, files = self.written
+        return closing_lines(summary, self.rows, self.scene, wall, files)
 
     def _draw(self, title: str) -> list[str]:
         """Rank 0: draw the pictures; the names of those not drawn (Ctrl-C)."""
@@ -258,14 +297,26 @@ class RunWriter:
                              lambda: plot_histories(self.rows, self.folder / "histories.png",
                                                     self.scene, title)))
         if self.lines is not None:
-            pictures += self.lines.pictures(title)
+            pictures += self.lines.pictures(title, self._look())
+        self.timings["picture_files"] = {}
         for i, (name, draw) in enumerate(pictures):
+            t0 = time.perf_counter()
             try:
                 draw()
+                self.timings["picture_files"][name] = time.perf_counter() - t0
             except KeyboardInterrupt:
                 (self.folder / name).unlink(missing_ok=True)     # half drawn
                 return [n for n, _ in pictures[i:]]
         return []
+
+    def _look(self):
+        """What the 3-D pictures show (animation.Look): outputs.color, the supports,
+        gravity."""
+        from .animation import Look
+        boundary = self.scene["boundary"]
+        return Look(self.outputs["color"],
+                    {e: boundary[e] for e in ("start", "end") if e in boundary},
+                    self.scene["loads"].get("gravity"))
 
 
 def _ranges(numbers: list[int]) -> str:

@@ -29,6 +29,7 @@ from typing import Any, Callable
 from ..rod.sections import SHAPES as SECTION_SHAPES
 from ..checks import MIN_LENGTH, SCENE_BYTES, read_regular_file
 from ..rod.rotation_choice import ROTATIONS
+from ..output.animation import COLOURS
 from ..output.plots import PANELS, UNITS
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
@@ -375,8 +376,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                      "centre line with directors, strains, natural strains, "
                                      "forces, dissipation (FE models)"),
         "animation": Key(boolean, True, "3-D rod: animation.gif and snapshots.png of the "
-                                        "moving centre line coloured by |u_d - u_ref|; "
-                                        "torsion: spacetime.png of phi(s, t), u_d(s, t)"),
+                                        "moving centre line (magnified when the motion is "
+                                        "small, supports and gravity drawn); torsion: "
+                                        "spacetime.png of phi(s, t), u_d(s, t)"),
+        "color": Key(choice(*COLOURS), "auto", R + "the field colouring the pictures: "
+                     "auto (the evolving natural strain, u_d or v_d, with the largest "
+                     "change; u or v if none evolves) | u | v | u_d | v_d (the change since "
+                     "t = 0) | n | m (magnitudes) | xi (docs/outputs.md)"),
         "plots": Key(names_or_boolean(*PANELS), True, "histories.png: true (panels chosen "
                      "from the scene's supports and loads), false (none) or a list of "
                      "panels from " + ", ".join(PANELS) + " (docs/outputs.md)"),
