@@ -18,7 +18,7 @@ from the scene's supports and loads):
     energy           K + Psi and the dissipated energy int D dt
     power_residual   |d/dt(K + Psi + E_c) + D - P| / power scale (relative_power_residual)
 
-Units: ``scene.units`` ("SI", "pN-nm-s") names the unit of every axis; a scene without it
+Units: ``scene.units`` ("SI", "pN-nm-s", "dimensionless") names the unit of every axis; a scene without it
 gets "scene units".
 """
 
@@ -37,6 +37,8 @@ UNITS = {
            "angle": "rad"},
     "pN-nm-s": {"length": "nm", "time": "s", "force": "pN", "moment": "pN nm",
                 "energy": "pN nm", "angle": "rad"},
+    "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy"), "1")
+    | {"angle": "rad"},       # the torsion scenes' Section 5.1 variables
 }
 
 
