@@ -29,7 +29,7 @@ from test_faults import (CREEP, MPI_TIMEOUT, ROOT, _start, _wait_for, assert_sam
                          read_csv, run_main, shared, snapshot, write)
 
 from dolfin_rod.output import writer as output
-from dolfin_rod.cli import run_scene
+from dolfin_rod import run_scene
 from dolfin_rod.scenes import load_scene
 
 COMM = MPI.COMM_WORLD
@@ -286,7 +286,7 @@ def test_energy_module_calling_sys_exit_at_import_is_a_scene_error(tmp_path, cap
 def test_ctrl_c_while_drawing_keeps_the_complete_results(tmp_path, capsys, monkeypatch):
     """SIGINT while spacetime.png is drawn (histories.png is done): exit 130, every row,
     summary.json "completed" with the pictures marked interrupted, no half picture."""
-    from dolfin_rod import animation
+    from dolfin_rod.output import animation
     folder = shared(tmp_path)
 
     def interrupted_drawing(frames, path, title):

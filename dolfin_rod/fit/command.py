@@ -1,7 +1,8 @@
 """``dolfin-rod fit SCENE.toml DATA.csv --params alpha_d,mu_d [--out DIR]``: the command
-line of dolfin_rod.fit.  Prints the table (value, standard error, initial), writes
-``fit.json`` (fit.FitResult.to_dict) and ``fit.png`` (data and fitted curve, residuals)
-in DIR (default: a new <outputs.directory>/fit-<name>-<time>).
+of the fit (its arguments are parsed in cli.py).  Prints the table (value, standard
+error, initial), writes ``fit.json`` (least_squares.FitResult.to_dict) and ``fit.png``
+(data and fitted curve, residuals) in DIR (default: a new
+<outputs.directory>/fit-<name>-<time>).
 
 Exit status: 0 a fit was made (its status, "identified", "not identifiable" or "not
 converged", is printed and in fit.json), 2 bad input (scene, CSV, parameter, folder: one
@@ -19,26 +20,12 @@ from pathlib import Path
 from .least_squares import FitError, FitResult, prepare_fit, run_fit
 from .inputs import FitInputError, read_series
 
-__all__ = ["FitInputError", "add_fit_parser", "fit_command", "result_table"]
-
-
-def add_fit_parser(sub) -> None:
-    """The ``fit`` sub-command of the dolfin-rod parser."""
-    fit = sub.add_parser("fit", help="fit scene parameters to a measured time series "
-                                     "(CSV: time, load, response; docs/fitting.md)")
-    fit.add_argument("scene", type=Path)
-    fit.add_argument("data", type=Path, help="CSV with columns time, load, response")
-    fit.add_argument("--params", required=True,
-                     help="comma-separated scene key paths, e.g. alpha_d,mu_d or "
-                          "material.viscosity.M_d[1]")
-    fit.add_argument("--out", type=Path, default=None, help="results folder (must be "
-                     "empty; default: a new <outputs.directory>/fit-<name>-<time>)")
-    fit.add_argument("--quiet", action="store_true", help="print only the status line")
+__all__ = ["FitInputError", "fit_command", "result_table"]
 
 
 def fit_command(args, comm) -> int:
     """Run ``dolfin-rod fit``; SceneError/OutputError/FitInputError propagate (exit 2)."""
-    from ..cli import print_on_root
+    from ..mpi import print_on_root
     from ..output.run_folders import on_root
     from ..scenes import load_scene
     scene = load_scene(args.scene)

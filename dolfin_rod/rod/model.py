@@ -25,7 +25,8 @@ from ufl.algorithms.analysis import extract_coefficients
 from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
-from ..fem.fe_model import FEModel, check_n_cells
+from ..checks import check_n_cells
+from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..theory.rotations import rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle

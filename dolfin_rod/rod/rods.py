@@ -9,7 +9,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..fem.fe_model import check_n_cells
+from ..checks import check_n_cells
 from .boundary_conditions import check_supports
 from .external_forces import DistributedLoad, EndLoad, check_loads
 from .material import RodParameters, check_parameters, is_zero

@@ -27,16 +27,15 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from ..fem import compat
 from .. import loads as load_histories
+from ..checks import check_n_cells, profile_violation, sample_points
+from ..fem import compat
+from ..fem.fe_model import FEModel, end_measures, scalar_coefficient, vertex_measure
+from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
+from ..fem.solvers import default_lu
 from ..theory.dissipation import dissipation_rate
 from ..theory.energy import derivatives, quadratic_energy
 from ..theory.evolution import check_variant, evolution_residual, real_space
-from ..fem.fe_model import (FEModel, check_n_cells, end_measures, scalar_coefficient,
-                         vertex_measure)
-from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
-from ..fem.solvers import default_lu
-from ..checks import profile_violation, sample_points
 
 Coefficient = float | Callable
 NAMES = ("twist_angle", "natural_twist", "angular_velocity")
