@@ -221,3 +221,37 @@ def test_spring_where_the_support_holds_is_a_scene_error():
     with pytest.raises(SceneError, match=r"\[boundary.start_spring.rotational\]: the end's "
                                          "rotation is held"):
         load_scene(SPRUNG, {"boundary.start": "clamped"})
+
+
+@pytest.mark.mpi
+def test_dynamic_rod_with_an_end_displaced_at_the_start_starts_at_rest_in_equilibrium():
+    """A dynamic rod (rho A = 2) clamped at s = 0, its end s = L held displaced by
+    d = (0.2, 0, 0.1) from t = 0 on (a constant motion, refused before: issue 25 item 3):
+    the start solves the equilibrium with the end there, so the rod stays at rest --
+    kinetic energy 0 and the free energy constant over the run (to Newton's tolerance)
+    -- in the static shape: its reactions are those of the quasi-static rod (rho A = 0,
+    its own start in equilibrium) to 1e-8."""
+    d = np.array([0.2, 0.0, 0.1])
+    stiff = dict(length=1.0, A=(1.0, 1.0, 1.0), B=(40.0, 40.0, 60.0))
+    models = [RodModel(RodParameters(**stiff, **inertia), n_cells=6, model="hyperelastic",
+                       ends=("clamped", "clamped"), end_displacement={"right": lambda t: d})
+              for inertia in ({"rho_A": 2.0, "I11": 0.01, "I22": 0.01}, {})]
+    dynamic, static = (run(m, 0.5, 0.05) for m in models)
+    assert max(r["kinetic_energy"] for r in dynamic[1:]) < 1e-16
+    assert dynamic[-1]["free_energy"] == pytest.approx(dynamic[1]["free_energy"], rel=1e-9)
+    assert dynamic[-1]["free_energy"] > 1e-3
+    assert [dynamic[-1][f"tip_position_{c}"] for c in "xyz"] == pytest.approx(
+        [0.2, 0.0, 1.1], abs=1e-12)
+    for end in ("left", "right"):
+        for kind in ("force", "couple"):
+            for c in "xyz":
+                key = f"reaction_{kind}_{end}_{c}"
+                assert dynamic[-1][key] == pytest.approx(static[-1][key], rel=1e-8,
+                                                         abs=1e-10), key
+
+
+def test_a_dynamic_rod_on_quaternions_refuses_a_displaced_start():
+    with pytest.raises(ValueError, match="consistent start .* rotation-vector unknowns"):
+        RodModel(RodParameters(rho_A=1.0, I11=0.01, I22=0.01), n_cells=2,
+                 rotations="quaternion", ends=("clamped", "clamped"),
+                 end_displacement={"right": lambda t: (0.1, 0.0, 0.0)})

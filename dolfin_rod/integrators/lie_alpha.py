@@ -30,6 +30,7 @@ from __future__ import annotations
 import dolfinx.fem as fem
 import numpy as np
 import ufl
+from mpi4py import MPI
 
 from ..fem import compat, form_cache
 from ..fem.solvers import BlockSNES, SolverError
@@ -166,6 +167,9 @@ def _copy(f, tag):
     g = fem.Function(f.function_space, name=f"{f.name}_{tag}")
     g.x.array[:] = f.x.array
     return g
+
+
+EQUILIBRIUM_SUB_SOLVES = 4     # the consistent start's path to displaced ends
 
 
 class LieGeneralizedAlpha:
@@ -322,6 +326,8 @@ class LieGeneralizedAlpha:
         p.set_loads(t0)
         p.set_bcs(t0)
         self.compile()
+        if 2 in self.order and self._displaced():
+            self._equilibrium_start(t0)
         rates = [f.function_space for f, k in zip(p.fields, self.order) if k]
         zeroed = [bc for bc in p.bcs if any(compat.contains(V, bc) for V in rates)]
         values = [np.array(bc.g.value) for bc in zeroed]
@@ -345,6 +351,46 @@ class LieGeneralizedAlpha:
             if self.order[i]:
                 self.alg_n[i].x.array[:] = a.x.array
         self._started = True
+
+    def _displaced(self) -> bool:
+        """Whether a Dirichlet value of a second-order block at the time set differs from
+        the state (an end of a dynamic rod displaced at t0), on any rank."""
+        p, local = self.problem, False
+        for f, k in zip(p.fields, self.order):
+            for bc in p.bcs if k == 2 else ():
+                if compat.contains(f.function_space, bc):
+                    values = f.x.array.copy()
+                    bc.set(values)
+                    local = local or bool(np.any(values != f.x.array))
+        return bool(p.comm.allreduce(local, op=MPI.LOR))
+
+    def _equilibrium_start(self, t0: float) -> None:
+        """The consistent start of a dynamic problem whose prescribed values at t0 differ
+        from its state: its second-order blocks (positions, rotations) solved at rest (zero
+        velocities and accelerations) in equilibrium with them, approached in
+        EQUILIBRIUM_SUB_SOLVES solves (BlockSNES.solve), the first-order blocks' rates with
+        them; checked and committed.  The first step then starts from equilibrium instead
+        of a jump."""
+        p = self.problem
+        unknowns = [f if k == 2 else u
+                    for f, u, k in zip(p.fields, self._unknowns_at_start(), self.order)]
+        key = self.structure_key + "equilibrium"
+        solver = BlockSNES(None if form_cache.lookup(key) else p.residual, unknowns, p.bcs,
+                           self.options, cache=(key, self._model_objects),
+                           step_scale=p.configuration_norm(), links=p.links)
+        initial = [f.x.array.copy() for f in p.fields]
+        try:
+            solver.solve(sub_solves=EQUILIBRIUM_SUB_SOLVES)
+            reason = p.check_step()
+            if reason:
+                raise SolverError(reason, 0)
+        except SolverError as err:
+            for f, array in zip(p.fields, initial):
+                f.x.array[:] = array
+            raise IntegrationError(f"the start at t = {t0:.6g} in equilibrium with the end "
+                                   f"motions' values there: {err}; start them from 0 (a ramp "
+                                   "or smooth_step)", t0) from err
+        p.after_step()
 
     def _start_algebraic(self, t0: float) -> None:
         """After the start's solve: its algebraic state is checked (check_step: a

@@ -116,6 +116,13 @@ class RodModel(FEModel):
         if joints and self.rotations != "rotation_vector":
             raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
+        if self.dynamic and self.rotations == "quaternion" and any(
+                load_histories.jumps(motion) for rod in rods
+                for motion in (rod.end_displacement or {}).values()):
+            raise ValueError("end_displacement starts away from 0 on a dynamic rod: its "
+                             "consistent start (at rest in equilibrium with the displaced "
+                             "end) is that of rotation-vector unknowns (rotations = "
+                             f"'rotation_vector'), not of {self.rotations!r}")
         disc = discretise(comm, layout, self.rotations)
         super().__init__(disc.mesh)
         self.dx, self.dx_r = disc.dx, disc.dx_r

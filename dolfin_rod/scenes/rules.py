@@ -358,6 +358,12 @@ def _check_rod_ends(scene: Scene) -> None:
             spec = bnd[f"{end}_{motion}"]
             if spec is not None and not spec.is_vector:
                 raise err(f"boundary.{end}_{motion}.value", "3-D rod: a vector [x, y, z]")
+            if spec is not None and spec.type == "step" and spec.t0 > 0 and \
+                    scene["material"]["dynamic"]:
+                raise err(f"boundary.{end}_{motion}", f"a step at t0 = {spec.t0:g}, but a rod "
+                                                      "with inertia cannot follow a jump of its "
+                                                      "end: use type = \"smooth_step\" or "
+                                                      "\"ramp\" (with t0)")
         axis = _slide_axis(scene, end)
         x = kind in ("clamped", "pinned") or bnd[f"{end}_displacement"] is not None
         q = kind == "clamped" or bnd[f"{end}_rotation"] is not None

@@ -217,7 +217,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                             "initial rotation"),
         "start_rotation": Key(history(True), None, R + "as end_rotation, at s = 0"),
         "end_displacement": Key(history(True), None, R + "prescribed displacement of s = L "
-                                "from its initial position (value = [x, y, z])"),
+                                "from its initial position (value = [x, y, z]); on a dynamic "
+                                "rod a value at t = 0 (a constant, a step at t0 = 0) starts "
+                                "the rod at rest in equilibrium with it"),
         "start_displacement": Key(history(True), None, R + "as end_displacement, at s = 0"),
         "end_slide": Key(vector3(), None, R + "axis [x, y, z] (a unit coordinate axis, e.g. "
                          "[0, 0, 1]) along which the clamped or pinned end s = L slides "
