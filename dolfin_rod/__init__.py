@@ -27,19 +27,24 @@ _WHERE = {
     "TorsionModel": "torsion.model", "TorsionParameters": "torsion.model",
     "SemiDiscreteProblem": "fem.problem", "SecondOrderProblem": "fem.problem",
     # integrators and solvers
-    "TimeStepper": "integrators.choice", "TSIntegrator": "integrators.ts",
+    "TimeStepper": "integrators.choice", "choose_integrator": "integrators.choice",
+    "TSIntegrator": "integrators.ts", "parse_ts_type": "integrators.ts",
+    "get_scheme": "integrators.schemes",
     "IntegrationError": "integrators.step_control", "SolverError": "fem.solvers",
     "JACOBIAN_REUSE": "fem.solvers", "NATIVE_LU": "fem.solvers",
     # scenes: load, choose the model, build, run
     "load_scene": "scenes", "parse_scene": "scenes", "select_model": "scenes",
     "build": "scenes", "SceneError": "scenes",
+    # what a run writes: fields along the rod (ParaView, animation), versions
+    "FieldOutputs": "output.field_outputs", "read_vtx": "output.vtx", "versions": "output.writer",
     # fitting parameters to measured time series (docs/fitting.md)
     "fit_scene": "fit.least_squares", "FitResult": "fit.least_squares",
     "read_series": "fit.inputs",
 }
 # modules users import as a whole: name -> where it lives
 _MODULES = {"loads": "loads", "closed_forms": "torsion.closed_forms",
-            "rotations": "theory.rotations"}
+            "rotations": "theory.rotations", "dna": "dna",
+            "form_cache": "fem.form_cache"}   # form_cache.clear(): time a fresh process
 
 __all__ = sorted([*_WHERE, "run", "run_scene", "RunResult"]) + list(_MODULES)
 
