@@ -49,6 +49,10 @@ def rod_length(value: float) -> float:
     return x
 
 
+# The cells of a rod or a torsion model unless given: the one default of RodModel, Rod,
+# TorsionModel and the scene key geometry.n_cells.
+N_CELLS = 32
+
 # Under MPI a rank with fewer cells has no cell at all (DOLFINx's reshape errors) or its
 # Dirichlet dof is a ghost of the mixed space (assembly.py); with 2 it runs.
 MIN_CELLS_PER_RANK = 2

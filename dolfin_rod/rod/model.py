@@ -25,7 +25,7 @@ from ufl.algorithms.analysis import extract_coefficients
 from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
-from ..checks import check_n_cells
+from ..checks import N_CELLS, check_n_cells
 from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..theory.rotations import rotation_matrix
@@ -62,7 +62,7 @@ class RodModel(FEModel):
     Several rods in one model: system.RodSystem.
     """
 
-    def __init__(self, params: RodParameters, n_cells: int = 32, model: str = "evolving",
+    def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = "evolving",
                  variant: str = "local", constraint: str | None = None,
                  ends: tuple[str, str] = ("clamped", "free"),
                  end_loads: Sequence[EndLoad] = (),

@@ -26,9 +26,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..rod.sections import SHAPES as SECTION_SHAPES
+from ..checks import MIN_LENGTH, N_CELLS
 from ..rod.rotation_choice import ROTATIONS
-from ..checks import MIN_LENGTH
+from ..rod.sections import SHAPES as SECTION_SHAPES
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
@@ -111,7 +111,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "geometry": {
         "length": Key(real(MIN_LENGTH), 1.0, f"rod length L >= {MIN_LENGTH:g} (torsion: "
                       "dimensionless, must be 1)"),
-        "n_cells": Key(integer(1, 100_000), 32, "number of cells along s"),
+        "n_cells": Key(integer(1, 100_000), N_CELLS, "number of cells along s"),
         "degree": Key(integer(1, 3), 1, T + "Lagrange degree of phi (the rod is P1)"),
         "reference_curvature": Key(vector3(), (0.0, 0.0, 0.0),
                                    R + "curvature u_ref of the stress-free initial shape (a "
