@@ -21,9 +21,11 @@ from .run import RunResult, run, run_scene  # noqa: E402
 _WHERE = {
     # models and their data
     "RodModel": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
+    "StartingState": "rod", "Straight": "rod", "Arc": "rod", "Helix": "rod", "Polyline": "rod",
     "EndSpring": "rod",
     "RodSystem": "rod", "Rod": "rod", "Joint": "rod",   # rod systems (docs/systems.md)
     "sections": "rod",      # cross-sections and materials -> RodParameters (rod/sections.py)
+    "Obstacle": "rod", "ContactLaw": "rod",    # contact with obstacles (docs/contact.md)
     "TorsionModel": "torsion.model", "TorsionParameters": "torsion.model",
     "SemiDiscreteProblem": "fem.problem", "SecondOrderProblem": "fem.problem",
     # integrators and solvers

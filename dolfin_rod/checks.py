@@ -72,6 +72,27 @@ def check_n_cells(n_cells, ranks: int = 1) -> int:
     return int(n_cells)
 
 
+# The largest input files read: a scene (TOML, tables of load histories included) and
+# fit data (CSV: 1e6 rows of three numbers are ~60 MB)
+SCENE_BYTES = 16 * 2**20
+DATA_BYTES = 512 * 2**20
+
+
+def read_regular_file(path, limit: int) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes; ValueError naming the
+    rule for anything else (a device such as /dev/zero read until memory ran out, a
+    pipe, a folder, a larger file); OSError if it cannot be read."""
+    import os
+    import stat
+    if not stat.S_ISREG(os.stat(path).st_mode):
+        raise ValueError("not a regular file (a device, pipe or folder)")
+    with open(path, "rb") as f:
+        data = f.read(limit + 1)
+    if len(data) > limit:
+        raise ValueError(f"larger than {limit // 2**20} MiB, the bound for this input")
+    return data
+
+
 # Coefficients given as functions of s are checked at this many equally spaced points
 # (rod, torsion and the scene schema alike).
 COEFFICIENT_SAMPLES = 257
@@ -108,3 +129,42 @@ def slide_axis_problem(axis) -> str | None:
         return (f"must be a coordinate axis (+-e_1, +-e_2 or +-e_3), got {a.tolist()}: "
                 "an end sliding along a direction off the axes is not supported")
     return None
+
+
+# A start in static equilibrium (rod/start.py) with only pinned or free ends is singular.
+EQUILIBRIUM_NEEDS = ("the static problem needs an end whose rotation is held (clamped, or "
+                     "a prescribed end rotation): otherwise the sections turn about their "
+                     "tangents for free")
+# A starting polyline's length against the rod's (rod/start.py; a rod of 1 m: 1 um).
+LENGTH_RTOL = 1e-6
+
+
+def polyline_problem(points, rest_arc_length, normal, length: float) -> tuple[str, str] | None:
+    """(key, reason) for a starting polyline (rod/start.Polyline) that does not fit a rod
+    of ``length``, key one of "points", "rest_arc_length", "normal"; else None."""
+    points = np.asarray(points, dtype=float)
+    if points.ndim != 2 or points.shape[1:] != (3,) or len(points) < 2 \
+            or not np.isfinite(points).all():
+        return "points", "at least two finite points [x, y, z]"
+    chords = np.diff(points, axis=0)
+    if np.any(np.linalg.norm(chords, axis=1) == 0):
+        return "points", "two consecutive points coincide"
+    if rest_arc_length is None:
+        key, what = "points", "polyline's length"
+        arc = np.concatenate(([0.0], np.cumsum(np.linalg.norm(chords, axis=1))))
+    else:
+        key, what = "rest_arc_length", "last rest arc length"
+        arc = np.asarray(rest_arc_length, dtype=float)
+        if arc.shape != (len(points),) or arc[0] != 0 or np.any(np.diff(arc) <= 0):
+            return key, f"one value per point ({len(points)}), from 0, increasing"
+    if abs(arc[-1] - length) > LENGTH_RTOL * length:
+        return key, (f"the {what} {arc[-1]:.9g} differs from the rod's length {length:.9g} "
+                     f"(geometry.length); they must agree to {LENGTH_RTOL:g} relative")
+    normal = np.asarray(normal, dtype=float)
+    if normal.shape != (3,) or not np.isfinite(normal).all():
+        return "normal", "a finite 3-vector"
+    if np.linalg.norm(np.cross(normal, chords[0])) <= 1e-9 * np.linalg.norm(normal) * \
+            np.linalg.norm(chords[0]):
+        return "normal", "parallel to the first segment (it gives d1, perpendicular to the rod)"
+    return None
+

@@ -113,7 +113,13 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
     if choice.model == "rod":
         from .scenes.physical import describe
         from .scenes.rules import rod_rotations
-        lines += [f"derived: {line}" for line in describe(scene["material"]["derived"] or {})]
+        for rod in scene.rods or [None]:          # [[rods]]: each rod's derived tensors
+            own = rod.scene if rod else scene
+            label = f"rod {rod.name}: " if rod else ""
+            lines += [f"derived: {label}{line}"
+                      for line in describe(own["material"]["derived"] or {})]
+        lines += [f"joint: {j.kind} {j.rods[0]}-{j.rods[1]} at {list(j.point)}"
+                  for j in scene.joints]
         lines.append(f"rotations: {rod_rotations(scene)} (geometry.rotations = "
                      f"{scene['geometry']['rotations']!r})")
     if choice.model != "ode":                      # (the ODE prints its own solution)
@@ -173,7 +179,8 @@ def _main(argv: list[str] | None, comm) -> int:
                   overwrite=args.overwrite).summary
     if summary["pictures"] == "interrupted" and summary["status"] != "failed":
         return 130
-    return {"completed": 0, "stopped": 0, "interrupted": 130}.get(summary["status"], 3)
+    return {"completed": 0, "stopped": 0, "interrupted": 130,
+            "completed (unstable equilibrium)": 4}.get(summary["status"], 3)
 
 
 if __name__ == "__main__":

@@ -48,7 +48,8 @@ class RunResult:
 
     @property
     def status(self) -> str:
-        """"completed", "stopped" (stop_after), "interrupted" or "failed"."""
+        """"completed", "completed (unstable equilibrium)", "stopped" (stop_after),
+    "interrupted" or "failed"."""
         return self.summary["status"]
 
 
@@ -139,6 +140,7 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
     t_run = time.perf_counter()
     status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
                                     meta["step"], stop_after, quiet)
+    status, message = _unstable_end(scene, sim, status, message)
     clock["integration"] = time.perf_counter() - t_run
     summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
     clock["total"] = time.perf_counter() - clock["start"]
@@ -146,18 +148,21 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
     summary["pictures"] = comm.bcast(summary.get("pictures"), root=0)
     summary["folder"] = str(folder)
     _report(summary, status, message, t, folder, comm, quiet)
+    comm.barrier()     # no rank ends (mpirun then stops the others) before rank 0 reported
     series = comm.bcast(writer.series() if comm.rank == 0 else None, root=0)
     return RunResult(summary, series, folder)
 
 
 def _report(summary: dict, status: str, message: str, t: float, folder: Path, comm,
             quiet: bool) -> None:
-    """The last line: on stderr for a failed or interrupted run (also with --quiet)."""
+    """The last line: on stderr for a failed, interrupted or unstable run (also with
+    --quiet)."""
     if summary["pictures"] == "interrupted":
         message = "; ".join([*filter(None, [message]), "interrupted while drawing the "
                              "pictures: summary.json lists the ones missing"])
     line = f"{status}: t = {t:g}, results in {folder}" + (f" ({message})" if message else "")
-    if status in ("failed", "interrupted") or summary["pictures"] == "interrupted":
+    if status in ("failed", "interrupted", "completed (unstable equilibrium)") \
+            or summary["pictures"] == "interrupted":
         print_on_root(comm, line, file=sys.stderr)
     elif not quiet:
         print_on_root(comm, line)
@@ -264,6 +269,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
 
     def after_step(t_k: float) -> None:
         diag = sim.diagnostics(t_k)
+        _report_stability_changes(sim, comm)
         bound.check(diag)
         k = progress["k"] = progress["k"] + 1
         writer.record(k, t_k, diag)
@@ -296,6 +302,30 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     return status, message, progress["t"]
 
 
+def _report_stability_changes(sim, comm) -> None:
+    """A warning for each change of the tangent's negative eigenvalues not yet shown."""
+    monitor = getattr(sim, "stability", None)
+    while monitor is not None and len(monitor.changes) > monitor.reported:
+        t, before, after = monitor.changes[monitor.reported]
+        monitor.reported += 1
+        state = "unstable" if after else "stable again"
+        print_on_root(comm, f"warning: t = {t:g}: the equilibrium is {state}: {after} "
+                            f"negative eigenvalue(s) of the tangent stiffness (was {before}; "
+                            "docs/stability.md)", file=sys.stderr)
+
+
+def _unstable_end(scene, sim, status: str, message: str) -> tuple[str, str]:
+    """A completed quasi-static run that ends on an unstable equilibrium is not a result
+    unless stability.follow_unstable says so."""
+    monitor = getattr(sim, "stability", None)
+    if status != "completed" or monitor is None or not monitor.negative \
+            or scene["stability"]["follow_unstable"]:
+        return status, message
+    return "completed (unstable equilibrium)", (
+        f"the end state has {monitor.negative} negative eigenvalue(s) of the tangent "
+        "stiffness: an unstable equilibrium (stability.follow_unstable = true accepts it)")
+
+
 def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> dict:
     summary = {
         "scene": scene.name, "source": scene.source, "model": choice.model,
@@ -313,4 +343,7 @@ def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> d
     if stats is not None:
         summary["newton_iterations"] = stats.newton_iterations
         summary["rejected_steps"] = stats.rejected
+    monitor = getattr(sim, "stability", None)
+    if monitor is not None and monitor.checks:
+        summary["stability_check_ms_per_step"] = 1e3 * monitor.seconds / monitor.checks
     return summary

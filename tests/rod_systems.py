@@ -103,12 +103,12 @@ def double_pendulum(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
                      model="hyperelastic", comm=comm)
 
 
-def rigid_double_pendulum(t_end: float):
+def rigid_double_pendulum(t_end: float, p: dict = PENDULUM):
     """The rigid double pendulum of two uniform rods (mass rho_A l, moment of inertia
     about the centre rho_A l^3/12 + rho_I l, the section's rotary inertia included):
-    Lagrange's equations in the angles from -e_3, solved by solve_ivp to 1e-12."""
+    Lagrange's equations in the angles from -e_3, solved by solve_ivp to 1e-12
+    (``p``: g, rho_A, rho_I, l1, l2, angles as PENDULUM)."""
     from scipy.integrate import solve_ivp
-    p = PENDULUM
     g, l1, l2 = p["g"], p["l1"], p["l2"]
     m1, m2 = p["rho_A"] * l1, p["rho_A"] * l2
     I1 = m1 * l1 ** 2 / 12 + p["rho_I"] * l1

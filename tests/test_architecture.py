@@ -24,8 +24,9 @@ from dolfin_rod import closed_forms, loads
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "dolfin_rod"
 # a layer imports only its own and later ones (docs/architecture.md)
-LAYERS = [("cli", "__main__"), ("fit",), ("run",), ("output",), ("scenes",), ("rod", "torsion"),
-          ("integrators",), ("theory",), ("fem",), ("loads", "dna", "checks", "mpi")]
+LAYERS = [("cli", "__main__"), ("fit",), ("run",), ("output",), ("scenes",), ("analysis",),
+          ("rod", "torsion"), ("integrators",), ("theory",), ("fem",),
+          ("loads", "dna", "checks", "mpi")]
 HEAVY = ("dolfinx", "petsc4py", "ufl")
 
 

@@ -10,6 +10,8 @@ y eps where the smoothed law's phi(y) = tan a / mu); the signed distances agains
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -270,3 +272,89 @@ def test_contact_jacobian_is_the_residuals_derivative(shape):
     for coarse, fine in zip(remainders, remainders[1:]):
         for c, f in zip(coarse, fine):
             assert c / f == pytest.approx(4.0, rel=0.1)
+
+
+@pytest.mark.mpi
+def test_a_barrier_that_yields_fails_the_run_naming_the_obstacle(tmp_path):
+    """contact.stiffness 1e-3 (1e-7 of the default) cannot hold the rod: the steps are
+    cut, then the run fails ('failed': the CLI's exit 3) naming the obstacle, the place
+    and the key to raise; the rows computed before are kept."""
+    from mpi4py import MPI
+
+    from dolfin_rod import run_scene
+    scene = parse_scene(SCENE.replace("radius = 0.01", "radius = 0.01\nstiffness = 1e-3")
+                        .replace("t_end = 0.1", "t_end = 0.5"))
+    folder = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0)) / "run"
+    summary = run_scene(scene, folder, quiet=True)
+    assert summary["status"] == "failed"
+    assert "inside obstacles[0]" in summary["message"]
+    assert "contact.stiffness" in summary["message"]
+    if MPI.COMM_WORLD.rank == 0:
+        rows = (folder / "timeseries.csv").read_text().splitlines()
+        assert len(rows) > 2
+
+
+def _capstan(mu: float, ratio: float, n_cells: int = 64, dt: float = 2e-3):
+    """A rope (r = 5 mm, 0.1 kg/m, EI = 1e-5) draped over a cylinder (radius 5 cm, axis
+    e_2, friction mu) with overhangs h1 = 0.2 m and h2 = ratio h2*, under gravity -x
+    ramped up over 0.5 s; the tip's (end of the h2 side) x over t."""
+    from dolfin_rod.rod.start import Polyline, StartingState
+    Rc, r, delta = 0.05, 0.005, 5e-4
+    rho = Rc + r + 0.5 * delta                        # the centre line's radius on it
+    e = np.exp(mu * np.pi)
+    h1 = 0.2
+    h2 = ratio * (e * h1 + rho * (2 * mu / (1 + mu**2)) * (e + 1))
+    phi = np.linspace(-np.pi / 2, np.pi / 2, 200)
+    points = np.concatenate([[[-h1, 0, -rho]], np.stack([rho * np.cos(phi), 0 * phi,
+                                                          rho * np.sin(phi)], 1),
+                             [[-h2, 0, rho]]])
+    L = float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
+    params = RodParameters(length=L, A=(1e-5,) * 3, B=(50.0, 50.0, 100.0), rho_A=0.1,
+                           I11=1e-7, I22=1e-7)
+    law = ContactLaw(r, delta, default_stiffness(params.rho_A, params.A, L, n_cells, dt),
+                     slip_tolerance=1e-3)
+    cylinder = Obstacle("cylinder", point=(0, 0, 0), axis=(0, 1, 0), radius=Rc, length=0.2,
+                        friction=mu)
+    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", ends=("free", "free"),
+                   distributed_loads=[DistributedLoad("force", (-G * params.rho_A, 0, 0),
+                                                      lambda t: min(t / 0.5, 1.0))],
+                   obstacles=[cylinder], contact=law)
+    rod.set_initial_state(start=StartingState(
+        shape=Polyline(tuple(map(tuple, points - points[0])), normal=(0.0, 0.0, 1.0)),
+        position=tuple(points[0])))
+    return rod, _history(rod, dt, int(round(1.5 / dt)),
+                         {"snes_rtol": 1e-8, "snes_atol": 1e-9, "snes_linesearch_type": "bt"})
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mu", [0.1, 0.3, 0.6])
+def test_capstan_holds_below_the_overhang_and_slides_above(mu):
+    """The capstan: the longest overhang that holds is h2* = e^{mu pi} h1 + R (2 mu /
+    (1 + mu^2)) (e^{mu pi} + 1) (R the centre line's radius on the cylinder).  At
+    0.95 h2* the rope holds: over the last 0.75 s it creeps at most at 2.5 eps (near the
+    limit friction is used almost fully along the contact, where the smoothed law creeps
+    at up to eps; measured 2.1e-3, 1.2e-3, 5.6e-6 m/s for mu = 0.1, 0.3, 0.6); at 1.05 h2*
+    it slides at > 0.5 m/s (measured 1.4-2.8 m/s), 300 times faster."""
+    speeds = []
+    for ratio in (0.95, 1.05):
+        _, rows = _capstan(mu, ratio)
+        late = [d for d in rows if d["time"] >= 0.75 - 1e-9]
+        speeds.append(abs(late[-1]["tip_position_x"] - late[0]["tip_position_x"])
+                      / (late[-1]["time"] - late[0]["time"]))
+        assert min(d["min_gap"] for d in rows) > 0.0
+    assert speeds[0] < 2.5e-3
+    assert speeds[1] > 0.5
+
+
+def test_polyline_start_turning_by_pi_has_continuous_rotations():
+    """The capstan's start (a polyline turning by pi): neighbouring nodal quaternions in
+    one hemisphere (q_k . q_k+1 > 0; a sign flip made the strains infinite)."""
+    from dolfin_rod.rod.start import Polyline, continuous
+    phi = np.linspace(0.0, np.pi, 50)
+    points = np.stack([np.sin(phi), 0 * phi, 1 - np.cos(phi)], 1)
+    L = float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
+    _, q = Polyline(tuple(map(tuple, points)), normal=(1.0, 0.0, 0.0)).frames(
+        np.linspace(0, L, 41), L, 40)
+    assert np.all(np.einsum("ij,ij->i", q[1:], q[:-1]) > 0.9)
+    flipped = q * np.where(np.arange(len(q)) % 3 == 0, -1.0, 1.0)[:, None]
+    assert np.allclose(continuous(flipped), -q)      # the first node keeps its sign

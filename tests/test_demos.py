@@ -145,7 +145,7 @@ def test_long_demos_run(name):
 @pytest.mark.slow
 @pytest.mark.parametrize("ranks", [1, 2])
 @pytest.mark.parametrize("name", ["twisted_rod_relaxation", "swinging_rod",
-                                  "dna_overstretching"])
+                                  "dna_overstretching", "rope_on_floor"])
 def test_3d_demos_run(name, ranks):
     """The 3-D demos as users run them, serially and under mpirun -n 2; each asserts its
     own checks (closed form, energy balance) and writes CSV, PNG and VTX output."""

@@ -341,15 +341,16 @@ def test_sigterm_mid_run_stops_like_ctrl_c(tmp_path):
 # SIGTERM during start-up: tests/test_faults.py, test_ctrl_c_during_start_up_is_a_clean_...
 
 
-def _children(pid: int) -> list[int]:
-    """The processes whose parent is pid (mpirun's ranks), from /proc."""
+def _ranks(pid: int) -> list[int]:
+    """The dolfin_rod processes whose parent is pid (mpirun's ranks), from /proc."""
     found = []
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
             fields = stat.read_text().rsplit(")", 1)[1].split()
+            command = (stat.parent / "cmdline").read_bytes()
         except OSError:
             continue
-        if int(fields[1]) == pid:
+        if int(fields[1]) == pid and b"dolfin_rod" in command:
             found.append(int(stat.parent.name))
     return found
 
@@ -370,7 +371,7 @@ def test_signal_to_the_ranks_under_mpirun_stops_like_ctrl_c(tmp_path, sig):
                             stderr=subprocess.PIPE, text=True)
     try:
         _wait_for(_rows_written(run), "20 rows", timeout=MPI_TIMEOUT)
-        ranks = _children(proc.pid)
+        ranks = _ranks(proc.pid)
         assert len(ranks) == 2, ranks
         for rank in ranks:
             os.kill(rank, sig)
@@ -380,3 +381,108 @@ def test_signal_to_the_ranks_under_mpirun_stops_like_ctrl_c(tmp_path, sig):
             proc.kill()
     assert proc.returncode == 130, err
     _assert_interrupted(run, err)
+
+
+# --- item 5: jumps and motions faster than dt, at every time, scenes and API ------------
+
+# dynamic torsion (nu > 0), the end rotation prescribed; dt = 0.01
+DYNAMIC_TORSION = CREEP.replace("mu_d = 0.5", "mu_d = 0.5\nnu = 0.01").replace(
+    '[loads]\nend_torsion = { type = "step", value = 1.0 }',
+    '[boundary]\nend = "rotation"\nend_rotation = HISTORY')
+
+
+@pytest.mark.parametrize("scene, history, key, message", [
+    ("torsion", '{ type = "step", value = 0.5, t0 = 0.05 }', "boundary.end_rotation",
+     "a step at t = 0.05 but nu > 0"),
+    ("torsion", '{ type = "table", times = [0.0, 0.03, 0.0300000001], values = [0.0, 0.0, '
+     '1.0] }', "boundary.end_rotation.times", "changes within 1e-10, faster than time.dt"),
+    ("torsion", '{ type = "smooth_step", value = 1.0, duration = 1e-300 }',
+     "boundary.end_rotation.duration", "changes within 1e-300, faster than time.dt = 0.01"),
+    ("rod", '{ type = "step", value = [0.0, 0.1, 0.0], t0 = 0.5 }',
+     "boundary.end_displacement", "a step at t = 0.5 but density > 0"),
+    ("rod", '{ type = "ramp", value = [0.0, 0.1, 0.0], duration = 0.001, t0 = 0.5 }',
+     "boundary.end_displacement.duration", "faster than time.dt = 0.01 resolves"),
+], ids=["torsion step at 0.05", "torsion table in 1e-10 s", "torsion smooth_step 1e-300",
+        "rod step at 0.5", "rod ramp 1e-3"])
+def test_dynamic_motion_jumping_or_faster_than_dt_is_refused_at_check(
+        tmp_path, capsys, scene, history, key, message):
+    if scene == "torsion":
+        path = write(tmp_path / "s.toml", DYNAMIC_TORSION.replace("HISTORY", history))
+    else:                             # gravity_cantilever (dt = 0.01) with a moved end
+        text = (ROOT / "scenes" / "gravity_cantilever.toml").read_text().replace(
+            'end = "free"', f'end = "free"\nend_displacement = {history}')
+        path = write(tmp_path / "s.toml", text)
+    code, out, err = run_main(capsys, "check", path)
+    assert code == 2 and out == "", out
+    assert f"[{key}]" in err and message in err and err.count("\n") == 1, err
+    # the same motion lasting dt is accepted
+    if "faster" in message:
+        fixed = path.read_text().replace("1e-300", "0.01").replace("0.0300000001", "0.04") \
+            .replace("duration = 0.001", "duration = 0.01")
+        assert run_main(capsys, "check", write(tmp_path / "ok.toml", fixed))[0] == 0
+
+
+def test_dynamic_torsion_api_refuses_a_jump_after_t0():
+    """The Python API: a step of the end rotation at t0 = 0.5 (not only at t = 0)."""
+    from dolfin_rod import loads
+    from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
+    params = TorsionParameters(alpha=2.0, alpha_d=1.0, mu=0.2, mu_d=0.5, nu=0.01)
+    with pytest.raises(ValueError, match="end_rotation has a step at t = 0.5 but nu > 0"):
+        TorsionModel(params, n_cells=4, end_rotation=loads.step(0.5, t0=0.5))
+
+
+# --- item 9: a scene energy must have a stress-free, stable natural state ---------------
+
+ENERGIES = {   # psi(u_d, v_d, u, v) in UFL; STATIC_ROD's stiffness scale (1 and 100)
+    "convex": "0.5 * (ufl.inner(u - u_d, u - u_d) + 100 * ufl.inner(v - v_d, v - v_d))",
+    "concave": "-0.5 * (ufl.inner(u - u_d, u - u_d) + 100 * ufl.inner(v - v_d, v - v_d))",
+    "saddle": "0.5 * ((u[0] - u_d[0])**2 - (u[1] - u_d[1])**2 + (u[2] - u_d[2])**2"
+              " + 100 * ufl.inner(v - v_d, v - v_d))",
+    "prestressed": "0.5 * (ufl.inner(u - u_d, u - u_d) + 100 * ufl.inner(v - v_d, v - v_d))"
+                   " + 0.3 * u[0]",
+}
+
+
+@pytest.mark.parametrize("kind, message", [
+    ("convex", None),
+    ("concave", "psi is not convex at the natural state u_d = [0.0, 0.0, 0.0], v_d = "
+                "[0.0, 0.0, 1.0]: d^2psi/d(u, v)^2 has the eigenvalue -100"),
+    ("saddle", "has the eigenvalue -1 "),
+    ("prestressed", "is not stress-free: dpsi/d(u, v) = [0.3 0.  0.  0.  0.  0. ]"),
+])
+def test_scene_energy_without_a_stable_natural_state_is_refused_at_check(
+        tmp_path, capsys, kind, message):
+    (tmp_path / f"energy_{kind}.py").write_text(
+        f"import ufl\n\ndef psi(u_d, v_d, u, v):\n    return {ENERGIES[kind]}\n")
+    scene = write(tmp_path / "s.toml", STATIC_ROD.replace(
+        "[material]\n", f'[material]\nenergy = "energy_{kind}:psi"\n'))
+    code, out, err = run_main(capsys, "check", scene)
+    if message is None:
+        assert code == 0, err
+        return
+    assert code == 2 and out == "" and "[material.energy]" in err and message in err, err
+
+
+# --- item 4: a prescribed turn the cells cannot represent -------------------------------
+
+
+@pytest.mark.parametrize("rotation, cells, needed", [
+    ('end_rotation = { type = "ramp", value = [0.0, 0.0, 100.0], duration = 0.05 }', 4, 32),
+    ('end_rotation = { type = "table", times = [0.0, 0.05, 0.1], values = [[0.0, 0.0, 0.0], '
+     '[0.0, 13.0, 0.0], [0.0, 0.0, 0.0]] }\nstart_rotation = { type = "ramp", value = '
+     '[0.0, -13.0, 0.0], duration = 0.05 }', 8, 9),       # 26 rad at t = 0.05: 26/pi = 8.3
+])
+def test_prescribed_turn_beyond_pi_per_cell_is_refused_with_the_cells_needed(
+        tmp_path, capsys, rotation, cells, needed):
+    """A cell's relative rotation must stay below pi (the interpolation of the nodal
+    rotations takes the shorter way round): the issue's 100 rad on 4 cells ended with
+    energy 0.117 and a couple of the wrong sign, exit 0.  n_cells = needed passes."""
+    text = STATIC_ROD.replace('[loads]\nend_force = { type = "step", value = [0.8, 0.0, 0.0] }',
+                              f"[boundary]\n{rotation}")
+    bad = write(tmp_path / "bad.toml", text.replace("n_cells = 4", f"n_cells = {cells}"))
+    code, out, err = run_main(capsys, "check", bad)
+    assert code == 2 and out == "", out
+    assert "[boundary.end_rotation]" in err and "more than geometry.n_cells = " \
+        f"{cells} cells represent" in err and f"take n_cells >= {needed}" in err, err
+    good = write(tmp_path / "good.toml", text.replace("n_cells = 4", f"n_cells = {needed}"))
+    assert run_main(capsys, "check", good)[0] == 0

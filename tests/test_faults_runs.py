@@ -55,15 +55,15 @@ TORSION = CREEP.replace("checkpoint_every = 3", "progress = false")
 MPI_TIMEOUT = 120   # s: mpirun start-up and a 4-cell model take ~10 s; a hang is for ever
 
 
-def mpirun(n: int, *args: str) -> subprocess.CompletedProcess:
-    """``mpirun -n N python3 -m dolfin_rod ARGS`` with a timeout (more ranks than cores:
-    ./rodenv's Open MPI settings, item 24)."""
+def mpirun(n: int, *args: str, module: bool = True) -> subprocess.CompletedProcess:
+    """``mpirun -n N python3 -m dolfin_rod ARGS`` (``module``; else ``python3 ARGS``)
+    with a timeout (more ranks than cores: ./rodenv's Open MPI settings, item 24)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     for k in list(env):
         if k.startswith(("OMPI_COMM_WORLD", "PMIX_", "OMPI_MCA_ess", "PMI_")):
             env.pop(k)     # a test run under mpirun itself starts a fresh job
-    cmd = [shutil.which("mpirun") or "mpirun", "-n", str(n), sys.executable, "-m",
-           "dolfin_rod", *args]
+    cmd = [shutil.which("mpirun") or "mpirun", "-n", str(n), sys.executable,
+           *(["-m", "dolfin_rod"] if module else []), *args]
     try:
         return subprocess.run(cmd, capture_output=True, text=True, timeout=MPI_TIMEOUT,
                               cwd=ROOT, env=env)
@@ -125,20 +125,48 @@ def test_energy_import_failing_on_rank_1_only_ends_every_rank_with_its_message(
 
 
 @serial_only
-def test_energy_raising_on_rank_1_only_while_the_model_is_built_ends_the_run(tmp_path):
-    """Item 12 (a user energy that raises on rank 1): rank 0 is then inside collective
-    calls of the build; rank 1 reports its error itself and aborts the job with exit 2
-    (mpi.alone), instead of both spinning until killed."""
+def test_energy_raising_on_rank_1_only_ends_every_rank_with_its_message(tmp_path):
+    """Item 12 (a user energy that raises on rank 1): both ranks spun until killed.  The
+    energy is evaluated when the scene is read (item 9), which the ranks agree on."""
     text = energy_module(tmp_path, "raises", PSI.replace(
         "    return", "    from mpi4py import MPI\n    if MPI.COMM_WORLD.rank == 1:\n"
         "        raise ValueError('energy fails on rank 1')\n    return"))
     (tmp_path / "scene.toml").write_text(text)
     out = mpirun(2, "run", str(tmp_path / "scene.toml"), "--out", str(tmp_path / "run"))
+    assert_one_error(out.returncode, out.stdout, out.stderr, "material.energy",
+                     "energy fails on rank 1")
+    assert not (tmp_path / "run").exists()
+
+
+# an expected error (a model's ValueError, reported as a SceneError) on rank 1 only while
+# rank 0 is inside the collective calls of the build
+REFUSED_ON_RANK1 = """
+import sys
+from mpi4py import MPI
+from dolfin_rod.rod import model
+original = model.RodModel._build
+def refuse(self, *args, **kwargs):
+    if MPI.COMM_WORLD.rank == 1:
+        raise ValueError("refused on rank 1 (injected)")
+    return original(self, *args, **kwargs)
+model.RodModel._build = refuse
+from dolfin_rod.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@serial_only
+def test_expected_error_of_one_rank_inside_collective_work_ends_the_run(tmp_path):
+    """Item 12, the mechanism for errors no check finds first: the rank that saw it
+    reports it and aborts the job with exit 2 (mpi.alone), within seconds."""
+    (tmp_path / "scene.toml").write_text(ROD)
+    out = mpirun(2, "-c", REFUSED_ON_RANK1, "run", str(tmp_path / "scene.toml"), "--out",
+                 str(tmp_path / "run"), module=False)
     assert out.returncode == 2, out.stdout + out.stderr
     lines = errors(out.stderr)
-    assert len(lines) == 1 and "[material.energy]" in lines[0], out.stderr
-    assert "energy fails on rank 1" in lines[0] and "seen on rank 1 only" in lines[0]
-    assert "completed" not in out.stdout
+    assert len(lines) == 1 and "[scene.model]" in lines[0], out.stderr
+    assert "refused on rank 1 (injected)" in lines[0] and "seen on rank 1 only" in lines[0]
+    assert "completed" not in out.stdout and "Traceback" not in out.stderr
     assert not (tmp_path / "run").exists() or {p.name for p in (tmp_path / "run").iterdir()
                                                } <= {run_folders.MARKER}   # no results
 
@@ -413,3 +441,57 @@ def test_resume_of_a_truncated_checkpoint_under_mpirun_ends(tmp_path):
     out = mpirun(2, "run", str(scene_file), "--out", str(run), "--resume")
     assert out.returncode == 2, out.stderr
     assert len(errors(out.stderr)) == 1 and "does not match the checksums" in out.stderr
+
+
+# --- item 21: devices and huge files as scenes or fit data --------------------------------
+
+
+@pytest.mark.parametrize("what", ["scene", "data"])
+@pytest.mark.parametrize("path", ["/dev/zero", "folder", "too large"])
+def test_non_regular_or_huge_input_files_are_refused(tmp_path, capsys, monkeypatch, what,
+                                                     path):
+    """Item 21: dolfin-rod check /dev/zero (or fit data /dev/zero) read until memory ran
+    out.  Now a device, a folder or a file above the bound (16 MiB scenes, 512 MiB data;
+    the data bound lowered here to 1 MiB to keep the test small) is refused unread."""
+    from dolfin_rod.fit import inputs as fit_inputs
+    monkeypatch.setattr(fit_inputs, "DATA_BYTES", 2**20)
+    target = {"/dev/zero": Path("/dev/zero"), "folder": tmp_path}.get(path)
+    if target is None:
+        target = tmp_path / "big"
+        with target.open("wb") as f:
+            f.truncate(17 * 2**20)            # sparse: nothing is written
+    scene = ROOT / "examples" / "fit" / "creep.toml"
+    argv = ["check", target] if what == "scene" else ["fit", scene, target, "--params",
+                                                       "mu_d", "--out", tmp_path / "fit"]
+    code, out, err = run_main(capsys, *argv)
+    reason = "larger than" if path == "too large" else "not a regular file"
+    assert code == 2 and len(errors(err)) == 1 and reason in err, err
+    assert f"{target}: cannot read the {'scene' if what == 'scene' else 'data'}" in err
+    assert not (tmp_path / "fit").exists()
+
+
+# --- item 31: scene.toml of a resumed run; two time columns in fit data -------------------
+
+
+def test_resumed_run_folder_holds_the_scene_it_was_resumed_with(tmp_path, capsys):
+    """Item 31: a run resumed with a later t_end kept the old scene.toml (t_end = 0.08
+    in the folder, results to 0.12)."""
+    scene_file, run = _stopped_run(tmp_path)
+    longer = tmp_path / "longer.toml"
+    longer.write_text(CREEP.replace("t_end = 0.08", "t_end = 0.12"))
+    code, _, err = run_main(capsys, "run", longer, "--out", run, "--resume", "--quiet")
+    assert code == 0, err
+    assert (run / "scene.toml").read_text() == longer.read_text()
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["t_end_reached"] == pytest.approx(0.12, abs=1e-12)
+    assert not (run / "scene.toml-new").exists()
+
+
+def test_fit_data_with_two_time_columns_is_refused(tmp_path, capsys):
+    """Item 31: fit silently took the first of two "time" columns."""
+    data = tmp_path / "two.csv"
+    data.write_text("time,load,response,time\n0,1,0,5\n0.1,1,0.1,6\n")
+    code, _, err = run_main(capsys, "fit", ROOT / "examples" / "fit" / "creep.toml", data,
+                            "--params", "mu_d", "--out", tmp_path / "fit")
+    assert code == 2 and len(errors(err)) == 1 and "column 'time' appears 2 times" in err
+    assert not (tmp_path / "fit").exists()

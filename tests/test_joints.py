@@ -90,6 +90,30 @@ def test_l_frame_large_load_second_order():
     assert tips[64][2] < 0.45          # large: the tip fell by more than half its length
 
 
+def test_l_frame_joint_either_way_round():
+    """The large-load frame with the joint's rods named the other way round (the
+    column's top node tied to the beam's, R_rel turned the other way): the same
+    solution, the rigid joint exact both ways (measured: the same tip to the last digit,
+    the knee forces opposite to 4e-13 of 1.5); the knee's
+    reaction is then the one on the column, the beam's opposite."""
+    from rod_systems import l_frame
+    results = []
+    for swap in (False, True):
+        model = l_frame(6, 1.5, steps_to_full_load=True)
+        if swap:
+            joint = model.joints[0]
+            model = RodSystem(model.rods, joints=[Joint("rigid", joint.rods[::-1], joint.point,
+                                                        name="knee")], model="hyperelastic")
+        model.set_initial_state()
+        TimeStepper(model.problem, solver_options=ROUND_OFF).run(0.0, 1.0, 1.0 / 3)
+        results.append(model.diagnostics(1.0))
+    beam, column = results
+    assert vector(column, "beam.tip_position") == pytest.approx(
+        vector(beam, "beam.tip_position"), rel=0, abs=1e-12)
+    assert vector(column, "joint_knee_force") == pytest.approx(
+        -vector(beam, "joint_knee_force"), rel=1e-9, abs=1e-9)
+
+
 @pytest.mark.mpi
 def test_joint_frame_serial_equals_two_ranks():
     """The large-load frame on the ranks of the run and serially: the same numbers to
@@ -146,3 +170,27 @@ def test_bad_joints_are_named(joint, message):
         rods[0] = Rod(p, 4, name="a", position=(1.0, 0.0, 0.0))
     with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("(", r"\(")):
         RodSystem(rods, joints=[joint])
+
+
+@pytest.mark.parametrize("factor, unstable", [(0.5, 0), (1.5, 2)])
+def test_split_column_buckles_as_the_column(factor, unstable):
+    """The stability check (analysis/stability.py) of a system with a joint counts the
+    negative eigenvalues of K on the free dofs (P^T K P): a clamped column split at its
+    middle into two rods joined rigidly, compressed by factor x the Euler load pi^2 EI /
+    (4 L^2), has the whole column's count: 0 below the load, 2 above (the two bending
+    planes).  Without the joint's reduction the free second rod's rigid motions would
+    count (the frame scene reported an unstable equilibrium)."""
+    from dolfin_rod import loads
+    from dolfin_rod.analysis.stability import TangentStiffness
+    p = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e4, 1e4, 1e4))
+    load = [EndLoad("force", (0, 0, -factor * np.pi ** 2 / 4), loads.ramp(1.0, 1.0))]
+    half = replace(p, length=0.5)
+    whole = RodModel(p, 8, model="hyperelastic", end_loads=load)
+    split = RodSystem([Rod(half, 4, name="a"),
+                       Rod(half, 4, ("free", "free"), end_loads=load, name="b",
+                           position=(0.0, 0.0, 0.5))],
+                      joints=[Joint("rigid", ("a", "b"), (0.0, 0.0, 0.5))], model="hyperelastic")
+    for model in (whole, split):
+        model.set_initial_state()
+        TimeStepper(model.problem).run(0.0, 1.0, 0.25)
+        assert TangentStiffness(model).inertia(1.0).negative == unstable

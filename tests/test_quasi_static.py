@@ -151,7 +151,8 @@ def test_a_start_that_turns_a_node_by_more_than_a_quarter_turn_is_refused():
     ({"drag": 0.5}, "quaternion"),
     ({"end_rotation": {"right": loads.step(1.0)}}, "quaternion"),   # a jumping end
     ({"variant": "uniform"}, "quaternion"),
-    ({"ends": ("pinned", "pinned")}, "quaternion"),  # a free spin about the axis
+    ({"ends": ("pinned", "pinned")}, "rotation_vector"),  # the spin held at s = 0
+    ({"ends": ("pinned", "free")}, "quaternion"),    # no end holds a rotation
 ])
 def test_auto_takes_rotation_vectors_where_they_apply(change, expected):
     """The contract of rotations = "auto" for quasi-static rods (validation.

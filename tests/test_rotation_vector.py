@@ -511,7 +511,7 @@ NO_ROTARY_INERTIA = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e
      "rotations must be one of"),
     (lambda: RodModel(KELVIN_VOIGT, n_cells=2, model="kelvin_voigt",
                       rotations="rotation_vector"), "Kelvin-Voigt viscosity"),
-    (lambda: RodModel(QUASI_STATIC, n_cells=2, model="hyperelastic", ends=("pinned", "pinned"),
+    (lambda: RodModel(QUASI_STATIC, n_cells=2, model="hyperelastic", ends=("pinned", "free"),
                       rotations="rotation_vector"), "no end holds"),
     (lambda: RodModel(PARAMS, n_cells=2, model="hyperelastic", variant="uniform",
                       rotations="rotation_vector"), "uniform variant"),

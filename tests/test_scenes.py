@@ -73,7 +73,9 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
                   "hanging_twist.toml": "rod", "spin_up.toml": "rod",
                   "sprung_cantilever.toml": "rod", "rod_on_incline.toml": "rod",
-                  "rope_on_floor.toml": "rod"}
+                  "rope_on_floor.toml": "rod", "frame.toml": "rod",
+                  "double_pendulum.toml": "rod", "tripod.toml": "rod",
+                  "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])

@@ -255,3 +255,66 @@ def test_a_dynamic_rod_on_quaternions_refuses_a_displaced_start():
         RodModel(RodParameters(rho_A=1.0, I11=0.01, I22=0.01), n_cells=2,
                  rotations="quaternion", ends=("clamped", "clamped"),
                  end_displacement={"right": lambda t: (0.1, 0.0, 0.0)})
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("rotations", ["rotation_vector", "quaternion"])
+def test_clamp_turning_freely_about_its_axis_under_a_couple(rotations):
+    """Clamped at s = 0; the end s = L in a clamp that slides along e_3 and turns freely
+    about it (end_slide and end_turn: a cylindrical joint), loaded there by a couple
+    C e_3 and a pull F e_3 (ramped).  The couple twists the rod as at a free end: tip
+    angle N dphi with C = GJ u_h sec^2(dphi/4) (closed_forms.p1_twist); the pull
+    stretches it by F L/EA; the end turns about e_3 only (tip quaternion components 1, 2
+    zero); the clamp at s = 0 takes the couple, the turning clamp no couple about e_3
+    and no force along it.  Tolerance: Newton's (1e-9)."""
+    GJ, EA, L, N, C, F = 2.0, 30.0, 1.5, 4, 0.3, 0.6
+    model = RodModel(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(20.0, 20.0, EA)),
+                     n_cells=N, model="hyperelastic", ends=("clamped", "clamped"),
+                     rotations=rotations, end_slide={"right": (0.0, 0.0, 1.0)},
+                     end_turn={"right": (0.0, 0.0, 1.0)},
+                     end_loads=[EndLoad("couple", (0.0, 0.0, C), loads.ramp(1.0, 1.0)),
+                                EndLoad("force", (0.0, 0.0, F), loads.ramp(1.0, 1.0))])
+    d = run(model, 1.0, 0.5, scheme="backward_euler")[-1]
+    h = L / N
+    x = brentq(lambda x: GJ * 4 * np.tan(x) / h / np.cos(x) ** 2 - C, 0.0, 0.5)
+    assert d["tip_rotation_angle"] == pytest.approx(4 * N * x, rel=1e-9)
+    assert d["tip_position_z"] == pytest.approx(L + F * L / EA, rel=1e-10)
+    assert abs(d["tip_quaternion_1"]) + abs(d["tip_quaternion_2"]) < 1e-12
+    assert d["reaction_couple_left_z"] == pytest.approx(-C, rel=1e-9)
+    for key in ("reaction_couple_right_z", "reaction_force_right_z"):
+        assert abs(d[key]) < 1e-9, key
+
+
+def test_a_turning_end_must_be_clamped_and_keep_its_axis():
+    with pytest.raises(ValueError, match=r"end_turn\['right'\]: only a clamped end"):
+        RodModel(RodParameters(), n_cells=2, ends=("clamped", "pinned"),
+                 end_turn={"right": (0.0, 0.0, 1.0)})
+    with pytest.raises(ValueError, match=r"end_turn\['right'\] must equal end_slide's axis"):
+        RodModel(RodParameters(), n_cells=2, ends=("clamped", "clamped"),
+                 end_slide={"right": (0.0, 0.0, 1.0)}, end_turn={"right": (1.0, 0.0, 0.0)})
+    helix = RodModel(RodParameters(reference_curvature=(1.0, 0.0, 0.0)), n_cells=2,
+                     ends=("clamped", "clamped"), end_turn={"right": (0.0, 0.0, 1.0)})
+    with pytest.raises(ValueError, match="initial frame must keep its axis"):
+        helix.set_initial_state()
+
+
+@pytest.mark.parametrize("change, key, match", [
+    ({"boundary.start_turn": [0.0, 0.0, 1.0], "boundary.start_rotation": None,
+      "loads.start_couple": {"value": [0.0, 0.0, 0.01]}}, None, None),
+    ({"boundary.start_turn": [0.0, 0.0, 1.0]}, "boundary.start_rotation", "turns freely"),
+    ({"boundary.start_turn": [1.0, 0.0, 0.0], "boundary.start_rotation": None},
+     "boundary.start_turn", "must equal boundary.start_slide"),
+    ({"boundary.start_turn": [0.0, 0.0, 1.0], "boundary.start_rotation": None,
+      "loads.start_couple": {"value": [0.01, 0.0, 0.0]}}, "loads.start_couple",
+     "only a dead couple along that axis"),
+])
+def test_turning_clamp_in_a_scene(change, key, match):
+    """The hanging twist with its bottom clamp turning freely (a couple about the axis
+    acts there) instead of being turned; bad combinations name the key."""
+    from dolfin_rod.scenes import SceneError, build, load_scene
+    if key is None:
+        sim = build(load_scene(HANGING, {**change, "geometry.n_cells": 2}), "rod")
+        assert sim.model.supports.turn["left"].tolist() == [0.0, 0.0, 1.0]
+        return
+    with pytest.raises(SceneError, match=rf"\[{key}\]: .*{match}"):
+        load_scene(HANGING, change)

@@ -105,6 +105,9 @@ class ConstrainedSystem:
         P.assemble()
         R.assemble()
         self.P, self.R = P, R
+        # the Dirichlet rows among the free dofs (local reduced rows; no slave has one)
+        self.bc_rows = np.array([local[start + r] - first for r in inner.bc_rows],
+                                dtype=np.int32)
         self.x, self.b = P.createVecRight(), P.createVecRight()
         self._y, self._c, self._b = P.createVecLeft(), P.createVecLeft(), inner.b.duplicate()
         self._c.set(0.0)

@@ -35,6 +35,7 @@ must be a number > 0: parameters are fitted as log p, so they stay positive.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import re
 import tomllib
@@ -43,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import DATA_BYTES, read_regular_file
 from ..scenes import Scene, validate
 
 __all__ = ["FitInputError", "Parameter", "Experiment", "MeasuredSeries", "read_series",
@@ -73,9 +75,9 @@ def read_series(path: str | Path) -> MeasuredSeries:
     the header, so the first sample is row 2)."""
     path = Path(path)
     try:
-        with path.open(newline="", encoding="utf-8-sig") as f:
-            rows = list(csv.reader(f))
-    except (OSError, UnicodeDecodeError) as err:
+        text = read_regular_file(path, DATA_BYTES).decode("utf-8-sig")
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except (OSError, ValueError, csv.Error) as err:     # (UnicodeDecodeError: ValueError)
         raise FitInputError(f"{path}: cannot read the data: "
                             f"{getattr(err, 'strerror', None) or err}") from None
     if not rows:
@@ -85,6 +87,10 @@ def read_series(path: str | Path) -> MeasuredSeries:
     if missing:
         raise FitInputError(f"{path}: missing column(s) {', '.join(missing)} (header: "
                             f"{','.join(header)}; need {','.join(COLUMNS)})")
+    twice = [c for c in COLUMNS if header.count(c) > 1]
+    if twice:
+        raise FitInputError(f"{path}: column {twice[0]!r} appears {header.count(twice[0])} "
+                            "times in the header: which one is meant?")
     columns = {c: np.array([_number(path, r, header.index(c), c, k + 2)
                             for k, r in enumerate(rows[1:]) if any(x.strip() for x in r)])
                for c in COLUMNS}

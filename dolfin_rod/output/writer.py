@@ -99,7 +99,7 @@ class RunWriter:
     """Everything a run writes; rank 0 writes files, collective writes on all ranks."""
 
     def __init__(self, folder: Path, scene, choice, sim, comm, resume: bool = False):
-        """``folder`` exists (prepare_run_folder); a resumed run keeps its scene.toml."""
+        """``folder`` exists (prepare_run_folder); a resumed run rewrites scene.toml in open()."""
         self.folder, self.scene, self.choice, self.sim, self.comm = Path(folder), scene, choice, sim, comm
         self.rank = comm.rank
         self.outputs = scene["outputs"]
@@ -126,6 +126,16 @@ class RunWriter:
         if keep_until_step is not None:
             on_root(self.comm, lambda: self._keep_rows(keep_until_step),
                     f"cannot resume: {self.folder / 'timeseries.csv'}")
+            if self.scene.text:       # the scene as resumed (its t_end, outputs may differ)
+                on_root(self.comm, self._replace_scene_file,
+                        f"cannot write {self.folder / 'scene.toml'}")
+
+    def _replace_scene_file(self) -> None:
+        """Rank 0: scene.toml replaced by the resumed scene's text (a new file, then a
+        rename: a crash leaves the old or the new one)."""
+        new = self.folder / "scene.toml-new"
+        new.write_text(self.scene.text)
+        new.replace(self.folder / "scene.toml")
 
     def _keep_rows(self, keep_until_step: int) -> None:
         """Rank 0: rows 0 .. keep_until_step of the earlier run (OutputError if any is

@@ -7,7 +7,9 @@ from importlib import import_module
 _WHERE = {"RodModel": "model", "RodSystem": "system", "Rod": "rods", "Joint": "joints",
           "RodParameters": "material", "EndLoad": "external_forces",
           "DistributedLoad": "external_forces", "EndSpring": "boundary_conditions",
-          "MODELS": "constitutive", "END_TYPES": "boundary_conditions"}
+          "MODELS": "constitutive", "END_TYPES": "boundary_conditions",
+          "Obstacle": "contact", "ContactLaw": "contact", "StartingState": "start",
+          "Straight": "start", "Arc": "start", "Helix": "start", "Polyline": "start"}
 
 __all__ = [*_WHERE, "sections"]
 

@@ -16,6 +16,11 @@ axis (a unit vector +-e_1, +-e_2 or +-e_3): its position is held (or prescribed)
 the axis only, its rotation as a clamped (or pinned) end's; a force along the axis acts
 on it (a weight on a sliding clamp, cosseratbench's twist experiment).
 
+end_turn: {end: axis}: a clamped end that turns freely about a coordinate axis (a hinge;
+with end_slide along the same axis a cylindrical joint): its rotation is held about the
+other two axes only; a couple about the axis acts on it.  Its initial rotation must keep
+the axis (R_0^T axis = axis, e.g. a straight rod along e_3 turning about e_3).
+
 end_springs: {end: EndSpring}: a compliant support, translational stiffness K (spatial
 components, N/m) about the end's initial position and rotational stiffness K_r (material
 components, N m/rad) about its initial rotation, with the energy
@@ -63,9 +68,20 @@ _CONJ = np.array([1.0, -1, -1, -1])
 
 
 def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False,
-                   end_slide=None, end_springs=None) -> None:
+                   end_slide=None, end_springs=None, end_turn=None) -> None:
     if len(ends) != 2 or any(e not in END_TYPES for e in ends):
         raise ValueError(f"ends must be two of {END_TYPES}, got {ends!r}")
+    for end, axis in (end_turn or {}).items():
+        if end not in ENDS or dict(zip(ENDS, ends))[end] != "clamped":
+            raise ValueError(f"end_turn[{end!r}]: only a clamped end turns in its support "
+                             f"(ends = {ends!r})")
+        problem = slide_axis_problem(axis)
+        slide = (end_slide or {}).get(end)
+        if problem or (slide is not None and np.any(np.asarray(slide) != np.asarray(axis))):
+            raise ValueError(f"end_turn[{end!r}] " + (problem or "must equal end_slide's axis"))
+        if end in (end_rotation or {}):
+            raise ValueError(f"end_turn[{end!r}]: the end's rotation is prescribed "
+                             "(end_rotation): it cannot also turn freely")
     for end, spring in (end_springs or {}).items():
         _check_spring(end, spring, dict(zip(ENDS, ends)).get(end), end_slide or {},
                       {**(end_displacement or {}), **(end_rotation or {})})
@@ -108,6 +124,19 @@ def _check_spring(end, spring, kind, slide: dict, moving) -> None:
                              "held or prescribed there, the support takes the spring's place")
 
 
+def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:
+    """Both ends pinned, no end rotation, turn or spring: turning every section by one
+    angle about its director d3 (the rigid rotation about the axis of a straight rod)
+    costs no energy, a null mode of a quasi-static rod's tangent (issue 27 item 3; with
+    inertia it is a motion, left alone).  EndSupports then
+    holds the spin about d3 at s = 0 (rotation vectors: theta_3 = 0 there), which adds no
+    couple where that mode has zero energy (the reaction is the residual along it, 0);
+    where it has energy (anisotropic sections, a natural curvature) it is a torsional
+    support at s = 0."""
+    return tuple(ends) == ("pinned", "pinned") and not (end_rotation or end_turn
+                                                          or end_springs)
+
+
 class HeldComponents:
     """The Dirichlet values of some components of a vector block at an end (a sliding
     end: the components across its axis), one scalar constant each."""
@@ -130,8 +159,9 @@ class EndSupports:
     may jump at t0 in a quasi-static rod), so that q_n,end c(theta_end) = q_end(t)."""
 
     def __init__(self, model, ends, end_displacement, end_rotation, end_slide,
-                 span: tuple[float, float], end_springs=None):
+                 span: tuple[float, float], end_springs=None, end_turn=None):
         self.ends = tuple(ends)
+        self.turn = {end: np.asarray(a, float) for end, a in (end_turn or {}).items()}
         self.springs = dict(end_springs or {})
         self.rest = {end: (fem.Constant(model.mesh, np.zeros(3)),
                            fem.Constant(model.mesh, _IDENTITY.copy())) for end in self.springs}
@@ -158,8 +188,9 @@ class EndSupports:
             for block, shape in blocks:
                 if block not in spaces:
                     continue
-                if end in self.slide and block in ("displacement", "velocity"):
-                    held = HeldComponents(mesh, np.flatnonzero(self.slide[end] == 0.0))
+                components = self._held_components(end, block)
+                if components is not None:
+                    held = HeldComponents(mesh, components)
                     self.values[(block, end)] = held
                     for i, const in zip(held.components, held.constants):
                         model.dirichlet_at(block, spaces[block], self.s_ends[end], const,
@@ -168,6 +199,34 @@ class EndSupports:
                 const = fem.Constant(mesh, np.zeros(shape) if shape else 0.0)
                 self.values[(block, end)] = const
                 model.dirichlet_at(block, spaces[block], self.s_ends[end], const)
+        if "rotation_increment" in spaces and not model.dynamic and spin_free(
+                ends, self.rotation, self.turn, self.springs):   # quasi-static: a null mode
+            model.dirichlet_at(self.block, spaces[self.block], self.s_ends["left"],
+                               fem.Constant(mesh, 0.0), component=2)
+        unk = model.unknowns     # a turning end's rotation (reactions): nodal values
+        self._rotations = unk.f["quaternion"] if unk.chart is None else unk.chart.q_n
+        self._turned = {end: NodeValues(self._rotations.function_space, [self.s_ends[end]])
+                        for end in self.turn}
+
+    def _held_components(self, end: str, block: str):
+        """The components a sliding or turning end holds of a block (None: all): those
+        across the slide axis of the position and velocity, across the turning axis of
+        the rotation increment, angular velocity and quaternion vector (its gauge
+        multiplier: none)."""
+        if end in self.slide and block in ("displacement", "velocity"):
+            return np.flatnonzero(self.slide[end] == 0.0)
+        if end not in self.turn:
+            return None
+        across = np.flatnonzero(self.turn[end] == 0.0)
+        return {"rotation_increment": across, "angular_velocity": across,
+                "quaternion": 1 + across, "gauge_multiplier": ()}.get(block)
+
+    def _end_rotation(self, end: str, t: float) -> np.ndarray:
+        """The end's rotation now: prescribed, or of the state at a turning end."""
+        if end not in self.turn:
+            return self.prescribed(end, t)[1]
+        q = self._turned[end](self._rotations.x.array)[0]
+        return q / np.linalg.norm(q)
 
     def prescribed(self, end: str, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(x, q) of an end at time t."""
@@ -190,6 +249,12 @@ class EndSupports:
             if fixed and self._fixed_values_of.get(end) is self.initial[end]:
                 continue
             self._fixed_values_of[end] = self.initial[end] if fixed else None
+            if end in self.turn and not np.allclose(
+                    np_rotation_matrix(self.initial[end][1]).T @ self.turn[end],
+                    self.turn[end], rtol=0, atol=1e-12):
+                raise ValueError(f"end_turn[{end!r}]: the end's initial rotation turns the "
+                                 f"axis {self.turn[end].tolist()} away: a turning end's "
+                                 "initial frame must keep its axis")
             if end in self.rest:                 # a spring's rest state: the initial one
                 for const, value in zip(self.rest[end], self.initial[end]):
                     const.value[:] = value
@@ -258,7 +323,7 @@ class EndSupports:
                 out.update(zip((f"reaction_force_{end}_{c}" for c in "xyz"),
                                node["displacement"].tolist()))
             if rotation_block in node:
-                couple = spatial_rotations(rotation_block, self.prescribed(end, t)[1]) @ \
+                couple = spatial_rotations(rotation_block, self._end_rotation(end, t)) @ \
                     node[rotation_block]
                 out.update(zip((f"reaction_couple_{end}_{c}" for c in "xyz"), couple.tolist()))
             if end in self.displacement or end in self.rotation:

@@ -81,9 +81,10 @@ def natural_strains(unk, evolving: bool, constraint, reference, v_eff):
     if not evolving:
         return u_ref, None if v_eff is None else constraints.constrained_stretch(v_ref, constraint)
     v_d = unk.f.get("natural_stretch")
+    v_d = None if v_d is None else unk.natural_field(v_d)
     if constraint == "unshearable":
         v_d = ufl.as_vector((0.0, 0.0, v_d))
-    return unk.f["natural_curvature"], v_d
+    return unk.natural_field(unk.f["natural_curvature"]), v_d
 
 
 def _kinematics(unk, viscous: bool):

@@ -23,9 +23,11 @@ where the P1 element's 6 strains are independent functions of its 6 deformation 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import dolfinx
 import dolfinx.fem as fem
+import numpy as np
 import ufl
 
 from ..theory import constraints
@@ -70,12 +72,14 @@ def discretise(comm, layout: RodLayout, rotations: str) -> Discretisation:
 
 
 def function_spaces(mesh, evolving: bool, variant: str, constraint: str | None,
-                    dynamic: bool, rotations: str = "quaternion") -> dict:
+                    dynamic: bool, rotations: str = "quaternion", n_rods: int = 1) -> dict:
     """One space object per block (blocks sharing an element still get their own: the
-    assembly finds a Dirichlet condition's block by its space)."""
+    assembly finds a Dirichlet condition's block by its space).  The uniform variant of
+    several rods: one real vector of every rod's global natural strains in turn
+    (layout.Pieces.of_rods)."""
     def natural_space(shape):
         if variant == "uniform":
-            return real_space(mesh, shape)
+            return real_space(mesh, shape if n_rods == 1 else (n_rods * int(np.prod(shape)),))
         return fem.functionspace(mesh, ("DG", 0, shape) if shape else ("DG", 0))
 
     spaces = {"displacement": fem.functionspace(mesh, ("Lagrange", 1, (3,)))}
@@ -107,7 +111,8 @@ class Unknowns:
     x_t and 2 vec(conj(q) q_t)/|q|^2, or the rotation increment's rate, which the
     integrator treats as W); the rotation block's name, the rotation q at any point, the
     material virtual rotation dTheta of the rotation block's test function; the chart
-    of the stored rotations (rotation vectors) or None."""
+    of the stored rotations (rotation vectors) or None; ``natural_field`` (the uniform
+    variant of several rods: each rod's global values on its cells, layout.py)."""
 
     spaces: dict
     f: dict
@@ -120,6 +125,7 @@ class Unknowns:
     dTheta: ufl.core.expr.Expr
     acc: dict
     chart: RotationVectorChart | None
+    natural_field: Callable = lambda g: g     # a natural-strain block as a field along s
 
     @property
     def names(self) -> list[str]:
@@ -130,7 +136,7 @@ class Unknowns:
         return "velocity" in self.spaces or bool(self.acc)
 
 
-def unknowns(spaces: dict, dynamic: bool) -> Unknowns:
+def unknowns(spaces: dict, dynamic: bool, natural_field: Callable | None = None) -> Unknowns:
     f = {n: fem.Function(S, name=n) for n, S in spaces.items()}
     r = {n: fem.Function(S, name=f"{n}_rate") for n, S in spaces.items()}
     t = {n: ufl.TestFunction(S) for n, S in spaces.items()}
@@ -140,9 +146,10 @@ def unknowns(spaces: dict, dynamic: bool) -> Unknowns:
         acc = {n: fem.Function(spaces[n], name=f"{n}_acceleration")
                for n in ("displacement", name)} if dynamic else {}
         return Unknowns(spaces, f, r, t, r["displacement"], r[name], name, chart.q,
-                        chart.virtual_rotation(t[name]), acc, chart)
+                        chart.virtual_rotation(t[name]), acc, chart,
+                        natural_field or (lambda g: g))
     q, qt = f["quaternion"], t["quaternion"]
     V = f["velocity"] if dynamic else r["displacement"]
     W = f["angular_velocity"] if dynamic else material_derivative_vector(q, r["quaternion"])
     return Unknowns(spaces, f, r, t, V, W, "quaternion", q,
-                    material_derivative_vector(q, qt), {}, None)
+                    material_derivative_vector(q, qt), {}, None, natural_field or (lambda g: g))

@@ -1,7 +1,8 @@
-"""The rod's initial state: at rest in the stress-free configuration of the reference
-strains (a straight rod along e_3, or the helix/circle of constant reference_curvature),
-natural strains equal to the discrete reference strains (uniform variant: their mean)
-unless given, rates zero."""
+"""The rod's initial state: the stress-free configuration of the reference strains (a
+straight rod along e_3, or the helix/circle of constant reference_curvature) gives the
+reference strains and the natural strains (the discrete reference strains, uniform
+variant: their mean, unless given); the rod starts at rest there, or in a starting
+state (rod/start.py: placed, another centre line, velocities, static equilibrium)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from mpi4py import MPI
 
 from ..fem import compat
 from ..fem.fe_model import ENDS
+from ..fem.solvers import BlockSNES, SolverError
 from ..theory.rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 
 
@@ -44,32 +46,27 @@ def stress_free(model, s) -> tuple[np.ndarray, np.ndarray]:
     rod_of = model.layout.rod_of(s)
     for k, rod in enumerate(model.rods):
         on = rod_of == k
-        r_k, q_k = helix(s[on] - model.layout.starts[k], rod.params.reference_curvature,
-                         rod.params.reference_stretch)
-        turn = np_quaternion_from_rotation_vector(np.asarray(rod.orientation, float))
-        r[on] = np.asarray(rod.position, float) + r_k @ np_rotation_matrix(turn).T
-        q[on] = np_qmul(turn, q_k)
+        r[on], q[on] = placed_shape(rod, s[on] - model.layout.starts[k])
     return r, q
 
 
-def set_initial_state(model, natural_curvature=None, natural_stretch=None) -> None:
-    """See RodModel.set_initial_state."""
+def placed_shape(rod, s) -> tuple[np.ndarray, np.ndarray]:
+    """(r, q) of one rod (rods.Rod) at its own arc lengths s: the helix of its reference
+    strains, turned by its orientation, moved to its position."""
+    r, q = helix(s, rod.params.reference_curvature, rod.params.reference_stretch)
+    turn = np_quaternion_from_rotation_vector(np.asarray(rod.orientation, float))
+    return (np.asarray(rod.position, float) + r @ np_rotation_matrix(turn).T,
+            np_qmul(turn, q))
+
+
+def set_initial_state(model, natural_curvature=None, natural_stretch=None,
+                      start=None) -> None:
+    """See RodModel.set_initial_state; ``start`` a rod.start.StartingState or None."""
     unk = model.unknowns
     f = unk.f
     for g in [*f.values(), *unk.r.values(), *unk.acc.values()]:
         g.x.array[:] = 0.0
-    f["displacement"].interpolate(
-        lambda X: (stress_free(model, X[0])[0] - np.outer(X[0], [0, 0, 1.0])).T)
-    if unk.chart is not None:
-        unk.chart.set_nodal_rotations(lambda s: stress_free(model, s)[1])
-    else:
-        f["quaternion"].interpolate(lambda X: stress_free(model, X[0])[1].T)
-    for supports in model.end_supports:
-        supports.committed_time = None
-        for end in ENDS:
-            e_s = supports.s_ends[end]
-            r, qq = stress_free(model, np.array([e_s]))
-            supports.initial[end] = (r[0] - np.array([0, 0, e_s]), qq[0])
+    _set_configuration(model, lambda s: stress_free(model, s))
     for g in f.values():
         g.x.scatter_forward()
     u_ref, v_ref = model.reference
@@ -85,14 +82,109 @@ def set_initial_state(model, natural_curvature=None, natural_stretch=None) -> No
             _fill_natural(model, "natural_stretch", natural_stretch, v_ref)
         for g in f.values():
             g.x.scatter_forward()
+    if start is not None:   # the starting state moves the rod off its stress-free shape
+        _set_configuration(model, lambda s: start.frames(
+            s, lambda x: stress_free(model, x), model.length, model.layout.n_cells[0]))
+        _set_velocities(model, start)
+        for g in [*f.values(), *unk.r.values()]:
+            g.x.scatter_forward()
     model.set_supports(0.0)
+    if start is not None and start.equilibrium:
+        settle(model, 0.0)
 
 
-def _mean(model, field) -> np.ndarray:
-    """(1/L) int field ds of a DG0 vector field (MPI-reduced)."""
-    parts = [fem.assemble_scalar(fem.form(field[i] * ufl.dx(domain=model.mesh)))
-             for i in range(3)]
-    return np.array(model.mesh.comm.allreduce(np.array(parts), op=MPI.SUM)) / model.length
+def _set_configuration(model, frames) -> None:
+    """Displacement x = r - s e3, the nodal rotations and the ends' initial (x, q) of the
+    configuration ``frames(s) -> (r, q)`` (nodal values at the parameter values s)."""
+    unk = model.unknowns
+    unk.f["displacement"].interpolate(
+        lambda X: (frames(X[0])[0] - np.outer(X[0], [0, 0, 1.0])).T)
+    if unk.chart is not None:
+        unk.chart.set_nodal_rotations(lambda s: frames(s)[1])
+    else:
+        unk.f["quaternion"].interpolate(lambda X: frames(X[0])[1].T)
+    for supports in model.end_supports:
+        supports.committed_time = None
+        for end in ENDS:
+            e_s = supports.s_ends[end]
+            r, qq = frames(np.array([e_s]))
+            supports.initial[end] = (r[0] - np.array([0, 0, e_s]), qq[0])
+
+
+def _set_velocities(model, start) -> None:
+    """The starting velocities at the nodes: V and the material angular velocity
+    W = R^T w (rotation vectors: the rates of the displacement and the rotation
+    increment, which the integrator reads; quaternions: the velocity fields and the
+    rates x_t = V, q_t = q (0, W)/2 consistent with them), zero at held ends."""
+    unk = model.unknowns
+    if not start.moving:
+        return
+    x = unk.f["displacement"]
+    s = x.function_space.tabulate_dof_coordinates()[:, 0]
+    q = (unk.chart.q_n if unk.chart is not None else unk.f["quaternion"]).x.array.reshape(-1, 4)
+    v, w = start.velocities(s, x.x.array.reshape(-1, 3) + np.outer(s, [0, 0, 1.0]))
+    conj = q * np.array([1.0, -1, -1, -1])
+    W = np_qmul(np_qmul(conj, np.hstack([np.zeros((len(s), 1)), w])), q)[:, 1:] \
+        / np.einsum("ij,ij->i", q, q)[:, None]
+    for supports in model.end_supports:
+        for end in ENDS:
+            at_end = np.isclose(s, supports.s_ends[end])
+            if (unk.rotation, end) in supports.values:
+                W[at_end] = 0.0
+            if ("displacement", end) in supports.values:
+                v[at_end] = 0.0
+    if unk.chart is not None:
+        unk.r["displacement"].x.array[:] = v.ravel()
+        unk.r["rotation_increment"].x.array[:] = W.ravel()
+        return
+    unk.f["velocity"].x.array[:] = v.ravel()
+    unk.f["angular_velocity"].x.array[:] = W.ravel()
+    unk.r["displacement"].x.array[:] = v.ravel()
+    unk.r["quaternion"].x.array[:] = 0.5 * np_qmul(
+        q, np.hstack([np.zeros((len(s), 1)), W])).ravel()
+
+
+BALANCE = ("displacement", "quaternion", "rotation_increment", "gauge_multiplier",
+           "constraint_multiplier")
+
+
+def settle(model, t: float) -> None:
+    """Static equilibrium of the positions and rotations (the blocks of BALANCE; natural
+    strains fixed) with the loads and supports at t, from the current state, rates and
+    accelerations held at zero meanwhile; rotation vectors: committed to the stored
+    rotations.  ValueError if Newton finds none."""
+    unk, problem = model.unknowns, model.problem
+    names = [n for n in model.names if n in BALANCE]
+    moving = [g for g in [*unk.r.values(), *unk.acc.values()] + [
+        unk.f[n] for n in ("velocity", "angular_velocity") if n in unk.f]]
+    saved = [g.x.array.copy() for g in moving]
+    for g in moving:
+        g.x.array[:] = 0.0
+    problem.set_loads(t)
+    problem.set_bcs(t)
+    solver = BlockSNES([model.residual[n] for n in names], [unk.f[n] for n in names],
+                       [bc for n in names for bc in model.bcs_of(n)],
+                       {"snes_max_it": 50}, step_scale=problem.configuration_norm())
+    try:
+        solver.solve()
+    except SolverError as err:
+        raise ValueError(f"start.equilibrium: no static equilibrium found from the starting "
+                         f"shape at t = {t:g} ({err}); is the rod supported against rigid "
+                         "motions?") from err
+    finally:
+        for g, array in zip(moving, saved):
+            g.x.array[:] = array
+    if unk.chart is not None:
+        model.commit_rotations()
+
+
+def _means(model, field) -> np.ndarray:
+    """(1/L_k) int_rod k field ds of a DG0 vector field, one row per rod (MPI-reduced)."""
+    chi = model.pieces.indicator
+    parts = [fem.assemble_scalar(fem.form(chi(k) * field[i] * ufl.dx(domain=model.mesh)))
+             for k in range(len(model.rods)) for i in range(3)]
+    total = np.array(model.mesh.comm.allreduce(np.array(parts), op=MPI.SUM)).reshape(-1, 3)
+    return total / np.array(model.layout.lengths)[:, None]
 
 
 def _fill_natural(model, name, given, discrete) -> None:
@@ -102,7 +194,7 @@ def _fill_natural(model, name, given, discrete) -> None:
     elif model.variant == "local":
         val = discrete.x.array.reshape(-1, 3)
     else:     # one global value: the mean of the discrete strains, so no initial stress
-        val = np.atleast_2d(_mean(model, discrete))
+        val = _means(model, discrete)
     if model.constraint == "unshearable" and name == "natural_stretch":
         g.x.array[:] = np.broadcast_to(val[:, 2], g.x.array.shape)
     else:

@@ -31,6 +31,7 @@ from ..fem.multipoint import NodeLink
 from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
 from ..theory.rotations import np_qmul, np_rotation_matrix
 from .boundary_conditions import spatial_rotations
+from .initial_state import placed_shape, stress_free
 
 KINDS = ("rigid", "ball")
 _CONJ = np.array([1.0, -1, -1, -1])
@@ -73,18 +74,28 @@ def joint_label(joint: Joint) -> str:
 
 
 def joint_nodes(model, joints: list[Joint]) -> list[tuple[float, float]]:
-    """(s of the first rod's node, s of the second rod's node) at each joint's point; a
-    ValueError naming the joint if the point is not a node of both rods, or a node with
-    a support."""
-    layout, names = model.layout, [rod.name for rod in model.rods]
-    tol = 1e-9 * max(layout.lengths)
+    """(s of the first rod's node, s of the second rod's node) on the system's mesh at
+    each joint (``locate``)."""
+    layout = model.layout
+    starts, h = layout.starts, [L / n for L, n in zip(layout.lengths, layout.n_cells)]
+    return [(starts[k_a] + i_a * h[k_a], starts[k_b] + i_b * h[k_b])
+            for k_a, i_a, k_b, i_b in locate(model.rods, joints)]
+
+
+def locate(rods, joints: list[Joint]) -> list[tuple[int, int, int, int]]:
+    """(rod, node, rod, node) of each joint: the nodes of its two rods (rods.Rod) at its
+    point in the initial configuration; a ValueError naming ``joints[k].point`` if it
+    is not a node of both, or ``joints[k]`` if a joined node is a supported end."""
+    names = [rod.name for rod in rods]
+    tol = 1e-9 * max(rod.params.length for rod in rods)
     out = []
     for k, joint in enumerate(joints):
         pair = []
         for name in joint.rods:
             i = names.index(name)
-            s = np.linspace(*layout.span(i), layout.n_cells[i] + 1)
-            r = model.stress_free(s)[0]
+            rod = rods[i]
+            s = np.linspace(0.0, rod.params.length, rod.n_cells + 1)
+            r = placed_shape(rod, s)[0]
             distance = np.linalg.norm(r - np.asarray(joint.point, float), axis=1)
             node = int(np.argmin(distance))
             if distance[node] > tol:
@@ -92,14 +103,14 @@ def joint_nodes(model, joints: list[Joint]) -> list[tuple[float, float]]:
                     f"joints[{k}].point {list(joint.point)} is not on rod {name!r}: its "
                     f"nearest node is at {r[node].round(12).tolist()} ({distance[node]:.3g} "
                     "away); a joint is at a node of both rods")
-            for end, s_end in zip(ENDS, layout.span(i)):
-                supports = model.end_supports[i]
-                held = any(key[1] == end for key in supports.values)
-                if np.isclose(s[node], s_end) and held:
+            for end, end_node, kind in zip(ENDS, (0, rod.n_cells), rod.ends):
+                held = kind != "free" or end in (rod.end_displacement or {}) or \
+                    end in (rod.end_rotation or {})
+                if node == end_node and held:
                     raise ValueError(f"joints[{k}]: rod {name!r} is supported at its {end} "
                                      "end, where the joint is; a joint joins free ends or "
                                      "interior nodes")
-            pair.append(float(s[node]))
+            pair += [i, node]
         out.append(tuple(pair))
     return out
 
@@ -113,7 +124,7 @@ def node_links(model, joints: list[Joint], nodes) -> list[NodeLink]:
         links.append(NodeLink(blocks.index("displacement"), s_a, s_b,
                               tuple(map(tuple, np.eye(3)))))
         if joint.kind == "rigid":
-            q_a, q_b = model.stress_free(np.array([s_a, s_b]))[1]
+            q_a, q_b = stress_free(model, np.array([s_a, s_b]))[1]
             relative = np_rotation_matrix(np_qmul(q_a * _CONJ, q_b))
             links.append(NodeLink(blocks.index(model.unknowns.rotation), s_a, s_b,
                                   tuple(map(tuple, relative.T))))

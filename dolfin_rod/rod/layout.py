@@ -105,6 +105,22 @@ class Pieces:
             self._indicators[k] = chi
         return self._indicators[k]
 
+    def of_rods(self, g):
+        """A field of one real vector holding each rod's values in turn (the uniform
+        variant's global natural strains of several rods): rod k's part on its cells."""
+        n = len(self.layout.lengths)
+        size = ufl.shape(g)[0] // n
+        part = (lambda k: g[k]) if size == 1 else \
+            (lambda k: ufl.as_vector([g[size * k + i] for i in range(size)]))
+        return sum((self.indicator(k) * part(k) for k in range(1, n)),
+                   self.indicator(0) * part(0))
+
+    def length(self):
+        """Each rod's length on its cells (a float for a single rod)."""
+        if self.layout.single:
+            return self.layout.lengths[0]
+        return self.cellwise(list(self.layout.lengths), (), "rod_length")
+
     def cellwise(self, values: list, shape: tuple[int, ...], name: str) -> fem.Function:
         """A DG0 field equal to values[k] (an array of ``shape``) on rod k's cells."""
         V = fem.functionspace(self.mesh, ("DG", 0, shape) if shape else ("DG", 0))

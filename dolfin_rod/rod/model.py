@@ -7,7 +7,8 @@
     residual.py            balance, gauge, constraints, evolution, inertia
     external_forces.py     end and distributed loads, drag
     boundary_conditions.py clamped, pinned, prescribed motions, reactions
-    initial_state.py       the stress-free initial configuration
+    initial_state.py       the stress-free configuration, the state at t = 0
+    start.py               starting states: placement, curves, velocities
     contact.py             obstacles: barrier and Coulomb friction
     diagnostics.py         energies, powers, tip
 """
@@ -31,7 +32,7 @@ from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..theory.rotations import rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
-from .boundary_conditions import EndSupports
+from .boundary_conditions import EndSupports, spin_free
 from .constitutive import check_model, energy_function, section_response
 from .contact import ContactLaw, Obstacle, ObstacleContact
 from .discretisation import discretise, function_spaces, unknowns
@@ -41,6 +42,7 @@ from .layout import RodLayout
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
 from .segments import PassThroughCheck
+from .start import StartingState, check_start
 
 
 class RodModel(FEModel):
@@ -50,7 +52,8 @@ class RodModel(FEModel):
     "local" or "uniform" (evolution.py); constraint: None, "unshearable" or
     "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
     boundary_conditions.py (end_slide: {end: axis}, a clamped or pinned end sliding
-    along a coordinate axis; end_springs: {end: EndSpring}, compliant supports); end_loads, distributed_loads: external_forces.py; rotations:
+    along a coordinate axis; end_turn: {end: axis}, a clamped end turning freely about
+    one; end_springs: {end: EndSpring}, compliant supports); end_loads, distributed_loads: external_forces.py; rotations:
     "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
     vectors for the local variant without a constraint, a dynamic rod with rotary
     inertia or a quasi-static one without Kelvin-Voigt viscosity and drag: 6 unknowns
@@ -70,9 +73,10 @@ class RodModel(FEModel):
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
                  rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD,
                  end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
-                 contact: ContactLaw | None = None, end_springs: dict | None = None):
+                 contact: ContactLaw | None = None, end_springs: dict | None = None,
+                 end_turn: dict | None = None):
         rod = Rod(params, n_cells, ends, end_loads, distributed_loads, end_displacement,
-                  end_rotation, end_slide, end_springs=end_springs)
+                  end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn)
         self._build([rod], model, variant, constraint, rotations, comm, obstacles=obstacles,
                     contact=contact)
 
@@ -104,6 +108,8 @@ class RodModel(FEModel):
             rate_dependent=not all(is_zero(v) for p in all_params for v in (
                 p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
             rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
+                              or spin_free(rod.ends, rod.end_rotation, rod.end_turn,
+                                           rod.end_springs)
                               or any(np.all(spring.stiffness("rotational"))
                                      for spring in (rod.end_springs or {}).values())
                               for rod in rods))
@@ -127,9 +133,10 @@ class RodModel(FEModel):
         super().__init__(disc.mesh)
         self.dx, self.dx_r = disc.dx, disc.dx_r
         self.pieces = disc.pieces
+        per_rod = variant == "uniform" and not layout.single   # each rod's global strains
         self.unknowns = unk = unknowns(function_spaces(
-            disc.mesh, self.evolving, variant, constraint, self.dynamic, self.rotations),
-            self.dynamic)
+            disc.mesh, self.evolving, variant, constraint, self.dynamic, self.rotations,
+            len(rods)), self.dynamic, disc.pieces.of_rods if per_rod else None)
         self.names, self.f, self.r, self.t = unk.names, unk.f, unk.r, unk.t
         self.V, self.W = unk.V, unk.W
         self.coefficients = c = coefficients(all_params, disc.pieces)
@@ -158,7 +165,7 @@ class RodModel(FEModel):
         residual.one_quadrature_rule(F, unk, disc)
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, layout.span(k),
-                                         rod.end_springs)
+                                         rod.end_springs, rod.end_turn)
                              for k, rod in enumerate(rods)]
         springs = sum((supports.spring_energy(unk, disc.ds, disc.end_weight,
                                               disc.pieces.indicator(k))
@@ -260,12 +267,22 @@ class RodModel(FEModel):
         """(r, q) of the initial stress-free configuration at parameter values s."""
         return initial_state.stress_free(self, s)
 
-    def set_initial_state(self, natural_curvature=None, natural_stretch=None) -> None:
-        """Rest in the stress-free configuration of the reference strains (a straight rod
-        along e_3, or the helix/circle of constant reference_curvature), natural strains
-        equal to the discrete reference strains (uniform variant: their mean) unless given
-        (3-vectors), rates zero: no stress at t = 0."""
-        initial_state.set_initial_state(self, natural_curvature, natural_stretch)
+    def set_initial_state(self, natural_curvature=None, natural_stretch=None,
+                          start: StartingState | None = None) -> None:
+        """Natural strains equal to the discrete reference strains of the stress-free
+        configuration (a straight rod along e_3, or the helix/circle of constant
+        reference_curvature; uniform variant: their mean) unless given (3-vectors).
+        ``start`` None: the rod rests in that configuration, no stress at t = 0;
+        a StartingState (rod/start.py; one rod, not a system): placed at its position
+        and orientation, on its starting curve (e.g. Arc, Helix, Polyline, a Straight one
+        stretched), with its velocities (dynamic rods), or settled in static equilibrium
+        with the loads at t = 0 (``equilibrium``); the stress-free shape is unchanged."""
+        if start is not None and not self.layout.single:
+            raise ValueError("start: a StartingState is for a single rod; the rods of a "
+                             "system are placed by Rod.position and Rod.orientation")
+        check_start(start, self.length, self.dynamic, rotation_held=(
+            "clamped" in self.supports.ends or bool(self.supports.rotation)))
+        initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
         if self.contact:
             self.contact.check_initial()
             self.contact.update_normal_forces()

@@ -59,9 +59,9 @@ def evolution(F: dict, unk: Unknowns, resp: SectionResponse, c: dict, variant: s
         blocks.append(("natural_stretch", c["N_d"][2, 2] if unshearable else c["N_d"],
                        resp.dpsi_dvd[2] if unshearable else resp.dpsi_dvd))
     for name, M_d, dpsi in blocks:
-        rate = unk.r[name]
-        F[name] = evolution_residual(M_d, rate, dpsi, unk.t[name], variant, disc.length,
-                                     disc.dx_r)
+        rate = unk.natural_field(unk.r[name])
+        F[name] = evolution_residual(M_d, rate, dpsi, unk.natural_field(unk.t[name]), variant,
+                                     disc.pieces.length(), disc.dx_r)
         pairs.append((rate, dpsi))
     return pairs
 

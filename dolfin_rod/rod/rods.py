@@ -38,6 +38,7 @@ class Rod:
     orientation: Sequence[float] = (0.0, 0.0, 0.0)
     name: str = "rod"
     end_springs: dict | None = None      # {end: EndSpring} (boundary_conditions.py)
+    end_turn: dict | None = None         # {end: axis}: a clamped end turning freely
 
     def __post_init__(self):
         self.end_loads, self.distributed_loads = list(self.end_loads), list(self.distributed_loads)
@@ -77,15 +78,13 @@ def check_rods(rods: list[Rod], model: str, variant: str) -> None:
     if any(rod.params.energy is not rods[0].params.energy for rod in rods):
         raise ValueError("rods[k].params.energy: the rods of a system share one energy "
                          "function (its parameters may differ per rod through A, B, ...)")
-    if variant == "uniform":
-        raise ValueError("variant 'uniform' with several rods is not implemented (each rod "
-                         "would need its own global natural strains); use 'local'")
 
 
 def _check_rod(rod: Rod, model: str, variant: str) -> None:
     check_n_cells(rod.n_cells)
     check_supports(rod.ends, rod.end_displacement, rod.end_rotation,
-                   not is_zero(rod.params.rho_A), rod.end_slide, rod.end_springs)
+                   not is_zero(rod.params.rho_A), rod.end_slide, rod.end_springs,
+                   rod.end_turn)
     check_parameters(rod.params, model == "evolving", model != "hyperelastic", variant)
     check_loads(rod.end_loads, rod.distributed_loads)
     for name in ("position", "orientation"):

@@ -51,3 +51,41 @@ def choose_rotations(rotations: str, obstacle: str | None, lie_integrator: bool 
         raise ValueError(f"rotations = 'rotation_vector' does not apply to {why}; use "
                          "'quaternion'")
     return rotations
+
+
+# A start in static equilibrium (rod/start.py) with only pinned or free ends is singular.
+EQUILIBRIUM_NEEDS = ("the static problem needs an end whose rotation is held (clamped, or "
+                     "a prescribed end rotation): otherwise the sections turn about their "
+                     "tangents for free")
+# A starting polyline's length against the rod's (rod/start.py; a rod of 1 m: 1 um).
+LENGTH_RTOL = 1e-6
+
+
+def polyline_problem(points, rest_arc_length, normal, length: float) -> tuple[str, str] | None:
+    """(key, reason) for a starting polyline (rod/start.Polyline) that does not fit a rod
+    of ``length``, key one of "points", "rest_arc_length", "normal"; else None."""
+    points = np.asarray(points, dtype=float)
+    if points.ndim != 2 or points.shape[1:] != (3,) or len(points) < 2 \
+            or not np.isfinite(points).all():
+        return "points", "at least two finite points [x, y, z]"
+    chords = np.diff(points, axis=0)
+    if np.any(np.linalg.norm(chords, axis=1) == 0):
+        return "points", "two consecutive points coincide"
+    if rest_arc_length is None:
+        key, what = "points", "polyline's length"
+        arc = np.concatenate(([0.0], np.cumsum(np.linalg.norm(chords, axis=1))))
+    else:
+        key, what = "rest_arc_length", "last rest arc length"
+        arc = np.asarray(rest_arc_length, dtype=float)
+        if arc.shape != (len(points),) or arc[0] != 0 or np.any(np.diff(arc) <= 0):
+            return key, f"one value per point ({len(points)}), from 0, increasing"
+    if abs(arc[-1] - length) > LENGTH_RTOL * length:
+        return key, (f"the {what} {arc[-1]:.9g} differs from the rod's length {length:.9g} "
+                     f"(geometry.length); they must agree to {LENGTH_RTOL:g} relative")
+    normal = np.asarray(normal, dtype=float)
+    if normal.shape != (3,) or not np.isfinite(normal).all():
+        return "normal", "a finite 3-vector"
+    if np.linalg.norm(np.cross(normal, chords[0])) <= 1e-9 * np.linalg.norm(normal) * \
+            np.linalg.norm(chords[0]):
+        return "normal", "parallel to the first segment (it gives d1, perpendicular to the rod)"
+    return None

@@ -31,21 +31,25 @@ from mpi4py import MPI
 
 from . import diagnostics
 from .model import RodModel
+from .contact import ContactLaw, Obstacle
 from .joints import Joint
 from .rods import Rod
 
 
 class RodSystem(RodModel):
     """Several rods (rods.Rod) in one model, joined by ``joints`` (joints.Joint); model,
-    variant, constraint, rotations as RodModel (common to all rods).  Diagnostics: the
+    variant, constraint, rotations, obstacles and contact as RodModel (common to all
+    rods).  Diagnostics: the
     system's energies and powers under the single rod's names, each rod's tip and
     reactions as ``<name>.<key>``, each joint's reactions as ``joint_<name>_...``."""
 
     def __init__(self, rods: Sequence[Rod], joints: Sequence[Joint] = (),
                  model: str = "evolving", variant: str = "local",
                  constraint: str | None = None, rotations: str = "auto",
-                 comm: MPI.Comm = MPI.COMM_WORLD):
-        self._build(list(rods), model, variant, constraint, rotations, comm, joints)
+                 comm: MPI.Comm = MPI.COMM_WORLD, obstacles: Sequence[Obstacle] = (),
+                 contact: ContactLaw | None = None):
+        self._build(list(rods), model, variant, constraint, rotations, comm, joints,
+                    obstacles=obstacles, contact=contact)
 
     def diagnostics(self, t: float) -> dict[str, float]:
         """MPI-reduced scalars at time t: free and kinetic energy, dissipation rate, load

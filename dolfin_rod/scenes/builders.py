@@ -18,8 +18,8 @@ from typing import Callable, Protocol
 import numpy as np
 
 from .contact import contact_law, contact_solver_options, obstacles
-from .rules import adaptive_stepper, rod_rotations
-from .schema import Scene, SceneError
+from .rules import START_KEYS, adaptive_stepper, rod_rotations
+from .scene import Scene, SceneError
 from .values import Coefficient
 
 CONTACT_SCHEME = "generalized_alpha:0.0"   # rho_inf = 0: a barrier's impacts (docs/contact.md)
@@ -98,6 +98,7 @@ class FESimulation:
             self.stepper, self.ts = None, choose_integrator(
                 self._ts_problem(), solver_options=options, ts_type=self._ts_type(),
                 adaptive=tim["adaptive"], rtol=tim["ts_rtol"], atol=tim["ts_atol"])
+            self.stability = self._stability_monitor()
             return
         # not given, a rod with rotation vectors takes its integrator's default scheme
         # (with obstacles: rho_inf = 0, docs/contact.md)
@@ -108,6 +109,18 @@ class FESimulation:
         self.stepper, self.ts = choose_integrator(
             self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
             predictor=tim["predictor"], tolerance=tolerance), None
+        self.stability = self._stability_monitor()
+
+    def _stability_monitor(self):
+        """Quasi-static 3-D rods: the stability of each step's equilibrium
+        (analysis/stability.py); a system with joints is not checked (its constraints act
+        on the assembled system, not in the forms K is made of)."""
+        scene, model = self.scene, self.model
+        if scene.is_rod_material and not model.dynamic and scene["stability"]["check"] \
+                and not getattr(model, "joints", None):
+            from ..analysis.stability import StabilityMonitor
+            return StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
+        return None
 
     def _ts_type(self) -> str:
         return self.scene["time"]["ts_type"] or ts_type(self.scene)
@@ -139,7 +152,12 @@ class FESimulation:
         self.stepper.run(t, t_next, t_next - t)
 
     def diagnostics(self, t: float) -> dict[str, float]:
-        return self.model.diagnostics(t)
+        d = self.model.diagnostics(t)
+        if self.stability is not None:
+            d["negative_eigenvalues"] = float(self.stability.check(t))
+            if self.stability.lowest is not None:
+                d["lowest_eigenvalue"] = self.stability.lowest
+        return d
 
     def state(self) -> dict:
         """Functions a checkpoint stores (besides problem.fields): the integrator's and
@@ -219,31 +237,23 @@ def build_torsion(scene: Scene, comm=None) -> FESimulation:
 
 @register_model("rod")
 def build_rod(scene: Scene, comm=None) -> FESimulation:
-    """The 3-D rod (dolfin_rod.rod.RodModel) with every scene key mapped to its API."""
+    """The 3-D rod (dolfin_rod.rod.RodModel) with every scene key mapped to its API; a
+    scene with [[rods]]: a RodSystem of its rods and joints (scenes/systems.py)."""
     from mpi4py import MPI
-    from ..rod import EndSpring, RodModel
+    from ..rod import RodModel, RodSystem
 
-    mat, geo = scene["material"], scene["geometry"]
-    ends = {"start": "left", "end": "right"}
-    motions = {m: {side: spec.vector() for key, side in ends.items()
-                   if (spec := scene["boundary"][f"{key}_{m}"]) is not None}
-               for m in ("displacement", "rotation")}
-    end_loads, distributed_loads = rod_loads(scene)
-    constraint = None if mat["constraints"] == "none" else mat["constraints"]
+    mat = scene["material"]
     params = rod_parameters(scene)
+    common = dict(model=mat["model"], variant=mat["variant"],
+                  constraint=None if mat["constraints"] == "none" else mat["constraints"],
+                  rotations=rod_rotations(scene), comm=comm or MPI.COMM_WORLD,
+                  obstacles=obstacles(scene), contact=contact_law(scene, params))
     try:
-        model = RodModel(params, n_cells=geo["n_cells"], model=mat["model"],
-                         variant=mat["variant"], constraint=constraint,
-                         ends=(scene["boundary"]["start"], scene["boundary"]["end"]),
-                         end_loads=end_loads, distributed_loads=distributed_loads,
-                         end_displacement=motions["displacement"],
-                         end_rotation=motions["rotation"], rotations=rod_rotations(scene),
-                         comm=comm or MPI.COMM_WORLD,
-                         end_slide={side: axis for key, side in ends.items()
-                                    if (axis := scene["boundary"][f"{key}_slide"]) is not None},
-                         end_springs={side: EndSpring(**spring) for key, side in ends.items()
-                                      if (spring := scene["boundary"][f"{key}_spring"])},
-                         obstacles=obstacles(scene), contact=contact_law(scene, params))
+        if scene.rods:
+            rods, joints = rods_and_joints(scene)
+            model = RodSystem(rods, joints, **common)
+        else:
+            model = RodModel(params, **rod_arguments(scene), **common)
     except ValueError as err:
         key = "material.energy" if str(err).startswith("energy") else "scene.model"
         raise scene.error(key, f"the 'rod' model rejected the scene: {err}") from err
@@ -251,7 +261,8 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
 
     def initial_state():
         model.set_initial_state(natural_curvature=initial["natural_curvature"],
-                                natural_stretch=initial["natural_stretch"])
+                                natural_stretch=initial["natural_stretch"],
+                                start=starting_state(scene))
 
     if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
         from ..rod.contact import InitialOverlap
@@ -260,6 +271,56 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
         except InitialOverlap as err:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
     return FESimulation("rod", model, scene, initial_state)
+
+
+def starting_state(scene: Scene):
+    """The rod's StartingState of [initial] (rules.START_KEYS), None if none is given."""
+    from ..rod import start
+    ini = scene["initial"]
+    if not any(k in scene.given["initial"] for k in START_KEYS):
+        return None
+    shape = dict(ini["shape"] or {})
+    kind = shape.pop("type", None)
+    curves = {"straight": start.Straight, "arc": start.Arc, "helix": start.Helix,
+              "polyline": start.Polyline}
+    zero = (0.0, 0.0, 0.0)
+    return start.StartingState(
+        shape=curves[kind](**shape) if kind else None, position=ini["position"] or zero,
+        orientation=ini["orientation"] or zero, velocity=ini["velocity"] or zero,
+        angular_velocity=ini["angular_velocity"] or zero,
+        rotation_centre=ini["rotation_centre"], equilibrium=ini["equilibrium"])
+
+
+def rod_arguments(scene: Scene) -> dict:
+    """The arguments of one rod (RodModel, rod.Rod) besides its parameters: cells, ends,
+    end motions, slides, turning clamps and springs, loads."""
+    from ..rod import EndSpring
+    ends = {"start": "left", "end": "right"}
+    boundary = scene["boundary"]
+    motions = {m: {side: spec.vector() for key, side in ends.items()
+                   if (spec := boundary[f"{key}_{m}"]) is not None}
+               for m in ("displacement", "rotation")}
+    end_loads, distributed_loads = rod_loads(scene)
+    return dict(n_cells=scene["geometry"]["n_cells"], ends=(boundary["start"], boundary["end"]),
+                end_loads=end_loads, distributed_loads=distributed_loads,
+                end_displacement=motions["displacement"], end_rotation=motions["rotation"],
+                end_slide={side: axis for key, side in ends.items()
+                           if (axis := boundary[f"{key}_slide"]) is not None},
+                end_springs={side: EndSpring(**spring) for key, side in ends.items()
+                             if (spring := boundary[f"{key}_spring"])},
+                end_turn={side: axis for key, side in ends.items()
+                          if (axis := boundary[f"{key}_turn"]) is not None})
+
+
+def rods_and_joints(scene: Scene) -> tuple[list, list]:
+    """The scene's rods (rod.Rod, from each rod's scene) and joints (rod.Joint) of a
+    scene with [[rods]] (scenes/systems.py)."""
+    from ..rod import Joint, Rod
+    rods = [Rod(rod_parameters(entry.scene), **rod_arguments(entry.scene), name=entry.name,
+                position=entry.position, orientation=entry.orientation)
+            for entry in scene.rods]
+    joints = [Joint(j.kind, j.rods, j.point, j.name) for j in scene.joints]
+    return rods, joints
 
 
 def rod_parameters(scene: Scene):

@@ -7,6 +7,7 @@ duration, follower, profile}`` -> :class:`HistorySpec`, which builds the
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -60,6 +61,21 @@ class HistorySpec:
     @property
     def jumps_at_start(self) -> bool:
         return self.type == "step" and self.t0 == 0.0 and self.value != 0.0
+
+    def fastest_change(self) -> tuple[float, str]:
+        """The shortest time over which the history changes and the key that sets it:
+        0 for a jump (a step of a nonzero value, at any t0), a ramp's or smooth step's
+        duration, the shortest table segment that changes the value; inf if constant."""
+        moves = bool(np.any(np.asarray(self.value, dtype=float) != 0.0))
+        if self.type == "step" and moves:
+            return 0.0, "t0"
+        if self.type in ("ramp", "smooth_step") and moves:
+            return self.duration, "duration"
+        if self.type == "table":
+            values = np.asarray(self.values, dtype=float).reshape(len(self.times), -1)
+            spans = np.diff(self.times)[np.any(np.diff(values, axis=0) != 0.0, axis=1)]
+            return (float(spans.min()), "times") if spans.size else (math.inf, "")
+        return math.inf, ""
 
     def breakpoints(self) -> tuple[float, ...]:
         """Times where the history is not smooth (for the ODE integrator)."""

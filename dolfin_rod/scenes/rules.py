@@ -4,6 +4,7 @@ options, torsion boundary conditions, 3-D rod material, inertia and ends."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -11,12 +12,15 @@ import numpy as np
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
-from ..checks import sample_points, slide_axis_problem
+from ..checks import EQUILIBRIUM_NEEDS, polyline_problem, sample_points, slide_axis_problem
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
 from .values import BadValue, Coefficient, load_entry_point
 
+# the rod's starting state (rod/start.py) in [initial]
+START_KEYS = ("position", "orientation", "shape", "velocity", "angular_velocity",
+              "rotation_centre", "equilibrium")
 TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 # keys of one model family only: (table, key) -> the family that reads it
 TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
@@ -28,13 +32,16 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
     ("geometry", "rotations"),
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
+    *(("initial", k) for k in START_KEYS),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
     ("boundary", "start_displacement"), ("boundary", "start_slide"),
     ("boundary", "end_slide"), ("boundary", "start_spring"), ("boundary", "end_spring"),
+    ("boundary", "start_turn"), ("boundary", "end_turn"),
     ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
     ("loads", "start_couple"), ("obstacles", "shape")} | {
-    ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")}
+    ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")} | {
+    ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
 
 
@@ -161,13 +168,32 @@ def _check_torsion(scene: Scene) -> None:
         raise err("geometry.length", "torsion scenes are dimensionless on s in [0, 1] "
                                      "(Section 5.1): length must be 1")
     dynamic = not (mat["nu"].is_constant and mat["nu"].constant == 0.0)
-    if dynamic and bnd["end"] == "rotation" and bnd["end_rotation"].jumps_at_start:
-        raise err("boundary.end_rotation", "a step at t = 0 but nu > 0: a rod with "
-                                           "inertia cannot follow a jump in rotation; use "
-                                           "type = \"smooth_step\" or \"ramp\"")
+    if dynamic and bnd["end"] == "rotation":
+        _check_motions_resolved(scene, ["end_rotation"], "nu > 0")
     if not dynamic and get_scheme(tim["scheme"]).explicit:
         raise err("time.scheme", f"{tim['scheme']} is explicit, but quasi-static torsion "
                                  "(nu = 0) is differential-algebraic: use an implicit scheme")
+
+
+def _check_motions_resolved(scene: Scene, keys: list[str], inertia: str) -> None:
+    """A body with inertia follows a prescribed motion (boundary.<key>) only where the
+    time steps resolve it: a jump (a step, at any t0) is refused, and, unless the steps
+    adapt (time.adaptive), a ramp, smooth step or table segment shorter than time.dt
+    (the end would take an impulse the scheme cannot represent: kinetic energy 9e17
+    for a table rising within 1e-10 s, issue 28 item 5)."""
+    tim = scene["time"]
+    for key in keys:
+        spec = scene["boundary"][key]
+        fastest, what = (math.inf, "") if spec is None else spec.fastest_change()
+        if fastest == 0.0:
+            raise scene.error(f"boundary.{key}", f"a step at t = {spec.t0:g} but {inertia}: "
+                              "a rod with inertia cannot follow a jump; use type = "
+                              "\"smooth_step\" or \"ramp\" lasting at least time.dt")
+        if fastest < tim["dt"] and not tim["adaptive"]:
+            raise scene.error(f"boundary.{key}.{what}", f"the motion changes within "
+                              f"{fastest:g}, faster than time.dt = {tim['dt']:g} resolves "
+                              f"({inertia}: the end would take an impulse); let it last "
+                              f"at least time.dt, or take time.dt <= {fastest:g}")
 
 
 def _sampled(value, L: float) -> list[np.ndarray]:
@@ -232,12 +258,29 @@ def _check_rod_material(scene: Scene) -> None:
     if d["geometry"]["reference_stretch"][2] <= 0:
         raise err("geometry.reference_stretch", "v_ref,3 must be > 0 (eq. v3pos)")
     _check_rod_inertia(scene)
+    _check_rod_start(scene)
     if mat["energy"] is not None:
         folder = Path(scene.source).parent if Path(scene.source).is_file() else None
         try:
-            load_entry_point(mat["energy"], folder)
+            psi = load_entry_point(mat["energy"], folder)
         except BadValue as bad:
             raise err("material.energy", bad.reason) from None
+        problem = _start_state_problem(scene, psi)
+        if problem:
+            raise err("material.energy", problem)
+
+
+def _start_state_problem(scene: Scene, psi) -> str | None:
+    """natural_state.start_state_problem at the scene's start: natural strains
+    initial.natural_* (default: the reference strains), strains the reference ones."""
+    from ..theory.natural_state import start_state_problem
+    geo, ini = scene["geometry"], scene["initial"]
+    start = (geo["reference_curvature"], geo["reference_stretch"])
+    natural = (ini["natural_curvature"] or start[0], ini["natural_stretch"] or start[1])
+    try:
+        return start_state_problem(psi, natural, start)
+    except Exception as error:      # the user's psi fails on constant strains
+        return f"psi cannot be evaluated at the start: {type(error).__name__}: {error}"
 
 
 def _check_rod_inertia(scene: Scene) -> None:
@@ -260,6 +303,10 @@ def _check_rod_inertia(scene: Scene) -> None:
         raise err("material.section_inertia", "density and section_inertia (I_11, I_22) must "
                                               "be all > 0 (dynamic) or all 0 (quasi-static)")
     mat["dynamic"] = dynamic
+    if dynamic:
+        _check_motions_resolved(scene, [f"{end}_{motion}" for end in ("start", "end")
+                                        for motion in ("displacement", "rotation")],
+                                "density > 0")
     if dynamic and mat["constraints"] != "none":
         raise err("material.constraints", "a dynamic rod (density > 0) with constraint "
                                           "multipliers is an index-3 DAE, which no integrator "
@@ -272,6 +319,29 @@ def _check_rod_inertia(scene: Scene) -> None:
         raise err("time.scheme", f"{scene['time']['scheme']} is explicit, but a quasi-static "
                                  "rod is differential-algebraic: use an implicit scheme")
     rod_rotations(scene)
+
+
+def _check_rod_start(scene: Scene) -> None:
+    """The starting state ([initial] START_KEYS) against the rod."""
+    ini, err = scene["initial"], scene.error
+    if not scene["material"]["dynamic"]:
+        for k in ("velocity", "angular_velocity", "equilibrium"):
+            if ini[k]:
+                raise err(f"initial.{k}", "a quasi-static rod (density 0) has no velocities "
+                                          "and is in equilibrium at every step")
+    bnd = scene["boundary"]
+    if ini["equilibrium"] and not any(bnd[end] == "clamped" or bnd[f"{end}_rotation"]
+                                      for end in ("start", "end")):
+        raise err("initial.equilibrium", EQUILIBRIUM_NEEDS)
+    if ini["rotation_centre"] is not None and ini["angular_velocity"] is None:
+        raise err("initial.rotation_centre", "needs initial.angular_velocity (the rigid "
+                                             "rotation about it)")
+    shape = ini["shape"]
+    if shape is not None and shape["type"] == "polyline":
+        problem = polyline_problem(shape["points"], shape["rest_arc_length"], shape["normal"],
+                                   scene["geometry"]["length"])
+        if problem:
+            raise err(f"initial.shape.{problem[0]}", problem[1])
 
 
 def rod_rotations(scene: Scene) -> str:
@@ -301,6 +371,31 @@ def rod_rotations(scene: Scene) -> str:
     except ValueError as err:
         key = "geometry.rotations" if obstacle else "time.scheme"
         raise scene.error(key, str(err)) from err
+
+
+def _check_turns_resolved(scene: Scene) -> None:
+    """The prescribed end rotations turn one end against the other by at most what
+    geometry.n_cells cells represent: each cell's relative rotation stays below pi (the
+    nodal rotations' interpolation takes the shorter way round; 100 rad on 4 cells wrapped
+    silently to a wrong energy and a couple of the wrong sign, issue 28 item 4).  The
+    largest angle is taken at the histories' breakpoints up to t_end (linear or monotone
+    in between)."""
+    bnd, n = scene["boundary"], scene["geometry"]["n_cells"]
+    specs = {end: bnd[f"{end}_rotation"] for end in ("start", "end")}
+    if specs["end"] is None and specs["start"] is None:
+        return
+    t_end = scene["time"]["t_end"]
+    times = sorted({0.0, t_end} | {t for spec in specs.values() if spec is not None
+                                   for t in spec.breakpoints() if 0.0 <= t <= t_end})
+    zero = lambda t: np.zeros(3)                                     # noqa: E731
+    start, end = (spec.vector() if spec is not None else zero for spec in specs.values())
+    angle = max(float(np.linalg.norm(end(t) - start(t))) for t in times)
+    if angle >= n * math.pi:
+        key = "end" if specs["end"] is not None else "start"
+        raise scene.error(f"boundary.{key}_rotation", f"turns one end against the other by "
+                          f"{angle:.4g} rad, more than geometry.n_cells = {n} cells "
+                          "represent (each cell's relative rotation must stay below pi): "
+                          f"take n_cells >= {math.floor(angle / math.pi) + 1}")
 
 
 def _spring(scene: Scene, end: str, position_held: bool, rotation_held: bool) -> dict:
@@ -337,6 +432,27 @@ def _slide_axis(scene: Scene, end: str):
     return np.asarray(axis)
 
 
+def _turn_axis(scene: Scene, end: str):
+    """The axis a clamped end turns about (boundary.<end>_turn) after its checks, or None."""
+    from ..rod.boundary_conditions import slide_axis_problem
+    bnd, key = scene["boundary"], f"boundary.{end}_turn"
+    axis = bnd[f"{end}_turn"]
+    if axis is None:
+        return None
+    if bnd[end] != "clamped":
+        raise scene.error(key, f"boundary.{end} is {bnd[end]!r}: only a clamped end turns "
+                               "in its support")
+    slide = bnd[f"{end}_slide"]
+    problem = slide_axis_problem(axis) or (
+        "must equal boundary." + end + "_slide" if slide is not None and slide != axis else None)
+    if problem:
+        raise scene.error(key, problem)
+    if bnd[f"{end}_rotation"] is not None:
+        raise scene.error(f"boundary.{end}_rotation", f"the end turns freely ({key}): its "
+                                                      "rotation cannot also be prescribed")
+    return np.asarray(axis)
+
+
 def _along_and_across(spec, axis) -> tuple[bool, bool]:
     """Whether a vector history has a component along the axis, and one across it."""
     values = np.array(spec.values if spec.type == "table" else (spec.value,), float)
@@ -364,12 +480,12 @@ def _check_rod_ends(scene: Scene) -> None:
                                                       "with inertia cannot follow a jump of its "
                                                       "end: use type = \"smooth_step\" or "
                                                       "\"ramp\" (with t0)")
-        axis = _slide_axis(scene, end)
+        axis, turn = _slide_axis(scene, end), _turn_axis(scene, end)
         x = kind in ("clamped", "pinned") or bnd[f"{end}_displacement"] is not None
         q = kind == "clamped" or bnd[f"{end}_rotation"] is not None
-        spring = _spring(scene, end, x and axis is None, q)
+        spring = _spring(scene, end, x and axis is None, q and turn is None)
         fixed_x.append((x and axis is None) or np.all(spring.get("translational", 0.0)))
-        fixed_q.append(q or np.all(spring.get("rotational", 0.0)))
+        fixed_q.append((q and turn is None) or np.all(spring.get("rotational", 0.0)))
         for load, fixed, what in (("force", x, "position"), ("couple", q, "rotation")):
             spec = lds[f"{end}_{load}"]
             if spec is None:
@@ -377,12 +493,15 @@ def _check_rod_ends(scene: Scene) -> None:
             if not spec.is_vector:
                 raise err(f"loads.{end}_{load}.value", "3-D rod: a vector value = [x, y, z] "
                                                        "(or a table of 3-vectors)")
-            if load == "force" and axis is not None:
-                if spec.follower or _along_and_across(spec, axis)[1]:
-                    raise err(f"loads.{end}_{load}", f"the end slides along {list(axis)} "
-                                                     f"(boundary.{end}_slide): only a dead "
-                                                     "force along that axis acts on it, the "
-                                                     "support takes the rest")
+            free_axis = axis if load == "force" else turn
+            if free_axis is not None:
+                if spec.follower or _along_and_across(spec, free_axis)[1]:
+                    how = "slides along" if load == "force" else "turns about"
+                    raise err(f"loads.{end}_{load}", f"the end {how} {list(free_axis)} "
+                                                     f"(boundary.{end}_"
+                                                     f"{'slide' if load == 'force' else 'turn'}"
+                                                     f"): only a dead {load} along that axis "
+                                                     "acts on it, the support takes the rest")
                 continue
             if fixed:
                 raise err(f"loads.{end}_{load}", f"acts where the {what} is prescribed "
@@ -392,7 +511,9 @@ def _check_rod_ends(scene: Scene) -> None:
         if lds[k] is not None and not lds[k].is_vector:
             raise err(f"loads.{k}.value", "3-D rod: a vector value = [x, y, z] (or a table "
                                           "of 3-vectors)")
-    if not scene["material"]["dynamic"] and not (any(fixed_x) and any(fixed_q)):
+    _check_turns_resolved(scene)
+    if not scene["material"]["dynamic"] and not scene.joined and \
+            not (any(fixed_x) and any(fixed_q)):
         raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "
                                     "rotation somewhere (e.g. start = \"clamped\"); rigid "
                                     "motions are free otherwise")

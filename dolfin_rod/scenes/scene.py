@@ -34,6 +34,9 @@ class Scene:
     source: str = "<string>"
     text: str = ""
     given: dict[str, set[str]] = field(default_factory=dict)  # keys the file set
+    rods: list = field(default_factory=list)     # [[rods]]: systems.RodEntry (none: one rod)
+    joints: list = field(default_factory=list)   # [[joints]]: systems.JointEntry
+    joined: bool = False      # a rod of [[rods]] held by a joint (its supports may be free)
 
     def __getitem__(self, table: str) -> dict[str, Any]:
         return self.data[table]
@@ -55,9 +58,16 @@ class Scene:
         (what a checkpoint must match to be resumed): everything but the name and
         description, the outputs table, t_end (a run may be extended) and the requested
         model (the chosen model is compared instead)."""
-        return {table: _plain(keys) if isinstance(keys, list) else
-                {k: _plain(v) for k, v in keys.items() if not (table == "time" and k == "t_end")}
-                for table, keys in self.data.items() if table not in ("scene", "outputs")}
+        physics = {table: _plain(keys) if isinstance(keys, list) else
+                   {k: _plain(v) for k, v in keys.items()
+                    if not (table == "time" and k == "t_end")}
+                   for table, keys in self.data.items() if table not in ("scene", "outputs")}
+        if self.rods:
+            physics["rods"] = [{"name": r.name, "position": _plain(r.position),
+                                "orientation": _plain(r.orientation),
+                                **r.scene.physics()} for r in self.rods]
+            physics["joints"] = [_plain(j) for j in self.joints]
+        return physics
 
 
 def _plain(v: Any) -> Any:

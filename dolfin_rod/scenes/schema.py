@@ -26,17 +26,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..checks import MIN_LENGTH, N_CELLS
+from ..checks import MIN_LENGTH, N_CELLS, SCENE_BYTES, read_regular_file
 from ..rod.rotation_choice import ROTATIONS
 from ..rod.sections import SHAPES as SECTION_SHAPES
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
+from .systems import validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
                      damping_tensor, entry_point, integer, load_entry_point, path_problem,
                      path_text,
                      petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
-                     section_inertia, spring_table, string, tensor_table, toml_value,
+                     section_inertia, spring_table, starting_shape, string, tensor_table,
+                     toml_value,
                      ts_type_name,
                      type_name, vector3)
 
@@ -97,6 +99,26 @@ A torsion coefficient or a density/drag/profile is a number or `{polynomial = [c
 (T(s) = T0 + T1 s + ..., each T_k diagonal or 3x3; s in [0, L]).  The uniform variant's
 law integrates over s (eq. unatevolunif), so its M_d carries a length factor:
 switching variant on a rod with L != 1 rescales time by L.
+
+**Several rods** (a RodSystem, docs/systems.md).  `[[rods]]` tables, one per rod: `name`
+(unique; the rod's output columns are `<name>.<key>`), `position` (its s = 0 end, m),
+`orientation` (a rotation vector turning e_3 into its initial tangent), and its own
+`geometry`, `section`, `material`, `boundary`, `loads` as inline tables laid over the
+scene's tables key by key (an error names `rods[k].<table>.<key>`; `material.model`,
+`variant`, `constraints`, `energy` and `geometry.rotations` are shared and given in the
+scene's tables only).  `[[joints]]` tables: `kind` ("rigid": position and rotation tied,
+"ball": position tied), `rods = [a, b]`, `point = [x, y, z]` (a node of both rods at
+t = 0, not a supported end), `name` (its reaction columns `joint_<name>_force_{xyz}`,
+`joint_<name>_couple_{xyz}`).  Examples: `scenes/frame.toml`, `double_pendulum.toml`,
+`tripod.toml`.
+
+**What a run can follow** (checked by `dolfin-rod check`, exit 2 naming the key).  A rod
+with inertia (density > 0; torsion: nu > 0) cannot follow a jump of a prescribed end
+motion (a `step`, at any `t0`), nor, unless `time.adaptive`, a ramp, smooth step or
+table segment shorter than `time.dt`.  Prescribed rotations may turn one end against the
+other by less than pi per cell (`geometry.n_cells` > angle/pi).  A `material.energy`
+must be stress-free and convex at the natural strains and convex at the start strains
+(`natural_state.start_state_problem`).
 """
 
 R = "3-D rod: "
@@ -205,6 +227,32 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                  "the reference strains, i.e. unstressed)"),
         "natural_stretch": Key(vector3(), None, R + "v_d at t = 0 (evolving; default: "
                                "the reference strains)"),
+        "position": Key(vector3(), None, R + "where the rod's start s = 0 is at t = 0 (a "
+                        "length; default: the origin)"),
+        "orientation": Key(vector3(), None, R + "rotation vector (rad) turning (e1, e2, e3) "
+                           "into the start's directors (d1, d2, d3) (default 0: the rod "
+                           "starts along e3)"),
+        "shape": Key(starting_shape, None,
+                     R + "starting centre line, in the start's frame (then placed by "
+                     "position, orientation); the stress-free shape stays geometry."
+                     "reference_curvature's (straight by default): {type = \"straight\", "
+                     "stretch = 1} | {type = \"arc\", radius, stretch = 1} (bending towards "
+                     "d1) | {type = \"helix\", radius, pitch, stretch = 1} | {type = "
+                     "\"polyline\", points = [[x, y, z], ...], rest_arc_length = [0, ..., "
+                     "L] (default: the polyline's own arc length, which must be L), normal = "
+                     "[1, 0, 0] (gives d1)}; stretch, rest_arc_length: a pre-stretched start "
+                     "(default: the stress-free shape)"),
+        "velocity": Key(vector3(), None, R + "velocity at t = 0 (length/time; dynamic rods; "
+                        "held ends stay at rest)"),
+        "angular_velocity": Key(vector3(), None, R + "spatial angular velocity w at t = 0 "
+                                "(rad/time; dynamic rods)"),
+        "rotation_centre": Key(vector3(), None, R + "with angular_velocity: the rod starts "
+                               "as a rigid body turning about this point, velocity + w x "
+                               "(r - rotation_centre)"),
+        "equilibrium": Key(boolean, False, R + "dynamic rods: settle the positions and "
+                           "rotations in static equilibrium with the loads at t = 0 from "
+                           "the starting shape before the dynamics (quasi-static "
+                           "pre-loading; natural strains kept)"),
     },
     "boundary": {
         "start": Key(choice(*ROD_ENDS), "clamped", "s = 0: clamped | pinned | free "
@@ -228,6 +276,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "follows end_rotation, e.g. turning about the axis); an end_force "
                          "along the axis acts on it (a weight on a sliding clamp)"),
         "start_slide": Key(vector3(), None, R + "as end_slide, at s = 0"),
+        "end_turn": Key(vector3(), None, R + "axis [x, y, z] (a unit coordinate axis) about "
+                        "which the clamped end s = L turns freely (a hinge; with end_slide "
+                        "along the same axis a cylindrical joint): its rotation is held "
+                        "about the other two axes only, a dead end_couple about the axis "
+                        "acts on it; its initial frame must keep the axis"),
+        "start_turn": Key(vector3(), None, R + "as end_turn, at s = 0"),
         "end_spring": Key(spring_table, None, R + "a compliant support at s = L: "
                           "{translational = k or [k_x, k_y, k_z] (N/m, spatial), rotational = "
                           "k or [k_1, k_2, k_3] (N m/rad, material)} about the end's initial "
@@ -295,6 +349,20 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "options": Key(petsc_table, None, "PETSc options (without prefix) over the preset, "
                        "e.g. {snes_max_it = 50, ksp_type = \"preonly\"}"),
     },
+    "stability": {
+        "check": Key(boolean, True, R + "quasi-static: after every step the number of negative "
+                                    "eigenvalues of the tangent stiffness (column "
+                                    "negative_eigenvalues; a warning when it changes; "
+                                    "docs/stability.md)"),
+        "lowest_eigenvalue": Key(boolean, False, R + "quasi-static, rotation vectors without "
+                                              "constraints: also the lowest eigenvalue of "
+                                              "K v = lambda G v (G: the lumped L2 metric; column "
+                                              "lowest_eigenvalue; SLEPc, ~10-30 ms a step)"),
+        "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
+                                              "> 0) is a result: status \"completed\", exit 0 "
+                                              "(default: \"completed (unstable equilibrium)\", "
+                                              "exit 4)"),
+    },
     "outputs": {
         "directory": Key(path_text, "results", "parent folder of the run folders"),
         "every": Key(integer(1), 1, "write rod.bp and animation frames every N steps (and "
@@ -349,9 +417,10 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
     ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``."""
     path = Path(path)
     try:
-        raw = path.read_bytes()
-    except OSError as err:
-        raise SceneError(str(path), "", f"cannot read the scene: {err.strerror or err}") from None
+        raw = read_regular_file(path, SCENE_BYTES)
+    except (OSError, ValueError) as err:
+        reason = getattr(err, "strerror", None) or err
+        raise SceneError(str(path), "", f"cannot read the scene: {reason}") from None
     try:
         text = raw.decode("utf-8-sig")   # a UTF-8 byte-order mark is allowed
     except UnicodeDecodeError as err:
@@ -399,9 +468,20 @@ def to_toml(raw: dict) -> str:
 
 
 def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> Scene:
-    """Validate an already-parsed scene dict; every failure is a SceneError."""
+    """Validate an already-parsed scene dict; every failure is a SceneError.  A scene
+    with ``[[rods]]`` is a rod system (scenes/systems.py)."""
     if not isinstance(raw, dict):
         raise SceneError(source, "", f"a scene must be a table, got {type_name(raw)}")
+    if "rods" in raw:
+        return validate_system(dict(raw), source, default_name, _validate_tables)
+    if "joints" in raw:
+        raise SceneError(source, "joints", "joints join the rods of [[rods]] tables")
+    return _validate_tables(raw, source, default_name)
+
+
+def _validate_tables(raw: dict, source: str, default_name: str,
+                     joined: bool = False) -> Scene:
+    """The tables of one scene (of one rod; ``joined``: a rod of [[rods]] with a joint)."""
     for table in raw:
         if table not in SCHEMA:
             raise SceneError(source, str(table),
@@ -427,7 +507,7 @@ def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> S
         data[table] = _table(section, keys, table, source)
     if data["scene"]["name"] is None:
         data["scene"]["name"] = safe_name(default_name)
-    scene = Scene(data, source, given=given)
+    scene = Scene(data, source, given=given, joined=joined)
     check_combinations(scene)
     return scene
 

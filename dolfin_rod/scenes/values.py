@@ -418,3 +418,67 @@ def tensor_table(v, names) -> dict[str, Tensor]:
             except BadValue as bad:
                 raise BadValue(bad.reason, f"{n}.{bad.key}" if bad.key else n) from None
     return out
+
+
+# initial.shape: per type its keys with (checker, default; REQUIRED_KEY: must be given)
+REQUIRED_KEY = object()
+_POSITIVE, _STRETCH = real(0.0, True), (real(0.0, True), 1.0)
+SHAPE_KEYS = {
+    "straight": {"stretch": _STRETCH},
+    "arc": {"radius": (_POSITIVE, REQUIRED_KEY), "stretch": _STRETCH},
+    "helix": {"radius": (_POSITIVE, REQUIRED_KEY), "pitch": (real(), REQUIRED_KEY),
+              "stretch": _STRETCH},
+    "polyline": {"points": (lambda v: _points(v), REQUIRED_KEY),
+                 "rest_arc_length": (lambda v: _numbers(v), None),
+                 "normal": (vector3(), (1.0, 0.0, 0.0))},
+}
+
+
+def table_type(v: dict, types) -> str:
+    """The checked ``type`` key of a table that is one of ``types``."""
+    if "type" not in v:
+        raise BadValue(f"missing required key (one of {', '.join(types)})", "type")
+    try:
+        return choice(*types)(v["type"])
+    except BadValue as bad:
+        raise BadValue(bad.reason, "type") from None
+
+
+def starting_shape(v) -> dict:
+    """{type = "straight" | "arc" | "helix" | "polyline", ...} (SHAPE_KEYS): the checked
+    keys with their defaults, and the type."""
+    if not isinstance(v, dict):
+        raise BadValue(f"must be a table {{type = ..., ...}}, got {type_name(v)}")
+    kind = table_type(v, SHAPE_KEYS)
+    keys = SHAPE_KEYS[kind]
+    refuse_unknown(v, {"type", *keys})
+    out = {"type": kind}
+    for k, (check, default) in keys.items():
+        if k not in v:
+            if default is REQUIRED_KEY:
+                raise BadValue(f"missing required key of a {kind}", k)
+            out[k] = default
+            continue
+        try:
+            out[k] = check(v[k])
+        except BadValue as bad:
+            raise BadValue(bad.reason, k) from None
+    return out
+
+
+def _points(v) -> tuple:
+    if not isinstance(v, list) or len(v) < 2:
+        raise BadValue(f"must be an array of at least two [x, y, z], got {type_name(v)}")
+    out = []
+    for i, p in enumerate(v):
+        try:
+            out.append(vector3()(p))
+        except BadValue as bad:
+            raise BadValue(f"point {i} {bad.reason}") from None
+    return tuple(out)
+
+
+def _numbers(v) -> tuple:
+    if not isinstance(v, list):
+        raise BadValue(f"must be an array of numbers, got {type_name(v)}")
+    return tuple(number(x) for x in v)

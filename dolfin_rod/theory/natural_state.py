@@ -18,7 +18,8 @@ import numpy as np
 import ufl
 from ufl.algorithms import expand_derivatives
 
-__all__ = ["NaturalStateReport", "check_natural_state", "stationarity_and_hessian"]
+__all__ = ["NaturalStateReport", "check_natural_state", "stationarity_and_hessian",
+           "start_state_problem"]
 
 
 @dataclass(frozen=True)
@@ -40,11 +41,14 @@ def _value(expr) -> float:
     return float(expr) if isinstance(expr, (int, float)) else float(expr(()))
 
 
-def stationarity_and_hessian(psi: Callable, u_d, v_d) -> tuple[np.ndarray, np.ndarray]:
-    """(dpsi/d(u, v), d^2psi/d(u, v)^2) at u = u_d, v = v_d: a 6-vector and a 6x6 matrix."""
+def stationarity_and_hessian(psi: Callable, u_d, v_d, u=None, v=None,
+                             ) -> tuple[np.ndarray, np.ndarray]:
+    """(dpsi/d(u, v), d^2psi/d(u, v)^2) at (u, v) (default: u = u_d, v = v_d): a 6-vector
+    and a 6x6 matrix."""
     def constant(a):
         return ufl.as_vector([float(x) for x in a])
-    strains = (ufl.variable(constant(u_d)), ufl.variable(constant(v_d)))
+    strains = (ufl.variable(constant(u_d if u is None else u)),
+               ufl.variable(constant(v_d if v is None else v)))
     energy = psi(constant(u_d), constant(v_d), *strains)
     gradient = [expand_derivatives(ufl.diff(energy, w))[k] for w in strains for k in range(3)]
     hess = np.array([[_value(expand_derivatives(ufl.diff(g, w))[k])
@@ -73,3 +77,39 @@ def check_natural_state(psi: Callable, natural_states: Iterable[tuple], force_sc
     if n == 0:
         raise ValueError("natural_states must hold at least one (u_d, v_d) pair")
     return NaturalStateReport(worst_g, worst_eig, n)
+
+
+def start_state_problem(psi: Callable, natural: tuple, start: tuple,
+                        gradient_tol: float = 1e-8) -> str | None:
+    """Why a run cannot start with the energy psi (None if it can): at the natural
+    strains ``natural`` = (u_d, v_d) psi is not stationary (eq. natural: a contact force
+    or couple at rest, |dpsi/d(u, v)| above ``gradient_tol`` times the largest stiffness
+    |eigenvalue|, a strain) or not a minimum (Assumption ass:natural); at the start
+    strains ``start`` = (u, v) not convex (a concave energy bends the rod against the
+    load); or not finite, or not a scalar."""
+    def at(u_d, v_d, u=None, v=None):
+        g, h = stationarity_and_hessian(psi, u_d, v_d, u, v)
+        if not (np.all(np.isfinite(g)) and np.all(np.isfinite(h))):
+            raise ValueError
+        return g, np.linalg.eigvalsh(0.5 * (h + h.T))
+    where = f"u_d = {list(natural[0])}, v_d = {list(natural[1])}"
+    value = psi(*(ufl.as_vector([float(x) for x in a]) for a in (*natural, *start)))
+    if not isinstance(value, ufl.core.expr.Expr) or ufl.shape(value) != ():
+        return ("psi must return a scalar UFL expression, got shape "
+                f"{getattr(value, 'ufl_shape', type(value).__name__)}")
+    try:
+        g, eig = at(*natural)
+        start_eig = eig if tuple(map(tuple, start)) == tuple(map(tuple, natural)) \
+            else at(*natural, *start)[1]
+    except ValueError:
+        return f"psi or its derivatives are not finite at the start ({where})"
+    scale = float(np.abs(eig).max())
+    if scale == 0.0 or np.abs(g).max() > gradient_tol * scale:
+        return (f"the natural state {where} is not stress-free: dpsi/d(u, v) = "
+                f"{np.array2string(g, precision=3)} there (eq. natural)")
+    for name, values in (("natural state " + where, eig),
+                         (f"start state u = {list(start[0])}, v = {list(start[1])}", start_eig)):
+        if values.min() <= 0.0:
+            return (f"psi is not convex at the {name}: d^2psi/d(u, v)^2 has the eigenvalue "
+                    f"{values.min():.3g} (Assumption ass:natural: a minimum)")
+    return None

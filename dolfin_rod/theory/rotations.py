@@ -111,6 +111,26 @@ def np_rotation_matrix(q):
     ]) / n2
 
 
+def np_quaternion_from_matrix(R):
+    """Unit quaternions (q0 >= 0) of rotation matrices R (..., 3, 3) (Shepperd's method:
+    from the largest of the four squares |q_i|^2, no cancellation)."""
+    R = np.asarray(R, dtype=float)
+    trace = np.trace(R, axis1=-2, axis2=-1)
+    squares = np.stack([1 + trace, 1 + 2 * R[..., 0, 0] - trace,
+                        1 + 2 * R[..., 1, 1] - trace, 1 + 2 * R[..., 2, 2] - trace], -1) / 4
+    k = np.argmax(squares, axis=-1)[..., None]
+    big = np.sqrt(np.take_along_axis(squares, k, -1))
+    off = (R - np.swapaxes(R, -1, -2)) / 4      # q0 q_i terms
+    sym = (R + np.swapaxes(R, -1, -2)) / 4      # q_i q_j terms
+    products = np.stack([
+        np.stack([squares[..., 0], off[..., 2, 1], off[..., 0, 2], off[..., 1, 0]], -1),
+        np.stack([off[..., 2, 1], squares[..., 1], sym[..., 0, 1], sym[..., 0, 2]], -1),
+        np.stack([off[..., 0, 2], sym[..., 0, 1], squares[..., 2], sym[..., 1, 2]], -1),
+        np.stack([off[..., 1, 0], sym[..., 0, 2], sym[..., 1, 2], squares[..., 3]], -1)], -2)
+    q = np.take_along_axis(products, k[..., None], -2)[..., 0, :] / big
+    return q * np.where(q[..., :1] < 0, -1.0, 1.0)
+
+
 def np_rotation_angle(q) -> float:
     """Angle in [0, 2 pi] of the rotation *path* end q (q = -1 is a full turn, 2 pi)."""
     q = np.asarray(q, dtype=float)

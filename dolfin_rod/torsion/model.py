@@ -108,9 +108,11 @@ class TorsionModel(FEModel):
         check_n_cells(n_cells, ranks)
         if degree not in (1, 2, 3):
             raise ValueError(f"degree must be 1, 2 or 3, got {degree!r}")
-        if not params.is_zero("nu") and end_rotation is not None and _jump(end_rotation) != 0.0:
-            raise ValueError("end_rotation has a step at t = 0 but nu > 0: a rod with "
-                             "inertia cannot follow a jump in rotation; use "
+        jumps = [] if end_rotation is None else [t for t, size in getattr(
+            end_rotation, "jumps", ()) if size] + ([0.0] if _jump(end_rotation) else [])
+        if not params.is_zero("nu") and jumps:
+            raise ValueError(f"end_rotation has a step at t = {min(jumps):g} but nu > 0: a "
+                             "rod with inertia cannot follow a jump in rotation; use "
                              "loads.smooth_step or loads.ramp")
 
     def _fields(self) -> None:

@@ -1,0 +1,197 @@
+"""The stability of a quasi-static equilibrium: the inertia of the tangent stiffness.
+
+At an equilibrium of a conservative rod the tangent stiffness K (the Hessian of the
+energy in positions and rotations, natural strains frozen: they move on the viscous
+time scale) is symmetric; the equilibrium is stable if K is positive definite on the
+directions the supports and constraints leave free, and it has as many unstable modes
+as K has negative eigenvalues there.  The count comes from the symmetric factorisation
+L D L^T of MUMPS (Sylvester's law of inertia: its negative pivots, INFOG(12)), without
+eigenvalues: one factorisation per check.  Multipliers (the quaternion gauge, the
+constraints of Section 4.5) border K: [[K, C^T], [C, 0]] with C of full rank m has
+(negative count of K on ker C) + m negative eigenvalues, so m is subtracted.
+Dirichlet dofs are removed (identity rows and columns, positive pivots).  Follower
+loads make K non-symmetric; its symmetric part is factorised (the energy criterion;
+for non-conservative loads a dynamic analysis decides, not this count).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import dolfinx.fem as fem
+import numpy as np
+import ufl
+from petsc4py import PETSc
+
+from ..fem.assembly import block_system
+from ..fem.multipoint import ConstrainedSystem
+from ..fem.fe_model import vertex_measure
+
+__all__ = ["Inertia", "TangentStiffness", "LowestEigenvalues", "StabilityMonitor"]
+
+MECHANICAL = ("displacement", "rotation_increment", "quaternion")
+MULTIPLIERS = ("gauge_multiplier", "constraint_multiplier")
+
+
+@dataclass(frozen=True)
+class Inertia:
+    """negative: eigenvalues of the tangent stiffness below zero on the free directions
+    (0: a stable equilibrium); zero: null pivots (a singular tangent: a zero-energy
+    mode, or exactly at a bifurcation)."""
+
+    negative: int
+    zero: int
+
+
+class TangentStiffness:
+    """K of a RodModel at its current state and loads (``inertia(t)``)."""
+
+    def __init__(self, model):
+        names = [n for n in model.names if n in MECHANICAL + MULTIPLIERS]
+        at_rest = {model.r[n]: fem.Function(model.r[n].function_space) for n in model.names}
+        forms = [ufl.replace(model.residual[n], at_rest) for n in names]
+        bcs = [bc for n in names for bc in model.bcs_of(n)]
+        self.model, self.names = model, names
+        fields = [model.f[n] for n in names]
+        self.system = block_system(forms, [fields], bcs=bcs)
+        links = [replace(link, block=names.index(model.names[link.block]))
+                 for link in model.problem.links]
+        if links:           # joints of a rod system: K on the free dofs, P^T K P
+            self.system = ConstrainedSystem(self.system, fields, links)
+        self.multipliers = self._free_dofs(model, [n for n in names if n in MULTIPLIERS])
+        start = self.system.A.getOwnershipRange()[0]
+        self.fixed = PETSc.IS().createGeneral(
+            (self.system.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        self._ksp = None        # at the first check: its options are then read at once
+
+    @staticmethod
+    def _free_dofs(model, names) -> int:
+        """Global dofs of the blocks ``names`` that no Dirichlet condition fixes."""
+        total = 0
+        for n in names:
+            V = model.f[n].function_space
+            imap = V.dofmap.index_map
+            fixed = sum(bc.dof_indices()[1] for bc in model.bcs_of(n))   # owned ones
+            total += (imap.size_global * V.dofmap.index_map_bs
+                      - model.mesh.comm.allreduce(fixed))
+        return total
+
+    def matrix(self, t: float) -> PETSc.Mat:
+        """The symmetric part of K at time t's loads, Dirichlet rows and columns identity."""
+        self.model.problem.set_loads(t)
+        system = self.system
+        system.get(0, system.x)
+        system.set(0, system.x)
+        system.jacobian(system.A)
+        A = system.A
+        A.zeroRowsColumns(self.fixed, diag=1.0)
+        K = A.transpose(PETSc.Mat())          # (without an out argument: in place)
+        K.axpy(1.0, A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        K.scale(0.5)
+        K.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+        return K
+
+    def inertia(self, t: float) -> Inertia:
+        """The inertia of K at the current state and time t's loads."""
+        K = self.matrix(t).convert("sbaij", PETSc.Mat())   # MUMPS's LDL^T reads SBAIJ
+        self._ksp = self._ksp or self._factorisation(K.getComm())
+        self._ksp.setOperators(K)
+        pc = self._ksp.getPC()
+        pc.setUp()
+        negative, zero, _ = pc.getFactorMatrix().getInertia()  # after setUp: this K's
+        K.destroy()
+        return Inertia(negative - self.multipliers, zero)
+
+    def _factorisation(self, comm) -> PETSc.KSP:
+        """MUMPS LDL^T; every pivot counted (no ScaLAPACK root, ICNTL(13)), null pivots
+        detected (ICNTL(24)); kept between checks (MUMPS's start costs ms)."""
+        ksp = PETSc.KSP().create(comm)
+        prefix = f"dolfin_rod_inertia_{id(ksp)}_"
+        ksp.setOptionsPrefix(prefix)
+        opts = PETSc.Options()
+        opts[prefix + "mat_mumps_icntl_13"] = 1
+        opts[prefix + "mat_mumps_icntl_24"] = 1
+        ksp.setType("preonly")
+        pc = ksp.getPC()
+        pc.setType("cholesky")
+        pc.setFactorSolverType("mumps")
+        ksp.setFromOptions()
+        return ksp
+
+
+class LowestEigenvalues:
+    """The lowest eigenvalues of K v = lambda G v on a rod with rotation vectors (no
+    multipliers), G the lumped metric int (dx . x + L^2 dtheta . theta) ds (vertex rule:
+    diagonal; units of K per length^3, e.g. EI/L^4: independent of the mesh), by SLEPc
+    (shift-and-invert at 0, MUMPS).  Dirichlet dofs have G = 0 (infinite eigenvalues, out
+    of the way)."""
+
+    def __init__(self, tangent: TangentStiffness):
+        model = tangent.model
+        if tangent.multipliers or "rotation_increment" not in tangent.names:
+            raise ValueError("lowest eigenvalues: a rod with rotation vectors and without "
+                             "constraints (geometry.rotations = \"rotation_vector\")")
+        self.tangent = tangent
+        dx = vertex_measure(model.mesh)
+        x, theta = model.f["displacement"], model.f["rotation_increment"]
+        metric = [ufl.inner(x, model.t["displacement"]) * dx,
+                  model.length ** 2 * ufl.inner(theta, model.t["rotation_increment"]) * dx]
+        bcs = [bc for n in tangent.names for bc in model.bcs_of(n)]
+        system = block_system(metric, [[x, theta]], bcs=bcs)
+        system.jacobian(system.A)
+        G = system.A
+        if isinstance(tangent.system, ConstrainedSystem):      # joints: P^T G P
+            G = G.PtAP(tangent.system.P)
+        G.zeroRowsColumns(tangent.fixed, diag=0.0)
+        self.G = G
+
+    def __call__(self, t: float, count: int = 1) -> list[float]:
+        """The ``count`` eigenvalues nearest 0 at time t, ascending (all of them below 0
+        when count exceeds the negative count)."""
+        from slepc4py import SLEPc
+        K = self.tangent.matrix(t)
+        eps = SLEPc.EPS().create(K.getComm())
+        eps.setOperators(K, self.G)
+        eps.setProblemType(SLEPc.EPS.ProblemType.GHEP)
+        eps.setDimensions(count)
+        eps.setTarget(0.0)
+        eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
+        st = eps.getST()
+        st.setType(SLEPc.ST.Type.SINVERT)
+        ksp = st.getKSP()
+        ksp.setType("preonly")
+        ksp.getPC().setType("lu")
+        ksp.getPC().setFactorSolverType("mumps")
+        eps.setTolerances(1e-10, 200)
+        eps.solve()
+        values = sorted(eps.getEigenvalue(i).real for i in range(eps.getConverged()))
+        eps.destroy()
+        return values[:count]
+
+
+class StabilityMonitor:
+    """The inertia after every step of a quasi-static run (``check(t)``): the count of
+    negative eigenvalues, if asked the lowest eigenvalue (``lowest``; LowestEigenvalues), the times the count changed (``changes``: (t, before, after)), and the
+    cost (``seconds`` over ``checks``)."""
+
+    def __init__(self, model, lowest: bool = False):
+        self.tangent = TangentStiffness(model)
+        self.eigenvalues = LowestEigenvalues(self.tangent) if lowest else None
+        self.negative: int | None = None
+        self.lowest: float | None = None
+        self.changes: list[tuple[float, int, int]] = []
+        self.seconds, self.checks = 0.0, 0
+        self.reported = 0       # changes the run has warned about
+
+    def check(self, t: float) -> int:
+        start = time.perf_counter()
+        negative = self.tangent.inertia(t).negative
+        if self.eigenvalues is not None:
+            self.lowest = min(self.eigenvalues(t, negative + 1), default=float("nan"))
+        self.seconds += time.perf_counter() - start
+        self.checks += 1
+        if self.negative is not None and negative != self.negative:
+            self.changes.append((t, self.negative, negative))
+        self.negative = negative
+        return negative

@@ -1,0 +1,163 @@
+"""Scenes of several rods: ``[[rods]]`` and ``[[joints]]`` (rod/system.py, docs/systems.md).
+
+    [[rods]]
+    name = "column"                      # unique; prefixes the rod's output columns
+    position = [0.0, 0.0, 0.0]           # where its s = 0 end starts
+    orientation = [0.0, 0.0, 0.0]        # rotation vector turning e_3 into its tangent
+    geometry = { length = 1.0, n_cells = 8 }          # per-rod tables: any key of
+    boundary = { start = "clamped", end = "free" }    # [geometry], [section],
+    loads = { end_force = { type = "step", value = [0, 0, -1] } }  # [material],
+                                                      # [boundary], [loads]
+    [[joints]]
+    kind = "rigid"                       # rigid | ball
+    rods = ["column", "beam"]
+    point = [0.0, 0.0, 1.0]              # a node of both rods at t = 0
+    name = "knee"                        # optional; names its reaction columns
+
+Each rod is the scene's own tables with the rod's tables laid over them key by key, and
+is validated as a scene of its own (an error names ``rods[k].<table>.<key>``); the keys
+every rod shares (``SHARED``) are given in the scene's tables only.  A joint's point is
+checked against the rods' nodes before any model is built.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from .scene import Scene, SceneError
+from .values import BadValue, choice, run_name, string, type_name, vector3
+
+ROD_TABLES = ("geometry", "section", "material", "boundary", "loads")
+ROD_KEYS = ("name", "position", "orientation") + ROD_TABLES
+SHARED = {("geometry", "rotations"): "the rotation unknowns",
+          ("material", "model"): "the constitutive model",
+          ("material", "variant"): "the evolution variant",
+          ("material", "constraints"): "the constraint",
+          ("material", "energy"): "the energy function"}
+JOINT_KEYS = ("kind", "rods", "point", "name")
+
+
+@dataclass
+class RodEntry:
+    """One rod of a scene: its name, place and its scene (the tables laid over)."""
+
+    name: str
+    position: tuple
+    orientation: tuple
+    scene: Scene
+
+
+@dataclass
+class JointEntry:
+    kind: str
+    rods: tuple[str, str]
+    point: tuple
+    name: str
+
+
+def validate_system(raw: dict, source: str, default_name: str,
+                    validate_one: Callable[[Any, str, str, bool], Scene]) -> Scene:
+    """A scene with ``[[rods]]``: the first rod's scene, carrying every rod (``rods``) and
+    the joints (``joints``)."""
+    entries, joints = raw.pop("rods"), raw.pop("joints", [])
+    for key, value in (("rods", entries), ("joints", joints)):
+        if not (isinstance(value, list) and all(isinstance(v, dict) for v in value)):
+            raise SceneError(source, key, f"must be an array of tables ([[{key}]]), got "
+                                          f"{type_name(value)}")
+    if not entries:
+        raise SceneError(source, "rods", "needs at least one [[rods]] table")
+    names = [entry.get("name", f"rod{k}") for k, entry in enumerate(entries)]
+    for k, name in enumerate(names):
+        if names.index(name) != k:
+            raise SceneError(source, f"rods[{k}].name", f"{name!r} is used twice: rod names "
+                                                        "are unique")
+    joint_entries = [_joint(entry, k, source, names) for k, entry in enumerate(joints)]
+    joined = {name for joint in joint_entries for name in joint.rods}
+    rods = [_rod(raw, entry, k, source, default_name, validate_one, names[k] in joined)
+            for k, entry in enumerate(entries)]
+    scene = copy.copy(rods[0].scene)
+    scene.rods, scene.joints = rods, joint_entries
+    _check_joint_points(scene)
+    return scene
+
+
+def _rod(raw: dict, entry: dict, k: int, source: str, default_name: str,
+         validate_one, joined: bool) -> RodEntry:
+    where = f"rods[{k}]"
+    for key in entry:
+        if key not in ROD_KEYS:
+            raise SceneError(source, f"{where}.{key}",
+                             f"unknown key (known in [[rods]]: {', '.join(ROD_KEYS)})")
+    merged = copy.deepcopy(raw)
+    for table in ROD_TABLES:
+        own = entry.get(table, {})
+        if not isinstance(own, dict):
+            raise SceneError(source, f"{where}.{table}", f"must be a table, got "
+                                                         f"{type_name(own)}")
+        for key in own:
+            if (table, key) in SHARED:
+                raise SceneError(source, f"{where}.{table}.{key}",
+                                 f"{SHARED[table, key]} is shared by every rod: give it in "
+                                 f"[{table}]")
+        if own:
+            merged.setdefault(table, {}).update(own)
+    try:
+        scene = validate_one(merged, source, default_name, joined)
+    except SceneError as err:
+        own = entry.get(err.key.partition(".")[0], {})
+        given = err.key.partition(".")[2].partition(".")[0] in own
+        raise SceneError(source, f"{where}.{err.key}" if given else err.key,
+                         err.reason if given else f"(rod {k}) {err.reason}") from None
+    if not scene.is_rod_material:
+        raise SceneError(source, f"{where}.material", "a rod of [[rods]] needs a 3-D rod "
+                                                       "material (stiffness, or a section)")
+    try:
+        name = run_name(entry.get("name", f"rod{k}"))
+        position, orientation = (vector3()(entry.get(key, [0.0, 0.0, 0.0]))
+                                 for key in ("position", "orientation"))
+    except BadValue as bad:
+        raise SceneError(source, where, bad.reason) from None
+    return RodEntry(name, position, orientation, scene)
+
+
+def _joint(entry: dict, k: int, source: str, names: list[str]) -> JointEntry:
+    where = f"joints[{k}]"
+    for key in entry:
+        if key not in JOINT_KEYS:
+            raise SceneError(source, f"{where}.{key}",
+                             f"unknown key (known in [[joints]]: {', '.join(JOINT_KEYS)})")
+    for key in ("kind", "rods", "point"):
+        if key not in entry:
+            raise SceneError(source, f"{where}.{key}", "missing required key")
+    from ..rod.joints import KINDS
+    try:
+        kind = choice(*KINDS)(entry["kind"])
+    except BadValue as bad:
+        raise SceneError(source, f"{where}.kind", bad.reason) from None
+    rods = entry["rods"]
+    if not (isinstance(rods, list) and len(rods) == 2 and all(r in names for r in rods)
+            and rods[0] != rods[1]):
+        raise SceneError(source, f"{where}.rods", f"must name two different rods of "
+                                                  f"{names}, got {rods!r}")
+    try:
+        point = vector3()(entry["point"])
+        name = string(entry.get("name", ""))
+    except BadValue as bad:
+        raise SceneError(source, f"{where}.point", bad.reason) from None
+    return JointEntry(kind, tuple(rods), point, name)
+
+
+def _check_joint_points(scene: Scene) -> None:
+    """Every joint at a node of both its rods (rod.joints.locate), before any model."""
+    from ..rod.joints import locate
+    from .builders import rods_and_joints
+    if not scene.joints:
+        return
+    rods, joints = rods_and_joints(scene)
+    try:
+        locate(rods, joints)
+    except ValueError as err:
+        key = str(err).partition(" ")[0].rstrip(":")
+        raise SceneError(scene.source, key, str(err).partition(" ")[2]) from None

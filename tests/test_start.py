@@ -1,0 +1,300 @@
+"""Starting states of the 3-D rod (issue 25 item 2, rod/start.py): a starting curve is
+frame 0 to round-off, a pre-stretched start under its matching end load does not move,
+initial velocities against a rigid rotation's kinetic energy, a start settled in static
+equilibrium against the axial closed form, bad input naming the key."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dolfin_rod import (Arc, Helix, Polyline, RodModel, RodParameters, StartingState,
+                        Straight, TimeStepper)
+from dolfin_rod.rod import EndLoad
+from dolfin_rod.theory.rotations import np_quaternion_from_rotation_vector, np_rotation_matrix
+
+EA, RHO_A, I11, I22 = 50.0, 2.0, 0.03, 0.02
+PLACE = {"position": (0.4, -1.0, 2.5), "orientation": (0.3, -0.7, 1.1)}
+
+
+def dynamic_rod(rotations="auto", length=2.0, ends=("free", "free"), end_loads=(), n=8):
+    params = RodParameters(length=length, A=(0.8, 1.2, 0.6), B=(40.0, 30.0, EA),
+                           rho_A=RHO_A, I11=I11, I22=I22)
+    return RodModel(params, n_cells=n, model="hyperelastic", rotations=rotations,
+                    ends=ends, end_loads=end_loads)
+
+
+def nodes(model):
+    """(s, r, R) at the nodes owned or ghosted here: rest arc length, centre line and
+    rotation matrices."""
+    x = model.f["displacement"]
+    s = x.function_space.tabulate_dof_coordinates()[:, 0]
+    r = x.x.array.reshape(-1, 3) + np.outer(s, [0, 0, 1.0])
+    chart = model.unknowns.chart
+    q = (chart.q_n if chart is not None else model.f["quaternion"]).x.array.reshape(-1, 4)
+    return s, r, np.array([np_rotation_matrix(qi) for qi in q])
+
+
+def largest_change(model, x0) -> float:
+    """max |x - x0| over the displacement dofs of all ranks."""
+    from mpi4py import MPI
+    local = np.max(np.abs(model.f["displacement"].x.array - x0), initial=0.0)
+    return model.mesh.comm.allreduce(local, op=MPI.MAX)
+
+
+def placement():
+    Q = np_rotation_matrix(np_quaternion_from_rotation_vector(np.array(PLACE["orientation"])))
+    return np.array(PLACE["position"]), Q
+
+
+def helix_closed_form(s, a, pitch):
+    """A helix of radius a, pitch 2 pi c about e_z, by arc length, carried to the start's
+    frame (start at 0, tangent e3, principal normal e1): points and (d1, d2, d3)."""
+    c = pitch / (2 * np.pi)
+    k = np.hypot(a, c)
+
+    def along(phi):
+        gamma = np.stack([a * np.cos(phi), a * np.sin(phi), c * phi], axis=-1)
+        T = np.stack([-a * np.sin(phi), a * np.cos(phi), c + 0 * phi], axis=-1) / k
+        N = np.stack([-np.cos(phi), -np.sin(phi), 0 * phi], axis=-1)
+        return gamma, T, N
+
+    gamma, T, N = along(s / k)
+    gamma0, T0, N0 = along(0.0)
+    start = np.stack([N0, np.cross(T0, N0), T0])             # rows: the start's frame
+    frame = np.stack([N, np.cross(T, N), T], axis=-1)        # columns d1, d2, d3
+    return (gamma - gamma0) @ start.T, start @ frame
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("rotations", ["rotation_vector", "quaternion"])
+def test_helix_start_is_frame_0(rotations):
+    """A helix start placed anywhere: the nodes and directors of frame 0 are the closed
+    form (an independent parametrisation about the helix axis) to round-off."""
+    a, pitch = 0.3, 0.5
+    model = dynamic_rod(rotations)
+    model.set_initial_state(start=StartingState(shape=Helix(a, pitch), **PLACE))
+    s, r, R = nodes(model)
+    p, Q = placement()
+    r_ref, frames = helix_closed_form(s, a, pitch)
+    # round-off of O(1) numbers through a few products: 1e-14
+    assert np.max(np.abs(r - (p + r_ref @ Q.T))) < 1e-14 * 4
+    assert np.max(np.abs(R - Q @ frames)) < 1e-14 * 4
+    assert model.diagnostics(0.0)["kinetic_energy"] == 0.0
+
+
+def test_arc_and_polyline_starts():
+    """An arc: nodes on the circle of its radius, s/radius apart in angle; a polyline
+    without rest lengths through the arc's own nodes gives the same nodes, and its
+    directors are the mean chord directions (d3) to round-off."""
+    radius, L, n = 0.7, 2.0, 8
+    model = dynamic_rod(length=L, n=n)
+    model.set_initial_state(start=StartingState(shape=Arc(radius)))
+    s, r, R = nodes(model)
+    angle = s / radius    # bends towards d1 = e1 in the (e1, e3) plane
+    circle = np.stack([radius * (1 - np.cos(angle)), 0 * s, radius * np.sin(angle)], axis=1)
+    assert np.max(np.abs(r - circle)) < 1e-14 * 4
+    order = np.argsort(s)
+    chord = 2 * radius * np.sin(L / n / radius / 2)      # the arc's chords sum to L'
+    points = circle[order] * (L / (n * chord))           # scaled: the polyline is L long
+    line = dynamic_rod(length=L, n=n)
+    line.set_initial_state(start=StartingState(shape=Polyline(tuple(map(tuple, points)))))
+    s2, r2, R2 = nodes(line)
+    assert np.max(np.abs(r2 - circle * L / (n * chord))) < 1e-14 * 4
+    interior = (s2 > 0) & (s2 < L)
+    # the polyline's nodal tangent of a circle's chords is the circle's tangent
+    assert np.max(np.abs(R2[interior, :, 2] - R[interior, :, 2])) < 1e-14 * 4
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("rotations", ["rotation_vector", "quaternion"])
+def test_prestretched_start_under_its_load_does_not_move(rotations):
+    """A straight start stretched by lam, clamped at s = 0, under the end force
+    EA (lam - 1) along it (n = B (v - v_ref) of the quadratic energy) is in equilibrium:
+    its first steps do not move it (round-off), and the stored energy is
+    EA (lam - 1)^2 L / 2.  With 0.9 of that force it moves (the test can fail)."""
+    lam, L = 1.02, 2.0
+    _, Q = placement()
+    axis = Q[:, 2]
+
+    def first_steps(force_factor):
+        load = EndLoad("force", tuple(force_factor * EA * (lam - 1) * axis))
+        model = dynamic_rod(rotations, L, ("clamped", "free"), [load])
+        model.set_initial_state(start=StartingState(shape=Straight(lam), **PLACE))
+        x0 = model.f["displacement"].x.array.copy()
+        energy = model.diagnostics(0.0)["free_energy"]
+        scheme = None if rotations == "rotation_vector" else "generalized_alpha"
+        TimeStepper(model.problem, scheme).run(0.0, 0.02, 0.01)
+        return largest_change(model, x0), energy
+
+    still, energy = first_steps(1.0)
+    assert energy == pytest.approx(0.5 * EA * (lam - 1) ** 2 * L, rel=1e-12)
+    assert still < 1e-12 * L     # Newton's residual tolerance, not the physics
+    moved, _ = first_steps(0.9)
+    assert moved > 1e-5          # 10 % of the load off: it starts to contract
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("rotations", ["rotation_vector", "quaternion"])
+def test_rigid_rotation_kinetic_energy(rotations):
+    """Velocities v = w x (r - c), angular velocity w on a straight rod placed at p along
+    Q e3: K = rho_A/2 int |w x (a + s t)|^2 ds + L/2 w . Q J Q^T w (a = p - c, t = Q e3,
+    J = diag(I22, I11, I11 + I22)), exact for the nodal (P1) fields and the quadrature."""
+    L = 2.0
+    w, centre = np.array([0.4, -1.3, 0.9]), np.array([0.1, 0.2, -0.3])
+    model = dynamic_rod(rotations, L)
+    model.set_initial_state(start=StartingState(angular_velocity=tuple(w),
+                                                rotation_centre=tuple(centre), **PLACE))
+    p, Q = placement()
+    a, t = np.cross(w, p - centre), np.cross(w, Q[:, 2])
+    translational = 0.5 * RHO_A * (L * a @ a + L**2 * a @ t + L**3 / 3 * t @ t)
+    rotational = 0.5 * L * w @ Q @ np.diag([I22, I11, I11 + I22]) @ Q.T @ w
+    assert model.diagnostics(0.0)["kinetic_energy"] == pytest.approx(
+        translational + rotational, rel=1e-13)
+
+
+def test_velocity_field_callable_and_held_end():
+    """A velocity field given as a callable of s: K = rho_A/2 int |v|^2 ds, exact for a
+    field linear in s; a clamped end holds its node still (the support's rate)."""
+    L = 2.0
+    model = dynamic_rod(length=L, ends=("clamped", "free"))
+    model.set_initial_state(start=StartingState(
+        velocity=lambda s: np.outer(s, [0.0, 3.0, 0.0])))
+    # v = 3 s e2 vanishes at s = 0 anyway: K = rho_A/2 int 9 s^2 ds = 3/2 rho_A L^3
+    assert model.diagnostics(0.0)["kinetic_energy"] == pytest.approx(1.5 * RHO_A * L**3,
+                                                                     rel=1e-13)
+    shifted = dynamic_rod(length=L, ends=("clamped", "free"))
+    shifted.set_initial_state(start=StartingState(velocity=(0.0, 3.0, 0.0)))
+    # uniform 3 e2 but the clamped node at rest: the P1 field rises over the first cell
+    h = L / 8
+    exact = 0.5 * RHO_A * 9 * (L - h + h / 3)
+    assert shifted.diagnostics(0.0)["kinetic_energy"] == pytest.approx(exact, rel=1e-13)
+
+
+def test_equilibrium_start_matches_axial_closed_form():
+    """A straight, unstretched start of a dynamic rod under an axial end force F,
+    settled in equilibrium: the tip moves by F L / EA along the rod (the uniform stretch
+    of the quadratic energy, exact for P1), and the first step does not move it."""
+    L, F = 2.0, 1.5
+    _, Q = placement()
+    model = dynamic_rod("auto", L, ("clamped", "free"), [EndLoad("force", tuple(F * Q[:, 2]))])
+    model.set_initial_state(start=StartingState(equilibrium=True, **PLACE))
+    p, _ = placement()
+    d = model.diagnostics(0.0)
+    tip = np.array([d[f"tip_position_{c}"] for c in "xyz"])
+    assert np.max(np.abs(tip - (p + (L + F * L / EA) * Q[:, 2]))) < 1e-12
+    x0 = model.f["displacement"].x.array.copy()
+    TimeStepper(model.problem).run(0.0, 0.01, 0.01)
+    assert largest_change(model, x0) < 1e-12 * L
+
+
+@pytest.mark.parametrize("start, key", [
+    (StartingState(shape=Polyline(((0, 0, 0), (0, 0, 1.5)))), "start.shape.points"),
+    (StartingState(shape=Polyline(((0, 0, 0), (0, 0, 1.0)), rest_arc_length=(0, 1.9))),
+     "start.shape.rest_arc_length"),
+    (StartingState(shape=Polyline(((0, 0, 0), (0, 0, 2.0)), normal=(0, 0, 1))),
+     "start.shape.normal"),
+    (StartingState(shape=Arc(-1.0)), "start.shape.radius"),
+    (StartingState(shape=Straight(0.0)), "start.shape.stretch"),
+    (StartingState(position=(0, 1)), "start.position"),
+])
+def test_bad_starting_state_names_the_parameter(start, key):
+    model = dynamic_rod(length=2.0, n=2)
+    with pytest.raises(ValueError, match=key.replace(".", r"\.")):
+        model.set_initial_state(start=start)
+
+
+def test_quasi_static_rod_refuses_velocities():
+    params = RodParameters(length=1.0)
+    model = RodModel(params, n_cells=2, model="hyperelastic")
+    with pytest.raises(ValueError, match=r"start\.velocity"):
+        model.set_initial_state(start=StartingState(velocity=(1.0, 0, 0)))
+
+
+# -- scenes: [initial] position, orientation, shape, velocities, equilibrium ---------------
+
+SCENE = """
+[geometry]
+length = 2.0
+n_cells = 8
+[material]
+model = "hyperelastic"
+stiffness = { A = [0.8, 1.2, 0.6], B = [40.0, 30.0, 50.0] }
+density = 2.0
+section_inertia = [0.03, 0.02]
+[boundary]
+start = "free"
+[time]
+t_end = 0.01
+dt = 0.01
+[outputs]
+animation = false
+plots = false
+"""
+
+
+@pytest.mark.mpi
+def test_helix_scene_frame_0_is_the_curve(tmp_path):
+    """initial.shape = helix, position, orientation: frame 0 of rod.bp (the deformed
+    centre line a user opens in ParaView) is the closed-form helix to round-off, and
+    the rigid spin's kinetic energy is in the time series' first row."""
+    from mpi4py import MPI
+
+    from dolfin_rod import parse_scene, run_scene
+    from dolfin_rod.output.vtx import read_vtx
+    text = SCENE + (
+        "[initial]\nshape = { type = \"helix\", radius = 0.3, pitch = 0.5 }\n"
+        f"position = {list(PLACE['position'])}\norientation = {list(PLACE['orientation'])}\n")
+    folder = MPI.COMM_WORLD.bcast(str(tmp_path / "run"))
+    summary = run_scene(parse_scene(text, "helix.toml"), folder, quiet=True)
+    assert summary["status"] == "completed", summary["message"]
+    if MPI.COMM_WORLD.rank:
+        return
+    frame = read_vtx(tmp_path / "run" / "rod.bp")[0]
+    s = np.linspace(0.0, 2.0, 9)
+    p, Q = placement()
+    r_ref, _ = helix_closed_form(s, 0.3, 0.5)
+    assert frame["time"] == 0.0
+    assert np.max(np.abs(frame["points"] - (p + r_ref @ Q.T))) < 1e-14 * 4
+
+
+BAD_STARTS = [
+    ('shape = { type = "polyline", points = [[0, 0, 0], [0, 0, 1.5]] }',
+     "initial.shape.points", "differs from the rod's length"),
+    ('shape = { type = "polyline", points = [[0, 0, 0], [0, 0, 1]], rest_arc_length = [0, 1] }',
+     "initial.shape.rest_arc_length", "differs from the rod's length"),
+    ('shape = { type = "arc" }', "initial.shape.radius", "missing"),
+    ('shape = { type = "spiral" }', "initial.shape.type", "one of"),
+    ('shape = { type = "helix", radius = 0.1, pitch = 0.2, turns = 3 }', "initial.shape.turns",
+     "unknown key"),
+    ("rotation_centre = [0, 0, 0]", "initial.rotation_centre", "angular_velocity"),
+]
+
+
+@pytest.mark.parametrize("line, key, reason", BAD_STARTS)
+def test_bad_start_in_a_scene_is_one_clear_error(line, key, reason):
+    from dolfin_rod import SceneError, parse_scene
+    with pytest.raises(SceneError) as info:
+        parse_scene(SCENE + "[initial]\n" + line + "\n", "bad.toml")
+    assert info.value.key == key and reason in info.value.reason, str(info.value)
+
+
+def test_quasi_static_scene_refuses_initial_velocity():
+    from dolfin_rod import SceneError, parse_scene
+    text = SCENE.replace("density = 2.0\nsection_inertia = [0.03, 0.02]\n", "").replace(
+        'start = "free"', 'start = "clamped"') + "[initial]\nvelocity = [1.0, 0.0, 0.0]\n"
+    with pytest.raises(SceneError) as info:
+        parse_scene(text, "bad.toml")
+    assert info.value.key == "initial.velocity"
+
+
+def test_cli_starting_curve_of_wrong_length_exits_2(tmp_path):
+    """The command line: exit status 2, one line naming the file and the key."""
+    from test_cli import cli
+    bad = tmp_path / "bad.toml"
+    bad.write_text(SCENE + '[initial]\nshape = { type = "polyline", points = [[0, 0, 0], '
+                   '[0, 0, 1.5]] }\n')
+    out = cli("check", bad)
+    assert out.returncode == 2 and "Traceback" not in out.stderr
+    assert out.stderr.startswith(f"error: {bad}: [initial.shape.points]: the polyline's "
+                                 "length 1.5 differs from the rod's length 2"), out.stderr
