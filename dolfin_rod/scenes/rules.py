@@ -434,7 +434,6 @@ def _slide_axis(scene: Scene, end: str):
 
 def _turn_axis(scene: Scene, end: str):
     """The axis a clamped end turns about (boundary.<end>_turn) after its checks, or None."""
-    from ..rod.boundary_conditions import slide_axis_problem
     bnd, key = scene["boundary"], f"boundary.{end}_turn"
     axis = bnd[f"{end}_turn"]
     if axis is None:
