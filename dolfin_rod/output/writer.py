@@ -5,7 +5,8 @@
     <run>/timeseries.json   the same columns, written at the end (also if interrupted)
     <run>/summary.json      model and why, status, end values, impulse, versions
     <run>/timings.json      wall-clock seconds of setup, integration, output
-    <run>/histories.png     end torsion, end rotation, natural twist, energies, balance
+    <run>/histories.png     what the scene is about (plots.py: end torque, force-extension,
+                            tip deflection, reactions, ...), energies, relative power balance
     <run>/rod.bp            ParaView (ADIOS2VTXReader) of FE models: the deformed centre
                             line with directors d1, d2, d3 (points) and u, v, u_d, v_d, n,
                             m, xi (cells); torsion: phi (points), u, u_d, m, xi (cells)
@@ -44,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from .checkpoints import Checkpoints
+from .plots import plot_histories
 from .field_outputs import FieldOutputs
 from .run_folders import OutputError, files_in, on_root
 
@@ -258,7 +260,7 @@ class RunWriter:
         if self.outputs["plots"] and len(self.rows) > 1:
             pictures.append(("histories.png",
                              lambda: plot_histories(self.rows, self.folder / "histories.png",
-                                                    title)))
+                                                    self.scene, title)))
         if self.lines is not None:
             pictures += self.lines.pictures(title)
         for i, (name, draw) in enumerate(pictures):
@@ -316,32 +318,3 @@ def _dump(path: Path, data) -> None:
     tmp = path.with_suffix(".json-new")
     tmp.write_text(json.dumps(data, indent=1))
     tmp.replace(path)
-
-
-def plot_histories(rows: list[dict], path: Path, title: str = "") -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    t = np.array([r["time"] for r in rows])
-    col = lambda k: np.array([r[k] for r in rows], dtype=float)   # noqa: E731
-    fig, ax = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
-    if "end_torsion" in rows[0]:       # torsion models
-        ax[0, 0].plot(t, col("end_torsion")); ax[0, 0].set_ylabel("end torsion m")
-        ax[0, 1].plot(t, col("end_rotation"), label="end rotation phi(1)")
-        ax[0, 1].plot(t, col("mean_natural_twist"), label="mean natural twist")
-    else:                              # 3-D rod; a rod system: each rod's "<name>.tip_..."
-        for rod in [k[:-len("tip_position_x")] for k in rows[0] if k.endswith("tip_position_x")]:
-            for c in "xyz":
-                ax[0, 0].plot(t, col(f"{rod}tip_position_{c}"), label=f"{rod}tip {c}")
-            ax[0, 1].plot(t, col(f"{rod}tip_rotation_angle"), label=f"{rod}tip rotation angle")
-        ax[0, 0].legend(fontsize="small")
-    ax[0, 1].legend()
-    ax[1, 0].plot(t, col("free_energy") + col("kinetic_energy"), label="K + Psi")
-    ax[1, 0].plot(t, col("total_dissipation"), label="int D dt")
-    ax[1, 0].legend(); ax[1, 0].set_xlabel("t")
-    ax[1, 1].semilogy(t[1:], np.abs(col("power_residual")[1:]) + 1e-300)
-    ax[1, 1].set_ylabel("|d/dt(K+Psi) + D - P|"); ax[1, 1].set_xlabel("t")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)

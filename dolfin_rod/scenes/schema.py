@@ -34,8 +34,8 @@ from .rules import check_combinations
 from .scene import Scene, SceneError
 from .systems import validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
-                     damping_tensor, entry_point, integer, load_entry_point, path_problem,
-                     path_text,
+                     names_or_boolean, damping_tensor, entry_point, integer,
+                     load_entry_point, path_problem, path_text,
                      petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
                      section_inertia, spring_table, starting_shape, string, tensor_table,
                      toml_value,
@@ -52,6 +52,18 @@ ROD_MODELS = ("evolving", "kelvin_voigt", "hyperelastic")
 ROD_ENDS = ("clamped", "pinned", "free")
 CONSTRAINTS = ("none", "unshearable", "inextensible_unshearable")
 OBSTACLE_SHAPES = ("plane", "sphere", "cylinder")
+
+# the panels of histories.png (output/plots.py) and the unit systems of a scene's axes
+PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "reactions",
+          "twist", "energy", "power_residual")
+
+# quantity kind -> unit per unit system
+UNITS = {
+    "SI": {"length": "m", "time": "s", "force": "N", "moment": "N m", "energy": "J",
+           "angle": "rad"},
+    "pN-nm-s": {"length": "nm", "time": "s", "force": "pN", "moment": "pN nm",
+                "energy": "pN nm", "angle": "rad"},
+}
 
 
 REQUIRED = object()
@@ -129,6 +141,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                    "(default: the file's stem, other characters as '_')"),
         "description": Key(string, "", "free text"),
         "model": Key(choice(*MODEL_NAMES), "auto", "auto | ode | torsion | rod"),
+        "units": Key(choice(*UNITS), None, " | ".join(UNITS) + ": the unit system the "
+                     "scene's numbers are in, shown on the axes of the plots (default: "
+                     "\"scene units\")"),
     },
     "geometry": {
         "length": Key(real(MIN_LENGTH), 1.0, f"rod length L >= {MIN_LENGTH:g} (torsion: "
@@ -373,7 +388,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "animation": Key(boolean, True, "3-D rod: animation.gif and snapshots.png of the "
                                         "moving centre line coloured by |u_d - u_ref|; "
                                         "torsion: spacetime.png of phi(s, t), u_d(s, t)"),
-        "plots": Key(boolean, True, "PNG plots of the main histories"),
+        "plots": Key(names_or_boolean(*PANELS), True, "histories.png: true (panels chosen "
+                     "from the scene's supports and loads), false (none) or a list of "
+                     "panels from " + ", ".join(PANELS) + " (docs/outputs.md)"),
         "checkpoint_every": Key(integer(0), 0, "adios4dolfinx checkpoint every N steps (0: off; "
                                                "integrator = \"stepper\" only)"),
         "progress": Key(boolean, True, "tqdm progress bar (rank 0, TTY, not CI)"),

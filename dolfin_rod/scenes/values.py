@@ -129,6 +129,22 @@ def boolean(v):
     return v
 
 
+def names_or_boolean(*options: str):
+    """true | false | a list of some of ``options`` (in the order shown)."""
+    def check(v):
+        if isinstance(v, bool):
+            return v
+        if not isinstance(v, list) or not v or not all(isinstance(x, str) for x in v):
+            raise BadValue(f"must be true, false or a list of names from {', '.join(options)}; "
+                           f"got {type_name(v)} {v!r}")
+        unknown = [x for x in v if x not in options]
+        if unknown:
+            raise BadValue(f"unknown {', '.join(repr(x) for x in unknown)}; choose from "
+                           f"{', '.join(options)}")
+        return tuple(v)
+    return check
+
+
 def vector3(lo: float | None = None, lo_strict: bool = False):
     each = real(lo, lo_strict)
 

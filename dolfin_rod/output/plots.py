@@ -1,0 +1,217 @@
+"""histories.png: the time series a scene is about (rank 0, from the rows of the run).
+
+Panels (``outputs.plots``: a list of these names; default chosen by ``choose_panels``
+from the scene's supports and loads):
+
+    tip_deflection   tip displacement r(L, t) - r(L, 0), components x, y, z
+    tip_rotation     rotation of the tip about its main axis, unwrapped (cumulative):
+                     a 2.5-turn twist reads 5 pi, not 5 pi mod 2 pi
+    end_torque       the couple the support at s = L exerts (reaction_couple_right_*);
+                     torsion models: the end torsion m(1, t)
+    force_extension  the applied end force along its direction against the tip
+                     displacement along it (a hysteresis loop when the rod is viscous)
+    reactions        force and couple of the support at s = 0 (reaction_*_left_*)
+    twist            torsion models: end rotation phi(1, t) and mean natural twist
+    energy           K + Psi and the dissipated energy int D dt
+    power_residual   |d/dt(K + Psi + E_c) + D - P| / power scale (relative_power_residual)
+
+Units: ``scene.units`` ("SI", "pN-nm-s") names the unit of every axis; a scene without it
+gets "scene units".
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..scenes.schema import PANELS, UNITS
+
+
+def axis_label(name: str, kind: str, units: str | None) -> str:
+    """'name [unit]' in the scene's unit system; 'name [scene units]' without one."""
+    if kind == "1":
+        return name
+    if kind == "angle":
+        return f"{name} [rad]"
+    return f"{name} [{UNITS[units][kind]}]" if units in UNITS else f"{name} [scene units]"
+
+
+def choose_panels(scene, columns) -> list[str]:
+    """The panels for the scene: its ``outputs.plots`` if given, else from its supports
+    and loads (see module docstring); always ending with energy and power residual."""
+    chosen = scene["outputs"]["plots"]
+    if isinstance(chosen, tuple):
+        return list(chosen)
+    cols = set(columns)
+    if "end_torsion" in cols:
+        return ["end_torque", "twist", "energy", "power_residual"]
+    boundary, loads = scene["boundary"], scene["loads"]
+    panels = []
+    if loads.get("end_force") is not None and boundary["end"] == "free":
+        panels.append("force_extension")
+    if boundary.get("end_rotation") is not None and any(
+            c.endswith("reaction_couple_right_z") for c in cols):
+        panels += ["end_torque", "tip_rotation"]
+    if not panels and any(c.endswith("tip_position_x") for c in cols):
+        panels.append("tip_deflection")
+    if any(c.endswith("reaction_force_left_x") for c in cols) and len(panels) < 2:
+        panels.append("reactions")
+    return panels + ["energy", "power_residual"]
+
+
+def unwrapped_angle(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cumulative rotation angle about a fixed axis from unit quaternions q (n x 4,
+    scalar first), and that axis: the axis of the largest rotation, signed so that its
+    largest component is positive.  theta = 2 atan2(q_v . a, q_0) is unwrapped in steps
+    of 2 pi, which also absorbs the sign ambiguity q ~ -q (a jump of 2 pi in theta)."""
+    v = q[:, 1:]
+    k = int(np.argmax(np.linalg.norm(v, axis=1)))
+    norm = np.linalg.norm(v[k])
+    if norm == 0.0:
+        return np.zeros(len(q)), np.array([0.0, 0.0, 1.0])
+    a = v[k] / norm
+    a = a * np.sign(a[np.argmax(np.abs(a))])
+    return np.unwrap(2.0 * np.arctan2(v @ a, q[:, 0])), a
+
+
+def relative_power_residual(rows: list[dict]) -> np.ndarray:
+    """|r_k| / S for k >= 1, r_k the power_residual column and S the power scale: the
+    largest over the run of |d/dt(K + Psi + E_c)|, D and |P| (the terms of the balance;
+    the difference quotient of each interval for the first)."""
+    e = np.array([r["free_energy"] + r["kinetic_energy"] + r.get("contact_energy", 0.0)
+                  for r in rows])
+    t = np.array([r["time"] for r in rows])
+    rates = np.abs(np.diff(e) / np.diff(t))
+    scale = max(np.max(rates, initial=0.0),
+                max(abs(r["dissipation_rate"]) for r in rows),
+                max(abs(r["load_power"]) for r in rows))
+    residual = np.abs(np.array([r["power_residual"] for r in rows[1:]], dtype=float))
+    return residual / scale if scale > 0 else residual
+
+
+class _Series:
+    def __init__(self, rows):
+        self.rows = rows
+        self.t = np.array([r["time"] for r in rows])
+
+    def __call__(self, key):
+        return np.array([self.rows[i][key] for i in range(len(self.rows))], dtype=float)
+
+    def prefixes(self, suffix):
+        """'' for a rod, '<name>.' for each rod of a system having column <..>suffix."""
+        return [k[:-len(suffix)] for k in self.rows[0] if k.endswith(suffix)]
+
+
+def _shown(series: dict) -> dict:
+    """The series above round-off: max |x| > 1e-9 of the largest of them (all if none)."""
+    top = max(np.max(np.abs(x)) for x in series.values())
+    kept = {k: x for k, x in series.items() if np.max(np.abs(x)) > 1e-9 * top}
+    return kept or series
+
+
+def _tip_deflection(ax, col, units, scene):
+    for rod in col.prefixes("tip_position_x"):
+        moved = {c: col(f"{rod}tip_position_{c}") for c in "xyz"}
+        for c, x in _shown({c: x - x[0] for c, x in moved.items()}).items():
+            ax.plot(col.t, x, label=f"{rod}tip {c}")
+    ax.legend(fontsize="small")
+    return "tip deflection r(L, t) - r(L, 0)", axis_label("displacement", "length", units)
+
+
+def _tip_rotation(ax, col, units, scene):
+    for rod in col.prefixes("tip_quaternion_0"):
+        q = np.stack([col(f"{rod}tip_quaternion_{i}") for i in range(4)], axis=1)
+        theta, a = unwrapped_angle(q)
+        ax.plot(col.t, theta, label=f"{rod}about [{a[0]:.2g}, {a[1]:.2g}, {a[2]:.2g}]")
+        ax.text(0.02, 0.9, f"end: {theta[-1] / (2 * np.pi):.3g} turns",
+                transform=ax.transAxes, fontsize="small")
+    ax.legend(fontsize="small", loc="lower right")
+    return "tip rotation (unwrapped, cumulative)", axis_label("angle", "angle", units)
+
+
+def _end_torque(ax, col, units, scene):
+    if "end_torsion" in col.rows[0]:
+        ax.plot(col.t, col("end_torsion"))
+        return "end torsion m(1, t)", axis_label("m(1, t)", "moment", units)
+    for c, m in _shown({c: col(f"reaction_couple_right_{c}") for c in "xyz"}).items():
+        ax.plot(col.t, m, label=f"M_{c}")
+    ax.legend(fontsize="small")
+    return "end torque: couple of the support at s = L", axis_label("couple", "moment", units)
+
+
+def _force_extension(ax, col, units, scene):
+    force = scene["loads"]["end_force"].vector()
+    f = np.array([force(t) for t in col.t])
+    k = int(np.argmax(np.linalg.norm(f, axis=1)))
+    e = f[k] / max(np.linalg.norm(f[k]), 1e-300)
+    tip = np.stack([col(f"tip_position_{c}") for c in "xyz"], axis=1)
+    ax.plot((tip - tip[0]) @ e, f @ e)
+    ax.set_xlabel(axis_label("extension along the force", "length", units))
+    return "force-extension (end force against tip displacement)", \
+        axis_label("end force", "force", units)
+
+
+def _reactions(ax, col, units, scene):
+    series = _shown({f"{kind}_{c}": col(f"reaction_{name}_left_{c}")
+                     for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"})
+    twin = ax.twinx()
+    for label, x in series.items():
+        (ax if label[0] == "F" else twin).plot(col.t, x, "-" if label[0] == "F" else "--",
+                                                label=label)
+    twin.set_ylabel(axis_label("couple (dashed)", "moment", units))
+    ax.legend(fontsize="small", loc="upper left")
+    twin.legend(fontsize="small", loc="upper right")
+    return "reactions of the support at s = 0", axis_label("force (solid)", "force", units)
+
+
+def _twist(ax, col, units, scene):
+    ax.plot(col.t, col("end_rotation"), label="end rotation phi(1)")
+    ax.plot(col.t, col("mean_natural_twist"), label="mean natural twist")
+    ax.legend(fontsize="small")
+    return "twist", axis_label("angle / twist", "angle", units)
+
+
+def _energy(ax, col, units, scene):
+    ax.plot(col.t, col("free_energy") + col("kinetic_energy"), label="K + Psi")
+    ax.plot(col.t, col("total_dissipation"), label="int D dt")
+    ax.legend(fontsize="small")
+    return "energy stored and dissipated", axis_label("energy", "energy", units)
+
+
+def _power_residual(ax, col, units, scene):
+    ax.semilogy(col.t[1:], relative_power_residual(col.rows) + 1e-300)
+    return ("power balance: |d/dt(K+Psi) + D - P| / max(|dE/dt|, D, |P|)",
+            "relative residual [1]")
+
+
+DRAW = {"tip_deflection": _tip_deflection, "tip_rotation": _tip_rotation,
+        "end_torque": _end_torque, "force_extension": _force_extension,
+        "reactions": _reactions, "twist": _twist, "energy": _energy,
+        "power_residual": _power_residual}
+
+
+def plot_histories(rows: list[dict], path: Path, scene, title: str = "") -> list[str]:
+    """histories.png of the chosen panels; returns their names."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    panels = choose_panels(scene, rows[0])
+    units = scene["scene"].get("units")
+    col = _Series(rows)
+    ncols = 2
+    nrows = (len(panels) + 1) // 2
+    fig, axes = plt.subplots(nrows, ncols, figsize=(11, 3.4 * nrows), squeeze=False)
+    for ax, name in zip(axes.flat, panels):
+        heading, ylabel = DRAW[name](ax, col, units, scene)
+        ax.set_title(heading, fontsize=10)
+        ax.set_ylabel(ylabel)
+        if not ax.get_xlabel():
+            ax.set_xlabel(axis_label("t", "time", units))
+    for ax in list(axes.flat)[len(panels):]:
+        ax.set_visible(False)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return panels

@@ -1,0 +1,87 @@
+"""histories.png shows what the scene is about (issue 29): the panels chosen from the
+scene's supports and loads, the unwrapped tip rotation, the relative power residual."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from dolfin_rod import run_scene
+from dolfin_rod.output.plots import choose_panels, relative_power_residual, unwrapped_angle
+from dolfin_rod.output.writer import PowerBalance
+from dolfin_rod.scenes import SceneError, load_scene
+from quick_scenes import ROOT, quick_scene
+
+SCENES = ROOT / "scenes"
+# the columns a 3-D rod with a clamped start and a held end rotation writes
+ROD_COLUMNS = ["time", "tip_position_x", "tip_quaternion_0", "reaction_force_left_x",
+               "reaction_couple_left_x", "reaction_couple_right_z"]
+
+
+@pytest.mark.parametrize("name, first", [
+    ("twisted_rod_relaxation", ["end_torque", "tip_rotation"]),   # a held twist relaxes
+    ("dna_overstretching", ["force_extension"]),                  # a pulled free end
+    ("gravity_cantilever", ["tip_deflection", "reactions"]),      # a clamped cantilever
+])
+def test_panels_follow_the_scene(name, first):
+    columns = ROD_COLUMNS if name == "twisted_rod_relaxation" else ROD_COLUMNS[:-1]
+    panels = choose_panels(load_scene(SCENES / f"{name}.toml"), columns)
+    assert panels[:len(first)] == first
+    assert panels[-2:] == ["energy", "power_residual"]
+
+
+def test_torsion_panels_and_the_override():
+    torsion = load_scene(SCENES / "torsion_relaxation.toml")
+    assert choose_panels(torsion, ["time", "end_torsion"])[:2] == ["end_torque", "twist"]
+    chosen = load_scene(SCENES / "gravity_cantilever.toml",
+                        {"outputs.plots": ["reactions", "energy"]})
+    assert choose_panels(chosen, ROD_COLUMNS) == ["reactions", "energy"]
+    with pytest.raises(SceneError, match="outputs.plots"):
+        load_scene(SCENES / "gravity_cantilever.toml", {"outputs.plots": ["torque"]})
+    with pytest.raises(SceneError, match="scene.units"):
+        load_scene(SCENES / "gravity_cantilever.toml", {"scene.units": "furlongs"})
+
+
+def test_unwrapped_angle_of_a_spin():
+    """q(theta) = (cos theta/2, sin theta/2 e_z), theta = 0 .. 7 pi in steps < pi, some
+    samples with the sign flipped (q ~ -q): the angle is theta itself (round-off)."""
+    theta = np.linspace(0.0, 7 * np.pi, 23)
+    q = np.stack([np.cos(theta / 2), 0 * theta, 0 * theta, np.sin(theta / 2)], axis=1)
+    q[1::3] *= -1.0
+    angle, axis = unwrapped_angle(q)
+    np.testing.assert_allclose(angle, theta, atol=1e-12)
+    np.testing.assert_allclose(axis, [0.0, 0.0, 1.0])
+
+
+def test_relative_power_residual_of_a_known_history():
+    """E(t) = t^3, D = 1, P = 3 t^2 + 1 balance exactly (dE/dt + D - P = 0); the
+    trapezoidal residual on [a, b] is (a^2 + ab + b^2) - 3 (a^2 + b^2)/2 = -h^2/2, and the
+    power scale is max |P| = 3 T^2 + 1 (above D = 1 and the quotients a^2 + ab + b^2)."""
+    t, h = np.linspace(0.0, 2.0, 11), 0.2
+    balance, rows = PowerBalance(), []
+    for tk in t:
+        row = {"time": tk, "free_energy": tk**3, "kinetic_energy": 0.0,
+               "dissipation_rate": 1.0, "load_power": 3 * tk**2 + 1}
+        row["power_residual"] = balance.update(row)[1]
+        rows.append(row)
+    np.testing.assert_allclose(relative_power_residual(rows), h**2 / 2 / 13.0, rtol=1e-10)
+
+
+def test_two_and_a_half_turns_read_five_pi(tmp_path):
+    """A clamped rod whose end is turned 2.5 turns about its axis (ramp, pi/4 a step):
+    the unwrapped tip angle from the CSV's quaternions is 5 pi (the prescribed rotation,
+    to round-off) while the wrapped column is not."""
+    scene = quick_scene(SCENES / "twisted_rod_relaxation.toml", 22, geometry__n_cells=8,
+                        outputs__animation=False, outputs__fields=False,
+                        boundary__end_rotation={"type": "ramp", "value": [0.0, 0.0, 5 * np.pi],
+                                                "duration": 10.0})
+    run_scene(scene, tmp_path / "run", quiet=True)
+    rows = list(csv.DictReader((tmp_path / "run/timeseries.csv").open()))
+    q = np.array([[float(r[f"tip_quaternion_{i}"]) for i in range(4)] for r in rows])
+    angle, axis = unwrapped_angle(q)
+    assert angle[-1] == pytest.approx(5 * np.pi, abs=1e-9)
+    assert float(rows[-1]["tip_rotation_angle"]) != pytest.approx(5 * np.pi, abs=0.1)
+    np.testing.assert_allclose(axis, [0.0, 0.0, 1.0], atol=1e-12)
+    assert (tmp_path / "run/histories.png").exists()
