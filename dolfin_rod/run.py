@@ -67,10 +67,11 @@ def run(scene: Scene | str | Path, overrides: dict[str, Any] | None = None, *,
                 stop_after)
 
 
-def run_scene(scene: Scene, out: Path | str | None = None, comm=None, resume: bool = False,
-              stop_after: int | None = None, quiet: bool = False,
+def run_scene(scene: Scene | str | Path, out: Path | str | None = None, comm=None,
+              resume: bool = False, stop_after: int | None = None, quiet: bool = False,
               overwrite: bool = False) -> dict:
-    """``run(scene, ...).summary``: the summary of a run of a validated scene."""
+    """``run(scene, ...).summary``: the summary of a run of a scene (validated, or the
+    path of a scene file)."""
     return run(scene, out=out, comm=comm, resume=resume, overwrite=overwrite, quiet=quiet,
                stop_after=stop_after).summary
 

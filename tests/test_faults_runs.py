@@ -11,6 +11,7 @@ when the suite itself runs under mpirun.
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import subprocess
@@ -495,3 +496,92 @@ def test_fit_data_with_two_time_columns_is_refused(tmp_path, capsys):
                             "--params", "mu_d", "--out", tmp_path / "fit")
     assert code == 2 and len(errors(err)) == 1 and "column 'time' appears 2 times" in err
     assert not (tmp_path / "fit").exists()
+
+
+# --- item 26: a jump of a prescribed end rotation on dynamic torsion ----------------------
+
+
+def test_dynamic_torsion_end_rotation_step_names_the_jump_not_dt(tmp_path, capsys):
+    """Item 26: a step end_rotation at t0 = 0.5 on dynamic torsion (nu > 0) failed in
+    the run blaming dt and the scheme's stability limit; the cause is the jump."""
+    text = TORSION.replace("[loads]\nend_torsion = { type = \"step\", value = 1.0 }", "") \
+        .replace("mu_d = 0.5", "mu_d = 0.5\nnu = 1.0").replace(
+            "[time]", "[boundary]\nend = \"rotation\"\nend_rotation = { type = \"step\", "
+            "value = 0.5, t0 = 0.5 }\n[time]")
+    (tmp_path / "jump.toml").write_text(text)
+    for command in ("check", "run"):
+        code, out, err = run_main(capsys, command, tmp_path / "jump.toml", "--out",
+                                  tmp_path / "run")
+        assert_one_error(code, out, err, "boundary.end_rotation", "cannot follow a jump")
+        assert "stability" not in err and "time.dt =" not in err.split("jump")[0]
+
+
+# --- item 27: an explicit scheme on a dynamic rod -----------------------------------------
+
+
+def test_explicit_scheme_on_a_dynamic_rod_is_refused_at_check(tmp_path, capsys):
+    """Item 27: explicit_euler on a dynamic rod passed check, then failed with
+    DIVERGED_LINEAR_SOLVE at t = 0 (its quaternion gauge is algebraic)."""
+    text = ROD.replace("[loads]", "density = 1.0\nsection_inertia = 0.01\n[loads]").replace(
+        "[time]", '[time]\nscheme = "explicit_euler"')
+    (tmp_path / "ee.toml").write_text(text)
+    for command in ("check", "run"):
+        code, out, err = run_main(capsys, command, tmp_path / "ee.toml", "--out",
+                                  tmp_path / "run")
+        assert_one_error(code, out, err, "time.scheme", "differential-algebraic")
+    assert not (tmp_path / "run").exists()
+
+
+# --- item 28: fit inputs that are bad input, not failed runs --------------------------------
+
+
+@pytest.mark.parametrize("case", ["integer parameter", "time span 1e12"])
+def test_fit_with_an_integer_parameter_or_a_huge_time_span_is_bad_input(tmp_path, capsys,
+                                                                         case):
+    """Item 28: exit 3 blaming [time.dt] for both; now exit 2 before any model runs,
+    naming the parameter, or the data's time span and the step it would need."""
+    scene = tmp_path / "creep.toml"
+    scene.write_text((ROOT / "examples" / "fit" / "creep.toml").read_text().replace(
+        "[time]", "[geometry]\nn_cells = 4\n[time]"))
+    data, params = ROOT / "examples" / "fit" / "creep.csv", "geometry.n_cells"
+    if case == "time span 1e12":
+        data, params = tmp_path / "span.csv", "mu_d"
+        data.write_text("time,load,response\n0,1,0\n5e11,1,0.5\n1e12,1,0.6\n")
+    code, out, err = run_main(capsys, "fit", scene, data, "--params", params, "--out",
+                              tmp_path / "fit")
+    assert code == 2 and len(errors(err)) == 1 and "Traceback" not in err, err
+    if case == "integer parameter":
+        assert "parameter 'geometry.n_cells'" in err and "is an integer" in err
+    else:
+        assert "time span (t = 0 .. 1e+12" in err and "[time.dt]" in err
+    assert not (tmp_path / "fit").exists()
+
+
+# --- item 30: the Python API ----------------------------------------------------------------
+
+
+def test_api_refuses_a_nan_end_load_and_runs_a_scene_file(tmp_path):
+    """Item 30: a NaN EndLoad was accepted; run_scene("x.toml") raised AttributeError."""
+    from dolfin_rod import run_scene
+    from dolfin_rod.rod import EndLoad, RodModel, RodParameters
+    with pytest.raises(ValueError, match="EndLoad value must be finite"):
+        RodModel(RodParameters(), n_cells=2, end_loads=[EndLoad("force", [math.nan, 0, 0])])
+    with pytest.raises(ValueError, match="EndLoad history must be finite"):
+        RodModel(RodParameters(), n_cells=2,
+                 end_loads=[EndLoad("force", [1.0, 0, 0], lambda t: math.inf)])
+    (tmp_path / "creep.toml").write_text(TORSION)
+    summary = run_scene(str(tmp_path / "creep.toml"), tmp_path / "run", quiet=True)
+    assert summary["status"] == "completed"
+
+
+def test_api_run_without_the_initial_state_says_so():
+    """Item 30: a rod whose set_initial_state() was not called failed with
+    DIVERGED_FNORM_NAN and no hint (its quaternions are zero)."""
+    from dolfin_rod import TimeStepper
+    from dolfin_rod.rod import EndLoad, RodModel, RodParameters
+    model = RodModel(RodParameters(), n_cells=2, end_loads=[EndLoad("force", [0.1, 0, 0])])
+    with pytest.raises(ValueError, match=r"call model.set_initial_state\(\)"):
+        TimeStepper(model.problem, "backward_euler").run(0.0, 0.1, 0.1)
+    model.set_initial_state()
+    TimeStepper(model.problem, "backward_euler").run(0.0, 0.1, 0.1)
+    assert model.diagnostics(0.1)["tip_position_x"] > 0.0

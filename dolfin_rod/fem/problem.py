@@ -45,6 +45,8 @@ class SemiDiscreteProblem:
                  rotation increment no resolved step makes (a spurious root).
     links:       linear multi-point constraints between nodes (fem/multipoint.NodeLink:
                  joints of a rod system), eliminated by the solvers.
+    unset_state: what to call before integrating ("": the state is set); a model whose
+                 fields start invalid (a rod's zero quaternions) names its set-up call.
     """
 
     fields: list[fem.Function]
@@ -56,6 +58,7 @@ class SemiDiscreteProblem:
     after_step: Callable[[], None] = lambda: None
     check_step: Callable[[], str | None] = lambda: None
     links: list = field(default_factory=list)
+    unset_state: str = ""
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):

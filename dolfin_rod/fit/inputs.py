@@ -182,10 +182,28 @@ def _parameter(name: str, scene: Scene, raw: dict) -> Parameter:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise FitInputError(f"parameter {name!r}: the scene's value is not a number "
                             f"(got {value!r}); name one entry, e.g. {name}[0]")
+    if isinstance(value, int) and not _takes_reals(keys):
+        raise FitInputError(f"parameter {name!r}: {'.'.join(keys)} is an integer (a count, "
+                            "not a quantity): only real-valued keys can be fitted")
     if not value > 0.0:
         raise FitInputError(f"parameter {name!r}: its initial value must be > 0 (fitted as "
                             f"log p), got {value}")
     return Parameter(name, keys, indices, float(value))
+
+
+def _takes_reals(keys: tuple[str, ...]) -> bool:
+    """The schema accepts a non-integer value at this key (table.key; deeper keys are
+    entries of tensors and histories, which are real)."""
+    from ..scenes.schema import SCHEMA
+    from ..scenes.values import BadValue
+    key = SCHEMA.get(keys[0], {}).get(keys[1]) if len(keys) == 2 else None
+    if key is None:
+        return True
+    try:
+        key.check(1.5)
+    except BadValue:
+        return False
+    return True
 
 
 def _long_form(head: str, scene: Scene) -> str:

@@ -251,6 +251,13 @@ def prepare_fit(scene: Scene, data: MeasuredSeries, params: list[str] | str,
     if n <= k:
         raise FitInputError(f"{data.source}: {n} usable rows for {k} parameters: need "
                             "more rows than parameters")
+    try:      # the scene with the data's load and time span, at the initial values
+        trial_scene(problem.base, scene, parameters, [p.initial for p in parameters],
+                    problem.experiment, data, problem.dt)
+    except SceneError as err:
+        raise FitInputError(f"{data.source}: the scene cannot run the data's load and "
+                            f"time span (t = 0 .. {data.time[-1]:g}, step {problem.dt:g}): "
+                            f"[{err.key}]: {err.reason}") from None
     return problem
 
 

@@ -80,8 +80,12 @@ class StepStats:
     snes_failures: int = 0
 
 
-def check_run(t0: float, t_end: float, dt: float) -> None:
-    """ValueError unless dt > 0 and t_end > t0."""
+def check_run(t0: float, t_end: float, dt: float, problem=None) -> None:
+    """ValueError unless dt > 0, t_end > t0 and the problem's initial state is set."""
+    if problem is not None and problem.unset_state:
+        raise ValueError(f"the initial state is not set: call {problem.unset_state} before "
+                         "integrating (its fields are still zero, e.g. a rod's quaternions: "
+                         "DIVERGED_FNORM_NAN at the first step)")
     if not dt > 0:
         raise ValueError(f"dt must be > 0, got {dt}")
     if not t_end > t0:

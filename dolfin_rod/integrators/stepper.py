@@ -265,7 +265,7 @@ class SchemeStepper:
         """Integrate from t0 to t_end with nominal step dt, cutting steps on failure.
         A run from where the last one ended, on its end state, continues its history;
         any other starts afresh (the startup scheme)."""
-        check_run(t0, t_end, dt)
+        check_run(t0, t_end, dt, self.problem)
         if not self._continues(t0, dt):
             self.history_steps = 0
         self._sub_solves = 1

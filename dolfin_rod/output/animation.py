@@ -1,28 +1,50 @@
 """Pictures of a run from the gathered line samples (rank 0 only).
 
 3-D rod:  ``animation.gif``  the centre line in 3-D, a short fading trail of the
-          previous frames, coloured by |u_d - u_ref| per cell (how far the natural
-          curvature has evolved from the reference; |u - u_ref| for models without
-          natural strains);
-          ``snapshots.png``  selected frames in 3-D and |u_d - u_ref|(s) at those times.
+          previous frames, coloured by a field along the rod (``Look.colour``:
+          ``outputs.color``; default ``colour_field``: the evolving strain with the largest
+          change), the deformation magnified when the motion is small (stated on the
+          picture), supports and gravity drawn; 840 x 640 px;
+          ``snapshots.png``  selected frames in 3-D and the colour field along s.
 torsion:  ``spacetime.png``  phi(s, t) and u_d(s, t) as space-time images.
+
+The GIF is cheap (issue 30): matplotlib draws the axes, colour bar and labels once; each
+frame is that image with the projected centre line drawn on it by Pillow, and the GIF is
+written once with one palette.
 
 Frames are kept thinned (``FrameStore``: at most ``max_frames``, every other frame is
 dropped when full), so memory does not grow with the number of steps; the GIF draws at
-most ``GIF_FRAMES`` of them (matplotlib.animation with Pillow).
+most ``GIF_FRAMES`` of them.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FrameStore", "rod_animation", "rod_snapshots", "torsion_spacetime",
-           "GIF_FRAMES"]
+from ..scenes.schema import COLOURS
+
+__all__ = ["FrameStore", "Look", "rod_animation", "rod_snapshots", "torsion_spacetime",
+           "colour_field", "magnification", "GIF_FRAMES", "COLOURS"]
 
 GIF_FRAMES = 24
 TRAIL = 3
+SIZE = (8.4, 6.4)            # inches at 100 dpi: 840 x 640 px
+STRAINS = ("u", "v", "u_d", "v_d")
+SMALL_MOTION = 0.05          # motion below 5 % of the rod's size is magnified ...
+SHOWN_MOTION = 0.2           # ... to about 20 % of it
+
+
+@dataclass(frozen=True)
+class Look:
+    """What the 3-D pictures show: the colour field ("auto" or a key of COLOURS), the
+    supports {"start": kind, "end": kind} (clamped, pinned, free) and gravity (or None)."""
+
+    colour: str = "auto"
+    supports: dict = field(default_factory=dict)
+    gravity: tuple | None = None
 
 
 class FrameStore:
@@ -57,21 +79,65 @@ def _pyplot():
     return plt
 
 
-def _colour_label(frames) -> str:
-    """|u_d - u_ref| (how far the natural curvature evolved), or |u - u_ref| (the
-    curvature change) for models whose natural strains do not evolve."""
-    evolved = max(np.max(np.linalg.norm(s.cell["u_d"] - s.cell["u_ref"], axis=1))
-                  for _, s in frames)
-    return "|u_d - u_ref|" if evolved > 0 else "|u - u_ref|"
+def _arc_length(sample) -> float:
+    return float(np.ptp(sample.s_nodes))
 
 
-def _colour(sample, label: str) -> np.ndarray:
-    key = "u_d" if label == "|u_d - u_ref|" else "u"
-    return np.linalg.norm(sample.cell[key] - sample.cell["u_ref"], axis=1)
+def _change(frames, key: str) -> float:
+    """Largest |x(s, t) - x(s, 0)| of a strain over the run (curvatures times the rod's
+    length, so that they compare with stretches)."""
+    first = frames[0][1]
+    scale = _arc_length(first) if key.startswith("u") else 1.0
+    return scale * max(np.max(np.linalg.norm(s.cell[key] - first.cell[key], axis=1))
+                       for _, s in frames)
 
 
-def _box(frames):
-    pts = np.concatenate([s.point["centre_line"] for _, s in frames])
+def colour_field(frames, chosen: str = "auto") -> str:
+    """``chosen``, or for "auto" the evolving natural strain (u_d, v_d) with the largest
+    change; if none evolves, the strain (u, v) with the largest change."""
+    if chosen != "auto":
+        return chosen
+    for pair in (("u_d", "v_d"), ("u", "v")):
+        changes = {k: _change(frames, k) for k in pair}
+        best = max(changes, key=changes.get)
+        if changes[best] > 1e-12:
+            return best
+    return "u"
+
+
+def colour_label(key: str) -> str:
+    return f"|{key} - {key}(t=0)|" if key in STRAINS else ("xi" if key == "xi" else f"|{key}|")
+
+
+def colour_values(sample, first, key: str) -> np.ndarray:
+    """Per cell: the change of a strain since t = 0, |n| or |m|, or xi."""
+    x = np.asarray(sample.cell[key])
+    if key in STRAINS:
+        x = x - first.cell[key]
+    return np.linalg.norm(x.reshape(len(x), -1), axis=1) if key != "xi" else x.ravel()
+
+
+def magnification(frames) -> float:
+    """1, or when the centre line moves less than SMALL_MOTION of the rod's size, a round
+    factor (1, 2 or 5 times a power of ten) bringing the motion to about SHOWN_MOTION."""
+    r0 = frames[0][1].point["centre_line"]
+    size = max(np.max(np.ptp(r0, axis=0)), _arc_length(frames[0][1]))
+    motion = max(np.max(np.linalg.norm(s.point["centre_line"] - r0, axis=1))
+                 for _, s in frames)
+    if motion == 0.0 or motion >= SMALL_MOTION * size:
+        return 1.0
+    wanted = SHOWN_MOTION * size / motion
+    power = 10.0 ** np.floor(np.log10(wanted))
+    return float(max(m for m in (1, 2, 5) if m * power <= wanted) * power)
+
+
+def _shape(sample, first, factor: float) -> np.ndarray:
+    r0 = first.point["centre_line"]
+    return r0 + factor * (sample.point["centre_line"] - r0)
+
+
+def _box(shapes):
+    pts = np.concatenate(shapes)
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     mid, half = 0.5 * (lo + hi), 0.5 * max(np.max(hi - lo), 1e-12) * 1.05
     return mid - half, mid + half
@@ -86,75 +152,144 @@ def _setup_3d(ax, box, title=""):
     ax.set_title(title, fontsize=9)
 
 
-def _segments(sample) -> np.ndarray:
-    return sample.point["centre_line"][sample.segments()]
-
-
-def _plot_lines(ax, sample, **style) -> None:
+def _plot_lines(ax, sample, points, **style) -> None:
     """The centre line, one line per rod (the label on the first)."""
     for k, nodes in enumerate(sample.lines()):
-        r = sample.point["centre_line"][nodes]
+        r = points[nodes]
         ax.plot(r[:, 0], r[:, 1], r[:, 2], **(style if k == 0 else
                                                {**style, "label": None}))
 
 
-def rod_animation(frames: list, path: Path, title: str = "") -> None:
+def _support_nodes(sample, look: Look) -> list[tuple[int, str]]:
+    """(node, kind) of the held ends of a single rod (rod systems: none marked)."""
+    if len(sample.lines()) != 1:
+        return []
+    ends = {"start": int(np.argmin(sample.s_nodes)), "end": int(np.argmax(sample.s_nodes))}
+    return [(ends[e], k) for e, k in look.supports.items() if k in ("clamped", "pinned")]
+
+
+def _notes(factor: float, look: Look) -> str:
+    text = [f"displacement x {factor:g}"] if factor != 1.0 else []
+    if any(k in ("clamped", "pinned") for k in look.supports.values()):
+        text.append("square: clamped end, circle: pinned end")
+    return "   ".join(text)
+
+
+class _Projection:
+    """3-D points -> pixels of the drawn figure (rows from the top)."""
+
+    def __init__(self, ax, height: int):
+        self.matrix, self.ax, self.height = ax.get_proj(), ax, height
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        h = np.column_stack([points, np.ones(len(points))]) @ self.matrix.T
+        xy = self.ax.transData.transform(h[:, :2] / h[:, 3:4])
+        xy[:, 1] = self.height - xy[:, 1]
+        return xy
+
+
+def _gravity_arrow(draw, project, box, gravity) -> None:
+    """An arrow 'g' along gravity near the box's upper corner."""
+    lo, hi = box
+    g = np.asarray(gravity, dtype=float)
+    start = hi - 0.15 * (hi - lo)
+    tip = start + 0.15 * np.max(hi - lo) * g / np.linalg.norm(g)
+    a, b = project(np.array([start, tip]))
+    draw.line([tuple(a), tuple(b)], fill=(200, 30, 30), width=3)
+    d = (b - a) / max(np.linalg.norm(b - a), 1e-9)
+    n = np.array([-d[1], d[0]])
+    draw.polygon([tuple(b + 6 * d), tuple(b - 6 * d + 5 * n), tuple(b - 6 * d - 5 * n)],
+                 fill=(200, 30, 30))
+    draw.text(tuple(a + 8 * n), "g", fill=(200, 30, 30))
+
+
+def _draw_rod(draw, pixels, segments, colours, width) -> None:
+    for (i, j), c in zip(segments, colours):
+        draw.line([tuple(pixels[i]), tuple(pixels[j])], fill=c, width=width)
+
+
+def _draw_supports(draw, pixels, supports) -> None:
+    for node, kind in supports:
+        x, y = pixels[node]
+        box = [x - 7, y - 7, x + 7, y + 7]
+        (draw.rectangle if kind == "clamped" else draw.ellipse)(box, fill=(0, 0, 0))
+
+
+def rod_animation(frames: list, path: Path, title: str = "", look: Look = Look()) -> None:
     """The GIF of the 3-D shape (see module docstring)."""
-    from matplotlib.animation import FuncAnimation, PillowWriter
-    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from PIL import Image, ImageDraw, ImageFont
     plt = _pyplot()
     pick = np.unique(np.linspace(0, len(frames) - 1, min(GIF_FRAMES, len(frames))).astype(int))
     shown = [frames[i] for i in pick]
-    label = _colour_label(frames)
-    vmax = max(max(np.max(_colour(s, label)) for _, s in frames), 1e-300)
-    fig = plt.figure(figsize=(4.8, 4.4))
+    first = frames[0][1]
+    key, factor = colour_field(frames, look.colour), magnification(frames)
+    shapes = [_shape(s, first, factor) for _, s in shown]
+    values = [colour_values(s, first, key) for _, s in shown]
+    norm = Normalize(0.0, max(max(np.max(v) for v in values), 1e-300))
+    fig = plt.figure(figsize=SIZE, dpi=100)
     ax = fig.add_subplot(projection="3d")
-    box = _box(frames)
-    current = Line3DCollection([], cmap="viridis", linewidths=3)
-    current.set_clim(0.0, vmax)
-    trail = [Line3DCollection([], colors="0.5", linewidths=1) for _ in range(TRAIL)]
-    for line in trail:
-        ax.add_collection(line)
-    ax.add_collection(current)
-    fig.colorbar(current, ax=ax, shrink=0.6, label=label)
-    _setup_3d(ax, box)
-
-    def draw(k):
-        t, sample = shown[k]
-        current.set_segments(_segments(sample))
-        current.set_array(_colour(sample, label))
-        for j, line in enumerate(trail):
-            line.set_segments(_segments(shown[max(k - j - 1, 0)][1]))
-            line.set_alpha(0.5 * (TRAIL - j) / TRAIL if k - j - 1 >= 0 else 0.0)
-        ax.set_title(f"{title}  t = {t:.4g}", fontsize=9)
-        return [current, *trail]
-
-    anim = FuncAnimation(fig, draw, frames=len(shown), blit=False)
-    anim.save(path, writer=PillowWriter(fps=6), dpi=64)
+    box = _box(shapes)
+    _setup_3d(ax, box, title)
+    fig.colorbar(ScalarMappable(norm, "viridis"), ax=ax, shrink=0.7, pad=0.1,
+                 label=colour_label(key))
+    fig.text(0.02, 0.02, _notes(factor, look), fontsize=10)
+    fig.canvas.draw()
+    background = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[..., :3].copy())
+    project = _Projection(ax, background.height)
     plt.close(fig)
+    if look.gravity is not None and np.any(look.gravity):
+        _gravity_arrow(ImageDraw.Draw(background), project, box, look.gravity)
+    font = ImageFont.load_default(size=18)
+    cmap, supports = plt.get_cmap("viridis"), _support_nodes(first, look)
+    pixels = [project(p) for p in shapes]
+    images = []
+    for k, (t, sample) in enumerate(shown):
+        image = background.copy()
+        draw = ImageDraw.Draw(image)
+        for j in range(min(TRAIL, k), 0, -1):
+            grey = (int(255 - 90 * (TRAIL + 1 - j) / TRAIL),) * 3
+            _draw_rod(draw, pixels[k - j], shown[k - j][1].segments(), [grey] * len(
+                values[k - j]), 2)
+        colours = [tuple(int(255 * c) for c in rgba[:3]) for rgba in cmap(norm(values[k]))]
+        _draw_rod(draw, pixels[k], sample.segments(), colours, 5)
+        _draw_supports(draw, pixels[k], supports)
+        draw.text((20, 40), f"t = {t:.4g}", fill=(0, 0, 0), font=font)
+        images.append(image)
+    palette = background.quantize(colors=255)
+    gif = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in images]
+    gif[0].save(path, save_all=True, append_images=gif[1:], duration=160, loop=0,
+                optimize=False)     # (optimize: 0.7 s of palette work for no gain)
 
 
-def rod_snapshots(frames: list, path: Path, title: str = "", n: int = 6) -> None:
-    """Selected frames in 3-D (coloured by time) and the evolved curvature along s."""
+def rod_snapshots(frames: list, path: Path, title: str = "", n: int = 6,
+                  look: Look = Look()) -> None:
+    """Selected frames in 3-D (coloured by time) and the colour field along s."""
     plt = _pyplot()
     pick = np.unique(np.linspace(0, len(frames) - 1, min(n, len(frames))).astype(int))
-    label = _colour_label(frames)
+    first = frames[0][1]
+    key, factor = colour_field(frames, look.colour), magnification(frames)
     fig = plt.figure(figsize=(10, 4.2))
     ax = fig.add_subplot(1, 2, 1, projection="3d")
     ax2 = fig.add_subplot(1, 2, 2)
     colours = plt.cm.plasma(np.linspace(0.0, 0.85, len(pick)))
     for c, i in zip(colours, pick):
         t, sample = frames[i]
-        _plot_lines(ax, sample, color=c, lw=2, label=f"t = {t:.3g}")
-        colour, first_nodes = _colour(sample, label), sample.segments()[:, 0]
+        _plot_lines(ax, sample, _shape(sample, first, factor), color=c, lw=2,
+                    label=f"t = {t:.3g}")
+        colour, first_nodes = colour_values(sample, first, key), sample.segments()[:, 0]
         for nodes in sample.lines():      # one rod at a time: no step across a gap
             cells = (first_nodes >= nodes.start) & (first_nodes < nodes.stop)
             ax2.step(sample.s_cells[cells], colour[cells], where="mid", color=c)
-    _setup_3d(ax, _box(frames), "centre line r(s, t)")
+    r0 = first.point["centre_line"]
+    for node, kind in _support_nodes(first, look):
+        ax.scatter(*r0[node], marker="s" if kind == "clamped" else "o", color="k", s=40)
+    _setup_3d(ax, _box([_shape(frames[i][1], first, factor) for i in pick]),
+              "centre line r(s, t)" + (f", displacement x {factor:g}" if factor != 1 else ""))
     ax.legend(fontsize=7, loc="upper left")
-    ax2.set_xlabel("s"), ax2.set_ylabel(label)
-    ax2.set_title("evolved natural curvature" if label == "|u_d - u_ref|" else
-                  "curvature change", fontsize=9)
+    ax2.set_xlabel("s"), ax2.set_ylabel(colour_label(key))
+    ax2.set_title(f"{colour_label(key)} along the rod", fontsize=9)
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=90)

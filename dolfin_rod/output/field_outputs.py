@@ -74,18 +74,20 @@ class FieldOutputs:
         if self.comm.rank == 0 and self.vtx is not None:
             self.vtx.close()
 
-    def pictures(self, title: str) -> list[tuple[str, Callable[[], None]]]:
-        """Rank 0: the pictures of outputs.animation, as (file name, draw it)."""
+    def pictures(self, title: str, look=None) -> list[tuple[str, Callable[[], None]]]:
+        """Rank 0: the pictures of outputs.animation, as (file name, draw it); ``look``
+        an animation.Look (colour field, supports, gravity)."""
         from . import animation
+        look = look or animation.Look()
         frames = self.frames.all() if self.frames is not None else []
         if self.comm.rank != 0 or not (self.outputs["animation"] and len(frames) > 1):
             return []
         path = self.folder.joinpath
         if "centre_line" in frames[0][1].point:
             return [("animation.gif", lambda: animation.rod_animation(
-                        frames, path("animation.gif"), title)),
+                        frames, path("animation.gif"), title, look)),
                     ("snapshots.png", lambda: animation.rod_snapshots(
-                        frames, path("snapshots.png"), title))]
+                        frames, path("snapshots.png"), title, look=look))]
         return [("spacetime.png", lambda: animation.torsion_spacetime(
             frames, path("spacetime.png"), title))]
 

@@ -4,13 +4,15 @@
     <run>/timeseries.csv    one row per output time, appended and flushed every step
     <run>/timeseries.json   the same columns, written at the end (also if interrupted)
     <run>/summary.json      model and why, status, end values, impulse, versions
-    <run>/timings.json      wall-clock seconds of setup, integration, output
+    <run>/timings.json      wall-clock seconds of setup, integration, output, pictures
+                            (and each picture's, picture_files)
     <run>/histories.png     what the scene is about (plots.py: end torque, force-extension,
                             tip deflection, reactions, ...), energies, relative power balance
     <run>/rod.bp            ParaView (ADIOS2VTXReader) of FE models: the deformed centre
                             line with directors d1, d2, d3 (points) and u, v, u_d, v_d, n,
                             m, xi (cells); torsion: phi (points), u, u_d, m, xi (cells)
-    <run>/animation.gif     3-D rod: the moving centre line, coloured by |u_d - u_ref|
+    <run>/animation.gif     3-D rod: the moving centre line coloured by outputs.color
+                            (animation.py), magnified when the motion is small
     <run>/snapshots.png     3-D rod: selected frames; torsion: spacetime.png (phi, u_d)
     <run>/checkpoint/step-N/  adios4dolfinx state.bp + meta.json after step N, for resume
 
@@ -262,14 +264,26 @@ class RunWriter:
                              lambda: plot_histories(self.rows, self.folder / "histories.png",
                                                     self.scene, title)))
         if self.lines is not None:
-            pictures += self.lines.pictures(title)
+            pictures += self.lines.pictures(title, self._look())
+        self.timings["picture_files"] = {}
         for i, (name, draw) in enumerate(pictures):
+            t0 = time.perf_counter()
             try:
                 draw()
+                self.timings["picture_files"][name] = time.perf_counter() - t0
             except KeyboardInterrupt:
                 (self.folder / name).unlink(missing_ok=True)     # half drawn
                 return [n for n, _ in pictures[i:]]
         return []
+
+    def _look(self):
+        """What the 3-D pictures show (animation.Look): outputs.color, the supports,
+        gravity."""
+        from .animation import Look
+        boundary = self.scene["boundary"]
+        return Look(self.outputs["color"],
+                    {e: boundary[e] for e in ("start", "end") if e in boundary},
+                    self.scene["loads"].get("gravity"))
 
 
 def _ranges(numbers: list[int]) -> str:

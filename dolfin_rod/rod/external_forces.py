@@ -50,6 +50,13 @@ def check_loads(end_loads, distributed_loads) -> None:
             raise ValueError(f"load kind must be 'force' or 'couple', got {load.kind!r}")
         if not callable(load.value) and np.shape(load.value) != (3,):
             raise ValueError(f"load value must be a 3-vector, got {load.value!r}")
+        if not callable(load.value) and not np.all(np.isfinite(np.asarray(load.value,
+                                                                          float))):
+            raise ValueError(f"{type(load).__name__} value must be finite, got "
+                             f"{list(load.value)!r}")
+        if not np.isfinite(float(load.history(0.0))):
+            raise ValueError(f"{type(load).__name__} history must be finite, got "
+                             f"{load.history(0.0)!r} at t = 0")
     for load in end_loads:
         if load.end not in ENDS:
             raise ValueError(f"load end must be 'left' or 'right', got {load.end!r}")

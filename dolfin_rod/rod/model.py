@@ -178,6 +178,7 @@ class RodModel(FEModel):
         self.joints = list(joints)
         nodes = joint_nodes(self, self.joints)
         self.problem = self._problem(node_links(self, self.joints, nodes))
+        self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
 
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
@@ -283,6 +284,7 @@ class RodModel(FEModel):
         check_start(start, self.length, self.dynamic, rotation_held=(
             "clamped" in self.supports.ends or bool(self.supports.rotation)))
         initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
+        self.problem.unset_state = ""
         if self.contact:
             self.contact.check_initial()
             self.contact.update_normal_forces()

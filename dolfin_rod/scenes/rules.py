@@ -315,9 +315,10 @@ def _check_rod_inertia(scene: Scene) -> None:
     if lds["gravity"] is not None and not dynamic:
         raise err("loads.gravity", "the weight rho_A g needs material.density > 0 (a "
                                    "dynamic rod); quasi-static: use loads.distributed_force")
-    if not dynamic and get_scheme(scene["time"]["scheme"]).explicit:
-        raise err("time.scheme", f"{scene['time']['scheme']} is explicit, but a quasi-static "
-                                 "rod is differential-algebraic: use an implicit scheme")
+    if get_scheme(scene["time"]["scheme"]).explicit:    # (DIVERGED_LINEAR_SOLVE at t = 0)
+        raise err("time.scheme", f"{scene['time']['scheme']} is explicit, but the 3-D rod is "
+                                 "differential-algebraic (its quaternion gauge; quasi-static: "
+                                 "also its positions and rotations): use an implicit scheme")
     rod_rotations(scene)
 
 

@@ -53,7 +53,9 @@ ROD_ENDS = ("clamped", "pinned", "free")
 CONSTRAINTS = ("none", "unshearable", "inextensible_unshearable")
 OBSTACLE_SHAPES = ("plane", "sphere", "cylinder")
 
-# the panels of histories.png (output/plots.py) and the unit systems of a scene's axes
+# the fields that colour the 3-D pictures (output/animation.py), the panels of
+# histories.png (output/plots.py) and the unit systems of a scene's axes
+COLOURS = ("auto", "u", "v", "u_d", "v_d", "n", "m", "xi")
 PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "reactions",
           "twist", "energy", "power_residual")
 
@@ -386,8 +388,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                      "centre line with directors, strains, natural strains, "
                                      "forces, dissipation (FE models)"),
         "animation": Key(boolean, True, "3-D rod: animation.gif and snapshots.png of the "
-                                        "moving centre line coloured by |u_d - u_ref|; "
-                                        "torsion: spacetime.png of phi(s, t), u_d(s, t)"),
+                                        "moving centre line (magnified when the motion is "
+                                        "small, supports and gravity drawn); torsion: "
+                                        "spacetime.png of phi(s, t), u_d(s, t)"),
+        "color": Key(choice(*COLOURS), "auto", R + "the field colouring the pictures: "
+                     "auto (the evolving natural strain, u_d or v_d, with the largest "
+                     "change; u or v if none evolves) | u | v | u_d | v_d (the change since "
+                     "t = 0) | n | m (magnitudes) | xi (docs/outputs.md)"),
         "plots": Key(names_or_boolean(*PANELS), True, "histories.png: true (panels chosen "
                      "from the scene's supports and loads), false (none) or a list of "
                      "panels from " + ", ".join(PANELS) + " (docs/outputs.md)"),

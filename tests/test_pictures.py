@@ -1,0 +1,62 @@
+"""The 3-D pictures (issue 29 item 2): the colour field chosen from the scene, the
+deformation magnification, the picture's size."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dolfin_rod.output.animation import (Look, colour_field, colour_values, magnification,
+                                         rod_animation)
+from dolfin_rod.output.line_fields import LineSample
+
+N = 4   # cells of the synthetic rod: s in [0, 1] along e_3
+
+
+def frame(t, tip=0.0, stretch=0.0, curvature=0.0):
+    """A straight rod bent by tip * s^2 along x, with v_d_3 = 1 + stretch t and
+    u_d_1 = curvature t on every cell."""
+    s = np.linspace(0.0, 1.0, N + 1)
+    centre = np.column_stack([tip * s**2, 0 * s, s])
+    ones = np.ones((N, 3))
+    cell = {"u": 0 * ones, "v": ones * [0, 0, 1], "u_d": ones * [curvature * t, 0, 0],
+            "v_d": ones * [0, 0, 1 + stretch * t], "n": ones, "m": 2 * ones,
+            "xi": np.full(N, 3.0)}
+    return t, LineSample(s, 0.5 * (s[1:] + s[:-1]), {"centre_line": centre}, cell)
+
+
+def test_colour_is_the_evolving_strain_that_changes_most():
+    """Overstretching: v_d goes 1 -> 1.7 while u_d stays (dna_overstretching showed the
+    round-off of |u_d - u_ref| before); creep in bending: u_d changes by 2 / L, v_d by
+    0.1 (curvatures compare times L); nothing evolves: the strain that changes."""
+    stretch = [frame(t, stretch=0.7) for t in (0.0, 1.0)]
+    assert colour_field(stretch) == "v_d"
+    np.testing.assert_allclose(colour_values(stretch[1][1], stretch[0][1], "v_d"), 0.7)
+    bend = [frame(t, stretch=0.1, curvature=2.0) for t in (0.0, 1.0)]
+    assert colour_field(bend) == "u_d"
+    assert colour_field(bend, "m") == "m"
+    np.testing.assert_allclose(colour_values(bend[1][1], bend[0][1], "m"), 2 * np.sqrt(3))
+    still = [frame(0.0), frame(1.0)]
+    still[1][1].cell["v"] = still[1][1].cell["v"] * 1.01
+    assert colour_field(still) == "v"
+
+
+@pytest.mark.parametrize("tip, factor", [(1e-3, 200.0), (3e-3, 50.0), (0.02, 10.0),
+                                         (0.1, 1.0)])
+def test_magnification_brings_small_motion_to_a_fifth_of_the_rod(tip, factor):
+    """Size 1 (the arc length), motion = tip: below 5 % the factor is the largest 1-2-5
+    number <= 0.2 / tip (200, 66.7 -> 50, 10); 10 % is shown as it is."""
+    assert magnification([frame(0.0), frame(1.0, tip=tip)]) == factor
+
+
+def test_animation_is_wide_and_marks_the_motion(tmp_path):
+    from PIL import Image
+    frames = [frame(t, tip=1e-3 * t, curvature=1.0) for t in np.linspace(0, 1, 5)]
+    rod_animation(frames, tmp_path / "a.gif", "test",
+                  Look("auto", {"start": "clamped", "end": "free"}, (-9.81, 0.0, 0.0)))
+    gif = Image.open(tmp_path / "a.gif")
+    assert gif.n_frames == 5 and gif.size[0] >= 800
+    gif.seek(4)
+    last = np.asarray(gif.convert("RGB"))
+    gif.seek(0)
+    assert np.any(last != np.asarray(gif.convert("RGB")))     # the rod moved on screen
