@@ -41,6 +41,8 @@ _WHERE = {
     "FieldOutputs": "output.field_outputs", "read_vtx": "output.vtx", "versions": "output.writer",
     # fitting parameters to measured time series (docs/fitting.md)
     "fit_scene": "fit.least_squares", "FitResult": "fit.least_squares",
+    "prepare_fit": "fit.least_squares", "run_fit": "fit.least_squares",
+    "FitError": "fit.least_squares",
     "read_series": "fit.inputs",
 }
 # modules users import as a whole: name -> where it lives

@@ -149,6 +149,9 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
     summary["pictures"] = comm.bcast(summary.get("pictures"), root=0)
     summary["folder"] = str(folder)
     _report(summary, status, message, t, folder, comm, quiet)
+    if not quiet:
+        print_on_root(comm, "\n".join(writer.closing_lines(time.perf_counter()
+                                                            - clock["start"])))
     comm.barrier()     # no rank ends (mpirun then stops the others) before rank 0 reported
     series = comm.bcast(writer.series() if comm.rank == 0 else None, root=0)
     return RunResult(summary, series, folder)

@@ -18,6 +18,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mpi4py import MPI
 
@@ -585,3 +586,43 @@ def test_api_run_without_the_initial_state_says_so():
     model.set_initial_state()
     TimeStepper(model.problem, "backward_euler").run(0.0, 0.1, 0.1)
     assert model.diagnostics(0.1)["tip_position_x"] > 0.0
+
+
+# --- item 29: fit on many rows: one model run without a step loop, progress ---------------
+
+
+def test_ode_series_at_every_output_time_is_the_closed_form():
+    """Item 29: a fit ran the ODE's Python step loop (diagnostics at every sample: 325 s
+    for 1e5 rows; benchmarks/fit_rows.py: now 0.29 s).  The exact mode's response at
+    all output times at once equals the creep closed form (closed_forms.creep, eq.
+    creepform: the same floating-point expression, 1e-14) and the step-by-step
+    diagnostics (the same formulas, 1e-14)."""
+    from dolfin_rod.scenes import build, parse_scene
+    from dolfin_rod.torsion import closed_forms
+    scene = parse_scene(TORSION.replace('model = "torsion"', 'model = "ode"').replace(
+        "t_end = 0.08", "t_end = 3.0"), "creep.toml")
+    sim = build(scene, "ode")
+    sim.start()
+    series = sim.series()
+    u, ud = closed_forms.creep(series["time"], 1.0, 2.0, 1.0, 0.2, 0.5)
+    assert series["time"].size == 301
+    assert np.max(np.abs(series["end_rotation"] - u)) < 1e-14
+    assert np.max(np.abs(series["mean_natural_twist"] - ud)) < 1e-14
+    for k in (0, 1, 150, 300):
+        step = sim.diagnostics(float(series["time"][k]))
+        for key, values in series.items():
+            assert values[k] == pytest.approx(step[key], rel=1e-14, abs=1e-14), key
+
+
+def test_fit_prints_progress_on_stderr(tmp_path, capsys):
+    """Item 29: no output for minutes; now a "model run N: rms residual" line on stderr
+    (the first one, then at most one every 2 s), none with --quiet."""
+    fit = ROOT / "examples" / "fit"
+    code, out, err = run_main(capsys, "fit", fit / "creep.toml", fit / "creep.csv",
+                              "--params", "alpha_d,mu_d", "--out", tmp_path / "fit")
+    assert code == 0 and "model run 1: rms residual " in err, err
+    assert "identified" in out
+    code, out, err = run_main(capsys, "fit", fit / "creep.toml", fit / "creep.csv",
+                              "--params", "alpha_d,mu_d", "--out", tmp_path / "quiet",
+                              "--quiet")
+    assert code == 0 and "model run" not in err

@@ -351,3 +351,29 @@ def test_a_model_failure_inside_the_least_squares_is_a_fit_error():
 
     with pytest.raises(FitError, match="torsion model failed during the fit.*SNES failed"):
         run_fit(FailsNextToTheStart())
+
+
+def test_trials_give_the_curve_of_a_fresh_model_run():
+    """A fit's trials (issue 30: compiled kernels bound, not rebuilt; the start-state
+    check remembered; the response recorded only at the steps next to the samples; no
+    stability check) give the response of the scene run on its own, every step recorded
+    and the stability check on: the same steps, so equal to round-off (1e-12 relative;
+    the diagnostics only read the state).  The DNA twist example at 4 cells, two trials
+    (the second of a structure already seen) at the scene's M_d,33 and 1.5 x it."""
+    from mpi4py import MPI
+
+    from dolfin_rod.fit.inputs import experiment_of
+    from dolfin_rod.fit.least_squares import prepare_fit, simulate_response
+    data = read_series(EXAMPLES / "dna_twist.csv")
+    four = {"geometry.n_cells": 4}
+    problem = prepare_fit(load_scene(EXAMPLES / "dna_twist.toml", four), data, "M_d[2]")
+    for m_d in (616.5, 924.75):
+        trial = problem.curve(np.array([m_d]))
+        alone = load_scene(EXAMPLES / "dna_twist.toml",
+                           {**four, "material.viscosity": {"M_d": [308.25, 308.25, m_d],
+                                                           "N_d": [750.0, 750.0, 1.0]}})
+        assert alone["stability"]["check"]
+        t, y, _ = simulate_response(alone, "rod", experiment_of(alone), MPI.COMM_WORLD)
+        assert t.size == 201                  # every step of dt = 0.025 up to t = 5
+        fresh = np.interp(data.time[1:], t, y)
+        assert np.allclose(trial, fresh, rtol=1e-12, atol=0), np.abs(trial - fresh).max()

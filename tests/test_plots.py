@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from dolfin_rod import run_scene
+from dolfin_rod.output.closing import closing_lines, final_values
 from dolfin_rod.output.plots import choose_panels, relative_power_residual, unwrapped_angle
 from dolfin_rod.output.writer import PowerBalance
 from dolfin_rod.scenes import SceneError, load_scene
@@ -85,3 +86,30 @@ def test_two_and_a_half_turns_read_five_pi(tmp_path):
     assert float(rows[-1]["tip_rotation_angle"]) != pytest.approx(5 * np.pi, abs=0.1)
     np.testing.assert_allclose(axis, [0.0, 0.0, 1.0], atol=1e-12)
     assert (tmp_path / "run/histories.png").exists()
+    values = final_values([{k: float(v) if v else np.nan for k, v in r.items()}
+                           for r in rows], scene)
+    assert values[1] == "tip rotation 15.71 rad = 2.5 turns about [0, 0, 1]"
+
+
+def test_closing_summary_states_the_end_values_and_files():
+    """A cantilever whose tip moved from (0, 0, 1) to (0.1, 0, 0.9) under a 2 N reaction:
+    the lines give those numbers in the scene's units, the steps and iterations, and one
+    line per file."""
+    scene = load_scene(SCENES / "gravity_cantilever.toml")
+    zero = dict.fromkeys(ROD_COLUMNS[:-1] + ["tip_position_y", "tip_position_z",
+                                             "reaction_force_left_y", "reaction_force_left_z",
+                                             "reaction_couple_left_y", "reaction_couple_left_z",
+                                             "free_energy", "kinetic_energy",
+                                             "total_dissipation", "dissipation_rate",
+                                             "load_power", "power_residual"], 0.0)
+    rows = [{**zero, "tip_position_z": 1.0},
+            {**zero, "time": 1.0, "tip_position_x": 0.1, "tip_position_z": 0.9,
+             "reaction_force_left_x": 2.0, "free_energy": 3.0, "total_dissipation": 0.5}]
+    lines = closing_lines({"steps": 1, "newton_iterations": 4}, rows, scene, 1.234,
+                          ["histories.png", "timeseries.csv"])
+    assert lines[0] == "  tip displacement [0.1, 0, -0.1] m"
+    assert lines[1] == "  reaction at s = 0: force [2, 0, 0] N, couple [0, 0, 0] N m"
+    assert lines[2] == "  K + Psi 3 J, dissipated 0.5 J"
+    assert "steps 1, Newton iterations 4, rejected steps 0; wall time 1.23 s" in lines[3]
+    assert lines[-2:] == ["    histories.png   the plots of what the scene is about",
+                          "    timeseries.csv  the time series, one row per step"]

@@ -232,3 +232,22 @@ def _mid_displacement(rod) -> np.ndarray:
     owned = np.flatnonzero(np.isclose(coords[:n_owned], 0.5))
     local = x.x.array.reshape(-1, 3)[owned[0]] if owned.size else np.zeros(3)
     return MPI.COMM_WORLD.allreduce(local, op=MPI.SUM)
+
+
+def test_a_second_tangent_binds_the_kernels_of_the_first(monkeypatch):
+    """A TangentStiffness of a structure seen before binds the compiled kernels
+    (form_cache, issue 30) instead of building its forms: its K equals the one compiled
+    from this model's own forms (the cache bypassed) to round-off (1e-13 relative)."""
+    from dolfin_rod.fem import form_cache
+    rod = RodModel(STIFF, n_cells=4, model="hyperelastic", ends=("clamped", "free"),
+                   end_loads=[EndLoad("force", (0.3, 0.0, -1.0), lambda t: t)])
+    rod.set_initial_state()
+    TimeStepper(rod.problem).run(0.0, 1.0, 0.5)
+    TangentStiffness(rod)                          # compiles or loads the kernels
+    cached = TangentStiffness(rod).matrix(1.0)     # binds them
+    with monkeypatch.context() as patch:
+        patch.setattr(form_cache, "lookup", lambda key: None)
+        compiled = TangentStiffness(rod).matrix(1.0)
+    difference = compiled.copy()
+    difference.axpy(-1.0, cached)
+    assert difference.norm() <= 1e-13 * compiled.norm(), difference.norm()

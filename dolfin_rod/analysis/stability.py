@@ -24,7 +24,8 @@ import numpy as np
 import ufl
 from petsc4py import PETSc
 
-from ..fem.assembly import block_system
+from ..fem import form_cache
+from ..fem.assembly import block_system, monolithic_layout
 from ..fem.multipoint import ConstrainedSystem
 from ..fem.fe_model import vertex_measure
 
@@ -50,11 +51,18 @@ class TangentStiffness:
     def __init__(self, model):
         names = [n for n in model.names if n in MECHANICAL + MULTIPLIERS]
         at_rest = {model.r[n]: fem.Function(model.r[n].function_space) for n in model.names}
-        forms = [ufl.replace(model.residual[n], at_rest) for n in names]
+        residuals = [model.residual[n] for n in names]
         bcs = [bc for n in names for bc in model.bcs_of(n)]
         self.model, self.names = model, names
         fields = [model.f[n] for n in names]
-        self.system = block_system(forms, [fields], bcs=bcs)
+        # compiled once per structure (form_cache): a second model of the same structure
+        # (a fit's trial) binds the kernels without building the forms (issue 30)
+        key = form_cache.structure_key(residuals, "tangent", names) \
+            if monolithic_layout(fields) else None
+        forms = None if form_cache.lookup(key) else \
+            [ufl.replace(F, at_rest) for F in residuals]
+        objects = [*form_cache.registry(residuals), *at_rest.values()]
+        self.system = block_system(forms, [fields], bcs=bcs, cache=(key, objects))
         links = [replace(link, block=names.index(model.names[link.block]))
                  for link in model.problem.links]
         if links:           # joints of a rod system: K on the free dofs, P^T K P

@@ -14,6 +14,7 @@ rank 0) and takes the same steps; only rank 0 prints and writes.
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -25,16 +26,19 @@ __all__ = ["FitInputError", "fit_command", "result_table"]
 
 def fit_command(args, comm) -> int:
     """Run ``dolfin-rod fit``; SceneError/OutputError/FitInputError propagate (exit 2)."""
-    from ..mpi import print_on_root
+    from ..mpi import agree, print_on_root
     from ..output.run_folders import on_root
-    from ..scenes import load_scene
-    scene = load_scene(args.scene)
+    from ..scenes import SceneError, load_scene
+    scene = agree(comm, lambda: load_scene(args.scene), (SceneError,))
     data = _read_on_root(args.data, comm)
-    problem = prepare_fit(scene, data, args.params, comm)
+    problem = agree(comm, lambda: prepare_fit(scene, data, args.params, comm),
+                    (SceneError, FitInputError))
     folder = _fit_folder(scene, args.out, comm)
     say = (lambda *a: None) if args.quiet else (lambda *a: print_on_root(comm, *a))
     say(f"model: {problem.choice.model} ({problem.choice.reason})")
     say(f"data: {problem.experiment.description}; {int(problem.used.sum())} rows")
+    if not args.quiet:
+        problem.progress = _progress_lines(comm)
     try:
         result = run_fit(problem)
     except FitError as err:
@@ -45,6 +49,25 @@ def fit_command(args, comm) -> int:
     line = f"{result.status}: results in {folder}"
     print_on_root(comm, line + (f" ({result.message})" if result.message else ""))
     return 0
+
+
+PROGRESS_SECONDS = 2.0     # at most one progress line per this many seconds
+
+
+def _progress_lines(comm):
+    """progress(evaluations, rms) printing "model run N: rms residual R" on stderr, the
+    first one and then at most every PROGRESS_SECONDS."""
+    import time
+    last = [-math.inf]
+
+    def progress(evaluations: int, rms: float) -> None:
+        now = time.monotonic()
+        if now - last[0] >= PROGRESS_SECONDS:
+            last[0] = now
+            from ..mpi import print_on_root
+            print_on_root(comm, f"model run {evaluations}: rms residual {rms:.4g}",
+                          file=sys.stderr)
+    return progress
 
 
 def _read_on_root(path: Path, comm):

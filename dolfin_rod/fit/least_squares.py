@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..integrators.step_control import output_times
 from ..run import march
 from ..scenes import Scene, SceneError, build, select_model
 from .inputs import (Experiment, FitInputError, MeasuredSeries, Parameter, experiment_of,
@@ -96,10 +97,12 @@ def model_step(times: np.ndarray, scene_dt: float) -> float:
     return h / max(1, math.ceil(h / scene_dt - 1e-9))
 
 
-def simulate_response(scene: Scene, model: str, experiment: Experiment, comm
-                      ) -> tuple[np.ndarray, np.ndarray, str]:
+def simulate_response(scene: Scene, model: str, experiment: Experiment, comm,
+                      needed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, str]:
     """(times, response, method) of the scene run by ``model`` from t = 0 to t_end (the
-    same on every rank: diagnostics are MPI-reduced)."""
+    same on every rank: diagnostics are MPI-reduced).  ``needed``: the sample times the
+    caller interpolates at; the response is then recorded only at the steps next to
+    them (a diagnostic costs as much as a step; issue 30), the steps are the same."""
     sim = build(scene, model, comm)
     sim.start()
     rest = sim.diagnostics(0.0)
@@ -112,14 +115,37 @@ def simulate_response(scene: Scene, model: str, experiment: Experiment, comm
         return sum((d[key + c] - (rest[key + c] if experiment.from_rest else 0.0)) * e[i]
                    for i, c in enumerate("xyz"))
 
+    series = getattr(sim, "series", lambda: None)()
+    if series is not None:                 # every output at once (the ODE's exact mode)
+        return series["time"], response(series), sim.describe()
     times, values = [0.0], [response(rest)]
+    tim = scene["time"]
+    ts = getattr(sim, "ts", None) is not None     # PETSc TS: every accepted step
+    kept = recorded_steps(np.array(output_times(tim["t_end"], tim["dt"])), needed)
+    step = [0]
 
     def record(t: float) -> None:
-        times.append(t)
-        values.append(response(sim.diagnostics(t)))
+        step[0] += 1
+        if ts or kept[step[0]]:
+            times.append(t)
+            values.append(response(sim.diagnostics(t)))
 
-    march(sim, scene["time"], record)
+    march(sim, tim, record)
     return np.array(times), np.array(values), getattr(sim, "describe", lambda: "")()
+
+
+def recorded_steps(grid: np.ndarray, needed: np.ndarray | None) -> np.ndarray:
+    """Which grid times linear interpolation at the ``needed`` times reads: grid[k] with
+    a needed time strictly between grid[k-1] and grid[k+1] (the exact point when a needed
+    time is a grid time, both neighbours otherwise), and the last (all if None)."""
+    if needed is None:
+        return np.ones(grid.size, bool)
+    before = np.concatenate(([-np.inf], grid[:-1]))
+    after = np.concatenate((grid[1:], [np.inf]))
+    first = np.searchsorted(needed, before, side="right")    # first needed > grid[k-1]
+    kept = (first < needed.size) & (needed[np.minimum(first, needed.size - 1)] < after)
+    kept[-1] = True
+    return kept
 
 
 class FitProblem:
@@ -139,6 +165,7 @@ class FitProblem:
         self.used = data.time > 0.0 if self.model == "rod" else np.ones(data.time.size, bool)
         self.evaluations = 0
         self.last_error = self.method = ""
+        self.progress = None     # progress(evaluations, rms residual) after each model run
 
     def curve(self, p: np.ndarray) -> np.ndarray:
         """The model's response at the used sample times for parameters p."""
@@ -148,14 +175,18 @@ class FitProblem:
                                 self.data, self.dt)
             with np.errstate(over="ignore", invalid="ignore"):    # overflow: inf, below
                 t, y, self.method = simulate_response(trial, self.model, self.experiment,
-                                                      self.comm)
+                                                      self.comm, self.data.time[self.used])
                 out = np.interp(self.data.time[self.used], t, y)
         except (SceneError, RuntimeError, ArithmeticError) as err:   # RuntimeError:
             # IntegrationError, SolverError, the ODE's solve_ivp failure
             self.last_error = f"{type(err).__name__}: {err}"
             out = np.full(int(self.used.sum()), np.inf)
         out = np.where(np.isfinite(out), out, np.inf)
-        return self.comm.bcast(out, root=0)
+        out = self.comm.bcast(out, root=0)
+        if self.progress is not None:
+            r = out - self.data.response[self.used]
+            self.progress(self.evaluations, float(np.sqrt(np.mean(r * r))))
+        return out
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         return self.curve(np.exp(theta)) - self.data.response[self.used]

@@ -28,13 +28,16 @@ import numpy as np
 from ..scenes.schema import PANELS, UNITS
 
 
+def unit(kind: str, units: str | None) -> str:
+    """The unit of a quantity kind in the scene's unit system ('scene units' without)."""
+    if kind == "angle":
+        return "rad"
+    return UNITS[units][kind] if units in UNITS else "scene units"
+
+
 def axis_label(name: str, kind: str, units: str | None) -> str:
     """'name [unit]' in the scene's unit system; 'name [scene units]' without one."""
-    if kind == "1":
-        return name
-    if kind == "angle":
-        return f"{name} [rad]"
-    return f"{name} [{UNITS[units][kind]}]" if units in UNITS else f"{name} [scene units]"
+    return f"{name} [{unit(kind, units)}]"
 
 
 def choose_panels(scene, columns) -> list[str]:

@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from .checkpoints import Checkpoints
+from .closing import closing_lines
 from .plots import plot_histories
 from .field_outputs import FieldOutputs
 from .run_folders import OutputError, files_in, on_root
@@ -110,6 +111,7 @@ class RunWriter:
         self.balance = PowerBalance()
         self.rows: list[dict] = []
         self.timings = {"output": 0.0}
+        self.written: tuple | None = None      # (summary, files) once finished
         if scene.text and not resume:
             on_root(comm, lambda: (self.folder / "scene.toml").write_text(scene.text),
                     f"cannot write {self.folder / 'scene.toml'}")
@@ -255,6 +257,15 @@ class RunWriter:
         files = sorted(set(files_in(self.folder)) | {"summary.json"})
         _dump(self.folder / "summary.json", _finite({**summary, "versions": versions(),
                                                      "files": files}))
+        self.written = (summary, sorted({f.split("/")[0] for f in files
+                                         if not f.startswith(".")}))
+
+    def closing_lines(self, wall: float) -> list[str]:
+        """Rank 0 after finish: the closing summary (closing.py); [] on other ranks."""
+        if self.rank != 0 or self.written is None:
+            return []
+        summary, files = self.written
+        return closing_lines(summary, self.rows, self.scene, wall, files)
 
     def _draw(self, title: str) -> list[str]:
         """Rank 0: draw the pictures; the names of those not drawn (Ctrl-C)."""

@@ -102,7 +102,8 @@ def time_stepping(scene: Scene) -> str:
     lie = scene.is_rod_material and scene["material"]["dynamic"] \
         and rod_rotations(scene) == "rotation_vector"
     return f"stepper, fixed steps dt = {tim['dt']:g}" + (
-        " (time.adaptive = true: error-controlled steps)" if lie else "")
+        " (time.adaptive is false; setting it true would choose the steps by an error "
+        "estimate)" if lie else "")
 
 
 def _check_time(scene: Scene) -> None:
@@ -270,13 +271,27 @@ def _check_rod_material(scene: Scene) -> None:
             raise err("material.energy", problem)
 
 
+_START_STATE_ANSWERS: dict[tuple, str | None] = {}
+
+
 def _start_state_problem(scene: Scene, psi) -> str | None:
     """natural_state.start_state_problem at the scene's start: natural strains
-    initial.natural_* (default: the reference strains), strains the reference ones."""
-    from ..theory.natural_state import start_state_problem
+    initial.natural_* (default: the reference strains), strains the reference ones.
+    Remembered per (psi, strains): its UFL derivatives cost ~1 s, and a fit validates
+    one scene per trial with the same energy and start (issue 30)."""
     geo, ini = scene["geometry"], scene["initial"]
     start = (geo["reference_curvature"], geo["reference_stretch"])
     natural = (ini["natural_curvature"] or start[0], ini["natural_stretch"] or start[1])
+    key = (psi, *(tuple(map(float, a)) for a in (*natural, *start)))
+    if getattr(type(psi), "__hash__", None) is None:      # an unhashable callable object
+        return _start_state_answer(psi, natural, start)
+    if key not in _START_STATE_ANSWERS:
+        _START_STATE_ANSWERS[key] = _start_state_answer(psi, natural, start)
+    return _START_STATE_ANSWERS[key]
+
+
+def _start_state_answer(psi, natural, start) -> str | None:
+    from ..theory.natural_state import start_state_problem
     try:
         return start_state_problem(psi, natural, start)
     except Exception as error:      # the user's psi fails on constant strains

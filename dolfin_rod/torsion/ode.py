@@ -206,15 +206,19 @@ class OdeTorsion:
             return self.y[0], self.y[1], self.ydot[0], self.ydot[1]
         k = self._index(t)
         u, ud = self.u_series[k], self.ud_series[k]
+        return (u, ud, *self._rates(u, ud, self._load(t), self._load_rate(t)))
+
+    def _rates(self, u, ud, load, load_rate):
+        """u' and u_d' (eqs. twist, nattwist) of states and loads (numbers or arrays)."""
         a, ad, mu, mud = self.alpha, self.alpha_d, self.mu, self.mu_d
         ud_t = (a * u - (a + ad) * ud) / mud
         if self.rotation:
-            u_t = self._load_rate(t)
+            u_t = load_rate
         elif mu > 0.0:
-            u_t = (self._load(t) - a * (u - ud)) / mu
+            u_t = (load - a * (u - ud)) / mu
         else:
-            u_t = self._load_rate(t) / a + ud_t
-        return u, ud, u_t, ud_t
+            u_t = load_rate / a + ud_t
+        return u_t, ud_t
 
     def _index(self, t: float) -> int:
         """The output time t's index: a bisection, O(log N) (an argmin over all output
@@ -225,17 +229,37 @@ class OdeTorsion:
         return k
 
     def diagnostics(self, t: float) -> dict[str, float]:
-        a, ad, mu = self.alpha, self.alpha_d, self.mu
         with np.errstate(over="ignore", invalid="ignore"):   # overflow -> inf, as in FE
             u, ud, u_t, ud_t = (np.float64(x) for x in self._state_at(t))
-            m = a * (u - ud) + mu * u_t if self.rotation else np.float64(self._load(t))
-            d = {"end_rotation": u, "end_rotation_rate": u_t,
-                 "free_energy": 0.5 * a * (u - ud) ** 2 + 0.5 * ad * ud ** 2,
-                 "kinetic_energy": 0.0,   # eq. disspw: xi = mu u'^2 - dpsi/du_d u_d'
-                 "dissipation_rate": mu * u_t ** 2 + (a * (u - ud) - ad * ud) * ud_t,
-                 "mean_natural_twist": ud, "time": t, "end_torsion": m,
-                 "load_power": m * u_t}
+            d = self._quantities(t, u, ud, u_t, ud_t, np.float64(self._load(t)))
         return {k: float(v) for k, v in d.items()}
+
+    def series(self) -> dict[str, np.ndarray] | None:
+        """Every diagnostic at every output time at once (arrays; the closed forms and
+        solve_ivp only: a fit of 1e5 samples without a Python step loop), or None (the
+        scheme, which steps)."""
+        if self.mode == "scheme":
+            return None
+        t = self.times
+        if self.history is None:
+            load = rate = np.zeros_like(t)
+        else:                              # (histories take arrays of times)
+            load = np.asarray(self.history(t), float)
+            rate = np.asarray(load_rate(self.history, t), float)
+        with np.errstate(over="ignore", invalid="ignore"):
+            u, ud = self.u_series, self.ud_series
+            return self._quantities(t, u, ud, *self._rates(u, ud, load, rate), load)
+
+    def _quantities(self, t, u, ud, u_t, ud_t, load) -> dict:
+        """The diagnostics of states, rates and loads (numbers or arrays)."""
+        a, ad, mu = self.alpha, self.alpha_d, self.mu
+        m = a * (u - ud) + mu * u_t if self.rotation else load
+        return {"end_rotation": u, "end_rotation_rate": u_t,
+                "free_energy": 0.5 * a * (u - ud) ** 2 + 0.5 * ad * ud ** 2,
+                "kinetic_energy": 0.0 * u,   # eq. disspw: xi = mu u'^2 - dpsi/du_d u_d'
+                "dissipation_rate": mu * u_t ** 2 + (a * (u - ud) - ad * ud) * ud_t,
+                "mean_natural_twist": ud, "time": t, "end_torsion": m,
+                "load_power": m * u_t}
 
     def state(self) -> dict:
         return {"y": self.y.tolist(), "y_nm1": self.y_nm1.tolist(), "ydot": self.ydot.tolist(),
