@@ -29,7 +29,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..integrators.step_control import output_times
 from ..run import march
 from ..scenes import Scene, SceneError, build, select_model
 from .inputs import (Experiment, FitInputError, MeasuredSeries, Parameter, experiment_of,
@@ -118,6 +117,7 @@ def simulate_response(scene: Scene, model: str, experiment: Experiment, comm,
     series = getattr(sim, "series", lambda: None)()
     if series is not None:                 # every output at once (the ODE's exact mode)
         return series["time"], response(series), sim.describe()
+    from ..integrators.step_control import output_times
     times, values = [0.0], [response(rest)]
     tim = scene["time"]
     ts = getattr(sim, "ts", None) is not None     # PETSc TS: every accepted step
