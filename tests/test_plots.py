@@ -113,3 +113,24 @@ def test_closing_summary_states_the_end_values_and_files():
     assert "steps 1, Newton iterations 4, rejected steps 0; wall time 1.23 s" in lines[3]
     assert lines[-2:] == ["    histories.png   the plots of what the scene is about",
                           "    timeseries.csv  the time series, one row per step"]
+
+
+@pytest.mark.parametrize("name, prefix, couples", [
+    ("flexible_pendulum", "", False),    # a pin: reaction force, no couple columns
+    ("frame", "column.", True),          # a rod system: each rod's columns "<name>.<key>"
+])
+def test_supports_without_couples_and_rod_systems_draw(tmp_path, name, prefix, couples):
+    """The panels of a pinned rod and of a rod system draw from the columns they have
+    (these scenes once stopped the run with a KeyError)."""
+    from dolfin_rod.output.plots import plot_histories
+    scene = load_scene(SCENES / f"{name}.toml")
+    keys = ["free_energy", "kinetic_energy", "total_dissipation", "dissipation_rate",
+            "load_power", "power_residual"]
+    keys += [f"{prefix}tip_position_{c}" for c in "xyz"]
+    keys += [f"{prefix}reaction_force_left_{c}" for c in "xyz"]
+    keys += [f"{prefix}reaction_couple_left_{c}" for c in "xyz"] if couples else []
+    rows = [{"time": t, **dict.fromkeys(keys, t * t)} for t in (0.0, 0.5, 1.0)]
+    panels = plot_histories(rows, tmp_path / "h.png", scene)
+    assert "reactions" in panels and (tmp_path / "h.png").stat().st_size > 10_000
+    lines = final_values(rows, scene)
+    assert any(line.startswith("K + Psi 2 J") for line in lines)

@@ -55,9 +55,11 @@ def final_values(rows: list[dict], scene) -> list[str]:
             lines.append(f"end force {_text(force)} {u('force')}, tip displacement "
                          f"{moved()} {u('length')}")
         elif panel == "reactions" and "reaction_force_left_x" in last:
-            force, couple = (_vector(last, f"reaction_{k}_left") for k in ("force", "couple"))
-            lines.append(f"reaction at s = 0: force {_text(force)} {u('force')}, couple "
-                         f"{_text(couple)} {u('moment')}")
+            text = f"reaction at s = 0: force {_text(_vector(last, 'reaction_force_left'))} "
+            if "reaction_couple_left_x" in last:
+                text += f"{u('force')}, couple {_text(_vector(last, 'reaction_couple_left'))} "
+            lines.append(text + (u("moment") if "reaction_couple_left_x" in last
+                                 else u("force")))
         elif panel == "twist":
             lines.append(f"end rotation phi(1) {last['end_rotation']:.4g}, mean natural twist "
                          f"{last['mean_natural_twist']:.4g}")

@@ -51,10 +51,10 @@ def choose_panels(scene, columns) -> list[str]:
         return ["end_torque", "twist", "energy", "power_residual"]
     boundary, loads = scene["boundary"], scene["loads"]
     panels = []
-    if loads.get("end_force") is not None and boundary["end"] == "free":
+    if loads.get("end_force") is not None and boundary["end"] == "free" \
+            and "tip_position_x" in cols:
         panels.append("force_extension")
-    if boundary.get("end_rotation") is not None and any(
-            c.endswith("reaction_couple_right_z") for c in cols):
+    if boundary.get("end_rotation") is not None and "reaction_couple_right_z" in cols:
         panels += ["end_torque", "tip_rotation"]
     if not panels and any(c.endswith("tip_position_x") for c in cols):
         panels.append("tip_deflection")
@@ -156,12 +156,14 @@ def _force_extension(ax, col, units, scene):
 
 
 def _reactions(ax, col, units, scene):
-    series = _shown({f"{kind}_{c}": col(f"reaction_{name}_left_{c}")
-                     for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"})
+    series = _shown({f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_left_{c}")
+                     for rod in col.prefixes("reaction_force_left_x")
+                     for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
+                     if f"{rod}reaction_{name}_left_{c}" in col.rows[0]})
     twin = ax.twinx()
     for label, x in series.items():
-        (ax if label[0] == "F" else twin).plot(col.t, x, "-" if label[0] == "F" else "--",
-                                                label=label)
+        force = label.split(".")[-1][0] == "F"
+        (ax if force else twin).plot(col.t, x, "-" if force else "--", label=label)
     twin.set_ylabel(axis_label("couple (dashed)", "moment", units))
     ax.legend(fontsize="small", loc="upper left")
     twin.legend(fontsize="small", loc="upper right")

@@ -1,0 +1,140 @@
+"""Benchmark (not a test): what a user waits for around the time loop (issue 30, targets
+1 and 3).
+
+1. Set-up of a second model of the same structure in a process: the gravity-cantilever
+   rod of benchmarks/cantilever.py ("elastic") built as a user would (``RodModel(...)``,
+   ``set_initial_state()``, ``TimeStepper(model.problem)`` and its step forms) at 8, 16,
+   32, 64 cells after a first model, median of --repeats; model and stepper apart.
+2. The first model in a new process, by parts: ``import dolfin_rod`` and DOLFINx, the
+   model, the initial state, the stepper (warm FFCx and form caches).
+3. Process start to exit: ``python3 -c "import dolfin_rod"``, ``dolfin-rod check`` and
+   ``dolfin-rod run scenes/gravity_cantilever.toml`` (into a temporary folder; its
+   timings.json gives the run's integration time), median of --repeats each.
+
+Prints the medians and the machine's load, writes results/bench/setup_cost.json.
+
+    ./rodenv python3 benchmarks/setup_cost.py [--repeats 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "scenes" / "gravity_cantilever.toml"
+CELLS = (8, 16, 32, 64)
+
+FIRST_MODEL = """
+import json, sys, time
+t0 = time.perf_counter()
+import dolfinx, dolfin_rod
+from dolfin_rod import TimeStepper
+sys.path.insert(0, sys.argv[1])
+import cantilever as cant
+t1 = time.perf_counter()
+from mpi4py import MPI
+from dolfin_rod import RodModel
+params, name, loads = cant.dolfin_rod_parameters(cant.SCENES["elastic"])
+model = RodModel(params, n_cells=16, model=name, variant="local", ends=("clamped", "free"),
+                 distributed_loads=loads, comm=MPI.COMM_WORLD)
+t2 = time.perf_counter()
+model.set_initial_state()
+t3 = time.perf_counter()
+stepper = TimeStepper(model.problem)
+stepper.compile()
+t4 = time.perf_counter()
+print(json.dumps({"imports_s": t1 - t0, "model_s": t2 - t1, "initial_state_s": t3 - t2,
+                  "stepper_s": t4 - t3, "total_s": t4 - t0}))
+"""
+
+
+def second_model(n_cells: int) -> dict:
+    """Seconds to build model (with its initial state) and stepper of the elastic
+    cantilever in this process (a model of the structure built before)."""
+    import cantilever as cant
+    from dolfin_rod import TimeStepper
+    t0 = time.perf_counter()
+    model = cant.dolfin_rod_model(n_cells, "elastic")
+    t1 = time.perf_counter()
+    TimeStepper(model.problem).compile()
+    t2 = time.perf_counter()
+    return {"model_s": t1 - t0, "stepper_s": t2 - t1, "total_s": t2 - t0}
+
+
+def process_seconds(command: list[str]) -> float:
+    """Wall seconds from starting ``command`` to its exit (it must succeed)."""
+    start = time.perf_counter()
+    subprocess.run(command, check=True, capture_output=True, cwd=ROOT)
+    return time.perf_counter() - start
+
+
+def median_of(runs: list[dict]) -> dict:
+    return {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    load = [os.getloadavg()[0]]
+    second_model(16)                                  # the first model of the structure
+    second = {n: median_of([second_model(n) for _ in range(args.repeats)]) for n in CELLS}
+    first = median_of([json.loads(subprocess.run(
+        [sys.executable, "-c", FIRST_MODEL, str(Path(__file__).resolve().parent)],
+        check=True, capture_output=True, text=True).stdout) for _ in range(args.repeats)])
+    load.append(os.getloadavg()[0])
+    processes, integration = {}, []
+    with tempfile.TemporaryDirectory() as tmp:
+        commands = {"python3 -c 'import dolfin_rod'": [sys.executable, "-c",
+                                                       "import dolfin_rod"],
+                    "dolfin-rod check": ["dolfin-rod", "check", str(SCENE)]}
+        for name, command in commands.items():
+            processes[name] = statistics.median(process_seconds(command)
+                                                for _ in range(args.repeats))
+        runs = []
+        for k in range(args.repeats):
+            out = Path(tmp) / f"run{k}"
+            runs.append(process_seconds(["dolfin-rod", "run", str(SCENE), "--out", str(out),
+                                         "--quiet"]))
+            timings = json.loads((out / "timings.json").read_text())
+            integration.append(timings.get("integration", timings.get("integration_s")))
+        processes["dolfin-rod run gravity_cantilever"] = statistics.median(runs)
+    load.append(os.getloadavg()[0])
+    out = {"load_average_1min": load, "repeats": args.repeats,
+           "second_model": {str(n): v for n, v in second.items()},
+           "first_model_new_process": first, "processes_s": processes,
+           "run_integration_s": integration}
+    import_s = processes["python3 -c 'import dolfin_rod'"]
+    run_s = processes["dolfin-rod run gravity_cantilever"]
+    if all(isinstance(x, (int, float)) for x in integration):
+        out["run_over_2_import_plus_integration"] = run_s / (
+            2 * import_s + statistics.median(integration))
+    print("second model of the structure (median, ms): " + ", ".join(
+        f"n={n}: model {1e3 * v['model_s']:.0f} + stepper {1e3 * v['stepper_s']:.0f}"
+        for n, v in second.items()))
+    print("first model in a new process (s): " + ", ".join(
+        f"{k} {v:.3f}" for k, v in first.items()))
+    for name, seconds in processes.items():
+        print(f"{name}: {seconds:.2f} s start to exit (median)")
+    print(f"run's integration (timings.json): {integration}")
+    if "run_over_2_import_plus_integration" in out:
+        print(f"run / (2 import + integration) = {out['run_over_2_import_plus_integration']:.2f}"
+              " (target <= 1)")
+    print("load average (1 min):", " ".join(f"{a:.1f}" for a in load))
+    folder = ROOT / "results" / "bench"
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "setup_cost.json").write_text(json.dumps(out, indent=1))
+    print(f"wrote {folder / 'setup_cost.json'}")
+
+
+if __name__ == "__main__":
+    main()
