@@ -21,7 +21,7 @@ The force ramps 0 -> 80 pN -> 0 at r = 1, 10 and 100 pN/s and then rests at 0 fo
 eighth of the ramp time, so the molecule returns to its natural state (psi -> 0).  Each
 run has 400 steps per ramp (BDF2).  The loop area int F dX is the work done on the
 molecule over the cycle; with psi back to its initial value it equals the energy
-dissipated, int int xi ds dt (power balance, ERRATA.md), to the time scheme's order
+dissipated, int int xi ds dt (power balance, docs/corrections.md), to the time scheme's order
 (tests/test_dna.py shows the order).  The loop area grows with the rate; slow loading
 tends to the equilibrium curve f(v_d,3) = F, X/L0 = v_d,3 + e(F) (dolfin_rod.dna.
 equilibrium_stretch, from dpsi/dv_d,3 = 0 and n_3 = F).

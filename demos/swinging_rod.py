@@ -19,7 +19,7 @@
 # v_d,t >= 0 (eq. disspw; no Kelvin-Voigt viscosity, no drag).
 #
 # ## Energy balance
-# Testing the balance laws with the velocities gives (ERRATA.md identities)
+# Testing the balance laws with the velocities gives (docs/corrections.md identities)
 #
 #     d/dt (K + Psi + U_g) = -Xi,   K = 1/2 int rho A V.V + W.J W ds,  Psi = int psi ds,
 #     U_g = int rho A g e_1 . r ds,  Xi = int xi ds,

@@ -233,7 +233,7 @@ def observed_order(a, b) -> float:
 
 
 def check(data, summary) -> None:
-    """What the README states, asserted: (1) the best method of each scene reaches the
+    """What docs/performance.md states, asserted: (1) the best method of each scene reaches the
     scene's target error; (2) on the creep scene (an ODE: no order reduction of the
     algebraic components) every fixed-step integrator converges at its design order p,
     observed between the two finest steps whose errors are above 1e-10 (the Newton

@@ -10,6 +10,7 @@ when the suite itself runs under mpirun.
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
@@ -626,3 +627,46 @@ def test_fit_prints_progress_on_stderr(tmp_path, capsys):
                               "--params", "alpha_d,mu_d", "--out", tmp_path / "quiet",
                               "--quiet")
     assert code == 0 and "model run" not in err
+
+
+# --- item 18: the disk fills up while the time series is written --------------------------
+
+
+@pytest.mark.mpi
+def test_full_disk_while_writing_the_time_series_fails_with_complete_rows(
+        tmp_path, capsys, monkeypatch):
+    """Item 18 (the CSV part): a full disk while writing timeseries.csv gave an OSError
+    traceback (MPI_Abort under mpirun), no summary and a row cut in half.  Injected: the
+    write of step 5's row stores half of it, then ENOSPC.  Now: exit 3 on every rank,
+    "No space left on device" on stderr, rows 0-4 complete, summary.json "failed"."""
+    import errno
+    from dolfin_rod.output import writer
+    folder = Path(COMM.bcast(str(tmp_path), root=0))
+    scene = folder / "creep.toml"
+    if COMM.rank == 0:
+        scene.write_text(TORSION.replace("[outputs]", "[outputs]\nfields = false"))
+    COMM.barrier()
+    real_write, rows = os.write, {"n": 0}
+
+    def full_disk(fd, data):
+        if not os.readlink(f"/proc/self/fd/{fd}").endswith("timeseries.csv"):
+            return real_write(fd, data)
+        rows["n"] += 1
+        if rows["n"] == 6:                        # step 5: half of it, then the disk is full
+            real_write(fd, data[:len(data) // 2])
+        if rows["n"] >= 6:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_write(fd, data)
+    monkeypatch.setattr(writer.os, "write", full_disk)
+    code, out, err = run_main(capsys, "run", scene, "--out", folder / "run", "--quiet")
+    monkeypatch.undo()
+    assert code == 3, err
+    if COMM.rank == 0:
+        assert "failed:" in err and "No space left on device" in err and "Traceback" not in err
+        with (folder / "run" / "timeseries.csv").open() as f:
+            table = list(csv.DictReader(f))
+        assert [int(r["step"]) for r in table] == [0, 1, 2, 3, 4]
+        assert all(None not in r.values() and "" not in (r["time"], r["end_rotation"])
+                   for r in table)
+        summary = json.loads((folder / "run" / "summary.json").read_text())
+        assert summary["status"] == "failed" and "No space left" in summary["message"]

@@ -25,9 +25,13 @@ ROD_COLUMNS = ["time", "tip_position_x", "tip_quaternion_0", "reaction_force_lef
     ("twisted_rod_relaxation", ["end_torque", "tip_rotation"]),   # a held twist relaxes
     ("dna_overstretching", ["force_extension"]),                  # a pulled free end
     ("gravity_cantilever", ["tip_deflection", "reactions"]),      # a clamped cantilever
+    ("cantilever_creep", ["tip_deflection"]),    # a constant end force: the creep curve
+    ("sagging_cable", ["reactions", "energy"]),  # both ends pinned: no tip to follow
+    ("spin_up", ["tip_rotation"]),               # turned by a distributed couple
 ])
 def test_panels_follow_the_scene(name, first):
     columns = ROD_COLUMNS if name == "twisted_rod_relaxation" else ROD_COLUMNS[:-1]
+    columns = columns + ["tip_position_y", "tip_quaternion_3"]
     panels = choose_panels(load_scene(SCENES / f"{name}.toml"), columns)
     assert panels[:len(first)] == first
     assert panels[-2:] == ["energy", "power_residual"]

@@ -5,7 +5,7 @@ rotation increments are algebraic unknowns of the rotation-group generalized-alp
 References: the creep of a cantilever bent by a tip couple, whose discrete curvature is
 uniform: its discrete equilibrium re-derived in closed form (as the roll-up's) and the
 natural curvature's law integrated by solve_ivp, so that only the time error is left
-(the continuum's closed form, ERRATA item 3, differs by the O(h^2) space error); the
+(the continuum's closed form, docs/corrections.md item 3, differs by the O(h^2) space error); the
 observed order of that error; the quaternion rod (the verified discretisation
 with the same strains) under the same per-step scheme.
 """

@@ -357,7 +357,7 @@ def power_defect(scheme, dt, dynamic=False, **damping):
                                                    ("crank_nicolson", 2, False),
                                                    ("implicit_midpoint", 2, True)])
 def test_power_balance_to_the_order_of_the_scheme(scheme, order, dynamic):
-    """d/dt(free + kinetic energy) + int xi = load power (ERRATA.md identities), for the
+    """d/dt(free + kinetic energy) + int xi = load power (docs/corrections.md identities), for the
     evolving rod with M, N > 0 under a dead end force and a follower end couple
     (quasi-static), plus distributed force and couple and linear drag (dynamic, rho A,
     rho J > 0): the discrete defect falls like dt^order.  Measured relative defects at

@@ -381,7 +381,7 @@ TWISTED = dict(ends=("clamped", "pinned"),
                                              ("evolving", "twisted")])
 def test_power_balance_at_second_order(model_name, case):
     """d/dt(free + kinetic energy) + int xi + drag = power of the loads and of the moving
-    clamp (ERRATA.md identities), with Kelvin-Voigt strain rates along the angular
+    clamp (docs/corrections.md identities), with Kelvin-Voigt strain rates along the angular
     velocities, evolving natural strains, linear drag, dead and follower loads at the
     end and along the rod, and a clamp turning about a fixed axis with the other end
     pinned: the defect falls like dt^2 (generalized-alpha and the trapezoidal rule are
