@@ -48,9 +48,7 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from dolfin_rod.integrators.stepper import TimeStepper
-from dolfin_rod.output.field_outputs import FieldOutputs
-from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
+from dolfin_rod import DistributedLoad, FieldOutputs, RodModel, RodParameters, TimeStepper
 
 OUT = pathlib.Path("results/swinging_rod")
 comm = MPI.COMM_WORLD

@@ -19,7 +19,7 @@ from mpi4py import MPI
 from ufl.algorithms import expand_derivatives
 
 from dolfin_rod import closed_forms, dna
-from dolfin_rod.cli import run_scene
+from dolfin_rod import run_scene
 from dolfin_rod.fit.least_squares import fit_scene
 from dolfin_rod.fit.inputs import MeasuredSeries
 from dolfin_rod.theory.natural_state import check_natural_state, stationarity_and_hessian

@@ -207,7 +207,7 @@ def test_two_cells_per_rank_run_on_three_ranks_as_serially(tmp_path):
     """Item 19 ("or run") and 24 (mpirun -n 3 on a 2-core machine): torsion with 6 cells
     on 3 ranks completes with the serial run's numbers (the same discrete problem
     solved by LU: agreement to round-off, 1e-10 relative)."""
-    from dolfin_rod.cli import run_scene
+    from dolfin_rod import run_scene
     from dolfin_rod.scenes import load_scene
     path = tmp_path / "scene.toml"
     path.write_text(TORSION.replace("n_cells = 4", "n_cells = 6"))
@@ -240,7 +240,7 @@ def test_a_short_rod_gives_the_closed_form_shear_deflection():
     linear cantilever under a tip force F across it deflects F L / B_1 + F L^3 / (3 A_1)
     (Timoshenko); at L = 1e-9 the bending part is 1e-18 of the shear part and F/B_1 =
     1e-5 keeps the geometric nonlinearity at O(1e-5): relative tolerance 1e-4."""
-    from dolfin_rod.integrators.stepper import TimeStepper
+    from dolfin_rod import TimeStepper
     from dolfin_rod.rod import EndLoad, RodModel, RodParameters
     L, F, B1 = 1e-9, 1e-4, 10.0
     model = RodModel(RodParameters(length=L, A=(1.0, 1.0, 1.0), B=(B1, B1, 10.0)),
@@ -346,7 +346,7 @@ def test_overflowing_polynomial_is_one_error_in_check(tmp_path, capsys, table, v
 def _stopped_run(folder: Path, steps: int = 5) -> tuple[Path, Path]:
     """CREEP stopped after ``steps`` steps (its checkpoint at step 3), as an interrupted
     run leaves it; (scene file, run folder)."""
-    from dolfin_rod.cli import run_scene
+    from dolfin_rod import run_scene
     from dolfin_rod.scenes import load_scene
     scene_file = folder / "creep.toml"
     if COMM.rank == 0:
@@ -564,7 +564,7 @@ def test_fit_with_an_integer_parameter_or_a_huge_time_span_is_bad_input(tmp_path
 
 def test_api_refuses_a_nan_end_load_and_runs_a_scene_file(tmp_path):
     """Item 30: a NaN EndLoad was accepted; run_scene("x.toml") raised AttributeError."""
-    from dolfin_rod.cli import run_scene
+    from dolfin_rod import run_scene
     from dolfin_rod.rod import EndLoad, RodModel, RodParameters
     with pytest.raises(ValueError, match="EndLoad value must be finite"):
         RodModel(RodParameters(), n_cells=2, end_loads=[EndLoad("force", [math.nan, 0, 0])])
@@ -579,7 +579,7 @@ def test_api_refuses_a_nan_end_load_and_runs_a_scene_file(tmp_path):
 def test_api_run_without_the_initial_state_says_so():
     """Item 30: a rod whose set_initial_state() was not called failed with
     DIVERGED_FNORM_NAN and no hint (its quaternions are zero)."""
-    from dolfin_rod.integrators.stepper import TimeStepper
+    from dolfin_rod import TimeStepper
     from dolfin_rod.rod import EndLoad, RodModel, RodParameters
     model = RodModel(RodParameters(), n_cells=2, end_loads=[EndLoad("force", [0.1, 0, 0])])
     with pytest.raises(ValueError, match=r"call model.set_initial_state\(\)"):

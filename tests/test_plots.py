@@ -8,7 +8,7 @@ import csv
 import numpy as np
 import pytest
 
-from dolfin_rod.cli import run_scene
+from dolfin_rod import run_scene
 from dolfin_rod.output.closing import closing_lines, final_values
 from dolfin_rod.output.plots import choose_panels, relative_power_residual, unwrapped_angle
 from dolfin_rod.output.writer import PowerBalance

@@ -20,7 +20,7 @@ from scipy.optimize import brentq
 
 from dolfin_rod.fem import form_cache
 from dolfin_rod import loads
-from dolfin_rod.integrators.stepper import IntegrationError, TimeStepper
+from dolfin_rod import IntegrationError, TimeStepper
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
 
 # bending about d1: alpha = A_11, alpha_d = A_d,11, mu_d = M_d,11
@@ -240,7 +240,7 @@ def test_a_scene_whose_start_fails_ends_failed_with_its_first_row(tmp_path):
 
     from mpi4py import MPI
 
-    from dolfin_rod.cli import run_scene
+    from dolfin_rod import run_scene
     from dolfin_rod.scenes import load_scene
     folder = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0)) / "run"
     path = Path(__file__).resolve().parents[1] / "scenes" / "cantilever_creep.toml"

@@ -22,7 +22,7 @@ import ufl
 from scipy.optimize import brentq
 
 from dolfin_rod import loads
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
 from dolfin_rod.theory.rotations import (np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix,
                                   rotation_matrix)

@@ -17,7 +17,7 @@ import pytest
 
 from dolfin_rod.fem import form_cache
 from dolfin_rod import loads
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
 from dolfin_rod.rod.rotation_vector import np_cayley
 from dolfin_rod.theory.rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix

@@ -12,7 +12,7 @@ from mpi4py import MPI
 
 from dolfin_rod import closed_forms as cf
 from dolfin_rod import loads
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
 import cases
 from serial_reference import serial

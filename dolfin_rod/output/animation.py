@@ -24,13 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..scenes.schema import COLOURS
+
 __all__ = ["FrameStore", "Look", "rod_animation", "rod_snapshots", "torsion_spacetime",
            "colour_field", "magnification", "GIF_FRAMES", "COLOURS"]
 
 GIF_FRAMES = 24
 TRAIL = 3
 SIZE = (8.4, 6.4)            # inches at 100 dpi: 840 x 640 px
-COLOURS = ("auto", "u", "v", "u_d", "v_d", "n", "m", "xi")
 STRAINS = ("u", "v", "u_d", "v_d")
 SMALL_MOTION = 0.05          # motion below 5 % of the rod's size is magnified ...
 SHOWN_MOTION = 0.2           # ... to about 20 % of it

@@ -28,18 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "reactions",
-          "twist", "energy", "power_residual")
-
-# quantity kind -> unit per unit system
-UNITS = {
-    "SI": {"length": "m", "time": "s", "force": "N", "moment": "N m", "energy": "J",
-           "angle": "rad"},
-    "pN-nm-s": {"length": "nm", "time": "s", "force": "pN", "moment": "pN nm",
-                "energy": "pN nm", "angle": "rad"},
-    "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy"), "1")
-    | {"angle": "rad"},       # the torsion scenes' Section 5.1 variables
-}
+from ..scenes.schema import PANELS, UNITS
 
 
 def unit(kind: str, units: str | None) -> str:

@@ -249,6 +249,11 @@ class RunWriter:
         self.balance.restore(self.checkpoints.restore(meta))
 
     # -- the end --------------------------------------------------------------------------
+    def series(self) -> dict[str, list]:
+        """Rank 0: the time series by column, as in timeseries.json (None where a value
+        is not finite)."""
+        return _finite({k: [r.get(k) for r in self.rows] for k in (self.columns or [])})
+
     def finish(self, summary: dict, timings: dict) -> None:
         """Rank 0: the time series closed, timeseries.json, the pictures, timings.json and
         summary.json.  Ctrl-C while the pictures are drawn (every step is done) stops the
@@ -267,8 +272,7 @@ class RunWriter:
     def _finish(self, summary: dict, timings: dict) -> None:
         if self.lines is not None:
             self.lines.close()
-        series = {k: [r.get(k) for r in self.rows] for k in (self.columns or [])}
-        _dump(self.folder / "timeseries.json", _finite(series))
+        _dump(self.folder / "timeseries.json", self.series())
         t0 = time.perf_counter()
         missing = self._draw(summary.get("title", ""))
         self.timings["pictures"] = time.perf_counter() - t0
