@@ -83,7 +83,7 @@ def tip_error(tips, ref):
 # -- dolfin_rod ---------------------------------------------------------------------------
 
 def dolfin_rod_parameters(scene: Scene):
-    from dolfin_rod.rod import DistributedLoad, RodParameters
+    from dolfin_rod import DistributedLoad, RodParameters
     A, B = section_constants(scene)
     kw = {}
     if scene.evolving:
@@ -98,7 +98,7 @@ def dolfin_rod_model(n_cells: int, scene: str, comm=None, rotations: str = "auto
     """RodModel of a scene; rotations "auto" (the default: rotation vectors for these
     dynamic rods) or "quaternion" (the previous default, for comparison)."""
     from mpi4py import MPI
-    from dolfin_rod.rod import RodModel
+    from dolfin_rod import RodModel
     params, model_name, loads = dolfin_rod_parameters(SCENES[scene])
     model = RodModel(params, n_cells=n_cells, model=model_name, variant="local",
                      ends=("clamped", "free"), distributed_loads=loads, rotations=rotations,
@@ -134,7 +134,7 @@ def run_dolfin_rod(n_cells: int, dt: float, scene: str, scheme: str | None = Non
     cache load) and stepping timed apart.  scheme None, options None, rotations "auto":
     what a user gets by default (TimeStepper(model.problem)); ``tolerance``: its
     error-controlled steps (dt is then the first step)."""
-    from dolfin_rod.integrators.stepper import TimeStepper
+    from dolfin_rod import TimeStepper
     t0 = time.perf_counter()
     model = dolfin_rod_model(n_cells, scene, comm, rotations)
     stepper = TimeStepper(model.problem, scheme, solver_options=options,

@@ -26,8 +26,8 @@ def load(solver: str):
     """The solver's adapter: PyElastica's from cosseratbench's registry, dolfin_rod's
     directly (the same class its entry point names; tests/test_cosseratbench.py)."""
     if solver == "dolfin_rod":
-        from dolfin_rod.cosseratbench import DolfinRodSolver
-        return DolfinRodSolver()
+        from dolfin_rod import cosseratbench
+        return cosseratbench.DolfinRodSolver()
     return registry.load_solver(solver)
 
 

@@ -24,7 +24,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cantilever as cant  # noqa: E402
 
-from dolfin_rod.integrators.stepper import TimeStepper  # noqa: E402
+from dolfin_rod import TimeStepper  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -56,8 +56,7 @@ def api(rotations: str, scheme=None) -> dict:
 
 
 def cli(fields: bool) -> dict:
-    from dolfin_rod.cli import run_scene
-    from dolfin_rod.scenes import load_scene
+    from dolfin_rod import load_scene, run_scene
     over = {"outputs.plots": False, "outputs.animation": False}
     if not fields:
         over["outputs.fields"] = False

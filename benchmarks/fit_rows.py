@@ -15,11 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dolfin_rod.fit.inputs import read_series
-from dolfin_rod.fit.least_squares import fit_scene, prepare_fit
-from dolfin_rod.output.writer import versions
-from dolfin_rod.scenes import load_scene
-from dolfin_rod.torsion import closed_forms
+from dolfin_rod import closed_forms, fit_scene, load_scene, prepare_fit, read_series, versions
 
 ROOT = Path(__file__).resolve().parents[1]
 ROWS = (10**3, 10**4, 10**5, 10**6)

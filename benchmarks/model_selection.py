@@ -16,8 +16,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from dolfin_rod.output.writer import versions
-from dolfin_rod.scenes import build, load_scene
+from dolfin_rod import build, load_scene, versions
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -49,8 +49,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cantilever as cant  # noqa: E402
 
-from dolfin_rod.integrators.step_control import IntegrationError  # noqa: E402
-from dolfin_rod.fem.solvers import JACOBIAN_REUSE, NATIVE_LU  # noqa: E402
+from dolfin_rod import IntegrationError, JACOBIAN_REUSE, NATIVE_LU  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TUNED = {**NATIVE_LU, **JACOBIAN_REUSE, "snes_rtol": 1e-6, "snes_atol": 1e-9}
@@ -235,7 +234,7 @@ def main():
                     choices=list(CONFIGS))
     ap.add_argument("--out", default="peer_pyelastica")
     args = ap.parse_args()
-    from dolfin_rod.output.writer import versions
+    from dolfin_rod import versions
     import elastica
     results = [sweep(s, args.quick, args.configs) for s in args.scenes]
     folder = ROOT / "results" / "bench"

@@ -59,7 +59,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cantilever as cant  # noqa: E402
 from peer_pyelastica import time_at  # noqa: E402
 
-from dolfin_rod.fem.solvers import NATIVE_LU  # noqa: E402
+from dolfin_rod import NATIVE_LU  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TAU = 10.0
@@ -80,7 +80,7 @@ def tip_error(tips, ref):
 
 def dolfin_rod_model(n_cells: int):
     from mpi4py import MPI
-    from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
+    from dolfin_rod import DistributedLoad, RodModel, RodParameters
     A = (cant.E * cant.I_SEC, cant.E * cant.I_SEC, cant.G * cant.J_SEC)
     B = (cant.ALPHA_C * cant.G * cant.AREA, cant.ALPHA_C * cant.G * cant.AREA, cant.E * cant.AREA)
     params = RodParameters(length=cant.L, A=A, B=B, rho_A=cant.RHO * cant.AREA,
@@ -98,7 +98,7 @@ def dolfin_rod_model(n_cells: int):
 
 def run_dolfin_rod(n_cells: int, tol: float, ts_type: str = "bdf:2", options=None,
                    dt0: float = 1e-3) -> dict:
-    from dolfin_rod.integrators.ts import TSIntegrator
+    from dolfin_rod import TSIntegrator
     t0 = time.perf_counter()
     model = dolfin_rod_model(n_cells)
     integ = TSIntegrator(model.problem, ts_type, adaptive=True, rtol=tol, atol=tol,
@@ -258,7 +258,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
-    from dolfin_rod.output.writer import versions
+    from dolfin_rod import versions
     res = sweep(args.quick)
     folder = ROOT / "results" / "bench"
     folder.mkdir(parents=True, exist_ok=True)

@@ -37,9 +37,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cantilever as cant  # noqa: E402
 
-from dolfin_rod import loads  # noqa: E402
-from dolfin_rod.integrators.stepper import TimeStepper  # noqa: E402
-from dolfin_rod.rod import EndLoad, RodModel, RodParameters  # noqa: E402
+from dolfin_rod import EndLoad, loads, RodModel, RodParameters, TimeStepper  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = cant.SCENES["elastic"]

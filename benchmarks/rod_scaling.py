@@ -30,7 +30,7 @@ from mpi4py import MPI
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cantilever as cant  # noqa: E402
 
-from dolfin_rod.integrators.stepper import TimeStepper  # noqa: E402
+from dolfin_rod import TimeStepper  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 def configs():
     """default: Newton + MUMPS; native: PETSc's LU; tuned: native + Jacobian/LU reuse."""
-    from dolfin_rod.fem.solvers import JACOBIAN_REUSE, NATIVE_LU
+    from dolfin_rod import JACOBIAN_REUSE, NATIVE_LU
     return {"default": None, "native": NATIVE_LU, "tuned": {**NATIVE_LU, **JACOBIAN_REUSE}}
 
 
@@ -40,7 +40,7 @@ def profiled_run(n_cells: int, steps: int, dt: float = 1e-3, options=None, scene
     """Time `steps` generalized-alpha steps after one start-up step (not timed)."""
     from petsc4py import PETSc
     import cantilever as cant
-    from dolfin_rod.integrators.stepper import TimeStepper
+    from dolfin_rod import TimeStepper
 
     PETSc.Log.begin()
     t0 = time.perf_counter()
@@ -79,7 +79,7 @@ def profiled_run(n_cells: int, steps: int, dt: float = 1e-3, options=None, scene
 def jit_cost() -> dict:
     """Model + step-form construction, cold (empty FFCx cache) then warm, in subprocesses."""
     code = ("import sys, time; sys.path.insert(0, %r); t0 = time.perf_counter();"
-            "import cantilever as c; from dolfin_rod.integrators.stepper import TimeStepper;"
+            "import cantilever as c; from dolfin_rod import TimeStepper;"
             "m = c.dolfin_rod_model(8, 'elastic'); s = TimeStepper(m.problem, 'generalized_alpha');"
             "s.step(0.0, 1e-3); s.step(1e-3, 1e-3); print(time.perf_counter() - t0)"
             % str(Path(__file__).resolve().parent))
@@ -109,7 +109,7 @@ def main() -> None:
     folder = ROOT / "results" / "bench"
     folder.mkdir(parents=True, exist_ok=True)
     if args.mpi_size:
-        from dolfin_rod.fem.solvers import JACOBIAN_REUSE  # MUMPS: PETSc's LU is serial
+        from dolfin_rod import JACOBIAN_REUSE  # MUMPS: PETSc's LU is serial
         r = profiled_run(args.mpi_size, 5, options=options or JACOBIAN_REUSE)
         if comm.rank == 0:
             print(json.dumps(r))

@@ -19,8 +19,7 @@ import json
 import math
 from pathlib import Path
 
-from dolfin_rod.cli import run_scene
-from dolfin_rod.scenes import parse_scene
+from dolfin_rod import parse_scene, run_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = """

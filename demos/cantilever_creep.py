@@ -33,10 +33,8 @@ import pathlib
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_rod import closed_forms as cf
-from dolfin_rod.integrators.stepper import TimeStepper
-from dolfin_rod.output.field_outputs import FieldOutputs
-from dolfin_rod.rod import EndLoad, RodModel, RodParameters
+from dolfin_rod import (closed_forms as cf, EndLoad, FieldOutputs, RodModel, RodParameters,
+                        TimeStepper)
 
 OUT = pathlib.Path("results/cantilever_creep")
 comm = MPI.COMM_WORLD

@@ -21,7 +21,7 @@ The force ramps 0 -> 80 pN -> 0 at r = 1, 10 and 100 pN/s and then rests at 0 fo
 eighth of the ramp time, so the molecule returns to its natural state (psi -> 0).  Each
 run has 400 steps per ramp (BDF2).  The loop area int F dX is the work done on the
 molecule over the cycle; with psi back to its initial value it equals the energy
-dissipated, int int xi ds dt (power balance, ERRATA.md), to the time scheme's order
+dissipated, int int xi ds dt (power balance, docs/corrections.md), to the time scheme's order
 (tests/test_dna.py shows the order).  The loop area grows with the rate; slow loading
 tends to the equilibrium curve f(v_d,3) = F, X/L0 = v_d,3 + e(F) (dolfin_rod.dna.
 equilibrium_stretch, from dpsi/dv_d,3 = 0 and n_3 = F).
@@ -41,16 +41,13 @@ loop_summary.csv, torque.png, torque.csv} and the run folders rate_*/ and twist/
 
 from __future__ import annotations
 
-import json
 import pathlib
 import shutil
 
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_rod import closed_forms, dna
-from dolfin_rod.cli import run_scene
-from dolfin_rod.scenes import load_scene
+from dolfin_rod import closed_forms, dna, load_scene, run
 
 SCENES = pathlib.Path(__file__).resolve().parents[1] / "scenes"
 SCENE = SCENES / "dna_overstretching.toml"
@@ -83,11 +80,11 @@ def loop(rate: float, folder: pathlib.Path, steps_per_ramp: int = STEPS_PER_RAMP
     applied force, reaction at the clamp, extension X/L0, loop area int F dX, dissipated
     energy and the change of the free energy."""
     scn = load_scene(SCENE, {**cycle_changes(rate, steps_per_ramp), **(outputs or {})})
-    summary = run_scene(scn, fresh(folder), comm, quiet=True)
-    assert summary["status"] == "completed", summary["message"]
+    result = run(scn, out=fresh(folder), comm=comm, quiet=True)
+    assert result.status == "completed", result.summary["message"]
     if comm.rank != 0:
         return None
-    rows = json.loads((folder / "timeseries.json").read_text())
+    rows = result.series
     L = scn["geometry"]["length"]
     t = np.array(rows["time"])
     force = scn["loads"]["end_force"].build(2)(t)
@@ -106,11 +103,11 @@ def equilibrium_curve(forces) -> np.ndarray:
 def twist_relaxation(folder: pathlib.Path) -> dict | None:
     """Run the twist scene; on rank 0 the torque and both closed forms."""
     scn = load_scene(SCENES / "dna_twist_relaxation.toml")
-    summary = run_scene(scn, fresh(folder), comm, quiet=True)
-    assert summary["status"] == "completed", summary["message"]
+    result = run(scn, out=fresh(folder), comm=comm, quiet=True)
+    assert result.status == "completed", result.summary["message"]
     if comm.rank != 0:
         return None
-    rows = json.loads((folder / "timeseries.json").read_text())
+    rows = result.series
     L, n = scn["geometry"]["length"], scn["geometry"]["n_cells"]
     alpha = dna.zero_tension_twist_stiffness()
     alpha_d = scn["material"]["stiffness"]["A_d"].at(0)[2, 2]

@@ -20,12 +20,8 @@ import ufl
 import dolfinx.fem as fem
 import matplotlib.pyplot as plt
 
-from dolfin_rod import closed_forms as cf
-from dolfin_rod import loads
-from dolfin_rod.integrators.stepper import TimeStepper
-from dolfin_rod.integrators.ts import TSIntegrator
-from dolfin_rod.fem.solvers import SolverError
-from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
+from dolfin_rod import (closed_forms as cf, loads, SolverError, TimeStepper, TorsionModel,
+                        TorsionParameters, TSIntegrator)
 
 FIG = pathlib.Path("docs/figures")
 OUT = pathlib.Path("results/stability")

@@ -19,7 +19,7 @@
 # v_d,t >= 0 (eq. disspw; no Kelvin-Voigt viscosity, no drag).
 #
 # ## Energy balance
-# Testing the balance laws with the velocities gives (ERRATA.md identities)
+# Testing the balance laws with the velocities gives (docs/corrections.md identities)
 #
 #     d/dt (K + Psi + U_g) = -Xi,   K = 1/2 int rho A V.V + W.J W ds,  Psi = int psi ds,
 #     U_g = int rho A g e_1 . r ds,  Xi = int xi ds,
@@ -48,9 +48,7 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from dolfin_rod.integrators.stepper import TimeStepper
-from dolfin_rod.output.field_outputs import FieldOutputs
-from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
+from dolfin_rod import DistributedLoad, FieldOutputs, RodModel, RodParameters, TimeStepper
 
 OUT = pathlib.Path("results/swinging_rod")
 comm = MPI.COMM_WORLD

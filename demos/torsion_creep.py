@@ -16,7 +16,6 @@
 # load m0 = 0.8 and mu = 0.4 or 0 (changed keys).
 # Run: `./rodenv python3 demos/torsion_creep.py`, also under `mpirun -n 2`.
 
-import json
 import shutil
 from pathlib import Path
 
@@ -24,9 +23,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_rod import closed_forms
-from dolfin_rod.cli import run_scene
-from dolfin_rod.scenes import load_scene
+from dolfin_rod import closed_forms, load_scene, run
 
 SCENE = "scenes/torsion_creep.toml"
 out = Path("results/torsion_creep")
@@ -45,9 +42,9 @@ def creep(mu, variant="local"):
     comm.barrier()
     changes = {"scene.model": "torsion", "material.mu": mu, "material.variant": variant,
                "loads.end_torsion": {"type": "step", "value": m0}, "time.t_end": t_end}
-    summary = run_scene(load_scene(SCENE, changes), folder, comm, quiet=True)
-    assert summary["status"] == "completed", summary["message"]
-    rows = comm.bcast(json.loads((folder / "timeseries.json").read_text()) if rank0 else None)
+    result = run(SCENE, changes, out=folder, comm=comm, quiet=True)
+    assert result.status == "completed", result.summary["message"]
+    rows = result.series
     return {k: np.array(rows[k]) for k in ("time", "end_rotation", "mean_natural_twist")}
 
 

@@ -22,7 +22,6 @@
 # Output: results/torsion_relaxation/{relaxation.csv, relaxation.png} and one run folder
 # per case (rod.bp, spacetime.png, timeseries.csv, ...).
 
-import json
 import shutil
 from pathlib import Path
 
@@ -30,9 +29,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_rod import closed_forms
-from dolfin_rod.cli import run_scene
-from dolfin_rod.scenes import load_scene
+from dolfin_rod import closed_forms, load_scene, run
 
 SCENE = "scenes/torsion_relaxation.toml"
 out = Path("results/torsion_relaxation")
@@ -52,12 +49,10 @@ def relax(case, **changes):
         shutil.rmtree(folder, ignore_errors=True)
     comm.barrier()
     changes = {"scene.model": "torsion", "geometry.n_cells": 32, "material.mu": mu, **changes}
-    summary = run_scene(load_scene(SCENE, changes), folder, comm, quiet=True)
-    assert summary["status"] == "completed", summary["message"]
-    rows = json.loads((folder / "timeseries.json").read_text()) if rank0 else None
-    rows = comm.bcast(rows, root=0)
-    hist = {k: np.array(rows[k]) for k in ("time", "end_torsion", "mean_natural_twist")}
-    return hist, summary["end_torsion_impulse_at_0"]
+    result = run(SCENE, changes, out=folder, comm=comm, quiet=True)
+    assert result.status == "completed", result.summary["message"]
+    hist = {k: np.array(result.series[k]) for k in ("time", "end_torsion", "mean_natural_twist")}
+    return hist, result.summary["end_torsion_impulse_at_0"]
 
 
 # ## Homogeneous rod: finite elements against eq. stressrelax

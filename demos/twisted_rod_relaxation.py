@@ -57,17 +57,13 @@
 
 from __future__ import annotations
 
-import json
 import pathlib
 import shutil
 
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_rod import closed_forms
-from dolfin_rod.cli import run_scene
-from dolfin_rod.scenes import load_scene
-from dolfin_rod.output.vtx import read_vtx
+from dolfin_rod import closed_forms, load_scene, read_vtx, run
 
 SCENE = "scenes/twisted_rod_relaxation.toml"
 OUT = pathlib.Path("results/twisted_rod_relaxation")
@@ -98,11 +94,11 @@ def relax(variant):
     comm.barrier()
     if variant == "uniform":
         changes["material.viscosity"] = uniform_viscosity()
-    summary = run_scene(load_scene(SCENE, changes), OUT / variant, comm, quiet=True)
-    assert summary["status"] == "completed", summary["message"]
+    result = run(SCENE, changes, out=OUT / variant, comm=comm, quiet=True)
+    assert result.status == "completed", result.summary["message"]
     if comm.rank != 0:
         return None
-    rows = json.loads((OUT / variant / "timeseries.json").read_text())
+    rows = result.series
     u_d = [np.mean(step["cell"]["u_d"][:, 2]) for step in read_vtx(OUT / variant / "rod.bp")]
     return {"t": np.array(rows["time"][1:]), "m": np.array(rows["reaction_couple_right_z"][1:]),
             "u_d": np.array(u_d[1:]), "psi": np.array(rows["free_energy"][1:]),

@@ -35,15 +35,10 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_rod import closed_forms as cf
-from dolfin_rod.fem import form_cache
-from dolfin_rod import loads
-from dolfin_rod.integrators.schemes import get_scheme
-from dolfin_rod.integrators.stepper import IntegrationError, TimeStepper
-from dolfin_rod.integrators.ts import TSIntegrator, parse_ts_type
-from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
-from dolfin_rod.fem.solvers import SolverError
-from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
+from dolfin_rod import (closed_forms as cf, DistributedLoad, form_cache, get_scheme,
+                        IntegrationError, loads, parse_ts_type, RodModel, RodParameters,
+                        SolverError, TimeStepper, TorsionModel, TorsionParameters,
+                        TSIntegrator)
 
 ALPHA, ALPHA_D, MU_D = 2.0, 1.0, 0.5
 OUT = pathlib.Path("results/work_precision")
@@ -238,7 +233,7 @@ def observed_order(a, b) -> float:
 
 
 def check(data, summary) -> None:
-    """What the README states, asserted: (1) the best method of each scene reaches the
+    """What docs/performance.md states, asserted: (1) the best method of each scene reaches the
     scene's target error; (2) on the creep scene (an ODE: no order reduction of the
     algebraic components) every fixed-step integrator converges at its design order p,
     observed between the two finest steps whose errors are above 1e-10 (the Newton

@@ -17,9 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from dolfin_rod.cli import run_scene  # noqa: E402
-from dolfin_rod.output.vtx import read_vtx  # noqa: E402
-from dolfin_rod.scenes import load_scene  # noqa: E402
+from dolfin_rod import load_scene, read_vtx, run_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))

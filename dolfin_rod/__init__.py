@@ -14,6 +14,10 @@ from importlib import import_module
 
 __version__ = "0.1.0"
 
+# a run of a scene: dolfin_rod.run("scene.toml", overrides) (run.py; bound here, as the
+# package attribute ``run`` would otherwise be the module once it is imported)
+from .run import RunResult, run, run_scene  # noqa: E402
+
 _WHERE = {
     # models and their data
     "RodModel": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
@@ -25,21 +29,29 @@ _WHERE = {
     "TorsionModel": "torsion.model", "TorsionParameters": "torsion.model",
     "SemiDiscreteProblem": "fem.problem", "SecondOrderProblem": "fem.problem",
     # integrators and solvers
-    "TimeStepper": "integrators.stepper", "TSIntegrator": "integrators.ts",
+    "TimeStepper": "integrators.choice", "choose_integrator": "integrators.choice",
+    "TSIntegrator": "integrators.ts", "parse_ts_type": "integrators.ts",
+    "get_scheme": "integrators.schemes",
     "IntegrationError": "integrators.step_control", "SolverError": "fem.solvers",
     "JACOBIAN_REUSE": "fem.solvers", "NATIVE_LU": "fem.solvers",
     # scenes: load, choose the model, build, run
     "load_scene": "scenes", "parse_scene": "scenes", "select_model": "scenes",
-    "build": "scenes", "SceneError": "scenes", "run_scene": "cli",
+    "build": "scenes", "SceneError": "scenes",
+    # what a run writes: fields along the rod (ParaView, animation), versions
+    "FieldOutputs": "output.field_outputs", "read_vtx": "output.vtx", "versions": "output.writer",
     # fitting parameters to measured time series (docs/fitting.md)
     "fit_scene": "fit.least_squares", "FitResult": "fit.least_squares",
+    "prepare_fit": "fit.least_squares", "run_fit": "fit.least_squares",
+    "FitError": "fit.least_squares",
     "read_series": "fit.inputs",
 }
 # modules users import as a whole: name -> where it lives
 _MODULES = {"loads": "loads", "closed_forms": "torsion.closed_forms",
-            "rotations": "theory.rotations"}
+            "rotations": "theory.rotations", "dna": "dna",
+            "form_cache": "fem.form_cache",   # form_cache.clear(): time a fresh process
+            "cosseratbench": "cosseratbench"}   # the cosseratbench solver (extra [bench])
 
-__all__ = sorted(_WHERE) + list(_MODULES)
+__all__ = sorted([*_WHERE, "run", "run_scene", "RunResult"]) + list(_MODULES)
 
 
 def __getattr__(name: str):

@@ -49,6 +49,29 @@ def rod_length(value: float) -> float:
     return x
 
 
+# The cells of a rod or a torsion model unless given: the one default of RodModel, Rod,
+# TorsionModel and the scene key geometry.n_cells.
+N_CELLS = 32
+
+# Under MPI a rank with fewer cells has no cell at all (DOLFINx's reshape errors) or its
+# Dirichlet dof is a ghost of the mixed space (assembly.py); with 2 it runs.
+MIN_CELLS_PER_RANK = 2
+
+
+def check_n_cells(n_cells, ranks: int = 1) -> int:
+    """n_cells as an int; ValueError unless it is a positive integer and, on more than
+    one MPI rank, gives every rank MIN_CELLS_PER_RANK cells."""
+    if not (isinstance(n_cells, (int, np.integer)) and n_cells >= 1):
+        raise ValueError(f"n_cells must be a positive integer, got {n_cells!r}")
+    if ranks > 1 and n_cells < MIN_CELLS_PER_RANK * ranks:
+        fit = max(1, n_cells // MIN_CELLS_PER_RANK)
+        raise ValueError(f"n_cells = {n_cells} is too few for {ranks} MPI ranks: each rank "
+                         f"needs {MIN_CELLS_PER_RANK} cells, so n_cells >= "
+                         f"{MIN_CELLS_PER_RANK * ranks} (or run on {fit} rank"
+                         f"{'s' if fit > 1 else ''})")
+    return int(n_cells)
+
+
 # The largest input files read: a scene (TOML, tables of load histories included) and
 # fit data (CSV: 1e6 rows of three numbers are ~60 MB)
 SCENE_BYTES = 16 * 2**20
@@ -91,6 +114,20 @@ def profile_violation(values: np.ndarray, s: np.ndarray, strict: bool) -> str | 
                 f"at s = {s[bad][0]:g}")
     if not strict and (values == 0).any() and (values > 0).any():
         return "must be either > 0 everywhere or 0 everywhere"
+    return None
+
+
+def slide_axis_problem(axis) -> str | None:
+    """Why ``axis`` cannot be a slide axis (None if it can): not a finite unit 3-vector
+    along a coordinate axis (Dirichlet conditions on the other two components)."""
+    a = np.asarray(axis, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        return f"must be a finite 3-vector, got {axis!r}"
+    if abs(np.linalg.norm(a) - 1.0) > 1e-12:
+        return f"must be a unit vector, got {a.tolist()} (length {np.linalg.norm(a):.6g})"
+    if np.count_nonzero(a) != 1:
+        return (f"must be a coordinate axis (+-e_1, +-e_2 or +-e_3), got {a.tolist()}: "
+                "an end sliding along a direction off the axes is not supported")
     return None
 
 

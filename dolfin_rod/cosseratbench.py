@@ -147,7 +147,7 @@ def _segment(times, t: float) -> tuple[int, float]:
 def run_rod(scenario: Scenario, rod: Rod, n_elements: int, times: np.ndarray, dt: float):
     """(positions [T, n + 1, 3], directors [T, n, 3]) of one rod at ``times``."""
     from .integrators.step_control import IntegrationError
-    from .integrators.stepper import TimeStepper
+    from .integrators.choice import TimeStepper
     model, start = rod_model(scenario, rod, n_elements)
     model.set_initial_state(start=start)
     stepper = TimeStepper(model.problem)

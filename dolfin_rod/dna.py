@@ -33,7 +33,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import ufl
 from scipy.optimize import brentq
 
 __all__ = ["DnaParameters", "DNA", "psi", "elastic_tension", "natural_tension",
@@ -74,7 +73,9 @@ class DnaParameters:
 
     def energy(self, u_d, v_d, u, v):
         """psi(u_d, v_d, u, v) per length [pN] (module docstring); UFL vectors, or
-        constant vectors (then a float)."""
+        constant vectors (then a float).  (UFL is imported here: checking a scene that
+        names this energy stays free of it.)"""
+        import ufl
         EI, C, g = self.bending_stiffness, self.twist_stiffness, self.twist_stretch_coupling
         S, lam, GA = self.stretch_modulus, self.stretch_limit, self.shear_stiffness
         ue, ve = u - u_d, v - v_d
@@ -89,6 +90,7 @@ class DnaParameters:
 
     def landscape(self, x):
         """phi(x), x = v_d,3: the natural-stretch energy whose derivative is f(x)."""
+        import ufl
         F_p, k_p, lam_d = self.plateau_force, self.plateau_slope, self.natural_stretch_limit
         sig = F_p / self.natural_stiffness
         y = x - 1

@@ -28,7 +28,7 @@ def run_serially(path: Path | str, out: Path, steps: int = 4, **overrides) -> st
     returns the run's status."""
     from serial_reference import _singleton_env
     code = ("import sys, json; sys.path.insert(0, %r); from quick_scenes import quick_scene; "
-            "from dolfin_rod.cli import run_scene; "
+            "from dolfin_rod import run_scene; "
             "s = run_scene(quick_scene(%r, %d, **%r), %r, quiet=True); "
             "print(json.dumps(s['status']))" % (str(ROOT / "tests"), str(path), steps,
                                                  overrides, str(out)))

@@ -16,7 +16,7 @@ import pytest
 from mpi4py import MPI
 
 from dolfin_rod.integrators.lie_alpha import error_coefficient
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.integrators.step_control import StepControl
 from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
 from quick_scenes import resume_bound
@@ -234,7 +234,7 @@ def test_adaptive_scene_runs_the_python_api_and_resumes_exactly(tmp_path):
     import csv
     from pathlib import Path
 
-    from dolfin_rod.cli import run_scene
+    from dolfin_rod import run_scene
     from dolfin_rod.rod import RodModel
     from dolfin_rod.scenes import load_scene
     from dolfin_rod.scenes.builders import rod_loads, rod_parameters

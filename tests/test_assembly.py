@@ -15,7 +15,7 @@ import pytest
 
 from dolfin_rod import loads
 from dolfin_rod.fem.assembly import BlockedSystem, MonolithicSystem, block_system
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
 from dolfin_rod.fem.solvers import NATIVE_LU
 from dolfin_rod.torsion.model import TorsionModel, TorsionParameters

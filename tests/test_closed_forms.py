@@ -116,7 +116,7 @@ def test_exponential_has_no_division_by_zero():
 
 
 def test_paper_uncorrected_exponential_is_wrong():
-    """ERRATA.md item 2: without the division by delta the paper's formula is not exp(-tA)."""
+    """docs/corrections.md item 2: without the division by delta the paper's formula is not exp(-tA)."""
     params = CREEP_PARAMETERS["fast Kelvin-Voigt"]
     A = paper_matrix(*params)
     tau = 0.5 * np.trace(A)
@@ -235,7 +235,7 @@ HISTORIES = {
 
 @pytest.mark.parametrize("history, breaks", HISTORIES.values(), ids=HISTORIES.keys())
 def test_convolution_creep_matches_solve_ivp(history, breaks):
-    """ERRATA.md item 3: u = m/alpha + (1/mu_d) int exp(-(alpha_d/mu_d)(t - s)) m(s) ds."""
+    """docs/corrections.md item 3: u = m/alpha + (1/mu_d) int exp(-(alpha_d/mu_d)(t - s)) m(s) ds."""
     alpha, alpha_d, mu_d = 2.0, 0.5, 1.5
     t = np.linspace(0.0, 6.0, 13)
     scale = 2.0 * (alpha + alpha_d) / (alpha * alpha_d)          # |m| <= 2
@@ -246,7 +246,7 @@ def test_convolution_creep_matches_solve_ivp(history, breaks):
 
 
 def test_paper_uncorrected_convolution_is_wrong():
-    """ERRATA.md item 3: the paper's u = m + (alpha/mu_d) int exp(-alpha_d mu_d (t - s)) m ds is not the solution."""
+    """docs/corrections.md item 3: the paper's u = m + (alpha/mu_d) int exp(-alpha_d mu_d (t - s)) m ds is not the solution."""
     alpha, alpha_d, mu_d, m0, t = 2.0, 0.5, 1.5, 1.0, 3.0
     paper = m0 + alpha / mu_d * m0 * (1.0 - math.exp(-alpha_d * mu_d * t)) / (alpha_d * mu_d)
     twist, _ = cf.creep_response(t, loads.step(m0), alpha, alpha_d, mu_d)

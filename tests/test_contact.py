@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
 from dolfin_rod.rod.contact import (NP_OPS, ContactLaw, Obstacle, Pose, default_stiffness,
                                     signed_distance)

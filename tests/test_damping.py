@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from dolfin_rod.cli import run_scene
+from dolfin_rod import run_scene
 from dolfin_rod.scenes import SceneError, load_scene
 from quick_scenes import ROOT, assert_serial_run_equal, quick_scene
 

@@ -19,7 +19,7 @@ from mpi4py import MPI
 from ufl.algorithms import expand_derivatives
 
 from dolfin_rod import closed_forms, dna
-from dolfin_rod.cli import run_scene
+from dolfin_rod import run_scene
 from dolfin_rod.fit.least_squares import fit_scene
 from dolfin_rod.fit.inputs import MeasuredSeries
 from dolfin_rod.theory.natural_state import check_natural_state, stationarity_and_hessian
@@ -144,7 +144,7 @@ def cycle(folder: Path, rate: float, steps_per_ramp: int) -> dict:
 
 def test_loop_area_is_the_dissipated_energy_at_second_order(tmp_path):
     """int F dX over the cycle = int int xi ds dt + Psi(T) - Psi(0) (power balance,
-    ERRATA.md) holds for the exact solution; the run's discrepancy falls at BDF2's
+    docs/corrections.md) holds for the exact solution; the run's discrepancy falls at BDF2's
     order 2 (with trapezoidal quadrature of F dX and of the dissipation rate, also
     O(dt^2)) as dt halves: 400, 800, 1600 steps per ramp at 10 pN/s.  (Serial only:
     6000 steps; the last test runs this scene under mpirun -n 2 against serial.)"""

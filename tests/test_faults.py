@@ -29,7 +29,8 @@ import pytest
 from mpi4py import MPI
 
 from dolfin_rod.output import checkpoints, run_folders
-from dolfin_rod.cli import main, run_scene
+from dolfin_rod import run_scene
+from dolfin_rod.cli import main
 from dolfin_rod.output.divergence import EnergyBound
 from dolfin_rod.integrators.schemes import get_scheme
 from dolfin_rod.integrators.stepper import IntegrationError
@@ -353,7 +354,7 @@ def test_unexpected_error_on_one_rank_ends_the_whole_run(tmp_path):
 
 FEW_CELLS = """
 from mpi4py import MPI
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
 try:
     model = RodModel(RodParameters(), n_cells=2, end_loads=[EndLoad("force", [0.1, 0.0, 0.0])])
@@ -689,7 +690,7 @@ STABILITY_TABLE = {4: 0.05, 8: 0.05, 16: 0.01594088, 32: 0.003393967, 64: 0.0008
 
 @pytest.mark.parametrize("n", list(STABILITY_TABLE))
 def test_explicit_euler_limit_is_the_measured_one(n):
-    from dolfin_rod.torsion.stability import explicit_euler_limit
+    from dolfin_rod.scenes.run_warnings import explicit_euler_limit
     scene = parse_scene(f"""
 [geometry]
 n_cells = {n}
@@ -774,7 +775,7 @@ def _power_defect_with_moving_end(kind: str, dynamic: bool, scheme: str, dt: flo
     [0, 1]); the power defect |E(1) - E(0) + int D dt - int P dt| / |E(1)| (trapezoidal
     integrals of the end-point values, as tests/test_rod.py::power_defect)."""
     from dolfin_rod import loads
-    from dolfin_rod.integrators.stepper import TimeStepper
+    from dolfin_rod import TimeStepper
     from dolfin_rod.rod import RodModel, RodParameters
     extra = {"rho_A": 1.0, "I11": 0.01, "I22": 0.01} if dynamic else {}
     p = RodParameters(A=(1.0, 1.0, 1.0), B=(10.0, 10.0, 10.0), M=(0.2, 0.2, 0.2),

@@ -29,7 +29,7 @@ from test_faults import (CREEP, MPI_TIMEOUT, ROOT, _start, _wait_for, assert_sam
                          read_csv, run_main, shared, snapshot, write)
 
 from dolfin_rod.output import writer as output
-from dolfin_rod.cli import run_scene
+from dolfin_rod import run_scene
 from dolfin_rod.scenes import load_scene
 
 COMM = MPI.COMM_WORLD

@@ -10,6 +10,7 @@ when the suite itself runs under mpirun.
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
@@ -206,7 +207,7 @@ def test_two_cells_per_rank_run_on_three_ranks_as_serially(tmp_path):
     """Item 19 ("or run") and 24 (mpirun -n 3 on a 2-core machine): torsion with 6 cells
     on 3 ranks completes with the serial run's numbers (the same discrete problem
     solved by LU: agreement to round-off, 1e-10 relative)."""
-    from dolfin_rod.cli import run_scene
+    from dolfin_rod import run_scene
     from dolfin_rod.scenes import load_scene
     path = tmp_path / "scene.toml"
     path.write_text(TORSION.replace("n_cells = 4", "n_cells = 6"))
@@ -239,7 +240,7 @@ def test_a_short_rod_gives_the_closed_form_shear_deflection():
     linear cantilever under a tip force F across it deflects F L / B_1 + F L^3 / (3 A_1)
     (Timoshenko); at L = 1e-9 the bending part is 1e-18 of the shear part and F/B_1 =
     1e-5 keeps the geometric nonlinearity at O(1e-5): relative tolerance 1e-4."""
-    from dolfin_rod.integrators.stepper import TimeStepper
+    from dolfin_rod import TimeStepper
     from dolfin_rod.rod import EndLoad, RodModel, RodParameters
     L, F, B1 = 1e-9, 1e-4, 10.0
     model = RodModel(RodParameters(length=L, A=(1.0, 1.0, 1.0), B=(B1, B1, 10.0)),
@@ -345,7 +346,7 @@ def test_overflowing_polynomial_is_one_error_in_check(tmp_path, capsys, table, v
 def _stopped_run(folder: Path, steps: int = 5) -> tuple[Path, Path]:
     """CREEP stopped after ``steps`` steps (its checkpoint at step 3), as an interrupted
     run leaves it; (scene file, run folder)."""
-    from dolfin_rod.cli import run_scene
+    from dolfin_rod import run_scene
     from dolfin_rod.scenes import load_scene
     scene_file = folder / "creep.toml"
     if COMM.rank == 0:
@@ -563,7 +564,7 @@ def test_fit_with_an_integer_parameter_or_a_huge_time_span_is_bad_input(tmp_path
 
 def test_api_refuses_a_nan_end_load_and_runs_a_scene_file(tmp_path):
     """Item 30: a NaN EndLoad was accepted; run_scene("x.toml") raised AttributeError."""
-    from dolfin_rod.cli import run_scene
+    from dolfin_rod import run_scene
     from dolfin_rod.rod import EndLoad, RodModel, RodParameters
     with pytest.raises(ValueError, match="EndLoad value must be finite"):
         RodModel(RodParameters(), n_cells=2, end_loads=[EndLoad("force", [math.nan, 0, 0])])
@@ -578,7 +579,7 @@ def test_api_refuses_a_nan_end_load_and_runs_a_scene_file(tmp_path):
 def test_api_run_without_the_initial_state_says_so():
     """Item 30: a rod whose set_initial_state() was not called failed with
     DIVERGED_FNORM_NAN and no hint (its quaternions are zero)."""
-    from dolfin_rod.integrators.stepper import TimeStepper
+    from dolfin_rod import TimeStepper
     from dolfin_rod.rod import EndLoad, RodModel, RodParameters
     model = RodModel(RodParameters(), n_cells=2, end_loads=[EndLoad("force", [0.1, 0, 0])])
     with pytest.raises(ValueError, match=r"call model.set_initial_state\(\)"):
@@ -626,3 +627,46 @@ def test_fit_prints_progress_on_stderr(tmp_path, capsys):
                               "--params", "alpha_d,mu_d", "--out", tmp_path / "quiet",
                               "--quiet")
     assert code == 0 and "model run" not in err
+
+
+# --- item 18: the disk fills up while the time series is written --------------------------
+
+
+@pytest.mark.mpi
+def test_full_disk_while_writing_the_time_series_fails_with_complete_rows(
+        tmp_path, capsys, monkeypatch):
+    """Item 18 (the CSV part): a full disk while writing timeseries.csv gave an OSError
+    traceback (MPI_Abort under mpirun), no summary and a row cut in half.  Injected: the
+    write of step 5's row stores half of it, then ENOSPC.  Now: exit 3 on every rank,
+    "No space left on device" on stderr, rows 0-4 complete, summary.json "failed"."""
+    import errno
+    from dolfin_rod.output import writer
+    folder = Path(COMM.bcast(str(tmp_path), root=0))
+    scene = folder / "creep.toml"
+    if COMM.rank == 0:
+        scene.write_text(TORSION.replace("[outputs]", "[outputs]\nfields = false"))
+    COMM.barrier()
+    real_write, rows = os.write, {"n": 0}
+
+    def full_disk(fd, data):
+        if not os.readlink(f"/proc/self/fd/{fd}").endswith("timeseries.csv"):
+            return real_write(fd, data)
+        rows["n"] += 1
+        if rows["n"] == 6:                        # step 5: half of it, then the disk is full
+            real_write(fd, data[:len(data) // 2])
+        if rows["n"] >= 6:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_write(fd, data)
+    monkeypatch.setattr(writer.os, "write", full_disk)
+    code, out, err = run_main(capsys, "run", scene, "--out", folder / "run", "--quiet")
+    monkeypatch.undo()
+    assert code == 3, err
+    if COMM.rank == 0:
+        assert "failed:" in err and "No space left on device" in err and "Traceback" not in err
+        with (folder / "run" / "timeseries.csv").open() as f:
+            table = list(csv.DictReader(f))
+        assert [int(r["step"]) for r in table] == [0, 1, 2, 3, 4]
+        assert all(None not in r.values() and "" not in (r["time"], r["end_rotation"])
+                   for r in table)
+        summary = json.loads((folder / "run" / "summary.json").read_text())
+        assert summary["status"] == "failed" and "No space left" in summary["message"]

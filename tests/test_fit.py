@@ -97,7 +97,7 @@ def test_standard_errors_match_the_scatter_over_seeds():
 
 def test_a_load_that_is_not_a_step_drives_the_ode_as_a_table():
     """mu = 0 creep under a ramp to m = 1 over t in [0, 0.5], then held: data from the
-    convolution of ERRATA item 3 (closed_forms.creep_response, quadrature to 1e-10); the
+    convolution of docs/corrections.md item 3 (closed_forms.creep_response, quadrature to 1e-10); the
     CSV's load becomes a table history (its kinks are sample times, so the linear
     interpolation is the ramp) solved by solve_ivp between the kinks (rtol 1e-10).
     Without noise the fit must return the truth to 1e-6 (both references are accurate to

@@ -30,7 +30,7 @@ import dolfinx
 import dolfinx.fem as fem
 from dolfin_rod import closed_forms as cf
 from dolfin_rod import loads
-from dolfin_rod.integrators.stepper import IntegrationError, TimeStepper
+from dolfin_rod import IntegrationError, TimeStepper
 from dolfin_rod.integrators.ts import TSIntegrator, parse_ts_type
 from dolfin_rod.fem.problem import SemiDiscreteProblem
 from dolfin_rod.torsion.model import TorsionModel, TorsionParameters

@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from dolfin_rod.cli import run_scene
+from dolfin_rod import run_scene
 from dolfin_rod.scenes import build
 from dolfin_rod.output.vtx import read_vtx
 from quick_scenes import ROOT, quick_scene, run_serially

@@ -8,7 +8,7 @@ import csv
 import numpy as np
 import pytest
 
-from dolfin_rod.cli import run_scene
+from dolfin_rod import run_scene
 from dolfin_rod.output.closing import closing_lines, final_values
 from dolfin_rod.output.plots import choose_panels, relative_power_residual, unwrapped_angle
 from dolfin_rod.output.writer import PowerBalance
@@ -25,9 +25,13 @@ ROD_COLUMNS = ["time", "tip_position_x", "tip_quaternion_0", "reaction_force_lef
     ("twisted_rod_relaxation", ["end_torque", "tip_rotation"]),   # a held twist relaxes
     ("dna_overstretching", ["force_extension"]),                  # a pulled free end
     ("gravity_cantilever", ["tip_deflection", "reactions"]),      # a clamped cantilever
+    ("cantilever_creep", ["tip_deflection"]),    # a constant end force: the creep curve
+    ("sagging_cable", ["reactions", "energy"]),  # both ends pinned: no tip to follow
+    ("spin_up", ["tip_rotation"]),               # turned by a distributed couple
 ])
 def test_panels_follow_the_scene(name, first):
     columns = ROD_COLUMNS if name == "twisted_rod_relaxation" else ROD_COLUMNS[:-1]
+    columns = columns + ["tip_position_y", "tip_quaternion_3"]
     panels = choose_panels(load_scene(SCENES / f"{name}.toml"), columns)
     assert panels[:len(first)] == first
     assert panels[-2:] == ["energy", "power_residual"]
@@ -113,3 +117,24 @@ def test_closing_summary_states_the_end_values_and_files():
     assert "steps 1, Newton iterations 4, rejected steps 0; wall time 1.23 s" in lines[3]
     assert lines[-2:] == ["    histories.png   the plots of what the scene is about",
                           "    timeseries.csv  the time series, one row per step"]
+
+
+@pytest.mark.parametrize("name, prefix, couples", [
+    ("flexible_pendulum", "", False),    # a pin: reaction force, no couple columns
+    ("frame", "column.", True),          # a rod system: each rod's columns "<name>.<key>"
+])
+def test_supports_without_couples_and_rod_systems_draw(tmp_path, name, prefix, couples):
+    """The panels of a pinned rod and of a rod system draw from the columns they have
+    (these scenes once stopped the run with a KeyError)."""
+    from dolfin_rod.output.plots import plot_histories
+    scene = load_scene(SCENES / f"{name}.toml")
+    keys = ["free_energy", "kinetic_energy", "total_dissipation", "dissipation_rate",
+            "load_power", "power_residual"]
+    keys += [f"{prefix}tip_position_{c}" for c in "xyz"]
+    keys += [f"{prefix}reaction_force_left_{c}" for c in "xyz"]
+    keys += [f"{prefix}reaction_couple_left_{c}" for c in "xyz"] if couples else []
+    rows = [{"time": t, **dict.fromkeys(keys, t * t)} for t in (0.0, 0.5, 1.0)]
+    panels = plot_histories(rows, tmp_path / "h.png", scene)
+    assert "reactions" in panels and (tmp_path / "h.png").stat().st_size > 10_000
+    lines = final_values(rows, scene)
+    assert any(line.startswith("K + Psi 2 J") for line in lines)

@@ -5,7 +5,7 @@ rotation increments are algebraic unknowns of the rotation-group generalized-alp
 References: the creep of a cantilever bent by a tip couple, whose discrete curvature is
 uniform: its discrete equilibrium re-derived in closed form (as the roll-up's) and the
 natural curvature's law integrated by solve_ivp, so that only the time error is left
-(the continuum's closed form, ERRATA item 3, differs by the O(h^2) space error); the
+(the continuum's closed form, docs/corrections.md item 3, differs by the O(h^2) space error); the
 observed order of that error; the quaternion rod (the verified discretisation
 with the same strains) under the same per-step scheme.
 """
@@ -20,7 +20,7 @@ from scipy.optimize import brentq
 
 from dolfin_rod.fem import form_cache
 from dolfin_rod import loads
-from dolfin_rod.integrators.stepper import IntegrationError, TimeStepper
+from dolfin_rod import IntegrationError, TimeStepper
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
 
 # bending about d1: alpha = A_11, alpha_d = A_d,11, mu_d = M_d,11
@@ -240,7 +240,7 @@ def test_a_scene_whose_start_fails_ends_failed_with_its_first_row(tmp_path):
 
     from mpi4py import MPI
 
-    from dolfin_rod.cli import run_scene
+    from dolfin_rod import run_scene
     from dolfin_rod.scenes import load_scene
     folder = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0)) / "run"
     path = Path(__file__).resolve().parents[1] / "scenes" / "cantilever_creep.toml"

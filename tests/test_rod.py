@@ -22,7 +22,7 @@ import ufl
 from scipy.optimize import brentq
 
 from dolfin_rod import loads
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
 from dolfin_rod.theory.rotations import (np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix,
                                   rotation_matrix)
@@ -357,7 +357,7 @@ def power_defect(scheme, dt, dynamic=False, **damping):
                                                    ("crank_nicolson", 2, False),
                                                    ("implicit_midpoint", 2, True)])
 def test_power_balance_to_the_order_of_the_scheme(scheme, order, dynamic):
-    """d/dt(free + kinetic energy) + int xi = load power (ERRATA.md identities), for the
+    """d/dt(free + kinetic energy) + int xi = load power (docs/corrections.md identities), for the
     evolving rod with M, N > 0 under a dead end force and a follower end couple
     (quasi-static), plus distributed force and couple and linear drag (dynamic, rho A,
     rho J > 0): the discrete defect falls like dt^order.  Measured relative defects at

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
 
 TIGHT = {"snes_rtol": 1e-10, "snes_atol": 1e-20, "snes_stol": 1e-14}

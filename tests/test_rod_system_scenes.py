@@ -114,7 +114,7 @@ def test_system_scenes_serial_equals_two_ranks(tmp_path, name):
     from mpi4py import MPI
     from quick_scenes import quick_scene, run_serially
 
-    from dolfin_rod.cli import run_scene
+    from dolfin_rod import run_scene
     comm = MPI.COMM_WORLD
     quiet = dict(outputs__animation=False, outputs__plots=False, outputs__fields=False)
     folder = Path(comm.bcast(str(tmp_path), root=0))
@@ -155,7 +155,7 @@ def test_double_pendulum_scene_resumes_exactly(tmp_path):
     from mpi4py import MPI
     from quick_scenes import resume_bound
 
-    from dolfin_rod.cli import run_scene
+    from dolfin_rod import run_scene
     folder = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0))
     scene = load_scene(ROOT / "scenes" / "double_pendulum.toml", {
         "time.t_end": 0.016, "outputs.checkpoint_every": 3, "outputs.every": 1,

@@ -17,7 +17,7 @@ import pytest
 
 from dolfin_rod.fem import form_cache
 from dolfin_rod import loads
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
 from dolfin_rod.rod.rotation_vector import np_cayley
 from dolfin_rod.theory.rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
@@ -381,7 +381,7 @@ TWISTED = dict(ends=("clamped", "pinned"),
                                              ("evolving", "twisted")])
 def test_power_balance_at_second_order(model_name, case):
     """d/dt(free + kinetic energy) + int xi + drag = power of the loads and of the moving
-    clamp (ERRATA.md identities), with Kelvin-Voigt strain rates along the angular
+    clamp (docs/corrections.md identities), with Kelvin-Voigt strain rates along the angular
     velocities, evolving natural strains, linear drag, dead and follower loads at the
     end and along the rod, and a clamp turning about a fixed axis with the other end
     pinned: the defect falls like dt^2 (generalized-alpha and the trapezoidal rule are

@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 from mpi4py import MPI
 
 from dolfin_rod import closed_forms
-from dolfin_rod.cli import run_scene
+from dolfin_rod import run_scene
 from dolfin_rod.scenes import SceneError, build, load_scene, parse_scene, select_model, validate
 from quick_scenes import resume_bound
 
@@ -351,7 +351,7 @@ def test_dynamic_rod_scene_runs_the_default_api_and_resumes_exactly(tmp_path):
     scene's tip equals the Python API's (same model, same steps: round-off), and a run
     stopped after 5 steps and resumed from its checkpoint (stored rotations, rates,
     accelerations) equals the uninterrupted one (round-off)."""
-    from dolfin_rod.integrators.stepper import TimeStepper
+    from dolfin_rod import TimeStepper
     from dolfin_rod.rod import RodModel
     from dolfin_rod.scenes.builders import rod_loads, rod_parameters
     folder = shared_folder(tmp_path)

@@ -34,7 +34,7 @@ import numpy as np
 import pytest
 
 from dolfin_rod.analysis.stability import TangentStiffness
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
 
 STIFF = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5))

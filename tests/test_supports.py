@@ -11,9 +11,9 @@ from mpi4py import MPI
 from scipy.optimize import brentq
 
 from dolfin_rod import loads
-from dolfin_rod.cli import run_scene
+from dolfin_rod import run_scene
 from dolfin_rod.torsion.closed_forms import p1_twist
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.rod import DistributedLoad, EndLoad, EndSpring, RodModel, RodParameters
 from quick_scenes import ROOT, assert_serial_run_equal, quick_scene
 

@@ -2,7 +2,7 @@
 
 References: the corrected closed forms (dolfin_rod.closed_forms, themselves checked
 against scipy expm/solve_ivp in test_closed_forms.py), a re-derived steady state of an
-inhomogeneous rod, the power identity of ERRATA.md, and the serial run for MPI.
+inhomogeneous rod, the power identity of docs/corrections.md, and the serial run for MPI.
 Observed orders in dt of every scheme are in test_integrators.py.
 """
 
@@ -12,7 +12,7 @@ from mpi4py import MPI
 
 from dolfin_rod import closed_forms as cf
 from dolfin_rod import loads
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
 import cases
 from serial_reference import serial
@@ -151,7 +151,7 @@ def _power_residual(scheme, dt, dynamic):
     h = run(p, 1.0, dt, scheme, n_cells=8, end_torsion=load)
     t = series(h, "time")
     energy = series(h, "free_energy") + series(h, "kinetic_energy")
-    # d/dt(K + Psi) + int xi = applied power (ERRATA.md identity), discretised with the
+    # d/dt(K + Psi) + int xi = applied power (docs/corrections.md identity), discretised with the
     # backward difference that matches backward Euler.
     residual = np.diff(energy) / np.diff(t) + series(h, "dissipation_rate")[1:] \
         - series(h, "load_power")[1:]

@@ -10,6 +10,8 @@ The rest of the package calls these functions and never checks a version.
     LinearProblem      0.10+: needs ``petsc_options_prefix``
     create_mesh        0.9: (comm, cells, x, domain); 0.10+: (comm, cells, element, x);
                        0.10+'s partitioner takes the facet-to-cell link limit
+    C++ Form           0.9: the ufcx pointer and a dict of subdomain data; 0.10+: a list
+                       of pointers and a list (a cached kernel's form, fem/form_cache.py)
 """
 
 from __future__ import annotations
@@ -84,6 +86,15 @@ def functions_to_block_vector(functions: list[fem.Function], x: PETSc.Vec) -> No
 def contains(V: fem.FunctionSpace, bc: fem.DirichletBC) -> bool:
     """Whether the Dirichlet condition ``bc`` acts on V (or on a subspace of V)."""
     return V._cpp_object.contains(bc.function_space)
+
+
+def cpp_form(cpp_class, pointer, spaces, coefficients, constants, integral_types, mesh):
+    """The C++ form of a compiled ufcx form (``pointer``) on ``spaces`` with the data of
+    ``coefficients``, ``constants`` (Python objects) and no subdomain data."""
+    old = DOLFINX_VERSION < (0, 10)
+    return cpp_class(pointer if old else [int(pointer)], [V._cpp_object for V in spaces],
+                     [c._cpp_object for c in coefficients], [c._cpp_object for c in constants],
+                     {t: [] for t in integral_types}, {} if old else [], mesh._cpp_object)
 
 
 def interpolation_points(V: fem.FunctionSpace):

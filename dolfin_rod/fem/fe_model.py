@@ -18,25 +18,6 @@ ENDS = ("left", "right")
 _TAGS = {"left": 1, "right": 2}
 
 
-# Under MPI a rank with fewer cells has no cell at all (DOLFINx's reshape errors) or its
-# Dirichlet dof is a ghost of the mixed space (assembly.py); with 2 it runs.
-MIN_CELLS_PER_RANK = 2
-
-
-def check_n_cells(n_cells, ranks: int = 1) -> int:
-    """n_cells as an int; ValueError unless it is a positive integer and, on more than
-    one MPI rank, gives every rank MIN_CELLS_PER_RANK cells."""
-    if not (isinstance(n_cells, (int, np.integer)) and n_cells >= 1):
-        raise ValueError(f"n_cells must be a positive integer, got {n_cells!r}")
-    if ranks > 1 and n_cells < MIN_CELLS_PER_RANK * ranks:
-        fit = max(1, n_cells // MIN_CELLS_PER_RANK)
-        raise ValueError(f"n_cells = {n_cells} is too few for {ranks} MPI ranks: each rank "
-                         f"needs {MIN_CELLS_PER_RANK} cells, so n_cells >= "
-                         f"{MIN_CELLS_PER_RANK * ranks} (or run on {fit} rank"
-                         f"{'s' if fit > 1 else ''})")
-    return int(n_cells)
-
-
 def end_coordinate(end: str, length: float) -> float:
     """s of an end: 0 (left) or the length (right)."""
     return 0.0 if end == "left" else float(length)

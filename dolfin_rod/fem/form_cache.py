@@ -165,16 +165,12 @@ def bind(entry, objects, space, mesh) -> list[fem.Form]:
 
 
 def _bound_form(k: Kernel, coefficients, constants, space, mesh) -> fem.Form:
-    """A DOLFINx form from a compiled kernel with other data (the C++ constructor: the
-    one call here that differs between DOLFINx 0.9 and 0.11)."""
+    """A DOLFINx form from a compiled kernel with other data (the C++ constructor differs
+    between DOLFINx 0.9 and 0.11: compat.cpp_form)."""
     pointer = k.module.ffi.cast("uintptr_t", k.module.ffi.addressof(k.ufcx))
-    old = compat.DOLFINX_VERSION < (0, 10)
     types = [getattr(IntegralType, name) for name in k.integral_types]
-    f = form_cpp_class(np.dtype(k.dtype))(
-        pointer if old else [int(pointer)],
-        [space._cpp_object] * k.rank, [c._cpp_object for c in coefficients],
-        [c._cpp_object for c in constants], {t: [] for t in types},
-        {} if old else [], mesh._cpp_object)
+    f = compat.cpp_form(form_cpp_class(np.dtype(k.dtype)), pointer, [space] * k.rank,
+                        coefficients, constants, types, mesh)
     return fem.Form(f, k.ufcx, None, k.module)
 
 

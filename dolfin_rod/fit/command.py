@@ -1,7 +1,8 @@
 """``dolfin-rod fit SCENE.toml DATA.csv --params alpha_d,mu_d [--out DIR]``: the command
-line of dolfin_rod.fit.  Prints the table (value, standard error, initial), writes
-``fit.json`` (fit.FitResult.to_dict) and ``fit.png`` (data and fitted curve, residuals)
-in DIR (default: a new <outputs.directory>/fit-<name>-<time>).
+of the fit (its arguments are parsed in cli.py).  Prints the table (value, standard
+error, initial), writes ``fit.json`` (least_squares.FitResult.to_dict) and ``fit.png``
+(data and fitted curve, residuals) in DIR (default: a new
+<outputs.directory>/fit-<name>-<time>).
 
 Exit status: 0 a fit was made (its status, "identified", "not identifiable" or "not
 converged", is printed and in fit.json), 2 bad input (scene, CSV, parameter, folder: one
@@ -20,27 +21,12 @@ from pathlib import Path
 from .least_squares import FitError, FitResult, prepare_fit, run_fit
 from .inputs import FitInputError, read_series
 
-__all__ = ["FitInputError", "add_fit_parser", "fit_command", "result_table"]
-
-
-def add_fit_parser(sub) -> None:
-    """The ``fit`` sub-command of the dolfin-rod parser."""
-    fit = sub.add_parser("fit", help="fit scene parameters to a measured time series "
-                                     "(CSV: time, load, response; docs/fitting.md)")
-    fit.add_argument("scene", type=Path)
-    fit.add_argument("data", type=Path, help="CSV with columns time, load, response")
-    fit.add_argument("--params", required=True,
-                     help="comma-separated scene key paths, e.g. alpha_d,mu_d or "
-                          "material.viscosity.M_d[1]")
-    fit.add_argument("--out", type=Path, default=None, help="results folder (must be "
-                     "empty; default: a new <outputs.directory>/fit-<name>-<time>)")
-    fit.add_argument("--quiet", action="store_true", help="print only the status line")
+__all__ = ["FitInputError", "fit_command", "result_table"]
 
 
 def fit_command(args, comm) -> int:
     """Run ``dolfin-rod fit``; SceneError/OutputError/FitInputError propagate (exit 2)."""
-    from ..cli import print_on_root
-    from ..mpi import agree
+    from ..mpi import agree, print_on_root
     from ..output.run_folders import on_root
     from ..scenes import SceneError, load_scene
     scene = agree(comm, lambda: load_scene(args.scene), (SceneError,))
@@ -78,7 +64,7 @@ def _progress_lines(comm):
         now = time.monotonic()
         if now - last[0] >= PROGRESS_SECONDS:
             last[0] = now
-            from ..cli import print_on_root
+            from ..mpi import print_on_root
             print_on_root(comm, f"model run {evaluations}: rms residual {rms:.4g}",
                           file=sys.stderr)
     return progress

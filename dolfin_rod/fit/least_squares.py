@@ -6,7 +6,7 @@
     result.values, result.std_errors, result.correlation
 
 The CSV's load drives the cheapest exact model the scene allows (``select_model``:
-closed form or ODE, torsion PDE, 3-D rod; fit_inputs.py says what load and response
+closed form or ODE, torsion PDE, 3-D rod; inputs.py says what load and response
 are).  The parameters p are fitted as theta = log p by ``scipy.optimize.least_squares``
 on the residuals r_i = model(t_i; p) - response_i.  At the optimum the Jacobian J is
 recomputed by central differences (step H in theta) and
@@ -29,9 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .inputs import (Experiment, FitInputError, MeasuredSeries, Parameter,
-                         experiment_of, parse_parameters, raw_scene, trial_scene)
+from ..run import march
 from ..scenes import Scene, SceneError, build, select_model
+from .inputs import (Experiment, FitInputError, MeasuredSeries, Parameter, experiment_of,
+                     parse_parameters, raw_scene, trial_scene)
 
 __all__ = ["FitError", "FitProblem", "FitResult", "fit_scene", "prepare_fit", "run_fit",
            "simulate_response", "identifiability",
@@ -116,23 +117,20 @@ def simulate_response(scene: Scene, model: str, experiment: Experiment, comm,
     series = getattr(sim, "series", lambda: None)()
     if series is not None:                 # every output at once (the ODE's exact mode)
         return series["time"], response(series), sim.describe()
+    from ..integrators.step_control import output_times
     times, values = [0.0], [response(rest)]
+    tim = scene["time"]
+    ts = getattr(sim, "ts", None) is not None     # PETSc TS: every accepted step
+    kept = recorded_steps(np.array(output_times(tim["t_end"], tim["dt"])), needed)
+    step = [0]
 
     def record(t: float) -> None:
-        times.append(t)
-        values.append(response(sim.diagnostics(t)))
+        step[0] += 1
+        if ts or kept[step[0]]:
+            times.append(t)
+            values.append(response(sim.diagnostics(t)))
 
-    tim = scene["time"]
-    if getattr(sim, "ts", None) is not None:
-        sim.run_all(0.0, tim["t_end"], tim["dt"], record)
-    else:
-        n = max(1, math.ceil(tim["t_end"] / tim["dt"] - 1e-9))
-        grid = [min(k * tim["dt"], tim["t_end"]) for k in range(n + 1)]
-        kept = recorded_steps(np.array(grid), needed)
-        for k, (a, b) in enumerate(zip(grid[:-1], grid[1:]), start=1):
-            sim.advance(a, b)
-            if kept[k]:
-                record(b)
+    march(sim, tim, record)
     return np.array(times), np.array(values), getattr(sim, "describe", lambda: "")()
 
 
@@ -270,7 +268,7 @@ class FitError(RuntimeError):
 def prepare_fit(scene: Scene, data: MeasuredSeries, params: list[str] | str,
                 comm=None) -> FitProblem:
     """Check everything a fit needs without running a model: the model choice, the
-    parameters (fit_inputs.py), the experiment, enough rows.  FitInputError/SceneError."""
+    parameters (inputs.py), the experiment, enough rows.  FitInputError/SceneError."""
     from mpi4py import MPI
     names = params.split(",") if isinstance(params, str) else list(params)
     choice = select_model(scene)
@@ -316,7 +314,7 @@ def run_fit(problem: FitProblem, max_evaluations: int = 200) -> FitResult:
 
 def fit_scene(scene: Scene, data: MeasuredSeries, params: list[str] | str,
               comm=None, max_evaluations: int = 200) -> FitResult:
-    """Fit ``params`` (names, fit_inputs.py) of ``scene`` to ``data`` (read_series).
+    """Fit ``params`` (names, inputs.py) of ``scene`` to ``data`` (read_series).
 
     Bad input raises FitInputError or SceneError before the model runs; a model that
     fails at the initial parameters raises FitError.  Every rank returns the same result.

@@ -34,9 +34,10 @@ from mpi4py import MPI
 
 from ..fem import compat, form_cache
 from ..fem.solvers import BlockSNES, SolverError
+from ..mpi import largest_on_ranks
 from .schemes import alpha_rho_inf
 from .step_control import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
-                       largest_on_ranks, march, nominal_steps)
+                           march, nominal_steps)
 
 
 def default_options(comm, second_order: bool = True) -> dict:
@@ -174,8 +175,8 @@ EQUILIBRIUM_SUB_SOLVES = 4     # the consistent start's path to displaced ends
 class LieGeneralizedAlpha:
     """Advance a second-order problem; ``problem.after_step`` moves the rotation
     increments into the stored rotations (and resets them to 0).  The interface of
-    TimeStepper (run, step, stats, checkpoint_state), which returns this integrator for a
-    SecondOrderProblem.
+    SchemeStepper (run, step, stats, checkpoint_state); integrators/choice.py picks this
+    integrator for a SecondOrderProblem.
 
     ``tolerance`` None: fixed steps (run's dt).  A number tol in (0, 1): error-controlled
     steps, rtol = atol = tol in LocalError's norm (displacements to tol (L + |x|),
@@ -224,7 +225,7 @@ class LieGeneralizedAlpha:
     @classmethod
     def for_scheme(cls, problem, scheme: str | None, solver_options=None, max_cuts: int = 6,
                    tolerance=None):
-        """TimeStepper's arguments: ``scheme`` None (rho_inf 0.8) or 'generalized_alpha'
+        """choose_integrator's arguments: ``scheme`` None (rho_inf 0.8) or 'generalized_alpha'
         ['RHO'] (schemes.alpha_rho_inf); a first-order scheme is refused."""
         if scheme is not None and not scheme.startswith("generalized_alpha"):
             raise ValueError(f"scheme {scheme!r}: a dynamic rod with rotation-vector unknowns "

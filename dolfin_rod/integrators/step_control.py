@@ -13,9 +13,6 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
-import numpy as np
-from mpi4py import MPI
-
 from ..fem.solvers import SolverError
 
 # Relative round-off of a time summed from steps: a remaining interval below
@@ -100,6 +97,13 @@ def nominal_steps(t0: float, t_end: float, dt: float) -> int:
     return math.ceil((t_end - t0) / dt - ROUND_OFF)
 
 
+def output_times(t_end: float, dt: float) -> list[float]:
+    """The output times 0, dt, 2 dt, ..., t_end of a scene (the last one clipped): a
+    run's rows, the ODE's grid and a fit's samples."""
+    n_steps = max(1, math.ceil(t_end / dt - ROUND_OFF))
+    return [min(k * dt, t_end) for k in range(n_steps + 1)]
+
+
 def reached(t: float, t_end: float, dt: float) -> bool:
     """t is t_end up to the round-off of summing steps of size dt."""
     return t_end - t <= ROUND_OFF * dt
@@ -144,12 +148,3 @@ def march(t: float, t_end: float, h: float, attempt: Callable[[float, float], ob
         t = t_end if h_try == t_end - t else t + h_try
         h = succeeded(t, h_try, h)
     return t, h
-
-
-def largest_on_ranks(comm, value: float) -> float:
-    """The maximum of ``value`` over the ranks of ``comm`` (itself on one rank), by a
-    buffer Allreduce: a pickled float's ``allreduce`` cost ~90 us per step."""
-    buf = np.array([value], dtype=float)
-    if comm.size > 1:
-        comm.Allreduce(MPI.IN_PLACE, buf, op=MPI.MAX)
-    return float(buf[0])

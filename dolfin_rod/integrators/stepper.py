@@ -16,12 +16,13 @@ from ..fem import form_cache
 from ..fem.assembly import monolithic_layout
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..fem.solvers import BlockSNES, SolverError
-from .lie_alpha import LieGeneralizedAlpha, solver_settings
+from ..mpi import largest_on_ranks
+from .lie_alpha import solver_settings
 from .schemes import Scheme, get_scheme
-from .step_control import (CUT_FACTOR, ROUND_OFF, IntegrationError, StepStats, check_run, grown,
-                       largest_on_ranks, march, nominal_steps, same_step)
+from .step_control import (CUT_FACTOR, ROUND_OFF, IntegrationError, StepStats, check_run,
+                           grown, march, nominal_steps, same_step)
 
-__all__ = ["TimeStepper", "IntegrationError", "StepStats", "step_forms"]
+__all__ = ["SchemeStepper", "IntegrationError", "StepStats", "step_forms"]
 
 
 def _copy(f: fem.Function) -> fem.Function:
@@ -82,8 +83,9 @@ class _StepResidual:
         return self.solver.solve(fresh_jacobian=fresh, sub_solves=sub_solves)
 
 
-class TimeStepper:
-    """Advance a SemiDiscreteProblem with a per-step scheme.
+class SchemeStepper:
+    """Advance a SemiDiscreteProblem with a per-step scheme (integrators/choice.py picks
+    it for a problem; ``TimeStepper`` is the one-liner).
 
     observer(t, stepper) is called at t0 and after every accepted step; the state is in
     ``problem.fields`` and the rate estimate at t in ``problem.rates``.
@@ -100,22 +102,6 @@ class TimeStepper:
     """
 
     PREDICTORS = ("linear", "constant")
-
-    def __new__(cls, problem: SemiDiscreteProblem, scheme: str | None = None,
-                solver_options: dict | None = None, max_cuts: int = 6,
-                predictor: str = "linear", tolerance: float | None = None):
-        """A SecondOrderProblem (a rod with rotation-vector unknowns, rod/model.py) is
-        advanced by generalized-alpha on the rotation group (lie_alpha.py) instead, unless
-        it has no second-order block and a per-step scheme is named (a quasi-static rod:
-        its rotation increments are algebraic, ``per_step_schemes``); ``tolerance`` (e.g.
-        1e-3) switches the error-controlled steps of a dynamic rod on
-        (lie_alpha.LieGeneralizedAlpha), None keeps run's fixed dt."""
-        if isinstance(problem, SecondOrderProblem) and not (
-                problem.per_step_schemes and scheme is not None
-                and not scheme.startswith("generalized_alpha")):
-            return LieGeneralizedAlpha.for_scheme(problem, scheme, solver_options, max_cuts,
-                                                  tolerance)
-        return super().__new__(cls)
 
     def __init__(self, problem: SemiDiscreteProblem, scheme: str | None = None,
                  solver_options: dict | None = None, max_cuts: int = 6,
@@ -275,7 +261,7 @@ class TimeStepper:
         return h
 
     def run(self, t0: float, t_end: float, dt: float,
-            observer: Callable[[float, "TimeStepper"], None] | None = None) -> float:
+            observer: Callable[[float, "SchemeStepper"], None] | None = None) -> float:
         """Integrate from t0 to t_end with nominal step dt, cutting steps on failure.
         A run from where the last one ended, on its end state, continues its history;
         any other starts afresh (the startup scheme)."""

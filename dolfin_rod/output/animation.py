@@ -24,13 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..scenes.schema import COLOURS
+
 __all__ = ["FrameStore", "Look", "rod_animation", "rod_snapshots", "torsion_spacetime",
            "colour_field", "magnification", "GIF_FRAMES", "COLOURS"]
 
 GIF_FRAMES = 24
 TRAIL = 3
 SIZE = (8.4, 6.4)            # inches at 100 dpi: 840 x 640 px
-COLOURS = ("auto", "u", "v", "u_d", "v_d", "n", "m", "xi")
 STRAINS = ("u", "v", "u_d", "v_d")
 SMALL_MOTION = 0.05          # motion below 5 % of the rod's size is magnified ...
 SHOWN_MOTION = 0.2           # ... to about 20 % of it
@@ -167,9 +168,9 @@ def _support_nodes(sample, look: Look) -> list[tuple[int, str]]:
     return [(ends[e], k) for e, k in look.supports.items() if k in ("clamped", "pinned")]
 
 
-def _notes(factor: float, look: Look) -> str:
+def _notes(factor: float, supports: list) -> str:
     text = [f"displacement x {factor:g}"] if factor != 1.0 else []
-    if any(k in ("clamped", "pinned") for k in look.supports.values()):
+    if supports:
         text.append("square: clamped end, circle: pinned end")
     return "   ".join(text)
 
@@ -233,7 +234,8 @@ def rod_animation(frames: list, path: Path, title: str = "", look: Look = Look()
     _setup_3d(ax, box, title)
     fig.colorbar(ScalarMappable(norm, "viridis"), ax=ax, shrink=0.7, pad=0.1,
                  label=colour_label(key))
-    fig.text(0.02, 0.02, _notes(factor, look), fontsize=10)
+    supports = _support_nodes(first, look)
+    fig.text(0.02, 0.02, _notes(factor, supports), fontsize=10)
     fig.canvas.draw()
     background = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[..., :3].copy())
     project = _Projection(ax, background.height)
@@ -241,7 +243,7 @@ def rod_animation(frames: list, path: Path, title: str = "", look: Look = Look()
     if look.gravity is not None and np.any(look.gravity):
         _gravity_arrow(ImageDraw.Draw(background), project, box, look.gravity)
     font = ImageFont.load_default(size=18)
-    cmap, supports = plt.get_cmap("viridis"), _support_nodes(first, look)
+    cmap = plt.get_cmap("viridis")
     pixels = [project(p) for p in shapes]
     images = []
     for k, (t, sample) in enumerate(shown):

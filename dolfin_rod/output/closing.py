@@ -34,13 +34,13 @@ def _text(x) -> str:
 def final_values(rows: list[dict], scene) -> list[str]:
     """One line per panel of histories.png: its quantity at the end of the run."""
     units, last, first = scene["scene"].get("units"), rows[-1], rows[0]
-    u = lambda kind: unit(kind, units)   # noqa: E731
+    u = lambda kind: "" if unit(kind, units) == "1" else " " + unit(kind, units)  # noqa: E731
     moved = lambda: _text(_vector(last, "tip_position")   # noqa: E731
                           - _vector(first, "tip_position"))
     lines = []
     for panel in choose_panels(scene, last):
         if panel == "tip_deflection" and "tip_position_x" in last:
-            lines.append(f"tip displacement {moved()} {u('length')}")
+            lines.append(f"tip displacement {moved()}{u('length')}")
         elif panel == "tip_rotation" and "tip_quaternion_0" in last:
             q = np.array([[r[f"tip_quaternion_{i}"] for i in range(4)] for r in rows])
             theta, axis = unwrapped_angle(q)
@@ -49,21 +49,23 @@ def final_values(rows: list[dict], scene) -> list[str]:
         elif panel == "end_torque":
             value = last["end_torsion"] if "end_torsion" in last else \
                 _vector(last, "reaction_couple_right")
-            lines.append(f"end torque {_text(value)} {u('moment')}")
+            lines.append(f"end torque {_text(value)}{u('moment')}")
         elif panel == "force_extension":
             force = scene["loads"]["end_force"].vector()(last["time"])
-            lines.append(f"end force {_text(force)} {u('force')}, tip displacement "
-                         f"{moved()} {u('length')}")
+            lines.append(f"end force {_text(force)}{u('force')}, tip displacement "
+                         f"{moved()}{u('length')}")
         elif panel == "reactions" and "reaction_force_left_x" in last:
-            force, couple = (_vector(last, f"reaction_{k}_left") for k in ("force", "couple"))
-            lines.append(f"reaction at s = 0: force {_text(force)} {u('force')}, couple "
-                         f"{_text(couple)} {u('moment')}")
+            text = f"reaction at s = 0: force {_text(_vector(last, 'reaction_force_left'))}"
+            if "reaction_couple_left_x" in last:
+                text += (f"{u('force')}, couple "
+                         f"{_text(_vector(last, 'reaction_couple_left'))}{u('moment')}")
+            lines.append(text if "reaction_couple_left_x" in last else text + u("force"))
         elif panel == "twist":
             lines.append(f"end rotation phi(1) {last['end_rotation']:.4g}, mean natural twist "
                          f"{last['mean_natural_twist']:.4g}")
         elif panel == "energy":
-            lines.append(f"K + Psi {last['free_energy'] + last['kinetic_energy']:.4g} "
-                         f"{u('energy')}, dissipated {last['total_dissipation']:.4g} "
+            lines.append(f"K + Psi {last['free_energy'] + last['kinetic_energy']:.4g}"
+                         f"{u('energy')}, dissipated {last['total_dissipation']:.4g}"
                          f"{u('energy')}")
         elif panel == "power_residual" and len(rows) > 2:
             lines.append("power balance: largest relative residual after the first step "

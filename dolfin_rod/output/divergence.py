@@ -13,7 +13,7 @@ class EnergyBound:
     """Divergence detection after every step, for every model and scheme: a state that
     is not finite, or a stored energy K + Psi above ``FACTOR`` times what the start and
     the loads can supply, E(t_0) + int_{t_0}^t max(P, 0) dt (the power balance
-    d/dt(K + Psi) = P - D with total dissipation D >= 0, ERRATA.md).  FACTOR = 1e3 is
+    d/dt(K + Psi) = P - D with total dissipation D >= 0, docs/corrections.md).  FACTOR = 1e3 is
     the instability criterion of docs/stability.md: far above the transient growth of a
     stable explicit step (x2.4 there) and above the O(dt) error of the trapezoidal work."""
 

@@ -3,19 +3,22 @@
 Panels (``outputs.plots``: a list of these names; default chosen by ``choose_panels``
 from the scene's supports and loads):
 
-    tip_deflection   tip displacement r(L, t) - r(L, 0), components x, y, z
+    tip_deflection   tip displacement r(L, t) - r(L, 0), components x, y, z (an end
+                     that can move)
     tip_rotation     rotation of the tip about its main axis, unwrapped (cumulative):
-                     a 2.5-turn twist reads 5 pi, not 5 pi mod 2 pi
+                     a 2.5-turn twist reads 5 pi, not 5 pi mod 2 pi (held end
+                     rotations; rods turned by an end or distributed couple)
     end_torque       the couple the support at s = L exerts (reaction_couple_right_*);
                      torsion models: the end torsion m(1, t)
     force_extension  the applied end force along its direction against the tip
-                     displacement along it (a hysteresis loop when the rod is viscous)
+                     displacement along it (a hysteresis loop when the rod is viscous;
+                     a force that varies: ramp, smooth step, table)
     reactions        force and couple of the support at s = 0 (reaction_*_left_*)
     twist            torsion models: end rotation phi(1, t) and mean natural twist
     energy           K + Psi and the dissipated energy int D dt
     power_residual   |d/dt(K + Psi + E_c) + D - P| / power scale (relative_power_residual)
 
-Units: ``scene.units`` ("SI", "pN-nm-s") names the unit of every axis; a scene without it
+Units: ``scene.units`` ("SI", "pN-nm-s", "dimensionless") names the unit of every axis; a scene without it
 gets "scene units".
 """
 
@@ -25,16 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "reactions",
-          "twist", "energy", "power_residual")
-
-# quantity kind -> unit per unit system
-UNITS = {
-    "SI": {"length": "m", "time": "s", "force": "N", "moment": "N m", "energy": "J",
-           "angle": "rad"},
-    "pN-nm-s": {"length": "nm", "time": "s", "force": "pN", "moment": "pN nm",
-                "energy": "pN nm", "angle": "rad"},
-}
+from ..scenes.schema import PANELS, UNITS
 
 
 def unit(kind: str, units: str | None) -> str:
@@ -60,12 +54,18 @@ def choose_panels(scene, columns) -> list[str]:
         return ["end_torque", "twist", "energy", "power_residual"]
     boundary, loads = scene["boundary"], scene["loads"]
     panels = []
-    if loads.get("end_force") is not None and boundary["end"] == "free":
+    force = loads.get("end_force")
+    if force is not None and force.type not in ("constant", "step") \
+            and boundary["end"] == "free" and "tip_position_x" in cols:
         panels.append("force_extension")
-    if boundary.get("end_rotation") is not None and any(
-            c.endswith("reaction_couple_right_z") for c in cols):
+    if boundary.get("end_rotation") is not None and "reaction_couple_right_z" in cols:
         panels += ["end_torque", "tip_rotation"]
-    if not panels and any(c.endswith("tip_position_x") for c in cols):
+    if not panels and "tip_quaternion_0" in cols and (
+            loads.get("end_couple") is not None or loads.get("distributed_couple") is not None):
+        panels.append("tip_rotation")       # a rod turned by couples (spin_up)
+    tip_moves = boundary["end"] == "free" or boundary.get("end_displacement") is not None \
+        or boundary.get("end_slide") is not None
+    if not panels and tip_moves and any(c.endswith("tip_position_x") for c in cols):
         panels.append("tip_deflection")
     if any(c.endswith("reaction_force_left_x") for c in cols) and len(panels) < 2:
         panels.append("reactions")
@@ -165,15 +165,19 @@ def _force_extension(ax, col, units, scene):
 
 
 def _reactions(ax, col, units, scene):
-    series = _shown({f"{kind}_{c}": col(f"reaction_{name}_left_{c}")
-                     for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"})
-    twin = ax.twinx()
+    series = _shown({f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_left_{c}")
+                     for rod in col.prefixes("reaction_force_left_x")
+                     for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
+                     if f"{rod}reaction_{name}_left_{c}" in col.rows[0]})
+    is_force = {label: label.split(".")[-1][0] == "F" for label in series}
+    twin = ax.twinx() if not all(is_force.values()) else None
     for label, x in series.items():
-        (ax if label[0] == "F" else twin).plot(col.t, x, "-" if label[0] == "F" else "--",
-                                                label=label)
-    twin.set_ylabel(axis_label("couple (dashed)", "moment", units))
+        (ax if is_force[label] else twin).plot(col.t, x, "-" if is_force[label] else "--",
+                                               label=label)
     ax.legend(fontsize="small", loc="upper left")
-    twin.legend(fontsize="small", loc="upper right")
+    if twin is not None:
+        twin.set_ylabel(axis_label("couple (dashed)", "moment", units))
+        twin.legend(fontsize="small", loc="upper right")
     return "reactions of the support at s = 0", axis_label("force (solid)", "force", units)
 
 

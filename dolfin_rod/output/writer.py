@@ -26,7 +26,7 @@ Columns: the model's diagnostics (TorsionModel.diagnostics keys) plus
 ``total_dissipation`` = int_0^t int xi ds dt (trapezoidal rule) and ``power_residual`` =
 d/dt(K + Psi + E_c) + D - P on each interval [t_{k-1}, t_k]: the difference quotient of the
 stored energy plus the trapezoidal means of dissipation rate D and load power P (the
-power balance of ERRATA.md; E_c the contact energy of obstacles, rod/contact.py).  It is
+power balance of docs/corrections.md; E_c the contact energy of obstacles, rod/contact.py).  It is
 O(dt^2) for smooth histories; an idealised step at t = 0 makes the first interval's value O(1) (the 0+ rates are not known to the FE model).
 
 Only rank 0 writes files (the fields along the rod are gathered there, line_fields.py);
@@ -38,6 +38,7 @@ call for one that failed.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
 import sys
@@ -182,31 +183,49 @@ class RunWriter:
         path = self.folder / "timeseries.csv"
         target = path.with_suffix(".csv-new") if self._kept else path
         self._csv_file = target.open("w", newline="")
-        self._csv = csv.DictWriter(self._csv_file, fieldnames=self.columns,
-                                   extrasaction="ignore", lineterminator="\n")
-        self._csv.writeheader()
+        start = csv.DictWriter(self._csv_file, fieldnames=self.columns,
+                               extrasaction="ignore", lineterminator="\n")
+        start.writeheader()
         for r in self._kept:
-            self._csv.writerow(r)
+            start.writerow(r)
+        self._csv_file.flush()
+        self._line = io.StringIO()          # each later row: formatted here, one os.write
+        self._csv = csv.DictWriter(self._line, fieldnames=self.columns,
+                                   extrasaction="ignore", lineterminator="\n")
         if self._kept:
-            self._csv_file.flush()
             os.fsync(self._csv_file.fileno())
             target.replace(path)
             _sync_folder(self.folder)
+        self._csv_complete = self._csv_file.tell()      # the size of complete rows
 
     def record(self, step: int, t: float, diag: dict) -> dict:
         t0 = time.perf_counter()
         total, residual = self.balance.update(diag)
         row = {"step": step, "time": t, **{k: v for k, v in diag.items() if k != "time"},
                "total_dissipation": total, "power_residual": residual}
-        if self.rank == 0:
-            if self._csv is None:
-                self._start_csv(row)
-            self.rows.append(row)
-            self._csv.writerow({k: (_csv_text(v) if k != "step" else v)
-                                for k, v in row.items()})
-            self._csv_file.flush()
+        on_root(self.comm, lambda: self._write_row(row),      # (a full disk: every rank)
+                f"cannot write {self.folder / 'timeseries.csv'} after step {step - 1}")
         self.timings["output"] += time.perf_counter() - t0
         return row
+
+    def _write_row(self, row: dict) -> None:
+        """Rank 0: one row, on disk at once; a failed write (a full disk) is cut back to
+        the last complete row before the OSError goes on (never a row cut in half)."""
+        if self._csv is None:
+            self._start_csv(row)
+        self._line.seek(0)
+        self._line.truncate()
+        self._csv.writerow({k: (_csv_text(v) if k != "step" else v) for k, v in row.items()})
+        data, fd = self._line.getvalue().encode(), self._csv_file.fileno()
+        try:
+            while data:
+                data = data[os.write(fd, data):]
+        except OSError:
+            os.ftruncate(fd, self._csv_complete)
+            os.lseek(fd, self._csv_complete, os.SEEK_SET)
+            raise
+        self._csv_complete = os.lseek(fd, 0, os.SEEK_CUR)
+        self.rows.append(row)
 
     # -- fields along the rod: ParaView file and animation frames ------------------------
     def write_fields(self, t: float) -> None:
@@ -230,6 +249,11 @@ class RunWriter:
         self.balance.restore(self.checkpoints.restore(meta))
 
     # -- the end --------------------------------------------------------------------------
+    def series(self) -> dict[str, list]:
+        """Rank 0: the time series by column, as in timeseries.json (None where a value
+        is not finite)."""
+        return _finite({k: [r.get(k) for r in self.rows] for k in (self.columns or [])})
+
     def finish(self, summary: dict, timings: dict) -> None:
         """Rank 0: the time series closed, timeseries.json, the pictures, timings.json and
         summary.json.  Ctrl-C while the pictures are drawn (every step is done) stops the
@@ -239,10 +263,16 @@ class RunWriter:
             return
         if self._csv is not None:
             self._csv_file.close()
+        try:
+            self._finish(summary, timings)
+        except OSError as err:                 # a full disk: the rows stay complete
+            print(f"warning: cannot write the rest of {self.folder}: "
+                  f"{err.strerror or err}", file=sys.stderr, flush=True)
+
+    def _finish(self, summary: dict, timings: dict) -> None:
         if self.lines is not None:
             self.lines.close()
-        series = {k: [r.get(k) for r in self.rows] for k in (self.columns or [])}
-        _dump(self.folder / "timeseries.json", _finite(series))
+        _dump(self.folder / "timeseries.json", self.series())
         t0 = time.perf_counter()
         missing = self._draw(summary.get("title", ""))
         self.timings["pictures"] = time.perf_counter() - t0

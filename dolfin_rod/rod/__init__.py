@@ -1,18 +1,22 @@
 """The 3-D special Cosserat rod (Sections 2-4): ``RodModel`` composed in model.py;
-several rods in one model: ``RodSystem`` (system.py)."""
+several rods in one model: ``RodSystem`` (system.py).  Names load on first use, so that
+the pure-Python parts (sections.py, rotation_choice.py) stay cheap to import."""
 
-from . import sections
-from .boundary_conditions import END_TYPES, EndSpring
-from .constitutive import MODELS
-from .contact import ContactLaw, Obstacle
-from .external_forces import DistributedLoad, EndLoad
-from .material import RodParameters
-from .model import RodModel
-from .joints import Joint
-from .rods import Rod
-from .start import Arc, Helix, Polyline, StartingState, Straight
-from .system import RodSystem
+from importlib import import_module
 
-__all__ = ["RodModel", "RodSystem", "Rod", "Joint", "RodParameters", "EndLoad", "DistributedLoad",
-           "EndSpring", "MODELS", "END_TYPES", "sections", "Obstacle", "ContactLaw",
-           "StartingState", "Straight", "Arc", "Helix", "Polyline"]
+_WHERE = {"RodModel": "model", "RodSystem": "system", "Rod": "rods", "Joint": "joints",
+          "RodParameters": "material", "EndLoad": "external_forces",
+          "DistributedLoad": "external_forces", "EndSpring": "boundary_conditions",
+          "MODELS": "constitutive", "END_TYPES": "boundary_conditions",
+          "Obstacle": "contact", "ContactLaw": "contact", "StartingState": "start",
+          "Straight": "start", "Arc": "start", "Helix": "start", "Polyline": "start"}
+
+__all__ = [*_WHERE, "sections"]
+
+
+def __getattr__(name: str):
+    if name == "sections":
+        return import_module(".sections", __name__)
+    if name in _WHERE:
+        return getattr(import_module(f".{_WHERE[name]}", __name__), name)
+    raise AttributeError(f"module 'dolfin_rod.rod' has no attribute {name!r}")

@@ -42,6 +42,7 @@ import numpy as np
 import ufl
 
 from .. import loads
+from ..checks import slide_axis_problem
 from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
 from ..theory.rotations import (conj, np_qmul, np_quaternion_from_rotation_vector,
                                 np_rotation_matrix, qmul, vec)
@@ -121,20 +122,6 @@ def _check_spring(end, spring, kind, slide: dict, moving) -> None:
             raise ValueError(f"end_springs[{end!r}].{part}: the end's "
                              f"{'position' if part == 'translational' else 'rotation'} is "
                              "held or prescribed there, the support takes the spring's place")
-
-
-def slide_axis_problem(axis) -> str | None:
-    """Why ``axis`` cannot be a slide axis (None if it can): not a finite unit 3-vector
-    along a coordinate axis (Dirichlet conditions on the other two components)."""
-    a = np.asarray(axis, dtype=float)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        return f"must be a finite 3-vector, got {axis!r}"
-    if abs(np.linalg.norm(a) - 1.0) > 1e-12:
-        return f"must be a unit vector, got {a.tolist()} (length {np.linalg.norm(a):.6g})"
-    if np.count_nonzero(a) != 1:
-        return (f"must be a coordinate axis (+-e_1, +-e_2 or +-e_3), got {a.tolist()}: "
-                "an end sliding along a direction off the axes is not supported")
-    return None
 
 
 def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:

@@ -26,7 +26,8 @@ from ufl.algorithms.analysis import extract_coefficients
 from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
-from ..fem.fe_model import FEModel, check_n_cells
+from ..checks import N_CELLS, check_n_cells
+from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..theory.rotations import rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
@@ -64,7 +65,7 @@ class RodModel(FEModel):
     Several rods in one model: system.RodSystem.
     """
 
-    def __init__(self, params: RodParameters, n_cells: int = 32, model: str = "evolving",
+    def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = "evolving",
                  variant: str = "local", constraint: str | None = None,
                  ends: tuple[str, str] = ("clamped", "free"),
                  end_loads: Sequence[EndLoad] = (),

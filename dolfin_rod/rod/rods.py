@@ -9,7 +9,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..fem.fe_model import check_n_cells
+from ..checks import N_CELLS, check_n_cells
 from .boundary_conditions import check_supports
 from .external_forces import DistributedLoad, EndLoad, check_loads
 from .material import RodParameters, check_parameters, is_zero
@@ -27,7 +27,7 @@ class Rod:
     its initial directors d_1, d_2 there."""
 
     params: RodParameters
-    n_cells: int = 32
+    n_cells: int = N_CELLS
     ends: tuple[str, str] = ("clamped", "free")
     end_loads: Sequence[EndLoad] = ()
     distributed_loads: Sequence[DistributedLoad] = ()

@@ -36,7 +36,7 @@ import ufl
 from ufl.algorithms.analysis import extract_arguments, extract_coefficients
 from ufl.corealg.traversal import unique_pre_traversal
 
-from ..integrators.step_control import largest_on_ranks
+from ..mpi import largest_on_ranks
 from ..theory.kinematics import strain_rates
 from ..theory.rotations import conj, np_qmul, qmul, rotation_matrix, vec
 

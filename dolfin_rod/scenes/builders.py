@@ -7,7 +7,7 @@ integrates one output interval, ``diagnostics(t)`` gives the scalars of
 to write (none for the ODE), ``state()``/``restore(...)`` what a checkpoint needs.
 
 The ODE model of quasi-static homogeneous torsion (eqs. ``twist``, ``nattwist``) is
-in ode.py.
+torsion/ode.py.  The integrator of an FE model is picked in integrators/choice.py.
 """
 
 from __future__ import annotations
@@ -17,16 +17,13 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from ..fem.problem import SecondOrderProblem
-from ..rod.contact import InitialOverlap
 from .contact import contact_law, contact_solver_options, obstacles
-from ..torsion.ode import OdeTorsion
 from .rules import START_KEYS, adaptive_stepper, rod_rotations
-from .schema import Scene, SceneError
+from .scene import Scene, SceneError
 from .values import Coefficient
 
 CONTACT_SCHEME = "generalized_alpha:0.0"   # rho_inf = 0: a barrier's impacts (docs/contact.md)
-__all__ = ["Simulation", "MODELS", "register_model", "build", "OdeTorsion", "FESimulation"]
+__all__ = ["Simulation", "MODELS", "register_model", "build", "FESimulation"]
 
 
 class Simulation(Protocol):
@@ -64,7 +61,20 @@ def build(scene: Scene, model: str, comm=None) -> Simulation:
         raise scene.error("scene.model", f"the {model!r} model rejected the scene: {err}") from err
 
 
-register_model("ode")(OdeTorsion)
+@register_model("ode")
+def build_ode(scene: Scene, comm=None):
+    """The homogeneous torsion ODE (torsion/ode.py) of a scene."""
+    from ..torsion.ode import EndCondition, OdeTime, OdeTorsion
+    mat, tim = scene["material"], scene["time"]
+    rotation = scene["boundary"]["end"] == "rotation"
+    spec = scene["boundary"]["end_rotation"] if rotation else scene["loads"]["end_torsion"]
+    end = EndCondition(rotation) if spec is None else EndCondition(
+        rotation, spec.build(), spec.value if spec.jumps_at_start else None,
+        spec.breakpoints())
+    time = OdeTime(tim["t_end"], tim["dt"], tim["rtol"], tim["atol"], tim["ode_solution"],
+                   tim["scheme"])
+    return OdeTorsion(*(mat[k].constant for k in ("alpha", "alpha_d", "mu", "mu_d")), end,
+                      time, scene["initial"]["natural_twist"] or 0.0, comm)
 
 
 # --- FE models: torsion PDE and the 3-D rod ---------------------------------------------------
@@ -74,7 +84,8 @@ class FESimulation:
     """A model with ``.problem`` advanced by TimeStepper (or the PETSc TS integrator)."""
 
     def __init__(self, name: str, model, scene: Scene, initial_state: Callable[[], float]):
-        from ..integrators.stepper import TimeStepper
+        from ..fem.problem import SecondOrderProblem
+        from ..integrators.choice import choose_integrator
         tim = scene["time"]
         self.name, self.model, self.scene = name, model, scene
         self.problem = model.problem
@@ -83,35 +94,45 @@ class FESimulation:
         self._initial_state = initial_state
         lie = isinstance(self.problem, SecondOrderProblem)   # rotation vectors (rules.py)
         options = solver_options(scene, second_order=lie)
+        if tim["integrator"] == "ts":
+            self.stepper, self.ts = None, choose_integrator(
+                self._ts_problem(), solver_options=options, ts_type=self._ts_type(),
+                adaptive=tim["adaptive"], rtol=tim["ts_rtol"], atol=tim["ts_atol"])
+            self.stability = self._stability_monitor()
+            return
         # not given, a rod with rotation vectors takes its integrator's default scheme
         # (with obstacles: rho_inf = 0, docs/contact.md)
         scheme = tim["scheme"]
         if lie and "scheme" not in scene.given["time"]:
             scheme = CONTACT_SCHEME if scene["obstacles"] and model.dynamic else None
         tolerance = tim["tolerance"] if adaptive_stepper(scene) else None
-        self.stepper = TimeStepper(self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
-                                   predictor=tim["predictor"], tolerance=tolerance)
-        self.integrator = tim["integrator"]
-        self.stability = None           # quasi-static 3-D rods: analysis/stability.py
-        # (a system with joints: its constraints act on the assembled system, not in the
-        # forms K is made of; not checked)
+        self.stepper, self.ts = choose_integrator(
+            self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
+            predictor=tim["predictor"], tolerance=tolerance), None
+        self.stability = self._stability_monitor()
+
+    def _stability_monitor(self):
+        """Quasi-static 3-D rods: the stability of each step's equilibrium
+        (analysis/stability.py); a system with joints is not checked (its constraints act
+        on the assembled system, not in the forms K is made of)."""
+        scene, model = self.scene, self.model
         if scene.is_rod_material and not model.dynamic and scene["stability"]["check"] \
                 and not getattr(model, "joints", None):
             from ..analysis.stability import StabilityMonitor
-            self.stability = StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
-        self.ts = None
-        if self.integrator == "ts":
-            from ..integrators.ts import TSIntegrator
-            kind = tim["ts_type"] or ts_type(scene)
-            problem = self.problem
-            if kind.startswith("alpha2"):
-                if not hasattr(model, "second_order_problem") or not model.dynamic:
-                    raise scene.error("time.ts_type", "alpha2 (TSALPHA2) needs a second-order "
-                                                      "problem: dynamic torsion (nu > 0)")
-                problem = model.second_order_problem()
-            self.ts = TSIntegrator(problem, kind, adaptive=tim["adaptive"],
-                                   rtol=tim["ts_rtol"], atol=tim["ts_atol"],
-                                   solver_options=options)
+            return StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
+        return None
+
+    def _ts_type(self) -> str:
+        return self.scene["time"]["ts_type"] or ts_type(self.scene)
+
+    def _ts_problem(self):
+        """The problem PETSc TS advances: TSALPHA2 needs the second-order form."""
+        if not self._ts_type().startswith("alpha2"):
+            return self.problem
+        if not hasattr(self.model, "second_order_problem") or not self.model.dynamic:
+            raise self.scene.error("time.ts_type", "alpha2 (TSALPHA2) needs a second-order "
+                                                   "problem: dynamic torsion (nu > 0)")
+        return self.model.second_order_problem()
 
     def run_all(self, t0: float, t_end: float, dt: float, on_step: Callable[[float], None]):
         """PETSc TS over the whole run (its multistep history must not restart at every
@@ -220,7 +241,6 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     scene with [[rods]]: a RodSystem of its rods and joints (scenes/systems.py)."""
     from mpi4py import MPI
     from ..rod import RodModel, RodSystem
-    from .systems import rods_and_joints
 
     mat = scene["material"]
     params = rod_parameters(scene)
@@ -245,6 +265,7 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
                                 start=starting_state(scene))
 
     if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
+        from ..rod.contact import InitialOverlap
         try:
             initial_state()
         except InitialOverlap as err:
@@ -289,6 +310,17 @@ def rod_arguments(scene: Scene) -> dict:
                              if (spring := boundary[f"{key}_spring"])},
                 end_turn={side: axis for key, side in ends.items()
                           if (axis := boundary[f"{key}_turn"]) is not None})
+
+
+def rods_and_joints(scene: Scene) -> tuple[list, list]:
+    """The scene's rods (rod.Rod, from each rod's scene) and joints (rod.Joint) of a
+    scene with [[rods]] (scenes/systems.py)."""
+    from ..rod import Joint, Rod
+    rods = [Rod(rod_parameters(entry.scene), **rod_arguments(entry.scene), name=entry.name,
+                position=entry.position, orientation=entry.orientation)
+            for entry in scene.rods]
+    joints = [Joint(j.kind, j.rods, j.point, j.name) for j in scene.joints]
+    return rods, joints
 
 
 def rod_parameters(scene: Scene):

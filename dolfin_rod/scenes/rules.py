@@ -12,7 +12,7 @@ import numpy as np
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
-from ..checks import EQUILIBRIUM_NEEDS, polyline_problem, sample_points
+from ..checks import EQUILIBRIUM_NEEDS, polyline_problem, sample_points, slide_axis_problem
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
@@ -430,7 +430,6 @@ def _spring(scene: Scene, end: str, position_held: bool, rotation_held: bool) ->
 
 def _slide_axis(scene: Scene, end: str):
     """The slide axis of an end (boundary.<end>_slide) after its checks, or None."""
-    from ..rod.boundary_conditions import slide_axis_problem
     bnd, key = scene["boundary"], f"boundary.{end}_slide"
     axis = bnd[f"{end}_slide"]
     if axis is None:
@@ -451,7 +450,6 @@ def _slide_axis(scene: Scene, end: str):
 
 def _turn_axis(scene: Scene, end: str):
     """The axis a clamped end turns about (boundary.<end>_turn) after its checks, or None."""
-    from ..rod.boundary_conditions import slide_axis_problem
     bnd, key = scene["boundary"], f"boundary.{end}_turn"
     axis = bnd[f"{end}_turn"]
     if axis is None:

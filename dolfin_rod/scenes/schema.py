@@ -26,11 +26,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..rod.sections import SHAPES as SECTION_SHAPES
-from ..checks import MIN_LENGTH, SCENE_BYTES, read_regular_file
+from ..checks import MIN_LENGTH, N_CELLS, SCENE_BYTES, read_regular_file
 from ..rod.rotation_choice import ROTATIONS
-from ..output.animation import COLOURS
-from ..output.plots import PANELS, UNITS
+from ..rod.sections import SHAPES as SECTION_SHAPES
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
@@ -54,6 +52,22 @@ ROD_MODELS = ("evolving", "kelvin_voigt", "hyperelastic")
 ROD_ENDS = ("clamped", "pinned", "free")
 CONSTRAINTS = ("none", "unshearable", "inextensible_unshearable")
 OBSTACLE_SHAPES = ("plane", "sphere", "cylinder")
+
+# the fields that colour the 3-D pictures (output/animation.py), the panels of
+# histories.png (output/plots.py) and the unit systems of a scene's axes
+COLOURS = ("auto", "u", "v", "u_d", "v_d", "n", "m", "xi")
+PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "reactions",
+          "twist", "energy", "power_residual")
+
+# quantity kind -> unit per unit system
+UNITS = {
+    "SI": {"length": "m", "time": "s", "force": "N", "moment": "N m", "energy": "J",
+           "angle": "rad"},
+    "pN-nm-s": {"length": "nm", "time": "s", "force": "pN", "moment": "pN nm",
+                "energy": "pN nm", "angle": "rad"},
+    "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy"), "1")
+    | {"angle": "rad"},       # the torsion scenes' Section 5.1 variables
+}
 
 
 REQUIRED = object()
@@ -138,7 +152,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "geometry": {
         "length": Key(real(MIN_LENGTH), 1.0, f"rod length L >= {MIN_LENGTH:g} (torsion: "
                       "dimensionless, must be 1)"),
-        "n_cells": Key(integer(1, 100_000), 32, "number of cells along s"),
+        "n_cells": Key(integer(1, 100_000), N_CELLS, "number of cells along s"),
         "degree": Key(integer(1, 3), 1, T + "Lagrange degree of phi (the rod is P1)"),
         "reference_curvature": Key(vector3(), (0.0, 0.0, 0.0),
                                    R + "curvature u_ref of the stress-free initial shape (a "

@@ -149,20 +149,10 @@ def _joint(entry: dict, k: int, source: str, names: list[str]) -> JointEntry:
     return JointEntry(kind, tuple(rods), point, name)
 
 
-def rods_and_joints(scene: Scene) -> tuple[list, list]:
-    """The scene's rods (rod.Rod, from each rod's scene) and joints (rod.Joint)."""
-    from ..rod import Joint, Rod
-    from .builders import rod_arguments, rod_parameters
-    rods = [Rod(rod_parameters(entry.scene), **rod_arguments(entry.scene), name=entry.name,
-                position=entry.position, orientation=entry.orientation)
-            for entry in scene.rods]
-    joints = [Joint(j.kind, j.rods, j.point, j.name) for j in scene.joints]
-    return rods, joints
-
-
 def _check_joint_points(scene: Scene) -> None:
     """Every joint at a node of both its rods (rod.joints.locate), before any model."""
     from ..rod.joints import locate
+    from .builders import rods_and_joints
     if not scene.joints:
         return
     rods, joints = rods_and_joints(scene)

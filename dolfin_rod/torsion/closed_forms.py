@@ -12,8 +12,8 @@ in the paper's dimensionless variables: stiffnesses ``alpha`` (elastic) and ``al
 ``u = u_d = 0`` for t < 0, so every response below is zero for negative times, and at
 t = 0 it takes its right limit (the idealised steps use H(0) = 1).
 
-The creep formulas use the matrix exponential as corrected in ERRATA.md, item 2; the
-mu = 0 convolution is the corrected one of ERRATA.md, item 3.
+The creep formulas use the matrix exponential as corrected in docs/corrections.md, item 2; the
+mu = 0 convolution is the corrected one of docs/corrections.md, item 3.
 """
 
 from __future__ import annotations
@@ -159,7 +159,7 @@ def creep_matrix(alpha: float, alpha_d: float, mu: float, mu_d: float) -> NDArra
 def _exponential_coefficients(
     times: NDArray[np.float64], alpha: float, alpha_d: float, mu: float, mu_d: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Return ``(1 - c, c, s)`` with ``exp(-tA) = c(t) I - s(t) B`` (ERRATA.md, item 2).
+    """Return ``(1 - c, c, s)`` with ``exp(-tA) = c(t) I - s(t) B`` (docs/corrections.md, item 2).
 
     ``tau = tr(A)/2``, ``B = A - tau I``, ``delta = sqrt(-det B)``,
     ``c = exp(-tau t) cosh(delta t)`` and ``s = exp(-tau t) sinh(delta t) / delta``.
@@ -187,7 +187,7 @@ def _exponential_coefficients(
 def creep_exponential(t: ArrayLike, alpha: float, alpha_d: float, mu: float, mu_d: float) -> NDArray[np.float64]:
     """Matrix exponential ``exp(-t A)`` of the creep problem, shape ``t.shape + (2, 2)``.
 
-    Corrected formula after eq. ``creepform`` (ERRATA.md, item 2):
+    Corrected formula after eq. ``creepform`` (docs/corrections.md, item 2):
     ``exp(-tA) = exp(-tau t) [cosh(delta t) I - (sinh(delta t)/delta) B]``, valid for all
     real t, including the nearly degenerate case delta -> 0.
     """
@@ -229,7 +229,7 @@ def creep_inviscid(
 ) -> tuple[FloatOrArray, FloatOrArray]:
     """Twist and natural twist ``(u(t), u_d(t))`` under a step torsion ``m0 H(t)``, mu = 0.
 
-    Step response after ERRATA.md, item 3 (the paper's step formulas), for t >= 0:
+    Step response after docs/corrections.md, item 3 (the paper's step formulas), for t >= 0:
 
         u_d(t) = m0 / alpha_d (1 - exp(-alpha_d t / mu_d)),    u(t) = m0 / alpha + u_d(t).
 
@@ -258,7 +258,7 @@ def creep_response(
 ) -> tuple[FloatOrArray, FloatOrArray]:
     """Twist and natural twist ``(u(t), u_d(t))`` under a torsion history ``m``, mu = 0.
 
-    Convolution form (ERRATA.md, item 3), for t >= 0:
+    Convolution form (docs/corrections.md, item 3), for t >= 0:
 
         u_d(t) = (1/mu_d) int_0^t exp(-(alpha_d/mu_d)(t - tau)) m(tau) dtau,
         u(t)   = m(t)/alpha + u_d(t).
@@ -285,7 +285,7 @@ def creep_response(
         piece, _ = quad(lambda tau: math.exp(-rate * (stop - tau)) * float(m(tau)),
                         previous, stop, epsabs=atol, epsrel=rtol, limit=200)
         integral = math.exp(-rate * (stop - previous)) * integral + piece
-        natural_twists[i] = integral / mu_d                        # ERRATA.md item 3
+        natural_twists[i] = integral / mu_d                        # docs/corrections.md item 3
         previous = stop
 
     twist = np.zeros_like(times)

@@ -27,16 +27,15 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from ..fem import compat
 from .. import loads as load_histories
+from ..checks import N_CELLS, check_n_cells, profile_violation, sample_points
+from ..fem import compat
+from ..fem.fe_model import FEModel, end_measures, scalar_coefficient, vertex_measure
+from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
+from ..fem.solvers import default_lu
 from ..theory.dissipation import dissipation_rate
 from ..theory.energy import derivatives, quadratic_energy
 from ..theory.evolution import check_variant, evolution_residual, real_space
-from ..fem.fe_model import (FEModel, check_n_cells, end_measures, scalar_coefficient,
-                         vertex_measure)
-from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
-from ..fem.solvers import default_lu
-from ..checks import profile_violation, sample_points
 
 Coefficient = float | Callable
 NAMES = ("twist_angle", "natural_twist", "angular_velocity")
@@ -78,7 +77,7 @@ class TorsionModel(FEModel):
     Phi(t)) is given; both are load histories (dolfin_rod.loads) or plain callables.
     """
 
-    def __init__(self, params: TorsionParameters, n_cells: int = 64, variant: str = "local",
+    def __init__(self, params: TorsionParameters, n_cells: int = N_CELLS, variant: str = "local",
                  end_torsion: Callable | None = None, end_rotation: Callable | None = None,
                  degree: int = 1, comm: MPI.Comm = MPI.COMM_WORLD):
         self._validate(params, n_cells, variant, end_torsion, end_rotation, degree, comm.size)

@@ -1,4 +1,4 @@
-"""The scene model "ode": quasi-static homogeneous torsion (eqs. ``twist``, ``nattwist``),
+"""The model "ode" of a scene: quasi-static homogeneous torsion (eqs. ``twist``, ``nattwist``),
 
     mu u' + alpha (u - u_d) = m(t),          mu_d u_d' = alpha u - (alpha + alpha_d) u_d,
 
@@ -8,21 +8,48 @@ at t = 0 from rest, otherwise scipy ``solve_ivp`` (Radau, stiff) between the loa
 breakpoints.  ``ode_solution = "scheme"``: the FE model's time scheme applied to the
 same 2x2 system (coefficient tables of integrators.schemes, the TimeStepper's startup
 and rate rules), so that ODE and PDE agree to solver tolerance, not only to O(dt^p).
+Built from numbers (scenes/builders.py reads them from a scene).
 """
 
 from __future__ import annotations
 
-import math
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
-from . import closed_forms
 from ..integrators.schemes import get_scheme
-from ..integrators.step_control import same_step
+from ..integrators.step_control import output_times, same_step
 from ..loads import rate as load_rate
-from ..scenes.schema import Scene
+from . import closed_forms
 
-__all__ = ["OdeTorsion"]
+__all__ = ["OdeTorsion", "EndCondition", "OdeTime"]
+
+
+@dataclass(frozen=True)
+class EndCondition:
+    """The end s = 1: its rotation (``rotation``) or its torsion prescribed by
+    ``history`` (None: a free, unloaded end); ``step_at_start`` the size of a step at
+    t = 0 (then the closed forms apply from rest), ``breakpoints`` the times where the
+    history is not smooth."""
+
+    rotation: bool
+    history: Callable | None = None
+    step_at_start: float | None = None
+    breakpoints: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True)
+class OdeTime:
+    """The output times (every dt up to t_end), solve_ivp's tolerances, the solution
+    ("exact" or "scheme") and the scheme's name (integrators/schemes.py)."""
+
+    t_end: float
+    dt: float
+    rtol: float
+    atol: float
+    solution: str = "exact"
+    scheme: str = "bdf2"
 
 
 class OdeTorsion:
@@ -31,21 +58,18 @@ class OdeTorsion:
     name = "ode"
     fields: list = []
 
-    def __init__(self, scene: Scene, comm=None):
+    def __init__(self, alpha: float, alpha_d: float, mu: float, mu_d: float,
+                 end: EndCondition, time: OdeTime, natural_twist: float = 0.0, comm=None):
         from mpi4py import MPI
         self.comm = comm or MPI.COMM_WORLD
-        mat = scene["material"]
-        self.alpha, self.alpha_d = mat["alpha"].constant, mat["alpha_d"].constant
-        self.mu, self.mu_d = mat["mu"].constant, mat["mu_d"].constant
-        self.u_d0 = scene["initial"]["natural_twist"] or 0.0
-        self.rotation = scene["boundary"]["end"] == "rotation"
-        spec = scene["boundary"]["end_rotation"] if self.rotation else scene["loads"]["end_torsion"]
-        self.spec = spec
-        self.history = spec.build() if spec is not None else None   # None: free, unloaded end
-        self.t_end, self.dt = scene["time"]["t_end"], scene["time"]["dt"]
-        self.rtol, self.atol = scene["time"]["rtol"], scene["time"]["atol"]
-        self.mode = scene["time"]["ode_solution"]
-        self.scheme = get_scheme(scene["time"]["scheme"])
+        self.alpha, self.alpha_d, self.mu, self.mu_d = alpha, alpha_d, mu, mu_d
+        self.u_d0 = natural_twist
+        self.rotation, self.end = end.rotation, end
+        self.history = end.history
+        self.t_end, self.dt = time.t_end, time.dt
+        self.rtol, self.atol = time.rtol, time.atol
+        self.mode = time.solution
+        self.scheme = get_scheme(time.scheme)
         self.method = ""
 
     # load values
@@ -94,21 +118,20 @@ class OdeTorsion:
 
     def _solve_exact(self) -> None:
         from scipy.integrate import solve_ivp
-        n = max(1, math.ceil(self.t_end / self.dt - 1e-9))
-        self.times = np.minimum(np.arange(n + 1) * self.dt, self.t_end)
+        self.times = np.array(output_times(self.t_end, self.dt))
         a, ad, mu, mud = self.alpha, self.alpha_d, self.mu, self.mu_d
-        spec, t = self.spec, self.times
-        closed = (spec is not None and spec.jumps_at_start and self.u_d0 == 0.0)
+        step, t = self.end.step_at_start, self.times
+        closed = step is not None and self.u_d0 == 0.0
         if closed and self.rotation:
-            u0 = spec.value
+            u0 = step
             ud, m = closed_forms.relaxation(t, u0, a, ad, mud)
             u = np.full_like(t, u0)
             self.method = "closed form: closed_forms.relaxation (eq. stressrelax)"
         elif closed and mu > 0.0:
-            u, ud = closed_forms.creep(t, spec.value, a, ad, mu, mud)
+            u, ud = closed_forms.creep(t, step, a, ad, mu, mud)
             self.method = "closed form: closed_forms.creep (eq. creepform, errata 2)"
         elif closed:
-            u, ud = closed_forms.creep_inviscid(t, spec.value, a, ad, mud)
+            u, ud = closed_forms.creep_inviscid(t, step, a, ad, mud)
             self.method = "closed form: closed_forms.creep_inviscid (errata 3)"
         else:
             u, ud = self._solve_ivp(solve_ivp)
@@ -124,8 +147,8 @@ class OdeTorsion:
         t = self.times
         algebraic = self.rotation or self.mu == 0.0
         y = np.array([self.y[1]]) if algebraic else self.y.copy()
-        breaks = sorted({0.0, self.t_end, *[b for b in (self.spec.breakpoints() if self.spec
-                                                          else ()) if 0.0 < b < self.t_end]})
+        breaks = sorted({0.0, self.t_end,
+                         *[b for b in self.end.breakpoints if 0.0 < b < self.t_end]})
         out = np.empty((len(t), len(y)))
         out[0] = y
         rhs = lambda s, z: self._rhs(s, z)[-len(z):]   # noqa: E731

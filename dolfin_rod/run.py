@@ -1,0 +1,353 @@
+"""A run of a scene, in one room: ``dolfin_rod.run(scene, overrides)`` reads and checks
+the scene, chooses its model, builds it, steps it over the output times, writes the run
+folder and returns the results.  ``dolfin-rod run`` (cli.py), the demos and a notebook
+call it alike; ``march`` is the one loop over the output times, which the fit
+(fit/least_squares.py) shares.
+
+    result = dolfin_rod.run("scenes/torsion_creep.toml", {"time.dt": 0.005}, quiet=True)
+    result.status, result.folder, result.series["end_rotation"]
+
+The way through the package: scenes/ (load_scene: schema, values, rules; select_model)
+-> scenes/builders.py (the model of rod/ or torsion/ and its integrator,
+integrators/choice.py) -> ``march`` (``Simulation.advance`` per output interval, or
+PETSc TS over the whole run) -> output/ (RunWriter: time series, fields, checkpoints;
+divergence.py stops a run that diverges).
+
+``out``: the results folder (default a new <outputs.directory>/<name>-<time>); if it is
+not empty, ``resume`` continues its run from its last checkpoint (verified against this
+scene) and ``overwrite`` replaces it.  ``stop_after``: stop after that many steps (as an
+interrupted run would), keeping the outputs and the last checkpoint.  A bad scene raises
+SceneError, an unusable folder or checkpoint OutputError, both before anything is
+written; a run that fails or diverges returns with status "failed" (what was computed is
+kept).  Under MPI every rank returns the same result; only rank 0 prints and writes.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from .mpi import agree, print_on_root
+from .scenes.scene import Scene, SceneError
+
+__all__ = ["run", "run_scene", "RunResult", "march", "choose_model", "stability_warning"]
+
+
+@dataclass
+class RunResult:
+    """What a run returns (the same on every rank): ``summary`` as in summary.json,
+    ``series`` the time series by column as in timeseries.json, the run ``folder``."""
+
+    summary: dict
+    series: dict[str, list]
+    folder: Path
+
+    @property
+    def status(self) -> str:
+        """"completed", "completed (unstable equilibrium)", "stopped" (stop_after),
+    "interrupted" or "failed"."""
+        return self.summary["status"]
+
+
+def run(scene: Scene | str | Path, overrides: dict[str, Any] | None = None, *,
+        out: Path | str | None = None, comm=None, resume: bool = False,
+        overwrite: bool = False, quiet: bool = False,
+        stop_after: int | None = None) -> RunResult:
+    """Run a scene (a validated Scene or a TOML file) with ``overrides`` {"table.key":
+    value} (load_scene); see the module's docstring."""
+    from mpi4py import MPI
+    comm = comm or MPI.COMM_WORLD
+    given = scene
+    scene = agree(comm, lambda: _scene(given, overrides), (SceneError,))
+    return _run(scene, None if out is None else Path(out), comm, resume, overwrite, quiet,
+                stop_after)
+
+
+def run_scene(scene: Scene | str | Path, out: Path | str | None = None, comm=None,
+              resume: bool = False, stop_after: int | None = None, quiet: bool = False,
+              overwrite: bool = False) -> dict:
+    """``run(scene, ...).summary``: the summary of a run of a scene (validated, or the
+    path of a scene file)."""
+    return run(scene, out=out, comm=comm, resume=resume, overwrite=overwrite, quiet=quiet,
+               stop_after=stop_after).summary
+
+
+def _scene(scene: Scene | str | Path, overrides: dict[str, Any] | None) -> Scene:
+    from .scenes import load_scene, parse_scene
+    if not isinstance(scene, Scene):
+        return load_scene(scene, overrides)
+    if not overrides:
+        return scene
+    return parse_scene(scene.text, scene.source, scene.name, overrides)
+
+
+def choose_model(scene: Scene, ranks: int):
+    """The scene's model (select_model), refused with a SceneError naming
+    geometry.n_cells if an FE model would leave a rank too few cells."""
+    from .checks import check_n_cells
+    from .scenes import select_model
+    choice = select_model(scene)
+    if choice.model != "ode":
+        try:
+            check_n_cells(scene["geometry"]["n_cells"], ranks)
+        except ValueError as err:
+            raise scene.error("geometry.n_cells", str(err)) from None
+    return choice
+
+
+def stability_warning(scene: Scene, comm) -> None:
+    """Warn (stderr, rank 0) before a run that explicit Euler would make diverge."""
+    from .scenes.run_warnings import explicit_stability_warning
+    warning = explicit_stability_warning(scene)
+    if warning:
+        print_on_root(comm, f"warning: {warning}", file=sys.stderr)
+
+
+def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, quiet: bool,
+         stop_after: int | None) -> RunResult:
+    from .output.checkpoints import read_checkpoint_meta
+    from .output.writer import RunWriter
+    from .scenes import build
+    clock = {"start": time.perf_counter()}
+    choice = agree(comm, lambda: choose_model(scene, comm.size), (SceneError,))
+    if (resume or stop_after is not None) and scene["time"]["integrator"] == "ts":
+        raise scene.error("time.integrator", "resume/stop_after need integrator = \"stepper\"")
+    meta = read_checkpoint_meta(out, comm, scene) if resume else None
+    made = not resume and (out is None or not os.path.exists(out))   # (False on errors)
+    folder = _run_folder(scene, out, comm, resume, overwrite)
+    if not quiet:
+        print_on_root(comm, f"model: {choice.model} ({choice.reason})")
+    stability_warning(scene, comm)
+    try:
+        sim = build(scene, choice.model, comm)
+        impulse = sim.start()
+    except BaseException:
+        if made and comm.rank == 0:              # nothing half-written: no empty folder
+            _remove_if_empty(folder)
+        raise
+    clock["setup"] = time.perf_counter() - clock["start"]
+    writer = RunWriter(folder, scene, choice, sim, comm, resume=resume)
+    if meta is not None:
+        writer.restore_checkpoint(meta)
+        writer.open(keep_until_step=meta["step"])
+        if not quiet:
+            print_on_root(comm, f"resumed at step {meta['step']}, t = {meta['time']:g}")
+    else:
+        writer.open()
+    t_run = time.perf_counter()
+    status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
+                                    meta["step"], stop_after, quiet)
+    status, message = _unstable_end(scene, sim, status, message)
+    clock["integration"] = time.perf_counter() - t_run
+    summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
+    clock["total"] = time.perf_counter() - clock["start"]
+    writer.finish(summary, {k: v for k, v in clock.items() if k != "start"})
+    summary["pictures"] = comm.bcast(summary.get("pictures"), root=0)
+    summary["folder"] = str(folder)
+    _report(summary, status, message, t, folder, comm, quiet)
+    if not quiet:
+        print_on_root(comm, "\n".join(writer.closing_lines(time.perf_counter()
+                                                            - clock["start"])))
+    comm.barrier()     # no rank ends (mpirun then stops the others) before rank 0 reported
+    series = comm.bcast(writer.series() if comm.rank == 0 else None, root=0)
+    return RunResult(summary, series, folder)
+
+
+def _report(summary: dict, status: str, message: str, t: float, folder: Path, comm,
+            quiet: bool) -> None:
+    """The last line: on stderr for a failed, interrupted or unstable run (also with
+    --quiet)."""
+    if summary["pictures"] == "interrupted":
+        message = "; ".join([*filter(None, [message]), "interrupted while drawing the "
+                             "pictures: summary.json lists the ones missing"])
+    line = f"{status}: t = {t:g}, results in {folder}" + (f" ({message})" if message else "")
+    if status in ("failed", "interrupted", "completed (unstable equilibrium)") \
+            or summary["pictures"] == "interrupted":
+        print_on_root(comm, line, file=sys.stderr)
+    elif not quiet:
+        print_on_root(comm, line)
+
+
+def _run_folder(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool) -> Path:
+    """The results folder, ready on rank 0 (errors on every rank as OutputError)."""
+    from .output.run_folders import new_run_folder, on_root, prepare_run_folder
+    if out is None:
+        parent = Path(scene["outputs"]["directory"])
+        return Path(on_root(comm, lambda: str(new_run_folder(parent, scene.name)),
+                            f"cannot create a run folder in {parent}"))
+    on_root(comm, lambda: prepare_run_folder(out, resume, overwrite), f"cannot use --out {out}")
+    return out
+
+
+def _remove_if_empty(folder: Path) -> None:
+    """Remove a run folder that holds nothing but its marker."""
+    from .output.run_folders import MARKER
+    try:
+        if [p.name for p in folder.iterdir()] == [MARKER]:
+            (folder / MARKER).unlink()
+        folder.rmdir()
+    except OSError:
+        pass
+
+
+def march(sim, time_table: dict, after_step: Callable[[float], None], done: int = 0,
+          stop_after: int | None = None) -> int | None:
+    """The one loop over the output times of a scene's [time] table (output_times):
+    ``sim.advance`` over each interval from output ``done`` on, ``after_step(t)`` after
+    each; PETSc TS (``sim.ts``) drives the whole run itself (its multistep history must
+    not restart at every output time).  Returns the step after which ``stop_after``
+    stopped the run early, else None."""
+    from .integrators.step_control import output_times
+    times = output_times(time_table["t_end"], time_table["dt"])
+    if getattr(sim, "ts", None) is not None:
+        sim.run_all(times[0], time_table["t_end"], time_table["dt"], after_step)
+        return None
+    for k in range(done + 1, len(times)):
+        sim.advance(times[k - 1], times[k])
+        after_step(times[k])
+        if stop_after is not None and stop_after <= k < len(times) - 1:
+            return k
+    return None
+
+
+class _InterruptFlag:
+    """SIGINT or SIGTERM sets a flag; the run stops after the current step (a step is
+    never cut in half, and PETSc callbacks never see a KeyboardInterrupt)."""
+
+    SIGNALS = ("SIGINT", "SIGTERM")
+
+    def __init__(self):
+        import signal
+        import threading
+        self.raised = False
+        self._old = {}
+        if threading.current_thread() is threading.main_thread():
+            self._old = {name: signal.signal(getattr(signal, name), self._handle)
+                         for name in self.SIGNALS}
+
+    def _handle(self, signum, frame):
+        self.raised = True
+
+    def restore(self):
+        import signal
+        for name, old in self._old.items():
+            signal.signal(getattr(signal, name), old)
+        self._old = {}
+
+
+def _first_row(sim, writer, t0: float, fields: bool) -> None:
+    """Row 0 after the integrator's start (sim.begin, where it has one), also when that
+    fails (then the state as given, and the error goes on)."""
+    try:
+        getattr(sim, "begin", lambda t: None)(t0)
+    finally:
+        writer.record(0, t0, sim.diagnostics(t0))
+        if fields:
+            writer.write_fields(t0)
+
+
+def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | None,
+               quiet: bool) -> tuple[str, str, float]:
+    """Steps done+1 .. n (PETSc TS: the whole run), recording each; (status, message, t)
+    with t the time of the last recorded row."""
+    from mpi4py import MPI
+
+    from .fem.solvers import SolverError
+    from .integrators.step_control import IntegrationError, output_times
+    from .output.divergence import EnergyBound
+    from .output.run_folders import OutputError
+    from .output.writer import show_progress
+    tim, outs = scene["time"], scene["outputs"]
+    times = output_times(tim["t_end"], tim["dt"])
+    n_steps = len(times) - 1
+    bar = None
+    if show_progress(outs["progress"] and not quiet, comm.rank):
+        from tqdm import tqdm
+        bar = tqdm(total=n_steps, initial=done, unit="step", desc=scene.name)
+    progress = {"k": done, "t": times[done]}
+    interrupted = _InterruptFlag()
+
+    def after_step(t_k: float) -> None:
+        diag = sim.diagnostics(t_k)
+        _report_stability_changes(sim, comm)
+        bound.check(diag)
+        k = progress["k"] = progress["k"] + 1
+        writer.record(k, t_k, diag)
+        progress["t"] = t_k
+        if k % outs["every"] == 0 or k == n_steps:
+            writer.write_fields(t_k)
+        if outs["checkpoint_every"] and k % outs["checkpoint_every"] == 0:
+            writer.checkpoint(k, t_k)
+        if bar is not None:
+            bar.update(1)
+        if comm.allreduce(interrupted.raised, op=MPI.LOR):   # stop between steps
+            raise KeyboardInterrupt
+
+    status, message = "completed", ""
+    try:
+        if done == 0:
+            _first_row(sim, writer, times[0], outs["every"])
+        bound = EnergyBound(writer.balance.previous)
+        stopped = march(sim, tim, after_step, done, stop_after)
+        if stopped is not None:
+            status, message = "stopped", f"stopped after step {stopped} (stop_after)"
+    except KeyboardInterrupt:
+        status, message = "interrupted", f"interrupted at t = {progress['t']:g}"
+    except (IntegrationError, SolverError, OutputError) as err:   # keep what was computed
+        status, message = "failed", f"{type(err).__name__}: {err}"
+    finally:
+        interrupted.restore()
+        if bar is not None:
+            bar.close()
+    return status, message, progress["t"]
+
+
+def _report_stability_changes(sim, comm) -> None:
+    """A warning for each change of the tangent's negative eigenvalues not yet shown."""
+    monitor = getattr(sim, "stability", None)
+    while monitor is not None and len(monitor.changes) > monitor.reported:
+        t, before, after = monitor.changes[monitor.reported]
+        monitor.reported += 1
+        state = "unstable" if after else "stable again"
+        print_on_root(comm, f"warning: t = {t:g}: the equilibrium is {state}: {after} "
+                            f"negative eigenvalue(s) of the tangent stiffness (was {before}; "
+                            "docs/stability.md)", file=sys.stderr)
+
+
+def _unstable_end(scene, sim, status: str, message: str) -> tuple[str, str]:
+    """A completed quasi-static run that ends on an unstable equilibrium is not a result
+    unless stability.follow_unstable says so."""
+    monitor = getattr(sim, "stability", None)
+    if status != "completed" or monitor is None or not monitor.negative \
+            or scene["stability"]["follow_unstable"]:
+        return status, message
+    return "completed (unstable equilibrium)", (
+        f"the end state has {monitor.negative} negative eigenvalue(s) of the tangent "
+        "stiffness: an unstable equilibrium (stability.follow_unstable = true accepts it)")
+
+
+def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> dict:
+    summary = {
+        "scene": scene.name, "source": scene.source, "model": choice.model,
+        "reason": choice.reason, "method": getattr(sim, "describe", lambda: "")(),
+        "status": status, "message": message, "t_end_reached": t,
+        "steps": len(writer.rows) - 1 if comm.rank == 0 else None,
+        "end_torsion_impulse_at_0": impulse,
+        "final": dict(writer.balance.previous or {}),
+        "total_dissipation": writer.balance.total_dissipation,
+        "title": f"{scene.name}: {choice.model} model",
+    }
+    if scene.is_rod_material and scene["material"]["derived"]:
+        summary["derived"] = scene["material"]["derived"]    # from the physical input
+    stats = getattr(sim, "stats", None)
+    if stats is not None:
+        summary["newton_iterations"] = stats.newton_iterations
+        summary["rejected_steps"] = stats.rejected
+    monitor = getattr(sim, "stability", None)
+    if monitor is not None and monitor.checks:
+        summary["stability_check_ms_per_step"] = 1e3 * monitor.seconds / monitor.checks
+    return summary

@@ -1,0 +1,250 @@
+"""The package's layout rules (docs/architecture.md) and the one-room run.
+
+References: the import graph read from the source (every import, also inside functions),
+the modules a fresh interpreter has loaded after the cheap commands, the schema's
+defaults, the files a run writes and Section 5's creep closed form.
+"""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+import dolfin_rod
+from dolfin_rod import closed_forms, loads
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "dolfin_rod"
+# a layer imports only its own and later ones (docs/architecture.md)
+LAYERS = [("cli", "__main__", "cosseratbench"), ("fit",), ("run",), ("output",), ("scenes",), ("analysis",),
+          ("rod", "torsion"), ("integrators",), ("theory",), ("fem",),
+          ("loads", "dna", "checks", "mpi")]
+HEAVY = ("dolfinx", "petsc4py", "ufl")
+
+
+def _module(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _is_module(name: str) -> bool:
+    path = ROOT.joinpath(*name.split("."))
+    return (path / "__init__.py").exists() or path.with_suffix(".py").exists()
+
+
+def _imports(path: Path) -> set[str]:
+    """The dolfin_rod modules ``path`` imports anywhere in it (a name imported from a
+    package counts as the package unless it is a module; the package version is an
+    attribute of the package, which Python imports before any of its modules)."""
+    me = _module(path)
+    package = me if path.name == "__init__.py" else me.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.startswith("dolfin_rod")}
+        elif isinstance(node, ast.ImportFrom):
+            base = package.split(".")[:len(package.split(".")) - node.level + 1] \
+                if node.level else []
+            source = ".".join(base + ([node.module] if node.module else []))
+            if not source.startswith("dolfin_rod"):
+                continue
+            for alias in node.names:
+                if _is_module(f"{source}.{alias.name}"):
+                    found.add(f"{source}.{alias.name}")
+                elif not (source == "dolfin_rod" and alias.name == "__version__"):
+                    found.add(source)
+    return found
+
+
+GRAPH = {_module(p): _imports(p) for p in PACKAGE.rglob("*.py")}
+
+
+def _layer(name: str) -> int:
+    short = name.removeprefix("dolfin_rod.").split(".")[0]
+    return next(i for i, layer in enumerate(LAYERS) if short in layer)
+
+
+def test_no_import_cycle():
+    """No module reaches itself through the imports of others (function-level ones
+    included): a depth-first search for a back edge."""
+    state: dict[str, int] = {}
+
+    def visit(name: str, path: list[str]) -> None:
+        state[name] = 1
+        for other in sorted(GRAPH.get(name, ())):
+            assert state.get(other) != 1, " -> ".join([*path, name, other])
+            if other in GRAPH and other not in state:
+                visit(other, [*path, name])
+        state[name] = 2
+
+    for name in sorted(GRAPH):
+        if name not in state:
+            visit(name, [])
+    assert len(GRAPH) > 50                      # the walk saw the package
+
+
+def test_layers_import_downwards_only():
+    """Nothing below scenes/ imports scenes, run, cli, output or fit; cli is imported by
+    __main__ only; every import goes to the same or a lower layer."""
+    upward = [(a, b) for a, targets in GRAPH.items() if a != "dolfin_rod"
+              for b in targets if b != "dolfin_rod" and _layer(b) < _layer(a)]
+    assert upward == []
+    assert [a for a, targets in GRAPH.items() if "dolfin_rod.cli" in targets] == \
+        ["dolfin_rod.__main__"]
+
+
+def test_top_level_and_private_attributes():
+    """At most 9 modules directly in dolfin_rod/ (the public face, run, shared helpers and
+    cosseratbench's entry point); DOLFINx's C++ objects only in fem/compat.py."""
+    assert len(list(PACKAGE.glob("*.py"))) <= 9, sorted(p.name for p in PACKAGE.glob("*.py"))
+    users = sorted(str(p.relative_to(PACKAGE)) for p in PACKAGE.rglob("*.py")
+                   if "_cpp_object" in p.read_text())
+    assert users == ["fem/compat.py"]
+
+
+def test_demos_benchmarks_and_docs_use_the_public_api():
+    """Every dolfin_rod import of demos/, benchmarks/, docs/ and examples/ names
+    dolfin_rod itself and only names in its __all__."""
+    public = set(dolfin_rod.__all__)
+    files = [p for d in ("demos", "benchmarks", "docs", "examples") for p in (ROOT / d).rglob("*.py")]
+    assert len(files) > 10
+    for path in files:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("dolfin_rod"):
+                assert node.module == "dolfin_rod", f"{path}: from {node.module} import"
+                assert {a.name for a in node.names} <= public, path
+            if isinstance(node, ast.Import):
+                assert all(not a.name.startswith("dolfin_rod.") for a in node.names), path
+
+
+def _loaded_after(argv_lists: list[list[str]], tmp_path) -> tuple[list, list[str], str]:
+    """Exit statuses, heavy packages loaded and output of ``main(argv)`` for each argv in
+    a fresh interpreter (--help's SystemExit counts as its status)."""
+    code = (
+        "import contextlib, io, json, sys\n"
+        "from dolfin_rod.cli import main\n"
+        "codes, out = [], io.StringIO()\n"
+        "with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):\n"
+        "    for argv in json.loads(sys.argv[1]):\n"
+        "        try:\n"
+        "            codes.append(main(argv))\n"
+        "        except SystemExit as done:\n"
+        "            codes.append(done.code)\n"
+        f"heavy = sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r}))\n"
+        "print(json.dumps([codes, heavy, out.getvalue()]))\n")
+    done = subprocess.run([sys.executable, "-c", code, json.dumps(argv_lists)], cwd=ROOT,
+                          capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_cheap_commands_load_no_dolfinx_petsc_or_ufl(tmp_path):
+    """``dolfin-rod check`` of the bundled scenes, ``schema`` and ``--help`` in a fresh
+    interpreter work and never import DOLFINx, PETSc or UFL.  Two kinds of scene are
+    checked apart: a UFL energy entry point (material.energy) is evaluated by UFL, and a
+    rod system ([[rods]]) builds its rods to place the joints (DOLFINx; not yet cheap)."""
+    scenes = sorted((ROOT / "scenes").glob("*.toml"))
+    energy = [s for s in scenes if "\nenergy = " in s.read_text()]
+    system = [s for s in scenes if "[[rods]]" in s.read_text()]
+    plain = [s for s in scenes if s not in energy + system]
+    out = str(tmp_path / "out")
+    argv = [["check", str(s), "--out", out] for s in plain] + \
+        [["schema"], ["--help"], ["run", "--help"], ["fit", "--help"]]
+    codes, heavy, text = _loaded_after(argv, tmp_path)
+    assert codes == [0] * len(argv) and heavy == [], (codes, heavy)
+    assert text.count(": OK") == len(plain) >= 10
+    codes, heavy, _ = _loaded_after([["check", str(s), "--out", out] for s in energy],
+                                    tmp_path)
+    assert codes == [0] * len(energy) and heavy == ["ufl"], (codes, heavy)
+
+
+def test_one_default_per_scene_key():
+    """A model constructor's argument for a scene key has the schema's default."""
+    from dolfin_rod import RodModel, TimeStepper, TorsionModel, TSIntegrator
+    from dolfin_rod.scenes import SCHEMA
+
+    def default(func, name):
+        return inspect.signature(func).parameters[name].default
+
+    pairs = [(RodModel, "n_cells", "geometry", "n_cells"),
+             (TorsionModel, "n_cells", "geometry", "n_cells"),
+             (TorsionModel, "degree", "geometry", "degree"),
+             (RodModel, "rotations", "geometry", "rotations"),
+             (RodModel, "variant", "material", "variant"),
+             (TorsionModel, "variant", "material", "variant"),
+             (RodModel, "model", "material", "model"),
+             (TimeStepper, "max_cuts", "time", "max_step_cuts"),
+             (TimeStepper, "predictor", "time", "predictor"),
+             (TSIntegrator, "adaptive", "time", "adaptive"),
+             (TSIntegrator, "rtol", "time", "ts_rtol"),
+             (TSIntegrator, "atol", "time", "ts_atol")]
+    for cls, arg, table, key in pairs:
+        assert default(cls.__init__, arg) == SCHEMA[table][key].default, (cls, arg)
+
+
+def _rod(rotations: str, dynamic: bool):
+    from dolfin_rod import EndLoad, RodModel, RodParameters
+    inertia = dict(rho_A=1.0, I11=0.01, I22=0.01) if dynamic else {}
+    model = RodModel(RodParameters(**inertia), n_cells=4, model="hyperelastic",
+                     end_loads=[EndLoad("force", (0.1, 0.0, 0.0), loads.ramp(1.0, 1.0))],
+                     rotations=rotations)
+    model.set_initial_state()
+    return model
+
+
+def test_time_stepper_delegates_to_the_chosen_integrator():
+    """TimeStepper(problem) holds what choose_integrator picks (rotation group for a
+    dynamic rod on rotation vectors, per-step schemes otherwise) and runs it bit for bit
+    as the integrator built directly."""
+    from dolfin_rod import TimeStepper, choose_integrator
+    from dolfin_rod.integrators.lie_alpha import LieGeneralizedAlpha
+    from dolfin_rod.integrators.stepper import SchemeStepper
+    cases = [("rotation_vector", True, None, LieGeneralizedAlpha),
+             ("rotation_vector", False, "bdf2", SchemeStepper),
+             ("quaternion", True, "bdf2", SchemeStepper)]
+    for rotations, dynamic, scheme, kind in cases:
+        a, b = _rod(rotations, dynamic), _rod(rotations, dynamic)
+        stepper = TimeStepper(a.problem, scheme)
+        assert type(stepper.integrator) is kind
+        stepper.run(0.0, 0.2, 0.05)
+        choose_integrator(b.problem, scheme).run(0.0, 0.2, 0.05)
+        assert stepper.stats.steps == 4
+        assert np.array_equal(a.f["displacement"].x.array, b.f["displacement"].x.array)
+        assert np.abs(a.f["displacement"].x.array).max() > 1e-3        # the rod moved
+    stepper.max_cuts = 2                         # attributes are the integrator's
+    assert stepper.integrator.max_cuts == 2
+
+
+@pytest.mark.mpi
+def test_run_returns_what_it_writes(tmp_path):
+    """dolfin_rod.run(file, overrides) = run(Scene, overrides): the summary and the time
+    series of the run folder, the same on every rank; the ODE's creep is Section 5's
+    closed form (eq. creepform, errata 2) to round-off."""
+    comm = MPI.COMM_WORLD
+    out = Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None))
+    changes = {"scene.model": "ode", "time.t_end": 0.5, "outputs.fields": False,
+               "outputs.plots": False, "outputs.animation": False}
+    first = dolfin_rod.run(ROOT / "scenes" / "torsion_creep.toml", changes, out=out / "a",
+                           quiet=True)
+    scene = dolfin_rod.load_scene(ROOT / "scenes" / "torsion_creep.toml")
+    second = dolfin_rod.run(scene, changes, out=out / "b", quiet=True)
+    assert first.status == second.status == "completed"
+    assert first.series == second.series
+    assert first.summary["t_end_reached"] == 0.5 and first.folder == out / "a"
+    if comm.rank == 0:
+        assert json.loads((out / "a" / "timeseries.json").read_text()) == first.series
+    assert comm.allgather(first.series["end_rotation"][-1]) == \
+        [first.series["end_rotation"][-1]] * comm.size
+    mat = scene["material"]
+    t = np.array(first.series["time"])
+    m0 = scene["loads"]["end_torsion"].value
+    u, _ = closed_forms.creep(t, m0, *(mat[k].constant for k in ("alpha", "alpha_d", "mu",
+                                                                  "mu_d")))
+    assert np.allclose(first.series["end_rotation"], u, rtol=0, atol=1e-12)
