@@ -22,7 +22,7 @@ import pytest
 from mpi4py import MPI
 
 from dolfin_rod.fem.solvers import BlockSNES
-from dolfin_rod.integrators.stepper import TimeStepper
+from dolfin_rod import TimeStepper
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
 
 B = 3e5
