@@ -504,18 +504,18 @@ NO_ROTARY_INERTIA = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e
                                   rho_A=2.0, I11=1e-3)
 
 
-@pytest.mark.mpi       # under mpirun: both ranks refuse alike, none hangs
+@pytest.mark.mpi       # under mpirun: both ranks refuse alike, none hangs (4 cells: two per rank)
 @pytest.mark.parametrize("make, match", [
     # an unknown name, and rotation vectors where they do not apply
-    (lambda: RodModel(PARAMS, n_cells=2, model="hyperelastic", rotations="euler"),
+    (lambda: RodModel(PARAMS, n_cells=4, model="hyperelastic", rotations="euler"),
      "rotations must be one of"),
-    (lambda: RodModel(KELVIN_VOIGT, n_cells=2, model="kelvin_voigt",
+    (lambda: RodModel(KELVIN_VOIGT, n_cells=4, model="kelvin_voigt",
                       rotations="rotation_vector"), "Kelvin-Voigt viscosity"),
-    (lambda: RodModel(QUASI_STATIC, n_cells=2, model="hyperelastic", ends=("pinned", "free"),
+    (lambda: RodModel(QUASI_STATIC, n_cells=4, model="hyperelastic", ends=("pinned", "free"),
                       rotations="rotation_vector"), "no end holds"),
-    (lambda: RodModel(PARAMS, n_cells=2, model="hyperelastic", variant="uniform",
+    (lambda: RodModel(PARAMS, n_cells=4, model="hyperelastic", variant="uniform",
                       rotations="rotation_vector"), "uniform variant"),
-    (lambda: RodModel(NO_ROTARY_INERTIA, n_cells=2, model="hyperelastic",
+    (lambda: RodModel(NO_ROTARY_INERTIA, n_cells=4, model="hyperelastic",
                       rotations="rotation_vector"), "without rotary inertia I11, I22 > 0"),
 ])
 def test_rotation_choice_is_checked(make, match):
