@@ -107,6 +107,28 @@ def stability_warning(scene: Scene, comm) -> None:
         print_on_root(comm, f"warning: {warning}", file=sys.stderr)
 
 
+def import_finite_elements() -> None:
+    """Import DOLFINx and its stack with Ctrl-C and SIGTERM recorded, not raised, until
+    the imports are complete: an interrupt raised inside an import leaves a package half
+    imported (DOLFINx's module initialisation then aborts, or its dependency check
+    fails); recorded, it ends the start-up right after (KeyboardInterrupt: exit 130)."""
+    import signal
+    caught: list[int] = []
+    names = ("SIGINT", "SIGTERM")
+    previous = {name: signal.signal(getattr(signal, name), lambda signum, _: caught.append(signum))
+                for name in names}
+    try:
+        import adios4dolfinx  # noqa: F401
+        import basix.ufl  # noqa: F401
+        import dolfinx.fem.petsc  # noqa: F401
+        import ufl  # noqa: F401
+    finally:
+        for name, handler in previous.items():
+            signal.signal(getattr(signal, name), handler)
+    if caught:
+        raise KeyboardInterrupt
+
+
 def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, quiet: bool,
          stop_after: int | None) -> RunResult:
     from .output.checkpoints import read_checkpoint_meta
@@ -123,6 +145,7 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
         print_on_root(comm, f"model: {choice.model} ({choice.reason})")
     stability_warning(scene, comm)
     try:
+        import_finite_elements()
         sim = build(scene, choice.model, comm)
         impulse = sim.start()
     except BaseException:
