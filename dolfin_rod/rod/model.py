@@ -21,7 +21,6 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 from mpi4py import MPI
-from ufl.algorithms.analysis import extract_coefficients
 
 from ..theory import constraints
 from .. import loads as load_histories
@@ -222,7 +221,7 @@ class RodModel(FEModel):
         if unk.chart is None:
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step)
-        rates_used = {c for F in self.residual.values() for c in extract_coefficients(F)}
+        rates_used = {c for F in self.residual.values() for c in F.coefficients()}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
             after_step=self.commit_rotations, check_step=self.check_step,
