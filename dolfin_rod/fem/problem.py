@@ -47,6 +47,10 @@ class SemiDiscreteProblem:
                  joints of a rod system), eliminated by the solvers.
     unset_state: what to call before integrating ("": the state is set); a model whose
                  fields start invalid (a rod's zero quaternions) names its set-up call.
+    structure:   the residual's structure as data (None: unknown), equal for two problems
+                 whose residuals differ only in the values of their Constants and
+                 Functions (rod/structure.py): the integrators' compiled kernels are
+                 found by it without UFL signatures (fem/form_cache.structure_key).
     """
 
     fields: list[fem.Function]
@@ -59,6 +63,7 @@ class SemiDiscreteProblem:
     check_step: Callable[[], str | None] = lambda: None
     links: list = field(default_factory=list)
     unset_state: str = ""
+    structure: str | None = None
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):

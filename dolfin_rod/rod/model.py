@@ -41,6 +41,7 @@ from .layout import RodLayout
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
 from .segments import PassThroughCheck
+from .structure import structure
 from .start import StartingState, check_start
 
 
@@ -178,6 +179,8 @@ class RodModel(FEModel):
         nodes = joint_nodes(self, self.joints)
         self.problem = self._problem(node_links(self, self.joints, nodes))
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
+        self.problem.structure = structure(rods, model, variant, constraint, self.rotations,
+                                           comm.size, joints, obstacles, contact)
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
 
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
