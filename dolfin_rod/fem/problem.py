@@ -51,6 +51,9 @@ class SemiDiscreteProblem:
                  whose residuals differ only in the values of their Constants and
                  Functions (rod/structure.py): the integrators' compiled kernels are
                  found by it without UFL signatures (fem/form_cache.structure_key).
+    terms:       residual and Jacobian terms that are not forms, evaluated at the
+                 unknowns of the solve (fem/assembly add_terms: a rod's segment contact);
+                 only integrators that solve for the fields at the step's end take them.
     """
 
     fields: list[fem.Function]
@@ -64,6 +67,7 @@ class SemiDiscreteProblem:
     links: list = field(default_factory=list)
     unset_state: str = ""
     structure: str | None = None
+    terms: list = field(default_factory=list)
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):
