@@ -21,6 +21,7 @@ integrator's (run, step, stats, description, checkpoint_state, ...).
 
 from __future__ import annotations
 
+from ..checks import MAX_STEP_CUTS, PREDICTOR
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from .lie_alpha import LieGeneralizedAlpha
 from .stepper import SchemeStepper
@@ -38,8 +39,8 @@ def on_rotation_group(problem: SemiDiscreteProblem, scheme: str | None) -> bool:
 
 
 def choose_integrator(problem: SemiDiscreteProblem, scheme: str | None = None,
-                      solver_options: dict | None = None, max_cuts: int = 6,
-                      predictor: str = "linear", tolerance: float | None = None,
+                      solver_options: dict | None = None, max_cuts: int = MAX_STEP_CUTS,
+                      predictor: str = PREDICTOR, tolerance: float | None = None,
                       ts_type: str | None = None, **ts_options):
     """The integrator of ``problem`` (the module's docstring); ``ts_options`` are
     TSIntegrator's keywords (adaptive, rtol, atol, ...)."""
@@ -60,8 +61,8 @@ class TimeStepper:
     PREDICTORS = SchemeStepper.PREDICTORS
 
     def __init__(self, problem: SemiDiscreteProblem, scheme: str | None = None,
-                 solver_options: dict | None = None, max_cuts: int = 6,
-                 predictor: str = "linear", tolerance: float | None = None):
+                 solver_options: dict | None = None, max_cuts: int = MAX_STEP_CUTS,
+                 predictor: str = PREDICTOR, tolerance: float | None = None):
         object.__setattr__(self, "integrator", choose_integrator(
             problem, scheme, solver_options, max_cuts, predictor, tolerance))
 

@@ -12,6 +12,7 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
+from ..checks import MAX_STEP_CUTS, PREDICTOR
 from ..fem import form_cache
 from ..fem.assembly import monolithic_layout
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
@@ -104,8 +105,8 @@ class SchemeStepper:
     PREDICTORS = ("linear", "constant")
 
     def __init__(self, problem: SemiDiscreteProblem, scheme: str | None = None,
-                 solver_options: dict | None = None, max_cuts: int = 6,
-                 predictor: str = "linear", tolerance: float | None = None):
+                 solver_options: dict | None = None, max_cuts: int = MAX_STEP_CUTS,
+                 predictor: str = PREDICTOR, tolerance: float | None = None):
         if tolerance is not None:
             raise ValueError("tolerance: error-controlled steps exist for a rod with "
                              "rotation-vector unknowns (generalized-alpha on the rotation "

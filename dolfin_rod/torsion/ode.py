@@ -18,6 +18,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..checks import ODE_SOLUTION
 from ..integrators.schemes import get_scheme
 from ..integrators.step_control import output_times, same_step
 from ..loads import rate as load_rate
@@ -48,7 +49,7 @@ class OdeTime:
     dt: float
     rtol: float
     atol: float
-    solution: str = "exact"
+    solution: str = ODE_SOLUTION
     scheme: str = "bdf2"
 
 
