@@ -1,4 +1,5 @@
-"""Input checks shared by the modules: errors name the parameter and the rule."""
+"""Input checks shared by the modules (errors name the parameter and the rule), and the
+defaults a scene key and the API argument of the same quantity share."""
 
 from __future__ import annotations
 
@@ -60,6 +61,11 @@ VARIANT = "local"           # material.variant: RodModel, RodSystem, TorsionMode
 MAX_STEP_CUTS = 6           # time.max_step_cuts: TimeStepper, SchemeStepper,
                             #   LieGeneralizedAlpha (max_cuts)
 PREDICTOR = "linear"        # time.predictor: TimeStepper, SchemeStepper
+SCHEME = "bdf2"             # time.scheme: SchemeStepper (a first-order form: the quaternion
+                            #   rod, torsion) when none is named, OdeTime
+NEWTON_RTOL = 1e-10         # time.rtol: BlockSNES's snes_rtol
+NEWTON_ATOL = 1e-10         # time.atol: BlockSNES's snes_atol (above the residual's
+                            #   round-off floor: ~1e-12 fails at 64 cells)
 TS_RTOL, TS_ATOL = 1e-6, 1e-8   # time.ts_rtol, time.ts_atol: TSIntegrator
 ODE_SOLUTION = "exact"      # time.ode_solution: OdeTime
 

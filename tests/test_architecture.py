@@ -168,7 +168,8 @@ def test_cheap_commands_load_no_dolfinx_petsc_or_ufl(tmp_path):
 def test_one_default_per_scene_key():
     """Every API argument for a scene key's quantity has the schema's default (one value,
     checks.py): the models, the integrators, the ODE's time, the solver's tolerances."""
-    from dolfin_rod import RodModel, RodSystem, TimeStepper, TorsionModel, TSIntegrator
+    from dolfin_rod import (RodModel, RodSystem, TimeStepper, TorsionModel, TorsionParameters,
+                            TSIntegrator)
     from dolfin_rod import choose_integrator
     from dolfin_rod.fem.solvers import DEFAULT_OPTIONS
     from dolfin_rod.integrators.lie_alpha import LieGeneralizedAlpha
@@ -214,6 +215,11 @@ def test_one_default_per_scene_key():
                                                    SCHEMA["boundary"]["end"].default)
     assert SCHEMA["material"]["constraints"].default == "none" and \
         default(RodModel.__init__, "constraint") is None
+    # the Newton tolerances time.rtol, time.atol; the scheme of a first-order form
+    assert (DEFAULT_OPTIONS["snes_rtol"], DEFAULT_OPTIONS["snes_atol"]) == \
+        (SCHEMA["time"]["rtol"].default, SCHEMA["time"]["atol"].default)
+    torsion = TorsionModel(TorsionParameters(), n_cells=4, end_torsion=loads.step(1.0))
+    assert TimeStepper(torsion.problem).integrator.scheme.name == SCHEMA["time"]["scheme"].default
 
 
 def _rod(rotations: str, dynamic: bool):

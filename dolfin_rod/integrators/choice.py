@@ -11,7 +11,8 @@
   generalized-alpha on the rotation group (lie_alpha.py), unless it has no second-order
   block and a per-step scheme is named (a quasi-static rod: its rotation increments are
   algebraic, ``per_step_schemes``);
-* otherwise the per-step scheme (stepper.py, ``SchemeStepper``; default backward Euler).
+* otherwise the per-step scheme (stepper.py, ``SchemeStepper``; default BDF2, the scene's
+  ``time.scheme``).
 
 ``tolerance`` (e.g. 1e-3) switches the error-controlled steps of the rotation-group
 integrator on; None keeps run's fixed dt.  ``TimeStepper`` is the user-facing one-liner:

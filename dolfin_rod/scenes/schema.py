@@ -26,9 +26,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..checks import (DEGREE, MAX_STEP_CUTS, MIN_LENGTH, N_CELLS, ODE_SOLUTION, PREDICTOR,
-                      ROD_MODEL, ROTATION_UNKNOWNS, SCENE_BYTES, TS_ATOL, TS_RTOL, VARIANT,
-                      read_regular_file)
+from ..checks import (DEGREE, MAX_STEP_CUTS, MIN_LENGTH, N_CELLS, NEWTON_ATOL, NEWTON_RTOL,
+                      ODE_SOLUTION, PREDICTOR, ROD_MODEL, ROTATION_UNKNOWNS, SCENE_BYTES,
+                      SCHEME, TS_ATOL, TS_RTOL, VARIANT, read_regular_file)
 from ..rod.rotation_choice import ROTATIONS
 from ..rod.sections import SHAPES as SECTION_SHAPES
 from .histories import HistorySpec, distributed, history
@@ -332,7 +332,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "t_end": Key(real(0.0, True), REQUIRED, "final time"),
         "dt": Key(real(0.0, True), REQUIRED, "time step (also the output interval of the ODE; "
                   "the initial step of adaptive TS)"),
-        "scheme": Key(scheme_name, "bdf2", "a name of integrators.schemes (stepper); not "
+        "scheme": Key(scheme_name, SCHEME, "a name of integrators.schemes (stepper); not "
                       "given, a rod with rotation vectors (geometry.rotations) uses "
                       "generalized-alpha on the rotation group, rho_inf = 0.8"),
         "integrator": Key(choice("stepper", "ts"), "stepper", "stepper | ts (PETSc TS)"),
@@ -352,8 +352,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                        "tolerance"),
         "predictor": Key(choice("linear", "constant"), PREDICTOR, "stepper: Newton's initial "
                          "guess (linear extrapolation or the last state)"),
-        "rtol": Key(real(0.0, True, 1.0), 1e-10, "relative tolerance (SNES / solve_ivp)"),
-        "atol": Key(real(0.0, True, 1.0), 1e-10,
+        "rtol": Key(real(0.0, True, 1.0), NEWTON_RTOL, "relative tolerance (SNES / solve_ivp)"),
+        "atol": Key(real(0.0, True, 1.0), NEWTON_ATOL,
                     "absolute tolerance (SNES residual / solve_ivp); keep it above the "
                     "round-off floor of the residual (~1e-12 fails at 64 cells)"),
         "max_step_cuts": Key(integer(0, 30), MAX_STEP_CUTS, "step halvings before giving up"),

@@ -18,7 +18,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..checks import ODE_SOLUTION
+from ..checks import ODE_SOLUTION, SCHEME
 from ..integrators.schemes import get_scheme
 from ..integrators.step_control import output_times, same_step
 from ..loads import rate as load_rate
@@ -50,7 +50,7 @@ class OdeTime:
     rtol: float
     atol: float
     solution: str = ODE_SOLUTION
-    scheme: str = "bdf2"
+    scheme: str = SCHEME
 
 
 class OdeTorsion:
