@@ -37,7 +37,7 @@ from petsc4py import PETSc
 from ..fem.assembly import block_system
 from ..fem.compat import interpolation_points
 from .eigen import eigenpairs
-from .stability import TangentStiffness, at_rest_map
+from .stability import TangentStiffness, at_rest_map, symmetric_part
 
 __all__ = ["BucklingModes", "buckling_modes"]
 
@@ -151,12 +151,7 @@ class _StressStiffness:
         """K_sigma, symmetric part, Dirichlet rows and columns zero."""
         system = self.system
         system.jacobian(system.A)
-        A = system.A
-        A.zeroRowsColumns(self.fixed, diag=0.0)
-        K = A.transpose(PETSc.Mat())
-        K.axpy(1.0, A)
-        K.scale(0.5)
-        return K
+        return symmetric_part(system.A, self.fixed, 0.0)
 
 
 def _path_rate(tangent: TangentStiffness, state: PETSc.Vec, t: float,

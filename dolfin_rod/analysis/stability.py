@@ -31,7 +31,7 @@ from ..fem.multipoint import ConstrainedSystem
 from ..fem.fe_model import vertex_measure
 
 __all__ = ["Inertia", "TangentStiffness", "LowestEigenvalues", "StabilityMonitor",
-           "at_rest_map"]
+           "at_rest_map", "symmetric_part"]
 
 MECHANICAL = ("displacement", "rotation_increment", "quaternion")
 MULTIPLIERS = ("gauge_multiplier", "constraint_multiplier")
@@ -53,6 +53,17 @@ def at_rest_map(model) -> dict:
     moving = [model.r[n] for n in model.names] + [
         a for a in getattr(model.problem, "accelerations", []) if a is not None]
     return {f: fem.Function(f.function_space) for f in moving}
+
+
+def symmetric_part(A: PETSc.Mat, fixed: PETSc.IS, diagonal: float) -> PETSc.Mat:
+    """(A + A^T) / 2 as a new matrix, the rows and columns ``fixed`` (Dirichlet dofs)
+    zero but ``diagonal`` on the diagonal; A's are zeroed too."""
+    A.zeroRowsColumns(fixed, diag=diagonal)
+    S = A.transpose(PETSc.Mat())          # (without an out argument: in place)
+    S.axpy(1.0, A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+    S.scale(0.5)
+    S.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    return S
 
 
 class TangentStiffness:
@@ -126,13 +137,7 @@ class TangentStiffness:
         system.get(0, system.x)
         system.set(0, system.x)
         system.jacobian(system.A)
-        A = system.A
-        A.zeroRowsColumns(self.fixed, diag=1.0)
-        K = A.transpose(PETSc.Mat())          # (without an out argument: in place)
-        K.axpy(1.0, A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        K.scale(0.5)
-        K.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        return K
+        return symmetric_part(system.A, self.fixed, 1.0)
 
     def inertia(self, t: float) -> Inertia:
         """The inertia of K at the current state and time t's loads."""

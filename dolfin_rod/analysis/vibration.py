@@ -23,7 +23,7 @@ from petsc4py import PETSc
 
 from ..fem.assembly import block_system
 from .eigen import eigenpairs
-from .stability import TangentStiffness, at_rest_map
+from .stability import TangentStiffness, at_rest_map, symmetric_part
 
 __all__ = ["VibrationModes", "vibration_modes"]
 
@@ -87,9 +87,4 @@ def _mass(tangent: TangentStiffness) -> PETSc.Mat:
     system.get(0, system.x)
     system.set(0, system.x)
     system.jacobian(system.A)
-    A = system.A
-    A.zeroRowsColumns(tangent.fixed, diag=0.0)
-    M = A.transpose(PETSc.Mat())
-    M.axpy(1.0, A)
-    M.scale(0.5)
-    return M
+    return symmetric_part(system.A, tangent.fixed, 0.0)
