@@ -49,7 +49,7 @@ _WHERE = {
 _MODULES = {"loads": "loads", "closed_forms": "torsion.closed_forms",
             "rotations": "theory.rotations", "dna": "dna",
             "form_cache": "fem.form_cache",   # form_cache.clear(): time a fresh process
-            "cosseratbench": "cosseratbench"}   # the cosseratbench solver (extra [bench])
+            "cosseratbench": "adapters.cosseratbench"}   # the cosseratbench solver (extra [bench])
 
 __all__ = sorted([*_WHERE, "run", "run_scene", "RunResult"]) + list(_MODULES)
 

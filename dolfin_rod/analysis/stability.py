@@ -25,6 +25,7 @@ import ufl
 from petsc4py import PETSc
 
 from ..fem import form_cache
+from .eigen import eigenpairs
 from ..fem.assembly import block_system, monolithic_layout
 from ..fem.multipoint import ConstrainedSystem
 from ..fem.fe_model import vertex_measure
@@ -132,7 +133,7 @@ class LowestEigenvalues:
     """The lowest eigenvalues of K v = lambda G v on a rod with rotation vectors (no
     multipliers), G the lumped metric int (dx . x + L^2 dtheta . theta) ds (vertex rule:
     diagonal; units of K per length^3, e.g. EI/L^4: independent of the mesh), by SLEPc
-    (shift-and-invert at 0, MUMPS).  Dirichlet dofs have G = 0 (infinite eigenvalues, out
+    (analysis/eigen.py: shift-and-invert at 0, MUMPS).  Dirichlet dofs have G = 0 (infinite eigenvalues, out
     of the way)."""
 
     def __init__(self, tangent: TangentStiffness):
@@ -157,25 +158,10 @@ class LowestEigenvalues:
     def __call__(self, t: float, count: int = 1) -> list[float]:
         """The ``count`` eigenvalues nearest 0 at time t, ascending (all of them below 0
         when count exceeds the negative count)."""
-        from slepc4py import SLEPc
         K = self.tangent.matrix(t)
-        eps = SLEPc.EPS().create(K.getComm())
-        eps.setOperators(K, self.G)
-        eps.setProblemType(SLEPc.EPS.ProblemType.GHEP)
-        eps.setDimensions(count)
-        eps.setTarget(0.0)
-        eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
-        st = eps.getST()
-        st.setType(SLEPc.ST.Type.SINVERT)
-        ksp = st.getKSP()
-        ksp.setType("preonly")
-        ksp.getPC().setType("lu")
-        ksp.getPC().setFactorSolverType("mumps")
-        eps.setTolerances(1e-10, 200)
-        eps.solve()
-        values = sorted(eps.getEigenvalue(i).real for i in range(eps.getConverged()))
-        eps.destroy()
-        return values[:count]
+        values = eigenpairs(K, self.G, count, target=0.0).values
+        K.destroy()
+        return sorted(values)
 
 
 class StabilityMonitor:

@@ -157,6 +157,88 @@ def _forget_options(prefix: str, keys: list[str]) -> None:
         opts.delValue(prefix + k)
 
 
+def default_test(snes, it: int, norms, fnorm0: float, step_scale: float = 0.0) -> int:
+    """PETSc's default test (SNESConvergedDefault: NaN, atol, rtol, step, divergence;
+    snes_max_it is PETSc's own check) with |y| + step_scale in the step test; ``fnorm0``
+    the solve's initial residual norm."""
+    xnorm, ynorm, fnorm = norms
+    rtol, atol, stol, _ = snes.getTolerances()
+    reasons = PETSc.SNES.ConvergedReason
+    if not np.isfinite(fnorm):
+        return reasons.DIVERGED_FNORM_NAN
+    if fnorm < atol:
+        return reasons.CONVERGED_FNORM_ABS
+    if it == 0:
+        return reasons.ITERATING
+    if fnorm <= rtol * fnorm0:
+        return reasons.CONVERGED_FNORM_RELATIVE
+    if ynorm < stol * (xnorm + step_scale):
+        return reasons.CONVERGED_SNORM_RELATIVE
+    divtol = snes.getDivergenceTolerance()
+    if divtol > 0 and fnorm > divtol * fnorm0:
+        return reasons.DIVERGED_DTOL
+    return reasons.ITERATING
+
+
+def residual_problem(snes, reason: int, norm: float, initial: float,
+                     floor: float = 0.0) -> str | None:
+    """Why a solve SNES reports as converged (``reason``) is not one, or None: the
+    residual ``norm`` at the solution must meet snes_atol or snes_rtol times the
+    ``initial`` norm; after the step test it must not have grown (or be at most the
+    round-off ``floor``: Newton stopped moving there)."""
+    rtol, atol, _, _ = snes.getTolerances()
+    if norm <= max(atol, rtol * initial):
+        return None
+    if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and \
+            norm <= max(initial, floor):
+        return None
+    return (f"{_REASONS.get(reason, reason)} but the residual norm at the solution is "
+            f"{norm:.3g}, above the tolerance {max(atol, rtol * initial):.3g} (snes_atol, "
+            "or snes_rtol times the initial norm; check the solver options)")
+
+
+# SNES types that stop without a convergence test (their last monitor call has the
+# residual at the solution)
+UNTESTED_TYPES = ("ksponly", "ksptransposeonly")
+
+
+class CheckedSNES:
+    """The residual check of BlockSNES for a SNES driven by others (PETSc TS's stage
+    solves): a solve it reports as converged whose residual at the solution misses the
+    tolerances (residual_problem) is turned into DIVERGED_DTOL, which TS treats as a
+    failed solve (step rejected, cut, IntegrationError after its rejections);
+    ``failure`` keeps the last such message.  The convergence test is PETSc's default
+    (default_test) plus the check, also under snes_convergence_test options; types
+    without a test (UNTESTED_TYPES) are checked at their last monitor call.  The
+    residual norm is the one SNES computed at the iterate: no extra assembly."""
+
+    def __init__(self, snes):
+        self.snes, self.failure, self._initial = snes, None, np.inf
+        snes.setConvergenceTest(self._converged)
+        snes.setMonitor(self._monitor)
+
+    def _monitor(self, snes, it: int, fnorm: float) -> None:
+        if it == 0:
+            self._initial = fnorm
+        elif snes.getType() in UNTESTED_TYPES:
+            snes.setConvergedReason(self._checked(snes.getConvergedReason(), fnorm))
+
+    def _converged(self, snes, it: int, norms) -> int:
+        if it == 0:
+            self._initial = norms[2]
+        reason = default_test(snes, it, norms, self._initial)
+        return self._checked(reason, norms[2]) if reason > 0 else reason
+
+    def _checked(self, reason: int, norm: float) -> int:
+        if reason <= 0:
+            return reason
+        problem = residual_problem(self.snes, reason, norm, self._initial)
+        if problem is None:
+            return reason
+        self.failure = problem
+        return PETSc.SNES.ConvergedReason.DIVERGED_DTOL
+
+
 class SolverError(RuntimeError):
     """SNES did not converge; ``reason`` is PETSc's converged-reason name."""
 
@@ -262,27 +344,9 @@ class BlockSNES:
         return snes.getIterationNumber() == 0 or norm > self.reuse_ratio * last
 
     def _converged(self, snes, it: int, norms) -> int:
-        """PETSc's default test (SNESConvergedDefault: NaN, atol, rtol, step, divergence;
-        snes_max_it is PETSc's own check) with |y| + step_scale in the step test."""
-        xnorm, ynorm, fnorm = norms
-        rtol, atol, stol, _ = snes.getTolerances()
-        reasons = PETSc.SNES.ConvergedReason
         if it == 0:
-            self._fnorm0 = fnorm
-        if not np.isfinite(fnorm):
-            return reasons.DIVERGED_FNORM_NAN
-        if fnorm < atol:
-            return reasons.CONVERGED_FNORM_ABS
-        if it == 0:
-            return reasons.ITERATING
-        if fnorm <= rtol * self._fnorm0:
-            return reasons.CONVERGED_FNORM_RELATIVE
-        if ynorm < stol * (xnorm + self.step_scale):
-            return reasons.CONVERGED_SNORM_RELATIVE
-        divtol = snes.getDivergenceTolerance()
-        if divtol > 0 and fnorm > divtol * self._fnorm0:
-            return reasons.DIVERGED_DTOL
-        return reasons.ITERATING
+            self._fnorm0 = norms[2]
+        return default_test(snes, it, norms, self._fnorm0, self.step_scale)
 
     def _set_persists(self, flags) -> None:
         opts = PETSc.Options()
@@ -363,13 +427,8 @@ class BlockSNES:
         if not self.x.equal(self._x_at_residual):
             self.snes.computeFunction(self.x, self._r)   # -> _residual at the solution
         norm, initial = self._residual_norm, self._initial_norm
-        rtol, atol, _, _ = self.snes.getTolerances()
-        if norm <= max(atol, rtol * initial):
-            return
-        if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and \
-                norm <= max(initial, self.round_off_floor()):
-            return     # Newton stopped moving at the residual's round-off floor
-        raise SolverError(f"{_REASONS.get(reason, reason)} but the residual norm at the "
-                          f"solution is {norm:.3g}, above the tolerance "
-                          f"{max(atol, rtol * initial):.3g} (snes_atol, or snes_rtol times "
-                          "the initial norm; check the solver options),", self.iterations)
+        floor = self.round_off_floor() if norm > initial and \
+            reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE else 0.0
+        problem = residual_problem(self.snes, reason, norm, initial, floor)
+        if problem is not None:
+            raise SolverError(problem + ",", self.iterations)

@@ -84,6 +84,26 @@ class RodModel(FEModel):
                rotations: str, comm, joints: Sequence[Joint] = (),
                obstacles: Sequence[Obstacle] = (), contact: ContactLaw | None = None) -> None:
         """The model of one or several rods and their joints (see system.RodSystem)."""
+        self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
+        self.rotations = self._rotation_unknowns(rotations, joints)
+        disc = discretise(comm, self.layout, self.rotations)
+        super().__init__(disc.mesh)
+        self.dx, self.dx_r = disc.dx, disc.dx_r
+        self.pieces = disc.pieces
+        resp = self._section_response(disc)
+        F, natural_pairs, dissipation, power = self._balance(resp, disc, obstacles, contact)
+        springs = self._end_supports(F, disc)
+        self.residual = {name: F[name] for name in self.names}
+        self.joints = list(joints)
+        nodes = joint_nodes(self, self.joints)
+        self.problem = self._problem(node_links(self, self.joints, nodes))
+        self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
+        self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
+        self._diagnostics(resp, disc, natural_pairs, power, dissipation, springs)
+
+    def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
+                           constraint: str | None, joints: Sequence[Joint], comm) -> None:
+        """Refuse bad input before any mesh; the rods' data and their layout on one mesh."""
         check_model(model, rods[0].params)
         check_variant(variant)
         constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.rho_A))
@@ -101,9 +121,13 @@ class RodModel(FEModel):
         self.length = max(layout.lengths)
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(rods[0].params.rho_A)
-        all_params = [rod.params for rod in rods]
+
+    def _rotation_unknowns(self, rotations: str, joints: Sequence[Joint]) -> str:
+        """The rotation unknowns ("quaternion" or "rotation_vector") the rods can have
+        (rotation_choice.py), refused where joints or a jumping end motion need others."""
+        rods, all_params = self.rods, [rod.params for rod in self.rods]
         obstacle = rotation_vector_obstacle(
-            self.dynamic, variant, constraint,
+            self.dynamic, self.variant, self.constraint,
             rotary_inertia=not any(is_zero(p.I11) or is_zero(p.I22) for p in all_params),
             rate_dependent=not all(is_zero(v) for p in all_params for v in (
                 p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
@@ -116,45 +140,53 @@ class RodModel(FEModel):
         if joints and obstacle:
             raise ValueError(f"joints need rotation-vector unknowns, which this system "
                              f"cannot have: {obstacle}")
-        self.rotations = choose_rotations(rotations, obstacle, rotation_jumps=any(
+        chosen = choose_rotations(rotations, obstacle, rotation_jumps=any(
             load_histories.jumps(motion) for rod in rods
             for motion in (rod.end_rotation or {}).values()))
-        if joints and self.rotations != "rotation_vector":
+        if joints and chosen != "rotation_vector":
             raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
-        if self.dynamic and self.rotations == "quaternion" and any(
+        if self.dynamic and chosen == "quaternion" and any(
                 load_histories.jumps(motion) for rod in rods
                 for motion in (rod.end_displacement or {}).values()):
             raise ValueError("end_displacement starts away from 0 on a dynamic rod: its "
                              "consistent start (at rest in equilibrium with the displaced "
                              "end) is that of rotation-vector unknowns (rotations = "
-                             f"'rotation_vector'), not of {self.rotations!r}")
-        disc = discretise(comm, layout, self.rotations)
-        super().__init__(disc.mesh)
-        self.dx, self.dx_r = disc.dx, disc.dx_r
-        self.pieces = disc.pieces
-        per_rod = variant == "uniform" and not layout.single   # each rod's global strains
+                             f"'rotation_vector'), not of {chosen!r}")
+        return chosen
+
+    def _section_response(self, disc):
+        """The unknowns, the material coefficients and the section's response (strains,
+        psi, m, n: constitutive.py) on the discretisation."""
+        per_rod = self.variant == "uniform" and not self.layout.single   # each rod's strains
         self.unknowns = unk = unknowns(function_spaces(
-            disc.mesh, self.evolving, variant, constraint, self.dynamic, self.rotations,
-            len(rods)), self.dynamic, disc.pieces.of_rods if per_rod else None)
+            disc.mesh, self.evolving, self.variant, self.constraint, self.dynamic,
+            self.rotations, len(self.rods)), self.dynamic,
+            disc.pieces.of_rods if per_rod else None)
         self.names, self.f, self.r, self.t = unk.names, unk.f, unk.r, unk.t
         self.V, self.W = unk.V, unk.W
-        self.coefficients = c = coefficients(all_params, disc.pieces)
+        self.coefficients = c = coefficients([rod.params for rod in self.rods], disc.pieces)
         self.J = c["J"]
         S_ref = fem.functionspace(disc.mesh, ("DG", 0, (3,)))   # set by the initial state
         self.reference = (fem.Function(S_ref, name="u_ref"), fem.Function(S_ref, name="v_ref"))
-        psi_fn = energy_function(rods[0].params, c, self.evolving, *self.reference)
-        resp = section_response(unk, c, psi_fn, self.evolving, constraint, self.reference)
+        psi_fn = energy_function(self.rods[0].params, c, self.evolving, *self.reference)
+        resp = section_response(unk, c, psi_fn, self.evolving, self.constraint, self.reference)
         self.psi, self.m, self.u, self.v = resp.psi, resp.m, resp.u, resp.v
         self.u_d, self.v_d = resp.u_d, resp.v_d
+        return resp
 
-        F, self.n = residual.internal_forces(unk, resp, constraint, disc)
+    def _balance(self, resp, disc, obstacles, contact):
+        """The block residuals of the balance laws, evolution, inertia, drag, contact and
+        loads; with the evolution's natural pairs, the drag and friction dissipation and
+        the loads' power."""
+        unk, c, rods = self.unknowns, self.coefficients, self.rods
+        F, self.n = residual.internal_forces(unk, resp, self.constraint, disc)
         residual.gauge(F, unk, disc)
-        natural_pairs = (residual.evolution(F, unk, resp, c, variant, constraint, disc)
-                         if self.evolving else [])
+        natural_pairs = (residual.evolution(F, unk, resp, c, self.variant, self.constraint,
+                                            disc) if self.evolving else [])
         if self.dynamic:
             residual.inertia(F, unk, c, disc)
-        drag_dissipation = external_forces.drag(F, unk, c, all_params, disc)
+        drag_dissipation = external_forces.drag(F, unk, c, [rod.params for rod in rods], disc)
         self.contact = self._obstacle_contact(obstacles, contact, disc)
         friction_dissipation = (self.contact.add_to(F, unk.t["displacement"])
                                 if self.contact else 0)
@@ -163,10 +195,16 @@ class RodModel(FEModel):
             F, unk, disc, [(k, load) for k, rod in enumerate(rods) for load in rod.end_loads],
             [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads])
         residual.one_quadrature_rule(F, unk, disc)
+        return F, natural_pairs, (drag_dissipation, friction_dissipation), power
+
+    def _end_supports(self, F: dict, disc):
+        """Every rod's end supports; compliant ones add their energy's variation to the
+        balance F. Returns the springs' energy (0 without springs)."""
+        unk = self.unknowns
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
-                                         rod.end_rotation, rod.end_slide, layout.span(k),
+                                         rod.end_rotation, rod.end_slide, self.layout.span(k),
                                          rod.end_springs, rod.end_turn)
-                             for k, rod in enumerate(rods)]
+                             for k, rod in enumerate(self.rods)]
         springs = sum((supports.spring_energy(unk, disc.ds, disc.end_weight,
                                               disc.pieces.indicator(k))
                        for k, supports in enumerate(self.end_supports)), 0)
@@ -174,15 +212,15 @@ class RodModel(FEModel):
             # compliant supports: their energy's variation in the balance
             for block in ("displacement", unk.rotation):
                 F[block] += ufl.derivative(springs, unk.f[block], unk.t[block])
-        self.residual = {name: F[name] for name in self.names}
-        self.joints = list(joints)
-        nodes = joint_nodes(self, self.joints)
-        self.problem = self._problem(node_links(self, self.joints, nodes))
-        self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
-        self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
+        return springs
 
+    def _diagnostics(self, resp, disc, natural_pairs, power, dissipation, springs) -> None:
+        """Dissipation density, tips, the energy forms (diagnostics.py) and the check that
+        the rod does not pass through itself."""
+        unk, c, layout = self.unknowns, self.coefficients, self.layout
+        drag_dissipation, friction_dissipation = dissipation
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
-        self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(rods))]
+        self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(self.rods))]
         forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
                                          drag_dissipation + friction_dissipation, springs)
         if self.contact:
