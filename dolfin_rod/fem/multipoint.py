@@ -125,6 +125,7 @@ class ConstrainedSystem:
 
     def __init__(self, inner, fields: list, links: list):
         self.inner, self.groups = inner, inner.groups
+        self.terms = inner.terms       # (none: solvers.BlockSNES refuses terms with links)
         comm = inner.x.getComm()
         self._mpi = mpi = comm.tompi4py()
         start, stop = inner.x.getOwnershipRange()

@@ -47,6 +47,9 @@ class SemiDiscreteProblem:
                  joints of a rod system), eliminated by the solvers.
     unset_state: what to call before integrating ("": the state is set); a model whose
                  fields start invalid (a rod's zero quaternions) names its set-up call.
+    terms:       residual and Jacobian terms that are not forms, evaluated at the
+                 unknowns of the solve (fem/assembly add_terms: a rod's segment contact);
+                 only integrators that solve for the fields at the step's end take them.
     """
 
     fields: list[fem.Function]
@@ -59,6 +62,7 @@ class SemiDiscreteProblem:
     check_step: Callable[[], str | None] = lambda: None
     links: list = field(default_factory=list)
     unset_state: str = ""
+    terms: list = field(default_factory=list)
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):
