@@ -123,9 +123,10 @@ class _MappedNode:
 class ConstrainedSystem:
     """A block system restricted by NodeLinks and NodeMaps to its free dofs (see module)."""
 
+    terms: tuple = ()      # none: solvers.BlockSNES refuses terms with links
+
     def __init__(self, inner, fields: list, links: list):
         self.inner, self.groups = inner, inner.groups
-        self.terms = inner.terms       # (none: solvers.BlockSNES refuses terms with links)
         comm = inner.x.getComm()
         self._mpi = mpi = comm.tompi4py()
         start, stop = inner.x.getOwnershipRange()
