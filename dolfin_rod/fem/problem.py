@@ -50,6 +50,9 @@ class SemiDiscreteProblem:
     prescribed_motions: {name: t -> value} the prescribed motions of a body with inertia,
                  which the steps must resolve (integrators' check_run: no jump, no change
                  faster than dt; loads.resolution_problem).
+    terms:       residual and Jacobian terms that are not forms, evaluated at the
+                 unknowns of the solve (fem/assembly add_terms: a rod's segment contact);
+                 only integrators that solve for the fields at the step's end take them.
     """
 
     fields: list[fem.Function]
@@ -63,6 +66,7 @@ class SemiDiscreteProblem:
     links: list = field(default_factory=list)
     unset_state: str = ""
     prescribed_motions: dict = field(default_factory=dict)
+    terms: list = field(default_factory=list)
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):

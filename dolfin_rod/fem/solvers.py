@@ -254,6 +254,9 @@ class BlockSNES:
     ``options`` are PETSc options under a private prefix (defaults: Newton without a
     line search and an LU, SuperLU on one rank and MUMPS on several: DEFAULT_LU).
     ``cache``: (key, objects) to share compiled forms (assembly.block_system).
+    ``terms``: residual and Jacobian terms that are not forms (assembly's add_terms);
+    a term's ``limit_step(x, y)`` may shorten each Newton update (a pre-check of the line
+    search: segment contact keeps pairs from passing through each other).
     ``step_scale``: for unknowns without a size of their own (a rod's displacements and
     rotation increments: 0 at rest) the norm of a configuration of the problem's size,
     added to |y| in the step test |dy| < snes_stol (|y| + step_scale) (_converged; 0:
@@ -278,7 +281,8 @@ class BlockSNES:
     """
 
     def __init__(self, F: list[ufl.Form] | None, y: list[fem.Function], bcs=(), options=None,
-                 prefix: str | None = None, cache=None, step_scale: float = 0.0, links=()):
+                 prefix: str | None = None, cache=None, step_scale: float = 0.0, links=(),
+                 terms=()):
         self.y = y
         settings = petsc_options(y[0].function_space.mesh.comm, options)
         lagged = any(k.startswith("snes_lag_") for k in options or {})
@@ -287,6 +291,10 @@ class BlockSNES:
         if self.reuse_ratio is not None:   # PETSc asks every iteration, _jacobian decides
             settings.update(snes_lag_jacobian=1, snes_lag_preconditioner=1)
         self.system = block_system(F, [y], bcs=bcs, cache=cache)
+        self.system.add_terms(terms)
+        if links and terms:
+            raise ValueError("terms assembled outside the forms (segment contact) and "
+                             "multi-point constraints (joints) together are not supported")
         if links:       # joints: Newton on the free dofs (fem/multipoint.py)
             self.system = ConstrainedSystem(self.system, y, list(links))
         self.x = self.system.x
@@ -299,6 +307,8 @@ class BlockSNES:
         for k, v in settings.items():
             opts[self.prefix + k] = v
         self.snes.setFromOptions()
+        if any(hasattr(term, "limit_step") for term in self.system.terms):
+            self.snes.setLineSearchPreCheck(self._limit_step)
         self.step_scale = step_scale
         if step_scale > 0.0:
             self.snes.setConvergenceTest(self._converged)
@@ -327,6 +337,12 @@ class BlockSNES:
             self._initial_norm = self._residual_norm
         self.timings["residual"] += time.perf_counter() - t0
         self.counts["residual"] += 1
+
+    def _limit_step(self, x, y) -> None:
+        """The line search's pre-check: terms shorten Newton's update y (x - y)."""
+        xa, ya = x.getArray(readonly=True), y.getArray()
+        for term in self.system.terms:
+            term.limit_step(xa, ya)
 
     def _jacobian(self, snes, x, A, P):
         if self.reuse_ratio is not None and not self._new_jacobian_needed(snes):

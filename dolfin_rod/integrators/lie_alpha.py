@@ -210,7 +210,7 @@ class LieGeneralizedAlpha:
         self.options = options = solver_settings(mesh.comm, solver_options, 2 in self.order)
         self.solver = BlockSNES(F, y, problem.bcs, options, cache=(self.structure_key, objects),
                                 step_scale=problem.configuration_norm(),
-                                links=problem.links)
+                                links=problem.links, terms=problem.terms)
         self._arrays = self._views()
         self._matrices = {}
         self.stats = StepStats()
@@ -313,7 +313,8 @@ class LieGeneralizedAlpha:
             self._initial_solver = BlockSNES(F, self._unknowns_at_start(), self.problem.bcs,
                                              self.options, cache=(key, self._model_objects),
                                              step_scale=self.problem.configuration_norm(),
-                                             links=self.problem.links)
+                                             links=self.problem.links,
+                                             terms=self.problem.terms)
 
     def initial_accelerations(self, t0: float) -> None:
         """Solve the residual at t0 for the accelerations (second order) and rates (first
@@ -381,7 +382,8 @@ class LieGeneralizedAlpha:
         key = self.structure_key + "equilibrium"
         solver = BlockSNES(None if form_cache.lookup(key) else p.residual, unknowns, p.bcs,
                            self.options, cache=(key, self._model_objects),
-                           step_scale=p.configuration_norm(), links=p.links)
+                           step_scale=p.configuration_norm(), links=p.links,
+                           terms=p.terms)
         initial = [f.x.array.copy() for f in p.fields]
         try:
             solver.solve(sub_solves=EQUILIBRIUM_SUB_SOLVES)

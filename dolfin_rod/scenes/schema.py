@@ -416,6 +416,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "slip_tolerance": Key(real(0.0, True), None, R + "friction: the slip velocity eps "
                               "below which friction is smoothed; a rod held by static "
                               "friction creeps slower than eps (default 1e-3 L / t_end)"),
+        "self": Key(boolean, False, R + "self-contact: the rod's segments (capsules of "
+                    "contact.radius) repel each other through the barrier; neighbours "
+                    "closer along the rod than pi (radius + gap) + h are excluded "
+                    "(docs/contact.md)"),
+        "between_rods": Key(boolean, False, R + "[[rods]]: segments of different rods "
+                            "repel each other through the barrier (docs/contact.md)"),
     },
     "obstacles": {
         "shape": Key(choice(*OBSTACLE_SHAPES), REQUIRED, R + "plane (a half-space) | sphere "
