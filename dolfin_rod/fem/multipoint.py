@@ -80,6 +80,8 @@ def slave_rows(inner, fields: list, links: list[NodeLink]) -> dict[int, dict[int
 class ConstrainedSystem:
     """A block system restricted by NodeLinks to its free dofs (see module)."""
 
+    terms: tuple = ()      # none: solvers.BlockSNES refuses terms with links
+
     def __init__(self, inner, fields: list, links: list[NodeLink]):
         self.inner, self.groups = inner, inner.groups
         comm = inner.x.getComm()

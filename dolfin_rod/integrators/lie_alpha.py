@@ -203,7 +203,7 @@ class LieGeneralizedAlpha:
         # compiled step forms shared by all problems of this structure (form_cache)
         self._model_objects = form_cache.registry(problem.residual)
         self.structure_key = form_cache.structure_key(problem.residual, "lie_alpha", self.order,
-                                                      rho_inf)
+                                                      rho_inf, structure=problem.structure)
         objects = [*self._model_objects, *self.y_n, *self.v_n,
                    *(a for a in self.acc_n if a is not None), *self.alg_n, self.dt]
         F = None if form_cache.lookup(self.structure_key) else self._step_forms()
