@@ -428,7 +428,7 @@ class LieGeneralizedAlpha:
         redone smaller if its local error exceeds the tolerance or its Newton fails, at
         most ``max_cuts`` times in a row.  IntegrationError when that is exhausted, the
         last accepted state kept."""
-        check_run(t0, t_end, dt, self.problem)
+        check_run(t0, t_end, dt, self.problem, adaptive=self.control is not None)
         if not self._started:
             self.initial_accelerations(t0)
         if observer:

@@ -100,6 +100,12 @@ class RodModel(FEModel):
         nodes = joint_nodes(self, self.joints)
         self.problem = self._problem(node_links(self, self.joints, nodes))
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
+        if self.dynamic:       # the steps must resolve them (integrators' check_run)
+            self.problem.prescribed_motions = {
+                (f"rods {rod.name!r}: " if len(self.rods) > 1 else "")
+                + f"{name}[{end!r}]": motion for rod in self.rods
+                for name in ("end_displacement", "end_rotation")
+                for end, motion in (getattr(rod, name) or {}).items()}
         self.problem.structure = structure(rods, model, variant, constraint, self.rotations,
                                            comm.size, joints, obstacles, contact)
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
