@@ -203,7 +203,7 @@ class LieGeneralizedAlpha:
         # compiled step forms shared by all problems of this structure (form_cache)
         self._model_objects = form_cache.registry(problem.residual)
         self.structure_key = form_cache.structure_key(problem.residual, "lie_alpha", self.order,
-                                                      rho_inf)
+                                                      rho_inf, structure=problem.structure)
         objects = [*self._model_objects, *self.y_n, *self.v_n,
                    *(a for a in self.acc_n if a is not None), *self.alg_n, self.dt]
         F = None if form_cache.lookup(self.structure_key) else self._step_forms()
@@ -428,7 +428,7 @@ class LieGeneralizedAlpha:
         redone smaller if its local error exceeds the tolerance or its Newton fails, at
         most ``max_cuts`` times in a row.  IntegrationError when that is exhausted, the
         last accepted state kept."""
-        check_run(t0, t_end, dt, self.problem)
+        check_run(t0, t_end, dt, self.problem, adaptive=self.control is not None)
         if not self._started:
             self.initial_accelerations(t0)
         if observer:

@@ -268,7 +268,7 @@ class TSIntegrator:
         Returns the final time; raises IntegrationError when a step is rejected
         ``max_rejections`` times in a row (state: the last accepted step).
         """
-        check_run(t0, t_end, dt, self.problem)
+        check_run(t0, t_end, dt, self.problem, adaptive=self.adaptive)
         self._observer, self._t_accepted, self._dt_nominal = observer, None, dt
         self._t_end, self.snes_check.failure = t_end, None
         # smallest accepted step before giving up: dt_min, else (fixed step) dt 4^-rejections

@@ -21,7 +21,6 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 from mpi4py import MPI
-from ufl.algorithms.analysis import extract_coefficients
 
 from ..theory import constraints
 from .. import loads as load_histories
@@ -43,6 +42,7 @@ from .pair_contact import SegmentContact, exclusion
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
 from .segments import PassThroughCheck
+from .structure import structure
 from .start import StartingState, check_start
 
 
@@ -100,6 +100,14 @@ class RodModel(FEModel):
         nodes = joint_nodes(self, self.joints)
         self.problem = self._problem(node_links(self, self.joints, nodes))
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
+        if self.dynamic:       # the steps must resolve them (integrators' check_run)
+            self.problem.prescribed_motions = {
+                (f"rods {rod.name!r}: " if len(self.rods) > 1 else "")
+                + f"{name}[{end!r}]": motion for rod in self.rods
+                for name in ("end_displacement", "end_rotation")
+                for end, motion in (getattr(rod, name) or {}).items()}
+        self.problem.structure = structure(rods, model, variant, constraint, self.rotations,
+                                           comm.size, joints, obstacles, contact)
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
         self._diagnostics(resp, disc, natural_pairs, power, dissipation, springs)
 
@@ -289,7 +297,7 @@ class RodModel(FEModel):
         if unk.chart is None:
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step)
-        rates_used = {c for F in self.residual.values() for c in extract_coefficients(F)}
+        rates_used = {c for F in self.residual.values() for c in F.coefficients()}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
             after_step=self.commit_rotations, check_step=self.check_step,
