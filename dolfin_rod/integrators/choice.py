@@ -45,6 +45,11 @@ def choose_integrator(problem: SemiDiscreteProblem, scheme: str | None = None,
                       ts_type: str | None = None, **ts_options):
     """The integrator of ``problem`` (the module's docstring); ``ts_options`` are
     TSIntegrator's keywords (adaptive, rtol, atol, ...)."""
+    if problem.terms and (ts_type is not None or not on_rotation_group(problem, scheme)):
+        raise ValueError("terms assembled outside the forms (a rod's segment contact, "
+                         "contact.self / contact.between_rods) are solved by "
+                         "generalized-alpha on the rotation group only: rotation-vector "
+                         "unknowns, no ts_type, scheme generalized_alpha[:rho_inf]")
     if ts_type is not None:
         return TSIntegrator(problem, ts_type, solver_options=solver_options, **ts_options)
     if on_rotation_group(problem, scheme):

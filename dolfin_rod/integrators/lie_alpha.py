@@ -204,14 +204,14 @@ class LieGeneralizedAlpha:
         # compiled step forms shared by all problems of this structure (form_cache)
         self._model_objects = form_cache.registry(problem.residual)
         self.structure_key = form_cache.structure_key(problem.residual, "lie_alpha", self.order,
-                                                      rho_inf)
+                                                      rho_inf, structure=problem.structure)
         objects = [*self._model_objects, *self.y_n, *self.v_n,
                    *(a for a in self.acc_n if a is not None), *self.alg_n, self.dt]
         F = None if form_cache.lookup(self.structure_key) else self._step_forms()
         self.options = options = solver_settings(mesh.comm, solver_options, 2 in self.order)
         self.solver = BlockSNES(F, y, problem.bcs, options, cache=(self.structure_key, objects),
                                 step_scale=problem.configuration_norm(),
-                                links=problem.links)
+                                links=problem.links, terms=problem.terms)
         self._arrays = self._views()
         self._matrices = {}
         self.stats = StepStats()
@@ -314,7 +314,8 @@ class LieGeneralizedAlpha:
             self._initial_solver = BlockSNES(F, self._unknowns_at_start(), self.problem.bcs,
                                              self.options, cache=(key, self._model_objects),
                                              step_scale=self.problem.configuration_norm(),
-                                             links=self.problem.links)
+                                             links=self.problem.links,
+                                             terms=self.problem.terms)
 
     def initial_accelerations(self, t0: float) -> None:
         """Solve the residual at t0 for the accelerations (second order) and rates (first
@@ -382,7 +383,8 @@ class LieGeneralizedAlpha:
         key = self.structure_key + "equilibrium"
         solver = BlockSNES(None if form_cache.lookup(key) else p.residual, unknowns, p.bcs,
                            self.options, cache=(key, self._model_objects),
-                           step_scale=p.configuration_norm(), links=p.links)
+                           step_scale=p.configuration_norm(), links=p.links,
+                           terms=p.terms)
         initial = [f.x.array.copy() for f in p.fields]
         try:
             solver.solve(sub_solves=EQUILIBRIUM_SUB_SOLVES)
@@ -427,7 +429,7 @@ class LieGeneralizedAlpha:
         redone smaller if its local error exceeds the tolerance or its Newton fails, at
         most ``max_cuts`` times in a row.  IntegrationError when that is exhausted, the
         last accepted state kept."""
-        check_run(t0, t_end, dt, self.problem)
+        check_run(t0, t_end, dt, self.problem, adaptive=self.control is not None)
         if not self._started:
             self.initial_accelerations(t0)
         if observer:

@@ -65,7 +65,8 @@ class _StepResidual:
         self.stage_loads = stage_loads(problem, scheme)
         # the layout in the key: scifem's real space has DG0's UFL signature (DOLFINx 0.9)
         shared = monolithic_layout(problem.fields)     # only that layout shares kernels
-        self.key = key = form_cache.structure_key(problem.residual, "step", scheme.name, shared)
+        self.key = key = form_cache.structure_key(problem.residual, "step", scheme.name, shared,
+                                                       structure=problem.structure)
         objects = [*form_cache.registry(problem.residual), *(f for h in history for f in h), dt,
                    *(c for _, stage in self.stage_loads for c, _ in stage)]
         F = None if shared and form_cache.lookup(key) else step_forms(

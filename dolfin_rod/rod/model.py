@@ -21,7 +21,6 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 from mpi4py import MPI
-from ufl.algorithms.analysis import extract_coefficients
 
 from ..theory import constraints
 from .. import loads as load_histories
@@ -39,9 +38,11 @@ from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad
 from .joints import Joint, JointReactions, check_joints, joint_nodes, node_links
 from .layout import RodLayout
+from .pair_contact import SegmentContact, exclusion
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
 from .segments import PassThroughCheck
+from .structure import structure
 from .start import StartingState, check_start
 
 
@@ -95,9 +96,18 @@ class RodModel(FEModel):
         springs = self._end_supports(F, disc)
         self.residual = {name: F[name] for name in self.names}
         self.joints = list(joints)
+        self.segment_contact = self._segment_contact(contact, self.layout)
         nodes = joint_nodes(self, self.joints)
         self.problem = self._problem(node_links(self, self.joints, nodes))
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
+        if self.dynamic:       # the steps must resolve them (integrators' check_run)
+            self.problem.prescribed_motions = {
+                (f"rods {rod.name!r}: " if len(self.rods) > 1 else "")
+                + f"{name}[{end!r}]": motion for rod in self.rods
+                for name in ("end_displacement", "end_rotation")
+                for end, motion in (getattr(rod, name) or {}).items()}
+        self.problem.structure = structure(rods, model, variant, constraint, self.rotations,
+                                           comm.size, joints, obstacles, contact)
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
         self._diagnostics(resp, disc, natural_pairs, power, dissipation, springs)
 
@@ -230,7 +240,34 @@ class RodModel(FEModel):
         h = min(length / n for length, n in zip(layout.lengths, layout.n_cells))
         self.pass_through = PassThroughCheck(
             unk.f["displacement"], distance=h, exclusion=3 * h,
-            hint="self-contact is not modelled: the rod passes through itself (issue 26)")
+            hint="self-contact is off: set contact.self = true (contact.between_rods for "
+                 "rods of a system; docs/contact.md)")
+
+    def _segment_contact(self, law, layout) -> SegmentContact | None:
+        """The segment pairs' contact (pair_contact.py) if the law asks for it."""
+        if law is None or not (law.self_contact or law.between_rods):
+            return None
+        if self.joints:
+            raise ValueError("contact.self / contact.between_rods with joints: not "
+                             "supported (the joints' constrained solve keeps the "
+                             "Jacobian's sparsity fixed)")
+        if self.unknowns.chart is None:
+            raise ValueError("contact.self / contact.between_rods need rotation-vector "
+                             f"unknowns (rotations 'auto' or 'rotation_vector'), got "
+                             f"{self.rotations!r}")
+        h = max(length / n for length, n in zip(layout.lengths, layout.n_cells))
+        reach = exclusion(law.radius, law.gap, h)
+        if law.self_contact and reach >= min(layout.lengths):
+            raise ValueError(f"contact.radius = {law.radius:g}: self-contact excludes "
+                             f"neighbours closer along the rod than pi (r + delta) + h = "
+                             f"{reach:.4g}, which is not shorter than the rod "
+                             f"({min(layout.lengths):g}): a smaller radius or more cells")
+        contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
+                                 law.self_contact, law.between_rods)
+        contact.block = list(self.names).index("displacement")
+        P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
+        self.pair_force = fem.Function(P1, name="pair_contact_force")
+        return contact
 
     def _obstacle_contact(self, obstacles, law, disc) -> ObstacleContact | None:
         if not obstacles:
@@ -260,14 +297,14 @@ class RodModel(FEModel):
         if unk.chart is None:
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step)
-        rates_used = {c for F in self.residual.values() for c in extract_coefficients(F)}
+        rates_used = {c for F in self.residual.values() for c in F.coefficients()}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
             after_step=self.commit_rotations, check_step=self.check_step,
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links)
+            links=links, terms=[self.segment_contact] if self.segment_contact else [])
 
     def commit_rotations(self) -> None:
         """After an accepted step: rotation vectors q_n <- q_n c(theta), theta <- 0; the
@@ -278,6 +315,8 @@ class RodModel(FEModel):
                 supports.commit()
         if self.contact:
             self.contact.update_normal_forces()
+        if self.segment_contact:
+            self.segment_contact.commit()
 
     def check_step(self) -> str | None:
         """A reason to redo a converged step (rotation vectors: a rotation by more than
@@ -286,6 +325,8 @@ class RodModel(FEModel):
         reason = chart.check_increment() if chart is not None else None
         if reason is None and self.contact:
             reason = self.contact.check_state()
+        if reason is None and self.segment_contact:
+            reason = self.segment_contact.check_state()
         return reason
 
     def checkpoint_state(self) -> dict:
@@ -326,6 +367,11 @@ class RodModel(FEModel):
         if self.contact:
             self.contact.check_initial()
             self.contact.update_normal_forces()
+        if self.segment_contact:
+            reason = self.segment_contact.check_state()
+            if reason:
+                raise ValueError(f"the initial state: {reason}")
+            self.segment_contact.commit()
 
     def diagnostics(self, t: float) -> dict[str, float]:
         """MPI-reduced scalars at time t: tip position and quaternion, tip rotation angle
@@ -339,9 +385,27 @@ class RodModel(FEModel):
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         self.pass_through(t)
+        self.contact_diagnostics(d)
+        return d
+
+    def contact_diagnostics(self, d: dict) -> None:
+        """The obstacles' smallest gap and the segment pairs' energy (into
+        contact_energy), total force, smallest gap and count, into d."""
         if self.contact:
             d["min_gap"] = self.contact.closest()[0]
-        return d
+        if self.segment_contact:
+            pairs = self.segment_contact.diagnostics()
+            d["contact_energy"] = d.get("contact_energy", 0.0) + pairs.pop(
+                "pair_contact_energy")
+            d.update(pairs)
+            self._update_pair_force()
+
+    def _update_pair_force(self) -> None:
+        """The pairs' contact force per unit length at the nodes (pair_force)."""
+        f = self.pair_force
+        n = f.function_space.dofmap.index_map.size_local
+        f.x.array[: 3 * n] = self.segment_contact.force_density().ravel()
+        f.x.scatter_forward()
 
     def observables(self) -> dict:
         """What a mechanician reads, as UFL expressions of the current state and rates:
@@ -362,4 +426,6 @@ class RodModel(FEModel):
                     "m_spatial": ufl.dot(R, self.m), "xi": self.xi})
         if self.contact:
             out["contact_force"] = self.contact.force_observable()
+        if self.segment_contact:
+            out["contact_force"] = out.get("contact_force", 0) + self.pair_force
         return out

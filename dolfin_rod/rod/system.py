@@ -71,4 +71,5 @@ class RodSystem(RodModel):
         if moving:
             d["reaction_power"] = reaction_power
             d["load_power"] += reaction_power
+        self.contact_diagnostics(d)
         return d

@@ -125,10 +125,12 @@ switching variant on a rod with L != 1 rescales time by L.
 scene's tables key by key (an error names `rods[k].<table>.<key>`; `material.model`,
 `variant`, `constraints`, `energy` and `geometry.rotations` are shared and given in the
 scene's tables only).  `[[joints]]` tables: `kind` ("rigid": position and rotation tied,
-"ball": position tied), `rods = [a, b]`, `point = [x, y, z]` (a node of both rods at
-t = 0, not a supported end), `name` (its reaction columns `joint_<name>_force_{xyz}`,
+"ball": position tied, "hinge": position tied, rotations equal up to a turn about
+`axis`), `rods = [a, b]`, `point = [x, y, z]` (a node of both rods at t = 0, not a
+supported end), `axis = [x, y, z]` (a hinge's, a unit vector at t = 0, turning with the
+rods), `name` (its reaction columns `joint_<name>_force_{xyz}`,
 `joint_<name>_couple_{xyz}`).  Examples: `scenes/frame.toml`, `double_pendulum.toml`,
-`tripod.toml`.
+`tripod.toml`, `hinged_door.toml`.
 
 **What a run can follow** (checked by `dolfin-rod check`, exit 2 naming the key).  A rod
 with inertia (density > 0; torsion: nu > 0) cannot follow a jump of a prescribed end
@@ -418,6 +420,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "slip_tolerance": Key(real(0.0, True), None, R + "friction: the slip velocity eps "
                               "below which friction is smoothed; a rod held by static "
                               "friction creeps slower than eps (default 1e-3 L / t_end)"),
+        "self": Key(boolean, False, R + "self-contact: the rod's segments (capsules of "
+                    "contact.radius) repel each other through the barrier; neighbours "
+                    "closer along the rod than pi (radius + gap) + h are excluded "
+                    "(docs/contact.md)"),
+        "between_rods": Key(boolean, False, R + "[[rods]]: segments of different rods "
+                            "repel each other through the barrier (docs/contact.md)"),
     },
     "obstacles": {
         "shape": Key(choice(*OBSTACLE_SHAPES), REQUIRED, R + "plane (a half-space) | sphere "

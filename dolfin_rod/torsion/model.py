@@ -96,6 +96,8 @@ class TorsionModel(FEModel):
         self._dirichlet_conditions()
         self.problem = SemiDiscreteProblem(self.fields, self.rates, F, self.loads, self.bcs,
                                            self._set_bcs)
+        if self.dynamic and self.end_rotation is not None:     # (integrators' check_run)
+            self.problem.prescribed_motions = {"end_rotation": self.end_rotation}
         self._diagnostic_forms(ufl.Measure("dx", domain=self.mesh))
 
     @staticmethod
@@ -189,7 +191,8 @@ class TorsionModel(FEModel):
 
         return SecondOrderProblem(
             p.fields[:2], p.rates[:2], [ufl.replace(F, mapping) for F in p.residual[:2]],
-            p.loads, bcs, p.set_bcs, accelerations=[phi_tt, u_d_tt], after_step=sync)
+            p.loads, bcs, p.set_bcs, accelerations=[phi_tt, u_d_tt], after_step=sync,
+            prescribed_motions=p.prescribed_motions)
 
     # -- time-dependent boundary values ----------------------------------------------
     def _set_bcs(self, t: float) -> None:
