@@ -349,7 +349,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "ts_atol": Key(real(0.0, True, 1.0), 1e-8, "ts, adaptive: absolute local error "
                        "tolerance"),
         "predictor": Key(choice("linear", "constant"), "linear", "stepper: Newton's initial "
-                         "guess (linear extrapolation or the last state)"),
+                         "guess: \"linear\" (y_n + dt dy/dt_n, extrapolated) | "
+                         "\"constant\" (the last state y_n)"),
         "rtol": Key(real(0.0, True, 1.0), 1e-10, "relative tolerance (SNES / solve_ivp)"),
         "atol": Key(real(0.0, True, 1.0), 1e-10,
                     "absolute tolerance (SNES residual / solve_ivp); keep it above the "
