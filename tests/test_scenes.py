@@ -76,7 +76,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "rope_on_floor.toml": "rod", "frame.toml": "rod",
                   "crossing_rods.toml": "rod",
                   "double_pendulum.toml": "rod", "tripod.toml": "rod",
-                  "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod"}
+                  "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod",
+                  "hinged_door.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])

@@ -21,12 +21,11 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 from mpi4py import MPI
-from ufl.algorithms.analysis import extract_coefficients
 
 from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
-from ..checks import N_CELLS, check_n_cells
+from ..checks import N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT, check_n_cells
 from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..theory.rotations import rotation_matrix
@@ -43,6 +42,7 @@ from .pair_contact import SegmentContact, exclusion
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
 from .segments import PassThroughCheck
+from .structure import structure
 from .start import StartingState, check_start
 
 
@@ -66,13 +66,13 @@ class RodModel(FEModel):
     Several rods in one model: system.RodSystem.
     """
 
-    def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = "evolving",
-                 variant: str = "local", constraint: str | None = None,
+    def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = ROD_MODEL,
+                 variant: str = VARIANT, constraint: str | None = None,
                  ends: tuple[str, str] = ("clamped", "free"),
                  end_loads: Sequence[EndLoad] = (),
                  distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
-                 rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD,
+                 rotations: str = ROTATION_UNKNOWNS, comm: MPI.Comm = MPI.COMM_WORLD,
                  end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
                  contact: ContactLaw | None = None, end_springs: dict | None = None,
                  end_turn: dict | None = None):
@@ -100,6 +100,14 @@ class RodModel(FEModel):
         nodes = joint_nodes(self, self.joints)
         self.problem = self._problem(node_links(self, self.joints, nodes))
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
+        if self.dynamic:       # the steps must resolve them (integrators' check_run)
+            self.problem.prescribed_motions = {
+                (f"rods {rod.name!r}: " if len(self.rods) > 1 else "")
+                + f"{name}[{end!r}]": motion for rod in self.rods
+                for name in ("end_displacement", "end_rotation")
+                for end, motion in (getattr(rod, name) or {}).items()}
+        self.problem.structure = structure(rods, model, variant, constraint, self.rotations,
+                                           comm.size, joints, obstacles, contact)
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
         self._diagnostics(resp, disc, natural_pairs, power, dissipation, springs)
 
@@ -289,7 +297,7 @@ class RodModel(FEModel):
         if unk.chart is None:
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step)
-        rates_used = {c for F in self.residual.values() for c in extract_coefficients(F)}
+        rates_used = {c for F in self.residual.values() for c in F.coefficients()}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
             after_step=self.commit_rotations, check_step=self.check_step,
