@@ -47,6 +47,9 @@ class SemiDiscreteProblem:
                  joints of a rod system), eliminated by the solvers.
     unset_state: what to call before integrating ("": the state is set); a model whose
                  fields start invalid (a rod's zero quaternions) names its set-up call.
+    prescribed_motions: {name: t -> value} the prescribed motions of a body with inertia,
+                 which the steps must resolve (integrators' check_run: no jump, no change
+                 faster than dt; loads.resolution_problem).
     structure:   the residual's structure as data (None: unknown), equal for two problems
                  whose residuals differ only in the values of their Constants and
                  Functions (rod/structure.py): the integrators' compiled kernels are
@@ -66,6 +69,7 @@ class SemiDiscreteProblem:
     check_step: Callable[[], str | None] = lambda: None
     links: list = field(default_factory=list)
     unset_state: str = ""
+    prescribed_motions: dict = field(default_factory=dict)
     structure: str | None = None
     terms: list = field(default_factory=list)
 
