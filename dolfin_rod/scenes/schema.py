@@ -353,7 +353,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "ts_atol": Key(real(0.0, True, 1.0), TS_ATOL, "ts, adaptive: absolute local error "
                        "tolerance"),
         "predictor": Key(choice("linear", "constant"), PREDICTOR, "stepper: Newton's initial "
-                         "guess (linear extrapolation or the last state)"),
+                         "guess: \"linear\" (y_n + dt dy/dt_n, extrapolated) | "
+                         "\"constant\" (the last state y_n)"),
         "rtol": Key(real(0.0, True, 1.0), NEWTON_RTOL, "relative tolerance (SNES / solve_ivp)"),
         "atol": Key(real(0.0, True, 1.0), NEWTON_ATOL,
                     "absolute tolerance (SNES residual / solve_ivp); keep it above the "
