@@ -30,6 +30,7 @@ _WHERE = {
     "SemiDiscreteProblem": "fem.problem", "SecondOrderProblem": "fem.problem",
     # equilibria: buckling and vibration modes (docs/stability.md)
     "buckling_modes": "analysis.buckling", "BucklingModes": "analysis.buckling",
+    "vibration_modes": "analysis.vibration", "VibrationModes": "analysis.vibration",
     # integrators and solvers
     "TimeStepper": "integrators.choice", "choose_integrator": "integrators.choice",
     "TSIntegrator": "integrators.ts", "parse_ts_type": "integrators.ts",

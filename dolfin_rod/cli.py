@@ -129,6 +129,7 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
             lines += [f"derived: {label}{line}"
                       for line in describe(own["material"]["derived"] or {})]
         lines += [f"joint: {j.kind} {j.rods[0]}-{j.rods[1]} at {list(j.point)}"
+                  + (f" about {list(j.axis)}" if j.axis is not None else "")
                   for j in scene.joints]
         lines.append(f"rotations: {rod_rotations_reason(scene)}")
     if choice.model != "ode":                      # (the ODE prints its own solution)

@@ -37,7 +37,7 @@ from petsc4py import PETSc
 from ..fem.assembly import block_system
 from ..fem.compat import interpolation_points
 from .eigen import eigenpairs
-from .stability import TangentStiffness
+from .stability import TangentStiffness, at_rest_map, symmetric_part
 
 __all__ = ["BucklingModes", "buckling_modes"]
 
@@ -79,7 +79,7 @@ def buckling_modes(model, t: float, count: int = 4) -> BucklingModes:
         K, dK = _pencil(tangent, state, t, RELATIVE_STEP * t)
         dK.scale(-1.0)
         pairs = eigenpairs(K, dK, count, target=0.0, kind="symmetric_indefinite")
-        shapes = [_shape(tangent, v) for v in pairs.vectors]
+        shapes = tangent.mode_shapes(pairs.vectors)
     finally:
         system.set(0, state)
         model.problem.set_loads(t)
@@ -127,7 +127,7 @@ class _StressStiffness:
                              "(geometry.rotations = \"rotation_vector\", no "
                              "material.constraint)")
         S = fem.functionspace(model.mesh, ("DG", 0, (3,)))
-        at_rest = {model.r[n]: fem.Function(model.r[n].function_space) for n in model.names}
+        at_rest = at_rest_map(model)
         points = interpolation_points(S)
         self.stresses = [fem.Expression(ufl.replace(f, at_rest), points)
                          for f in (model.m, model.n)]
@@ -151,12 +151,7 @@ class _StressStiffness:
         """K_sigma, symmetric part, Dirichlet rows and columns zero."""
         system = self.system
         system.jacobian(system.A)
-        A = system.A
-        A.zeroRowsColumns(self.fixed, diag=0.0)
-        K = A.transpose(PETSc.Mat())
-        K.axpy(1.0, A)
-        K.scale(0.5)
-        return K
+        return symmetric_part(system.A, self.fixed, 0.0)
 
 
 def _path_rate(tangent: TangentStiffness, state: PETSc.Vec, t: float,
@@ -186,19 +181,3 @@ def _path_rate(tangent: TangentStiffness, state: PETSc.Vec, t: float,
     ksp.solve(dR, rate)
     ksp.destroy()
     return rate
-
-
-def _shape(tangent: TangentStiffness, vector: PETSc.Vec) -> dict[str, np.ndarray]:
-    """The mode's nodal values, {"displacement", "rotation"} (rotation vectors: spatial
-    spins) or {"displacement", "quaternion"}, scaled to a largest displacement of 1
-    (the caller restores the state)."""
-    from ..mpi import largest_on_ranks
-    tangent.system.set(0, vector)
-    model = tangent.model
-    label = {"displacement": "displacement", "rotation_increment": "rotation",
-             "quaternion": "quaternion"}
-    shape = {label[n]: model.f[n].x.array.copy() for n in tangent.names if n in label}
-    x = shape["displacement"].reshape(-1, 3)
-    size = largest_on_ranks(model.mesh.comm, float(np.max(np.linalg.norm(x, axis=1),
-                                                          initial=0.0)))
-    return {n: v / size for n, v in shape.items()} if size > 0 else shape

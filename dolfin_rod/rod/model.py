@@ -26,12 +26,13 @@ from mpi4py import MPI
 from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
-from ..checks import MAX_CELL_TURN, N_CELLS, check_n_cells
+from ..checks import (MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
+                      check_n_cells)
 from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..integrators.step_control import IntegrationError
 from ..mpi import largest_on_ranks
-from ..theory.rotations import np_qmul, rotation_matrix
+from ..theory.rotations import np_qmul, np_rotation_matrix, rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports, spin_free
@@ -41,6 +42,7 @@ from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad
 from .joints import Joint, JointReactions, check_joints, joint_nodes, node_links
 from .layout import RodLayout
+from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
@@ -71,13 +73,13 @@ class RodModel(FEModel):
     Several rods in one model: system.RodSystem.
     """
 
-    def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = "evolving",
-                 variant: str = "local", constraint: str | None = None,
+    def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = ROD_MODEL,
+                 variant: str = VARIANT, constraint: str | None = None,
                  ends: tuple[str, str] = ("clamped", "free"),
                  end_loads: Sequence[EndLoad] = (),
                  distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
-                 rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD,
+                 rotations: str = ROTATION_UNKNOWNS, comm: MPI.Comm = MPI.COMM_WORLD,
                  end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
                  contact: ContactLaw | None = None, end_springs: dict | None = None,
                  end_turn: dict | None = None):
@@ -431,6 +433,20 @@ class RodModel(FEModel):
                 "pair_contact_energy")
             d.update(pairs)
             self._update_pair_force()
+            if self.layout.single and self.supports.ends == ("clamped", "clamped") \
+                    and self.segment_contact.self_contact:
+                d["twist"], d["writhe"] = self._twist_and_writhe()
+
+    def _twist_and_writhe(self) -> tuple[float, float]:
+        """Tw of the rod's ribbon (d_1 at the nodes) and Wr of its centre line closed
+        along the clamped ends' tangents (linking.clamped_rod_linking)."""
+        line = self.segment_contact.line
+        order = np.argsort(line.reference[:, 2])
+        points = line.positions(self.segment_contact.owned_displacement())[order]
+        q_n = self.unknowns.chart.q_n       # the nodal rotations (committed: theta = 0)
+        q = line.gather(q_n.x.array.reshape(-1, 4)[: line.n_owned])[order]
+        R = np.stack([np_rotation_matrix(qk) for qk in q])
+        return clamped_rod_linking(points, R[:, :, 0], R[0, :, 2], R[-1, :, 2])
 
     def _update_pair_force(self) -> None:
         """The pairs' contact force per unit length at the nodes (pair_force)."""

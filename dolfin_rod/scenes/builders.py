@@ -321,7 +321,7 @@ def rods_and_joints(scene: Scene) -> tuple[list, list]:
     rods = [Rod(rod_parameters(entry.scene), **rod_arguments(entry.scene), name=entry.name,
                 position=entry.position, orientation=entry.orientation)
             for entry in scene.rods]
-    joints = [Joint(j.kind, j.rods, j.point, j.name) for j in scene.joints]
+    joints = [Joint(j.kind, j.rods, j.point, j.name, j.axis) for j in scene.joints]
     return rods, joints
 
 
