@@ -32,7 +32,7 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("section", k) for k in ("shape", "radius", "semi_axes", "sides", "outer_radius",
                              "inner_radius", "shear_factor")} | {
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
-    ("geometry", "rotations"),
+    ("geometry", "reference_shape"), ("geometry", "rotations"),
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
     *(("initial", k) for k in START_KEYS),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
@@ -355,12 +355,24 @@ def _check_rod_start(scene: Scene) -> None:
     if ini["rotation_centre"] is not None and ini["angular_velocity"] is None:
         raise err("initial.rotation_centre", "needs initial.angular_velocity (the rigid "
                                              "rotation about it)")
-    shape = ini["shape"]
+    _check_curve(scene, "initial.shape", ini["shape"])
+    geo = scene["geometry"]
+    if geo["reference_shape"] is not None:
+        strains = [k for k in ("reference_curvature", "reference_stretch")
+                   if k in scene.given["geometry"]]
+        if strains:
+            raise err("geometry.reference_shape", f"the stress-free shape is a curve or the "
+                                                  f"helix of geometry.{strains[0]}, not both")
+        _check_curve(scene, "geometry.reference_shape", geo["reference_shape"])
+
+
+def _check_curve(scene: Scene, key: str, shape: dict | None) -> None:
+    """A polyline (rod/start.py) of the rod's length, or an error naming ``key``."""
     if shape is not None and shape["type"] == "polyline":
         problem = polyline_problem(shape["points"], shape["rest_arc_length"], shape["normal"],
                                    scene["geometry"]["length"])
         if problem:
-            raise err(f"initial.shape.{problem[0]}", problem[1])
+            raise scene.error(f"{key}.{problem[0]}", problem[1])
 
 
 def rod_rotations(scene: Scene) -> str:

@@ -165,6 +165,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "reference_stretch": Key(vector3(), (0.0, 0.0, 1.0),
                                  R + "stretch v_ref of the stress-free initial shape "
                                  "(v_ref,3 > 0)"),
+        "reference_shape": Key(starting_shape, None,
+                               R + "the stress-free shape as a curve instead of "
+                               "reference_curvature/stretch, from the rod's start along e3 "
+                               "(then placed as the rod): {type = \"polyline\", points = "
+                               "[[x, y, z], ...], normal = [1, 0, 0]} (a bent frame as one "
+                               "rod: a corner at a node turns its two cells by half the "
+                               "angle each), or an arc or helix (as initial.shape)"),
         "rotations": Key(choice(*ROTATIONS), ROTATION_UNKNOWNS,
                          R + "rotation unknowns: auto = rotation_vector (6 unknowns per "
                          "node; the fast default) for the local variant, no constraint and "
