@@ -41,7 +41,8 @@ _WHERE = {
     "load_scene": "scenes", "parse_scene": "scenes", "select_model": "scenes",
     "build": "scenes", "SceneError": "scenes",
     # what a run writes: fields along the rod (ParaView, animation), versions
-    "FieldOutputs": "output.field_outputs", "read_vtx": "output.vtx", "read_pvd": "output.vtk_xml", "versions": "output.writer",
+    "FieldOutputs": "output.field_outputs", "read_vtx": "output.vtx", "versions": "output.writer",
+    "read_pvd": "output.vtk_xml", "redraw": "output.redraw",
     # fitting parameters to measured time series (docs/fitting.md)
     "fit_scene": "fit.least_squares", "FitResult": "fit.least_squares",
     "prepare_fit": "fit.least_squares", "run_fit": "fit.least_squares",
