@@ -136,7 +136,8 @@ rods), `name` (its reaction columns `joint_<name>_force_{xyz}`,
 with inertia (density > 0; torsion: nu > 0) cannot follow a jump of a prescribed end
 motion (a `step`, at any `t0`), nor, unless `time.adaptive`, a ramp, smooth step or
 table segment shorter than `time.dt`.  Prescribed rotations may turn one end against the
-other by less than pi per cell (`geometry.n_cells` > angle/pi).  A `material.energy`
+other by less than 2 rad per cell (`geometry.n_cells` > angle/2, checks.MAX_CELL_TURN);
+a run whose cell turns by more (end couples too) stops, exit 3 naming the cells needed.  A `material.energy`
 must be stress-free and convex at the natural strains and convex at the start strains
 (`natural_state.start_state_problem`).
 """
