@@ -74,8 +74,10 @@ def run(scene: Scene | str | Path, overrides: dict[str, Any] | None = None, *,
     comm = comm or MPI.COMM_WORLD
     given = scene
     scene = agree(comm, lambda: _scene(given, overrides), (SceneError,))
-    return _run(scene, None if out is None else Path(out), comm, resume, overwrite, quiet,
-                stop_after)
+    from .fem import compile_notice
+    with compile_notice.listening(None if quiet or comm.rank != 0 else sys.stdout):
+        return _run(scene, None if out is None else Path(out), comm, resume, overwrite,
+                    quiet, stop_after)
 
 
 def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | None = None,

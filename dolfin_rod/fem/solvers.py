@@ -17,6 +17,7 @@ import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..checks import NEWTON_ATOL, NEWTON_RTOL
 from .assembly import block_system
 from .multipoint import ConstrainedSystem
 
@@ -24,8 +25,8 @@ _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinsta
 DEFAULT_OPTIONS = {
     "snes_type": "newtonls",
     "snes_linesearch_type": "basic",
-    "snes_rtol": 1e-10,
-    "snes_atol": 1e-11,
+    "snes_rtol": NEWTON_RTOL,
+    "snes_atol": NEWTON_ATOL,
     "snes_stol": 1e-10,  # |dx| < 1e-10 |x|: converged (x then exact to ~|dx|^2); a
                          # residual floor alone cannot be met at round-off on fine meshes
     "snes_max_it": 25,
@@ -413,7 +414,7 @@ class BlockSNES:
         entries are stiffness / h, so |J| times the cell size h (the change of a position
         across a cell at unit strain) is the terms' size, row by row.  An upper estimate:
         on the column of benchmarks/stability_check.py (B = 1e5..3e5, 32-256 cells) the
-        residual fluctuates at 1e-11..1e-10, 20-100x below it, above snes_atol's 1e-11
+        residual fluctuates at 1e-11..1e-10, 20-100x below it, above an snes_atol of 1e-11
         (tests/test_solvers_floor.py).  Uses the last assembled Jacobian (its size, not
         its exactness, matters); computed only when a step test's residual grew; 0
         before any Jacobian."""

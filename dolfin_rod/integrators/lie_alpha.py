@@ -32,6 +32,7 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
+from ..checks import MAX_STEP_CUTS
 from ..fem import compat, form_cache
 from ..fem.solvers import BlockSNES, SolverError
 from ..mpi import largest_on_ranks
@@ -184,7 +185,7 @@ class LieGeneralizedAlpha:
     controller constants.  The global error then scales as tol^(2/3) (h ~ tol^(1/3),
     error ~ h^2; tests/test_adaptive.py)."""
 
-    def __init__(self, problem, rho_inf: float = 0.8, solver_options=None, max_cuts: int = 6,
+    def __init__(self, problem, rho_inf: float = 0.8, solver_options=None, max_cuts: int = MAX_STEP_CUTS,
                  tolerance: float | StepControl | None = None):
         self.control = (tolerance if isinstance(tolerance, StepControl) or tolerance is None
                         else StepControl(tolerance, tolerance))
@@ -223,7 +224,7 @@ class LieGeneralizedAlpha:
         self._rejections = 0      # error control: rejected steps in a row
 
     @classmethod
-    def for_scheme(cls, problem, scheme: str | None, solver_options=None, max_cuts: int = 6,
+    def for_scheme(cls, problem, scheme: str | None, solver_options=None, max_cuts: int = MAX_STEP_CUTS,
                    tolerance=None):
         """choose_integrator's arguments: ``scheme`` None (rho_inf 0.8) or 'generalized_alpha'
         ['RHO'] (schemes.alpha_rho_inf); a first-order scheme is refused."""

@@ -12,6 +12,7 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
+from ..checks import MAX_STEP_CUTS, PREDICTOR, SCHEME
 from ..fem import form_cache
 from ..fem.assembly import monolithic_layout
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
@@ -105,8 +106,8 @@ class SchemeStepper:
     PREDICTORS = ("linear", "constant")
 
     def __init__(self, problem: SemiDiscreteProblem, scheme: str | None = None,
-                 solver_options: dict | None = None, max_cuts: int = 6,
-                 predictor: str = "linear", tolerance: float | None = None):
+                 solver_options: dict | None = None, max_cuts: int = MAX_STEP_CUTS,
+                 predictor: str = PREDICTOR, tolerance: float | None = None):
         if tolerance is not None:
             raise ValueError("tolerance: error-controlled steps exist for a rod with "
                              "rotation-vector unknowns (generalized-alpha on the rotation "
@@ -116,7 +117,7 @@ class SchemeStepper:
             raise ValueError(f"predictor must be one of {self.PREDICTORS}, got {predictor!r}")
         self.predictor = predictor
         self.problem = problem
-        self.scheme = get_scheme(scheme or "backward_euler")
+        self.scheme = get_scheme(scheme or SCHEME)
         # rotation vectors (no saddle point): the banded LU of the rotation-group integrator
         self._charted = lie = isinstance(problem, SecondOrderProblem) and problem.lie_group
         self.options = solver_settings(problem.comm, solver_options, False) if lie \

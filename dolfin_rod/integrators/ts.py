@@ -48,6 +48,7 @@ import dolfinx.fem as fem
 import numpy as np
 from petsc4py import PETSc
 
+from ..checks import TS_ATOL, TS_RTOL
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..fem.assembly import block_system
 from ..fem.solvers import CheckedSNES, petsc_options
@@ -131,7 +132,7 @@ class TSIntegrator:
     """
 
     def __init__(self, problem: SemiDiscreteProblem, ts_type: str = "bdf", *,
-                 adaptive: bool = False, rtol: float = 1e-6, atol: float = 1e-8,
+                 adaptive: bool = False, rtol: float = TS_RTOL, atol: float = TS_ATOL,
                  solver_options: dict | None = None, ts_options: dict | None = None,
                  max_rejections: int = 10, dt_min: float | None = None):
         if getattr(problem, "lie_group", False):

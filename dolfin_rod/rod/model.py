@@ -25,7 +25,7 @@ from mpi4py import MPI
 from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
-from ..checks import N_CELLS, check_n_cells
+from ..checks import N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT, check_n_cells
 from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..theory.rotations import rotation_matrix
@@ -66,13 +66,13 @@ class RodModel(FEModel):
     Several rods in one model: system.RodSystem.
     """
 
-    def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = "evolving",
-                 variant: str = "local", constraint: str | None = None,
+    def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = ROD_MODEL,
+                 variant: str = VARIANT, constraint: str | None = None,
                  ends: tuple[str, str] = ("clamped", "free"),
                  end_loads: Sequence[EndLoad] = (),
                  distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
-                 rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD,
+                 rotations: str = ROTATION_UNKNOWNS, comm: MPI.Comm = MPI.COMM_WORLD,
                  end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
                  contact: ContactLaw | None = None, end_springs: dict | None = None,
                  end_turn: dict | None = None):

@@ -28,7 +28,7 @@ import ufl
 from mpi4py import MPI
 
 from .. import loads as load_histories
-from ..checks import N_CELLS, check_n_cells, profile_violation, sample_points
+from ..checks import DEGREE, N_CELLS, VARIANT, check_n_cells, profile_violation, sample_points
 from ..fem import compat
 from ..fem.fe_model import FEModel, end_measures, scalar_coefficient, vertex_measure
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
@@ -77,9 +77,9 @@ class TorsionModel(FEModel):
     Phi(t)) is given; both are load histories (dolfin_rod.loads) or plain callables.
     """
 
-    def __init__(self, params: TorsionParameters, n_cells: int = N_CELLS, variant: str = "local",
+    def __init__(self, params: TorsionParameters, n_cells: int = N_CELLS, variant: str = VARIANT,
                  end_torsion: Callable | None = None, end_rotation: Callable | None = None,
-                 degree: int = 1, comm: MPI.Comm = MPI.COMM_WORLD):
+                 degree: int = DEGREE, comm: MPI.Comm = MPI.COMM_WORLD):
         self._validate(params, n_cells, variant, end_torsion, end_rotation, degree, comm.size)
         self.params, self.variant, self.degree = params, variant, degree
         self.end_torsion, self.end_rotation = end_torsion, end_rotation
