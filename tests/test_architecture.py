@@ -185,7 +185,8 @@ def test_one_default_per_scene_key():
     checks.py): the models, the integrators, the ODE's time, the solver's tolerances."""
     from dolfin_rod import (RodModel, RodSystem, TimeStepper, TorsionModel, TorsionParameters,
                             TSIntegrator)
-    from dolfin_rod import choose_integrator
+    from dolfin_rod import FieldOutputs, choose_integrator
+    from dolfin_rod.analysis.stability import StabilityMonitor
     from dolfin_rod.fem.solvers import DEFAULT_OPTIONS
     from dolfin_rod.integrators.lie_alpha import LieGeneralizedAlpha
     from dolfin_rod.integrators.stepper import SchemeStepper
@@ -219,7 +220,10 @@ def test_one_default_per_scene_key():
              (TSIntegrator.__init__, "rtol", "time.ts_rtol"),
              (TSIntegrator.__init__, "atol", "time.ts_atol"),
              (OdeTime, "solution", "time.ode_solution"),
-             (OdeTime, "scheme", "time.scheme")]
+             (OdeTime, "scheme", "time.scheme"),
+             (StabilityMonitor.__init__, "lowest", "stability.lowest_eigenvalue"),
+             (FieldOutputs.__init__, "fields", "outputs.fields"),
+             (FieldOutputs.__init__, "animation", "outputs.animation")]
     for func, arg, key in pairs:
         table, name = key.split(".")
         want = SCHEMA[table][name].default
