@@ -75,7 +75,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "sprung_cantilever.toml": "rod", "rod_on_incline.toml": "rod",
                   "rope_on_floor.toml": "rod", "frame.toml": "rod",
                   "double_pendulum.toml": "rod", "tripod.toml": "rod",
-                  "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod"}
+                  "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod",
+                  "buckled_column.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
