@@ -4,7 +4,9 @@
 1. Set-up of a second model of the same structure in a process: the gravity-cantilever
    rod of benchmarks/cantilever.py ("elastic") built as a user would (``RodModel(...)``,
    ``set_initial_state()``, ``TimeStepper(model.problem)`` and its step forms) at 8, 16,
-   32, 64 cells after a first model, median of --repeats; model and stepper apart.
+   32, 64 cells after a first model, median of --repeats; model and stepper apart; in
+   a new process (twice, alternating with --baseline DIR, a folder holding an older
+   dolfin_rod package, so that both see the same load).
 2. The first model in a new process, by parts: ``import dolfin_rod`` and DOLFINx, the
    model, the initial state, the stepper (warm FFCx and form caches).
 3. Process start to exit: ``python3 -c "import dolfin_rod"``, ``dolfin-rod check`` and
@@ -13,7 +15,8 @@
 
 Prints the medians and the machine's load, writes results/bench/setup_cost.json.
 
-    ./rodenv python3 benchmarks/setup_cost.py [--repeats 3]
+    ./rodenv python3 benchmarks/setup_cost.py [--repeats 3] [--baseline scratch/base]
+                                              [--second-only]
 """
 
 from __future__ import annotations
@@ -56,17 +59,40 @@ print(json.dumps({"imports_s": t1 - t0, "model_s": t2 - t1, "initial_state_s": t
 """
 
 
-def second_model(n_cells: int) -> dict:
-    """Seconds to build model (with its initial state) and stepper of the elastic
-    cantilever in this process (a model of the structure built before)."""
-    import cantilever as cant
-    from dolfin_rod import TimeStepper
+SECOND_MODEL = """
+import json, statistics, sys, time
+sys.path.insert(0, sys.argv[1])
+import cantilever as cant
+from dolfin_rod import TimeStepper
+
+
+def second_model(n_cells):
     t0 = time.perf_counter()
     model = cant.dolfin_rod_model(n_cells, "elastic")
     t1 = time.perf_counter()
     TimeStepper(model.problem).compile()
     t2 = time.perf_counter()
     return {"model_s": t1 - t0, "stepper_s": t2 - t1, "total_s": t2 - t0}
+
+
+second_model(16)                                  # the first model of the structure
+out = {}
+for n in map(int, sys.argv[3:]):
+    runs = [second_model(n) for _ in range(int(sys.argv[2]))]
+    out[n] = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+print(json.dumps(out))
+"""
+
+
+def second_models(package_folder: Path, repeats: int) -> dict:
+    """Seconds to build model (with its initial state) and stepper of the elastic
+    cantilever in a process that built one of its structure before (median of
+    ``repeats`` per cell count), importing dolfin_rod from ``package_folder``."""
+    env = {**os.environ, "PYTHONPATH": str(package_folder)}
+    out = subprocess.run([sys.executable, "-c", SECOND_MODEL, str(ROOT / "benchmarks"),
+                          str(repeats), *map(str, CELLS)], env=env, capture_output=True,
+                         text=True, check=True, cwd="/")
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def process_seconds(command: list[str]) -> float:
@@ -83,11 +109,27 @@ def median_of(runs: list[dict]) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--baseline", type=Path, help="folder holding an older dolfin_rod"
+                        " (second models only; e.g. git archive COMMIT dolfin_rod | tar -x"
+                        " -C scratch/base)")
+    parser.add_argument("--second-only", action="store_true",
+                        help="measure the second models only (parts 2 and 3 skipped)")
     args = parser.parse_args()
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     load = [os.getloadavg()[0]]
-    second_model(16)                                  # the first model of the structure
-    second = {n: median_of([second_model(n) for _ in range(args.repeats)]) for n in CELLS}
+    variants = {"this tree": ROOT}
+    if args.baseline:
+        variants = {"baseline": args.baseline.resolve(), **variants}
+    rounds = [{name: second_models(folder, args.repeats) for name, folder in variants.items()}
+              for _ in range(2)]                      # alternated: both see the same load
+    second_all = {name: {n: median_of([r[name][n] for r in rounds]) for n in rounds[0][name]}
+                  for name in variants}
+    out = {"load_average_1min": load, "repeats": args.repeats,
+           "second_model": second_all}
+    print_second(second_all)
+    if args.second_only:
+        load.append(os.getloadavg()[0])
+        save(out, load)
+        return
     first = median_of([json.loads(subprocess.run(
         [sys.executable, "-c", FIRST_MODEL, str(Path(__file__).resolve().parent)],
         check=True, capture_output=True, text=True).stdout) for _ in range(args.repeats)])
@@ -109,18 +151,13 @@ def main() -> None:
             integration.append(timings.get("integration", timings.get("integration_s")))
         processes["dolfin-rod run gravity_cantilever"] = statistics.median(runs)
     load.append(os.getloadavg()[0])
-    out = {"load_average_1min": load, "repeats": args.repeats,
-           "second_model": {str(n): v for n, v in second.items()},
-           "first_model_new_process": first, "processes_s": processes,
-           "run_integration_s": integration}
+    out.update({"first_model_new_process": first, "processes_s": processes,
+                "run_integration_s": integration})
     import_s = processes["python3 -c 'import dolfin_rod'"]
     run_s = processes["dolfin-rod run gravity_cantilever"]
     if all(isinstance(x, (int, float)) for x in integration):
         out["run_over_2_import_plus_integration"] = run_s / (
             2 * import_s + statistics.median(integration))
-    print("second model of the structure (median, ms): " + ", ".join(
-        f"n={n}: model {1e3 * v['model_s']:.0f} + stepper {1e3 * v['stepper_s']:.0f}"
-        for n, v in second.items()))
     print("first model in a new process (s): " + ", ".join(
         f"{k} {v:.3f}" for k, v in first.items()))
     for name, seconds in processes.items():
@@ -129,6 +166,17 @@ def main() -> None:
     if "run_over_2_import_plus_integration" in out:
         print(f"run / (2 import + integration) = {out['run_over_2_import_plus_integration']:.2f}"
               " (target <= 1)")
+    save(out, load)
+
+
+def print_second(second_all: dict) -> None:
+    for name, second in second_all.items():
+        print(f"second model of the structure, {name} (median, ms): " + ", ".join(
+            f"n={n}: model {1e3 * v['model_s']:.1f} + stepper {1e3 * v['stepper_s']:.1f}"
+            f" = {1e3 * v['total_s']:.1f}" for n, v in second.items()))
+
+
+def save(out: dict, load: list) -> None:
     print("load average (1 min):", " ".join(f"{a:.1f}" for a in load))
     folder = ROOT / "results" / "bench"
     folder.mkdir(parents=True, exist_ok=True)

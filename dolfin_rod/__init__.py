@@ -28,6 +28,9 @@ _WHERE = {
     "Obstacle": "rod", "ContactLaw": "rod",    # contact with obstacles (docs/contact.md)
     "TorsionModel": "torsion.model", "TorsionParameters": "torsion.model",
     "SemiDiscreteProblem": "fem.problem", "SecondOrderProblem": "fem.problem",
+    # equilibria: buckling and vibration modes (docs/stability.md)
+    "buckling_modes": "analysis.buckling", "BucklingModes": "analysis.buckling",
+    "vibration_modes": "analysis.vibration", "VibrationModes": "analysis.vibration",
     # integrators and solvers
     "TimeStepper": "integrators.choice", "choose_integrator": "integrators.choice",
     "TSIntegrator": "integrators.ts", "parse_ts_type": "integrators.ts",
@@ -49,7 +52,7 @@ _WHERE = {
 _MODULES = {"loads": "loads", "closed_forms": "torsion.closed_forms",
             "rotations": "theory.rotations", "dna": "dna",
             "form_cache": "fem.form_cache",   # form_cache.clear(): time a fresh process
-            "cosseratbench": "cosseratbench"}   # the cosseratbench solver (extra [bench])
+            "cosseratbench": "adapters.cosseratbench"}   # the cosseratbench solver (extra [bench])
 
 __all__ = sorted([*_WHERE, "run", "run_scene", "RunResult"]) + list(_MODULES)
 

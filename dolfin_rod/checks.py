@@ -1,4 +1,5 @@
-"""Input checks shared by the modules: errors name the parameter and the rule."""
+"""Input checks shared by the modules (errors name the parameter and the rule), and the
+defaults a scene key and the API argument of the same quantity share."""
 
 from __future__ import annotations
 
@@ -49,9 +50,24 @@ def rod_length(value: float) -> float:
     return x
 
 
-# The cells of a rod or a torsion model unless given: the one default of RodModel, Rod,
-# TorsionModel and the scene key geometry.n_cells.
-N_CELLS = 32
+# -- Defaults: a scene key's default (scenes/schema.py) and the default of the API
+# argument for the same quantity are one value, here (below every layer that uses them;
+# tests/test_architecture.py compares every pair).
+N_CELLS = 32                # geometry.n_cells: RodModel, Rod, TorsionModel
+DEGREE = 1                  # geometry.degree: TorsionModel
+ROTATION_UNKNOWNS = "auto"  # geometry.rotations: RodModel, RodSystem
+ROD_MODEL = "evolving"      # material.model: RodModel, RodSystem
+VARIANT = "local"           # material.variant: RodModel, RodSystem, TorsionModel
+MAX_STEP_CUTS = 6           # time.max_step_cuts: TimeStepper, SchemeStepper,
+                            #   LieGeneralizedAlpha (max_cuts)
+PREDICTOR = "linear"        # time.predictor: TimeStepper, SchemeStepper
+SCHEME = "bdf2"             # time.scheme: SchemeStepper (a first-order form: the quaternion
+                            #   rod, torsion) when none is named, OdeTime
+NEWTON_RTOL = 1e-10         # time.rtol: BlockSNES's snes_rtol
+NEWTON_ATOL = 1e-10         # time.atol: BlockSNES's snes_atol (above the residual's
+                            #   round-off floor: ~1e-12 fails at 64 cells)
+TS_RTOL, TS_ATOL = 1e-6, 1e-8   # time.ts_rtol, time.ts_atol: TSIntegrator
+ODE_SOLUTION = "exact"      # time.ode_solution: OdeTime
 
 # Under MPI a rank with fewer cells has no cell at all (DOLFINx's reshape errors) or its
 # Dirichlet dof is a ghost of the mixed space (assembly.py); with 2 it runs.

@@ -6,6 +6,7 @@ exit statuses; a run is run.py's.
     dolfin-rod run scenes/torsion_creep.toml --out DIR    run, results in DIR
     dolfin-rod run SCENE --out DIR --resume               continue from DIR/checkpoint
     dolfin-rod run SCENE --out DIR --overwrite            replace the run folder DIR
+    dolfin-rod plot DIR [quantities] [--color u_d]        draw DIR's pictures again
     mpirun -n 2 python3 -m dolfin_rod run SCENE           only rank 0 prints and writes
 
 Exit status: 0 success, 2 a bad scene, folder or checkpoint (SceneError, OutputError:
@@ -54,6 +55,15 @@ def _parser() -> argparse.ArgumentParser:
                       help="replace the run folder --out if it is not empty")
     run_cmd.add_argument("--quiet", action="store_true", help="no progress output (failures "
                          "are still reported on stderr)")
+    plot = sub.add_parser("plot", help="draw the pictures of a finished run again "
+                          "(histories.png, snapshots, animation), nothing recomputed")
+    plot.add_argument("folder", type=Path, help="a run folder of dolfin-rod run")
+    plot.add_argument("quantities", nargs="*", help="panels of histories.png (tip_deflection, "
+                      "end_torque, ...) or columns of timeseries.csv; default the scene's")
+    plot.add_argument("--color", default="auto", help="the field colouring the 3-D pictures "
+                      "(outputs.color: u, v, u_d, v_d, n, m, xi; default the scene's)")
+    plot.add_argument("--to", type=Path, default=None, help="the histories figure's file "
+                      "(default FOLDER/histories.png)")
     sub.add_parser("schema", help="print every scene key with its default and meaning "
                                   "(Markdown, as in docs/scenes.md)")
     _add_fit_parser(sub)
@@ -112,16 +122,16 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
     lines = [f"{scene.source}: OK", f"model: {choice.model}", f"why: {choice.reason}"]
     if choice.model == "rod":
         from .scenes.physical import describe
-        from .scenes.rules import rod_rotations
+        from .scenes.rules import rod_rotations_reason
         for rod in scene.rods or [None]:          # [[rods]]: each rod's derived tensors
             own = rod.scene if rod else scene
             label = f"rod {rod.name}: " if rod else ""
             lines += [f"derived: {label}{line}"
                       for line in describe(own["material"]["derived"] or {})]
         lines += [f"joint: {j.kind} {j.rods[0]}-{j.rods[1]} at {list(j.point)}"
+                  + (f" about {list(j.axis)}" if j.axis is not None else "")
                   for j in scene.joints]
-        lines.append(f"rotations: {rod_rotations(scene)} (geometry.rotations = "
-                     f"{scene['geometry']['rotations']!r})")
+        lines.append(f"rotations: {rod_rotations_reason(scene)}")
     if choice.model != "ode":                      # (the ODE prints its own solution)
         from .scenes.rules import time_stepping
         lines.append(f"time stepping: {time_stepping(scene)}")
@@ -169,6 +179,12 @@ def _main(argv: list[str] | None, comm) -> int:
         return 0
     if args.command == "fit":
         return fit_command(args, comm)
+    if args.command == "plot":
+        from .output.redraw import redraw
+        for path in redraw(args.folder, args.quantities, args.color, args.to) \
+                if comm.rank == 0 else []:
+            print(f"wrote {path}")
+        return 0
     scene = agree(comm, lambda: load_scene(args.scene), (SceneError,))
     if args.command == "check":
         _check(scene, args.out, comm)

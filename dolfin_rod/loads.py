@@ -9,6 +9,7 @@ regularisations ``u_n``, ``m_n`` that the paper uses to define it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
@@ -20,12 +21,14 @@ from .checks import finite as _finite, positive as _positive
 __all__ = [
     "LoadHistory",
     "PiecewiseSmoothLoad",
+    "VectorHistory",
     "constant",
     "from_callable",
     "jump_at",
     "jumps",
     "rate",
     "ramp",
+    "resolution_problem",
     "smooth_step",
     "step",
     "table",
@@ -71,14 +74,17 @@ class PiecewiseSmoothLoad:
 
     ``values`` maps a float array of times to an array of the same shape; ``jumps`` holds
     the pairs ``(time, f(time+) - f(time-))``; ``slopes`` (if known) maps times to the
-    right derivative f'(t+) (0 at a jump: its impulse is not a rate). Build one with the
-    constructors below.
+    right derivative f'(t+) (0 at a jump: its impulse is not a rate); ``shortest_change``
+    the shortest time over which it changes between its jumps (a ramp's or smooth step's
+    duration, a table's shortest changing segment; inf if it only jumps or is constant;
+    None: unknown, for a wrapped callable). Build one with the constructors below.
     """
 
     values: Callable[[NDArray[np.float64]], NDArray[np.float64]]
     jumps: tuple[tuple[float, float], ...] = ()
     description: str = "load history"
     slopes: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None
+    shortest_change: float | None = math.inf
 
     def derivative(self, t: ArrayLike) -> FloatOrArray:
         """The right derivative f'(t+), analytic (``slopes``) or by central differences."""
@@ -111,6 +117,28 @@ class PiecewiseSmoothLoad:
 
     def __repr__(self) -> str:
         return f"<{self.description}>"
+
+
+@dataclass(frozen=True)
+class VectorHistory:
+    """t -> the vector of its components' values (histories of this module): a rod's
+    prescribed end motion that knows its components' jumps and shortest change
+    (resolution_problem), e.g. ``VectorHistory((constant(0), constant(0),
+    smooth_step(1.0, 0.2)))``."""
+
+    parts: tuple
+
+    def __call__(self, t: float) -> NDArray[np.float64]:
+        return np.array([float(h(t)) for h in self.parts])
+
+    @property
+    def jumps(self) -> tuple[tuple[float, float], ...]:
+        return tuple(j for h in self.parts for j in getattr(h, "jumps", ()))
+
+    @property
+    def shortest_change(self) -> float | None:
+        changes = [getattr(h, "shortest_change", None) for h in self.parts]
+        return None if None in changes else min(changes)
 
 
 def rate(motion: Callable, t: float):
@@ -164,7 +192,8 @@ def ramp(v: float, t_ramp: float, t0: float = 0.0) -> PiecewiseSmoothLoad:
     t0 = _finite("t0", t0)
     return PiecewiseSmoothLoad(lambda t: v * np.clip((t - t0) / t_ramp, 0.0, 1.0), (),
                                f"ramp to {v} over {t_ramp}" + (f" from t = {t0}" if t0 else ""),
-                               lambda t: np.where((t >= t0) & (t < t0 + t_ramp), v / t_ramp, 0.0))
+                               lambda t: np.where((t >= t0) & (t < t0 + t_ramp), v / t_ramp, 0.0),
+                               t_ramp if v != 0.0 else math.inf)
 
 
 def smooth_step(v: float, width: float, t0: float = 0.0) -> PiecewiseSmoothLoad:
@@ -189,7 +218,8 @@ def smooth_step(v: float, width: float, t0: float = 0.0) -> PiecewiseSmoothLoad:
         return v * 6.0 * x * (1.0 - x) / width
 
     return PiecewiseSmoothLoad(values, (), f"smooth step to {v} over {width}"
-                               + (f" from t = {t0}" if t0 else ""), slopes)
+                               + (f" from t = {t0}" if t0 else ""), slopes,
+                               width if v != 0.0 else math.inf)
 
 
 def table(times: ArrayLike, values: ArrayLike) -> PiecewiseSmoothLoad:
@@ -214,8 +244,9 @@ def table(times: ArrayLike, values: ArrayLike) -> PiecewiseSmoothLoad:
         slope = np.diff(heights)[k] / np.diff(knots)[k]
         return np.where((t >= knots[0]) & (t < knots[-1]), slope, 0.0)
 
+    changing = np.diff(knots)[np.diff(heights) != 0.0]
     return PiecewiseSmoothLoad(lambda t: np.interp(t, knots, heights), (), f"table of {knots.size} points",
-                               slopes)
+                               slopes, float(changing.min()) if changing.size else math.inf)
 
 
 def from_callable(f: Callable[[float], float], jumps: Mapping[float, float] | None = None) -> PiecewiseSmoothLoad:
@@ -238,4 +269,84 @@ def from_callable(f: Callable[[float], float], jumps: Mapping[float, float] | No
             out = np.array([float(f(float(time))) for time in t.ravel()]).reshape(t.shape)
         return out
 
-    return PiecewiseSmoothLoad(values, jump_list, f"callable {getattr(f, '__name__', repr(f))}")
+    return PiecewiseSmoothLoad(values, jump_list, f"callable {getattr(f, '__name__', repr(f))}",
+                               shortest_change=None)
+
+
+# A step's change of a prescribed motion its rates at the step's ends do not account for
+# (|change - dt (rate_n + rate_n+1) / 2| above this fraction of the change): the change
+# happens inside the step.  A ramp lasting dt, aligned with the steps, is at 0.5 (its
+# rates at the kinks are the central differences' half slopes); a jump at 1.
+UNACCOUNTED = 0.6
+# A change inside an interval this short (relative to max(1, |t|)) is taken as a jump.
+JUMP_WIDTH = 1e-9
+
+
+def resolution_problem(motion: Callable, t0: float, t_end: float, dt: float,
+                       adaptive: bool = False) -> str | None:
+    """Why steps of size dt from t0 to t_end cannot follow a prescribed ``motion`` of a
+    body with inertia (its end would take an impulse the scheme cannot represent,
+    issue 28 item 5), or None: a jump after t0 (one at t0 is the start), or (unless the
+    steps adapt) a change faster than dt.  A history of this module knows its ``jumps``
+    and ``shortest_change``; any other
+    callable is sampled at the steps t0 + k dt (its rates by ``rate``): a step whose
+    change the rates at its ends do not account for is narrowed by bisection to the
+    change's duration."""
+    later = [time for time, size in getattr(motion, "jumps", ()) if size and t0 < time <= t_end]
+    shortest = getattr(motion, "shortest_change", None)
+    when = f" at t = {min(later):.6g}" if later else ""
+    if later:
+        shortest = 0.0
+    elif shortest is None:
+        found = _unaccounted_change(motion, t0, t_end, dt)
+        if found is None:
+            return None
+        start, shortest = found
+        when = f" near t = {start:.6g}"
+    if shortest <= JUMP_WIDTH * max(1.0, abs(t_end)):
+        within = f" (changes within {shortest:.3g})" if shortest > 0.0 else ""
+        return (f"jumps{when}{within}: a body with inertia cannot "
+                "follow a jump; let it change smoothly (loads.smooth_step, loads.ramp) "
+                "over at least dt")
+    if shortest < dt and not adaptive:
+        return (f"changes{when} within {shortest:.3g}, faster than the time step "
+                f"dt = {dt:.3g} resolves (the end would take an impulse); let it last at "
+                f"least dt, or take dt <= {shortest:.3g}")
+    return None
+
+
+def _unaccounted_change(motion: Callable, t0: float, t_end: float,
+                        dt: float) -> tuple[float, float] | None:
+    """(start, duration) of the first change between the steps t0 + k dt that the rates
+    at the step's ends do not account for, or None."""
+    steps = max(1, math.ceil((t_end - t0) / dt - 1e-9))
+    times = [min(t0 + k * dt, t_end) for k in range(steps + 1)]
+    values = [np.asarray(motion(t), float) for t in times]
+    rates = [np.asarray(rate(motion, t), float) for t in times]
+    for k in range(steps):
+        h = times[k + 1] - times[k]
+        change = values[k + 1] - values[k]
+        size = float(np.max(np.abs(change)))
+        missing = float(np.max(np.abs(change - 0.5 * h * (rates[k] + rates[k + 1]))))
+        if size > 0.0 and missing > UNACCOUNTED * size:
+            return _narrowed(motion, times[k], times[k + 1])
+    return None
+
+
+def _narrowed(motion: Callable, a: float, b: float) -> tuple[float, float]:
+    """Where and how fast the change inside [a, b] happens: [a, b] halved while one half
+    holds 90 % of its change (down to JUMP_WIDTH: a jump), then sampled at 65 points: the
+    time between 5 % and 95 % of the change's variation, over 0.9; (its start, duration)."""
+    ga, gb = np.asarray(motion(a), float), np.asarray(motion(b), float)
+    while b - a > 0.5 * JUMP_WIDTH * max(1.0, abs(b)):
+        m = 0.5 * (a + b)
+        gm = np.asarray(motion(m), float)
+        left, right = float(np.max(np.abs(gm - ga))), float(np.max(np.abs(gb - gm)))
+        if max(left, right) < 0.9 * (left + right):
+            break
+        a, b, ga, gb = (a, m, ga, gm) if left > right else (m, b, gm, gb)
+    times = np.linspace(a, b, 65)
+    values = np.array([np.asarray(motion(t), float).ravel() for t in times])
+    variation = np.concatenate(([0.0], np.cumsum(np.abs(np.diff(values, axis=0)).max(axis=1))))
+    start, end = (times[np.searchsorted(variation, f * variation[-1])] for f in (0.05, 0.95))
+    return float(start), float(end - start) / 0.9

@@ -52,6 +52,16 @@ class RunResult:
     "interrupted" or "failed"."""
         return self.summary["status"]
 
+    def plot(self, quantities: list[str] | None = None, colour: str = "auto") -> list[Path]:
+        """Draw the run's pictures again (output/redraw.py): histories.png of the scene's
+        panels or of ``quantities`` (panels or CSV columns), the 3-D pictures coloured by
+        ``colour``; returns the files written (rank 0; [] on other ranks)."""
+        from mpi4py import MPI
+        if MPI.COMM_WORLD.rank != 0:
+            return []
+        from .output.redraw import redraw
+        return redraw(self.folder, quantities, colour)
+
 
 def run(scene: Scene | str | Path, overrides: dict[str, Any] | None = None, *,
         out: Path | str | None = None, comm=None, resume: bool = False,

@@ -30,3 +30,13 @@ def joint_frame(comm=MPI.COMM_WORLD) -> dict[str, float]:
     """The L-frame of tests/rod_systems.py under a large load (tests/test_joints.py)."""
     from rod_systems import solve_frame
     return solve_frame(6, 1.5, steps=3, comm=comm)
+
+
+def hinged_door(comm=MPI.COMM_WORLD) -> dict[str, float]:
+    """The hinged door of tests/rod_systems.py for 0.1 s (tests/test_hinge.py)."""
+    from rod_systems import ROUND_OFF, hinged_door as door
+    from dolfin_rod import TimeStepper
+    model = door(4, comm=comm)
+    model.set_initial_state()
+    TimeStepper(model.problem, solver_options=ROUND_OFF).run(0.0, 0.1, 5e-3)
+    return model.diagnostics(0.1)

@@ -135,6 +135,23 @@ def pendulum_angles(d: dict) -> np.ndarray:
                      np.arctan2(tip[0] - knee[0], -(tip[2] - knee[2]))])
 
 
+def swing(model: RodSystem, t_end: float, dt: float) -> tuple[float, float]:
+    """A double pendulum (``double_pendulum`` or one with another joint) released at
+    rest and run to t_end: (the largest error of its chords' angles against the rigid
+    ODE, the drift of K + Psi + rho_A g int z ds)."""
+    exact = rigid_double_pendulum(t_end).sol(t_end)[:2]
+    model.set_initial_state()
+    energies = []
+
+    def observe(t, _):
+        d = model.diagnostics(t)
+        energies.append(d["kinetic_energy"] + d["free_energy"] + gravity_potential(model))
+
+    TimeStepper(model.problem).run(0.0, t_end, dt, observer=observe)
+    error = np.abs(pendulum_angles(model.diagnostics(t_end)) - exact).max()
+    return error, abs(energies[-1] - energies[0])
+
+
 def gravity_potential(model) -> float:
     """rho_A g int z ds over both rods (serial): z = s + x_3 is P1, so the trapezoidal
     rule on the nodes is exact, as the 2-point Gauss rule of the load's work."""
@@ -150,3 +167,39 @@ def gravity_potential(model) -> float:
         weights = np.where(np.isclose(s[on], a) | np.isclose(s[on], b), h / 2, h)
         total += weights @ z[on]
     return p["rho_A"] * p["g"] * total
+
+
+DOOR = dict(g=9.81, rho_A=1.0, rho_I=1e-4, post=0.3, width=1.0, E=1e7, push=0.5)
+
+
+def hinged_door(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
+    """A door: a stiff post along e_3 clamped at the origin, a stiff rod along e_1 (the
+    door) hung from its top by a hinge about e_3, under gravity -g e_3 (a smooth step
+    over 0.1 s: no bending vibrations) and a dead force ``push`` e_2 at its free edge;
+    at rest at t = 0 (DOOR; EA = k GA = E, EI = GJ = E/100)."""
+    from dolfin_rod import DistributedLoad, loads
+    from dolfin_rod.rod.joints import Joint
+    p = DOOR
+    E, top = p["E"], (0.0, 0.0, p["post"])
+    gravity = [DistributedLoad("force", (0.0, 0.0, -p["rho_A"] * p["g"]),
+                               loads.smooth_step(1.0, 0.1))]
+    params = [RodParameters(length=p[k], A=(E / 100,) * 3, B=(E,) * 3, rho_A=p["rho_A"],
+                            I11=p["rho_I"], I22=p["rho_I"]) for k in ("post", "width")]
+    rods = [Rod(params[0], n_cells, ("clamped", "free"), name="post"),
+            Rod(params[1], n_cells, ("free", "free"), distributed_loads=gravity, name="door",
+                position=top, orientation=(0.0, np.pi / 2, 0.0),
+                end_loads=[EndLoad("force", (0.0, p["push"], 0.0))])]
+    return RodSystem(rods, joints=[Joint("hinge", ("post", "door"), top, name="hinge",
+                                         axis=(0.0, 0.0, 1.0))],
+                     model="hyperelastic", comm=comm)
+
+
+def door_angle(t_end: float, p: dict = DOOR):
+    """The rigid door's angle about e_3: I phi'' = push L cos(phi), I = rho_A L^3/3 +
+    rho_I L (the sections turn about their own axis e_3 too), at rest at 0 (solve_ivp,
+    1e-12)."""
+    from scipy.integrate import solve_ivp
+    L = p["width"]
+    inertia = p["rho_A"] * L ** 3 / 3 + p["rho_I"] * L
+    return solve_ivp(lambda t, y: [y[1], p["push"] * L * np.cos(y[0]) / inertia],
+                     (0.0, t_end), [0.0, 0.0], rtol=1e-12, atol=1e-12, dense_output=True)

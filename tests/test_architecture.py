@@ -24,10 +24,10 @@ from dolfin_rod import closed_forms, loads
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "dolfin_rod"
 # a layer imports only its own and later ones (docs/architecture.md)
-LAYERS = [("cli", "__main__", "cosseratbench"), ("fit",), ("run",), ("output",), ("scenes",), ("analysis",),
+LAYERS = [("cli", "__main__", "adapters"), ("fit",), ("run",), ("output",), ("scenes",), ("analysis",),
           ("rod", "torsion"), ("integrators",), ("theory",), ("fem",),
           ("loads", "dna", "checks", "mpi")]
-HEAVY = ("dolfinx", "petsc4py", "ufl")
+HEAVY = ("dolfinx", "petsc4py", "ufl", "basix", "ffcx")
 
 
 def _module(path: Path) -> str:
@@ -102,9 +102,9 @@ def test_layers_import_downwards_only():
 
 
 def test_top_level_and_private_attributes():
-    """At most 9 modules directly in dolfin_rod/ (the public face, run, shared helpers and
-    cosseratbench's entry point); DOLFINx's C++ objects only in fem/compat.py."""
-    assert len(list(PACKAGE.glob("*.py"))) <= 9, sorted(p.name for p in PACKAGE.glob("*.py"))
+    """At most 8 modules directly in dolfin_rod/ (the public face, run and shared
+    helpers); DOLFINx's C++ objects only in fem/compat.py."""
+    assert len(list(PACKAGE.glob("*.py"))) <= 8, sorted(p.name for p in PACKAGE.glob("*.py"))
     users = sorted(str(p.relative_to(PACKAGE)) for p in PACKAGE.rglob("*.py")
                    if "_cpp_object" in p.read_text())
     assert users == ["fem/compat.py"]
@@ -166,27 +166,60 @@ def test_cheap_commands_load_no_dolfinx_petsc_or_ufl(tmp_path):
 
 
 def test_one_default_per_scene_key():
-    """A model constructor's argument for a scene key has the schema's default."""
-    from dolfin_rod import RodModel, TimeStepper, TorsionModel, TSIntegrator
+    """Every API argument for a scene key's quantity has the schema's default (one value,
+    checks.py): the models, the integrators, the ODE's time, the solver's tolerances."""
+    from dolfin_rod import (RodModel, RodSystem, TimeStepper, TorsionModel, TorsionParameters,
+                            TSIntegrator)
+    from dolfin_rod import choose_integrator
+    from dolfin_rod.fem.solvers import DEFAULT_OPTIONS
+    from dolfin_rod.integrators.lie_alpha import LieGeneralizedAlpha
+    from dolfin_rod.integrators.stepper import SchemeStepper
+    from dolfin_rod.rod import Rod, RodParameters, StartingState
+    from dolfin_rod.rod.contact import Obstacle
     from dolfin_rod.scenes import SCHEMA
+    from dolfin_rod.torsion.ode import OdeTime
 
     def default(func, name):
         return inspect.signature(func).parameters[name].default
 
-    pairs = [(RodModel, "n_cells", "geometry", "n_cells"),
-             (TorsionModel, "n_cells", "geometry", "n_cells"),
-             (TorsionModel, "degree", "geometry", "degree"),
-             (RodModel, "rotations", "geometry", "rotations"),
-             (RodModel, "variant", "material", "variant"),
-             (TorsionModel, "variant", "material", "variant"),
-             (RodModel, "model", "material", "model"),
-             (TimeStepper, "max_cuts", "time", "max_step_cuts"),
-             (TimeStepper, "predictor", "time", "predictor"),
-             (TSIntegrator, "adaptive", "time", "adaptive"),
-             (TSIntegrator, "rtol", "time", "ts_rtol"),
-             (TSIntegrator, "atol", "time", "ts_atol")]
-    for cls, arg, table, key in pairs:
-        assert default(cls.__init__, arg) == SCHEMA[table][key].default, (cls, arg)
+    pairs = [(RodModel.__init__, "n_cells", "geometry.n_cells"),
+             (Rod.__init__, "n_cells", "geometry.n_cells"),
+             (TorsionModel.__init__, "n_cells", "geometry.n_cells"),
+             (TorsionModel.__init__, "degree", "geometry.degree"),
+             (RodParameters, "length", "geometry.length"),
+             (RodParameters, "reference_curvature", "geometry.reference_curvature"),
+             (RodParameters, "reference_stretch", "geometry.reference_stretch"),
+             (StartingState, "equilibrium", "initial.equilibrium"),
+             (Obstacle, "friction", "obstacles.friction"),
+             *[(cls.__init__, arg, key) for cls in (RodModel, RodSystem)
+               for arg, key in (("rotations", "geometry.rotations"),
+                                ("variant", "material.variant"), ("model", "material.model"))],
+             (TorsionModel.__init__, "variant", "material.variant"),
+             *[(func, "max_cuts", "time.max_step_cuts") for func in (
+                 TimeStepper.__init__, choose_integrator, SchemeStepper.__init__,
+                 LieGeneralizedAlpha.__init__)],
+             *[(func, "predictor", "time.predictor") for func in (
+                 TimeStepper.__init__, choose_integrator, SchemeStepper.__init__)],
+             (TSIntegrator.__init__, "adaptive", "time.adaptive"),
+             (TSIntegrator.__init__, "rtol", "time.ts_rtol"),
+             (TSIntegrator.__init__, "atol", "time.ts_atol"),
+             (OdeTime, "solution", "time.ode_solution"),
+             (OdeTime, "scheme", "time.scheme")]
+    for func, arg, key in pairs:
+        table, name = key.split(".")
+        want = SCHEMA[table][name].default
+        assert default(func, arg) == (tuple(want) if isinstance(want, list) else want), \
+            (func, arg, key)
+    # the ends; the scene's "none" constraint is the API's None
+    assert default(RodModel.__init__, "ends") == (SCHEMA["boundary"]["start"].default,
+                                                   SCHEMA["boundary"]["end"].default)
+    assert SCHEMA["material"]["constraints"].default == "none" and \
+        default(RodModel.__init__, "constraint") is None
+    # the Newton tolerances time.rtol, time.atol; the scheme of a first-order form
+    assert (DEFAULT_OPTIONS["snes_rtol"], DEFAULT_OPTIONS["snes_atol"]) == \
+        (SCHEMA["time"]["rtol"].default, SCHEMA["time"]["atol"].default)
+    torsion = TorsionModel(TorsionParameters(), n_cells=4, end_torsion=loads.step(1.0))
+    assert TimeStepper(torsion.problem).integrator.scheme.name == SCHEMA["time"]["scheme"].default
 
 
 def _rod(rotations: str, dynamic: bool):

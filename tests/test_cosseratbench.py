@@ -1,4 +1,4 @@
-"""dolfin_rod as a cosseratbench solver (issue 25 item 7, dolfin_rod/cosseratbench.py): the
+"""dolfin_rod as a cosseratbench solver (issue 25 item 7, dolfin_rod/adapters/cosseratbench.py): the
 four validation experiments run through cosseratbench's own ``experiment.run`` (its
 warm-up, timing and metrics) at small resolution, each metric within what its reference
 allows; what the adapter cannot map is reported as unsupported, naming it."""
@@ -13,7 +13,7 @@ import pytest
 from cosseratbench import registry
 from cosseratbench.experiment import COMPLETED, UNSUPPORTED, run
 
-from dolfin_rod.cosseratbench import DolfinRodSolver
+from dolfin_rod.adapters.cosseratbench import DolfinRodSolver
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -23,6 +23,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mpi4py import MPI
 from test_faults import (CREEP, MPI_TIMEOUT, ROOT, _start, _wait_for, assert_same_rows,
@@ -242,14 +243,18 @@ animation = false
 
 
 @pytest.mark.mpi
-def test_one_linear_solve_reported_as_converged_is_a_failed_run(tmp_path, capsys):
+@pytest.mark.parametrize("integrator", ["stepper", "ts"])
+def test_one_linear_solve_reported_as_converged_is_a_failed_run(tmp_path, capsys, integrator):
     """snes_type = "ksponly" (one Newton step, reported CONVERGED_ITS) on a large
-    deflection: exit 3 naming the residual and the options, not a wrong tip with exit 0.
+    deflection: exit 3 naming the residual and the options, not a wrong tip with exit 0
+    (per-step schemes: BlockSNES) or with exit 4 "unstable equilibrium" (PETSc TS, whose
+    stage solves are checked by fem/solvers.CheckedSNES: every step is rejected).
     The same scene with the default options completes (the check passes real solutions)."""
     folder = shared(tmp_path)
-    good = write(folder / "good.toml", STATIC_ROD)
+    text = STATIC_ROD.replace("[time]\n", f'[time]\nintegrator = "{integrator}"\n')
+    good = write(folder / "good.toml", text)
     assert run_main(capsys, "run", good, "--out", folder / "good", "--quiet")[0] == 0
-    bad = write(folder / "bad.toml", STATIC_ROD + '[solver]\noptions = {snes_type = "ksponly"}\n')
+    bad = write(folder / "bad.toml", text + '[solver]\noptions = {snes_type = "ksponly"}\n')
     code, out, err = run_main(capsys, "run", bad, "--out", folder / "bad", "--quiet")
     assert code == 3
     if COMM.rank == 0:
@@ -429,6 +434,72 @@ def test_dynamic_torsion_api_refuses_a_jump_after_t0():
     params = TorsionParameters(alpha=2.0, alpha_d=1.0, mu=0.2, mu_d=0.5, nu=0.01)
     with pytest.raises(ValueError, match="end_rotation has a step at t = 0.5 but nu > 0"):
         TorsionModel(params, n_cells=4, end_rotation=loads.step(0.5, t0=0.5))
+
+
+def _dynamic_torsion(end_rotation):
+    from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
+    params = TorsionParameters(alpha=2.0, alpha_d=1.0, mu=0.2, mu_d=0.5, nu=0.01)
+    return TorsionModel(params, n_cells=4, end_rotation=end_rotation)
+
+
+def _dynamic_rod(**motions):
+    from dolfin_rod.rod import RodModel, RodParameters
+    params = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2), rho_A=2.0,
+                           I11=1e-3, I22=1e-3)
+    rod = RodModel(params, n_cells=4, model="hyperelastic", **motions)
+    rod.set_initial_state()
+    return rod
+
+
+# the Python API's motions faster than dt = 0.01 (issue 28 item 5): (model, motion,
+# message); histories of dolfin_rod.loads know their jumps and durations, any other
+# callable is sampled at the steps (loads.resolution_problem)
+TOO_FAST = {
+    "smooth step of 1e-300": (
+        "torsion", lambda L: L.smooth_step(0.5, 1e-300),
+        r"end_rotation jumps \(changes within 1e-300\): a body with inertia cannot follow"),
+    "table rising in 1e-10": (
+        "torsion", lambda L: L.table([0.0, 0.5, 0.5 + 1e-10], [0.0, 0.0, 0.5]),
+        r"end_rotation jumps \(changes within 1e-10\)"),
+    "smooth step of dt / 10": (
+        "torsion", lambda L: L.smooth_step(0.5, 1e-3, t0=0.02),
+        r"end_rotation changes within 0.001, faster than the time step dt = 0.01 resolves"),
+    "callable step at 0.05": (
+        "rod", lambda L: {"end_displacement": {"right": lambda t: np.array(
+            [0.0, 0.0, 0.1 * (t >= 0.05)])}},
+        r"end_displacement\['right'\] jumps near t = 0.05[0-9]*: a body with inertia"),
+    "callable ramp of dt / 4": (
+        "rod", lambda L: {"end_rotation": {"right": lambda t: np.array(
+            [0.0, 0.0, float(L.ramp(0.3, 0.0025, 0.023)(t))])}},
+        r"end_rotation\['right'\] changes near t = 0.02[0-9]* within 0.002[0-9]*, faster than "
+        r"the time step dt = 0.01"),
+}
+
+
+@pytest.mark.parametrize("case", TOO_FAST)
+def test_api_motion_faster_than_dt_is_refused_by_the_integrator(case):
+    """Python API (issue 28 item 5): a prescribed motion of a body with inertia that
+    jumps after t = 0 or changes faster than dt is refused when the integrator starts
+    (check_run), naming the motion, before any step."""
+    from dolfin_rod import TimeStepper, loads
+    kind, motion, message = TOO_FAST[case]
+    model = (_dynamic_torsion(motion(loads)) if kind == "torsion"
+             else _dynamic_rod(**motion(loads)))
+    with pytest.raises(ValueError, match=message):
+        TimeStepper(model.problem).run(0.0, 0.1, 0.01)
+
+
+def test_api_motions_the_steps_resolve_are_accepted():
+    """The same motions made slower than dt run (dynamic torsion, a smooth step of 2 dt,
+    fixed steps), and a fast one runs with adaptive steps (PETSc TS's error control):
+    the end follows the prescribed rotation (the Dirichlet value, to round-off)."""
+    from dolfin_rod import TimeStepper, TSIntegrator, loads
+    slow = _dynamic_torsion(loads.smooth_step(0.5, 0.02, t0=0.02))
+    TimeStepper(slow.problem).run(0.0, 0.06, 0.01)
+    fast = _dynamic_torsion(loads.smooth_step(0.5, 1e-3, t0=0.02))
+    TSIntegrator(fast.problem, "bdf", adaptive=True).run(0.0, 0.03, 0.01)
+    for model in (slow, fast):
+        assert model.diagnostics(0.0)["end_rotation"] == pytest.approx(0.5, abs=1e-12)
 
 
 # --- item 9: a scene energy must have a stress-free, stable natural state ---------------

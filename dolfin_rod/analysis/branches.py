@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from petsc4py import PETSc
 
+from .eigen import EigenError, eigenpairs
 from .stability import LowestEigenvalues, StabilityMonitor
 
 __all__ = ["BranchSwitching", "Switch"]
@@ -94,7 +95,11 @@ class BranchSwitching:
         solved there and committed."""
         self.problem.set_bcs(t)     # rotation increments from the committed rotations
         at_t = _Snapshot(self.tangent)
-        lowest, critical = self._critical_mode(t, t_before, at_t.vector, unstable - stable)
+        try:
+            lowest, critical = self._critical_mode(t, t_before, at_t.vector,
+                                                   unstable - stable)
+        except EigenError:
+            return Switch(t, stable, unstable)
         for sign in (1, -1):
             at_t.restore()
             trial = at_t.vector.copy()
@@ -161,14 +166,21 @@ class BranchSwitching:
         return not self._unstable(t, stable)
 
     def _critical_mode(self, t: float, t_before: float, y, count: int):
-        """The critical mode: of the ``count`` eigenvectors of the negative eigenvalues
-        the combination the step's load increment f does work along (its projection
+        """The lowest eigenvalue and the critical mode: of the eigenvectors of the
+        ``count`` lowest negative eigenvalues (eigenpairs: those nearest 0, twice as
+        many, the negative ones) the combination the step's load increment f does work along (its projection
         sum (f . v_i) v_i: the side and, for a multiple eigenvalue, the plane an
         imperfection favours), the lowest one if f does none (a perfect structure);
         scaled to an RMS of L over the rod (v^T G v = L^3, G the metric of
         LowestEigenvalues)."""
-        pairs = self.modes.pairs(t, count)
-        vectors = [v for _, v in pairs]
+        K = self.tangent.matrix(t)
+        pairs = eigenpairs(K, self.modes.G, count=2 * count + 2, target=0.0)
+        K.destroy()
+        negative = sorted(((value, v) for value, v in zip(pairs.values, pairs.vectors)
+                           if value < 0.0), key=lambda pair: pair[0])[:count]
+        if not negative:
+            raise EigenError("no negative eigenvalue among those nearest 0")
+        vectors = [v for _, v in negative]
         increment = self._load_increment(y, t, t_before)
         works = [increment.dot(v) for v in vectors]
         mode = vectors[0]
@@ -180,7 +192,7 @@ class BranchSwitching:
         metric = mode.duplicate()
         self.modes.G.mult(mode, metric)
         mode.scale(self.tangent.model.length ** 1.5 / np.sqrt(mode.dot(metric)))
-        return pairs[0][0], mode
+        return negative[0][0], mode
 
     def _load_increment(self, y, t: float, t_before: float):
         """The loads' increment from t_before to t at the state y, -(F(y, t) -

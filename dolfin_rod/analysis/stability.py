@@ -25,11 +25,13 @@ import ufl
 from petsc4py import PETSc
 
 from ..fem import form_cache
+from .eigen import eigenpairs
 from ..fem.assembly import block_system, monolithic_layout
 from ..fem.multipoint import ConstrainedSystem
 from ..fem.fe_model import vertex_measure
 
-__all__ = ["Inertia", "TangentStiffness", "LowestEigenvalues", "StabilityMonitor"]
+__all__ = ["Inertia", "TangentStiffness", "LowestEigenvalues", "StabilityMonitor",
+           "at_rest_map", "symmetric_part"]
 
 MECHANICAL = ("displacement", "rotation_increment", "quaternion")
 MULTIPLIERS = ("gauge_multiplier", "constraint_multiplier")
@@ -51,12 +53,31 @@ class Inertia:
     zero: int
 
 
+def at_rest_map(model) -> dict:
+    """Zero Functions for the rates and accelerations of a model's fields (ufl.replace):
+    the residual of an equilibrium."""
+    moving = [model.r[n] for n in model.names] + [
+        a for a in getattr(model.problem, "accelerations", []) if a is not None]
+    return {f: fem.Function(f.function_space) for f in moving}
+
+
+def symmetric_part(A: PETSc.Mat, fixed: PETSc.IS, diagonal: float) -> PETSc.Mat:
+    """(A + A^T) / 2 as a new matrix, the rows and columns ``fixed`` (Dirichlet dofs)
+    zero but ``diagonal`` on the diagonal; A's are zeroed too."""
+    A.zeroRowsColumns(fixed, diag=diagonal)
+    S = A.transpose(PETSc.Mat())          # (without an out argument: in place)
+    S.axpy(1.0, A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+    S.scale(0.5)
+    S.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    return S
+
+
 class TangentStiffness:
     """K of a RodModel at its current state and loads (``inertia(t)``)."""
 
     def __init__(self, model):
         names = [n for n in model.names if n in MECHANICAL + MULTIPLIERS]
-        at_rest = {model.r[n]: fem.Function(model.r[n].function_space) for n in model.names}
+        at_rest = at_rest_map(model)
         residuals = [model.residual[n] for n in names]
         bcs = [bc for n in names for bc in model.bcs_of(n)]
         self.model, self.names = model, names
@@ -91,6 +112,30 @@ class TangentStiffness:
                       - model.mesh.comm.allreduce(fixed))
         return total
 
+    def mode_shapes(self, vectors) -> list[dict[str, np.ndarray]]:
+        """Vectors of K's layout as nodal values, {"displacement", "rotation"} (rotation
+        vectors) or {"displacement", "quaternion"}, each scaled to a largest displacement
+        of 1 (if it has one); the state in the fields is kept."""
+        from ..mpi import largest_on_ranks
+        system, model = self.system, self.model
+        state = system.x.copy()
+        system.get(0, state)
+        label = {"displacement": "displacement", "rotation_increment": "rotation",
+                 "quaternion": "quaternion"}
+        shapes = []
+        try:
+            for vector in vectors:
+                system.set(0, vector)
+                shape = {label[n]: model.f[n].x.array.copy() for n in self.names
+                         if n in label}
+                x = shape["displacement"].reshape(-1, 3)
+                size = largest_on_ranks(model.mesh.comm, float(
+                    np.max(np.linalg.norm(x, axis=1), initial=0.0)))
+                shapes.append({n: v / size for n, v in shape.items()} if size > 0 else shape)
+        finally:
+            system.set(0, state)
+        return shapes
+
     def matrix(self, t: float) -> PETSc.Mat:
         """The symmetric part of K at time t's loads, Dirichlet rows and columns identity."""
         self.model.problem.set_loads(t)
@@ -98,13 +143,7 @@ class TangentStiffness:
         system.get(0, system.x)
         system.set(0, system.x)
         system.jacobian(system.A)
-        A = system.A
-        A.zeroRowsColumns(self.fixed, diag=1.0)
-        K = A.transpose(PETSc.Mat())          # (without an out argument: in place)
-        K.axpy(1.0, A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        K.scale(0.5)
-        K.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        return K
+        return symmetric_part(system.A, self.fixed, 1.0)
 
     def inertia(self, t: float, metric: PETSc.Mat | None = None) -> Inertia:
         """The inertia of K at the current state and time t's loads; with a ``metric``
@@ -149,7 +188,7 @@ class LowestEigenvalues:
     """The lowest eigenvalues of K v = lambda G v on a rod with rotation vectors (no
     multipliers), G the lumped metric int (dx . x + L^2 dtheta . theta) ds (vertex rule:
     diagonal; units of K per length^3, e.g. EI/L^4: independent of the mesh), by SLEPc
-    (shift-and-invert at 0, MUMPS).  Dirichlet dofs have G = 0 (infinite eigenvalues, out
+    (analysis/eigen.py: shift-and-invert at 0, MUMPS).  Dirichlet dofs have G = 0 (infinite eigenvalues, out
     of the way)."""
 
     def __init__(self, tangent: TangentStiffness):
@@ -174,34 +213,10 @@ class LowestEigenvalues:
     def __call__(self, t: float, count: int = 1) -> list[float]:
         """The ``count`` eigenvalues nearest 0 at time t, ascending (all of them below 0
         when count exceeds the negative count)."""
-        return [value for value, _ in self.pairs(t, count)]
-
-    def pairs(self, t: float, count: int = 1) -> list[tuple[float, PETSc.Vec]]:
-        """(eigenvalue, eigenvector) of the ``count`` eigenvalues nearest 0 at time t,
-        ascending; the vectors in the layout of ``tangent.system`` (v^T G v = 1)."""
-        from slepc4py import SLEPc
         K = self.tangent.matrix(t)
-        eps = SLEPc.EPS().create(K.getComm())
-        eps.setOperators(K, self.G)
-        eps.setProblemType(SLEPc.EPS.ProblemType.GHEP)
-        eps.setDimensions(count)
-        eps.setTarget(0.0)
-        eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
-        st = eps.getST()
-        st.setType(SLEPc.ST.Type.SINVERT)
-        ksp = st.getKSP()
-        ksp.setType("preonly")
-        ksp.getPC().setType("lu")
-        ksp.getPC().setFactorSolverType("mumps")
-        eps.setTolerances(1e-10, 200)
-        eps.solve()
-        pairs = []
-        for i in range(eps.getConverged()):
-            v = K.createVecRight()
-            pairs.append((eps.getEigenpair(i, v).real, v))
-        eps.destroy()
+        values = eigenpairs(K, self.G, count, target=0.0).values
         K.destroy()
-        return sorted(pairs, key=lambda pair: pair[0])[:count]
+        return sorted(values)
 
 
 class StabilityMonitor:

@@ -61,10 +61,14 @@ def _is_real(V) -> bool:
 
 
 class _System:
-    """Shared part: Dirichlet rows (owned, in the vector layout) and their values."""
+    """Shared part: Dirichlet rows (owned, in the vector layout) and their values; terms
+    assembled outside the forms (``add_terms``)."""
+
+    terms: tuple = ()
 
     def _setup_bc_rows(self, bcs, rows_of):
         """rows_of(j, dofs): local rows of block j's (unrolled, owned) dofs."""
+        self.rows_of = rows_of
         spaces = [y.function_space for y in self.groups[0]]
         self._bcs = []
         rows = []
@@ -84,6 +88,26 @@ class _System:
         # rank zeroes only its own (owned) rows: no rendezvous (BuildTwoSided) per Jacobian
         self.A.setOption(PETSc.Mat.Option.SUBSET_OFF_PROC_ENTRIES, True)
         self.A.setOption(PETSc.Mat.Option.NO_OFF_PROC_ZERO_ROWS, True)
+
+    def add_terms(self, terms) -> None:
+        """Terms of the residual and Jacobian that are not forms (e.g. a rod's segment
+        pairs in contact, rod/pair_contact.py): each ``term.bind(system)`` gives an object
+        with add_residual(x_owned, b_owned) (before the Dirichlet rows are replaced) and
+        add_jacobian(A) (global rows, before A.assemble(); new entries grow A's
+        sparsity)."""
+        self.terms = tuple(term.bind(self) for term in terms)
+        if self.terms:
+            self.A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+
+    def _add_terms_to_residual(self, x, b) -> None:
+        if self.terms:
+            xa, ba = x.getArray(readonly=True), b.getArray()
+            for term in self.terms:
+                term.add_residual(xa, ba)
+
+    def _add_terms_to_jacobian(self, A) -> None:
+        for term in self.terms:
+            term.add_jacobian(A)
 
     def bc_values(self) -> np.ndarray:
         """The prescribed values of the Dirichlet rows (in bc_rows' order), as set now."""
@@ -214,12 +238,14 @@ class MonolithicSystem(_System):
         for form in self.F:
             fem_petsc.assemble_vector(b, form)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        self._add_terms_to_residual(x, b)
         self._replace_bc_rows(x, b, bc_values)
 
     def jacobian(self, A) -> None:
         A.zeroEntries()
         for form in self.J:
             fem_petsc.assemble_matrix(A, form)
+        self._add_terms_to_jacobian(A)
         A.assemble()
         self._identity_bc_rows(A)
 
@@ -257,11 +283,13 @@ class BlockedSystem(_System):
         with b.localForm() as bl:
             bl.set(0.0)
         compat.assemble_block_vector(b, self.F, self.J)
+        self._add_terms_to_residual(x, b)
         self._replace_bc_rows(x, b, bc_values)
 
     def jacobian(self, A) -> None:
         A.zeroEntries()
         compat.assemble_block_matrix(A, self.J)
+        self._add_terms_to_jacobian(A)
         A.assemble()
         self._identity_bc_rows(A)
 

@@ -52,6 +52,7 @@ from . import compat
 
 _ENTRIES: dict[str, list] = {}
 _MODULES: dict[str, object] = {}
+_KEYS_OF_STRUCTURES: dict[str, str] = {}     # structure as data -> signature key
 _FOLDER = (Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
            / "dolfin_rod" / "form_cache")
 
@@ -114,8 +115,16 @@ def registry(forms) -> list:
     return sorted(objs, key=lambda c: (isinstance(c, ufl.Constant), c.count()))
 
 
-def structure_key(forms, *extra) -> str:
-    """A key for the kernels of ``forms`` (their UFL signatures) and ``extra`` items."""
+def structure_key(forms, *extra, structure: str | None = None) -> str:
+    """A key for the kernels of ``forms`` (their UFL signatures) and ``extra`` items.
+    ``structure``: the forms' structure as data (SemiDiscreteProblem.structure, e.g.
+    rod/structure.py): the key computed for it before in this process is reused, without
+    the signatures (most of a second stepper's set-up)."""
+    if structure is not None:
+        data = hashlib.sha1("|".join([structure, *map(repr, extra)]).encode()).hexdigest()
+        if data not in _KEYS_OF_STRUCTURES:
+            _KEYS_OF_STRUCTURES[data] = structure_key(forms, *extra)
+        return _KEYS_OF_STRUCTURES[data]
     text = "|".join([*(form.signature() for form in forms), *map(repr, extra)])
     return hashlib.sha1(text.encode()).hexdigest()
 
@@ -124,6 +133,7 @@ def clear(disk: bool = True) -> None:
     """Forget every compiled form in this process and, if ``disk``, on disk (the next
     model of each structure compiles again; without ``disk``: loads it from disk)."""
     _ENTRIES.clear()
+    _KEYS_OF_STRUCTURES.clear()
     for path in _FOLDER.glob("*.json") if disk else ():
         path.unlink(missing_ok=True)
 

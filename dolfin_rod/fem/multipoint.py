@@ -1,4 +1,4 @@
-"""Linear multi-point constraints on an assembled block system: joints between rods.
+"""Multi-point constraints on an assembled block system: joints between rods.
 
 A ``NodeLink`` ties the dofs of one block at a *slave* node to those at a *master* node,
 y_slave = T y_master (+ the offset the state has when a solve starts), e.g. a rigid
@@ -17,6 +17,16 @@ system keeps the size and structure of the rods' own (no saddle point).  A slave
 force is P^T's sum into its master: the joint's reaction is the slave rows of F.
 A linked node must have no Dirichlet condition (checked by the model: joints join free
 ends or interior nodes).
+
+A ``NodeMap`` is a nonlinear link: y_slave = law(y_master, a) with p own parameters a
+of the slave node (a hinge's angle, rod/joints.py), Newton unknowns stored in the
+slave's first p rows of z.  Then y = Phi(z) + c, P = dPhi/dz at the current z (its map
+rows refreshed at each ``set``: same pattern, new values), residual P^T F and Jacobian
+P^T J P; the map rows carry no offset (the law holds exactly at the solution, also from
+an inconsistent predictor), and the law's own state is refreshed at each solve's start
+(``get``: law.refresh(), collective).  For a field other than the law's
+``configuration`` (rates, accelerations of the same block) the law's tangent at 0 is
+used (law.value(..., exact=False)).  A map's master node must be free (not a slave).
 """
 
 from __future__ import annotations
@@ -27,7 +37,7 @@ import dolfinx.fem as fem
 import numpy as np
 from petsc4py import PETSc
 
-__all__ = ["NodeLink", "ConstrainedSystem"]
+__all__ = ["NodeLink", "NodeMap", "ConstrainedSystem"]
 
 
 @dataclass(frozen=True)
@@ -41,6 +51,20 @@ class NodeLink:
     matrix: tuple
 
 
+@dataclass(frozen=True)
+class NodeMap:
+    """y_slave = law.value(y_master, a) for block ``block`` at the nodes s = slave_s,
+    master_s, with law.size own parameters a (see module).  The law: ``size``,
+    ``configuration`` (the Function it holds exactly), ``refresh()`` (collective, at a
+    solve's start), ``value(master, a, exact) -> (slave, dslave/d(master, a))``,
+    ``parameters(master, slave, exact) -> a`` (the a that fits)."""
+
+    block: int
+    master_s: float
+    slave_s: float
+    law: object
+
+
 def _owned_node_dofs(space, s: float) -> np.ndarray:
     """Owned local dofs (unrolled) of the node at s, in component order (empty if another
     rank owns it)."""
@@ -50,9 +74,9 @@ def _owned_node_dofs(space, s: float) -> np.ndarray:
     return (nodes[:, None] * bs + np.arange(bs)).ravel()
 
 
-def slave_rows(inner, fields: list, links: list[NodeLink]) -> dict[int, dict[int, float]]:
-    """{slave row: {master row: weight}} in the inner system's global rows, on every
-    rank; a master that is itself a slave is replaced by its own masters."""
+def node_rows(inner, fields: list, links: list) -> dict[tuple, int]:
+    """{(link k, "master" | "slave", component i): global row of the inner system}, on
+    every rank."""
     start = inner.x.getOwnershipRange()[0]
     found = []
     for k, link in enumerate(links):
@@ -61,7 +85,13 @@ def slave_rows(inner, fields: list, links: list[NodeLink]) -> dict[int, dict[int
             rows = start + inner.block_dofs[link.block][dofs]
             found += [(k, side, i, int(r)) for i, r in enumerate(rows)]
     comm = inner.x.getComm().tompi4py()
-    row = {(k, side, i): r for part in comm.allgather(found) for k, side, i, r in part}
+    return {(k, side, i): r for part in comm.allgather(found) for k, side, i, r in part}
+
+
+def slave_rows(inner, fields: list, links: list[NodeLink]) -> dict[int, dict[int, float]]:
+    """{slave row: {master row: weight}} in the inner system's global rows, on every
+    rank; a master that is itself a slave is replaced by its own masters."""
+    row = node_rows(inner, fields, links)
     slaves: dict[int, dict[int, float]] = {}
     for k, link in enumerate(links):
         T = np.asarray(link.matrix, float)
@@ -77,21 +107,56 @@ def slave_rows(inner, fields: list, links: list[NodeLink]) -> dict[int, dict[int
     return slaves
 
 
-class ConstrainedSystem:
-    """A block system restricted by NodeLinks to its free dofs (see module)."""
+@dataclass
+class _MappedNode:
+    """A NodeMap on the assembled system: its master and slave rows (global rows of the
+    inner system), the reduced columns of its arguments (masters, then own parameters)."""
 
-    def __init__(self, inner, fields: list, links: list[NodeLink]):
+    law: object
+    masters: list
+    slaves: list
+    columns: list
+    exact: bool
+    owned: bool
+
+
+class ConstrainedSystem:
+    """A block system restricted by NodeLinks and NodeMaps to its free dofs (see module)."""
+
+    terms: tuple = ()      # none: solvers.BlockSNES refuses terms with links
+
+    def __init__(self, inner, fields: list, links: list):
         self.inner, self.groups = inner, inner.groups
         comm = inner.x.getComm()
+        self._mpi = mpi = comm.tompi4py()
         start, stop = inner.x.getOwnershipRange()
-        slaves = slave_rows(inner, fields, links)
-        free = [r for r in range(start, stop) if r not in slaves]
-        mpi = comm.tompi4py()
+        maps = [link for link in links if isinstance(link, NodeMap)]
+        slaves = slave_rows(inner, fields, [link for link in links
+                                            if not isinstance(link, NodeMap)])
+        rows = node_rows(inner, fields, maps)
+        bs = [fields[m.block].function_space.dofmap.index_map_bs for m in maps]
+        mapped = {rows[k, "slave", i]: k for k, m in enumerate(maps) for i in range(bs[k])}
+        own = {rows[k, "slave", i] for k, m in enumerate(maps) for i in range(m.law.size)}
+        map_masters = {rows[k, "master", i] for k in range(len(maps)) for i in range(bs[k])}
+        if map_masters & (set(slaves) | set(mapped)) or \
+                set(mapped) & (set(slaves) | {m for t in slaves.values() for m in t}):
+            raise ValueError("a nonlinear link's master node is tied to another node, or its "
+                             "slave node is in another link: a hinge joins two nodes that "
+                             "no other joint ties")
+        free = [r for r in range(start, stop)
+                if r not in slaves and (r not in mapped or r in own)]
         first = mpi.scan(len(free)) - len(free)
         local = dict(zip(free, range(first, first + len(free))))
-        masters = {m for target in slaves.values() for m in target}
+        masters = {m for target in slaves.values() for m in target} | map_masters | own
         wanted = {m: local[m] for m in masters if m in local}
         reduced = {**local, **{k: v for part in mpi.allgather(wanted) for k, v in part.items()}}
+        self.maps = [_MappedNode(
+            m.law, [rows[k, "master", i] for i in range(bs[k])],
+            [rows[k, "slave", i] for i in range(bs[k])],
+            [reduced[rows[k, "master", i]] for i in range(bs[k])]
+            + [reduced[rows[k, "slave", i]] for i in range(m.law.size)],
+            fields[m.block] is m.law.configuration,
+            start <= rows[k, "slave", 0] < stop) for k, m in enumerate(maps)]
         sizes = ((stop - start, None), (len(free), None))
         P = PETSc.Mat().createAIJ(sizes, nnz=(6, 6), comm=comm)
         R = PETSc.Mat().createAIJ((sizes[1], sizes[0]), nnz=(1, 1), comm=comm)
@@ -99,8 +164,12 @@ class ConstrainedSystem:
             if r in slaves:
                 for m, w in slaves[r].items():
                     P.setValue(r, reduced[m], w)
+            elif r in mapped:          # the pattern of dPhi/dz; values at each ``set``
+                for column in self.maps[mapped[r]].columns:
+                    P.setValue(r, column, 0.0)
             else:
                 P.setValue(r, local[r], 1.0)
+            if r in local:
                 R.setValue(local[r], r, 1.0)
         P.assemble()
         R.assemble()
@@ -111,32 +180,84 @@ class ConstrainedSystem:
         self.x, self.b = P.createVecRight(), P.createVecRight()
         self._y, self._c, self._b = P.createVecLeft(), P.createVecLeft(), inner.b.duplicate()
         self._c.set(0.0)
+        self._slave_values = []
+        if self.maps:
+            self.get(0, self.x)        # the maps' derivatives at the fields' state
         inner.jacobian(inner.A)            # the structure of P^T J P (PtAP's symbolic part)
         self.A = inner.A.PtAP(P)
 
-    def set(self, k: int, z, blocks: bool = True) -> None:
-        """Reduced vector -> y = P z + c -> group k."""
+    def _values(self, vec, indices) -> dict:
+        """{global index: value} of ``vec`` at ``indices``, on every rank."""
+        low, high = vec.getOwnershipRange()
+        array = vec.getArray(readonly=True)
+        mine = {i: array[i - low] for i in indices if low <= i < high}
+        return {i: v for part in self._mpi.allgather(mine) for i, v in part.items()}
+
+    def _update_maps(self, z) -> None:
+        """The maps' slave values and derivatives (P's map rows) at z."""
+        if not self.maps:
+            return
+        values = self._values(z, [c for m in self.maps for c in m.columns])
+        self._slave_values = []
+        for m in self.maps:
+            args = np.array([values[c] for c in m.columns])
+            slave, derivative = m.law.value(args[:len(m.masters)], args[len(m.masters):],
+                                            m.exact)
+            if m.owned:
+                self.P.setValues(m.slaves, m.columns, np.ravel(derivative))   # C order
+                self._slave_values.append((m.slaves, slave))
+        self.P.assemble()
+
+    def _prolong(self, z) -> None:
+        """self._y = Phi(z) + c: P z + c, the maps' rows by their laws."""
+        self._update_maps(z)
         self.P.mult(z, self._y)
         self._y.axpy(1.0, self._c)
+        start = self._y.getOwnershipRange()[0]
+        for rows, values in self._slave_values:
+            self._y.array_w[np.array(rows) - start] = values
+
+    def set(self, k: int, z, blocks: bool = True) -> None:
+        """Reduced vector -> y = Phi(z) + c -> group k."""
+        self._prolong(z)
         self.inner.set(k, self._y, blocks)
 
     def get(self, k: int, z) -> None:
-        """Group k -> y -> z = R y; the offset c = y - P z of the slaves kept."""
+        """Group k -> y -> z = R y (the maps' own parameters fitted to y); the offset
+        c = y - P z of the linear slaves kept (0 on the maps' rows); the maps' laws
+        refreshed (a solve starts)."""
+        for m in self.maps:
+            m.law.refresh()
         self.inner.get(k, self._y)
         self.R.mult(self._y, z)
+        if not self.maps:
+            self.P.mult(z, self._c)
+            self._c.aypx(-1.0, self._y)
+            return
+        values = self._values(self._y, [r for m in self.maps for r in m.masters + m.slaves])
+        first = z.getOwnershipRange()[0]
+        for m in self.maps:
+            if m.owned:
+                own = m.law.parameters(np.array([values[r] for r in m.masters]),
+                                       np.array([values[r] for r in m.slaves]), m.exact)
+                z.array_w[np.array(m.columns[len(m.masters):]) - first] = own
+        self._update_maps(z)
         self.P.mult(z, self._c)
         self._c.aypx(-1.0, self._y)
+        start = self._c.getOwnershipRange()[0]
+        for rows, _ in self._slave_values:
+            self._c.array_w[np.array(rows) - start] = 0.0
 
     def bc_values(self) -> np.ndarray:
         return self.inner.bc_values()
 
     def residual(self, z, b, bc_values=None) -> None:
-        """b = P^T F(P z + c) (after ``set`` with the same z, as BlockSNES does)."""
-        self.P.mult(z, self._y)
-        self._y.axpy(1.0, self._c)
+        """b = P^T F(Phi(z) + c) (after ``set`` with the same z, as BlockSNES does)."""
+        self._prolong(z)
         self.inner.residual(self._y, self._b, bc_values)
         self.P.multTranspose(self._b, b)
 
     def jacobian(self, A) -> None:
+        """P^T J P at the z of the last ``set``/``residual``."""
         self.inner.jacobian(self.inner.A)
         self.inner.A.PtAP(self.P, result=A)

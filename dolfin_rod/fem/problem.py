@@ -47,6 +47,16 @@ class SemiDiscreteProblem:
                  joints of a rod system), eliminated by the solvers.
     unset_state: what to call before integrating ("": the state is set); a model whose
                  fields start invalid (a rod's zero quaternions) names its set-up call.
+    prescribed_motions: {name: t -> value} the prescribed motions of a body with inertia,
+                 which the steps must resolve (integrators' check_run: no jump, no change
+                 faster than dt; loads.resolution_problem).
+    structure:   the residual's structure as data (None: unknown), equal for two problems
+                 whose residuals differ only in the values of their Constants and
+                 Functions (rod/structure.py): the integrators' compiled kernels are
+                 found by it without UFL signatures (fem/form_cache.structure_key).
+    terms:       residual and Jacobian terms that are not forms, evaluated at the
+                 unknowns of the solve (fem/assembly add_terms: a rod's segment contact);
+                 only integrators that solve for the fields at the step's end take them.
     """
 
     fields: list[fem.Function]
@@ -59,6 +69,9 @@ class SemiDiscreteProblem:
     check_step: Callable[[], str | None] = lambda: None
     links: list = field(default_factory=list)
     unset_state: str = ""
+    prescribed_motions: dict = field(default_factory=dict)
+    structure: str | None = None
+    terms: list = field(default_factory=list)
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):

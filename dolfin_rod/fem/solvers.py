@@ -17,6 +17,7 @@ import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..checks import NEWTON_ATOL, NEWTON_RTOL
 from .assembly import block_system
 from .multipoint import ConstrainedSystem
 
@@ -24,8 +25,8 @@ _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinsta
 DEFAULT_OPTIONS = {
     "snes_type": "newtonls",
     "snes_linesearch_type": "basic",
-    "snes_rtol": 1e-10,
-    "snes_atol": 1e-11,
+    "snes_rtol": NEWTON_RTOL,
+    "snes_atol": NEWTON_ATOL,
     "snes_stol": 1e-10,  # |dx| < 1e-10 |x|: converged (x then exact to ~|dx|^2); a
                          # residual floor alone cannot be met at round-off on fine meshes
     "snes_max_it": 25,
@@ -157,6 +158,88 @@ def _forget_options(prefix: str, keys: list[str]) -> None:
         opts.delValue(prefix + k)
 
 
+def default_test(snes, it: int, norms, fnorm0: float, step_scale: float = 0.0) -> int:
+    """PETSc's default test (SNESConvergedDefault: NaN, atol, rtol, step, divergence;
+    snes_max_it is PETSc's own check) with |y| + step_scale in the step test; ``fnorm0``
+    the solve's initial residual norm."""
+    xnorm, ynorm, fnorm = norms
+    rtol, atol, stol, _ = snes.getTolerances()
+    reasons = PETSc.SNES.ConvergedReason
+    if not np.isfinite(fnorm):
+        return reasons.DIVERGED_FNORM_NAN
+    if fnorm < atol:
+        return reasons.CONVERGED_FNORM_ABS
+    if it == 0:
+        return reasons.ITERATING
+    if fnorm <= rtol * fnorm0:
+        return reasons.CONVERGED_FNORM_RELATIVE
+    if ynorm < stol * (xnorm + step_scale):
+        return reasons.CONVERGED_SNORM_RELATIVE
+    divtol = snes.getDivergenceTolerance()
+    if divtol > 0 and fnorm > divtol * fnorm0:
+        return reasons.DIVERGED_DTOL
+    return reasons.ITERATING
+
+
+def residual_problem(snes, reason: int, norm: float, initial: float,
+                     floor: float = 0.0) -> str | None:
+    """Why a solve SNES reports as converged (``reason``) is not one, or None: the
+    residual ``norm`` at the solution must meet snes_atol or snes_rtol times the
+    ``initial`` norm; after the step test it must not have grown (or be at most the
+    round-off ``floor``: Newton stopped moving there)."""
+    rtol, atol, _, _ = snes.getTolerances()
+    if norm <= max(atol, rtol * initial):
+        return None
+    if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and \
+            norm <= max(initial, floor):
+        return None
+    return (f"{_REASONS.get(reason, reason)} but the residual norm at the solution is "
+            f"{norm:.3g}, above the tolerance {max(atol, rtol * initial):.3g} (snes_atol, "
+            "or snes_rtol times the initial norm; check the solver options)")
+
+
+# SNES types that stop without a convergence test (their last monitor call has the
+# residual at the solution)
+UNTESTED_TYPES = ("ksponly", "ksptransposeonly")
+
+
+class CheckedSNES:
+    """The residual check of BlockSNES for a SNES driven by others (PETSc TS's stage
+    solves): a solve it reports as converged whose residual at the solution misses the
+    tolerances (residual_problem) is turned into DIVERGED_DTOL, which TS treats as a
+    failed solve (step rejected, cut, IntegrationError after its rejections);
+    ``failure`` keeps the last such message.  The convergence test is PETSc's default
+    (default_test) plus the check, also under snes_convergence_test options; types
+    without a test (UNTESTED_TYPES) are checked at their last monitor call.  The
+    residual norm is the one SNES computed at the iterate: no extra assembly."""
+
+    def __init__(self, snes):
+        self.snes, self.failure, self._initial = snes, None, np.inf
+        snes.setConvergenceTest(self._converged)
+        snes.setMonitor(self._monitor)
+
+    def _monitor(self, snes, it: int, fnorm: float) -> None:
+        if it == 0:
+            self._initial = fnorm
+        elif snes.getType() in UNTESTED_TYPES:
+            snes.setConvergedReason(self._checked(snes.getConvergedReason(), fnorm))
+
+    def _converged(self, snes, it: int, norms) -> int:
+        if it == 0:
+            self._initial = norms[2]
+        reason = default_test(snes, it, norms, self._initial)
+        return self._checked(reason, norms[2]) if reason > 0 else reason
+
+    def _checked(self, reason: int, norm: float) -> int:
+        if reason <= 0:
+            return reason
+        problem = residual_problem(self.snes, reason, norm, self._initial)
+        if problem is None:
+            return reason
+        self.failure = problem
+        return PETSc.SNES.ConvergedReason.DIVERGED_DTOL
+
+
 class SolverError(RuntimeError):
     """SNES did not converge; ``reason`` is PETSc's converged-reason name."""
 
@@ -172,6 +255,9 @@ class BlockSNES:
     ``options`` are PETSc options under a private prefix (defaults: Newton without a
     line search and an LU, SuperLU on one rank and MUMPS on several: DEFAULT_LU).
     ``cache``: (key, objects) to share compiled forms (assembly.block_system).
+    ``terms``: residual and Jacobian terms that are not forms (assembly's add_terms);
+    a term's ``limit_step(x, y)`` may shorten each Newton update (a pre-check of the line
+    search: segment contact keeps pairs from passing through each other).
     ``step_scale``: for unknowns without a size of their own (a rod's displacements and
     rotation increments: 0 at rest) the norm of a configuration of the problem's size,
     added to |y| in the step test |dy| < snes_stol (|y| + step_scale) (_converged; 0:
@@ -196,7 +282,8 @@ class BlockSNES:
     """
 
     def __init__(self, F: list[ufl.Form] | None, y: list[fem.Function], bcs=(), options=None,
-                 prefix: str | None = None, cache=None, step_scale: float = 0.0, links=()):
+                 prefix: str | None = None, cache=None, step_scale: float = 0.0, links=(),
+                 terms=()):
         self.y = y
         settings = petsc_options(y[0].function_space.mesh.comm, options)
         lagged = any(k.startswith("snes_lag_") for k in options or {})
@@ -205,6 +292,10 @@ class BlockSNES:
         if self.reuse_ratio is not None:   # PETSc asks every iteration, _jacobian decides
             settings.update(snes_lag_jacobian=1, snes_lag_preconditioner=1)
         self.system = block_system(F, [y], bcs=bcs, cache=cache)
+        self.system.add_terms(terms)
+        if links and terms:
+            raise ValueError("terms assembled outside the forms (segment contact) and "
+                             "multi-point constraints (joints) together are not supported")
         if links:       # joints: Newton on the free dofs (fem/multipoint.py)
             self.system = ConstrainedSystem(self.system, y, list(links))
         self.x = self.system.x
@@ -217,6 +308,8 @@ class BlockSNES:
         for k, v in settings.items():
             opts[self.prefix + k] = v
         self.snes.setFromOptions()
+        if any(hasattr(term, "limit_step") for term in self.system.terms):
+            self.snes.setLineSearchPreCheck(self._limit_step)
         self.step_scale = step_scale
         if step_scale > 0.0:
             self.snes.setConvergenceTest(self._converged)
@@ -246,6 +339,12 @@ class BlockSNES:
         self.timings["residual"] += time.perf_counter() - t0
         self.counts["residual"] += 1
 
+    def _limit_step(self, x, y) -> None:
+        """The line search's pre-check: terms shorten Newton's update y (x - y)."""
+        xa, ya = x.getArray(readonly=True), y.getArray()
+        for term in self.system.terms:
+            term.limit_step(xa, ya)
+
     def _jacobian(self, snes, x, A, P):
         if self.reuse_ratio is not None and not self._new_jacobian_needed(snes):
             return      # A unchanged: PETSc keeps its LU as well (PCSetUp: same state)
@@ -262,27 +361,9 @@ class BlockSNES:
         return snes.getIterationNumber() == 0 or norm > self.reuse_ratio * last
 
     def _converged(self, snes, it: int, norms) -> int:
-        """PETSc's default test (SNESConvergedDefault: NaN, atol, rtol, step, divergence;
-        snes_max_it is PETSc's own check) with |y| + step_scale in the step test."""
-        xnorm, ynorm, fnorm = norms
-        rtol, atol, stol, _ = snes.getTolerances()
-        reasons = PETSc.SNES.ConvergedReason
         if it == 0:
-            self._fnorm0 = fnorm
-        if not np.isfinite(fnorm):
-            return reasons.DIVERGED_FNORM_NAN
-        if fnorm < atol:
-            return reasons.CONVERGED_FNORM_ABS
-        if it == 0:
-            return reasons.ITERATING
-        if fnorm <= rtol * self._fnorm0:
-            return reasons.CONVERGED_FNORM_RELATIVE
-        if ynorm < stol * (xnorm + self.step_scale):
-            return reasons.CONVERGED_SNORM_RELATIVE
-        divtol = snes.getDivergenceTolerance()
-        if divtol > 0 and fnorm > divtol * self._fnorm0:
-            return reasons.DIVERGED_DTOL
-        return reasons.ITERATING
+            self._fnorm0 = norms[2]
+        return default_test(snes, it, norms, self._fnorm0, self.step_scale)
 
     def _set_persists(self, flags) -> None:
         opts = PETSc.Options()
@@ -333,7 +414,7 @@ class BlockSNES:
         entries are stiffness / h, so |J| times the cell size h (the change of a position
         across a cell at unit strain) is the terms' size, row by row.  An upper estimate:
         on the column of benchmarks/stability_check.py (B = 1e5..3e5, 32-256 cells) the
-        residual fluctuates at 1e-11..1e-10, 20-100x below it, above snes_atol's 1e-11
+        residual fluctuates at 1e-11..1e-10, 20-100x below it, above an snes_atol of 1e-11
         (tests/test_solvers_floor.py).  Uses the last assembled Jacobian (its size, not
         its exactness, matters); computed only when a step test's residual grew; 0
         before any Jacobian."""
@@ -363,13 +444,8 @@ class BlockSNES:
         if not self.x.equal(self._x_at_residual):
             self.snes.computeFunction(self.x, self._r)   # -> _residual at the solution
         norm, initial = self._residual_norm, self._initial_norm
-        rtol, atol, _, _ = self.snes.getTolerances()
-        if norm <= max(atol, rtol * initial):
-            return
-        if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and \
-                norm <= max(initial, self.round_off_floor()):
-            return     # Newton stopped moving at the residual's round-off floor
-        raise SolverError(f"{_REASONS.get(reason, reason)} but the residual norm at the "
-                          f"solution is {norm:.3g}, above the tolerance "
-                          f"{max(atol, rtol * initial):.3g} (snes_atol, or snes_rtol times "
-                          "the initial norm; check the solver options),", self.iterations)
+        floor = self.round_off_floor() if norm > initial and \
+            reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE else 0.0
+        problem = residual_problem(self.snes, reason, norm, initial, floor)
+        if problem is not None:
+            raise SolverError(problem + ",", self.iterations)

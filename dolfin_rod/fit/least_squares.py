@@ -86,14 +86,15 @@ class FitResult:
 
 
 def model_step(times: np.ndarray, scene_dt: float) -> float:
-    """The model's step: the sampling interval h divided into ceil(h / dt) steps when the
-    samples lie on a grid k h (then every sample is an output time), else the scene's dt
-    (and the response is interpolated linearly between outputs)."""
+    """The model's step: a sampling interval h >= dt divided into ceil(h / dt) steps when
+    the samples lie on a grid k h (then every sample is an output time), else the scene's
+    dt (the response interpolated linearly between outputs): samples finer than dt cost
+    nothing beyond the steps the dynamics need (issue 28 item 29)."""
     h = float(times[1] - times[0])
     on_grid = np.allclose(times / h, np.round(times / h), rtol=0, atol=1e-9)
-    if not on_grid or not np.allclose(np.diff(times), h, rtol=1e-9, atol=0):
+    if h < scene_dt or not on_grid or not np.allclose(np.diff(times), h, rtol=1e-9, atol=0):
         return scene_dt
-    return h / max(1, math.ceil(h / scene_dt - 1e-9))
+    return h / math.ceil(h / scene_dt - 1e-9)
 
 
 def simulate_response(scene: Scene, model: str, experiment: Experiment, comm,

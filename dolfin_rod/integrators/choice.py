@@ -11,7 +11,8 @@
   generalized-alpha on the rotation group (lie_alpha.py), unless it has no second-order
   block and a per-step scheme is named (a quasi-static rod: its rotation increments are
   algebraic, ``per_step_schemes``);
-* otherwise the per-step scheme (stepper.py, ``SchemeStepper``; default backward Euler).
+* otherwise the per-step scheme (stepper.py, ``SchemeStepper``; default BDF2, the scene's
+  ``time.scheme``).
 
 ``tolerance`` (e.g. 1e-3) switches the error-controlled steps of the rotation-group
 integrator on; None keeps run's fixed dt.  ``TimeStepper`` is the user-facing one-liner:
@@ -21,6 +22,7 @@ integrator's (run, step, stats, description, checkpoint_state, ...).
 
 from __future__ import annotations
 
+from ..checks import MAX_STEP_CUTS, PREDICTOR
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from .lie_alpha import LieGeneralizedAlpha
 from .stepper import SchemeStepper
@@ -38,11 +40,16 @@ def on_rotation_group(problem: SemiDiscreteProblem, scheme: str | None) -> bool:
 
 
 def choose_integrator(problem: SemiDiscreteProblem, scheme: str | None = None,
-                      solver_options: dict | None = None, max_cuts: int = 6,
-                      predictor: str = "linear", tolerance: float | None = None,
+                      solver_options: dict | None = None, max_cuts: int = MAX_STEP_CUTS,
+                      predictor: str = PREDICTOR, tolerance: float | None = None,
                       ts_type: str | None = None, **ts_options):
     """The integrator of ``problem`` (the module's docstring); ``ts_options`` are
     TSIntegrator's keywords (adaptive, rtol, atol, ...)."""
+    if problem.terms and (ts_type is not None or not on_rotation_group(problem, scheme)):
+        raise ValueError("terms assembled outside the forms (a rod's segment contact, "
+                         "contact.self / contact.between_rods) are solved by "
+                         "generalized-alpha on the rotation group only: rotation-vector "
+                         "unknowns, no ts_type, scheme generalized_alpha[:rho_inf]")
     if ts_type is not None:
         return TSIntegrator(problem, ts_type, solver_options=solver_options, **ts_options)
     if on_rotation_group(problem, scheme):
@@ -60,8 +67,8 @@ class TimeStepper:
     PREDICTORS = SchemeStepper.PREDICTORS
 
     def __init__(self, problem: SemiDiscreteProblem, scheme: str | None = None,
-                 solver_options: dict | None = None, max_cuts: int = 6,
-                 predictor: str = "linear", tolerance: float | None = None):
+                 solver_options: dict | None = None, max_cuts: int = MAX_STEP_CUTS,
+                 predictor: str = PREDICTOR, tolerance: float | None = None):
         object.__setattr__(self, "integrator", choose_integrator(
             problem, scheme, solver_options, max_cuts, predictor, tolerance))
 

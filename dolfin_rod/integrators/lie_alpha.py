@@ -32,6 +32,7 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
+from ..checks import MAX_STEP_CUTS
 from ..fem import compat, form_cache
 from ..fem.solvers import BlockSNES, SolverError
 from ..mpi import largest_on_ranks
@@ -184,7 +185,7 @@ class LieGeneralizedAlpha:
     controller constants.  The global error then scales as tol^(2/3) (h ~ tol^(1/3),
     error ~ h^2; tests/test_adaptive.py)."""
 
-    def __init__(self, problem, rho_inf: float = 0.8, solver_options=None, max_cuts: int = 6,
+    def __init__(self, problem, rho_inf: float = 0.8, solver_options=None, max_cuts: int = MAX_STEP_CUTS,
                  tolerance: float | StepControl | None = None):
         self.control = (tolerance if isinstance(tolerance, StepControl) or tolerance is None
                         else StepControl(tolerance, tolerance))
@@ -203,14 +204,14 @@ class LieGeneralizedAlpha:
         # compiled step forms shared by all problems of this structure (form_cache)
         self._model_objects = form_cache.registry(problem.residual)
         self.structure_key = form_cache.structure_key(problem.residual, "lie_alpha", self.order,
-                                                      rho_inf)
+                                                      rho_inf, structure=problem.structure)
         objects = [*self._model_objects, *self.y_n, *self.v_n,
                    *(a for a in self.acc_n if a is not None), *self.alg_n, self.dt]
         F = None if form_cache.lookup(self.structure_key) else self._step_forms()
         self.options = options = solver_settings(mesh.comm, solver_options, 2 in self.order)
         self.solver = BlockSNES(F, y, problem.bcs, options, cache=(self.structure_key, objects),
                                 step_scale=problem.configuration_norm(),
-                                links=problem.links)
+                                links=problem.links, terms=problem.terms)
         self._arrays = self._views()
         self._matrices = {}
         self.stats = StepStats()
@@ -223,7 +224,7 @@ class LieGeneralizedAlpha:
         self._rejections = 0      # error control: rejected steps in a row
 
     @classmethod
-    def for_scheme(cls, problem, scheme: str | None, solver_options=None, max_cuts: int = 6,
+    def for_scheme(cls, problem, scheme: str | None, solver_options=None, max_cuts: int = MAX_STEP_CUTS,
                    tolerance=None):
         """choose_integrator's arguments: ``scheme`` None (rho_inf 0.8) or 'generalized_alpha'
         ['RHO'] (schemes.alpha_rho_inf); a first-order scheme is refused."""
@@ -313,7 +314,8 @@ class LieGeneralizedAlpha:
             self._initial_solver = BlockSNES(F, self._unknowns_at_start(), self.problem.bcs,
                                              self.options, cache=(key, self._model_objects),
                                              step_scale=self.problem.configuration_norm(),
-                                             links=self.problem.links)
+                                             links=self.problem.links,
+                                             terms=self.problem.terms)
 
     def initial_accelerations(self, t0: float) -> None:
         """Solve the residual at t0 for the accelerations (second order) and rates (first
@@ -381,7 +383,8 @@ class LieGeneralizedAlpha:
         key = self.structure_key + "equilibrium"
         solver = BlockSNES(None if form_cache.lookup(key) else p.residual, unknowns, p.bcs,
                            self.options, cache=(key, self._model_objects),
-                           step_scale=p.configuration_norm(), links=p.links)
+                           step_scale=p.configuration_norm(), links=p.links,
+                           terms=p.terms)
         initial = [f.x.array.copy() for f in p.fields]
         try:
             solver.solve(sub_solves=EQUILIBRIUM_SUB_SOLVES)
@@ -426,7 +429,7 @@ class LieGeneralizedAlpha:
         redone smaller if its local error exceeds the tolerance or its Newton fails, at
         most ``max_cuts`` times in a row.  IntegrationError when that is exhausted, the
         last accepted state kept."""
-        check_run(t0, t_end, dt, self.problem)
+        check_run(t0, t_end, dt, self.problem, adaptive=self.control is not None)
         if not self._started:
             self.initial_accelerations(t0)
         if observer:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from ..fem.solvers import SolverError
+from ..loads import resolution_problem
 
 # Relative round-off of a time summed from steps: a remaining interval below
 # ROUND_OFF * dt is "at t_end", and a step within (1 + ROUND_OFF) of the remaining
@@ -80,8 +81,10 @@ class StepStats:
     snes_failures: int = 0
 
 
-def check_run(t0: float, t_end: float, dt: float, problem=None) -> None:
-    """ValueError unless dt > 0, t_end > t0 and the problem's initial state is set."""
+def check_run(t0: float, t_end: float, dt: float, problem=None, adaptive: bool = False) -> None:
+    """ValueError unless dt > 0, t_end > t0, the problem's initial state is set and its
+    steps resolve its prescribed motions (no jump; unless ``adaptive``, no change faster
+    than dt)."""
     if problem is not None and problem.unset_state:
         raise ValueError(f"the initial state is not set: call {problem.unset_state} before "
                          "integrating (its fields are still zero, e.g. a rod's quaternions: "
@@ -90,6 +93,10 @@ def check_run(t0: float, t_end: float, dt: float, problem=None) -> None:
         raise ValueError(f"dt must be > 0, got {dt}")
     if not t_end > t0:
         raise ValueError(f"t_end must be > t0 = {t0}, got {t_end}")
+    for name, motion in (problem.prescribed_motions if problem is not None else {}).items():
+        why = resolution_problem(motion, t0, t_end, dt, adaptive)
+        if why:
+            raise ValueError(f"{name} {why}")
 
 
 def nominal_steps(t0: float, t_end: float, dt: float) -> int:

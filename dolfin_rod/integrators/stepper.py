@@ -12,6 +12,7 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
+from ..checks import MAX_STEP_CUTS, PREDICTOR, SCHEME
 from ..fem import form_cache
 from ..fem.assembly import monolithic_layout
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
@@ -64,7 +65,8 @@ class _StepResidual:
         self.stage_loads = stage_loads(problem, scheme)
         # the layout in the key: scifem's real space has DG0's UFL signature (DOLFINx 0.9)
         shared = monolithic_layout(problem.fields)     # only that layout shares kernels
-        self.key = key = form_cache.structure_key(problem.residual, "step", scheme.name, shared)
+        self.key = key = form_cache.structure_key(problem.residual, "step", scheme.name, shared,
+                                                       structure=problem.structure)
         objects = [*form_cache.registry(problem.residual), *(f for h in history for f in h), dt,
                    *(c for _, stage in self.stage_loads for c, _ in stage)]
         F = None if shared and form_cache.lookup(key) else step_forms(
@@ -104,8 +106,8 @@ class SchemeStepper:
     PREDICTORS = ("linear", "constant")
 
     def __init__(self, problem: SemiDiscreteProblem, scheme: str | None = None,
-                 solver_options: dict | None = None, max_cuts: int = 6,
-                 predictor: str = "linear", tolerance: float | None = None):
+                 solver_options: dict | None = None, max_cuts: int = MAX_STEP_CUTS,
+                 predictor: str = PREDICTOR, tolerance: float | None = None):
         if tolerance is not None:
             raise ValueError("tolerance: error-controlled steps exist for a rod with "
                              "rotation-vector unknowns (generalized-alpha on the rotation "
@@ -115,7 +117,7 @@ class SchemeStepper:
             raise ValueError(f"predictor must be one of {self.PREDICTORS}, got {predictor!r}")
         self.predictor = predictor
         self.problem = problem
-        self.scheme = get_scheme(scheme or "backward_euler")
+        self.scheme = get_scheme(scheme or SCHEME)
         # rotation vectors (no saddle point): the banded LU of the rotation-group integrator
         self._charted = lie = isinstance(problem, SecondOrderProblem) and problem.lie_group
         self.options = solver_settings(problem.comm, solver_options, False) if lie \

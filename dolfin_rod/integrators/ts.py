@@ -33,7 +33,9 @@ Step rejection: a SNES failure rejects the step and TS retries with dt scaled by
 ``ts_adapt_scale_solve_failed`` (0.25); ``max_rejections`` consecutive rejections of one
 step end the run with IntegrationError, the accepted history staying with the observer
 and the last accepted state in ``problem.fields``.  In fixed-step mode the step grows
-back to the nominal dt (doubling) after a cut, like TimeStepper.
+back to the nominal dt (doubling) after a cut, like TimeStepper.  A stage solve SNES
+reports as converged counts as a failure when its residual at the solution misses the
+tolerances (fem/solvers.CheckedSNES: ksponly, a trusted small step), whatever the options.
 """
 
 from __future__ import annotations
@@ -46,9 +48,10 @@ import dolfinx.fem as fem
 import numpy as np
 from petsc4py import PETSc
 
+from ..checks import TS_ATOL, TS_RTOL
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..fem.assembly import block_system
-from ..fem.solvers import petsc_options
+from ..fem.solvers import CheckedSNES, petsc_options
 from .step_control import (IntegrationError, StepStats, check_run, clip_to_end, grown,
                        nominal_steps, reached)
 
@@ -129,7 +132,7 @@ class TSIntegrator:
     """
 
     def __init__(self, problem: SemiDiscreteProblem, ts_type: str = "bdf", *,
-                 adaptive: bool = False, rtol: float = 1e-6, atol: float = 1e-8,
+                 adaptive: bool = False, rtol: float = TS_RTOL, atol: float = TS_ATOL,
                  solver_options: dict | None = None, ts_options: dict | None = None,
                  max_rejections: int = 10, dt_min: float | None = None):
         if getattr(problem, "lie_group", False):
@@ -197,6 +200,7 @@ class TSIntegrator:
         for k, v in settings.items():
             opts[self.prefix + k] = v
         self.ts.setFromOptions()
+        self.snes_check = CheckedSNES(self.ts.getSNES())   # after the options: theirs too
         self.ts.setMonitor(self._monitor)
         self.ts.setPostStep(self._post_step)
 
@@ -265,9 +269,9 @@ class TSIntegrator:
         Returns the final time; raises IntegrationError when a step is rejected
         ``max_rejections`` times in a row (state: the last accepted step).
         """
-        check_run(t0, t_end, dt, self.problem)
+        check_run(t0, t_end, dt, self.problem, adaptive=self.adaptive)
         self._observer, self._t_accepted, self._dt_nominal = observer, None, dt
-        self._t_end = t_end
+        self._t_end, self.snes_check.failure = t_end, None
         # smallest accepted step before giving up: dt_min, else (fixed step) dt 4^-rejections
         self._dt_floor = (self.dt_min if self.dt_min is not None else
                           0.0 if self.adaptive else dt * 0.25 ** self.max_rejections)
@@ -293,8 +297,9 @@ class TSIntegrator:
             self.system.set(0, self._x_prev)
             raise IntegrationError(
                 f"TS {self.method.name} stopped at t = {t:.6g} ({_REASONS.get(reason, reason)}"
-                f", {self.stats.rejected} rejected steps, last dt = {self.ts.getTimeStep():.3g})",
-                t)
+                f", {self.stats.rejected} rejected steps, last dt = {self.ts.getTimeStep():.3g}"
+                + (f"; last SNES failure: {self.snes_check.failure}" if self.snes_check.failure
+                   else "") + ")", t)
         return t
 
     def __del__(self):

@@ -46,6 +46,15 @@ class Look:
     supports: dict = field(default_factory=dict)
     gravity: tuple | None = None
 
+    @classmethod
+    def of(cls, scene, colour: str | None = None) -> Look:
+        """The scene's look: ``colour`` or its outputs.color, its ends' supports, its
+        gravity."""
+        boundary = scene["boundary"]
+        return cls(colour or scene["outputs"]["color"],
+                   {e: boundary[e] for e in ("start", "end") if e in boundary},
+                   scene["loads"].get("gravity"))
+
 
 class FrameStore:
     """(t, LineSample) pairs, thinned to at most ``max_frames`` (the last one is kept)."""

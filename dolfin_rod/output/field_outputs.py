@@ -1,5 +1,6 @@
-"""The fields along the rod written while a run goes: ``rod.bp`` (ParaView,
-ADIOS2VTXReader) and the frames of the animation and pictures (animation.py)."""
+"""The fields along the rod written while a run goes: ``rod.bp`` (ParaView >= 5.13,
+ADIOS2VTXReader), the same steps as ``rod.pvd`` + ``rod/*.vtu`` (any ParaView,
+vtk_xml.py) and the frames of the animation and pictures (animation.py)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ import numpy as np
 
 class FieldOutputs:
     """The fields along the rod of an FE model (RodModel or TorsionModel, anything with
-    ``observables()``): ``rod.bp`` (ParaView) and the pictures of animation.py, from
+    ``observables()``): ``rod.bp`` and ``rod.pvd`` (ParaView) and the pictures of
+    animation.py, from
     LineSampler samples gathered on rank 0.  ``model = None`` (ODE runs): nothing.
     Usable from scripts:
 
@@ -31,7 +33,7 @@ class FieldOutputs:
             from .line_fields import LineSampler
             self.sampler = LineSampler(model.mesh, model.observables(), self.POINT)
         self.keep_until: float | None = None     # resume: steps of rod.bp kept up to here
-        self.vtx = None
+        self.writers: list = []           # rod.bp (vtx.py), rod.pvd (vtk_xml.py)
         self.frames = None
 
     def write(self, t: float) -> None:
@@ -43,18 +45,20 @@ class FieldOutputs:
             return
         if self.frames is None:
             self._start()
-        if self.outputs["fields"]:
-            self.vtx.write(t, _geometry(sample), *self._data(sample), sample.segments())
+        for writer in self.writers:
+            writer.write(t, _geometry(sample), *self._data(sample), sample.segments())
         self.frames.add(t, sample)
 
     def _start(self) -> None:
         from .animation import FrameStore
+        from .vtk_xml import LineVTU
         from .vtx import LineVTX
         self.frames = FrameStore()
         if self.outputs["fields"]:
-            self.vtx = LineVTX(self.folder / "rod.bp", keep_until=self.keep_until)
-            for step in self.vtx.kept:   # resume: earlier frames come back from rod.bp
-                self.frames.add(step["time"], _sample_from_vtx(step))
+            vtx = LineVTX(self.folder / "rod.bp", keep_until=self.keep_until)
+            self.writers = [vtx, LineVTU(self.folder / "rod.pvd", keep_until=self.keep_until)]
+            for step in vtx.kept:   # resume: earlier frames come back from rod.bp
+                self.frames.add(step["time"], sample_from_steps(step))
 
     @staticmethod
     def _data(sample) -> tuple[dict, dict]:
@@ -71,8 +75,9 @@ class FieldOutputs:
 
     def close(self) -> None:
         """Rank 0: close rod.bp (every sample written is then readable)."""
-        if self.comm.rank == 0 and self.vtx is not None:
-            self.vtx.close()
+        if self.comm.rank == 0:
+            for writer in self.writers:
+                writer.close()
 
     def pictures(self, title: str, look=None) -> list[tuple[str, Callable[[], None]]]:
         """Rank 0: the pictures of outputs.animation, as (file name, draw it); ``look``
@@ -100,8 +105,9 @@ def _geometry(sample) -> np.ndarray:
     return np.column_stack([np.zeros_like(s), np.zeros_like(s), s])
 
 
-def _sample_from_vtx(step: dict):
-    """A LineSample from a step of rod.bp (resume: the frames before the checkpoint)."""
+def sample_from_steps(step: dict):
+    """A LineSample from a step of rod.bp or rod.pvd (vtx.read_vtx, vtk_xml.read_pvd;
+    resume: the frames before the checkpoint; redraw.py)."""
     from .line_fields import LineSample
     point = dict(step["point"])
     s_nodes = point.pop("s")

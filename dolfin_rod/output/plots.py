@@ -201,25 +201,46 @@ def _power_residual(ax, col, units, scene):
             "relative residual [1]")
 
 
+def column_kind(name: str) -> str | None:
+    """The quantity kind of a time-series column by its name (None: no unit known)."""
+    for stem, kind in (("reaction_force", "force"), ("reaction_couple", "moment"),
+                       ("tip_position", "length"), ("energy", "energy"),
+                       ("dissipation", "energy"), ("time", "time")):
+        if stem in name:
+            return kind
+    return None
+
+
+def _column(name: str):
+    """A panel of one CSV column against time (``dolfin-rod plot RUN column``)."""
+    def draw(ax, col, units, scene):
+        kind = column_kind(name)
+        ax.plot(col.t, col(name))
+        return name, axis_label(name, kind, units) if kind else name
+    return draw
+
+
 DRAW = {"tip_deflection": _tip_deflection, "tip_rotation": _tip_rotation,
         "end_torque": _end_torque, "force_extension": _force_extension,
         "reactions": _reactions, "twist": _twist, "energy": _energy,
         "power_residual": _power_residual}
 
 
-def plot_histories(rows: list[dict], path: Path, scene, title: str = "") -> list[str]:
-    """histories.png of the chosen panels; returns their names."""
+def plot_histories(rows: list[dict], path: Path, scene, title: str = "",
+                   panels: list[str] | None = None) -> list[str]:
+    """histories.png of ``panels`` (names of DRAW or CSV columns; default the scene's,
+    choose_panels); returns their names."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    panels = choose_panels(scene, rows[0])
+    panels = panels or choose_panels(scene, rows[0])
     units = scene["scene"].get("units")
     col = _Series(rows)
     ncols = 2
     nrows = (len(panels) + 1) // 2
     fig, axes = plt.subplots(nrows, ncols, figsize=(11, 3.4 * nrows), squeeze=False)
     for ax, name in zip(axes.flat, panels):
-        heading, ylabel = DRAW[name](ax, col, units, scene)
+        heading, ylabel = DRAW.get(name, _column(name))(ax, col, units, scene)
         ax.set_title(heading, fontsize=10)
         ax.set_ylabel(ylabel)
         if not ax.get_xlabel():

@@ -51,6 +51,7 @@ from .checkpoints import Checkpoints
 from .closing import closing_lines
 from .plots import plot_histories
 from .field_outputs import FieldOutputs
+from .animation import Look
 from .run_folders import OutputError, files_in, on_root
 
 
@@ -301,7 +302,7 @@ class RunWriter:
                              lambda: plot_histories(self.rows, self.folder / "histories.png",
                                                     self.scene, title)))
         if self.lines is not None:
-            pictures += self.lines.pictures(title, self._look())
+            pictures += self.lines.pictures(title, Look.of(self.scene))
         self.timings["picture_files"] = {}
         for i, (name, draw) in enumerate(pictures):
             t0 = time.perf_counter()
@@ -313,14 +314,6 @@ class RunWriter:
                 return [n for n, _ in pictures[i:]]
         return []
 
-    def _look(self):
-        """What the 3-D pictures show (animation.Look): outputs.color, the supports,
-        gravity."""
-        from .animation import Look
-        boundary = self.scene["boundary"]
-        return Look(self.outputs["color"],
-                    {e: boundary[e] for e in ("start", "end") if e in boundary},
-                    self.scene["loads"].get("gravity"))
 
 
 def _ranges(numbers: list[int]) -> str:

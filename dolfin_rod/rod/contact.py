@@ -65,12 +65,16 @@ class Obstacle:
 @dataclass
 class ContactLaw:
     """The rod's radius r, the barrier's gap delta (0 < delta < r), its stiffness kappa
-    (``default_stiffness``) and the friction's slip tolerance eps (a velocity)."""
+    (``default_stiffness``), the friction's slip tolerance eps (a velocity) and whether
+    segments touch each other: of one rod (``self_contact``), of different rods
+    (``between_rods``; pair_contact.py)."""
 
     radius: float
     gap: float
     stiffness: float
     slip_tolerance: float = 1e-4
+    self_contact: bool = False      # pairs of the rod's own segments (pair_contact.py)
+    between_rods: bool = False      # pairs of segments of different rods of a system
 
 
 def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
@@ -187,6 +191,20 @@ def barrier(g, delta):
     taylor = b0 + b1 * (xi - XI_MIN) + 0.5 * b2 * (xi - XI_MIN) ** 2
     return delta**2 * ufl.conditional(ufl.ge(xi, 1.0), 0.0,
                                       ufl.conditional(ufl.ge(xi, XI_MIN), exact, taylor))
+
+
+def barrier_derivatives(g, delta: float):
+    """(b, b', b'') of ``barrier`` at the gaps g (numpy; segment pairs, pair_contact.py)."""
+    xi = np.asarray(g, float) / delta
+    xc = np.clip(xi, XI_MIN, 1.0)
+    ln = np.log(xc)
+    exact = (-(xc - 1) ** 2 * ln, -2 * (xc - 1) * ln - (xc - 1) ** 2 / xc,
+             -2 * ln - 4 * (xc - 1) / xc + (xc - 1) ** 2 / xc**2)
+    b0, b1, b2 = _TAYLOR
+    dxi = xi - XI_MIN
+    taylor = (b0 + b1 * dxi + 0.5 * b2 * dxi**2, b1 + b2 * dxi, b2 + 0 * dxi)
+    return tuple(delta ** (2 - k) * np.where(xi >= 1.0, 0.0, np.where(xi >= XI_MIN, e, t))
+                 for k, (e, t) in enumerate(zip(exact, taylor)))
 
 
 def mollifier(y2):

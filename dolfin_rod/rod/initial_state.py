@@ -16,6 +16,8 @@ from ..fem.fe_model import ENDS
 from ..fem.solvers import BlockSNES, SolverError
 from ..theory.rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 
+E3 = np.array([0.0, 0.0, 1.0])
+
 
 def helix(s, u0, v0):
     """Stress-free configuration of constant strains: q(s) = exp(s u0/2), r = int R v0."""
@@ -69,10 +71,8 @@ def set_initial_state(model, natural_curvature=None, natural_stretch=None,
     _set_configuration(model, lambda s: stress_free(model, s))
     for g in f.values():
         g.x.scatter_forward()
+    _set_reference_strains(model)
     u_ref, v_ref = model.reference
-    pts = compat.interpolation_points(u_ref.function_space)
-    u_ref.interpolate(fem.Expression(model.u, pts))
-    v_ref.interpolate(fem.Expression(model.v, pts))
     if model.evolving:
         # natural strains: given constants, else the discrete strains (local variant) or
         # their mean (uniform variant): unstressed at t = 0 (issue 13 item 18: the
@@ -91,6 +91,28 @@ def set_initial_state(model, natural_curvature=None, natural_stretch=None,
     model.set_supports(0.0)
     if start is not None and start.equilibrium:
         settle(model, 0.0)
+
+
+def _set_reference_strains(model) -> None:
+    """u_ref, v_ref: the discrete strains of the stress-free configuration at the cell
+    midpoints.  A single straight rod along e_3 (no placement) has q = (1, 0, 0, 0) and
+    x = 0 at every node, for which the strain kernels give u = 0 and v = e_3 exactly
+    (tests/test_setup_speed.py): written directly, without compiling an expression."""
+    u_ref, v_ref = model.reference
+    rod = model.rods[0]
+    if model.layout.single and not rod.placed and is_straight(rod.params):
+        u_ref.x.array[:] = 0.0
+        v_ref.x.array.reshape(-1, 3)[:] = E3
+        return
+    pts = compat.interpolation_points(u_ref.function_space)
+    u_ref.interpolate(fem.Expression(model.u, pts))
+    v_ref.interpolate(fem.Expression(model.v, pts))
+
+
+def is_straight(params) -> bool:
+    """Reference strains u = 0, v = e_3: the stress-free rod is straight along e_3."""
+    return (np.array_equal(np.asarray(params.reference_curvature, float), np.zeros(3))
+            and np.array_equal(np.asarray(params.reference_stretch, float), E3))
 
 
 def _set_configuration(model, frames) -> None:

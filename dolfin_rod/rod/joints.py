@@ -3,13 +3,22 @@
     Joint("rigid", ("a", "b"), point)   position and rotation shared: the rods' frames
                                         keep the angle they have at the point at t = 0
     Joint("ball", ("a", "b"), point)    position shared, rotations independent
+    Joint("hinge", ("a", "b"), point, axis=(0, 1, 0))
+                                        position shared, rotations equal up to a turn
+                                        about the hinge axis (spatial, at t = 0), which
+                                        turns with both rods
 
 ``point`` is where the joint is in the initial (stress-free, placed) configuration; it
 must be a node of both rods (an end or an interior node).  The second rod's node is
 tied to the first's (fem/multipoint.py): x_b = x_a + (s_a - s_b) e_3 (the same
 centre-line point: r = s e_3 + x) and, rigid, theta_b = R_rel^T theta_a with R_rel =
 R(q_a)^T R(q_b) at t = 0, which keeps q_b = q_a R_rel exactly (rotation_vector.py:
-conj(Q) c(theta) Q = c(R(Q)^T theta)).  The Newton unknowns are the free dofs only, so
+conj(Q) c(theta) Q = c(R(Q)^T theta)).  A hinge keeps q_b = q_a R_rel H(phi), H a turn
+by phi about the axis n (in b's material frame: R(q_b)^T axis at t = 0); per step,
+with Q = conj(q_n,a) q_n,b = R_rel H(phi_n) of the stored rotations, c(theta_b) =
+c(R(Q)^T theta_a) H(phi - phi_n), not linear in the increments: the slave's rotation is
+a nonlinear map (fem/multipoint.NodeMap, ``Hinge``) of theta_a and the hinge's own
+unknown psi = 2 tan((phi - phi_n)/2).  The Newton unknowns are the free dofs only, so
 the system keeps the structure of its rods (no multiplier, no saddle point).  A joined
 node carries no support (the rods' joined ends are "free"); several joints at one point
 (a tripod) tie every rod to the first.
@@ -27,14 +36,15 @@ from typing import Sequence
 import dolfinx.fem as fem
 import numpy as np
 
-from ..fem.multipoint import NodeLink
+from ..fem.multipoint import NodeLink, NodeMap
 from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
 from ..theory.rotations import np_qmul, np_rotation_matrix
 from .boundary_conditions import spatial_rotations
 from .initial_state import placed_shape, stress_free
 
-KINDS = ("rigid", "ball")
+KINDS = ("rigid", "ball", "hinge")
 _CONJ = np.array([1.0, -1, -1, -1])
+AXIS_TOLERANCE = 1e-9       # |axis| - 1 of a hinge's axis
 
 
 @dataclass
@@ -45,6 +55,7 @@ class Joint:
     rods: tuple[str, str]
     point: Sequence[float]
     name: str = ""
+    axis: Sequence[float] | None = None     # a hinge's axis (spatial unit vector, t = 0)
 
 
 def check_joints(joints: list[Joint], rods) -> None:
@@ -61,11 +72,29 @@ def check_joints(joints: list[Joint], rods) -> None:
         point = np.asarray(joint.point, dtype=float)
         if point.shape != (3,) or not np.all(np.isfinite(point)):
             raise ValueError(f"{where}.point must be a finite 3-vector, got {joint.point!r}")
+        problem = axis_problem(joint)
+        if problem:
+            raise ValueError(f"{where}.axis {problem}")
     labels = [joint_label(joint) for joint in joints]
     for k, label in enumerate(labels):
         if labels.index(label) != k:
             raise ValueError(f"joints[{k}].name {label!r} is used twice: give the joints "
                              "of one pair of rods different names")
+
+
+def axis_problem(joint: Joint) -> str | None:
+    """Why a joint's axis is wrong (None if right): a hinge needs a finite unit
+    3-vector, the other kinds none."""
+    if joint.kind != "hinge":
+        return None if joint.axis is None else f"is a hinge's; a {joint.kind} joint has none"
+    if joint.axis is None:
+        return "is missing: a hinge turns about a given axis"
+    axis = np.asarray(joint.axis, dtype=float)
+    if axis.shape != (3,) or not np.all(np.isfinite(axis)):
+        return f"must be a finite 3-vector, got {joint.axis!r}"
+    if abs(np.linalg.norm(axis) - 1.0) > AXIS_TOLERANCE:
+        return f"must be a unit vector, got {axis.tolist()} (length {np.linalg.norm(axis):.6g})"
+    return None
 
 
 def joint_label(joint: Joint) -> str:
@@ -112,23 +141,100 @@ def locate(rods, joints: list[Joint]) -> list[tuple[int, int, int, int]]:
                                      "interior nodes")
             pair += [i, node]
         out.append(tuple(pair))
+    _check_hinge_nodes(joints, out)
     return out
 
 
-def node_links(model, joints: list[Joint], nodes) -> list[NodeLink]:
-    """The NodeLinks of the joints (fem/multipoint.py): displacement of the second rod's
-    node = the first's; rigid: rotation increment theta_b = R_rel^T theta_a."""
+def _check_hinge_nodes(joints: list[Joint], nodes: list[tuple]) -> None:
+    """A hinge's nodes in no other joint (its slave rotation is a nonlinear map of a
+    free master, fem/multipoint.py): a ValueError naming ``joints[k]``."""
+    for k, (joint, (a, i, b, j)) in enumerate(zip(joints, nodes)):
+        if joint.kind != "hinge":
+            continue
+        for other, (c, m, d, n) in enumerate(nodes):
+            if other != k and {(a, i), (b, j)} & {(c, m), (d, n)}:
+                raise ValueError(f"joints[{k}]: a hinge joins two nodes that no other joint "
+                                 f"ties, but joints[{other}] ties one of them too")
+
+
+def node_links(model, joints: list[Joint], nodes) -> list[NodeLink | NodeMap]:
+    """The links of the joints (fem/multipoint.py): displacement of the second rod's
+    node = the first's; rigid: rotation increment theta_b = R_rel^T theta_a; hinge: the
+    NodeMap of ``Hinge``."""
     blocks = model.names
+    rotation = blocks.index(model.unknowns.rotation)
     links = []
     for joint, (s_a, s_b) in zip(joints, nodes):
         links.append(NodeLink(blocks.index("displacement"), s_a, s_b,
                               tuple(map(tuple, np.eye(3)))))
+        q_a, q_b = stress_free(model, np.array([s_a, s_b]))[1]
         if joint.kind == "rigid":
-            q_a, q_b = stress_free(model, np.array([s_a, s_b]))[1]
             relative = np_rotation_matrix(np_qmul(q_a * _CONJ, q_b))
-            links.append(NodeLink(blocks.index(model.unknowns.rotation), s_a, s_b,
-                                  tuple(map(tuple, relative.T))))
+            links.append(NodeLink(rotation, s_a, s_b, tuple(map(tuple, relative.T))))
+        elif joint.kind == "hinge":
+            axis = np_rotation_matrix(q_b).T @ np.asarray(joint.axis, float)
+            law = Hinge(axis, model.unknowns.f[model.unknowns.rotation],
+                        stored_rotations(model, (s_a, s_b)))
+            links.append(NodeMap(rotation, s_a, s_b, law))
     return links
+
+
+def stored_rotations(model, nodes: tuple[float, float]):
+    """() -> the stored nodal quaternions q_n at the two nodes (collective)."""
+    q_n = model.unknowns.chart.q_n
+    at_nodes = NodeValues(q_n.function_space, list(nodes))
+    return lambda: at_nodes(q_n.x.array)
+
+
+def _skew(n: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -n[2], n[1]], [n[2], 0.0, -n[0]], [-n[1], n[0], 0.0]])
+
+
+class Hinge:
+    """The slave rotation increment of a hinge (fem/multipoint.NodeMap's law): with
+    alpha = R(Q)^T theta_a (Q = conj(q_n,a) q_n,b, refreshed at each solve's start) and
+    the hinge's own unknown psi, c(theta_b) = c(alpha) c(psi n), i.e. (Gibbs vectors
+    theta/2 compose as (g1 + g2 + g1 x g2)/(1 - g1.g2))
+
+        theta_b = (alpha + psi n + psi/2 alpha x n) / (1 - psi alpha.n/4),
+
+    exact for the rotation increments (``configuration``); its tangent at 0,
+    alpha + psi n, for their rates and accelerations (the start's accelerations: exact
+    when the hinge does not turn at t = 0)."""
+
+    size = 1
+
+    def __init__(self, axis: np.ndarray, configuration=None, stored_rotations=None):
+        self.axis = np.asarray(axis, float)     # n, in the second rod's material frame
+        self.configuration = configuration      # the rotation increments' Function
+        self.stored_rotations = stored_rotations  # () -> (q_n,a, q_n,b), collective
+        self.Q = np.eye(3)
+
+    def refresh(self) -> None:
+        """Q from the stored rotations of the two nodes."""
+        q_a, q_b = self.stored_rotations()
+        if q_a @ q_a > 0 and q_b @ q_b > 0:          # (zero before set_initial_state)
+            self.Q = np_rotation_matrix(np_qmul(q_a * _CONJ, q_b))
+
+    def value(self, theta_a, own, exact: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """(theta_b, d theta_b / d(theta_a, psi)) at theta_a, own = [psi]."""
+        n, psi = self.axis, float(own[0])
+        alpha = self.Q.T @ theta_a
+        if not exact:
+            return alpha + psi * n, np.column_stack([self.Q.T, n])
+        D = 1.0 - psi * (alpha @ n) / 4.0
+        N = alpha + psi * n + 0.5 * psi * np.cross(alpha, n)
+        d_alpha = (np.eye(3) - 0.5 * psi * _skew(n)) / D + np.outer(N, n) * psi / (4 * D * D)
+        d_psi = (n + 0.5 * np.cross(alpha, n)) / D + N * (alpha @ n) / (4 * D * D)
+        return N / D, np.column_stack([d_alpha @ self.Q.T, d_psi])
+
+    def parameters(self, theta_a, theta_b, exact: bool = True) -> np.ndarray:
+        """psi fitted to theta_a, theta_b: the n part of c(alpha)^-1 c(theta_b)."""
+        alpha = self.Q.T @ theta_a
+        if not exact:
+            return np.array([self.axis @ (theta_b - alpha)])
+        turn = np_qmul(np.concatenate([[2.0], -alpha]), np.concatenate([[2.0], theta_b]))
+        return np.array([2.0 * (self.axis @ turn[1:]) / turn[0]])
 
 
 class JointReactions:

@@ -21,12 +21,11 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 from mpi4py import MPI
-from ufl.algorithms.analysis import extract_coefficients
 
 from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
-from ..checks import N_CELLS, check_n_cells
+from ..checks import N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT, check_n_cells
 from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..theory.rotations import rotation_matrix
@@ -39,9 +38,11 @@ from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad
 from .joints import Joint, JointReactions, check_joints, joint_nodes, node_links
 from .layout import RodLayout
+from .pair_contact import SegmentContact, exclusion
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
 from .segments import PassThroughCheck
+from .structure import structure
 from .start import StartingState, check_start
 
 
@@ -65,13 +66,13 @@ class RodModel(FEModel):
     Several rods in one model: system.RodSystem.
     """
 
-    def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = "evolving",
-                 variant: str = "local", constraint: str | None = None,
+    def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = ROD_MODEL,
+                 variant: str = VARIANT, constraint: str | None = None,
                  ends: tuple[str, str] = ("clamped", "free"),
                  end_loads: Sequence[EndLoad] = (),
                  distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
-                 rotations: str = "auto", comm: MPI.Comm = MPI.COMM_WORLD,
+                 rotations: str = ROTATION_UNKNOWNS, comm: MPI.Comm = MPI.COMM_WORLD,
                  end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
                  contact: ContactLaw | None = None, end_springs: dict | None = None,
                  end_turn: dict | None = None):
@@ -84,6 +85,35 @@ class RodModel(FEModel):
                rotations: str, comm, joints: Sequence[Joint] = (),
                obstacles: Sequence[Obstacle] = (), contact: ContactLaw | None = None) -> None:
         """The model of one or several rods and their joints (see system.RodSystem)."""
+        self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
+        self.rotations = self._rotation_unknowns(rotations, joints)
+        disc = discretise(comm, self.layout, self.rotations)
+        super().__init__(disc.mesh)
+        self.dx, self.dx_r = disc.dx, disc.dx_r
+        self.pieces = disc.pieces
+        resp = self._section_response(disc)
+        F, natural_pairs, dissipation, power = self._balance(resp, disc, obstacles, contact)
+        springs = self._end_supports(F, disc)
+        self.residual = {name: F[name] for name in self.names}
+        self.joints = list(joints)
+        self.segment_contact = self._segment_contact(contact, self.layout)
+        nodes = joint_nodes(self, self.joints)
+        self.problem = self._problem(node_links(self, self.joints, nodes))
+        self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
+        if self.dynamic:       # the steps must resolve them (integrators' check_run)
+            self.problem.prescribed_motions = {
+                (f"rods {rod.name!r}: " if len(self.rods) > 1 else "")
+                + f"{name}[{end!r}]": motion for rod in self.rods
+                for name in ("end_displacement", "end_rotation")
+                for end, motion in (getattr(rod, name) or {}).items()}
+        self.problem.structure = structure(rods, model, variant, constraint, self.rotations,
+                                           comm.size, joints, obstacles, contact)
+        self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
+        self._diagnostics(resp, disc, natural_pairs, power, dissipation, springs)
+
+    def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
+                           constraint: str | None, joints: Sequence[Joint], comm) -> None:
+        """Refuse bad input before any mesh; the rods' data and their layout on one mesh."""
         check_model(model, rods[0].params)
         check_variant(variant)
         constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.rho_A))
@@ -101,9 +131,13 @@ class RodModel(FEModel):
         self.length = max(layout.lengths)
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(rods[0].params.rho_A)
-        all_params = [rod.params for rod in rods]
+
+    def _rotation_unknowns(self, rotations: str, joints: Sequence[Joint]) -> str:
+        """The rotation unknowns ("quaternion" or "rotation_vector") the rods can have
+        (rotation_choice.py), refused where joints or a jumping end motion need others."""
+        rods, all_params = self.rods, [rod.params for rod in self.rods]
         obstacle = rotation_vector_obstacle(
-            self.dynamic, variant, constraint,
+            self.dynamic, self.variant, self.constraint,
             rotary_inertia=not any(is_zero(p.I11) or is_zero(p.I22) for p in all_params),
             rate_dependent=not all(is_zero(v) for p in all_params for v in (
                 p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
@@ -116,45 +150,53 @@ class RodModel(FEModel):
         if joints and obstacle:
             raise ValueError(f"joints need rotation-vector unknowns, which this system "
                              f"cannot have: {obstacle}")
-        self.rotations = choose_rotations(rotations, obstacle, rotation_jumps=any(
+        chosen = choose_rotations(rotations, obstacle, rotation_jumps=any(
             load_histories.jumps(motion) for rod in rods
             for motion in (rod.end_rotation or {}).values()))
-        if joints and self.rotations != "rotation_vector":
+        if joints and chosen != "rotation_vector":
             raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
-        if self.dynamic and self.rotations == "quaternion" and any(
+        if self.dynamic and chosen == "quaternion" and any(
                 load_histories.jumps(motion) for rod in rods
                 for motion in (rod.end_displacement or {}).values()):
             raise ValueError("end_displacement starts away from 0 on a dynamic rod: its "
                              "consistent start (at rest in equilibrium with the displaced "
                              "end) is that of rotation-vector unknowns (rotations = "
-                             f"'rotation_vector'), not of {self.rotations!r}")
-        disc = discretise(comm, layout, self.rotations)
-        super().__init__(disc.mesh)
-        self.dx, self.dx_r = disc.dx, disc.dx_r
-        self.pieces = disc.pieces
-        per_rod = variant == "uniform" and not layout.single   # each rod's global strains
+                             f"'rotation_vector'), not of {chosen!r}")
+        return chosen
+
+    def _section_response(self, disc):
+        """The unknowns, the material coefficients and the section's response (strains,
+        psi, m, n: constitutive.py) on the discretisation."""
+        per_rod = self.variant == "uniform" and not self.layout.single   # each rod's strains
         self.unknowns = unk = unknowns(function_spaces(
-            disc.mesh, self.evolving, variant, constraint, self.dynamic, self.rotations,
-            len(rods)), self.dynamic, disc.pieces.of_rods if per_rod else None)
+            disc.mesh, self.evolving, self.variant, self.constraint, self.dynamic,
+            self.rotations, len(self.rods)), self.dynamic,
+            disc.pieces.of_rods if per_rod else None)
         self.names, self.f, self.r, self.t = unk.names, unk.f, unk.r, unk.t
         self.V, self.W = unk.V, unk.W
-        self.coefficients = c = coefficients(all_params, disc.pieces)
+        self.coefficients = c = coefficients([rod.params for rod in self.rods], disc.pieces)
         self.J = c["J"]
         S_ref = fem.functionspace(disc.mesh, ("DG", 0, (3,)))   # set by the initial state
         self.reference = (fem.Function(S_ref, name="u_ref"), fem.Function(S_ref, name="v_ref"))
-        psi_fn = energy_function(rods[0].params, c, self.evolving, *self.reference)
-        resp = section_response(unk, c, psi_fn, self.evolving, constraint, self.reference)
+        psi_fn = energy_function(self.rods[0].params, c, self.evolving, *self.reference)
+        resp = section_response(unk, c, psi_fn, self.evolving, self.constraint, self.reference)
         self.psi, self.m, self.u, self.v = resp.psi, resp.m, resp.u, resp.v
         self.u_d, self.v_d = resp.u_d, resp.v_d
+        return resp
 
-        F, self.n = residual.internal_forces(unk, resp, constraint, disc)
+    def _balance(self, resp, disc, obstacles, contact):
+        """The block residuals of the balance laws, evolution, inertia, drag, contact and
+        loads; with the evolution's natural pairs, the drag and friction dissipation and
+        the loads' power."""
+        unk, c, rods = self.unknowns, self.coefficients, self.rods
+        F, self.n = residual.internal_forces(unk, resp, self.constraint, disc)
         residual.gauge(F, unk, disc)
-        natural_pairs = (residual.evolution(F, unk, resp, c, variant, constraint, disc)
-                         if self.evolving else [])
+        natural_pairs = (residual.evolution(F, unk, resp, c, self.variant, self.constraint,
+                                            disc) if self.evolving else [])
         if self.dynamic:
             residual.inertia(F, unk, c, disc)
-        drag_dissipation = external_forces.drag(F, unk, c, all_params, disc)
+        drag_dissipation = external_forces.drag(F, unk, c, [rod.params for rod in rods], disc)
         self.contact = self._obstacle_contact(obstacles, contact, disc)
         friction_dissipation = (self.contact.add_to(F, unk.t["displacement"])
                                 if self.contact else 0)
@@ -163,10 +205,16 @@ class RodModel(FEModel):
             F, unk, disc, [(k, load) for k, rod in enumerate(rods) for load in rod.end_loads],
             [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads])
         residual.one_quadrature_rule(F, unk, disc)
+        return F, natural_pairs, (drag_dissipation, friction_dissipation), power
+
+    def _end_supports(self, F: dict, disc):
+        """Every rod's end supports; compliant ones add their energy's variation to the
+        balance F. Returns the springs' energy (0 without springs)."""
+        unk = self.unknowns
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
-                                         rod.end_rotation, rod.end_slide, layout.span(k),
+                                         rod.end_rotation, rod.end_slide, self.layout.span(k),
                                          rod.end_springs, rod.end_turn)
-                             for k, rod in enumerate(rods)]
+                             for k, rod in enumerate(self.rods)]
         springs = sum((supports.spring_energy(unk, disc.ds, disc.end_weight,
                                               disc.pieces.indicator(k))
                        for k, supports in enumerate(self.end_supports)), 0)
@@ -174,15 +222,15 @@ class RodModel(FEModel):
             # compliant supports: their energy's variation in the balance
             for block in ("displacement", unk.rotation):
                 F[block] += ufl.derivative(springs, unk.f[block], unk.t[block])
-        self.residual = {name: F[name] for name in self.names}
-        self.joints = list(joints)
-        nodes = joint_nodes(self, self.joints)
-        self.problem = self._problem(node_links(self, self.joints, nodes))
-        self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
-        self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
+        return springs
 
+    def _diagnostics(self, resp, disc, natural_pairs, power, dissipation, springs) -> None:
+        """Dissipation density, tips, the energy forms (diagnostics.py) and the check that
+        the rod does not pass through itself."""
+        unk, c, layout = self.unknowns, self.coefficients, self.layout
+        drag_dissipation, friction_dissipation = dissipation
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
-        self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(rods))]
+        self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(self.rods))]
         forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
                                          drag_dissipation + friction_dissipation, springs)
         if self.contact:
@@ -192,7 +240,34 @@ class RodModel(FEModel):
         h = min(length / n for length, n in zip(layout.lengths, layout.n_cells))
         self.pass_through = PassThroughCheck(
             unk.f["displacement"], distance=h, exclusion=3 * h,
-            hint="self-contact is not modelled: the rod passes through itself (issue 26)")
+            hint="self-contact is off: set contact.self = true (contact.between_rods for "
+                 "rods of a system; docs/contact.md)")
+
+    def _segment_contact(self, law, layout) -> SegmentContact | None:
+        """The segment pairs' contact (pair_contact.py) if the law asks for it."""
+        if law is None or not (law.self_contact or law.between_rods):
+            return None
+        if self.joints:
+            raise ValueError("contact.self / contact.between_rods with joints: not "
+                             "supported (the joints' constrained solve keeps the "
+                             "Jacobian's sparsity fixed)")
+        if self.unknowns.chart is None:
+            raise ValueError("contact.self / contact.between_rods need rotation-vector "
+                             f"unknowns (rotations 'auto' or 'rotation_vector'), got "
+                             f"{self.rotations!r}")
+        h = max(length / n for length, n in zip(layout.lengths, layout.n_cells))
+        reach = exclusion(law.radius, law.gap, h)
+        if law.self_contact and reach >= min(layout.lengths):
+            raise ValueError(f"contact.radius = {law.radius:g}: self-contact excludes "
+                             f"neighbours closer along the rod than pi (r + delta) + h = "
+                             f"{reach:.4g}, which is not shorter than the rod "
+                             f"({min(layout.lengths):g}): a smaller radius or more cells")
+        contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
+                                 law.self_contact, law.between_rods)
+        contact.block = list(self.names).index("displacement")
+        P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
+        self.pair_force = fem.Function(P1, name="pair_contact_force")
+        return contact
 
     def _obstacle_contact(self, obstacles, law, disc) -> ObstacleContact | None:
         if not obstacles:
@@ -222,14 +297,14 @@ class RodModel(FEModel):
         if unk.chart is None:
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step)
-        rates_used = {c for F in self.residual.values() for c in extract_coefficients(F)}
+        rates_used = {c for F in self.residual.values() for c in F.coefficients()}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
             after_step=self.commit_rotations, check_step=self.check_step,
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links)
+            links=links, terms=[self.segment_contact] if self.segment_contact else [])
 
     def commit_rotations(self) -> None:
         """After an accepted step: rotation vectors q_n <- q_n c(theta), theta <- 0; the
@@ -240,6 +315,8 @@ class RodModel(FEModel):
                 supports.commit()
         if self.contact:
             self.contact.update_normal_forces()
+        if self.segment_contact:
+            self.segment_contact.commit()
 
     def check_step(self) -> str | None:
         """A reason to redo a converged step (rotation vectors: a rotation by more than
@@ -248,6 +325,8 @@ class RodModel(FEModel):
         reason = chart.check_increment() if chart is not None else None
         if reason is None and self.contact:
             reason = self.contact.check_state()
+        if reason is None and self.segment_contact:
+            reason = self.segment_contact.check_state()
         return reason
 
     def checkpoint_state(self) -> dict:
@@ -288,6 +367,11 @@ class RodModel(FEModel):
         if self.contact:
             self.contact.check_initial()
             self.contact.update_normal_forces()
+        if self.segment_contact:
+            reason = self.segment_contact.check_state()
+            if reason:
+                raise ValueError(f"the initial state: {reason}")
+            self.segment_contact.commit()
 
     def diagnostics(self, t: float) -> dict[str, float]:
         """MPI-reduced scalars at time t: tip position and quaternion, tip rotation angle
@@ -301,9 +385,27 @@ class RodModel(FEModel):
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         self.pass_through(t)
+        self.contact_diagnostics(d)
+        return d
+
+    def contact_diagnostics(self, d: dict) -> None:
+        """The obstacles' smallest gap and the segment pairs' energy (into
+        contact_energy), total force, smallest gap and count, into d."""
         if self.contact:
             d["min_gap"] = self.contact.closest()[0]
-        return d
+        if self.segment_contact:
+            pairs = self.segment_contact.diagnostics()
+            d["contact_energy"] = d.get("contact_energy", 0.0) + pairs.pop(
+                "pair_contact_energy")
+            d.update(pairs)
+            self._update_pair_force()
+
+    def _update_pair_force(self) -> None:
+        """The pairs' contact force per unit length at the nodes (pair_force)."""
+        f = self.pair_force
+        n = f.function_space.dofmap.index_map.size_local
+        f.x.array[: 3 * n] = self.segment_contact.force_density().ravel()
+        f.x.scatter_forward()
 
     def observables(self) -> dict:
         """What a mechanician reads, as UFL expressions of the current state and rates:
@@ -324,4 +426,6 @@ class RodModel(FEModel):
                     "m_spatial": ufl.dot(R, self.m), "xi": self.xi})
         if self.contact:
             out["contact_force"] = self.contact.force_observable()
+        if self.segment_contact:
+            out["contact_force"] = out.get("contact_force", 0) + self.pair_force
         return out

@@ -52,3 +52,26 @@ def choose_rotations(rotations: str, obstacle: str | None, lie_integrator: bool 
                          "'quaternion'")
     return rotations
 
+
+
+def rotations_reason(rotations: str, obstacle: str | None, lie_integrator: bool = True,
+                     rotation_jumps: bool = False) -> str:
+    """The rotation unknowns choose_rotations picks, and why, in plain words (for
+    ``dolfin-rod check``)."""
+    chosen = choose_rotations(rotations, obstacle, lie_integrator, rotation_jumps)
+    if chosen == "rotation_vector":
+        what = ("rotation vectors (a rotation increment of 3 unknowns per node: no "
+                "unit-length multiplier, so linear systems without a saddle point)")
+    else:
+        what = ("quaternions (4 unknowns per node kept at unit length by a multiplier: a "
+                "saddle-point system, but every time scheme applies)")
+    if rotations != "auto":
+        return f"{what}; geometry.rotations = {rotations!r} in the scene"
+    if chosen == "rotation_vector":
+        return (f"{what}; chosen by geometry.rotations = 'auto' since nothing here needs "
+                "quaternions, and rotation vectors are the fewer, cheaper unknowns")
+    why = obstacle or ("a prescribed end rotation jumps (a step would turn a node by more "
+                       "than a quarter turn)" if rotation_jumps else
+                       "the integrator does not step rotation vectors (PETSc TS, or a "
+                       "first-order time.scheme of a dynamic rod; generalized_alpha does)")
+    return f"{what}; chosen by geometry.rotations = 'auto' since rotation vectors do not fit here: {why}"

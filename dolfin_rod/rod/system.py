@@ -29,6 +29,7 @@ from typing import Sequence
 
 from mpi4py import MPI
 
+from ..checks import ROD_MODEL, ROTATION_UNKNOWNS, VARIANT
 from . import diagnostics
 from .model import RodModel
 from .contact import ContactLaw, Obstacle
@@ -44,8 +45,8 @@ class RodSystem(RodModel):
     reactions as ``<name>.<key>``, each joint's reactions as ``joint_<name>_...``."""
 
     def __init__(self, rods: Sequence[Rod], joints: Sequence[Joint] = (),
-                 model: str = "evolving", variant: str = "local",
-                 constraint: str | None = None, rotations: str = "auto",
+                 model: str = ROD_MODEL, variant: str = VARIANT,
+                 constraint: str | None = None, rotations: str = ROTATION_UNKNOWNS,
                  comm: MPI.Comm = MPI.COMM_WORLD, obstacles: Sequence[Obstacle] = (),
                  contact: ContactLaw | None = None):
         self._build(list(rods), model, variant, constraint, rotations, comm, joints,
@@ -70,4 +71,5 @@ class RodSystem(RodModel):
         if moving:
             d["reaction_power"] = reaction_power
             d["load_power"] += reaction_power
+        self.contact_diagnostics(d)
         return d

@@ -17,7 +17,8 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from .contact import contact_law, contact_solver_options, obstacles
+from .contact import (contact_law, contact_solver_options, obstacles, segment_pairs,
+                      touching)
 from .rules import START_KEYS, adaptive_stepper, rod_rotations
 from .scene import Scene, SceneError
 from .values import Coefficient
@@ -104,7 +105,7 @@ class FESimulation:
         # (with obstacles: rho_inf = 0, docs/contact.md)
         scheme = tim["scheme"]
         if lie and "scheme" not in scene.given["time"]:
-            scheme = CONTACT_SCHEME if scene["obstacles"] and model.dynamic else None
+            scheme = CONTACT_SCHEME if touching(scene) and model.dynamic else None
         tolerance = tim["tolerance"] if adaptive_stepper(scene) else None
         self.stepper, self.ts = choose_integrator(
             self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
@@ -126,11 +127,12 @@ class FESimulation:
 
     def _stability_monitor(self):
         """Quasi-static 3-D rods: the stability of each step's equilibrium
-        (analysis/stability.py); a system with joints is not checked (its constraints act
-        on the assembled system, not in the forms K is made of)."""
+        (analysis/stability.py); a system with joints or segment contact is not checked
+        (its constraints or pair terms act on the assembled system, not in the forms K is
+        made of)."""
         scene, model = self.scene, self.model
         if scene.is_rod_material and not model.dynamic and scene["stability"]["check"] \
-                and not getattr(model, "joints", None):
+                and not getattr(model, "joints", None) and not segment_pairs(scene):
             from ..analysis.stability import StabilityMonitor
             return StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
         return None
@@ -336,7 +338,7 @@ def rods_and_joints(scene: Scene) -> tuple[list, list]:
     rods = [Rod(rod_parameters(entry.scene), **rod_arguments(entry.scene), name=entry.name,
                 position=entry.position, orientation=entry.orientation)
             for entry in scene.rods]
-    joints = [Joint(j.kind, j.rods, j.point, j.name) for j in scene.joints]
+    joints = [Joint(j.kind, j.rods, j.point, j.name, j.axis) for j in scene.joints]
     return rods, joints
 
 

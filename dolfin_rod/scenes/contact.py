@@ -18,14 +18,15 @@ def check_contact_keys(scene: Scene) -> None:
     pose keys of its shape; gap < radius; friction needs a dynamic rod."""
     err, contact, obstacles = scene.error, scene["contact"], scene["obstacles"]
     given = scene.given["contact"]
-    if not obstacles:
+    if not touching(scene):
         if given:
-            raise err(f"contact.{sorted(given)[0]}", "applies to rods with [[obstacles]]")
+            raise err(f"contact.{sorted(given)[0]}", "applies to rods with [[obstacles]], "
+                                                     "contact.self or contact.between_rods")
         return
     if contact["radius"] is None:
         contact["radius"] = section_radius(scene)
     if contact["radius"] is None:
-        raise err("contact.radius", "missing: [[obstacles]] need the rod's radius (or a "
+        raise err("contact.radius", "missing: contact needs the rod's radius (or a "
                                     "circle or tube [section])")
     if contact["gap"] is not None and contact["gap"] >= contact["radius"]:
         raise err("contact.gap", f"must be < contact.radius = {contact['radius']:g} (the "
@@ -45,6 +46,17 @@ def check_contact_keys(scene: Scene) -> None:
         if ob["friction"] > 0 and not scene["material"]["dynamic"]:
             raise err(f"{name}.friction", "friction depends on the velocity: it needs a "
                                           "dynamic rod (material.density > 0)")
+
+
+def touching(scene: Scene) -> bool:
+    """Obstacles, self-contact or contact between rods."""
+    c = scene["contact"]
+    return bool(scene["obstacles"] or c["self"] or c["between_rods"])
+
+
+def segment_pairs(scene: Scene) -> bool:
+    """Self-contact or contact between rods (rod/pair_contact.py)."""
+    return bool(scene["contact"]["self"] or scene["contact"]["between_rods"])
 
 
 def section_radius(scene: Scene) -> float | None:
@@ -67,25 +79,28 @@ def obstacles(scene: Scene) -> list:
 
 def contact_law(scene: Scene, params):
     """rod.contact.ContactLaw of [contact] (defaults: gap r/10, stiffness from the rod and
-    dt, slip tolerance 1e-3 L / t_end), None without obstacles."""
+    dt, slip tolerance 1e-3 L / t_end), None without contact."""
     from ..rod.contact import ContactLaw, default_stiffness
-    if not scene["obstacles"]:
+    if not touching(scene):
         return None
     c, geo, tim = scene["contact"], scene["geometry"], scene["time"]
     stiffness = c["stiffness"] or default_stiffness(params.rho_A, params.A, geo["length"],
                                                     geo["n_cells"], tim["dt"])
     return ContactLaw(c["radius"], c["gap"] or c["radius"] / 10, stiffness,
-                      c["slip_tolerance"] or 1e-3 * geo["length"] / tim["t_end"])
+                      c["slip_tolerance"] or 1e-3 * geo["length"] / tim["t_end"],
+                      self_contact=c["self"], between_rods=c["between_rods"])
 
 
 def contact_solver_options(scene: Scene) -> dict:
     """Obstacles: Newton to rtol 1e-8 (the dynamic rod's 1e-4 accepts a step whose
     residual is dominated by the barrier's: docs/contact.md) unless time.rtol is given;
     friction: with a backtracking line search (the sticking law's Newton steps overshoot
-    without one)."""
-    if not scene["obstacles"]:
+    without one); segment pairs: without PETSc's divergence test."""
+    if not touching(scene):
         return {}
     options = {} if "rtol" in scene.given["time"] else {"snes_rtol": 1e-8}
     if any(ob["friction"] > 0 for ob in scene["obstacles"]):
         options["snes_linesearch_type"] = "bt"
+    if segment_pairs(scene):    # a pair's barrier may raise the residual 1e4-fold on the
+        options["snes_divergence_tolerance"] = -1.0     # way to its root: no divergence stop
     return options

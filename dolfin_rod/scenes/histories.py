@@ -54,9 +54,8 @@ class HistorySpec:
         return isinstance(self.value, tuple)
 
     def vector(self):
-        """t -> the 3-vector value (rod end motions)."""
-        parts = [self.build(i) for i in range(3)]
-        return lambda t: np.array([float(h(t)) for h in parts])
+        """t -> the 3-vector value (rod end motions): a loads.VectorHistory."""
+        return load_histories.VectorHistory(tuple(self.build(i) for i in range(3)))
 
     @property
     def jumps_at_start(self) -> bool:

@@ -11,7 +11,8 @@ import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
-from ..rod.rotation_choice import choose_rotations, rotation_vector_obstacle
+from ..rod.rotation_choice import (choose_rotations, rotation_vector_obstacle,
+                                   rotations_reason)
 from ..checks import EQUILIBRIUM_NEEDS, polyline_problem, sample_points, slide_axis_problem
 from .contact import check_contact_keys
 from .physical import apply_physical_input
@@ -40,7 +41,8 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
     ("loads", "start_couple"), ("obstacles", "shape")} | {
-    ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance")} | {
+    ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
+                             "between_rods")} | {
     ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue",
                                "at_bifurcation")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
@@ -368,6 +370,16 @@ def rod_rotations(scene: Scene) -> str:
     generalized_alpha (on the rotation group), or a quasi-static one without Kelvin-Voigt
     viscosity and drag, with any scheme (validation.choose_rotations); quaternions
     otherwise."""
+    return _rotations(scene, choose_rotations)
+
+
+def rod_rotations_reason(scene: Scene) -> str:
+    """rod_rotations and why, in plain words (``dolfin-rod check``)."""
+    return _rotations(scene, rotations_reason)
+
+
+def _rotations(scene: Scene, choose) -> str:
+    """``choose`` (choose_rotations or rotations_reason) of the scene's rotation inputs."""
     tim, mat = scene["time"], scene["material"]
     lie = tim["integrator"] == "stepper" and (
         not mat["dynamic"] or "scheme" not in scene.given["time"]
@@ -383,8 +395,8 @@ def rod_rotations(scene: Scene) -> str:
     obstacle = rotation_vector_obstacle(mat["dynamic"], mat["variant"], constraint,
                                         rate_dependent=rate_dependent)
     try:
-        return choose_rotations(scene["geometry"]["rotations"], obstacle, lie_integrator=lie,
-                                rotation_jumps=rotation_jumps)
+        return choose(scene["geometry"]["rotations"], obstacle, lie_integrator=lie,
+                      rotation_jumps=rotation_jumps)
     except ValueError as err:
         key = "geometry.rotations" if obstacle else "time.scheme"
         raise scene.error(key, str(err)) from err

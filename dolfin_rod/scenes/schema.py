@@ -26,7 +26,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..checks import MIN_LENGTH, N_CELLS, SCENE_BYTES, read_regular_file
+from ..checks import (DEGREE, MAX_STEP_CUTS, MIN_LENGTH, N_CELLS, NEWTON_ATOL, NEWTON_RTOL,
+                      ODE_SOLUTION, PREDICTOR, ROD_MODEL, ROTATION_UNKNOWNS, SCENE_BYTES,
+                      SCHEME, TS_ATOL, TS_RTOL, VARIANT, read_regular_file)
 from ..rod.rotation_choice import ROTATIONS
 from ..rod.sections import SHAPES as SECTION_SHAPES
 from .histories import HistorySpec, distributed, history
@@ -123,10 +125,12 @@ switching variant on a rod with L != 1 rescales time by L.
 scene's tables key by key (an error names `rods[k].<table>.<key>`; `material.model`,
 `variant`, `constraints`, `energy` and `geometry.rotations` are shared and given in the
 scene's tables only).  `[[joints]]` tables: `kind` ("rigid": position and rotation tied,
-"ball": position tied), `rods = [a, b]`, `point = [x, y, z]` (a node of both rods at
-t = 0, not a supported end), `name` (its reaction columns `joint_<name>_force_{xyz}`,
+"ball": position tied, "hinge": position tied, rotations equal up to a turn about
+`axis`), `rods = [a, b]`, `point = [x, y, z]` (a node of both rods at t = 0, not a
+supported end), `axis = [x, y, z]` (a hinge's, a unit vector at t = 0, turning with the
+rods), `name` (its reaction columns `joint_<name>_force_{xyz}`,
 `joint_<name>_couple_{xyz}`).  Examples: `scenes/frame.toml`, `double_pendulum.toml`,
-`tripod.toml`.
+`tripod.toml`, `hinged_door.toml`.
 
 **What a run can follow** (checked by `dolfin-rod check`, exit 2 naming the key).  A rod
 with inertia (density > 0; torsion: nu > 0) cannot follow a jump of a prescribed end
@@ -153,14 +157,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "length": Key(real(MIN_LENGTH), 1.0, f"rod length L >= {MIN_LENGTH:g} (torsion: "
                       "dimensionless, must be 1)"),
         "n_cells": Key(integer(1, 100_000), N_CELLS, "number of cells along s"),
-        "degree": Key(integer(1, 3), 1, T + "Lagrange degree of phi (the rod is P1)"),
+        "degree": Key(integer(1, 3), DEGREE, T + "Lagrange degree of phi (the rod is P1)"),
         "reference_curvature": Key(vector3(), (0.0, 0.0, 0.0),
                                    R + "curvature u_ref of the stress-free initial shape (a "
                                    "helix or circle; not a natural strain)"),
         "reference_stretch": Key(vector3(), (0.0, 0.0, 1.0),
                                  R + "stretch v_ref of the stress-free initial shape "
                                  "(v_ref,3 > 0)"),
-        "rotations": Key(choice(*ROTATIONS), "auto",
+        "rotations": Key(choice(*ROTATIONS), ROTATION_UNKNOWNS,
                          R + "rotation unknowns: auto = rotation_vector (6 unknowns per "
                          "node; the fast default) for the local variant, no constraint and "
                          "the stepper: a dynamic rod with time.scheme unset or "
@@ -187,10 +191,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
                             "ellipse takes the circle's)"),
     },
     "material": {
-        "variant": Key(choice(*VARIANTS), "local", "local | uniform evolution law of the "
+        "variant": Key(choice(*VARIANTS), VARIANT, "local | uniform evolution law of the "
                        "natural strains (uniform: the M_d law integrates over s, so M_d "
                        "carries a length factor)"),
-        "model": Key(choice(*ROD_MODELS), "evolving",
+        "model": Key(choice(*ROD_MODELS), ROD_MODEL,
                      R + "evolving (natural strains evolve) | kelvin_voigt (viscosities M, "
                      "N only) | hyperelastic"),
         "energy": Key(entry_point, None,
@@ -330,7 +334,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "t_end": Key(real(0.0, True), REQUIRED, "final time"),
         "dt": Key(real(0.0, True), REQUIRED, "time step (also the output interval of the ODE; "
                   "the initial step of adaptive TS)"),
-        "scheme": Key(scheme_name, "bdf2", "a name of integrators.schemes (stepper); not "
+        "scheme": Key(scheme_name, SCHEME, "a name of integrators.schemes (stepper); not "
                       "given, a rod with rotation vectors (geometry.rotations) uses "
                       "generalized-alpha on the rotation group, rho_inf = 0.8"),
         "integrator": Key(choice("stepper", "ts"), "stepper", "stepper | ts (PETSc TS)"),
@@ -344,18 +348,18 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "tolerance": Key(real(0.0, True, 0.5), 1e-3, "stepper, adaptive: local error "
                          "tolerance per step of generalized-alpha on the rotation group "
                          "(displacements to tolerance (L + |x|), rotations to tolerance rad)"),
-        "ts_rtol": Key(real(0.0, True, 1.0), 1e-6, "ts, adaptive: relative local error "
+        "ts_rtol": Key(real(0.0, True, 1.0), TS_RTOL, "ts, adaptive: relative local error "
                        "tolerance"),
-        "ts_atol": Key(real(0.0, True, 1.0), 1e-8, "ts, adaptive: absolute local error "
+        "ts_atol": Key(real(0.0, True, 1.0), TS_ATOL, "ts, adaptive: absolute local error "
                        "tolerance"),
-        "predictor": Key(choice("linear", "constant"), "linear", "stepper: Newton's initial "
+        "predictor": Key(choice("linear", "constant"), PREDICTOR, "stepper: Newton's initial "
                          "guess (linear extrapolation or the last state)"),
-        "rtol": Key(real(0.0, True, 1.0), 1e-10, "relative tolerance (SNES / solve_ivp)"),
-        "atol": Key(real(0.0, True, 1.0), 1e-10,
+        "rtol": Key(real(0.0, True, 1.0), NEWTON_RTOL, "relative tolerance (SNES / solve_ivp)"),
+        "atol": Key(real(0.0, True, 1.0), NEWTON_ATOL,
                     "absolute tolerance (SNES residual / solve_ivp); keep it above the "
                     "round-off floor of the residual (~1e-12 fails at 64 cells)"),
-        "max_step_cuts": Key(integer(0, 30), 6, "step halvings before giving up"),
-        "ode_solution": Key(choice("exact", "scheme"), "exact",
+        "max_step_cuts": Key(integer(0, 30), MAX_STEP_CUTS, "step halvings before giving up"),
+        "ode_solution": Key(choice("exact", "scheme"), ODE_SOLUTION,
                             "ODE model: closed form/solve_ivp, or the FE model's scheme"),
     },
     "solver": {
@@ -422,6 +426,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "slip_tolerance": Key(real(0.0, True), None, R + "friction: the slip velocity eps "
                               "below which friction is smoothed; a rod held by static "
                               "friction creeps slower than eps (default 1e-3 L / t_end)"),
+        "self": Key(boolean, False, R + "self-contact: the rod's segments (capsules of "
+                    "contact.radius) repel each other through the barrier; neighbours "
+                    "closer along the rod than pi (radius + gap) + h are excluded "
+                    "(docs/contact.md)"),
+        "between_rods": Key(boolean, False, R + "[[rods]]: segments of different rods "
+                            "repel each other through the barrier (docs/contact.md)"),
     },
     "obstacles": {
         "shape": Key(choice(*OBSTACLE_SHAPES), REQUIRED, R + "plane (a half-space) | sphere "

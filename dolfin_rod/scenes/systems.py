@@ -9,10 +9,11 @@
     loads = { end_force = { type = "step", value = [0, 0, -1] } }  # [material],
                                                       # [boundary], [loads]
     [[joints]]
-    kind = "rigid"                       # rigid | ball
+    kind = "rigid"                       # rigid | ball | hinge
     rods = ["column", "beam"]
     point = [0.0, 0.0, 1.0]              # a node of both rods at t = 0
     name = "knee"                        # optional; names its reaction columns
+    axis = [0.0, 1.0, 0.0]               # a hinge's axis (unit, at t = 0); hinges only
 
 Each rod is the scene's own tables with the rod's tables laid over them key by key, and
 is validated as a scene of its own (an error names ``rods[k].<table>.<key>``); the keys
@@ -36,7 +37,7 @@ SHARED = {("geometry", "rotations"): "the rotation unknowns",
           ("material", "variant"): "the evolution variant",
           ("material", "constraints"): "the constraint",
           ("material", "energy"): "the energy function"}
-JOINT_KEYS = ("kind", "rods", "point", "name")
+JOINT_KEYS = ("kind", "rods", "point", "name", "axis")
 
 
 @dataclass
@@ -55,6 +56,7 @@ class JointEntry:
     rods: tuple[str, str]
     point: tuple
     name: str
+    axis: tuple | None = None
 
 
 def validate_system(raw: dict, source: str, default_name: str,
@@ -146,7 +148,23 @@ def _joint(entry: dict, k: int, source: str, names: list[str]) -> JointEntry:
         name = string(entry.get("name", ""))
     except BadValue as bad:
         raise SceneError(source, f"{where}.point", bad.reason) from None
-    return JointEntry(kind, tuple(rods), point, name)
+    axis = _joint_axis(entry, kind, where, source)
+    return JointEntry(kind, tuple(rods), point, name, axis)
+
+
+def _joint_axis(entry: dict, kind: str, where: str, source: str) -> tuple | None:
+    """A hinge's axis (rod.joints.axis_problem), none for the other kinds."""
+    from ..rod.joints import Joint, axis_problem
+    axis = entry.get("axis")
+    if axis is not None:
+        try:
+            axis = vector3()(axis)
+        except BadValue as bad:
+            raise SceneError(source, f"{where}.axis", bad.reason) from None
+    problem = axis_problem(Joint(kind, ("", ""), (0.0, 0.0, 0.0), axis=axis))
+    if problem:
+        raise SceneError(source, f"{where}.axis", problem)
+    return axis
 
 
 def _check_joint_points(scene: Scene) -> None:

@@ -28,7 +28,7 @@ import ufl
 from mpi4py import MPI
 
 from .. import loads as load_histories
-from ..checks import N_CELLS, check_n_cells, profile_violation, sample_points
+from ..checks import DEGREE, N_CELLS, VARIANT, check_n_cells, profile_violation, sample_points
 from ..fem import compat
 from ..fem.fe_model import FEModel, end_measures, scalar_coefficient, vertex_measure
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
@@ -77,9 +77,9 @@ class TorsionModel(FEModel):
     Phi(t)) is given; both are load histories (dolfin_rod.loads) or plain callables.
     """
 
-    def __init__(self, params: TorsionParameters, n_cells: int = N_CELLS, variant: str = "local",
+    def __init__(self, params: TorsionParameters, n_cells: int = N_CELLS, variant: str = VARIANT,
                  end_torsion: Callable | None = None, end_rotation: Callable | None = None,
-                 degree: int = 1, comm: MPI.Comm = MPI.COMM_WORLD):
+                 degree: int = DEGREE, comm: MPI.Comm = MPI.COMM_WORLD):
         self._validate(params, n_cells, variant, end_torsion, end_rotation, degree, comm.size)
         self.params, self.variant, self.degree = params, variant, degree
         self.end_torsion, self.end_rotation = end_torsion, end_rotation
@@ -96,6 +96,8 @@ class TorsionModel(FEModel):
         self._dirichlet_conditions()
         self.problem = SemiDiscreteProblem(self.fields, self.rates, F, self.loads, self.bcs,
                                            self._set_bcs)
+        if self.dynamic and self.end_rotation is not None:     # (integrators' check_run)
+            self.problem.prescribed_motions = {"end_rotation": self.end_rotation}
         self._diagnostic_forms(ufl.Measure("dx", domain=self.mesh))
 
     @staticmethod
@@ -189,7 +191,8 @@ class TorsionModel(FEModel):
 
         return SecondOrderProblem(
             p.fields[:2], p.rates[:2], [ufl.replace(F, mapping) for F in p.residual[:2]],
-            p.loads, bcs, p.set_bcs, accelerations=[phi_tt, u_d_tt], after_step=sync)
+            p.loads, bcs, p.set_bcs, accelerations=[phi_tt, u_d_tt], after_step=sync,
+            prescribed_motions=p.prescribed_motions)
 
     # -- time-dependent boundary values ----------------------------------------------
     def _set_bcs(self, t: float) -> None:

@@ -18,6 +18,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..checks import ODE_SOLUTION, SCHEME
 from ..integrators.schemes import get_scheme
 from ..integrators.step_control import output_times, same_step
 from ..loads import rate as load_rate
@@ -48,8 +49,8 @@ class OdeTime:
     dt: float
     rtol: float
     atol: float
-    solution: str = "exact"
-    scheme: str = "bdf2"
+    solution: str = ODE_SOLUTION
+    scheme: str = SCHEME
 
 
 class OdeTorsion:

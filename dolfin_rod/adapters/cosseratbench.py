@@ -36,7 +36,7 @@ from cosseratbench.scenario import End, EndCondition, Motion, Rod, Scenario
 from cosseratbench.solver import Capability, Diverged
 from cosseratbench.trajectory import Trajectory
 
-from . import __version__
+from .. import __version__
 
 STEPS_PER_PERIOD = 100      # time steps per period of the slowest mode (at least)
 ENDS = {End.START: "left", End.END: "right"}
@@ -96,8 +96,8 @@ def damping_rate(scenario: Scenario) -> float:
 
 def rod_model(scenario: Scenario, rod: Rod, n_elements: int):
     """The RodModel of one rod of ``scenario`` (module docstring) and its StartingState."""
-    from .rod import DistributedLoad, EndLoad, Polyline, RodModel, RodParameters, StartingState
-    from .rod.sections import Material, circle, section_parameters
+    from ..rod import DistributedLoad, EndLoad, Polyline, RodModel, RodParameters, StartingState
+    from ..rod.sections import Material, circle, section_parameters
     m = rod.material
     section = section_parameters(circle(rod.radius), Material(
         m.youngs_modulus, shear_modulus=m.shear_modulus, density=m.density))
@@ -146,8 +146,8 @@ def _segment(times, t: float) -> tuple[int, float]:
 
 def run_rod(scenario: Scenario, rod: Rod, n_elements: int, times: np.ndarray, dt: float):
     """(positions [T, n + 1, 3], directors [T, n, 3]) of one rod at ``times``."""
-    from .integrators.step_control import IntegrationError
-    from .integrators.choice import TimeStepper
+    from ..integrators.step_control import IntegrationError
+    from ..integrators.choice import TimeStepper
     model, start = rod_model(scenario, rod, n_elements)
     model.set_initial_state(start=start)
     stepper = TimeStepper(model.problem)
@@ -164,7 +164,7 @@ def run_rod(scenario: Scenario, rod: Rod, n_elements: int, times: np.ndarray, dt
 def frame(model) -> tuple[np.ndarray, np.ndarray]:
     """Nodal positions in order of s and d1 of each element (R e1 of the normalised mean
     of its end nodes' quaternions), gathered from every rank."""
-    from .theory.rotations import np_rotation_matrix
+    from ..theory.rotations import np_rotation_matrix
     x = model.f["displacement"]
     s = x.function_space.tabulate_dof_coordinates()[:, 0]
     r = x.x.array.reshape(-1, 3) + np.outer(s, [0.0, 0.0, 1.0])

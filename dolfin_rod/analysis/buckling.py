@@ -1,0 +1,183 @@
+"""Linearised buckling about the current (pre-loaded) equilibrium of a quasi-static rod.
+
+Along a load path the equilibrium state y(t) solves R(y, t) = 0, with the loads and
+prescribed end motions of time t.  About the current state the tangent stiffness grows
+along the path as K + tau K', the classical linearised buckling problem (the
+pre-buckling deformation's change of the geometry neglected):
+
+    K' = K_sigma(m', n') + dK/dt,   m', n' = dm/dy [y'], dn/dy [y'],   K y' = -dR/dt
+
+K_sigma(m', n') = d^2/dy^2 int (m' . u(y) + n' . v(y)) ds is the geometric (initial
+stress) stiffness of the stress rates m', n' along the path's tangent y' (Dirichlet
+rows: the prescribed motion's rate), at the current geometry; dK/dt that of follower
+loads.  The critical points are the eigenpairs of K phi = tau (-K') phi
+(analysis/eigen.py; symmetric parts): the critical time t + tau and the load factor
+(t + tau) / t, the multiple of the current loads and motions when they grow in
+proportion to t (ramps from t = 0).  dR/dt, dK/dt: one-sided differences back in time
+(exact for loads linear in t; a ramp that ends at t counts with its rate before t);
+m', n': a central difference at y +- delta y' (error O(delta^2)); delta = 1e-4 t.
+
+Only K_sigma, not the full derivative of K along the path: on rotation vectors the
+unknowns are increments in a basis that turns with the rod, and the difference of two
+tangents along a path that turns it (a twist) holds the basis's turn, of the size of
+the shear stiffness (measured: Greenhill's critical twist off by a factor 100).  For a
+straight column both are the same.  Rotation vectors without constraints only
+(quaternions add the gauge's multiplier, the constraints theirs).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import dolfinx.fem as fem
+import numpy as np
+import ufl
+from petsc4py import PETSc
+
+from ..fem.assembly import block_system
+from ..fem.compat import interpolation_points
+from .eigen import eigenpairs
+from .stability import TangentStiffness, at_rest_map, symmetric_part
+
+__all__ = ["BucklingModes", "buckling_modes"]
+
+RELATIVE_STEP = 1e-4
+
+
+@dataclass
+class BucklingModes:
+    """``times``: the critical times t + tau of the linearised path, nearest t first;
+    ``load_factors``: (t + tau) / t; ``shapes``: per mode {block: nodal values} of the
+    displacement and rotation blocks (the mode's largest displacement 1, rotations
+    alongside); ``residuals``: the eigen-solve's relative residuals."""
+
+    t: float
+    times: np.ndarray
+    load_factors: np.ndarray
+    shapes: list[dict[str, np.ndarray]]
+    residuals: np.ndarray
+
+
+def buckling_modes(model, t: float, count: int = 4) -> BucklingModes:
+    """The ``count`` critical points of the linearised load path of a quasi-static
+    RodModel nearest its current equilibrium at time t (> 0: the state reached under
+    time t's loads).  Raises ValueError for a dynamic rod, a rod system with joints, t
+    <= 0, or loads and motions that do not change at t."""
+    if model.dynamic:
+        raise ValueError("buckling: a quasi-static rod (rho_A = 0); for a dynamic one, "
+                         "the vibration modes (analysis/vibration.py)")
+    if model.problem.links:
+        raise ValueError("buckling: rods joined by joints are not supported (their "
+                         "constraints are not in the tangent's forms)")
+    if not t > 0:
+        raise ValueError(f"buckling: t > 0 (the loads of time t are scaled), got {t!r}")
+    tangent = TangentStiffness(model)
+    system = tangent.system
+    state = system.x.copy()
+    system.get(0, state)
+    try:
+        K, dK = _pencil(tangent, state, t, RELATIVE_STEP * t)
+        dK.scale(-1.0)
+        pairs = eigenpairs(K, dK, count, target=0.0, kind="symmetric_indefinite")
+        shapes = tangent.mode_shapes(pairs.vectors)
+    finally:
+        system.set(0, state)
+        model.problem.set_loads(t)
+        model.problem.set_bcs(t)
+    times = t + pairs.values
+    return BucklingModes(t, times, times / t, shapes, pairs.residuals)
+
+
+def _pencil(tangent: TangentStiffness, state: PETSc.Vec, t: float,
+            delta: float) -> tuple[PETSc.Mat, PETSc.Mat]:
+    """K at the state and the load's derivative K' (module docstring)."""
+    system, problem = tangent.system, tangent.model.problem
+    rate = _path_rate(tangent, state, t, delta)
+    if not rate.norm() > 0:
+        raise ValueError(f"buckling: the loads and prescribed motions do not change at "
+                         f"t = {t:g} (nothing to scale: ramp them)")
+    stress = _StressStiffness(tangent)
+    try:
+        for sign in (1.0, -1.0):
+            x = state.copy()
+            x.axpy(sign * delta, rate)
+            system.set(0, x)
+            stress.add_stresses(sign * 0.5 / delta)
+        system.set(0, state)
+        dK = stress.matrix()
+        K = tangent.matrix(t)
+        earlier = tangent.matrix(t - delta)        # follower loads: dK/dt (else 0)
+        earlier.aypx(-1.0, K)
+        dK.axpy(1.0 / delta, earlier)
+        earlier.destroy()
+    finally:
+        system.set(0, state)
+        problem.set_loads(t)
+    return K, dK
+
+
+class _StressStiffness:
+    """K_sigma(m', n') of a rod (module docstring): m', n' DG0 (the one-point rule's
+    cell midpoints), summed from states by ``add_stresses``."""
+
+    def __init__(self, tangent: TangentStiffness):
+        model = tangent.model
+        if tangent.multipliers or model.unknowns.chart is None:
+            raise ValueError("buckling: a rod with rotation vectors and without constraints "
+                             "(geometry.rotations = \"rotation_vector\", no "
+                             "material.constraint)")
+        S = fem.functionspace(model.mesh, ("DG", 0, (3,)))
+        at_rest = at_rest_map(model)
+        points = interpolation_points(S)
+        self.stresses = [fem.Expression(ufl.replace(f, at_rest), points)
+                         for f in (model.m, model.n)]
+        self.rates = [fem.Function(S), fem.Function(S)]
+        work = sum(ufl.inner(rate, strain) for rate, strain in
+                   zip(self.rates, (model.u, model.v))) * model.dx_r
+        fields = [model.f[n] for n in tangent.names]
+        forms = [ufl.derivative(work, f, model.t[n]) for f, n in zip(fields, tangent.names)]
+        bcs = [bc for n in tangent.names for bc in model.bcs_of(n)]
+        self.system = block_system(forms, [fields], bcs=bcs)
+        self.fixed = tangent.fixed
+
+    def add_stresses(self, weight: float) -> None:
+        """m', n' += weight (m, n) of the state in the fields."""
+        scratch = fem.Function(self.rates[0].function_space)
+        for rate, stress in zip(self.rates, self.stresses):
+            scratch.interpolate(stress)
+            rate.x.array[:] += weight * scratch.x.array
+
+    def matrix(self) -> PETSc.Mat:
+        """K_sigma, symmetric part, Dirichlet rows and columns zero."""
+        system = self.system
+        system.jacobian(system.A)
+        return symmetric_part(system.A, self.fixed, 0.0)
+
+
+def _path_rate(tangent: TangentStiffness, state: PETSc.Vec, t: float,
+               delta: float) -> PETSc.Vec:
+    """u' with K u' = -dR/dt at the state (Dirichlet rows: the motion's rate)."""
+    system, problem = tangent.system, tangent.model.problem
+    residuals = []
+    for time in (t, t - delta):
+        problem.set_loads(time)
+        problem.set_bcs(time)
+        b = system.b.duplicate()
+        system.residual(state, b)
+        residuals.append(b)
+    dR = residuals[0]
+    dR.axpy(-1.0, residuals[1])
+    dR.scale(-1.0 / delta)                     # -dR/dt
+    problem.set_loads(t)
+    problem.set_bcs(t)
+    system.set(0, state)
+    system.jacobian(system.A)                  # Dirichlet rows identity, columns kept
+    ksp = PETSc.KSP().create(system.A.getComm())
+    ksp.setOperators(system.A)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    rate = state.duplicate()
+    ksp.solve(dR, rate)
+    ksp.destroy()
+    return rate

@@ -1,0 +1,90 @@
+"""Natural frequencies and mode shapes of a dynamic rod about its current state.
+
+Small motions y = phi e^{i omega t} about an equilibrium (pre-stressed, pre-twisted,
+with evolved natural strains: they are frozen, they move on the viscous time scale)
+solve K phi = omega^2 M phi: K the tangent stiffness at the state and the loads of time
+t (analysis/stability.py: the symmetric part, rates and accelerations zero), M the
+derivative of the residual with respect to the accelerations (rho A for the positions,
+the rotary inertia rho J for the rotations, eqs. linmom, angmom), both with Dirichlet
+rows and columns removed (K: identity, M: zero, so those dofs give omega = infinity).
+The lowest pairs by analysis/eigen.py (shift-and-invert below the spectrum: rigid
+modes, omega = 0, are found too).  Damping and gyroscopic terms are left out (undamped
+modes; a state at rest).  Rotation vectors only (the quaternion form's rotations enter
+through its kinematic equation, not an acceleration).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import ufl
+from petsc4py import PETSc
+
+from ..fem.assembly import block_system
+from .eigen import eigenpairs
+from .stability import TangentStiffness, at_rest_map, symmetric_part
+
+__all__ = ["VibrationModes", "vibration_modes"]
+
+
+@dataclass
+class VibrationModes:
+    """``omega``: angular frequencies (rad per time unit), ascending; ``frequencies``:
+    omega / 2 pi; ``eigenvalues``: omega^2 (negative: an unstable state, omega then
+    reported as -sqrt|omega^2|; below 1e-10 |K|/|M|: 0, a rigid mode); ``shapes``: per mode {"displacement", "rotation"}
+    nodal values (largest displacement 1); ``residuals``: the eigen-solve's."""
+
+    t: float
+    eigenvalues: np.ndarray
+    omega: np.ndarray
+    frequencies: np.ndarray
+    shapes: list[dict[str, np.ndarray]]
+    residuals: np.ndarray
+
+
+def vibration_modes(model, t: float, count: int = 6) -> VibrationModes:
+    """The ``count`` lowest natural frequencies and modes of a dynamic RodModel about its
+    current state under time t's loads.  Raises ValueError for a quasi-static rod
+    (rho_A = 0: no mass), rotary inertia I11 = I22 = 0, quaternion unknowns or joints."""
+    if not model.dynamic:
+        raise ValueError("vibration modes: a rod with mass (rho_A > 0; a scene's "
+                         "material.density or material.rho_A)")
+    if model.unknowns.chart is None:
+        raise ValueError("vibration modes: rotation-vector unknowns (geometry.rotations = "
+                         "\"rotation_vector\")")
+    if model.problem.links:
+        raise ValueError("vibration modes: rods joined by joints are not supported")
+    tangent = TangentStiffness(model)
+    K = tangent.matrix(t)
+    M = _mass(tangent)
+    scale = K.norm(PETSc.NormType.INFINITY) / M.norm(PETSc.NormType.INFINITY)
+    pairs = eigenpairs(K, M, count, target=-1e-8 * scale, kind="symmetric")
+    K.destroy()
+    M.destroy()
+    values = np.where(np.abs(pairs.values) < 1e-10 * scale, 0.0, pairs.values)
+    omega = np.sign(values) * np.sqrt(np.abs(values))
+    return VibrationModes(t, values, omega, omega / (2 * np.pi),
+                          tangent.mode_shapes(pairs.vectors), pairs.residuals)
+
+
+def _mass(tangent: TangentStiffness) -> PETSc.Mat:
+    """M = dR/d(accelerations) of the mechanical blocks, symmetric part, Dirichlet rows
+    and columns zero."""
+    model = tangent.model
+    problem = model.problem
+    accelerations = dict(zip(model.names, problem.accelerations))
+    if any(accelerations.get(n) is None for n in tangent.names):
+        raise ValueError("vibration modes: every position and rotation block needs an "
+                         "acceleration (a dynamic rod on rotation vectors)")
+    moving = [accelerations[n] for n in tangent.names]
+    at_rest = {f: g for f, g in at_rest_map(model).items()
+               if not any(f is a for a in moving)}
+    forms = [ufl.replace(model.residual[n], at_rest) for n in tangent.names]
+    fields = [model.f[n] for n in tangent.names]
+    bcs = [bc for n in tangent.names for bc in model.bcs_of(n)]
+    system = block_system(forms, [fields, moving], jacobian_terms=((1.0, 1),), bcs=bcs)
+    system.get(0, system.x)
+    system.set(0, system.x)
+    system.jacobian(system.A)
+    return symmetric_part(system.A, tangent.fixed, 0.0)

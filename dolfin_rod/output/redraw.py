@@ -1,0 +1,97 @@
+"""The pictures of a finished run drawn again from its folder (``dolfin-rod plot RUN
+[quantities]``, ``RunResult.plot()``): nothing is recomputed.
+
+    histories.png   from timeseries.csv and scene.toml: the scene's panels (plots.py), or
+                    the ``quantities`` named: panels (tip_deflection, end_torque, ...) or
+                    columns of the CSV (reaction_couple_right_z, ...) against time
+    snapshots.png, animation.gif   3-D rod; spacetime.png torsion: from rod.pvd (or
+                    rod.bp) when the run wrote its fields, coloured by ``colour``
+
+    redraw("results/gravity_cantilever-...", ["tip_deflection", "reaction_force_left_z"])
+
+A quantity that is neither a panel nor a column, a folder that is not a finished run:
+RedrawError naming it (the CLI's exit status 2), before anything is drawn.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+from ..scenes.schema import COLOURS, PANELS
+from .run_folders import OutputError
+
+__all__ = ["redraw", "read_rows", "RedrawError"]
+
+
+class RedrawError(OutputError):
+    """A run folder or a quantity that cannot be drawn."""
+
+
+def read_rows(folder: Path) -> list[dict]:
+    """The rows of timeseries.csv as floats (an empty field, NaN)."""
+    path = Path(folder) / "timeseries.csv"
+    if not path.is_file():
+        raise RedrawError(f"{folder}: no timeseries.csv (not a run folder of dolfin-rod?)")
+    with path.open() as f:
+        rows = [{k: float(v) if v != "" else float("nan") for k, v in r.items()}
+                for r in csv.DictReader(f)]
+    if len(rows) < 2:
+        raise RedrawError(f"{path}: fewer than two rows, nothing to draw")
+    return rows
+
+
+def _check_quantities(quantities: list[str], columns) -> None:
+    unknown = [q for q in quantities if q not in PANELS and q not in columns]
+    if unknown:
+        raise RedrawError(f"quantities: {', '.join(unknown)} is neither a panel ("
+                          f"{', '.join(PANELS)}) nor a column of timeseries.csv "
+                          f"({', '.join(c for c in columns if c not in ('step', 'time'))})")
+
+
+def _frames(folder: Path) -> list:
+    """(t, LineSample) of every step of rod.pvd, else rod.bp; [] if neither is there."""
+    from .field_outputs import sample_from_steps
+    if (folder / "rod.pvd").is_file():
+        from .vtk_xml import read_pvd
+        steps = read_pvd(folder / "rod.pvd")
+    elif (folder / "rod.bp").is_dir():
+        from .vtx import read_vtx
+        steps = read_vtx(folder / "rod.bp")
+    else:
+        return []
+    return [(s["time"], sample_from_steps(s)) for s in steps]
+
+
+def redraw(folder: Path | str, quantities: list[str] | None = None, colour: str = "auto",
+           to: Path | str | None = None) -> list[Path]:
+    """Draw the run's pictures again (see module); ``to``: the histories figure's file
+    (default RUN/histories.png).  Returns the files written."""
+    from ..scenes import load_scene
+    from ..scenes.scene import SceneError
+    from . import animation
+    from .plots import plot_histories
+    folder = Path(folder)
+    rows = read_rows(folder)
+    _check_quantities(list(quantities or []), rows[0])
+    if colour not in COLOURS:
+        raise RedrawError(f"--color {colour!r}: one of {', '.join(COLOURS)}")
+    try:
+        scene = load_scene(folder / "scene.toml")
+    except SceneError as err:
+        raise RedrawError(f"{folder}: its scene.toml cannot be read: {err}") from None
+    summary = folder / "summary.json"
+    title = json.loads(summary.read_text()).get("title", "") if summary.is_file() else ""
+    written = [Path(to) if to is not None else folder / "histories.png"]
+    plot_histories(rows, written[0], scene, title, list(quantities or []) or None)
+    frames = _frames(folder)
+    if len(frames) > 1 and "centre_line" in frames[0][1].point:
+        look = animation.Look.of(scene, None if colour == "auto" else colour)
+        animation.rod_snapshots(frames, folder / "snapshots.png", title, look=look)
+        animation.rod_animation(frames, folder / "animation.gif", title, look)
+        written += [folder / "snapshots.png", folder / "animation.gif"]
+    elif len(frames) > 1:
+        animation.torsion_spacetime(frames, folder / "spacetime.png", title)
+        written.append(folder / "spacetime.png")
+    return written

@@ -1,0 +1,206 @@
+"""Contact between segments: of one rod (self-contact) and of different rods (issue 26,
+rod/pair_contact.py, docs/contact.md).
+
+References: Taylor tests of the pair energy's gradient and Hessian (remainders of first
+and second order: ratios 2 and 4 per halving) and of the assembled residual and
+Jacobian of a rod system in contact (ratio 4); a cantilever propped by a crossing rod
+takes the prop force that linear superposition of two contact-free runs of the same
+discretisation gives for the measured deflection at the prop (R = (w_P(a) - w(a)) / f(a),
+w_P the deflection under the tip load alone, f the flexibility at a); the pairs' forces
+are equal and opposite (the total vanishes).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from dolfin_rod import TimeStepper
+from dolfin_rod.rod import EndLoad, RodModel, RodParameters
+from dolfin_rod.rod.contact import ContactLaw, barrier_derivatives
+from dolfin_rod.rod.pair_contact import exclusion, pair_energy
+from dolfin_rod.rod.rods import Rod
+from dolfin_rod.rod.system import RodSystem
+
+R, DELTA, EI, P, L, N = 0.01, 2e-3, 1.0, 0.05, 1.0, 8
+BEAM = RodParameters(length=L, A=(EI, EI, EI), B=(1e4, 1e4, 1e4))
+PROP = RodParameters(length=0.5, A=(1e3,) * 3, B=(1e6,) * 3)
+
+CONFIGURATIONS = {   # (p0, p1, q0, q1), centre lines nearer than 2 r + delta = 0.25 below
+    "crossing": [[-1, 0, 0], [1, 0, 0], [0.1, -1, 0.235], [0.2, 1, 0.23]],
+    "end on segment": [[0, 0, 0], [1, 0, 0], [1.2, -1, 0.1], [0.9, 1, 0.12]],
+    "end on end": [[0, 0, 0], [1, 0, 0], [1.1, 0.2, 0.1], [1.5, 0.9, 0.12]],
+    "near parallel": [[0, 0, 0], [1, 0, 0], [0.3, 0.05, 0.22], [1.4, -0.02, 0.21]],
+}
+
+
+def _remainders(f, X, dX, steps=5):
+    """Ratios of successive first- and second-order Taylor remainders of (E, G) = f(X)."""
+    E0, G0, H0 = f(X)
+    out = []
+    for k in range(steps):
+        e = 1e-4 / 2**k
+        E1, G1, _ = f(X + e * dX)
+        out.append((abs(E1 - E0 - e * G0 @ dX.ravel()).item(),
+                    np.linalg.norm(G1 - G0 - e * H0 @ dX.ravel())))
+    return np.array(out[:-1]) / np.array(out[1:])
+
+
+@pytest.mark.parametrize("name", sorted(CONFIGURATIONS))
+def test_pair_energy_gradient_and_hessian_are_consistent(name):
+    """Energy, gradient and Hessian of a pair (r = 0.1, delta = 0.05: in the barrier's
+    range) for crossing, end-on-segment, end-on-end and nearly parallel segments: the
+    Taylor remainders fall 4x per halving of the step (exact derivatives; a wrong
+    Hessian gives 2x).  Tolerance 0.05: the next order's share at e = 1e-4."""
+    X = np.array(CONFIGURATIONS[name], float)[None]
+    dX = np.random.default_rng(7).standard_normal(X.shape)
+
+    def f(Y):
+        E, G, H = pair_energy(Y, 0.1, 0.05, 1.0, [1.0])
+        return E[0], G[0], H[0]
+    assert f(X)[0] > 0                      # inside the barrier's range
+    ratios = _remainders(f, X, dX)
+    assert np.allclose(ratios, 4.0, atol=0.05), ratios
+
+
+def test_barrier_derivatives():
+    """b' and b'' of the barrier against central differences of b (1e-6 relative: the
+    differences' truncation error at step 1e-6 delta), b = -(g - delta)^2 ln(g / delta)
+    inside, 0 beyond delta, continued below 1e-4 delta by a C^2 polynomial."""
+    delta, e = 0.1, 1e-7
+    g = np.array([2e-6, 9e-6, 1e-3, 0.03, 0.07, 0.0999, 0.15])
+    b, b1, b2 = barrier_derivatives(g, delta)
+    inside = (g >= 1e-4 * delta) & (g < delta)
+    assert np.allclose(b[inside], -(g[inside] - delta) ** 2 * np.log(g[inside] / delta))
+    assert b[-1] == b1[-1] == b2[-1] == 0.0
+    plus, minus = barrier_derivatives(g + e, delta), barrier_derivatives(g - e, delta)
+    assert np.allclose(b1, (plus[0] - minus[0]) / (2 * e), rtol=1e-6, atol=1e-12)
+    assert np.allclose(b2, (plus[1] - minus[1]) / (2 * e), rtol=1e-6, atol=1e-9)
+
+
+def _propped(a, y0, between=True):
+    """Rod A along e_1 (clamped at 0, tip load -P e_3 ramped over t in [0, 1]) over the
+    stiff clamped-clamped rod B along e_2 at x = a, from y = y0, its centre line
+    2 r + 1.5 delta below A's."""
+    rods = [Rod(BEAM, N, ("clamped", "free"), [EndLoad("force", (0, 0, -P), lambda t: t)],
+                orientation=(0, np.pi / 2, 0), name="A"),
+            Rod(PROP, 4, ("clamped", "clamped"), position=(a, y0, -(2 * R + 1.5 * DELTA)),
+                orientation=(-np.pi / 2, 0, 0), name="B")]
+    system = RodSystem(rods, model="hyperelastic",
+                       contact=ContactLaw(R, DELTA, 1e6, between_rods=between))
+    system.set_initial_state()
+    return system
+
+
+def _loaded(model, steps=4):
+    stepper = TimeStepper(model.problem)
+    for k in range(steps):
+        stepper.run(k / steps, (k + 1) / steps, 1 / steps)
+    return stepper, model.diagnostics(1.0)
+
+
+def _node(model, s, k=0):
+    """Position of the node at parameter s (all ranks)."""
+    x = model.unknowns.f["displacement"]
+    n = x.function_space.dofmap.index_map.size_local
+    coords = x.function_space.tabulate_dof_coordinates()[:n, 0]
+    here = np.isclose(coords, s)
+    value = x.x.array.reshape(-1, 3)[:n][here].sum(axis=0) + np.array([0, 0, s]) * here.any()
+    return MPI.COMM_WORLD.allreduce(value)
+
+
+@pytest.mark.mpi
+def test_cantilever_propped_by_a_crossing_rod():
+    """A (8 cells, EI = 1, tip load 0.05) rests at its node a = 0.75 on B: the contact
+    force sum_pairs |f| equals (w_P(a) - w(a)) / f(a) of the same discretisation (two
+    contact-free quasi-static runs: A under the tip load, and a rod of length a with 6
+    cells, A's first six, under the tip load P) to 1e-3 (the deflections are 2e-3 of L:
+    geometric nonlinearity ~1e-5, the barrier's tilt 3e-3 puts an axial force on A,
+    which does not bend it); 1.5 P is the rigid prop's beam-theory value, approached
+    within 10 %; no pair ever at gap <= 0, the pairs' forces sum to zero."""
+    a = 0.75
+    system = _propped(a, -0.25)
+    _, d = _loaded(system)
+    assert 0.0 < d["min_pair_gap"] < DELTA
+    w = -_node(system, a)[2]            # A's centre line at s = a (rod A: s in [0, L])
+    free = RodModel(BEAM, N, model="hyperelastic",
+                    end_loads=[EndLoad("force", (P, 0, 0), lambda t: t)])
+    free.set_initial_state()
+    _loaded(free)
+    w_P = _node(free, a)[0]
+    short = RodModel(RodParameters(**{**BEAM.__dict__, "length": a}), 6,
+                     model="hyperelastic", end_loads=[EndLoad("force", (P, 0, 0))])
+    short.set_initial_state()
+    _loaded(short, 1)
+    flexibility = _node(short, a)[0] / P
+    assert d["pair_contact_force"] == pytest.approx((w_P - w) / flexibility, rel=1e-3)
+    assert d["pair_contact_force"] == pytest.approx(1.5 * P, rel=0.1)
+    forces = system.segment_contact.force_density()
+    total = MPI.COMM_WORLD.allreduce((forces * (L / N)).sum(axis=0))
+    assert np.linalg.norm(total) < 1e-12 * d["pair_contact_force"] + 1e-15
+
+
+@pytest.mark.mpi
+def test_assembled_jacobian_is_consistent():
+    """The step's residual and Jacobian of the propped system in contact at interior
+    points of both segments (B's nodes and A's off the crossing): Taylor remainders of
+    the residual fall 4x per halving (forms and pair terms exact; tolerance 0.1: the
+    remainder's next order at e = 1e-6 of a state of size 1)."""
+    system = _propped(0.75 + L / N / 3, -0.3)
+    stepper, d = _loaded(system)
+    assert d["contact_pairs"] >= 1 and d["min_pair_gap"] < DELTA
+    sys_ = stepper.integrator.solver.system
+    x = sys_.x.copy()
+    b0, b1 = x.duplicate(), x.duplicate()
+    sys_.set(0, x)
+    sys_.residual(x, b0)
+    sys_.jacobian(sys_.A)
+    dx = x.duplicate()
+    dx.setArray(np.random.default_rng(3 + MPI.COMM_WORLD.rank).standard_normal(
+        x.getLocalSize()))
+    dx.array_w[sys_.bc_rows] = 0.0
+    Adx = x.duplicate()
+    sys_.A.mult(dx, Adx)
+    rem = []
+    for k in range(4):
+        e = 1e-6 / 2**k
+        y = x.copy()
+        y.axpy(e, dx)
+        sys_.set(0, y)
+        sys_.residual(y, b1)
+        b1.axpy(-1.0, b0)
+        b1.axpy(-e, Adx)
+        rem.append(b1.norm())
+    ratios = np.array(rem[:-1]) / np.array(rem[1:])
+    assert np.allclose(ratios, 4.0, atol=0.1), ratios
+
+
+@pytest.mark.mpi
+def test_contact_off_changes_nothing():
+    """between_rods = False: no term in the problem, the run equals the same system
+    without a contact law bit for bit (A then falls through B's place)."""
+    off = _propped(0.75, -0.25, between=False)
+    assert not off.problem.terms
+    rods = [Rod(BEAM, N, ("clamped", "free"), [EndLoad("force", (0, 0, -P), lambda t: t)],
+                orientation=(0, np.pi / 2, 0), name="A"),
+            Rod(PROP, 4, ("clamped", "clamped"), position=(0.75, -0.25, -(2 * R + 1.5 * DELTA)),
+                orientation=(-np.pi / 2, 0, 0), name="B")]
+    plain = RodSystem(rods, model="hyperelastic")
+    plain.set_initial_state()
+    _loaded(off)
+    _loaded(plain)
+    assert np.array_equal(off.unknowns.f["displacement"].x.array,
+                          plain.unknowns.f["displacement"].x.array)
+
+
+def test_neighbour_exclusion_and_bad_radius():
+    """Neighbours closer along the rod than pi (r + delta) + h are no pair; a radius
+    whose exclusion covers the whole rod is refused naming contact.radius."""
+    assert exclusion(0.01, 0.001, 0.1) == pytest.approx(np.pi * 0.011 + 0.1)
+    with pytest.raises(ValueError, match="contact.radius"):
+        RodModel(BEAM, N, model="hyperelastic",
+                 contact=ContactLaw(0.3, 0.03, 1.0, self_contact=True))
+    with pytest.raises(ValueError, match="rotation-vector"):
+        RodModel(BEAM, N, model="hyperelastic", rotations="quaternion",
+                 contact=ContactLaw(R, DELTA, 1.0, self_contact=True))

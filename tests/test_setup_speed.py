@@ -1,0 +1,154 @@
+"""The set-up shortcuts of issue 30 (target 1) give the numbers of the general path.
+
+A model's structure as data (rod/structure.py) stands for its residual's UFL
+signatures, which select the compiled kernels: two models with equal texts must have
+equal signatures (checked here across material numbers and cell counts, and on every
+bundled rod scene at two cell counts), and a term more or less must change the text.
+
+The reference strains of a straight rod along e_3 are written directly (u_ref = 0,
+v_ref = e_3; rod/initial_state.py) instead of interpolating the compiled strain
+expressions: here they are compared, bit for bit, with those expressions evaluated on
+the same state, for each kind of rotation unknown and each model that computes its
+strains differently (rotation vectors, quaternions, an unshearable rod, the uniform
+variant).  Speed itself is measured by benchmarks/setup_cost.py.
+"""
+
+from __future__ import annotations
+
+import dolfinx.fem as fem
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from pathlib import Path
+
+from dolfin_rod.fem import compat, form_cache
+from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
+from dolfin_rod.run import choose_model
+from dolfin_rod.scenes import load_scene
+from dolfin_rod.scenes.builders import build
+
+SCENES = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.toml"))
+
+CASES = {
+    "dynamic, rotation vectors": dict(
+        params=dict(rho_A=2.0, I11=1e-3, I22=1e-3), model="hyperelastic"),
+    "quasi-static creep, quaternions": dict(
+        params=dict(A_d=(1.0, 1.0, 1.0), B_d=(10.0, 10.0, 10.0), M_d=(1.0, 1.0, 1.0),
+                    N_d=(1.0, 1.0, 1.0)), model="evolving", rotations="quaternion"),
+    "unshearable, uniform variant": dict(
+        params=dict(A_d=(1.0, 1.0, 1.0), B_d=(10.0, 10.0, 10.0), M_d=(1.0, 1.0, 1.0),
+                    N_d=(1.0, 1.0, 1.0)), model="evolving", variant="uniform",
+        constraint="unshearable"),
+}
+
+
+def compiled_strains(model: RodModel) -> tuple[np.ndarray, np.ndarray]:
+    """u, v of the current state at the reference strains' points, by fem.Expression."""
+    out = []
+    for expr, field in zip((model.u, model.v), model.reference):
+        g = fem.Function(field.function_space)
+        g.interpolate(fem.Expression(expr, compat.interpolation_points(g.function_space)))
+        out.append(g.x.array.copy())
+    return out[0], out[1]
+
+
+VALUES = (dict(A=(2.0, 3.0, 4.0), B=(50.0, 60.0, 70.0)),
+          dict(A=(2.5, 0.5, 1.0), B=(40.0, 65.0, 90.0)))
+
+
+def make(case: str, values: dict = VALUES[0], n_cells: int = 4, loads=None,
+         **changes) -> RodModel:
+    """The model of a case with material numbers ``values`` and ``changes``."""
+    spec = CASES[case]
+    params = RodParameters(**values, **{**spec["params"], **changes})
+    loads = loads or dict(distributed_loads=[DistributedLoad("force", (1.0, 0.0, 0.0))])
+    return RodModel(params, n_cells=n_cells, model=spec["model"],
+                    variant=spec.get("variant", "local"), constraint=spec.get("constraint"),
+                    rotations=spec.get("rotations", "auto"), comm=MPI.COMM_WORLD, **loads)
+
+
+def signatures(model) -> str:
+    return form_cache.structure_key(model.problem.residual)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("case", CASES)
+def test_straight_reference_strains_equal_the_compiled_strains(case):
+    """Bit-identical: u_ref = 0 and v_ref = e_3 are what the strain kernels give for a
+    straight rod (q = 1, x = 0 at every node), so every later number is unchanged."""
+    model = make(case)
+    model.set_initial_state()
+    u, v = compiled_strains(model)
+    u_ref, v_ref = (f.x.array for f in model.reference)
+    assert np.array_equal(u_ref, u) and np.array_equal(v_ref, v)
+    assert np.array_equal(v.reshape(-1, 3), np.tile([0.0, 0.0, 1.0], (len(v) // 3, 1)))
+
+
+def test_a_curved_rod_keeps_the_compiled_strains():
+    """A helix (reference curvature) is not straight: its reference strains are the
+    compiled ones, and they differ from (0, e_3)."""
+    params = RodParameters(A=(2.0, 3.0, 4.0), B=(50.0, 60.0, 70.0),
+                           reference_curvature=(0.0, 1.0, 0.5))
+    model = RodModel(params, n_cells=4, model="hyperelastic", comm=MPI.COMM_WORLD)
+    model.set_initial_state()
+    u, v = compiled_strains(model)
+    assert np.array_equal(model.reference[0].x.array, u)
+    assert np.abs(u.reshape(-1, 3)[:, 1] - 1.0).max() < 0.05   # discrete curvature ~ u0
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("case", CASES)
+def test_models_of_one_structure_have_one_text_and_one_signature(case):
+    """Other material numbers and another cell count: the same structure text, and the
+    same UFL signatures (so the same kernels), which the text's key then stands for."""
+    first, second = (make(case, values, n) for values, n in zip(VALUES, (4, 6)))
+    assert first.problem.structure is not None
+    assert first.problem.structure == second.problem.structure
+    assert signatures(first) == signatures(second)
+    via_text = [form_cache.structure_key(m.problem.residual, "step",
+                                         structure=m.problem.structure) for m in (first, second)]
+    assert via_text[0] == via_text[1] == form_cache.structure_key(second.problem.residual, "step")
+
+
+@pytest.mark.parametrize("change", ["drag", "follower load", "end couple", "end slide"])
+def test_a_term_more_is_another_structure(change):
+    """Each change adds or alters a residual term: the text and the signatures differ."""
+    case = "dynamic, rotation vectors"
+    changed = {
+        "drag": lambda: make(case, drag=0.3),
+        "follower load": lambda: make(case, loads=dict(distributed_loads=[
+            DistributedLoad("force", (1.0, 0.0, 0.0), follower=True)])),
+        "end couple": lambda: make(case, loads=dict(end_loads=[
+            EndLoad("couple", (0.0, 0.0, 1.0))], distributed_loads=[
+            DistributedLoad("force", (1.0, 0.0, 0.0))])),
+        "end slide": lambda: make(case, loads=dict(
+            distributed_loads=[DistributedLoad("force", (1.0, 0.0, 0.0))],
+            ends=("clamped", "pinned"), end_slide={"right": (0.0, 0.0, 1.0)})),
+    }[change]()
+    base = make(case)
+    assert changed.problem.structure not in (None, base.problem.structure)
+    if change != "end slide":       # a Dirichlet condition: same forms, other key
+        assert signatures(changed) != signatures(base)
+
+
+def test_a_coefficient_given_as_a_function_has_no_text():
+    """A stiffness profile A(s) is UFL holding its own numbers: no text, signatures."""
+    model = make("dynamic, rotation vectors", dict(A=lambda s: (2.0 + s, 3.0, 4.0),
+                                                   B=(50.0, 60.0, 70.0)))
+    assert model.problem.structure is None
+
+
+@pytest.mark.parametrize("path", SCENES, ids=lambda p: p.stem)
+def test_bundled_rod_scenes_at_two_cell_counts(path):
+    """Every bundled rod scene (systems too) built at two cell counts: equal texts with
+    equal signatures (a scene whose energy is a function has no text; a contact law's
+    default stiffness depends on the cell size, a number in the text: other texts)."""
+    scenes = [load_scene(path, {"geometry.n_cells": n}) for n in (4, 6)]
+    if choose_model(scenes[0], 1).model != "rod":
+        pytest.skip("not a rod scene")
+    models = [build(scene, "rod").model for scene in scenes]
+    texts = [m.problem.structure for m in models]
+    assert (texts[0] == texts[1]) != bool(scenes[0]["obstacles"])
+    if texts[0] == texts[1] and texts[0] is not None:
+        assert signatures(models[0]) == signatures(models[1])

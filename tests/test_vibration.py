@@ -1,0 +1,125 @@
+"""Natural frequencies about the current state (issue 27 item 5,
+dolfin_rod/analysis/vibration.py), against independently computed closed forms, at the
+observed second order in h (P1 positions and rotation vectors).
+
+Each bending frequency is double (two bending planes); a rod pinned at both ends also
+has the rigid spin about its axis (omega = 0: the supports do not hold it).
+
+* Euler-Bernoulli (EI = rho A = L = 1; shear and axial stiffness 1e5, rotary inertia
+  1e-8: their corrections are <= 1e-4 of omega): cantilever omega_n = (beta_n L)^2 with
+  cos(beta L) cosh(beta L) = -1 (beta L = 1.8751, 4.6941, 7.8548; brentq here),
+  pinned-pinned (n pi)^2.
+* A thick pinned-pinned rod (Timoshenko: kappa G A = 100 EI / L^2, rho I = 2.5e-3 rho A
+  L^2): for w = W sin(kx), phi = Phi cos(kx), k = n pi / L, Timoshenko's equations
+  give det [[kGA k^2 - rho A w^2, -kGA k], [-kGA k, EI k^2 + kGA - rho I w^2]] = 0,
+  whose lower root is solved here with brentq: 9.3209, 32.595, 62.617 (Euler-Bernoulli:
+  9.8696, 39.478, 88.826).
+* A string (EI = 1e-6, EA = 1e3, pre-stretched by 1e-3: T = 1, pinned ends):
+  omega_n = (n pi / L) sqrt(T / (lambda rho A)) with lambda = 1.001 the stretch (the
+  mass per current length is rho A / lambda); bending adds (n pi)^2 EI / 2T <= 5e-6.
+
+Tolerances: orders within 0.2 of 2 between 8 and 16 cells, errors at 16 cells below
+the measured ones (listed per test) times 1.2.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from dolfin_rod.analysis.vibration import vibration_modes
+from dolfin_rod.rod import RodModel, RodParameters, StartingState, Straight
+
+SLENDER = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5), rho_A=1.0,
+                        I11=1e-8, I22=1e-8)
+
+
+def frequencies(params, ends, n_cells, count, start=None) -> np.ndarray:
+    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", ends=ends)
+    rod.set_initial_state(start=start)
+    modes = vibration_modes(rod, 0.0, count)
+    assert max(modes.residuals) < 1e-10
+    omega = modes.omega
+    assert np.allclose(omega[-2 * 3:][::2], omega[-2 * 3:][1::2], rtol=1e-7)  # the planes
+    return omega
+
+
+def check(errors8, errors16, measured16):
+    errors8, errors16 = np.abs(errors8), np.abs(errors16)
+    orders = np.log2(errors8 / errors16)
+    assert np.all(np.abs(orders - 2) < 0.2), (orders, errors16)
+    assert np.all(errors16 < 1.2 * np.asarray(measured16)), errors16
+
+
+@pytest.mark.mpi
+def test_cantilever_frequencies():
+    """Measured relative errors at 8 / 16 cells: 1.85e-3, 3.90e-2, 0.118 / 4.52e-4,
+    9.49e-3, 2.76e-2 (orders 2.03, 2.04, 2.09)."""
+    beta = [brentq(lambda b: math.cos(b) * math.cosh(b) + 1, a, a + 1.5)
+            for a in (1.0, 4.0, 7.0)]
+    assert beta == pytest.approx([1.8751, 4.6941, 7.8548], abs=1e-4)
+    exact = np.array(beta) ** 2
+    errors = [frequencies(SLENDER, ("clamped", "free"), n, 6)[::2] / exact - 1
+              for n in (8, 16)]
+    check(*errors, [4.52e-4, 9.49e-3, 2.76e-2])
+
+
+@pytest.mark.mpi
+def test_pinned_pinned_frequencies():
+    """The rigid spin first, then (n pi)^2; measured relative errors at 8 / 16 cells:
+    1.95e-2, 8.18e-2, 0.200 / 4.79e-3, 1.94e-2, 4.44e-2 (orders 2.03, 2.08, 2.17;
+    2.05-2.08 from 16 to 32 cells)."""
+    exact = (np.arange(1, 4) * math.pi) ** 2
+    errors = []
+    for n in (8, 16):
+        omega = frequencies(SLENDER, ("pinned", "pinned"), n, 7)
+        assert omega[0] == 0.0
+        errors.append(omega[1::2] / exact - 1)
+    check(*errors, [4.79e-3, 1.94e-2, 4.44e-2])
+
+
+def timoshenko(n: int, EI=1.0, kGA=100.0, rhoA=1.0, rhoI=2.5e-3) -> float:
+    k = n * math.pi
+    det = lambda w2: (kGA * k * k - rhoA * w2) * (EI * k * k + kGA - rhoI * w2) \
+        - (kGA * k) ** 2                                                  # noqa: E731
+    return math.sqrt(brentq(det, 1e-12, EI * k ** 4 / rhoA))   # below Euler-Bernoulli
+
+
+@pytest.mark.mpi
+def test_thick_rod_against_timoshenko():
+    """Measured relative errors at 8 / 16 cells: 1.82e-2, 6.40e-2, 0.126 / 4.49e-3,
+    1.55e-2, 3.01e-2 (orders 2.01, 2.04, 2.07)."""
+    thick = RodParameters(length=1.0, A=(1.0, 1.0, 100.0), B=(100.0, 100.0, 1e4),
+                          rho_A=1.0, I11=2.5e-3, I22=2.5e-3)
+    exact = np.array([timoshenko(n) for n in (1, 2, 3)])
+    assert exact == pytest.approx([9.3209, 32.595, 62.617], abs=1e-3)
+    errors = [frequencies(thick, ("pinned", "pinned"), n, 7)[1::2] / exact - 1
+              for n in (8, 16)]
+    check(*errors, [4.49e-3, 1.55e-2, 3.01e-2])
+
+
+@pytest.mark.mpi
+def test_string_under_tension():
+    """Measured relative errors at 8 / 16 cells: 6.44e-3, 2.59e-2, 5.84e-2 / 1.61e-3,
+    6.46e-3, 1.46e-2 (orders 2.00)."""
+    string = RodParameters(length=1.0, A=(1e-6, 1e-6, 1e-6), B=(1e5, 1e5, 1e3), rho_A=1.0,
+                           I11=1e-8, I22=1e-8)
+    stretch = 1.001
+    exact = np.arange(1, 4) * math.pi * math.sqrt(1e3 * (stretch - 1) / stretch)
+    errors = [frequencies(string, ("pinned", "pinned"), n, 7,
+                          StartingState(shape=Straight(stretch=stretch)))[1::2] / exact - 1
+              for n in (8, 16)]
+    check(*errors, [1.61e-3, 6.46e-3, 1.46e-2])
+
+
+@pytest.mark.mpi
+def test_bad_requests_are_refused():
+    quasi_static = RodParameters(length=1.0, B=(1e5, 1e5, 1e5))
+    with pytest.raises(ValueError, match="rho_A > 0"):
+        vibration_modes(RodModel(quasi_static, n_cells=4, model="hyperelastic"), 0.0)
+    with pytest.raises(ValueError, match="rotation_vector"):
+        vibration_modes(RodModel(SLENDER, n_cells=4, model="hyperelastic",
+                                 rotations="quaternion"), 0.0)
