@@ -30,28 +30,7 @@ from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
 import dolfin_rod
-
-COLUMN = """
-[geometry]
-length = 1.0
-n_cells = 16
-[material]
-model = "hyperelastic"
-stiffness = {{ A = [1.0, 1.0, 1.0], B = [1e5, 1e5, 1e5] }}
-[boundary]
-start = "clamped"
-end = "free"
-[loads]
-end_force = {{ type = "ramp", value = [0.0, {lateral}, {axial}], duration = 1.0 }}
-[time]
-t_end = 1.0
-dt = {dt}
-[outputs]
-fields = false
-animation = false
-plots = false
-progress = false
-"""
+from test_stability import COLUMN_SCENE
 
 TWISTED = """
 [geometry]
@@ -107,8 +86,11 @@ def test_post_buckled_elastica_by_branch_switching(tmp_path, capfd, factor, step
     """Ramped to 1.5 P_cr in 20 steps or 3 P_cr in 40 (steps of 7.5 % P_cr): one switch,
     in the first step past P_cr, to the elastica."""
     p = factor * math.pi ** 2 / 4
-    text = COLUMN.format(lateral=imperfection * p, axial=-p, dt=1.0 / steps)
-    result = run_scene(tmp_path, text, "column")
+    text = COLUMN_SCENE.format(load=-p, follow="false")     # item 1's column, 8 cells
+    result = run_scene(tmp_path, text, "column", {
+        "geometry.n_cells": 16, "time.dt": 1.0 / steps, "stability.at_bifurcation": "switch",
+        "loads.end_force": {"type": "ramp", "value": [0.0, imperfection * p, -p],
+                            "duration": 1.0}})
     assert result.status == "completed"
     err = capfd.readouterr().err
     t_switch = math.ceil(steps / factor) / steps          # the first step past P_cr
