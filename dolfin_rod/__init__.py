@@ -42,6 +42,7 @@ _WHERE = {
     "build": "scenes", "SceneError": "scenes",
     # what a run writes: fields along the rod (ParaView, animation), versions
     "FieldOutputs": "output.field_outputs", "read_vtx": "output.vtx", "versions": "output.writer",
+    "read_pvd": "output.vtk_xml", "redraw": "output.redraw",
     # fitting parameters to measured time series (docs/fitting.md)
     "fit_scene": "fit.least_squares", "FitResult": "fit.least_squares",
     "prepare_fit": "fit.least_squares", "run_fit": "fit.least_squares",

@@ -73,8 +73,10 @@ def run(scene: Scene | str | Path, overrides: dict[str, Any] | None = None, *,
     comm = comm or MPI.COMM_WORLD
     given = scene
     scene = agree(comm, lambda: _scene(given, overrides), (SceneError,))
-    return _run(scene, None if out is None else Path(out), comm, resume, overwrite, quiet,
-                stop_after)
+    from .fem import compile_notice
+    with compile_notice.listening(None if quiet or comm.rank != 0 else sys.stdout):
+        return _run(scene, None if out is None else Path(out), comm, resume, overwrite,
+                    quiet, stop_after)
 
 
 def run_scene(scene: Scene | str | Path, out: Path | str | None = None, comm=None,
@@ -121,18 +123,25 @@ def import_finite_elements() -> None:
     """Import DOLFINx and its stack with Ctrl-C and SIGTERM recorded, not raised, until
     the imports are complete: an interrupt raised inside an import leaves a package half
     imported (DOLFINx's module initialisation then aborts, or its dependency check
-    fails); recorded, it ends the start-up right after (KeyboardInterrupt: exit 130)."""
+    fails); recorded, it ends the start-up right after (KeyboardInterrupt: exit 130).
+    Numba is hidden meanwhile: DOLFINx then skips its optional numba helpers, whose
+    import is a third of its own (docs/performance.md); it stays importable after."""
     import signal
     caught: list[int] = []
     names = ("SIGINT", "SIGTERM")
     previous = {name: signal.signal(getattr(signal, name), lambda signum, _: caught.append(signum))
                 for name in names}
+    numba_absent = "numba" not in sys.modules
+    if numba_absent:   # DOLFINx's numba helpers (dolfinx.utils), unused here: 0.4-0.5 s
+        sys.modules["numba"] = None
     try:
         import adios4dolfinx  # noqa: F401
         import basix.ufl  # noqa: F401
         import dolfinx.fem.petsc  # noqa: F401
         import ufl  # noqa: F401
     finally:
+        if numba_absent and sys.modules.get("numba", 0) is None:
+            del sys.modules["numba"]           # importable again, e.g. by PyElastica
         for name, handler in previous.items():
             signal.signal(getattr(signal, name), handler)
     if caught:

@@ -138,3 +138,18 @@ def test_markers_found():
     sources = {b.source.split(":")[0] for b in runnable_blocks()}
     assert {"README.md", "docs/fitting.md", "docs/dna.md"} <= sources, sources
     assert any(not b.slow for b in runnable_blocks())
+
+
+def test_the_gallery_names_every_bundled_scene():
+    """docs/gallery.md's table names each scene of scenes/ (so each gallery scene is one
+    that tests/test_scenes.py::test_bundled_scene_runs runs), names no scene that is not
+    bundled, and every picture it shows exists."""
+    text = (ROOT / "docs" / "gallery.md").read_text()
+    table = text[:text.index("These are all the bundled scenes")]
+    named = {n for cell in re.findall(r"^\|[^|]*\| ([^|]*) \|", table, flags=re.M)
+             for n in re.findall(r"`([a-z_]+)`", cell)}
+    bundled = {p.stem for p in (ROOT / "scenes").glob("*.toml")}
+    assert named == bundled, (bundled - named, named - bundled)
+    assert set(re.findall(r"scenes/([a-z_]+)\.toml", text)) <= bundled
+    for picture in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text):
+        assert (ROOT / "docs" / picture).is_file(), picture

@@ -99,3 +99,29 @@ def test_writhe_is_gauss_double_integral():
             cross = np.cross(b[i] - a[i], b[j] - a[j])
             total += np.sum(d @ cross / np.linalg.norm(d, axis=-1) ** 3) / m**2
     assert writhe(helix) == pytest.approx(2 * total / (4 * np.pi), rel=2e-3)
+
+
+def test_clamped_rod_closure():
+    """An open rod with its ends on the axis e_3 (rod/linking.clamped_rod_linking): a
+    straight ribbon turned 1.3 times has Tw = 1.3, Wr = 0 (1e-12: the closure's far
+    loop is planar with the axis); a looped rod with an untwisted ribbon (normals made
+    from a fixed vector, so Lk = 0) has Tw + Wr = 0 to 1e-9 with Wr != 0, and its mirror
+    image has the opposite writhe."""
+    from dolfin_rod.rod.linking import clamped_rod_linking
+    s = np.linspace(0.0, 1.0, 61)
+    phi = 2 * np.pi * 1.3 * s
+    straight = np.stack([0 * s, 0 * s, s], axis=1)
+    tw, wr = clamped_rod_linking(straight, np.stack([np.cos(phi), np.sin(phi), 0 * s], 1),
+                                 (0, 0, 1), (0, 0, 1))
+    assert tw == pytest.approx(1.3, abs=1e-12) and abs(wr) < 1e-12
+    a = 0.2 * np.sin(np.pi * s) ** 2
+    looped = np.stack([a * np.cos(4 * np.pi * s), a * np.sin(4 * np.pi * s), s], axis=1)
+    normals = np.cross(np.gradient(looped, axis=0), (1.0, 0.0, 0.0))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    tw, wr = clamped_rod_linking(looped, normals, (0, 0, 1), (0, 0, 1))
+    assert abs(wr) > 0.5 and abs(tw + wr) < 1e-9
+    mirror = looped * (1.0, -1.0, 1.0)
+    m_normals = np.cross(np.gradient(mirror, axis=0), (1.0, 0.0, 0.0))
+    m_normals /= np.linalg.norm(m_normals, axis=1)[:, None]
+    assert clamped_rod_linking(mirror, m_normals, (0, 0, 1), (0, 0, 1))[1] == \
+        pytest.approx(-wr, abs=1e-9)

@@ -154,7 +154,7 @@ def test_example_scenes_are_valid(name):
 
 @pytest.mark.mpi
 @pytest.mark.parametrize("name", ["frame.toml", "double_pendulum.toml", "tripod.toml",
-                                  "hinged_door.toml"])
+                                  "hinged_door.toml", "bent_frame.toml"])
 def test_system_scenes_serial_equals_two_ranks(tmp_path, name):
     """Each example scene, a few steps, on the ranks of the run and serially (a separate
     process): the same time series, every rod's and joint's column, to 1e-8 of the

@@ -74,10 +74,11 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "hanging_twist.toml": "rod", "spin_up.toml": "rod",
                   "sprung_cantilever.toml": "rod", "rod_on_incline.toml": "rod",
                   "rope_on_floor.toml": "rod", "frame.toml": "rod",
-                  "crossing_rods.toml": "rod",
+                  "crossing_rods.toml": "rod", "plectoneme.toml": "rod",
                   "double_pendulum.toml": "rod", "tripod.toml": "rod",
                   "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod",
-                  "hinged_door.toml": "rod", "buckled_column.toml": "rod"}
+                  "hinged_door.toml": "rod", "bent_frame.toml": "rod",
+                  "buckled_column.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])

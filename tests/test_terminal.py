@@ -3,6 +3,8 @@ in plain words, for every reason rod/rotation_choice.py knows."""
 
 from __future__ import annotations
 
+import time
+
 import pytest
 
 from dolfin_rod.cli import main
@@ -36,3 +38,54 @@ def test_rotation_reason_follows_the_choice(args, start, why):
 def test_check_says_why(scene, line, capsys):
     assert main(["check", str(SCENES / f"{scene}.toml")]) == 0
     assert line in capsys.readouterr().out
+
+
+def test_closing_summary_gives_each_rods_tip_and_reaction():
+    """A rod system (the bundled frame: rods "column" and "beam") whose column tip moved
+    by (0, 0, -0.01) and beam tip by (0.5, 0, -1.25), the column clamped with a 3 N
+    reaction: one line per rod for the tip and for the reaction, in the scene's units."""
+    from dolfin_rod.output.closing import final_values
+    from dolfin_rod.scenes import load_scene
+    scene = load_scene(SCENES / "frame.toml")
+    keys = ["free_energy", "kinetic_energy", "total_dissipation", "dissipation_rate",
+            "load_power", "power_residual"]
+    for rod in ("column.", "beam."):
+        keys += [f"{rod}tip_position_{c}" for c in "xyz"]
+    keys += [f"column.reaction_{kind}_left_{c}" for kind in ("force", "couple") for c in "xyz"]
+    first = {"time": 0.0, **dict.fromkeys(keys, 0.0)}
+    last = {**first, "time": 1.0, "column.tip_position_z": -0.01,
+            "beam.tip_position_x": 0.5, "beam.tip_position_z": -1.25,
+            "column.reaction_force_left_z": 3.0}
+    lines = final_values([first, last], scene)
+    assert "column: tip displacement [0, 0, -0.01] m" in lines
+    assert "beam: tip displacement [0.5, 0, -1.25] m" in lines
+    assert "column: reaction at s = 0: force [0, 0, 3] N, couple [0, 0, 0] N m" in lines
+
+
+def test_a_long_compile_is_announced_once(tmp_path):
+    """Two forms never compiled before (a new constant in each: a new FFCx signature, so
+    FFCx generates and compiles C for them), the notice due after 0 s: the stream gets
+    the line once, with the estimate recorded here; without a stream nothing is said."""
+    import json
+    import uuid
+
+    import ufl
+    from dolfinx import fem, mesh
+    from mpi4py import MPI
+
+    from dolfin_rod.fem import compile_notice
+    domain = mesh.create_unit_interval(MPI.COMM_SELF, 2)
+    x = ufl.SpatialCoordinate(domain)[0]
+    fresh = lambda: (x + uuid.uuid4().int % 10**9 / 7.0) * ufl.dx    # noqa: E731
+    (tmp_path / "seconds.json").write_text(json.dumps({"cold_compile_seconds": 12.4}))
+    with (tmp_path / "terminal").open("w") as stream:
+        with compile_notice.listening(stream, after=0.0):
+            for _ in range(2):
+                with compile_notice.watching(tmp_path):
+                    fem.form(fresh())
+                    time.sleep(0.3)       # the child's sh starts and prints in this time
+        with compile_notice.watching(tmp_path):     # no stream: silent
+            fem.form(fresh())
+    assert (tmp_path / "terminal").read_text() == \
+        "compiling kernels (first run only, about 12 s)\n"
+    assert compile_notice.estimate(tmp_path / "nothing") == "up to a minute"

@@ -48,7 +48,7 @@ from dolfinx.fem import IntegralType
 from dolfinx.fem.forms import form_cpp_class
 from mpi4py import MPI
 
-from . import compat
+from . import compat, compile_notice
 
 _ENTRIES: dict[str, list] = {}
 _MODULES: dict[str, object] = {}
@@ -83,9 +83,11 @@ KERNEL_FLAGS = [*kernel_flags(), f"-DDOLFIN_ROD_HOST_CPU={_host_cpu()}"]
 
 def compile_forms(forms):
     """fem.form of a form or (nested) list of forms, with the step kernels' flags; flags a
-    user gave (DOLFIN_ROD_KERNEL_FLAGS) that do not compile are named in the error."""
+    user gave (DOLFIN_ROD_KERNEL_FLAGS) that do not compile are named in the error.  A
+    long compile (a cold FFCx cache) is announced (compile_notice.py)."""
     try:
-        return fem.form(forms, jit_options={"cffi_extra_compile_args": KERNEL_FLAGS})
+        with compile_notice.watching(_FOLDER):
+            return fem.form(forms, jit_options={"cffi_extra_compile_args": KERNEL_FLAGS})
     except Exception as err:
         if "DOLFIN_ROD_KERNEL_FLAGS" not in os.environ:
             raise

@@ -41,7 +41,7 @@ from .step_control import (CUT_FACTOR, IntegrationError, StepControl, StepStats,
                            march, nominal_steps)
 
 
-def default_options(comm, second_order: bool = True) -> dict:
+def default_options(comm, second_order: bool = True, direct: bool = False) -> dict:
     """The integrator's solver defaults.
 
     One rank: PETSc's own LU in the natural order (the banded order of a 1-D mesh; safe
@@ -50,7 +50,10 @@ def default_options(comm, second_order: bool = True) -> dict:
     that LU on each rank's diagonal block (block Jacobi): the preconditioned operator is
     the identity plus a rank <= 2 b (ranks - 1) coupling through the interface nodes, so
     GMRES converges in a few iterations (2.6x cheaper than MUMPS at 2e4 cells on 2 ranks,
-    same tip to all digits, docs/performance.md).  Newton: rtol 1e-4 with a second-order
+    same tip to all digits, docs/performance.md); with terms outside the forms
+    (``direct``: segment contact, whose pairs couple ranks far from the interface)
+    MUMPS (block Jacobi's GMRES stalled Newton when a plectoneme's loop closed across
+    the ranks).  Newton: rtol 1e-4 with a second-order
     block (the predictor's residual is O(dt^3) small already, so 1e-4 of it is far below
     the step's truncation error: the peer benchmark's tip errors are those of rtol 1e-6
     to 3 digits at every mesh, with 2.44 instead of 3.64 Newton iterations per step at
@@ -64,7 +67,7 @@ def default_options(comm, second_order: bool = True) -> dict:
     options = {"snes_rtol": 1e-4} if second_order else {}
     if comm.size == 1:
         options.update(pc_factor_mat_solver_type="petsc", pc_factor_mat_ordering_type="natural")
-    elif not second_order:
+    elif not second_order or direct:
         # a stiffness matrix alone (no mass to keep it well conditioned): MUMPS, whose
         # direct solve holds where GMRES cannot reduce a residual at its round-off floor
         # (E A / E I ~ 1e8: DIVERGED_LINEAR_SOLVE, tests/test_rod.py's locking test)
@@ -79,9 +82,10 @@ def default_options(comm, second_order: bool = True) -> dict:
     return options
 
 
-def solver_settings(comm, solver_options: dict | None, second_order: bool = True) -> dict:
+def solver_settings(comm, solver_options: dict | None, second_order: bool = True,
+                    direct: bool = False) -> dict:
     """default_options updated by ``solver_options``."""
-    return {**default_options(comm, second_order), **(solver_options or {})}
+    return {**default_options(comm, second_order, direct), **(solver_options or {})}
 
 
 def alpha_parameters(rho_inf: float):
@@ -208,7 +212,8 @@ class LieGeneralizedAlpha:
         objects = [*self._model_objects, *self.y_n, *self.v_n,
                    *(a for a in self.acc_n if a is not None), *self.alg_n, self.dt]
         F = None if form_cache.lookup(self.structure_key) else self._step_forms()
-        self.options = options = solver_settings(mesh.comm, solver_options, 2 in self.order)
+        self.options = options = solver_settings(mesh.comm, solver_options, 2 in self.order,
+                                                 direct=bool(problem.terms))
         self.solver = BlockSNES(F, y, problem.bcs, options, cache=(self.structure_key, objects),
                                 step_scale=problem.configuration_norm(),
                                 links=problem.links, terms=problem.terms)

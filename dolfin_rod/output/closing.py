@@ -33,16 +33,25 @@ def _text(x) -> str:
     return "[" + ", ".join(f"{v:.4g}" for v in x) + "]" if np.ndim(x) else f"{x:.4g}"
 
 
+def _rods(row: dict, suffix: str) -> list[tuple[str, str]]:
+    """(column prefix, line prefix) of each rod having column <prefix><suffix>: ("", "")
+    for a single rod, ("upper.", "upper: ") for the rods of a system."""
+    prefixes = [k[:-len(suffix)] for k in row if k.endswith(suffix)]
+    return [(p, f"{p[:-1]}: " if p else "") for p in prefixes]
+
+
 def final_values(rows: list[dict], scene) -> list[str]:
-    """One line per panel of histories.png: its quantity at the end of the run."""
+    """One line per panel of histories.png (per rod of a system for the tip and the
+    reactions): its quantity at the end of the run."""
     units, last, first = scene["scene"].get("units"), rows[-1], rows[0]
     u = lambda kind: "" if unit(kind, units) == "1" else " " + unit(kind, units)  # noqa: E731
-    moved = lambda: _text(_vector(last, "tip_position")   # noqa: E731
-                          - _vector(first, "tip_position"))
+    moved = lambda rod="": _text(_vector(last, f"{rod}tip_position")   # noqa: E731
+                                 - _vector(first, f"{rod}tip_position"))
     lines = []
     for panel in choose_panels(scene, last):
-        if panel == "tip_deflection" and "tip_position_x" in last:
-            lines.append(f"tip displacement {moved()}{u('length')}")
+        if panel == "tip_deflection":
+            lines += [f"{name}tip displacement {moved(rod)}{u('length')}"
+                      for rod, name in _rods(last, "tip_position_x")]
         elif panel == "tip_rotation" and "tip_quaternion_0" in last:
             q = np.array([[r[f"tip_quaternion_{i}"] for i in range(4)] for r in rows])
             theta, axis = unwrapped_angle(q)
@@ -56,12 +65,9 @@ def final_values(rows: list[dict], scene) -> list[str]:
             force = scene["loads"]["end_force"].vector()(last["time"])
             lines.append(f"end force {_text(force)}{u('force')}, tip displacement "
                          f"{moved()}{u('length')}")
-        elif panel == "reactions" and "reaction_force_left_x" in last:
-            text = f"reaction at s = 0: force {_text(_vector(last, 'reaction_force_left'))}"
-            if "reaction_couple_left_x" in last:
-                text += (f"{u('force')}, couple "
-                         f"{_text(_vector(last, 'reaction_couple_left'))}{u('moment')}")
-            lines.append(text if "reaction_couple_left_x" in last else text + u("force"))
+        elif panel == "reactions":
+            lines += [_reaction(last, rod, name, u)
+                      for rod, name in _rods(last, "reaction_force_left_x")]
         elif panel == "twist":
             lines.append(f"end rotation phi(1) {last['end_rotation']:.4g}, mean natural twist "
                          f"{last['mean_natural_twist']:.4g}")
@@ -73,6 +79,15 @@ def final_values(rows: list[dict], scene) -> list[str]:
             lines.append("power balance: largest relative residual after the first step "
                          f"{np.nanmax(relative_power_residual(rows)[1:]):.2g}")
     return lines
+
+
+def _reaction(last: dict, rod: str, name: str, u) -> str:
+    """The reaction line of one rod's support at s = 0 (force, and couple if held)."""
+    text = f"{name}reaction at s = 0: force {_text(_vector(last, f'{rod}reaction_force_left'))}"
+    if f"{rod}reaction_couple_left_x" not in last:
+        return text + u("force")
+    return (f"{text}{u('force')}, couple "
+            f"{_text(_vector(last, f'{rod}reaction_couple_left'))}{u('moment')}")
 
 
 def closing_lines(summary: dict, rows: list[dict], scene, wall: float,

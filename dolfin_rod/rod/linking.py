@@ -82,3 +82,27 @@ def twist(points, normals, closed: bool = False) -> float:
                    + k * np.einsum("ij,ij->i", k, u_end)[:, None] * (1 - cos)[:, None])
     u_next = project(u_b[: len(t0)], t1)
     return float((within.sum() + _angle(transported, u_next, t1).sum()) / (2 * np.pi))
+
+
+CLOSURE = 1e4       # the closure's straight extensions and far loop, in rod lengths
+
+
+def clamped_rod_linking(points, normals, start_tangent, end_tangent) -> tuple[float, float]:
+    """(Tw, Wr) of an open rod whose ends are held on one line along their tangents (a
+    clamped rod twisted about its axis, e.g. a plectoneme): the polygon through
+    ``points`` closed by straight extensions along -start_tangent and +end_tangent of
+    CLOSURE rod lengths and a planar loop far away.  Tw is the twist of the rod's
+    ribbon (``normals`` at its nodes, kept along the extensions), Wr the writhe of the
+    closed curve; then Tw + Wr = Lk = the end's turns about the axis relative to the
+    start (Calugareanu-White with the closure untwisting the end's rotation along the
+    extension; exact for the polygon up to the closure's O(1 / CLOSURE))."""
+    points, normals = np.asarray(points, float), np.asarray(normals, float)
+    t0, t1 = _unit(np.asarray(start_tangent, float)), _unit(np.asarray(end_tangent, float))
+    span = CLOSURE * np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1))
+    below, above = points[0] - span * t0, points[-1] + span * t1
+    side = _unit(np.cross(t0, normals[0]))             # the far loop's direction
+    loop = [above + span * side, below + span * side]
+    tw = twist(np.vstack([below, points, above]),
+               np.vstack([normals[0], normals, normals[-1]]))
+    wr = writhe(np.vstack([below, points, above, *loop]), closed=True)
+    return tw, wr

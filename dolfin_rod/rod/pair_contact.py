@@ -117,9 +117,12 @@ class Centreline:
 
     def positions(self, owned_displacement: np.ndarray) -> np.ndarray:
         """(nodes, 3) positions of all nodes from each rank's owned displacements."""
-        out = self.reference.copy()
-        out[self.gathered] += np.concatenate(self.comm.allgather(
-            owned_displacement.reshape(-1, 3)))
+        return self.reference + self.gather(owned_displacement.reshape(-1, 3))
+
+    def gather(self, owned: np.ndarray) -> np.ndarray:
+        """(nodes, k) values of a P1 field (k components) from each rank's owned ones."""
+        out = np.empty((self.n_nodes, owned.shape[1]))
+        out[self.gathered] = np.concatenate(self.comm.allgather(owned))
         return out
 
 

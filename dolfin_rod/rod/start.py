@@ -208,18 +208,28 @@ def check_start(start: StartingState | None, length: float, dynamic: bool,
         name = "equilibrium" if start.equilibrium else "velocity"
         raise ValueError(f"start.{name}: the rod is quasi-static (rho_A = 0): it has no "
                          "velocities and is in equilibrium at every step")
-    shape = start.shape
+    problem = shape_problem(start.shape, length)
+    if problem:
+        raise ValueError(f"start.shape{problem[0]}: {problem[1]}")
+
+
+def shape_problem(shape, length: float) -> tuple[str, str] | None:
+    """(".<field>" or "", reason) for a curve (Straight, Arc, Helix, Polyline or None)
+    that is wrong or does not fit a rod of ``length``; else None."""
+    if shape is not None and not isinstance(shape, (Straight, Arc, Helix, Polyline)):
+        return "", f"must be a Straight, Arc, Helix or Polyline, got {shape!r}"
     if isinstance(shape, (Straight, Arc, Helix)) and not shape.stretch > 0:
-        raise ValueError(f"start.shape.stretch must be > 0, got {shape.stretch}")
+        return ".stretch", f"must be > 0, got {shape.stretch}"
     if isinstance(shape, Arc) and not shape.radius > 0:
-        raise ValueError(f"start.shape.radius must be > 0, got {shape.radius}")
+        return ".radius", f"must be > 0, got {shape.radius}"
     if isinstance(shape, Helix) and not (shape.radius > 0 and np.isfinite(shape.pitch)):
-        raise ValueError(f"start.shape: a helix needs radius > 0 and a finite pitch, got "
-                         f"radius {shape.radius}, pitch {shape.pitch}")
+        return "", (f"a helix needs radius > 0 and a finite pitch, got radius "
+                    f"{shape.radius}, pitch {shape.pitch}")
     if isinstance(shape, Polyline):
         problem = polyline_problem(shape.points, shape.rest_arc_length, shape.normal, length)
         if problem:
-            raise ValueError(f"start.shape.{problem[0]}: {problem[1]}")
+            return f".{problem[0]}", problem[1]
+    return None
 
 
 def _vector(name: str, value) -> np.ndarray:

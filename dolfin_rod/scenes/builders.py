@@ -298,16 +298,24 @@ def starting_state(scene: Scene):
     ini = scene["initial"]
     if not any(k in scene.given["initial"] for k in START_KEYS):
         return None
-    shape = dict(ini["shape"] or {})
-    kind = shape.pop("type", None)
-    curves = {"straight": start.Straight, "arc": start.Arc, "helix": start.Helix,
-              "polyline": start.Polyline}
     zero = (0.0, 0.0, 0.0)
     return start.StartingState(
-        shape=curves[kind](**shape) if kind else None, position=ini["position"] or zero,
+        shape=curve(ini["shape"]), position=ini["position"] or zero,
         orientation=ini["orientation"] or zero, velocity=ini["velocity"] or zero,
         angular_velocity=ini["angular_velocity"] or zero,
         rotation_centre=ini["rotation_centre"], equilibrium=ini["equilibrium"])
+
+
+def curve(table: dict | None):
+    """The curve (rod/start.py: Straight, Arc, Helix, Polyline) of a shape table
+    (values.starting_shape), None for None."""
+    if table is None:
+        return None
+    from ..rod import start
+    keys = dict(table)
+    kind = keys.pop("type")
+    return {"straight": start.Straight, "arc": start.Arc, "helix": start.Helix,
+            "polyline": start.Polyline}[kind](**keys)
 
 
 def rod_arguments(scene: Scene) -> dict:
@@ -362,7 +370,8 @@ def rod_parameters(scene: Scene):
     return RodParameters(length=geo["length"], **tensors, rho_A=scalars.get("density", 0.0),
                          drag=scalars.get("drag", 0.0), I11=I11, I22=I22, energy=energy,
                          reference_curvature=geo["reference_curvature"],
-                         reference_stretch=geo["reference_stretch"])
+                         reference_stretch=geo["reference_stretch"],
+                         reference_shape=curve(geo["reference_shape"]))
 
 
 def rod_loads(scene: Scene) -> tuple[list, list]:

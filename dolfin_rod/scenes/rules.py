@@ -13,7 +13,8 @@ from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..rod.rotation_choice import (choose_rotations, rotation_vector_obstacle,
                                    rotations_reason)
-from ..checks import EQUILIBRIUM_NEEDS, polyline_problem, sample_points, slide_axis_problem
+from ..checks import (EQUILIBRIUM_NEEDS, MAX_CELL_TURN, polyline_problem, sample_points,
+                      slide_axis_problem)
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
@@ -31,7 +32,7 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("section", k) for k in ("shape", "radius", "semi_axes", "sides", "outer_radius",
                              "inner_radius", "shear_factor")} | {
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
-    ("geometry", "rotations"),
+    ("geometry", "reference_shape"), ("geometry", "rotations"),
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
     *(("initial", k) for k in START_KEYS),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
@@ -355,12 +356,24 @@ def _check_rod_start(scene: Scene) -> None:
     if ini["rotation_centre"] is not None and ini["angular_velocity"] is None:
         raise err("initial.rotation_centre", "needs initial.angular_velocity (the rigid "
                                              "rotation about it)")
-    shape = ini["shape"]
+    _check_curve(scene, "initial.shape", ini["shape"])
+    geo = scene["geometry"]
+    if geo["reference_shape"] is not None:
+        strains = [k for k in ("reference_curvature", "reference_stretch")
+                   if k in scene.given["geometry"]]
+        if strains:
+            raise err("geometry.reference_shape", f"the stress-free shape is a curve or the "
+                                                  f"helix of geometry.{strains[0]}, not both")
+        _check_curve(scene, "geometry.reference_shape", geo["reference_shape"])
+
+
+def _check_curve(scene: Scene, key: str, shape: dict | None) -> None:
+    """A polyline (rod/start.py) of the rod's length, or an error naming ``key``."""
     if shape is not None and shape["type"] == "polyline":
         problem = polyline_problem(shape["points"], shape["rest_arc_length"], shape["normal"],
                                    scene["geometry"]["length"])
         if problem:
-            raise err(f"initial.shape.{problem[0]}", problem[1])
+            raise scene.error(f"{key}.{problem[0]}", problem[1])
 
 
 def rod_rotations(scene: Scene) -> str:
@@ -404,9 +417,10 @@ def _rotations(scene: Scene, choose) -> str:
 
 def _check_turns_resolved(scene: Scene) -> None:
     """The prescribed end rotations turn one end against the other by at most what
-    geometry.n_cells cells represent: each cell's relative rotation stays below pi (the
-    nodal rotations' interpolation takes the shorter way round; 100 rad on 4 cells wrapped
-    silently to a wrong energy and a couple of the wrong sign, issue 28 item 4).  The
+    geometry.n_cells cells represent: each cell's relative rotation stays below
+    checks.MAX_CELL_TURN (100 rad on 4 cells wrapped silently to a wrong energy and a
+    couple of the wrong sign, issue 28 item 4; runs check it after every step, for
+    couples too: RodModel.check_cell_turns).  The
     largest angle is taken at the histories' breakpoints up to t_end (linear or monotone
     in between)."""
     bnd, n = scene["boundary"], scene["geometry"]["n_cells"]
@@ -419,12 +433,13 @@ def _check_turns_resolved(scene: Scene) -> None:
     zero = lambda t: np.zeros(3)                                     # noqa: E731
     start, end = (spec.vector() if spec is not None else zero for spec in specs.values())
     angle = max(float(np.linalg.norm(end(t) - start(t))) for t in times)
-    if angle >= n * math.pi:
+    if angle >= n * MAX_CELL_TURN:
         key = "end" if specs["end"] is not None else "start"
         raise scene.error(f"boundary.{key}_rotation", f"turns one end against the other by "
                           f"{angle:.4g} rad, more than geometry.n_cells = {n} cells "
-                          "represent (each cell's relative rotation must stay below pi): "
-                          f"take n_cells >= {math.floor(angle / math.pi) + 1}")
+                          "represent (each cell's relative rotation must stay below "
+                          f"{MAX_CELL_TURN:g} rad): take n_cells >= "
+                          f"{math.floor(angle / MAX_CELL_TURN) + 1}")
 
 
 def _spring(scene: Scene, end: str, position_held: bool, rotation_held: bool) -> dict:

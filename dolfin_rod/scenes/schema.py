@@ -136,7 +136,8 @@ rods), `name` (its reaction columns `joint_<name>_force_{xyz}`,
 with inertia (density > 0; torsion: nu > 0) cannot follow a jump of a prescribed end
 motion (a `step`, at any `t0`), nor, unless `time.adaptive`, a ramp, smooth step or
 table segment shorter than `time.dt`.  Prescribed rotations may turn one end against the
-other by less than pi per cell (`geometry.n_cells` > angle/pi).  A `material.energy`
+other by less than 2 rad per cell (`geometry.n_cells` > angle/2, checks.MAX_CELL_TURN);
+a run whose cell turns by more (end couples too) stops, exit 3 naming the cells needed.  A `material.energy`
 must be stress-free and convex at the natural strains and convex at the start strains
 (`natural_state.start_state_problem`).
 """
@@ -164,6 +165,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "reference_stretch": Key(vector3(), (0.0, 0.0, 1.0),
                                  R + "stretch v_ref of the stress-free initial shape "
                                  "(v_ref,3 > 0)"),
+        "reference_shape": Key(starting_shape, None,
+                               R + "the stress-free shape as a curve instead of "
+                               "reference_curvature/stretch, from the rod's start along e3 "
+                               "(then placed as the rod): {type = \"polyline\", points = "
+                               "[[x, y, z], ...], normal = [1, 0, 0]} (a bent frame as one "
+                               "rod: a corner at a node turns its two cells by half the "
+                               "angle each), or an arc or helix (as initial.shape)"),
         "rotations": Key(choice(*ROTATIONS), ROTATION_UNKNOWNS,
                          R + "rotation unknowns: auto = rotation_vector (6 unknowns per "
                          "node; the fast default) for the local variant, no constraint and "
@@ -353,7 +361,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "ts_atol": Key(real(0.0, True, 1.0), TS_ATOL, "ts, adaptive: absolute local error "
                        "tolerance"),
         "predictor": Key(choice("linear", "constant"), PREDICTOR, "stepper: Newton's initial "
-                         "guess (linear extrapolation or the last state)"),
+                         "guess: \"linear\" (y_n + dt dy/dt_n, extrapolated) | "
+                         "\"constant\" (the last state y_n)"),
         "rtol": Key(real(0.0, True, 1.0), NEWTON_RTOL, "relative tolerance (SNES / solve_ivp)"),
         "atol": Key(real(0.0, True, 1.0), NEWTON_ATOL,
                     "absolute tolerance (SNES residual / solve_ivp); keep it above the "

@@ -85,7 +85,9 @@ def _ode_time_keys(scene: Scene) -> str:
                           "\"scheme\"")
     if "scheme" in given and tim["ode_solution"] == "exact":
         return (f"; time.scheme = {tim['scheme']!r} is not used: the ODE is solved exactly "
-                "(ode_solution = \"exact\"; \"scheme\" applies it to the ODE)")
+                "(time.ode_solution = \"exact\"); the scheme applies when the scene runs as "
+                "the torsion PDE (scene.model = \"torsion\") or with time.ode_solution = "
+                "\"scheme\"")
     return ""
 
 
