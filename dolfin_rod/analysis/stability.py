@@ -93,6 +93,7 @@ class TangentStiffness:
         self.fixed = PETSc.IS().createGeneral(
             (self.system.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         self._ksp = None        # at the first check: its options are then read at once
+        self._symmetric = None  # K as SBAIJ, the factorisation's input
 
     @staticmethod
     def _free_dofs(model, names) -> int:
@@ -140,14 +141,21 @@ class TangentStiffness:
         return symmetric_part(system.A, self.fixed, 1.0)
 
     def inertia(self, t: float) -> Inertia:
-        """The inertia of K at the current state and time t's loads."""
-        K = self.matrix(t).convert("sbaij", PETSc.Mat())   # MUMPS's LDL^T reads SBAIJ
-        self._ksp = self._ksp or self._factorisation(K.getComm())
-        self._ksp.setOperators(K)
+        """The inertia of K at the current state and time t's loads.  MUMPS's LDL^T
+        reads SBAIJ: one copy, kept, its values replaced at each check (K's pattern is
+        fixed), so that MUMPS keeps its analysis (ordering, symbolic factorisation) and
+        only refactorises."""
+        K = self.matrix(t)
+        if self._ksp is None:
+            self._symmetric = K.convert("sbaij", PETSc.Mat())
+            self._ksp = self._factorisation(K.getComm())
+            self._ksp.setOperators(self._symmetric)
+        else:
+            K.convert("sbaij", self._symmetric)            # values only
+        K.destroy()
         pc = self._ksp.getPC()
         pc.setUp()
         negative, zero, _ = pc.getFactorMatrix().getInertia()  # after setUp: this K's
-        K.destroy()
         return Inertia(negative - self.multipliers, zero)
 
     def _factorisation(self, comm) -> PETSc.KSP:
