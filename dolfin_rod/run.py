@@ -375,8 +375,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
 
     def after_step(t_k: float) -> None:
         diag = sim.diagnostics(t_k)
-        _report_stability_changes(sim, comm)
-        bound.check(diag)
+        bound.check(diag, jump=_report_stability_changes(sim, comm))
         k = progress["k"] = progress["k"] + 1
         writer.record(k, t_k, diag)
         progress["t"] = t_k
@@ -408,8 +407,18 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     return status, message, progress["t"]
 
 
-def _report_stability_changes(sim, comm) -> None:
-    """A warning for each change of the tangent's negative eigenvalues not yet shown."""
+def _report_stability_changes(sim, comm) -> bool:
+    """A warning for each branch switch and each change of the tangent's negative
+    eigenvalues not yet shown; whether the state switched branches since the last
+    call."""
+    branches = getattr(sim, "branches", None)
+    switched = False
+    while branches is not None and len(branches.switches) > branches.reported:
+        switch = branches.switches[branches.reported]
+        branches.reported += 1
+        switched = switched or switch.after is not None
+        print_on_root(comm, f"warning: t = {switch.t:g}: {_switch_text(switch)}",
+                      file=sys.stderr)
     monitor = getattr(sim, "stability", None)
     while monitor is not None and len(monitor.changes) > monitor.reported:
         t, before, after = monitor.changes[monitor.reported]
@@ -418,6 +427,18 @@ def _report_stability_changes(sim, comm) -> None:
         print_on_root(comm, f"warning: t = {t:g}: the equilibrium is {state}: {after} "
                             f"negative eigenvalue(s) of the tangent stiffness (was {before}; "
                             "docs/stability.md)", file=sys.stderr)
+    return switched
+
+
+def _switch_text(switch) -> str:
+    """What a branch switch (analysis/branches.Switch) did, in words."""
+    met = (f"a bifurcation: the path's equilibrium became unstable ({switch.unstable} "
+           f"negative eigenvalue(s) of the tangent stiffness, was {switch.stable})")
+    if switch.after is None:
+        return f"{met}; no stable branch found along the critical mode, the path goes on"
+    return (f"{met}; switched to a stable branch, down the energy from the critical mode's "
+            f"{'+' if switch.sign > 0 else '-'} side (stability.at_bifurcation = \"stay\" "
+            "keeps the path; docs/stability.md)")
 
 
 def _unstable_end(scene, sim, status: str, message: str) -> tuple[str, str]:

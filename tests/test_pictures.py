@@ -70,6 +70,9 @@ def test_a_signed_field_gets_a_colour_scale_symmetric_about_zero():
     assert name == "coolwarm" and (norm.vmin, norm.vmax) == (-3.0, 3.0)
     name, norm = colour_scale([np.array([0.25, 2.0])])
     assert name == "viridis" and (norm.vmin, norm.vmax) == (0.0, 2.0)
+    # a rod sliding rigidly (rod_on_incline): strain changes of 1.8e-11 are round-off
+    name, norm = colour_scale([np.array([0.0, 1.8e-11])])
+    assert (norm.vmin, norm.vmax) == (0.0, 1.0)
 
 
 def test_supports_of_each_rod_of_a_system_are_found():

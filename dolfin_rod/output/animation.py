@@ -35,6 +35,7 @@ SIZE = (8.4, 6.4)            # inches at 100 dpi: 840 x 640 px
 STRAINS = ("u", "v", "u_d", "v_d")
 SMALL_MOTION = 0.05          # motion below 5 % of the rod's size is magnified ...
 SHOWN_MOTION = 0.2           # ... to about 20 % of it
+ROUND_OFF = 1e-9             # a colour field below this is round-off (strains: 1e-11)
 
 
 @dataclass(frozen=True)
@@ -189,10 +190,13 @@ def support_nodes(sample, look: Look) -> list[tuple[int, str]]:
 def colour_scale(values: list[np.ndarray]):
     """The colour map and its normalisation for the frames' values: viridis from 0 for a
     field of one sign; for a signed field (xi of the uniform variant, negative in places)
-    a diverging map symmetric about 0, so that the sign reads off the colour."""
+    a diverging map symmetric about 0, so that the sign reads off the colour; values
+    below ROUND_OFF (a rod sliding or spinning rigidly) all in the map's first colour."""
     from matplotlib.colors import Normalize
     lo = min(float(np.min(v)) for v in values)
     hi = max(float(np.max(v)) for v in values)
+    if max(-lo, hi) < ROUND_OFF:            # nothing changes: one colour, not noise
+        return "viridis", Normalize(0.0, 1.0)
     if lo < 0.0 < hi:
         top = max(-lo, hi)
         return "coolwarm", Normalize(-top, top)

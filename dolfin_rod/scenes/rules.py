@@ -44,7 +44,8 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("loads", "start_couple"), ("obstacles", "shape")} | {
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
                              "between_rods")} | {
-    ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue")}
+    ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue",
+                               "at_bifurcation")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
 
 
