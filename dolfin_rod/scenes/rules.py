@@ -44,7 +44,8 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("loads", "start_couple"), ("obstacles", "shape")} | {
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
                              "between_rods")} | {
-    ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue")}
+    ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue",
+                               "at_bifurcation")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
 
 
@@ -559,3 +560,36 @@ def _check_rod_ends(scene: Scene) -> None:
         raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "
                                     "rotation somewhere (e.g. start = \"clamped\"); rigid "
                                     "motions are free otherwise")
+
+
+# loads and end motions a buckling analysis scales ([loads] and [boundary] keys)
+LOAD_KEYS = ("end_force", "end_couple", "start_force", "start_couple", "distributed_force",
+             "distributed_couple")
+MOTION_KEYS = ("end_rotation", "start_rotation", "end_displacement", "start_displacement")
+
+
+def analysis_problem(scene: Scene, kind: str) -> None:
+    """Refuse (SceneError naming the key) a scene that ``dolfin-rod buckle`` ("buckle")
+    or ``modes`` ("modes") cannot analyse, before any work: a 3-D rod on rotation
+    vectors without joints; buckling a quasi-static one with a load or end motion,
+    modes one with mass (docs/stability.md)."""
+    if not scene.is_rod_material:
+        raise scene.error("material", f"{kind}: a 3-D rod (material.stiffness, or a "
+                                      "[section] with material.youngs_modulus)")
+    if scene.joints:
+        raise scene.error("joints", f"{kind}: rods joined by joints are not supported")
+    mat = scene["material"]
+    if kind == "modes" and not mat["dynamic"]:
+        raise scene.error("material.density", "modes: the rod's mass (material.density "
+                                               "> 0, and material.section_inertia)")
+    if kind == "buckle":
+        if mat["dynamic"]:
+            raise scene.error("material.density", "buckle: a quasi-static rod (no "
+                                                   "density); for a dynamic one: modes")
+        if not any(scene["loads"][k] is not None for k in LOAD_KEYS) and not any(
+                scene["boundary"][k] is not None for k in MOTION_KEYS):
+            raise scene.error("loads", "buckle: a load (loads.end_force, ...) or an end "
+                                       "motion (boundary.end_rotation, ...) to scale")
+    if rod_rotations(scene) != "rotation_vector":
+        raise scene.error("geometry.rotations", f"{kind}: rotation-vector unknowns "
+                                                "(geometry.rotations = \"rotation_vector\")")

@@ -390,6 +390,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                               "constraints: also the lowest eigenvalue of "
                                               "K v = lambda G v (G: the lumped L2 metric; column "
                                               "lowest_eigenvalue; SLEPc, ~10-30 ms a step)"),
+        "at_bifurcation": Key(choice("switch", "stay"), "switch", R + "quasi-static, rotation "
+                              "vectors: when a step makes the equilibrium unstable (the "
+                              "count rises), switch to a stable equilibrium at the same "
+                              "loads, down the energy from the unstable one perturbed along "
+                              "the critical mode (a warning says so) | stay on the computed "
+                              "path (docs/stability.md)"),
         "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
                                               "> 0) is a result: status \"completed\", exit 0 "
                                               "(default: \"completed (unstable equilibrium)\", "
