@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import dolfinx.fem as fem
@@ -25,10 +26,13 @@ from mpi4py import MPI
 from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
-from ..checks import N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT, check_n_cells
+from ..checks import (MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
+                      check_n_cells)
 from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
-from ..theory.rotations import np_rotation_matrix, rotation_matrix
+from ..integrators.step_control import IntegrationError
+from ..mpi import largest_on_ranks
+from ..theory.rotations import np_qmul, np_rotation_matrix, rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports, spin_free
@@ -46,6 +50,8 @@ from .rods import Rod, check_rods
 from .segments import PassThroughCheck
 from .structure import structure
 from .start import RodStarts, StartingState, check_rod_starts, check_start
+
+_CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
 
 
 class RodModel(FEModel):
@@ -324,6 +330,33 @@ class RodModel(FEModel):
             self.contact.update_normal_forces()
         if self.segment_contact:
             self.segment_contact.commit()
+        self.check_cell_turns()
+
+    def check_cell_turns(self) -> None:
+        """IntegrationError when a cell's end node turned by more than checks.MAX_CELL_TURN
+        against its start node (issue 28 item 4): beyond it the rotation interpolation
+        between two nodes misrepresents the turn (a strain that blows up, or a wrap to a
+        wrong, smaller twist), whatever turns the rod (end couples, prescribed rotations,
+        whirling).  The turn is that of the nodes' own quaternions (continuous in time:
+        no sign flips), in [0, 2 pi]; the same answer on every rank."""
+        chart = self.unknowns.chart
+        q = chart.q_n if chart is not None else self.unknowns.f["quaternion"]
+        nodes = q.x.array.reshape(-1, 4)
+        cells = q.function_space.dofmap.list
+        p = np_qmul(nodes[cells[:, 0]] * _CONJUGATE, nodes[cells[:, 1]])
+        turns = 2.0 * np.arctan2(np.linalg.norm(p[:, 1:], axis=1), p[:, 0])
+        largest = largest_on_ranks(self.mesh.comm, float(turns.max(initial=0.0)))
+        if largest <= MAX_CELL_TURN:
+            return
+        cells_now = sum(rod.n_cells for rod in self.rods)
+        t = self.end_supports[0].time_set
+        raise IntegrationError(
+            f"at t = {t:.6g} a cell's end node turned by {largest:.4g} rad against its "
+            f"start node, more than the {MAX_CELL_TURN:g} rad the rotation interpolation "
+            "between two nodes represents (beyond, the turn is misrepresented or wraps): "
+            f"take n_cells >= {math.floor(cells_now * largest / MAX_CELL_TURN) + 1} for the "
+            f"turn so far ([geometry.n_cells]; now {cells_now}; more for a larger turn), "
+            "or turn it less (loads.end_couple, boundary.end_rotation)", t)
 
     def check_step(self) -> str | None:
         """A reason to redo a converged step (rotation vectors: a rotation by more than

@@ -99,7 +99,7 @@ class FESimulation:
             self.stepper, self.ts = None, choose_integrator(
                 self._ts_problem(), solver_options=options, ts_type=self._ts_type(),
                 adaptive=tim["adaptive"], rtol=tim["ts_rtol"], atol=tim["ts_atol"])
-            self.stability = self._stability_monitor()
+            self.stability, self.branches = self._stability_monitor(), None
             return
         # not given, a rod with rotation vectors takes its integrator's default scheme
         # (with obstacles: rho_inf = 0, docs/contact.md)
@@ -111,6 +111,19 @@ class FESimulation:
             self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
             predictor=tim["predictor"], tolerance=tolerance), None
         self.stability = self._stability_monitor()
+        self.branches = self._branch_switching()
+
+    def _branch_switching(self):
+        """Branch switching at bifurcations (analysis/branches.py): quasi-static rods
+        with rotation vectors whose stability is checked, unless stability.at_bifurcation
+        = "stay"."""
+        if self.stability is None or self.scene["stability"]["at_bifurcation"] != "switch":
+            return None
+        from ..analysis.branches import BranchSwitching
+        try:
+            return BranchSwitching(self.stability)
+        except ValueError:          # quaternions or constraints (LowestEigenvalues)
+            return None
 
     def _stability_monitor(self):
         """Quasi-static 3-D rods: the stability of each step's equilibrium
@@ -152,11 +165,15 @@ class FESimulation:
 
     def advance(self, t: float, t_next: float) -> None:
         self.stepper.run(t, t_next, t_next - t)
+        if self.branches is not None:
+            self.branches.check(t_next, t)
 
     def diagnostics(self, t: float) -> dict[str, float]:
         d = self.model.diagnostics(t)
         if self.stability is not None:
-            d["negative_eigenvalues"] = float(self.stability.check(t))
+            checked = self.branches is not None and self.branches.checked_at == t
+            d["negative_eigenvalues"] = float(self.stability.negative if checked
+                                              else self.stability.check(t))
             if self.stability.lowest is not None:
                 d["lowest_eigenvalue"] = self.stability.lowest
         return d

@@ -138,7 +138,8 @@ rods), `name` (its reaction columns `joint_<name>_force_{xyz}`,
 with inertia (density > 0; torsion: nu > 0) cannot follow a jump of a prescribed end
 motion (a `step`, at any `t0`), nor, unless `time.adaptive`, a ramp, smooth step or
 table segment shorter than `time.dt`.  Prescribed rotations may turn one end against the
-other by less than pi per cell (`geometry.n_cells` > angle/pi).  A `material.energy`
+other by less than 2 rad per cell (`geometry.n_cells` > angle/2, checks.MAX_CELL_TURN);
+a run whose cell turns by more (end couples too) stops, exit 3 naming the cells needed.  A `material.energy`
 must be stress-free and convex at the natural strains and convex at the start strains
 (`natural_state.start_state_problem`).
 """
@@ -391,6 +392,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                               "constraints: also the lowest eigenvalue of "
                                               "K v = lambda G v (G: the lumped L2 metric; column "
                                               "lowest_eigenvalue; SLEPc, ~10-30 ms a step)"),
+        "at_bifurcation": Key(choice("switch", "stay"), "switch", R + "quasi-static, rotation "
+                              "vectors: when a step makes the equilibrium unstable (the "
+                              "count rises), switch to a stable equilibrium at the same "
+                              "loads, down the energy from the unstable one perturbed along "
+                              "the critical mode (a warning says so) | stay on the computed "
+                              "path (docs/stability.md)"),
         "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
                                               "> 0) is a result: status \"completed\", exit 0 "
                                               "(default: \"completed (unstable equilibrium)\", "
