@@ -2,7 +2,9 @@
 gravity cantilever (16 cells, 100 steps, a frame every 2 steps) run as `dolfin-rod run`
 runs it, 3 times; timings.json gives the integration and each picture's seconds
 (animation.gif, snapshots.png, histories.png).  Target: animation + snapshots <=
-max(integration, 0.5 s).  Prints and saves JSON (with the machine's load average).
+max(integration, 0.5 s); also compared: the whole pictures phase's wall time
+("pictures": histories.png is drawn in a child process meanwhile, output/drawing.py).
+Prints and saves JSON (with the machine's load average).
 
     ./rodenv python3 benchmarks/pictures.py        results/bench/pictures.json
 """
@@ -35,6 +37,7 @@ def main() -> None:
     best = {k: min(r[k] for r in runs) for k in runs[0]}
     best["target_seconds"] = max(best["integration"], 0.5)
     best["met"] = best["animation_and_snapshots"] <= best["target_seconds"]
+    best["all_pictures_wall_met"] = best["pictures"] <= best["target_seconds"]
     best["load_average"] = os.getloadavg()
     for k, v in best.items():
         print(f"{k:32s} {v}")

@@ -9,9 +9,12 @@
    dolfin_rod package, so that both see the same load).
 2. The first model in a new process, by parts: ``import dolfin_rod`` and DOLFINx, the
    model, the initial state, the stepper (warm FFCx and form caches).
-3. Process start to exit: ``python3 -c "import dolfin_rod"``, ``dolfin-rod check`` and
-   ``dolfin-rod run scenes/gravity_cantilever.toml`` (into a temporary folder; its
-   timings.json gives the run's integration time), median of --repeats each.
+3. Process start to exit: ``python3 -c "import dolfin_rod"``, the import of the
+   finite-element stack a run makes (``run.import_finite_elements``), ``dolfin-rod
+   check`` and ``dolfin-rod run scenes/gravity_cantilever.toml`` (into a temporary
+   folder; its timings.json gives the run's integration and pictures), median of
+   --repeats each, for this tree and the --baseline alternating; target 3's ratio
+   run / (2 import + integration) with either import.
 
 Prints the medians and the machine's load, writes results/bench/setup_cost.json.
 
@@ -24,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -95,11 +99,21 @@ def second_models(package_folder: Path, repeats: int) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def process_seconds(command: list[str]) -> float:
-    """Wall seconds from starting ``command`` to its exit (it must succeed)."""
+def process_seconds(command: list[str], package_folder: Path) -> float:
+    """Wall seconds from starting ``command`` to its exit (it must succeed), importing
+    dolfin_rod from ``package_folder``."""
+    env = {**os.environ, "PYTHONPATH": str(package_folder)}
     start = time.perf_counter()
-    subprocess.run(command, check=True, capture_output=True, cwd=ROOT)
+    done = subprocess.run(command, capture_output=True, text=True, cwd="/", env=env)
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(command)} failed ({done.returncode}):\n{done.stderr}")
     return time.perf_counter() - start
+
+
+def cpu_seconds() -> float:
+    """User + system CPU seconds of this process's finished child processes so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def median_of(runs: list[dict]) -> dict:
@@ -110,8 +124,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--baseline", type=Path, help="folder holding an older dolfin_rod"
-                        " (second models only; e.g. git archive COMMIT dolfin_rod | tar -x"
-                        " -C scratch/base)")
+                        " (e.g. git archive COMMIT dolfin_rod | tar -x -C scratch/base)")
     parser.add_argument("--second-only", action="store_true",
                         help="measure the second models only (parts 2 and 3 skipped)")
     args = parser.parse_args()
@@ -132,41 +145,69 @@ def main() -> None:
         return
     first = median_of([json.loads(subprocess.run(
         [sys.executable, "-c", FIRST_MODEL, str(Path(__file__).resolve().parent)],
-        check=True, capture_output=True, text=True).stdout) for _ in range(args.repeats)])
+        check=True, capture_output=True, text=True, cwd="/").stdout)
+        for _ in range(args.repeats)])
     load.append(os.getloadavg()[0])
-    processes, integration = {}, []
-    with tempfile.TemporaryDirectory() as tmp:
-        commands = {"python3 -c 'import dolfin_rod'": [sys.executable, "-c",
-                                                       "import dolfin_rod"],
-                    "dolfin-rod check": ["dolfin-rod", "check", str(SCENE)]}
-        for name, command in commands.items():
-            processes[name] = statistics.median(process_seconds(command)
-                                                for _ in range(args.repeats))
-        runs = []
-        for k in range(args.repeats):
-            out = Path(tmp) / f"run{k}"
-            runs.append(process_seconds(["dolfin-rod", "run", str(SCENE), "--out", str(out),
-                                         "--quiet"]))
-            timings = json.loads((out / "timings.json").read_text())
-            integration.append(timings.get("integration", timings.get("integration_s")))
-        processes["dolfin-rod run gravity_cantilever"] = statistics.median(runs)
-    load.append(os.getloadavg()[0])
-    out.update({"first_model_new_process": first, "processes_s": processes,
-                "run_integration_s": integration})
-    import_s = processes["python3 -c 'import dolfin_rod'"]
-    run_s = processes["dolfin-rod run gravity_cantilever"]
-    if all(isinstance(x, (int, float)) for x in integration):
-        out["run_over_2_import_plus_integration"] = run_s / (
-            2 * import_s + statistics.median(integration))
     print("first model in a new process (s): " + ", ".join(
         f"{k} {v:.3f}" for k, v in first.items()))
-    for name, seconds in processes.items():
-        print(f"{name}: {seconds:.2f} s start to exit (median)")
-    print(f"run's integration (timings.json): {integration}")
-    if "run_over_2_import_plus_integration" in out:
-        print(f"run / (2 import + integration) = {out['run_over_2_import_plus_integration']:.2f}"
-              " (target <= 1)")
+    out["first_model_new_process"] = first
+    out["processes"] = processes_of(variants, args.repeats)
+    load.append(os.getloadavg()[0])
     save(out, load)
+
+
+COMMANDS = {
+    "python3 -c 'import dolfin_rod'": ["-c", "import dolfin_rod"],
+    "import the finite-element stack": [
+        "-c", "import adios4dolfinx, basix.ufl, dolfinx.fem.petsc, ufl"],   # run.py's set
+    "dolfin-rod check": ["-m", "dolfin_rod", "check", str(SCENE)],
+    "dolfin-rod run gravity_cantilever": ["-m", "dolfin_rod", "run", str(SCENE), "--quiet",
+                                          "--out"],
+}
+
+
+def processes_of(variants: dict, repeats: int) -> dict:
+    """Process start to exit of each command (median of ``repeats``, the variants
+    alternating), the run's integration and pictures (its timings.json), and the ratio
+    of target 3: run / (2 import + integration)."""
+    seconds = {name: {c: [] for c in COMMANDS} for name in variants}
+    cpu = {name: {c: [] for c in COMMANDS} for name in variants}
+    timings = {name: [] for name in variants}
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(repeats):
+            for name, folder in variants.items():
+                for command, argv in COMMANDS.items():
+                    run_folder = Path(tmp) / f"{name}-{k}".replace(" ", "_")
+                    extra = [str(run_folder)] if argv[-1] == "--out" else []
+                    cpu_before = cpu_seconds()
+                    seconds[name][command].append(process_seconds(
+                        [sys.executable, *argv, *extra], folder))
+                    cpu[name][command].append(cpu_seconds() - cpu_before)
+                    if extra:
+                        timings[name].append(json.loads(
+                            (run_folder / "timings.json").read_text()))
+    out = {}
+    for name in variants:
+        med = {c: statistics.median(v) for c, v in seconds[name].items()}
+        med_cpu = {c: statistics.median(v) for c, v in cpu[name].items()}
+        integration = statistics.median(t["integration"] for t in timings[name])
+        pictures = statistics.median(t.get("pictures", 0.0) for t in timings[name])
+        run_s = med["dolfin-rod run gravity_cantilever"]
+        out[name] = {"seconds": seconds[name], "median_s": med, "cpu_s": cpu[name],
+                     "median_cpu_s": med_cpu, "integration_s": integration,
+                     "pictures_s": pictures,
+                     "run_over_2_import_plus_integration": run_s / (
+                         2 * med["python3 -c 'import dolfin_rod'"] + integration),
+                     "run_over_2_stack_import_plus_integration": run_s / (
+                         2 * med["import the finite-element stack"] + integration)}
+        print(f"{name}: " + ", ".join(f"{c} {v:.2f} s (CPU {med_cpu[c]:.2f} s)"
+                                      for c, v in med.items()))
+        print(f"  run: integration {integration:.2f} s, pictures {pictures:.2f} s; "
+              f"run / (2 import dolfin_rod + integration) = "
+              f"{out[name]['run_over_2_import_plus_integration']:.2f}, run / (2 import of "
+              f"the FE stack + integration) = "
+              f"{out[name]['run_over_2_stack_import_plus_integration']:.2f} (target <= 1)")
+    return out
 
 
 def print_second(second_all: dict) -> None:

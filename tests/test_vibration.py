@@ -123,3 +123,34 @@ def test_bad_requests_are_refused():
     with pytest.raises(ValueError, match="rotation_vector"):
         vibration_modes(RodModel(SLENDER, n_cells=4, model="hyperelastic",
                                  rotations="quaternion"), 0.0)
+
+
+@pytest.mark.mpi
+def test_modes_command(tmp_path):
+    """``dolfin-rod modes scenes/string_modes.toml`` (8 cells): the rigid spin, then the
+    string's frequencies with the API's error at 8 cells (6.44e-3, 6.44e-3: the two
+    planes), modes.json = summary.json's table, modes.bp one step per mode."""
+    import json
+    from pathlib import Path
+
+    from mpi4py import MPI
+
+    from dolfin_rod import read_vtx
+    from dolfin_rod.cli import main
+    comm = MPI.COMM_WORLD
+    text = (Path(__file__).parents[1] / "scenes" / "string_modes.toml").read_text()
+    scene, out = tmp_path / "string.toml", tmp_path / "out"
+    if comm.rank == 0:
+        scene.write_text(text.replace("n_cells = 16", "n_cells = 8"))
+    scene, out = comm.bcast((str(scene), str(out)))
+    assert main(["modes", scene, "--out", out, "--quiet", "--count", "3"]) == 0
+    if comm.rank != 0:
+        return
+    table = json.loads((Path(out) / "modes.json").read_text())["modes"]
+    omega = [row["omega"] for row in table]
+    exact = math.pi * math.sqrt(1e3 * 1e-3 / 1.001)
+    assert omega[0] == 0.0
+    assert np.array(omega[1:]) / exact - 1 == pytest.approx([6.44e-3] * 2, abs=1e-5)
+    assert table[1]["frequency"] == pytest.approx(omega[1] / (2 * math.pi))
+    assert json.loads((Path(out) / "summary.json").read_text())["modes"]["modes"] == table
+    assert [s["time"] for s in read_vtx(Path(out) / "modes.bp")] == [1.0, 2.0, 3.0]

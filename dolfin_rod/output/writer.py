@@ -49,6 +49,7 @@ import numpy as np
 
 from .checkpoints import Checkpoints
 from .closing import closing_lines
+from .drawing import draw_pictures
 from .plots import plot_histories
 from .field_outputs import FieldOutputs
 from .animation import Look
@@ -303,16 +304,9 @@ class RunWriter:
                                                     self.scene, title)))
         if self.lines is not None:
             pictures += self.lines.pictures(title, Look.of(self.scene))
-        self.timings["picture_files"] = {}
-        for i, (name, draw) in enumerate(pictures):
-            t0 = time.perf_counter()
-            try:
-                draw()
-                self.timings["picture_files"][name] = time.perf_counter() - t0
-            except KeyboardInterrupt:
-                (self.folder / name).unlink(missing_ok=True)     # half drawn
-                return [n for n, _ in pictures[i:]]
-        return []
+        self.timings["picture_files"], missing = draw_pictures(
+            pictures, self.folder, side_by_side=self.comm.size == 1)
+        return missing
 
 
 

@@ -1,0 +1,147 @@
+"""A run's pictures drawn side by side (issue 30, target 2): the first one in a forked
+child process while this process draws the others, so that on two cores the pictures
+cost about the largest one instead of their sum (matplotlib is imported and its fonts
+loaded once, before the fork).  The run waits for the child: a failure
+in it is raised here (RuntimeError naming the picture, its traceback printed by the
+child), and Ctrl-C stops both, the half-drawn files removed.  Without os.fork, or for
+one picture, they are drawn one after the other here."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+import traceback
+import warnings
+from pathlib import Path
+from typing import Callable
+
+Picture = tuple[str, Callable[[], None]]
+
+
+def draw_pictures(pictures: list[Picture], folder: Path,
+                  side_by_side: bool) -> tuple[dict[str, float], list[str]]:
+    """Draw each (file name, draw) into ``folder``: the seconds each took and the names
+    of those not drawn (Ctrl-C).  ``side_by_side``: the first in a child process (only
+    where no MPI peer shares the process's memory: one rank).  Ctrl-C here stops this
+    process's drawing and waits for the child's picture (a second Ctrl-C ends it)."""
+    child = None
+    if side_by_side and len(pictures) > 1 and hasattr(os, "fork"):
+        _warm_matplotlib()
+        child = _Child(*pictures[0], folder)
+    own = pictures[1:] if child else pictures
+    seconds: dict[str, float] = {}
+    for i, (name, draw) in enumerate(own):
+        t0 = time.perf_counter()
+        try:
+            draw()
+        except KeyboardInterrupt:
+            (folder / name).unlink(missing_ok=True)     # half drawn
+            missing = [n for n, _ in own[i:]]
+            try:
+                return seconds, missing + (_collect(child, seconds) if child else [])
+            except RuntimeError:         # its traceback is printed: the run stops anyway
+                return seconds, missing + [child.name]
+        except BaseException:
+            if child:
+                child.stop()
+            raise
+        seconds[name] = time.perf_counter() - t0
+    return seconds, _collect(child, seconds) if child else []
+
+
+def _warm_matplotlib() -> None:
+    """Import pyplot and lay out one text before the fork: the child inherits them
+    instead of importing and loading the fonts a second time (0.3-0.5 s of CPU)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig = plt.figure(figsize=(1, 1))
+    fig.text(0.5, 0.5, "t [s]")
+    fig.canvas.draw()
+    plt.close(fig)
+
+
+def _collect(child: _Child, seconds: dict[str, float]) -> list[str]:
+    """Wait for the child (Ctrl-C meanwhile ends it): [] with its seconds, or [its
+    picture] if it was interrupted; RuntimeError if it failed."""
+    try:
+        drawn = child.wait()
+    except KeyboardInterrupt:
+        return child.stop()
+    if drawn is None:
+        return [child.name]
+    seconds[child.name] = drawn
+    return []
+
+
+class _Child:
+    """One picture drawn in a forked process; its drawing time comes back by a pipe."""
+
+    def __init__(self, name: str, draw: Callable[[], None], folder: Path):
+        self.name, self.path = name, folder / name
+        read, write = os.pipe()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        with warnings.catch_warnings():     # "multi-threaded, fork may deadlock": the
+            warnings.simplefilter("ignore", DeprecationWarning)   # child takes no lock
+            self.pid = os.fork()                                  # of another thread
+        if self.pid == 0:
+            os.close(read)
+            _draw_and_exit(draw, self.path, write)
+        os.close(write)
+        self.read: int | None = read
+        self.text, self.code = b"", None
+
+    def wait(self) -> float | None:
+        """The child's drawing seconds; None if it was interrupted; RuntimeError if its
+        drawing failed.  Again after a Ctrl-C here: goes on where it stopped."""
+        if self.read is not None:
+            while chunk := os.read(self.read, 64):
+                self.text += chunk
+            os.close(self.read)
+            self.read = None
+        if self.code is None:
+            self.code = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
+        code = self.code
+        if code == 0:
+            return float(self.text)
+        self.path.unlink(missing_ok=True)
+        if code in (130, -signal.SIGINT, -signal.SIGTERM):
+            return None
+        raise RuntimeError(f"drawing {self.name} failed in its process (exit status {code};"
+                           " its error is printed above)")
+
+    def stop(self) -> list[str]:
+        """End the child (after Ctrl-C here): [its picture] unless it was complete."""
+        try:
+            os.kill(self.pid, signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+        try:
+            return [] if self.wait() is not None else [self.name]
+        except RuntimeError:
+            return [self.name]
+
+
+def _draw_and_exit(draw: Callable[[], None], path: Path, pipe: int) -> None:
+    """In the child: draw, send the seconds, and leave without the parent's exit handlers
+    (MPI, PETSc): 0 drawn, 130 interrupted, 1 failed (traceback on stderr)."""
+    status = 1
+    try:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        t0 = time.perf_counter()
+        draw()
+        os.write(pipe, repr(time.perf_counter() - t0).encode())
+        status = 0
+    except KeyboardInterrupt:
+        path.unlink(missing_ok=True)
+        status = 130
+    except BaseException:
+        traceback.print_exc()
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)

@@ -1,0 +1,104 @@
+"""output/drawing.py: a run's pictures drawn side by side (issue 30, target 2).
+
+Each test "picture" writes the id of the process that drew it, so the tests see which
+process drew what; a failure or a Ctrl-C in the child must reach the run as it would
+have when drawn in the run's own process."""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import pytest
+
+from dolfin_rod.output.drawing import draw_pictures
+
+
+def writes_pid(path):
+    return lambda: path.write_text(str(os.getpid()))
+
+
+def fails():
+    raise ValueError("no such panel")
+
+
+def interrupted():
+    raise KeyboardInterrupt
+
+
+def drawn_by(path) -> int:
+    return int(path.read_text())
+
+
+def test_first_picture_in_a_child_the_others_here(tmp_path):
+    names = ["histories.png", "animation.gif", "snapshots.png"]
+    seconds, missing = draw_pictures([(n, writes_pid(tmp_path / n)) for n in names],
+                                     tmp_path, side_by_side=True)
+    assert missing == [] and sorted(seconds) == sorted(names)
+    assert all(s >= 0.0 for s in seconds.values())
+    assert drawn_by(tmp_path / names[0]) != os.getpid()
+    assert drawn_by(tmp_path / names[1]) == drawn_by(tmp_path / names[2]) == os.getpid()
+
+
+@pytest.mark.parametrize("pictures", [1, 3])
+def test_one_after_the_other_without_side_by_side_or_for_one(tmp_path, pictures):
+    names = [f"p{k}.png" for k in range(pictures)]
+    side_by_side = pictures == 1      # one picture: drawn here even side by side
+    _, missing = draw_pictures([(n, writes_pid(tmp_path / n)) for n in names], tmp_path,
+                               side_by_side=side_by_side)
+    assert missing == [] and all(drawn_by(tmp_path / n) == os.getpid() for n in names)
+
+
+def test_a_failure_in_the_child_is_raised_naming_the_picture(tmp_path, capfd):
+    with pytest.raises(RuntimeError, match="drawing histories.png failed"):
+        draw_pictures([("histories.png", fails), ("a.gif", writes_pid(tmp_path / "a.gif"))],
+                      tmp_path, side_by_side=True)
+    assert drawn_by(tmp_path / "a.gif") == os.getpid()     # the others were drawn
+    assert "no such panel" in capfd.readouterr().err        # the child's traceback
+
+
+def test_a_failure_here_is_raised_and_the_child_ended(tmp_path):
+    with pytest.raises(ValueError, match="no such panel"):
+        draw_pictures([("h.png", writes_pid(tmp_path / "h.png")), ("a.gif", fails)],
+                      tmp_path, side_by_side=True)
+
+
+def test_ctrl_c_in_the_child_leaves_its_picture_missing(tmp_path):
+    def half_drawn():
+        (tmp_path / "h.png").write_text("half")
+        raise KeyboardInterrupt
+
+    seconds, missing = draw_pictures(
+        [("h.png", half_drawn), ("a.gif", writes_pid(tmp_path / "a.gif"))], tmp_path,
+        side_by_side=True)
+    assert missing == ["h.png"] and not (tmp_path / "h.png").exists()
+    assert list(seconds) == ["a.gif"]
+
+
+def test_ctrl_c_here_waits_for_the_childs_picture(tmp_path):
+    """Ctrl-C stops this process's drawing; the child's picture is completed."""
+    seconds, missing = draw_pictures([("h.png", writes_pid(tmp_path / "h.png")),
+                                      ("a.gif", interrupted)], tmp_path, side_by_side=True)
+    assert missing == ["a.gif"] and list(seconds) == ["h.png"]
+    assert drawn_by(tmp_path / "h.png") != os.getpid()
+
+
+def test_a_second_ctrl_c_ends_the_child(tmp_path):
+    """Ctrl-C while waiting for the child's picture ends the child: both are missing,
+    and the run does not wait for the child's drawing."""
+    import threading
+    import time
+
+    def slow():
+        time.sleep(30)
+        (tmp_path / "h.png").write_text("late")
+
+    def interrupted_and_again():
+        threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT)).start()
+        raise KeyboardInterrupt
+
+    t0 = time.perf_counter()
+    _, missing = draw_pictures([("h.png", slow), ("a.gif", interrupted_and_again)],
+                               tmp_path, side_by_side=True)
+    assert missing == ["a.gif", "h.png"] and not (tmp_path / "h.png").exists()
+    assert time.perf_counter() - t0 < 10       # the child was ended, not waited for
