@@ -83,7 +83,7 @@ def unwrapped_angle(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if norm == 0.0:
         return np.zeros(len(q)), np.array([0.0, 0.0, 1.0])
     a = v[k] / norm
-    a = a * np.sign(a[np.argmax(np.abs(a))])
+    a = a * np.sign(a[np.argmax(np.abs(a))]) + 0.0     # (+ 0.0: no "-0" printed)
     return np.unwrap(2.0 * np.arctan2(v @ a, q[:, 0])), a
 
 
