@@ -16,7 +16,7 @@ __version__ = "0.1.0"
 
 # a run of a scene: dolfin_rod.run("scene.toml", overrides) (run.py; bound here, as the
 # package attribute ``run`` would otherwise be the module once it is imported)
-from .run import RunResult, run, run_scene  # noqa: E402
+from .run import RunResult, analyse, run, run_scene  # noqa: E402
 
 _WHERE = {
     # models and their data
@@ -42,6 +42,7 @@ _WHERE = {
     "build": "scenes", "SceneError": "scenes",
     # what a run writes: fields along the rod (ParaView, animation), versions
     "FieldOutputs": "output.field_outputs", "read_vtx": "output.vtx", "versions": "output.writer",
+    "read_pvd": "output.vtk_xml", "redraw": "output.redraw",
     # fitting parameters to measured time series (docs/fitting.md)
     "fit_scene": "fit.least_squares", "FitResult": "fit.least_squares",
     "prepare_fit": "fit.least_squares", "run_fit": "fit.least_squares",
@@ -54,7 +55,7 @@ _MODULES = {"loads": "loads", "closed_forms": "torsion.closed_forms",
             "form_cache": "fem.form_cache",   # form_cache.clear(): time a fresh process
             "cosseratbench": "adapters.cosseratbench"}   # the cosseratbench solver (extra [bench])
 
-__all__ = sorted([*_WHERE, "run", "run_scene", "RunResult"]) + list(_MODULES)
+__all__ = sorted([*_WHERE, "run", "run_scene", "analyse", "RunResult"]) + list(_MODULES)
 
 
 def __getattr__(name: str):

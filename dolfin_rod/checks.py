@@ -69,6 +69,14 @@ NEWTON_ATOL = 1e-10         # time.atol: BlockSNES's snes_atol (above the residu
 TS_RTOL, TS_ATOL = 1e-6, 1e-8   # time.ts_rtol, time.ts_atol: TSIntegrator
 ODE_SOLUTION = "exact"      # time.ode_solution: OdeTime
 
+# The largest rotation of a cell's end node against its start node that the rod's
+# rotation interpolation represents (issue 28 item 4): the cell's strain times its
+# length is 2 tan(theta/2) for rotation vectors (rod/rotation_vector.py) and 4 tan(theta/4)
+# for quaternions (the P1 interpolant at the midpoint), turns of 3.11 and 2.19 rad at
+# theta = 2, below pi; beyond, the strain blows up (rotation vectors: pi is never
+# reached, the rod stiffens) or the turn wraps to a wrong, smaller one.
+MAX_CELL_TURN = 2.0
+
 # Under MPI a rank with fewer cells has no cell at all (DOLFINx's reshape errors) or its
 # Dirichlet dof is a ghost of the mixed space (assembly.py); with 2 it runs.
 MIN_CELLS_PER_RANK = 2

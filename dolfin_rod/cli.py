@@ -6,6 +6,8 @@ exit statuses; a run is run.py's.
     dolfin-rod run scenes/torsion_creep.toml --out DIR    run, results in DIR
     dolfin-rod run SCENE --out DIR --resume               continue from DIR/checkpoint
     dolfin-rod run SCENE --out DIR --overwrite            replace the run folder DIR
+    dolfin-rod buckle SCENE --count 4                     run, then the buckling modes
+    dolfin-rod modes SCENE --count 6                      run, then the vibration modes
     dolfin-rod plot DIR [quantities] [--color u_d]        draw DIR's pictures again
     mpirun -n 2 python3 -m dolfin_rod run SCENE           only rank 0 prints and writes
 
@@ -15,8 +17,8 @@ computed before is kept), 130 interrupted (Ctrl-C or SIGTERM; also while the pic
 are drawn after the last step: summary.json says "pictures": "interrupted").  Failures
 always go to stderr, --quiet or not.  Under MPI every error ends every rank and reaches
 the user whichever rank saw it: expected errors are raised collectively (mpi.agree), or,
-seen by one rank inside collective work, reported by that rank with MPI_Abort(2)
-(mpi.alone); anything else calls MPI_Abort, so no rank is left waiting.  A scene needs
+seen by one rank inside collective work, reported by that rank, which leaves with exit
+2 (mpi.alone, mpi.leave); anything else calls MPI_Abort, so no rank is left waiting.  A scene needs
 2 cells per rank.
 """
 
@@ -27,7 +29,7 @@ import sys
 from pathlib import Path
 
 from .mpi import agree, print_on_root
-from .run import choose_model, run, stability_warning
+from .run import ANALYSES, analyse, choose_model, run, stability_warning
 from .scenes.scene import Scene, SceneError
 
 __all__ = ["main", "schema_markdown"]
@@ -67,6 +69,7 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("schema", help="print every scene key with its default and meaning "
                                   "(Markdown, as in docs/scenes.md)")
     _add_fit_parser(sub)
+    _add_analysis_parsers(sub)
     return p
 
 
@@ -82,6 +85,24 @@ def _add_fit_parser(sub) -> None:
     fit.add_argument("--out", type=Path, default=None, help="results folder (must be "
                      "empty; default: a new <outputs.directory>/fit-<name>-<time>)")
     fit.add_argument("--quiet", action="store_true", help="print only the status line")
+
+
+def _add_analysis_parsers(sub) -> None:
+    """``buckle`` and ``modes``: run a scene, then analyse its end state (run.analyse)."""
+    helps = {"buckle": "run a quasi-static rod scene, then its critical load factors and "
+                       "buckling modes about the end state (buckle.json, buckle.bp)",
+             "modes": "run a rod scene with mass, then its natural frequencies and "
+                      "vibration modes about the end state (modes.json, modes.bp)"}
+    for kind, default in ANALYSES.items():
+        cmd = sub.add_parser(kind, help=helps[kind])
+        cmd.add_argument("scene", type=Path)
+        cmd.add_argument("--count", type=int, default=default,
+                         help=f"number of modes (default {default})")
+        cmd.add_argument("--out", type=Path, default=None, help="results folder (default: "
+                         "a new <outputs.directory>/<name>-<time>)")
+        cmd.add_argument("--overwrite", action="store_true",
+                         help="replace the run folder --out if it is not empty")
+        cmd.add_argument("--quiet", action="store_true", help="no progress output")
 
 
 def schema_markdown() -> str:
@@ -140,13 +161,13 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     """The command line; every error ends every rank: expected ones (a bad scene or
-    folder) with exit 2, collectively where every rank saw them, else by MPI_Abort(2)
-    from the rank that saw one (mpi.alone); anything else by MPI_Abort after its
+    folder) with exit 2, collectively where every rank saw them, else by the rank that
+    saw one leaving with exit 2 (mpi.alone, mpi.leave); anything else by MPI_Abort after its
     traceback."""
     from mpi4py import MPI
 
     from .fit.inputs import FitInputError
-    from .mpi import alone
+    from .mpi import alone, leave
     from .output.run_folders import OutputError
     comm = MPI.COMM_WORLD
     guard = comm.Dup() if comm.size > 1 else None    # for mpi.alone only
@@ -155,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     except (SceneError, OutputError, FitInputError) as err:
         if alone(guard):
             print(f"error: {err} (seen on rank {comm.rank} only)", file=sys.stderr, flush=True)
-            comm.Abort(2)                          # the other ranks may wait in a collective
+            leave(2)                               # the other ranks may wait in a collective
         print_on_root(comm, f"error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:                      # Ctrl-C before the run loop
@@ -189,10 +210,21 @@ def _main(argv: list[str] | None, comm) -> int:
     if args.command == "check":
         _check(scene, args.out, comm)
         return 0
+    if args.command in ANALYSES:
+        if args.count < 1:
+            raise SceneError(str(args.scene), "", f"--count: a positive integer, got "
+                                                  f"{args.count}")
+        summary = analyse(scene, args.command, count=args.count, out=args.out, comm=comm,
+                          overwrite=args.overwrite, quiet=args.quiet).summary
+        return _exit_status(summary)
     if args.resume and args.out is None:
         raise SceneError(str(args.scene), "", "--resume needs --out (the run folder)")
     summary = run(scene, out=args.out, comm=comm, resume=args.resume, quiet=args.quiet,
                   overwrite=args.overwrite).summary
+    return _exit_status(summary)
+
+
+def _exit_status(summary: dict) -> int:
     if summary["pictures"] == "interrupted" and summary["status"] != "failed":
         return 130
     return {"completed": 0, "stopped": 0, "interrupted": 130,

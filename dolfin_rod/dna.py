@@ -88,6 +88,22 @@ class DnaParameters:
                    + 0.5 * a * GA * (v_d[0] ** 2 + v_d[1] ** 2) + self.landscape(v_d[2]))
         return elastic + natural
 
+    def strain_derivatives(self, u_d, v_d, u, v) -> tuple[np.ndarray, np.ndarray]:
+        """(dpsi/d(u, v), d^2psi/d(u, v)^2) at constant strains by hand (numpy): what
+        natural_state.stationarity_and_hessian gives by UFL, so that checking a scene
+        with this energy needs no UFL.  Only the elastic part depends on (u, v)."""
+        EI, C, g = self.bending_stiffness, self.twist_stiffness, self.twist_stretch_coupling
+        S, lam, GA = self.stretch_modulus, self.stretch_limit, self.shear_stiffness
+        ue = np.asarray(u, dtype=float) - np.asarray(u_d, dtype=float)
+        ve = np.asarray(v, dtype=float) - np.asarray(v_d, dtype=float)
+        e, w = ve[2], ue[2]
+        r = 1 - (e / lam) ** 2
+        gradient = np.array([EI * ue[0], EI * ue[1], C * w + g * e,
+                             GA * ve[0], GA * ve[1], g * w + S * e / r])
+        hessian = np.diag([EI, EI, C, GA, GA, S * (1 + (e / lam) ** 2) / r ** 2])
+        hessian[2, 5] = hessian[5, 2] = g
+        return gradient, hessian
+
     def landscape(self, x):
         """phi(x), x = v_d,3: the natural-stretch energy whose derivative is f(x)."""
         import ufl
@@ -114,6 +130,10 @@ DNA = DnaParameters()
 def psi(u_d, v_d, u, v):
     """The scene entry point ``material.energy = "dolfin_rod.dna:psi"``: DNA's energy."""
     return DNA.energy(u_d, v_d, u, v)
+
+
+# the scene check's derivatives without UFL (natural_state.start_state_problem)
+psi.derivatives = DNA.strain_derivatives
 
 
 # --- the homogeneous straight states (hand derivatives of psi, tests compare with UFL's) ----

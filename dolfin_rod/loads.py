@@ -275,8 +275,8 @@ def from_callable(f: Callable[[float], float], jumps: Mapping[float, float] | No
 
 # A step's change of a prescribed motion its rates at the step's ends do not account for
 # (|change - dt (rate_n + rate_n+1) / 2| above this fraction of the change): the change
-# happens inside the step.  A ramp lasting dt, aligned with the steps, is at 0.5 (its
-# rates at the kinks are the central differences' half slopes); a jump at 1.
+# happens inside the step.  A smooth step lasting 2 dt, aligned with the steps, is at
+# 0.25; a ramp lasting dt / 2 at 0.5 .. 1, a jump at 1.
 UNACCOUNTED = 0.6
 # A change inside an interval this short (relative to max(1, |t|)) is taken as a jump.
 JUMP_WIDTH = 1e-9
@@ -289,9 +289,9 @@ def resolution_problem(motion: Callable, t0: float, t_end: float, dt: float,
     issue 28 item 5), or None: a jump after t0 (one at t0 is the start), or (unless the
     steps adapt) a change faster than dt.  A history of this module knows its ``jumps``
     and ``shortest_change``; any other
-    callable is sampled at the steps t0 + k dt (its rates by ``rate``): a step whose
-    change the rates at its ends do not account for is narrowed by bisection to the
-    change's duration."""
+    callable is sampled at the steps t0 + k dt (its rates by one-sided differences inside
+    each step): a step whose change the rates at its ends do not account for is narrowed
+    by bisection to the change's duration."""
     later = [time for time, size in getattr(motion, "jumps", ()) if size and t0 < time <= t_end]
     shortest = getattr(motion, "shortest_change", None)
     when = f" at t = {min(later):.6g}" if later else ""
@@ -318,18 +318,21 @@ def resolution_problem(motion: Callable, t0: float, t_end: float, dt: float,
 def _unaccounted_change(motion: Callable, t0: float, t_end: float,
                         dt: float) -> tuple[float, float] | None:
     """(start, duration) of the first change between the steps t0 + k dt that the rates
-    at the step's ends do not account for, or None."""
+    at the step's ends (one-sided, inside the step: the motion is read on [t0, t_end]
+    only) do not account for, or None."""
     steps = max(1, math.ceil((t_end - t0) / dt - 1e-9))
     times = [min(t0 + k * dt, t_end) for k in range(steps + 1)]
     values = [np.asarray(motion(t), float) for t in times]
-    rates = [np.asarray(rate(motion, t), float) for t in times]
     for k in range(steps):
-        h = times[k + 1] - times[k]
+        a, b = times[k], times[k + 1]
+        delta = 1e-6 * (b - a)
+        start = (np.asarray(motion(a + delta), float) - values[k]) / delta
+        end = (values[k + 1] - np.asarray(motion(b - delta), float)) / delta
         change = values[k + 1] - values[k]
         size = float(np.max(np.abs(change)))
-        missing = float(np.max(np.abs(change - 0.5 * h * (rates[k] + rates[k + 1]))))
+        missing = float(np.max(np.abs(change - 0.5 * (b - a) * (start + end))))
         if size > 0.0 and missing > UNACCOUNTED * size:
-            return _narrowed(motion, times[k], times[k + 1])
+            return _narrowed(motion, a, b)
     return None
 
 

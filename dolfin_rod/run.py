@@ -34,7 +34,8 @@ from typing import Any, Callable
 from .mpi import agree, print_on_root
 from .scenes.scene import Scene, SceneError
 
-__all__ = ["run", "run_scene", "RunResult", "march", "choose_model", "stability_warning"]
+__all__ = ["run", "run_scene", "analyse", "RunResult", "march", "choose_model",
+           "stability_warning"]
 
 
 @dataclass
@@ -77,6 +78,61 @@ def run(scene: Scene | str | Path, overrides: dict[str, Any] | None = None, *,
     with compile_notice.listening(None if quiet or comm.rank != 0 else sys.stdout):
         return _run(scene, None if out is None else Path(out), comm, resume, overwrite,
                     quiet, stop_after)
+
+
+def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | None = None,
+            *, count: int | None = None, out: Path | str | None = None, comm=None,
+            overwrite: bool = False, quiet: bool = False) -> RunResult:
+    """Run a scene, then analyse its end state: ``kind`` "buckle" (the critical load
+    factors and buckling modes about it, analysis/buckling.py: a quasi-static rod) or
+    "modes" (natural frequencies and vibration modes, analysis/vibration.py: a rod with
+    mass); ``count`` modes (default 4 and 6).  The run folder holds the run's files and
+    <kind>.json, <kind>.bp (output/modes.py); ``summary[kind]`` the table.  A scene the
+    analysis cannot take raises SceneError naming the key, before any work."""
+    from mpi4py import MPI
+
+    from .scenes.rules import analysis_problem
+    if kind not in ANALYSES:
+        raise ValueError(f"kind: one of {', '.join(ANALYSES)}, got {kind!r}")
+    count = ANALYSES[kind] if count is None else count
+    if int(count) != count or count < 1:
+        raise ValueError(f"count: a positive integer, got {count!r}")
+    comm = comm or MPI.COMM_WORLD
+    given = scene
+    scene = agree(comm, lambda: _scene(given, overrides), (SceneError,))
+    agree(comm, lambda: analysis_problem(scene, kind), (SceneError,))
+    return _run(scene, None if out is None else Path(out), comm, False, overwrite, quiet,
+                None, _modes_of(scene, kind, int(count), comm, quiet))
+
+
+ANALYSES = {"buckle": 4, "modes": 6}        # the analyses of an end state, default counts
+
+
+def _modes_of(scene: Scene, kind: str, count: int, comm, quiet: bool):
+    """The analysis of a run's end state: (sim, t, folder) -> its summary entry."""
+    def analysis(sim, t: float, folder: Path) -> dict:
+        from .output.modes import table, write_modes
+        model = sim.model
+        if kind == "buckle":
+            from .analysis.buckling import buckling_modes
+            try:
+                found = buckling_modes(model, t, count)
+            except ValueError as err:               # e.g. loads constant at t
+                raise scene.error("loads", str(err)) from None
+            rows = [{"mode": k + 1, "load_factor": float(f), "critical_time": float(c),
+                     "residual": float(r)} for k, (f, c, r) in enumerate(
+                         zip(found.load_factors, found.times, found.residuals))]
+        else:
+            from .analysis.vibration import vibration_modes
+            found = vibration_modes(model, t, count)
+            rows = [{"mode": k + 1, "omega": float(w), "frequency": float(f),
+                     "residual": float(r)} for k, (w, f, r) in enumerate(
+                         zip(found.omega, found.frequencies, found.residuals))]
+        files = write_modes(folder, model, kind, rows, found.shapes, comm)
+        if not quiet:
+            print_on_root(comm, f"{kind} at t = {t:g}:\n{table(rows)}")
+        return {kind: {"t": t, "modes": rows, "files": files}}
+    return analysis
 
 
 def run_scene(scene: Scene | str | Path, out: Path | str | None = None, comm=None,
@@ -149,7 +205,7 @@ def import_finite_elements() -> None:
 
 
 def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, quiet: bool,
-         stop_after: int | None) -> RunResult:
+         stop_after: int | None, analysis: Callable | None = None) -> RunResult:
     from .output.checkpoints import read_checkpoint_meta
     from .output.writer import RunWriter
     from .scenes import build
@@ -186,6 +242,10 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
     status, message = _unstable_end(scene, sim, status, message)
     clock["integration"] = time.perf_counter() - t_run
     summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
+    if analysis is not None and status.startswith("completed"):
+        t_analysis = time.perf_counter()
+        summary.update(analysis(sim, t, folder))
+        clock["analysis"] = time.perf_counter() - t_analysis
     clock["total"] = time.perf_counter() - clock["start"]
     writer.finish(summary, {k: v for k, v in clock.items() if k != "start"})
     summary["pictures"] = comm.bcast(summary.get("pictures"), root=0)
@@ -315,8 +375,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
 
     def after_step(t_k: float) -> None:
         diag = sim.diagnostics(t_k)
-        _report_stability_changes(sim, comm)
-        bound.check(diag)
+        bound.check(diag, jump=_report_stability_changes(sim, comm))
         k = progress["k"] = progress["k"] + 1
         writer.record(k, t_k, diag)
         progress["t"] = t_k
@@ -348,8 +407,18 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     return status, message, progress["t"]
 
 
-def _report_stability_changes(sim, comm) -> None:
-    """A warning for each change of the tangent's negative eigenvalues not yet shown."""
+def _report_stability_changes(sim, comm) -> bool:
+    """A warning for each branch switch and each change of the tangent's negative
+    eigenvalues not yet shown; whether the state switched branches since the last
+    call."""
+    branches = getattr(sim, "branches", None)
+    switched = False
+    while branches is not None and len(branches.switches) > branches.reported:
+        switch = branches.switches[branches.reported]
+        branches.reported += 1
+        switched = switched or switch.after is not None
+        print_on_root(comm, f"warning: t = {switch.t:g}: {_switch_text(switch)}",
+                      file=sys.stderr)
     monitor = getattr(sim, "stability", None)
     while monitor is not None and len(monitor.changes) > monitor.reported:
         t, before, after = monitor.changes[monitor.reported]
@@ -358,6 +427,18 @@ def _report_stability_changes(sim, comm) -> None:
         print_on_root(comm, f"warning: t = {t:g}: the equilibrium is {state}: {after} "
                             f"negative eigenvalue(s) of the tangent stiffness (was {before}; "
                             "docs/stability.md)", file=sys.stderr)
+    return switched
+
+
+def _switch_text(switch) -> str:
+    """What a branch switch (analysis/branches.Switch) did, in words."""
+    met = (f"a bifurcation: the path's equilibrium became unstable ({switch.unstable} "
+           f"negative eigenvalue(s) of the tangent stiffness, was {switch.stable})")
+    if switch.after is None:
+        return f"{met}; no stable branch found along the critical mode, the path goes on"
+    return (f"{met}; switched to a stable branch, down the energy from the critical mode's "
+            f"{'+' if switch.sign > 0 else '-'} side (stability.at_bifurcation = \"stay\" "
+            "keeps the path; docs/stability.md)")
 
 
 def _unstable_end(scene, sim, status: str, message: str) -> tuple[str, str]:

@@ -103,11 +103,12 @@ def double_pendulum(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
                      model="hyperelastic", comm=comm)
 
 
-def rigid_double_pendulum(t_end: float, p: dict = PENDULUM):
+def rigid_double_pendulum(t_end: float, p: dict = PENDULUM, rates=(0.0, 0.0)):
     """The rigid double pendulum of two uniform rods (mass rho_A l, moment of inertia
     about the centre rho_A l^3/12 + rho_I l, the section's rotary inertia included):
     Lagrange's equations in the angles from -e_3, solved by solve_ivp to 1e-12
-    (``p``: g, rho_A, rho_I, l1, l2, angles as PENDULUM)."""
+    (``p``: g, rho_A, rho_I, l1, l2, angles as PENDULUM; ``rates``: the angles' rates
+    at t = 0)."""
     from scipy.integrate import solve_ivp
     g, l1, l2 = p["g"], p["l1"], p["l2"]
     m1, m2 = p["rho_A"] * l1, p["rho_A"] * l2
@@ -115,7 +116,7 @@ def rigid_double_pendulum(t_end: float, p: dict = PENDULUM):
     I2 = m2 * l2 ** 2 / 12 + p["rho_I"] * l2
     c = m2 * l1 * l2 / 2
 
-    def rates(t, y):
+    def equations(t, y):
         a, b, wa, wb = y
         M = np.array([[m1 * l1 ** 2 / 4 + I1 + m2 * l1 ** 2, c * np.cos(a - b)],
                       [c * np.cos(a - b), m2 * l2 ** 2 / 4 + I2]])
@@ -123,8 +124,8 @@ def rigid_double_pendulum(t_end: float, p: dict = PENDULUM):
                        -c * np.sin(a - b) * wa ** 2 + m2 * l2 / 2 * g * np.sin(b)])
         return [wa, wb, *np.linalg.solve(M, f)]
 
-    return solve_ivp(rates, (0.0, t_end), [*p["angles"], 0.0, 0.0], rtol=1e-12, atol=1e-12,
-                     dense_output=True)
+    return solve_ivp(equations, (0.0, t_end), [*p["angles"], *rates], rtol=1e-12,
+                     atol=1e-12, dense_output=True)
 
 
 def pendulum_angles(d: dict) -> np.ndarray:
@@ -203,3 +204,40 @@ def door_angle(t_end: float, p: dict = DOOR):
     inertia = p["rho_A"] * L ** 3 / 3 + p["rho_I"] * L
     return solve_ivp(lambda t, y: [y[1], p["push"] * L * np.cos(y[0]) / inertia],
                      (0.0, t_end), [0.0, 0.0], rtol=1e-12, atol=1e-12, dense_output=True)
+
+
+def kinked_frame(n_column: int, n_beam: int, force: float, steps: int = 1,
+                 joined: bool = False) -> dict:
+    """The L-frame of ``l_frame`` with n_column, n_beam cells, tip force -force e_3
+    (ramped over ``steps`` steps if > 1), at t = 1: as ONE rod whose stress-free shape
+    is the polyline through the clamp, the knee and the tip (the corner at a node), or
+    ``joined`` as the two rods and the rigid knee.  Diagnostics at t = 1, the tip as
+    ``tip_position_*`` either way."""
+    from dolfin_rod import loads
+    from dolfin_rod.rod.joints import Joint
+    from dolfin_rod.rod.start import Polyline
+    f = FRAME
+    L1, L2 = f["L1"], f["L2"]
+    history = loads.ramp(1.0, 1.0) if steps > 1 else (lambda t: 1.0)
+    load = [EndLoad("force", (0.0, 0.0, -force), history)]
+
+    def params(length, shape=None):
+        return RodParameters(length=length, A=(f["EI"], f["EI"], 1.5),
+                             B=(f["GA"], f["GA"], f["EA"]), reference_shape=shape)
+
+    if joined:
+        top = (0.0, 0.0, L1)
+        model = RodSystem([Rod(params(L1), n_column, name="column"),
+                           Rod(params(L2), n_beam, ("free", "free"), name="beam",
+                               position=top, orientation=(0.0, np.pi / 2, 0.0),
+                               end_loads=load)],
+                          joints=[Joint("rigid", ("column", "beam"), top)],
+                          model="hyperelastic")
+    else:
+        corner = Polyline(((0.0, 0.0, 0.0), (0.0, 0.0, L1), (L2, 0.0, L1)))
+        model = RodModel(params(L1 + L2, corner), n_column + n_beam, model="hyperelastic",
+                         end_loads=load)
+    model.set_initial_state()
+    TimeStepper(model.problem).run(0.0, 1.0, 1.0 / steps)
+    d = model.diagnostics(1.0)
+    return {k.removeprefix("beam."): v for k, v in d.items()}

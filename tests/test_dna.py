@@ -117,6 +117,36 @@ def test_hand_derivatives_match_ufl():
     assert abs(h[2, 2] - h[2, 5] ** 2 / h[5, 5] - dna.zero_tension_twist_stiffness()) < 1e-10
 
 
+def test_scene_check_derivatives_without_ufl_match_ufl():
+    """psi.derivatives (by hand, numpy: the scene check's path without UFL) equal UFL's
+    gradient and Hessian of psi at random natural states and strains around them
+    (round-off: 1e-12 of the largest stiffness) and beyond the stretch limit; the scene
+    check gives the same verdict through either path."""
+    from dolfin_rod.theory.natural_state import start_state_problem
+    rng = np.random.default_rng(3)
+    scale = P.stretch_modulus
+    for u_d, v_d in random_natural_states(6):
+        u = u_d + rng.uniform(-0.02, 0.02, 3)
+        v = v_d + rng.uniform(-0.02, 0.02, 3) * [1, 1, 5]
+        g, h = dna.psi.derivatives(u_d, v_d, u, v)
+        g_ufl, h_ufl = stationarity_and_hessian(dna.psi, u_d, v_d, u, v)
+        assert np.abs(g - g_ufl).max() <= 1e-12 * scale
+        assert np.abs(h - h_ufl).max() <= 1e-12 * scale * 10   # the stretch term ~ 3 S here
+    beyond = [0.0, 0.0, 1.0 + 1.5 * P.stretch_limit]
+    for g, g_ufl in zip(dna.psi.derivatives(np.zeros(3), [0, 0, 1.0], np.zeros(3), beyond),
+                        stationarity_and_hessian(dna.psi, np.zeros(3), [0, 0, 1.0], np.zeros(3),
+                                                 beyond)):
+        assert np.allclose(g, g_ufl, rtol=1e-12, atol=0)
+
+    def same_energy_by_ufl(*strains):
+        return dna.psi(*strains)
+    natural = ((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    for start in (natural, ((0.0, 0.0, 0.0), beyond), ((0.0, 0.0, -0.5), (0.0, 0.0, 1.1))):
+        verdict = start_state_problem(dna.psi, natural, start)
+        assert verdict == start_state_problem(same_energy_by_ufl, natural, start)
+    assert start_state_problem(dna.psi, natural, natural) is None
+
+
 def test_scene_stiffness_tables_are_the_energy_linearised():
     """The schema's stiffness tables of both scenes = the diagonals of psi's Hessian at
     rest (the energy entry point is what runs; the tables must not contradict it)."""

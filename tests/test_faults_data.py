@@ -264,6 +264,55 @@ def test_one_linear_solve_reported_as_converged_is_a_failed_run(tmp_path, capsys
         assert summary["status"] == "failed" and summary["t_end_reached"] == 0.0
 
 
+COUPLED_ROD = STATIC_ROD.replace(
+    "A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0], A_d = [1.0, 1.0, 1.0]",
+    "A = [100.0, 100.0, 1.0], B = [100.0, 100.0, 100.0], A_d = [100.0, 100.0, 1.0]").replace(
+    'end_force = { type = "step", value = [0.8, 0.0, 0.0] }',
+    'end_couple = { type = "ramp", value = [0.0, 0.0, 20.0], duration = 0.5 }').replace(
+    "t_end = 0.1", "t_end = 0.5")
+
+
+@pytest.mark.mpi
+def test_an_end_couple_turning_a_cell_beyond_what_it_represents_stops_the_run(tmp_path,
+                                                                                capsys):
+    """Issue 28 item 4 at run time: an end couple ramped to 20 twists a rod of soft
+    torsion (A_33 = 1; bending 100, far from Greenhill's buckling couple pi A_11 / L) on
+    4 cells by more than 2 rad per cell (the rotation vectors' strain measure 2 tan(turn
+    / 2) stiffened it silently before: exit 0, the tip turned 12 rad instead of the
+    twist of 16 cells): exit 3 naming the cells needed and [geometry.n_cells]; the rows
+    up to the step before are kept.  On 16 cells the same scene completes."""
+    folder = shared(tmp_path)
+    coarse = write(folder / "coarse.toml", COUPLED_ROD)
+    code, out, err = run_main(capsys, "run", coarse, "--out", folder / "coarse", "--quiet")
+    assert code == 3
+    if COMM.rank == 0:
+        assert err.startswith("failed: t = ") and "against its start node, more than the 2 " \
+            "rad the rotation interpolation" in err and "take n_cells >= 5 for the turn so " \
+            "far ([geometry.n_cells]; now 4" in err, err
+        summary = json.loads((folder / "coarse" / "summary.json").read_text())
+        assert summary["status"] == "failed" and 0.2 < summary["t_end_reached"] < 0.5
+        assert len(read_csv(folder / "coarse" / "timeseries.csv")) == summary["steps"] + 1
+    fine = write(folder / "fine.toml", COUPLED_ROD.replace("n_cells = 4", "n_cells = 16"))
+    assert run_main(capsys, "run", fine, "--out", folder / "fine", "--quiet")[0] == 0
+
+
+def test_api_turn_beyond_what_the_cells_represent_stops_the_integrator():
+    """The Python API: a prescribed end rotation ramped to 19 rad on 4 cells of a
+    quasi-static rod (no scene check) stops with IntegrationError naming n_cells at the
+    first step whose uniform twist turns a cell by more than 2 rad: t = 0.45, 8.55 / 4."""
+    from dolfin_rod import TimeStepper, loads
+    from dolfin_rod.integrators.step_control import IntegrationError
+    from dolfin_rod.rod import RodModel, RodParameters
+    params = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(100.0, 100.0, 100.0))
+    turn = loads.VectorHistory((loads.constant(0.0), loads.constant(0.0), loads.ramp(19.0, 1.0)))
+    rod = RodModel(params, n_cells=4, model="hyperelastic", ends=("clamped", "clamped"),
+                   end_rotation={"right": turn})
+    rod.set_initial_state()
+    with pytest.raises(IntegrationError, match=r"at t = 0.45 a cell's end node turned by "
+                       r"2.138 rad .* take n_cells >= 5 for the turn so far"):
+        TimeStepper(rod.problem).run(0.0, 1.0, 0.05)
+
+
 # --- item 11: a user module that calls sys.exit at import -------------------------------
 
 
@@ -538,16 +587,17 @@ def test_scene_energy_without_a_stable_natural_state_is_refused_at_check(
 
 
 @pytest.mark.parametrize("rotation, cells, needed", [
-    ('end_rotation = { type = "ramp", value = [0.0, 0.0, 100.0], duration = 0.05 }', 4, 32),
+    ('end_rotation = { type = "ramp", value = [0.0, 0.0, 100.0], duration = 0.05 }', 4, 51),
     ('end_rotation = { type = "table", times = [0.0, 0.05, 0.1], values = [[0.0, 0.0, 0.0], '
      '[0.0, 13.0, 0.0], [0.0, 0.0, 0.0]] }\nstart_rotation = { type = "ramp", value = '
-     '[0.0, -13.0, 0.0], duration = 0.05 }', 8, 9),       # 26 rad at t = 0.05: 26/pi = 8.3
+     '[0.0, -13.0, 0.0], duration = 0.05 }', 12, 14),     # 26 rad at t = 0.05: 26/2 = 13
 ])
-def test_prescribed_turn_beyond_pi_per_cell_is_refused_with_the_cells_needed(
+def test_prescribed_turn_beyond_what_the_cells_represent_is_refused_with_the_cells_needed(
         tmp_path, capsys, rotation, cells, needed):
-    """A cell's relative rotation must stay below pi (the interpolation of the nodal
-    rotations takes the shorter way round): the issue's 100 rad on 4 cells ended with
-    energy 0.117 and a couple of the wrong sign, exit 0.  n_cells = needed passes."""
+    """A cell's relative rotation must stay below checks.MAX_CELL_TURN = 2 rad (beyond,
+    the interpolation of the nodal rotations misrepresents it or wraps): the issue's 100
+    rad on 4 cells ended with energy 0.117 and a couple of the wrong sign, exit 0.
+    n_cells = needed passes."""
     text = STATIC_ROD.replace('[loads]\nend_force = { type = "step", value = [0.8, 0.0, 0.0] }',
                               f"[boundary]\n{rotation}")
     bad = write(tmp_path / "bad.toml", text.replace("n_cells = 4", f"n_cells = {cells}"))

@@ -77,7 +77,9 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "crossing_rods.toml": "rod", "plectoneme.toml": "rod",
                   "double_pendulum.toml": "rod", "tripod.toml": "rod",
                   "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod",
-                  "hinged_door.toml": "rod"}
+                  "hinged_door.toml": "rod", "bent_frame.toml": "rod",
+                  "column_buckling.toml": "rod", "string_modes.toml": "rod",
+                  "buckled_column.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])

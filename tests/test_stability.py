@@ -117,6 +117,7 @@ t_end = 1.0
 dt = 0.125
 [stability]
 follow_unstable = {follow}
+at_bifurcation = "stay"
 [outputs]
 fields = false
 animation = false
@@ -132,7 +133,8 @@ def test_a_run_that_ends_unstable_says_so(tmp_path, capsys, follow):
     1.5 P_cr in 8 steps: the column negative_eigenvalues is 0 up to t = 0.625 (0.94 P_cr)
     and 2 from t = 0.75 (1.125 P_cr), a warning at that step, and the run ends
     "completed (unstable equilibrium)" with exit 4, or "completed" with exit 0 when
-    stability.follow_unstable = true."""
+    stability.follow_unstable = true (stability.at_bifurcation = "stay": no branch
+    switch, tests/test_branches.py)."""
     import csv
 
     from mpi4py import MPI

@@ -35,25 +35,29 @@ SIZE = (8.4, 6.4)            # inches at 100 dpi: 840 x 640 px
 STRAINS = ("u", "v", "u_d", "v_d")
 SMALL_MOTION = 0.05          # motion below 5 % of the rod's size is magnified ...
 SHOWN_MOTION = 0.2           # ... to about 20 % of it
+ROUND_OFF = 1e-9             # a colour field below this is round-off (strains: 1e-11)
 
 
 @dataclass(frozen=True)
 class Look:
     """What the 3-D pictures show: the colour field ("auto" or a key of COLOURS), the
-    supports {"start": kind, "end": kind} (clamped, pinned, free) and gravity (or None)."""
+    supports {"start": kind, "end": kind} (clamped, pinned, free; a rod system: a tuple
+    of such dicts, one per rod in the order of [[rods]]) and gravity (or None)."""
 
     colour: str = "auto"
     supports: dict = field(default_factory=dict)
     gravity: tuple | None = None
+    obstacles: tuple = ()       # the scene's [[obstacles]] tables (planes, spheres drawn)
 
     @classmethod
     def of(cls, scene, colour: str | None = None) -> Look:
         """The scene's look: ``colour`` or its outputs.color, its ends' supports, its
         gravity."""
-        boundary = scene["boundary"]
-        return cls(colour or scene["outputs"]["color"],
-                   {e: boundary[e] for e in ("start", "end") if e in boundary},
-                   scene["loads"].get("gravity"))
+        ends = lambda b: {e: b[e] for e in ("start", "end") if e in b}   # noqa: E731
+        supports = tuple(ends(r.scene["boundary"]) for r in scene.rods) if scene.rods \
+            else ends(scene["boundary"])
+        return cls(colour or scene["outputs"]["color"], supports,
+                   scene["loads"].get("gravity"), tuple(scene["obstacles"]))
 
 
 class FrameStore:
@@ -169,12 +173,35 @@ def _plot_lines(ax, sample, points, **style) -> None:
                                                {**style, "label": None}))
 
 
-def _support_nodes(sample, look: Look) -> list[tuple[int, str]]:
-    """(node, kind) of the held ends of a single rod (rod systems: none marked)."""
-    if len(sample.lines()) != 1:
+def support_nodes(sample, look: Look) -> list[tuple[int, str]]:
+    """(node, kind) of the clamped and pinned ends of each rod (none if the supports
+    given do not match the sample's rods)."""
+    per_rod = look.supports if isinstance(look.supports, tuple) else (look.supports,)
+    lines = sample.lines()
+    if len(per_rod) != len(lines):
         return []
-    ends = {"start": int(np.argmin(sample.s_nodes)), "end": int(np.argmax(sample.s_nodes))}
-    return [(ends[e], k) for e, k in look.supports.items() if k in ("clamped", "pinned")]
+    held = []
+    for supports, nodes in zip(per_rod, lines):
+        s = sample.s_nodes[nodes]
+        ends = {"start": nodes.start + int(np.argmin(s)), "end": nodes.start + int(np.argmax(s))}
+        held += [(ends[e], k) for e, k in supports.items() if k in ("clamped", "pinned")]
+    return held
+
+
+def colour_scale(values: list[np.ndarray]):
+    """The colour map and its normalisation for the frames' values: viridis from 0 for a
+    field of one sign; for a signed field (xi of the uniform variant, negative in places)
+    a diverging map symmetric about 0, so that the sign reads off the colour; values
+    below ROUND_OFF (a rod sliding or spinning rigidly) all in the map's first colour."""
+    from matplotlib.colors import Normalize
+    lo = min(float(np.min(v)) for v in values)
+    hi = max(float(np.max(v)) for v in values)
+    if max(-lo, hi) < ROUND_OFF:            # nothing changes: one colour, not noise
+        return "viridis", Normalize(0.0, 1.0)
+    if lo < 0.0 < hi:
+        top = max(-lo, hi)
+        return "coolwarm", Normalize(-top, top)
+    return "viridis", Normalize(min(lo, 0.0), max(hi, 1e-300))
 
 
 def _notes(factor: float, supports: list) -> str:
@@ -212,6 +239,47 @@ def _gravity_arrow(draw, project, box, gravity) -> None:
     draw.text(tuple(a + 8 * n), "g", fill=(200, 30, 30))
 
 
+def plane_patch(box, point, normal) -> np.ndarray:
+    """(2, 2, 3) corners of a square in the plane through ``point`` normal to ``normal``:
+    centred at the foot of the box's centre, as wide as the box."""
+    lo, hi = box
+    centre, half = 0.5 * (lo + hi), 0.5 * np.max(hi - lo)
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    foot = centre - np.dot(centre - np.asarray(point, dtype=float), n) * n
+    t1 = np.cross(n, np.eye(3)[np.argmin(np.abs(n))])
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(n, t1)
+    a, b = np.meshgrid([-half, half], [-half, half])
+    return foot + a[..., None] * t1 + b[..., None] * t2
+
+
+def draw_obstacles(ax, box, obstacles) -> None:
+    """Planes as a grey square of the box's size about the point nearest the box's
+    centre, spheres as a grey wire sphere (drawn once, in the background); cylinders are
+    not drawn."""
+    grey = {"color": (0.5, 0.5, 0.5), "alpha": 0.25}
+    for ob in obstacles:
+        if ob["shape"] == "plane":
+            corners = plane_patch(box, ob["point"], ob["normal"])
+            ax.plot_surface(*np.moveaxis(corners, -1, 0), linewidth=0, **grey)
+        elif ob["shape"] == "sphere":
+            u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 13), np.linspace(0, np.pi, 7))
+            unit = np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)])
+            points = np.asarray(ob["centre"])[:, None, None] + ob["radius"] * unit
+            ax.plot_wireframe(*points, linewidth=0.5, **grey)
+
+
+def _gravity_quiver(ax, box, gravity) -> None:
+    """snapshots.png: the arrow 'g' along gravity near the box's upper corner (as in the
+    GIF, _gravity_arrow)."""
+    lo, hi = box
+    g = np.asarray(gravity, dtype=float)
+    start = hi - 0.15 * (hi - lo)
+    arrow = 0.15 * np.max(hi - lo) * g / np.linalg.norm(g)
+    ax.quiver(*start, *arrow, color=(0.78, 0.12, 0.12), linewidth=2, arrow_length_ratio=0.3)
+    ax.text(*(start - 0.05 * arrow), "g", color=(0.78, 0.12, 0.12))
+
+
 def _draw_rod(draw, pixels, segments, colours, width) -> None:
     for (i, j), c in zip(segments, colours):
         draw.line([tuple(pixels[i]), tuple(pixels[j])], fill=c, width=width)
@@ -227,7 +295,6 @@ def _draw_supports(draw, pixels, supports) -> None:
 def rod_animation(frames: list, path: Path, title: str = "", look: Look = Look()) -> None:
     """The GIF of the 3-D shape (see module docstring)."""
     from matplotlib.cm import ScalarMappable
-    from matplotlib.colors import Normalize
     from PIL import Image, ImageDraw, ImageFont
     plt = _pyplot()
     pick = np.unique(np.linspace(0, len(frames) - 1, min(GIF_FRAMES, len(frames))).astype(int))
@@ -236,14 +303,15 @@ def rod_animation(frames: list, path: Path, title: str = "", look: Look = Look()
     key, factor = colour_field(frames, look.colour), magnification(frames)
     shapes = [_shape(s, first, factor) for _, s in shown]
     values = [colour_values(s, first, key) for _, s in shown]
-    norm = Normalize(0.0, max(max(np.max(v) for v in values), 1e-300))
+    cmap_name, norm = colour_scale(values)
     fig = plt.figure(figsize=SIZE, dpi=100)
     ax = fig.add_subplot(projection="3d")
     box = _box(shapes)
     _setup_3d(ax, box, title)
-    fig.colorbar(ScalarMappable(norm, "viridis"), ax=ax, shrink=0.7, pad=0.1,
+    draw_obstacles(ax, box, look.obstacles)
+    fig.colorbar(ScalarMappable(norm, cmap_name), ax=ax, shrink=0.7, pad=0.1,
                  label=colour_label(key))
-    supports = _support_nodes(first, look)
+    supports = support_nodes(first, look)
     fig.text(0.02, 0.02, _notes(factor, supports), fontsize=10)
     fig.canvas.draw()
     background = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[..., :3].copy())
@@ -252,7 +320,7 @@ def rod_animation(frames: list, path: Path, title: str = "", look: Look = Look()
     if look.gravity is not None and np.any(look.gravity):
         _gravity_arrow(ImageDraw.Draw(background), project, box, look.gravity)
     font = ImageFont.load_default(size=18)
-    cmap = plt.get_cmap("viridis")
+    cmap = plt.get_cmap(cmap_name)
     pixels = [project(p) for p in shapes]
     images = []
     for k, (t, sample) in enumerate(shown):
@@ -293,10 +361,14 @@ def rod_snapshots(frames: list, path: Path, title: str = "", n: int = 6,
             cells = (first_nodes >= nodes.start) & (first_nodes < nodes.stop)
             ax2.step(sample.s_cells[cells], colour[cells], where="mid", color=c)
     r0 = first.point["centre_line"]
-    for node, kind in _support_nodes(first, look):
+    for node, kind in support_nodes(first, look):
         ax.scatter(*r0[node], marker="s" if kind == "clamped" else "o", color="k", s=40)
-    _setup_3d(ax, _box([_shape(frames[i][1], first, factor) for i in pick]),
+    box = _box([_shape(frames[i][1], first, factor) for i in pick])
+    _setup_3d(ax, box,
               "centre line r(s, t)" + (f", displacement x {factor:g}" if factor != 1 else ""))
+    draw_obstacles(ax, box, look.obstacles)
+    if look.gravity is not None and np.any(look.gravity):
+        _gravity_quiver(ax, box, look.gravity)
     ax.legend(fontsize=7, loc="upper left")
     ax2.set_xlabel("s"), ax2.set_ylabel(colour_label(key))
     ax2.set_title(f"{colour_label(key)} along the rod", fontsize=9)

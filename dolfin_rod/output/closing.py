@@ -22,6 +22,10 @@ FILES = {
     "snapshots.png": "selected frames and the colour field along s",
     "spacetime.png": "phi(s, t) and u_d(s, t) as images",
     "checkpoint": "the states for --resume",
+    "buckle.json": "dolfin-rod buckle: critical load factors about the end state",
+    "buckle.bp": "ParaView (ADIOS2VTXReader): the buckling modes, one step per mode",
+    "modes.json": "dolfin-rod modes: natural frequencies about the end state",
+    "modes.bp": "ParaView (ADIOS2VTXReader): the vibration modes, one step per mode",
 }
 
 

@@ -32,13 +32,16 @@ class EnergyBound:
                                    f"t = {d['time']:g} (stopped; results up to t = "
                                    f"{t_good:g} are kept)", t_good)
 
-    def check(self, d: dict) -> None:
-        """Raises IntegrationError at the last good time if ``d`` diverged."""
+    def check(self, d: dict, jump: bool = False) -> None:
+        """Raises IntegrationError at the last good time if ``d`` diverged.  ``jump``:
+        the step ended with a jump to another equilibrium at the same loads (a branch
+        switch, analysis/branches.py), whose energy the loads supplied along the jump,
+        unseen by the power: its state counts as supplied, as the first one does."""
         t_good = self.previous["time"]
         self._finite(d, t_good)
         h = d["time"] - self.previous["time"]
         self.supply += h * max(0.0, 0.5 * (d["load_power"] + self.previous["load_power"]))
-        if self.first_step:
+        if self.first_step or jump:
             # a step load or a step of a prescribed end motion at t_0 supplies its energy
             # as an impulse the trapezoidal work cannot see: the first state counts as
             # supplied (an explicit instability grows by a bounded factor per step, x2.4

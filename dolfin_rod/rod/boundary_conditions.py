@@ -172,7 +172,7 @@ class EndSupports:
         self.values: dict = {}
         self.block = model.unknowns.rotation
         self.committed_time = None      # rotation vectors: time of q_n (None: initial)
-        self._time_set = 0.0
+        self.time_set = 0.0            # the time of the values last set (set)
         self._fixed_values_of: dict = {}      # end -> the initial (x, q) its values hold
         spaces, mesh = model.unknowns.spaces, model.mesh
         self.spaces = spaces
@@ -270,7 +270,7 @@ class EndSupports:
                 self._set(("velocity", end), loads.rate(lambda s: self.prescribed(end, s)[0], t))
             if ("angular_velocity", end) in self.values:
                 self._set(("angular_velocity", end), self._angular_velocity(end, t))
-        self._time_set = t
+        self.time_set = t
 
     def spring_energy(self, unk, ds, end_weight: dict, indicator):
         """The springs' energy (module docstring) as a form on the end points (``ds``
@@ -289,7 +289,7 @@ class EndSupports:
 
     def commit(self) -> None:
         """Rotation vectors: the accepted step ends at the time last set (chart.commit)."""
-        self.committed_time = self._time_set
+        self.committed_time = self.time_set
 
     def _angular_velocity(self, end: str, t: float) -> np.ndarray:
         """Material angular velocity 2 vec(conj(q) q_t)/|q|^2 of a prescribed end."""

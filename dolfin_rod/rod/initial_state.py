@@ -1,10 +1,13 @@
 """The rod's initial state: the stress-free configuration of the reference strains (a
-straight rod along e_3, or the helix/circle of constant reference_curvature) gives the
+straight rod along e_3, or the helix/circle of constant reference_curvature, or the
+curve ``reference_shape``: a polyline with kinks, an arc, ...) gives the
 reference strains and the natural strains (the discrete reference strains, uniform
 variant: their mean, unless given); the rod starts at rest there, or in a starting
 state (rod/start.py: placed, another centre line, velocities, static equilibrium)."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import dolfinx.fem as fem
 import numpy as np
@@ -42,8 +45,7 @@ def stress_free(model, s) -> tuple[np.ndarray, np.ndarray]:
     its orientation and moved to its position (rods.Rod; layout.py for s)."""
     s = np.asarray(s, float)
     if model.layout.single and not model.rods[0].placed:
-        p = model.params
-        return helix(s, p.reference_curvature, p.reference_stretch)
+        return shape(model.params, s, model.layout.n_cells[0])
     r, q = np.zeros((len(s), 3)), np.zeros((len(s), 4))
     rod_of = model.layout.rod_of(s)
     for k, rod in enumerate(model.rods):
@@ -52,10 +54,24 @@ def stress_free(model, s) -> tuple[np.ndarray, np.ndarray]:
     return r, q
 
 
+def shape(params, s, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
+    """(r, q) of a rod's stress-free shape at its nodes' arc lengths s, from the origin
+    with R(0) = I: the curve ``params.reference_shape`` (rod/start.py), else the helix of
+    the reference strains."""
+    if params.reference_shape is not None:
+        return params.reference_shape.frames(s, params.length, n_cells)
+    return helix(s, params.reference_curvature, params.reference_stretch)
+
+
 def placed_shape(rod, s) -> tuple[np.ndarray, np.ndarray]:
     """(r, q) of one rod (rods.Rod) at its own arc lengths s: the helix of its reference
     strains, turned by its orientation, moved to its position."""
-    r, q = helix(s, rod.params.reference_curvature, rod.params.reference_stretch)
+    return place(rod, *shape(rod.params, s, rod.n_cells))
+
+
+def place(rod, r, q) -> tuple[np.ndarray, np.ndarray]:
+    """Positions r and rotations q in a rod's own frame turned by its orientation and
+    moved to its position (rods.Rod)."""
     turn = np_quaternion_from_rotation_vector(np.asarray(rod.orientation, float))
     return (np.asarray(rod.position, float) + r @ np_rotation_matrix(turn).T,
             np_qmul(turn, q))
@@ -112,7 +128,8 @@ def _set_reference_strains(model) -> None:
 def is_straight(params) -> bool:
     """Reference strains u = 0, v = e_3: the stress-free rod is straight along e_3."""
     return (np.array_equal(np.asarray(params.reference_curvature, float), np.zeros(3))
-            and np.array_equal(np.asarray(params.reference_stretch, float), E3))
+            and np.array_equal(np.asarray(params.reference_stretch, float), E3)
+            and params.reference_shape is None)
 
 
 def _set_configuration(model, frames) -> None:
@@ -184,9 +201,12 @@ def settle(model, t: float) -> None:
         g.x.array[:] = 0.0
     problem.set_loads(t)
     problem.set_bcs(t)
+    links = [replace(link, block=names.index(model.names[link.block]))    # joints
+             for link in problem.links]
     solver = BlockSNES([model.residual[n] for n in names], [unk.f[n] for n in names],
                        [bc for n in names for bc in model.bcs_of(n)],
-                       {"snes_max_it": 50}, step_scale=problem.configuration_norm())
+                       {"snes_max_it": 50}, step_scale=problem.configuration_norm(),
+                       links=links)
     try:
         solver.solve()
     except SolverError as err:

@@ -46,6 +46,8 @@ class RodParameters:
     energy: Callable | None = None   # psi(u_d, v_d, u, v); None: quadratic_energy
     reference_curvature: Sequence[float] = (0.0, 0.0, 0.0)  # stress-free strains at t = 0
     reference_stretch: Sequence[float] = (0.0, 0.0, 1.0)
+    reference_shape: object = None   # or the stress-free shape as a curve of rod/start.py
+                                     # (Arc, Helix, Polyline: a kinked or bent frame)
 
 
 def is_zero(value) -> bool:

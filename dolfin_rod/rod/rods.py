@@ -13,6 +13,7 @@ from ..checks import N_CELLS, check_n_cells
 from .boundary_conditions import check_supports
 from .external_forces import DistributedLoad, EndLoad, check_loads
 from .material import RodParameters, check_parameters, is_zero
+from .start import shape_problem
 
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
 
@@ -86,8 +87,23 @@ def _check_rod(rod: Rod, model: str, variant: str) -> None:
                    not is_zero(rod.params.rho_A), rod.end_slide, rod.end_springs,
                    rod.end_turn)
     check_parameters(rod.params, model == "evolving", model != "hyperelastic", variant)
+    _check_reference_shape(rod.params)
     check_loads(rod.end_loads, rod.distributed_loads)
     for name in ("position", "orientation"):
         value = np.asarray(getattr(rod, name), dtype=float)
         if value.shape != (3,) or not np.all(np.isfinite(value)):
             raise ValueError(f"{name} must be a finite 3-vector, got {getattr(rod, name)!r}")
+
+
+def _check_reference_shape(params: RodParameters) -> None:
+    """A stress-free curve (rod/start.py) that fits the rod, given instead of the
+    reference strains: a ValueError naming ``reference_shape``."""
+    if params.reference_shape is None:
+        return
+    if np.any(np.asarray(params.reference_curvature, float)) or \
+            not np.array_equal(np.asarray(params.reference_stretch, float), (0.0, 0.0, 1.0)):
+        raise ValueError("reference_shape: the stress-free shape is a curve or the helix of "
+                         "reference_curvature/reference_stretch, not both")
+    problem = shape_problem(params.reference_shape, params.length)
+    if problem:
+        raise ValueError(f"reference_shape{problem[0]}: {problem[1]}")

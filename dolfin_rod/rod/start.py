@@ -38,7 +38,7 @@ import numpy as np
 from ..checks import EQUILIBRIUM_NEEDS, polyline_problem
 from ..theory.rotations import (np_qmul, np_quaternion_from_matrix,
                                 np_quaternion_from_rotation_vector, np_rotation_matrix)
-from .initial_state import helix
+from .initial_state import helix, place, shape as stress_free_shape
 
 Field = tuple | Callable
 
@@ -186,6 +186,64 @@ class StartingState:
         return v, w
 
 
+class RodStarts:
+    """The starting states of rods of a system, by rod name (RodSystem.set_initial_state(
+    start={name: StartingState})): each curve, position and orientation in its rod's
+    placed frame (Rod.position, Rod.orientation: by default the rod starts where it is
+    placed), velocities spatial; the other rods start in their stress-free shapes at
+    rest.  The interface of a StartingState over the system's mesh (``layout``), and
+    ``rod_state`` of one rod (joints.check_joints_at_start)."""
+
+    def __init__(self, starts: dict, rods, layout=None):
+        self.starts, self.rods, self.layout = dict(starts), list(rods), layout
+        self.moving = any(start.moving for start in self.starts.values())
+        self.equilibrium = any(start.equilibrium for start in self.starts.values())
+
+    def rod_state(self, rod, own) -> tuple[np.ndarray, ...]:
+        """(r, q, v, w) of ``rod`` (rods.Rod) at its own nodes' arc lengths ``own``."""
+        own = np.asarray(own, float)
+        start = self.starts.get(rod.name, StartingState())
+        r, q = place(rod, *start.frames(
+            own, lambda x: stress_free_shape(rod.params, x, rod.n_cells), rod.params.length,
+            rod.n_cells))
+        return (r, q, *start.velocities(own, r))
+
+    def _pieces(self, s):
+        """(mask of s on a started rod, its state there) for each started rod."""
+        rod_of = self.layout.rod_of(s)
+        for k, rod in enumerate(self.rods):
+            if rod.name in self.starts:
+                on = rod_of == k
+                yield on, self.rod_state(rod, s[on] - self.layout.starts[k])
+
+    def frames(self, s, stress_free: Callable, length: float, n_cells: int):
+        s = np.asarray(s, float)
+        r, q = stress_free(s)
+        for on, (r_on, q_on, _, _) in self._pieces(s):
+            r[on], q[on] = r_on, q_on
+        return r, q
+
+    def velocities(self, s, r) -> tuple[np.ndarray, np.ndarray]:
+        s = np.asarray(s, float)
+        v, w = np.zeros((len(s), 3)), np.zeros((len(s), 3))
+        for on, (_, _, v_on, w_on) in self._pieces(s):
+            v[on], w[on] = v_on, w_on
+        return v, w
+
+
+def check_rod_starts(starts: dict, rods, dynamic: bool, rotation_held: bool) -> None:
+    """check_start of each rod's start, a ValueError naming ``start['<rod>']``."""
+    names = [rod.name for rod in rods]
+    if not isinstance(starts, dict) or any(name not in names for name in starts):
+        raise ValueError(f"start: a system's starting states are {{rod name: StartingState}}"
+                         f" of its rods {names}, got {starts!r}")
+    for rod in rods:
+        try:
+            check_start(starts.get(rod.name), rod.params.length, dynamic, rotation_held)
+        except ValueError as err:
+            raise ValueError(f"start[{rod.name!r}]" + str(err).removeprefix("start")) from err
+
+
 def _field(value: Field, s) -> np.ndarray:
     if callable(value):
         return np.asarray(value(np.asarray(s, float)), float).reshape(len(s), 3)
@@ -208,18 +266,28 @@ def check_start(start: StartingState | None, length: float, dynamic: bool,
         name = "equilibrium" if start.equilibrium else "velocity"
         raise ValueError(f"start.{name}: the rod is quasi-static (rho_A = 0): it has no "
                          "velocities and is in equilibrium at every step")
-    shape = start.shape
+    problem = shape_problem(start.shape, length)
+    if problem:
+        raise ValueError(f"start.shape{problem[0]}: {problem[1]}")
+
+
+def shape_problem(shape, length: float) -> tuple[str, str] | None:
+    """(".<field>" or "", reason) for a curve (Straight, Arc, Helix, Polyline or None)
+    that is wrong or does not fit a rod of ``length``; else None."""
+    if shape is not None and not isinstance(shape, (Straight, Arc, Helix, Polyline)):
+        return "", f"must be a Straight, Arc, Helix or Polyline, got {shape!r}"
     if isinstance(shape, (Straight, Arc, Helix)) and not shape.stretch > 0:
-        raise ValueError(f"start.shape.stretch must be > 0, got {shape.stretch}")
+        return ".stretch", f"must be > 0, got {shape.stretch}"
     if isinstance(shape, Arc) and not shape.radius > 0:
-        raise ValueError(f"start.shape.radius must be > 0, got {shape.radius}")
+        return ".radius", f"must be > 0, got {shape.radius}"
     if isinstance(shape, Helix) and not (shape.radius > 0 and np.isfinite(shape.pitch)):
-        raise ValueError(f"start.shape: a helix needs radius > 0 and a finite pitch, got "
-                         f"radius {shape.radius}, pitch {shape.pitch}")
+        return "", (f"a helix needs radius > 0 and a finite pitch, got radius "
+                    f"{shape.radius}, pitch {shape.pitch}")
     if isinstance(shape, Polyline):
         problem = polyline_problem(shape.points, shape.rest_arc_length, shape.normal, length)
         if problem:
-            raise ValueError(f"start.shape.{problem[0]}: {problem[1]}")
+            return f".{problem[0]}", problem[1]
+    return None
 
 
 def _vector(name: str, value) -> np.ndarray:

@@ -99,7 +99,7 @@ class FESimulation:
             self.stepper, self.ts = None, choose_integrator(
                 self._ts_problem(), solver_options=options, ts_type=self._ts_type(),
                 adaptive=tim["adaptive"], rtol=tim["ts_rtol"], atol=tim["ts_atol"])
-            self.stability = self._stability_monitor()
+            self.stability, self.branches = self._stability_monitor(), None
             return
         # not given, a rod with rotation vectors takes its integrator's default scheme
         # (with obstacles: rho_inf = 0, docs/contact.md)
@@ -111,6 +111,19 @@ class FESimulation:
             self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
             predictor=tim["predictor"], tolerance=tolerance), None
         self.stability = self._stability_monitor()
+        self.branches = self._branch_switching()
+
+    def _branch_switching(self):
+        """Branch switching at bifurcations (analysis/branches.py): quasi-static rods
+        with rotation vectors whose stability is checked, unless stability.at_bifurcation
+        = "stay"."""
+        if self.stability is None or self.scene["stability"]["at_bifurcation"] != "switch":
+            return None
+        from ..analysis.branches import BranchSwitching
+        try:
+            return BranchSwitching(self.stability)
+        except ValueError:          # quaternions or constraints (LowestEigenvalues)
+            return None
 
     def _stability_monitor(self):
         """Quasi-static 3-D rods: the stability of each step's equilibrium
@@ -152,11 +165,15 @@ class FESimulation:
 
     def advance(self, t: float, t_next: float) -> None:
         self.stepper.run(t, t_next, t_next - t)
+        if self.branches is not None:
+            self.branches.check(t_next, t)
 
     def diagnostics(self, t: float) -> dict[str, float]:
         d = self.model.diagnostics(t)
         if self.stability is not None:
-            d["negative_eigenvalues"] = float(self.stability.check(t))
+            checked = self.branches is not None and self.branches.checked_at == t
+            d["negative_eigenvalues"] = float(self.stability.negative if checked
+                                              else self.stability.check(t))
             if self.stability.lowest is not None:
                 d["lowest_eigenvalue"] = self.stability.lowest
         return d
@@ -264,7 +281,7 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     def initial_state():
         model.set_initial_state(natural_curvature=initial["natural_curvature"],
                                 natural_stretch=initial["natural_stretch"],
-                                start=starting_state(scene))
+                                start=rod_starts(scene) if scene.rods else starting_state(scene))
 
     if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
         from ..rod.contact import InitialOverlap
@@ -275,22 +292,37 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     return FESimulation("rod", model, scene, initial_state)
 
 
+def rod_starts(scene: Scene) -> dict | None:
+    """{rod name: StartingState} of the rods of [[rods]] with [initial] start keys (each
+    rod's own or the scene's), None if none has any."""
+    starts = {rod.name: starting_state(rod.scene) for rod in scene.rods}
+    return {name: start for name, start in starts.items() if start is not None} or None
+
+
 def starting_state(scene: Scene):
     """The rod's StartingState of [initial] (rules.START_KEYS), None if none is given."""
     from ..rod import start
     ini = scene["initial"]
     if not any(k in scene.given["initial"] for k in START_KEYS):
         return None
-    shape = dict(ini["shape"] or {})
-    kind = shape.pop("type", None)
-    curves = {"straight": start.Straight, "arc": start.Arc, "helix": start.Helix,
-              "polyline": start.Polyline}
     zero = (0.0, 0.0, 0.0)
     return start.StartingState(
-        shape=curves[kind](**shape) if kind else None, position=ini["position"] or zero,
+        shape=curve(ini["shape"]), position=ini["position"] or zero,
         orientation=ini["orientation"] or zero, velocity=ini["velocity"] or zero,
         angular_velocity=ini["angular_velocity"] or zero,
         rotation_centre=ini["rotation_centre"], equilibrium=ini["equilibrium"])
+
+
+def curve(table: dict | None):
+    """The curve (rod/start.py: Straight, Arc, Helix, Polyline) of a shape table
+    (values.starting_shape), None for None."""
+    if table is None:
+        return None
+    from ..rod import start
+    keys = dict(table)
+    kind = keys.pop("type")
+    return {"straight": start.Straight, "arc": start.Arc, "helix": start.Helix,
+            "polyline": start.Polyline}[kind](**keys)
 
 
 def rod_arguments(scene: Scene) -> dict:
@@ -345,7 +377,8 @@ def rod_parameters(scene: Scene):
     return RodParameters(length=geo["length"], **tensors, rho_A=scalars.get("density", 0.0),
                          drag=scalars.get("drag", 0.0), I11=I11, I22=I22, energy=energy,
                          reference_curvature=geo["reference_curvature"],
-                         reference_stretch=geo["reference_stretch"])
+                         reference_stretch=geo["reference_stretch"],
+                         reference_shape=curve(geo["reference_shape"]))
 
 
 def rod_loads(scene: Scene) -> tuple[list, list]:

@@ -13,7 +13,8 @@ from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..rod.rotation_choice import (choose_rotations, rotation_vector_obstacle,
                                    rotations_reason)
-from ..checks import EQUILIBRIUM_NEEDS, polyline_problem, sample_points, slide_axis_problem
+from ..checks import (EQUILIBRIUM_NEEDS, MAX_CELL_TURN, polyline_problem, sample_points,
+                      slide_axis_problem)
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene
@@ -31,7 +32,7 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("section", k) for k in ("shape", "radius", "semi_axes", "sides", "outer_radius",
                              "inner_radius", "shear_factor")} | {
     ("geometry", "reference_curvature"), ("geometry", "reference_stretch"),
-    ("geometry", "rotations"),
+    ("geometry", "reference_shape"), ("geometry", "rotations"),
     ("initial", "natural_curvature"), ("initial", "natural_stretch"),
     *(("initial", k) for k in START_KEYS),
     ("boundary", "start_rotation"), ("boundary", "end_displacement"),
@@ -43,7 +44,8 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("loads", "start_couple"), ("obstacles", "shape")} | {
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
                              "between_rods")} | {
-    ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue")}
+    ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue",
+                               "at_bifurcation")}
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
 
 
@@ -354,12 +356,24 @@ def _check_rod_start(scene: Scene) -> None:
     if ini["rotation_centre"] is not None and ini["angular_velocity"] is None:
         raise err("initial.rotation_centre", "needs initial.angular_velocity (the rigid "
                                              "rotation about it)")
-    shape = ini["shape"]
+    _check_curve(scene, "initial.shape", ini["shape"])
+    geo = scene["geometry"]
+    if geo["reference_shape"] is not None:
+        strains = [k for k in ("reference_curvature", "reference_stretch")
+                   if k in scene.given["geometry"]]
+        if strains:
+            raise err("geometry.reference_shape", f"the stress-free shape is a curve or the "
+                                                  f"helix of geometry.{strains[0]}, not both")
+        _check_curve(scene, "geometry.reference_shape", geo["reference_shape"])
+
+
+def _check_curve(scene: Scene, key: str, shape: dict | None) -> None:
+    """A polyline (rod/start.py) of the rod's length, or an error naming ``key``."""
     if shape is not None and shape["type"] == "polyline":
         problem = polyline_problem(shape["points"], shape["rest_arc_length"], shape["normal"],
                                    scene["geometry"]["length"])
         if problem:
-            raise err(f"initial.shape.{problem[0]}", problem[1])
+            raise scene.error(f"{key}.{problem[0]}", problem[1])
 
 
 def rod_rotations(scene: Scene) -> str:
@@ -403,9 +417,10 @@ def _rotations(scene: Scene, choose) -> str:
 
 def _check_turns_resolved(scene: Scene) -> None:
     """The prescribed end rotations turn one end against the other by at most what
-    geometry.n_cells cells represent: each cell's relative rotation stays below pi (the
-    nodal rotations' interpolation takes the shorter way round; 100 rad on 4 cells wrapped
-    silently to a wrong energy and a couple of the wrong sign, issue 28 item 4).  The
+    geometry.n_cells cells represent: each cell's relative rotation stays below
+    checks.MAX_CELL_TURN (100 rad on 4 cells wrapped silently to a wrong energy and a
+    couple of the wrong sign, issue 28 item 4; runs check it after every step, for
+    couples too: RodModel.check_cell_turns).  The
     largest angle is taken at the histories' breakpoints up to t_end (linear or monotone
     in between)."""
     bnd, n = scene["boundary"], scene["geometry"]["n_cells"]
@@ -418,12 +433,13 @@ def _check_turns_resolved(scene: Scene) -> None:
     zero = lambda t: np.zeros(3)                                     # noqa: E731
     start, end = (spec.vector() if spec is not None else zero for spec in specs.values())
     angle = max(float(np.linalg.norm(end(t) - start(t))) for t in times)
-    if angle >= n * math.pi:
+    if angle >= n * MAX_CELL_TURN:
         key = "end" if specs["end"] is not None else "start"
         raise scene.error(f"boundary.{key}_rotation", f"turns one end against the other by "
                           f"{angle:.4g} rad, more than geometry.n_cells = {n} cells "
-                          "represent (each cell's relative rotation must stay below pi): "
-                          f"take n_cells >= {math.floor(angle / math.pi) + 1}")
+                          "represent (each cell's relative rotation must stay below "
+                          f"{MAX_CELL_TURN:g} rad): take n_cells >= "
+                          f"{math.floor(angle / MAX_CELL_TURN) + 1}")
 
 
 def _spring(scene: Scene, end: str, position_held: bool, rotation_held: bool) -> dict:
@@ -544,3 +560,36 @@ def _check_rod_ends(scene: Scene) -> None:
         raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "
                                     "rotation somewhere (e.g. start = \"clamped\"); rigid "
                                     "motions are free otherwise")
+
+
+# loads and end motions a buckling analysis scales ([loads] and [boundary] keys)
+LOAD_KEYS = ("end_force", "end_couple", "start_force", "start_couple", "distributed_force",
+             "distributed_couple")
+MOTION_KEYS = ("end_rotation", "start_rotation", "end_displacement", "start_displacement")
+
+
+def analysis_problem(scene: Scene, kind: str) -> None:
+    """Refuse (SceneError naming the key) a scene that ``dolfin-rod buckle`` ("buckle")
+    or ``modes`` ("modes") cannot analyse, before any work: a 3-D rod on rotation
+    vectors without joints; buckling a quasi-static one with a load or end motion,
+    modes one with mass (docs/stability.md)."""
+    if not scene.is_rod_material:
+        raise scene.error("material", f"{kind}: a 3-D rod (material.stiffness, or a "
+                                      "[section] with material.youngs_modulus)")
+    if scene.joints:
+        raise scene.error("joints", f"{kind}: rods joined by joints are not supported")
+    mat = scene["material"]
+    if kind == "modes" and not mat["dynamic"]:
+        raise scene.error("material.density", "modes: the rod's mass (material.density "
+                                               "> 0, and material.section_inertia)")
+    if kind == "buckle":
+        if mat["dynamic"]:
+            raise scene.error("material.density", "buckle: a quasi-static rod (no "
+                                                   "density); for a dynamic one: modes")
+        if not any(scene["loads"][k] is not None for k in LOAD_KEYS) and not any(
+                scene["boundary"][k] is not None for k in MOTION_KEYS):
+            raise scene.error("loads", "buckle: a load (loads.end_force, ...) or an end "
+                                       "motion (boundary.end_rotation, ...) to scale")
+    if rod_rotations(scene) != "rotation_vector":
+        raise scene.error("geometry.rotations", f"{kind}: rotation-vector unknowns "
+                                                "(geometry.rotations = \"rotation_vector\")")

@@ -121,10 +121,12 @@ switching variant on a rod with L != 1 rescales time by L.
 **Several rods** (a RodSystem, docs/systems.md).  `[[rods]]` tables, one per rod: `name`
 (unique; the rod's output columns are `<name>.<key>`), `position` (its s = 0 end, m),
 `orientation` (a rotation vector turning e_3 into its initial tangent), and its own
-`geometry`, `section`, `material`, `boundary`, `loads` as inline tables laid over the
-scene's tables key by key (an error names `rods[k].<table>.<key>`; `material.model`,
-`variant`, `constraints`, `energy` and `geometry.rotations` are shared and given in the
-scene's tables only).  `[[joints]]` tables: `kind` ("rigid": position and rotation tied,
+`geometry`, `section`, `material`, `boundary`, `loads`, `initial` as inline tables laid
+over the scene's tables key by key (an error names `rods[k].<table>.<key>`;
+`material.model`, `variant`, `constraints`, `energy`, `geometry.rotations` and
+`initial.natural_*` are shared and given in the scene's tables only; a rod's starting
+state, `initial.shape`, `position`, `orientation`, velocities, is in its placed frame,
+and the starts of joined rods must meet as the joint holds them).  `[[joints]]` tables: `kind` ("rigid": position and rotation tied,
 "ball": position tied, "hinge": position tied, rotations equal up to a turn about
 `axis`), `rods = [a, b]`, `point = [x, y, z]` (a node of both rods at t = 0, not a
 supported end), `axis = [x, y, z]` (a hinge's, a unit vector at t = 0, turning with the
@@ -136,7 +138,8 @@ rods), `name` (its reaction columns `joint_<name>_force_{xyz}`,
 with inertia (density > 0; torsion: nu > 0) cannot follow a jump of a prescribed end
 motion (a `step`, at any `t0`), nor, unless `time.adaptive`, a ramp, smooth step or
 table segment shorter than `time.dt`.  Prescribed rotations may turn one end against the
-other by less than pi per cell (`geometry.n_cells` > angle/pi).  A `material.energy`
+other by less than 2 rad per cell (`geometry.n_cells` > angle/2, checks.MAX_CELL_TURN);
+a run whose cell turns by more (end couples too) stops, exit 3 naming the cells needed.  A `material.energy`
 must be stress-free and convex at the natural strains and convex at the start strains
 (`natural_state.start_state_problem`).
 """
@@ -164,6 +167,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "reference_stretch": Key(vector3(), (0.0, 0.0, 1.0),
                                  R + "stretch v_ref of the stress-free initial shape "
                                  "(v_ref,3 > 0)"),
+        "reference_shape": Key(starting_shape, None,
+                               R + "the stress-free shape as a curve instead of "
+                               "reference_curvature/stretch, from the rod's start along e3 "
+                               "(then placed as the rod): {type = \"polyline\", points = "
+                               "[[x, y, z], ...], normal = [1, 0, 0]} (a bent frame as one "
+                               "rod: a corner at a node turns its two cells by half the "
+                               "angle each), or an arc or helix (as initial.shape)"),
         "rotations": Key(choice(*ROTATIONS), ROTATION_UNKNOWNS,
                          R + "rotation unknowns: auto = rotation_vector (6 unknowns per "
                          "node; the fast default) for the local variant, no constraint and "
@@ -382,6 +392,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                               "constraints: also the lowest eigenvalue of "
                                               "K v = lambda G v (G: the lumped L2 metric; column "
                                               "lowest_eigenvalue; SLEPc, ~10-30 ms a step)"),
+        "at_bifurcation": Key(choice("switch", "stay"), "switch", R + "quasi-static, rotation "
+                              "vectors: when a step makes the equilibrium unstable (the "
+                              "count rises), switch to a stable equilibrium at the same "
+                              "loads, down the energy from the unstable one perturbed along "
+                              "the critical mode (a warning says so) | stay on the computed "
+                              "path (docs/stability.md)"),
         "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
                                               "> 0) is a result: status \"completed\", exit 0 "
                                               "(default: \"completed (unstable equilibrium)\", "

@@ -6,7 +6,10 @@ vanish at rest in them, dpsi/du = dpsi/dv = 0 at (u, v) = (u_d, v_d) (eq. natura
 for the state to be stable, psi(u_d, v_d, ., .) is minimal there: its Hessian in (u, v)
 is positive definite.  ``check_natural_state`` evaluates both for given natural states
 with UFL's exact derivatives on constant vectors (UFL folds them to floats), so it
-applies to any energy a scene names (``material.energy``) without hand derivatives.
+applies to any energy a scene names (``material.energy``) without hand derivatives.  An
+energy that carries them (``psi.derivatives(u_d, v_d, u, v)`` -> the same 6-vector and 6x6
+matrix in numpy, dna.psi) is checked at a scene's start without UFL, which is imported
+only where it evaluates (``dolfin-rod check`` stays free of it).
 """
 
 from __future__ import annotations
@@ -15,8 +18,6 @@ from dataclasses import dataclass
 from typing import Callable, Iterable
 
 import numpy as np
-import ufl
-from ufl.algorithms import expand_derivatives
 
 __all__ = ["NaturalStateReport", "check_natural_state", "stationarity_and_hessian",
            "start_state_problem"]
@@ -45,6 +46,9 @@ def stationarity_and_hessian(psi: Callable, u_d, v_d, u=None, v=None,
                              ) -> tuple[np.ndarray, np.ndarray]:
     """(dpsi/d(u, v), d^2psi/d(u, v)^2) at (u, v) (default: u = u_d, v = v_d): a 6-vector
     and a 6x6 matrix."""
+    import ufl
+    from ufl.algorithms import expand_derivatives
+
     def constant(a):
         return ufl.as_vector([float(x) for x in a])
     strains = (ufl.variable(constant(u_d if u is None else u)),
@@ -86,17 +90,20 @@ def start_state_problem(psi: Callable, natural: tuple, start: tuple,
     or couple at rest, |dpsi/d(u, v)| above ``gradient_tol`` times the largest stiffness
     |eigenvalue|, a strain) or not a minimum (Assumption ass:natural); at the start
     strains ``start`` = (u, v) not convex (a concave energy bends the rod against the
-    load); or not finite, or not a scalar."""
+    load); or not finite, or not a scalar.  ``psi.derivatives``, if psi has them (module
+    docstring), replace UFL's."""
+    by_hand = getattr(psi, "derivatives", None)
+
     def at(u_d, v_d, u=None, v=None):
-        g, h = stationarity_and_hessian(psi, u_d, v_d, u, v)
+        g, h = by_hand(u_d, v_d, u_d if u is None else u, v_d if v is None else v) \
+            if by_hand else stationarity_and_hessian(psi, u_d, v_d, u, v)
         if not (np.all(np.isfinite(g)) and np.all(np.isfinite(h))):
             raise ValueError
         return g, np.linalg.eigvalsh(0.5 * (h + h.T))
     where = f"u_d = {list(natural[0])}, v_d = {list(natural[1])}"
-    value = psi(*(ufl.as_vector([float(x) for x in a]) for a in (*natural, *start)))
-    if not isinstance(value, ufl.core.expr.Expr) or ufl.shape(value) != ():
-        return ("psi must return a scalar UFL expression, got shape "
-                f"{getattr(value, 'ufl_shape', type(value).__name__)}")
+    problem = None if by_hand else _not_a_scalar(psi, natural, start)
+    if problem:
+        return problem
     try:
         g, eig = at(*natural)
         start_eig = eig if tuple(map(tuple, start)) == tuple(map(tuple, natural)) \
@@ -112,4 +119,14 @@ def start_state_problem(psi: Callable, natural: tuple, start: tuple,
         if values.min() <= 0.0:
             return (f"psi is not convex at the {name}: d^2psi/d(u, v)^2 has the eigenvalue "
                     f"{values.min():.3g} (Assumption ass:natural: a minimum)")
+    return None
+
+
+def _not_a_scalar(psi: Callable, natural: tuple, start: tuple) -> str | None:
+    """Why psi's value at the start is not a scalar UFL expression (None if it is)."""
+    import ufl
+    value = psi(*(ufl.as_vector([float(x) for x in a]) for a in (*natural, *start)))
+    if not isinstance(value, ufl.core.expr.Expr) or ufl.shape(value) != ():
+        return ("psi must return a scalar UFL expression, got shape "
+                f"{getattr(value, 'ufl_shape', type(value).__name__)}")
     return None

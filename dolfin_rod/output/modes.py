@@ -1,0 +1,63 @@
+"""The modes of an analysis of a run's end state (``dolfin-rod buckle``, ``modes``):
+``<kind>.json`` (the table: one row per mode), ``<kind>.bp`` (ParaView, the
+ADIOS2VTXReader: one step per mode, "time" = the mode's number, the centre line
+displaced by the mode scaled to a largest displacement of 0.1 L, with the point data
+``mode_displacement`` and ``mode_rotation`` of the mode scaled to 1) and the table as
+text.  The mode shapes are gathered on rank 0 in the order of s (line_fields.py);
+rank 0 writes.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from .line_fields import LineSampler
+from .run_folders import on_root
+from .vtx import LineVTX
+
+__all__ = ["write_modes", "table"]
+
+AMPLITUDE = 0.1        # the drawn mode's largest displacement, in rod lengths
+
+
+def write_modes(folder: Path, model, kind: str, rows: list[dict], shapes: list[dict],
+                comm) -> list[str]:
+    """``<kind>.json`` and ``<kind>.bp`` in ``folder`` (see the module); the file names."""
+    import dolfinx.fem as fem
+    fields = {name: fem.Function(model.f[block].function_space)
+              for name, block in (("mode_displacement", "displacement"),
+                                  ("mode_rotation", model.unknowns.rotation))}
+    observables = {"centre_line": model.observables()["centre_line"], **fields}
+    sampler = LineSampler(model.mesh, observables, tuple(observables))
+    samples = []
+    for shape in shapes:
+        fields["mode_displacement"].x.array[:] = shape["displacement"]
+        fields["mode_rotation"].x.array[:] = shape["rotation"]
+        samples.append(sampler.sample())
+    names = [f"{kind}.json", f"{kind}.bp"]
+
+    def write() -> None:
+        (folder / names[0]).write_text(json.dumps({"kind": kind, "modes": rows}, indent=1))
+        vtx = LineVTX(folder / names[1])
+        for k, sample in enumerate(samples, start=1):
+            points = sample.point["centre_line"] + AMPLITUDE * model.length * \
+                sample.point["mode_displacement"]
+            vtx.write(float(k), points, {n: sample.point[n] for n in fields}, {},
+                      sample.segments())
+        vtx.close()
+    on_root(comm, write, f"cannot write the {kind} modes in {folder}")
+    return names
+
+
+def table(rows: list[dict]) -> str:
+    """The rows as a text table (the keys of the first row as its columns)."""
+    if not rows:
+        return "(no modes)"
+    keys = list(rows[0])
+    cells = [[f"{r[k]:.6g}" if isinstance(r[k], float) else str(r[k]) for k in keys]
+             for r in rows]
+    widths = [max(len(k), *(len(c[i]) for c in cells)) for i, k in enumerate(keys)]
+    line = lambda items: "  ".join(s.rjust(w) for s, w in zip(items, widths))  # noqa: E731
+    return "\n".join([line(keys)] + [line(c) for c in cells])
+

@@ -1,0 +1,127 @@
+"""Branch switching at bifurcations of quasi-static paths (issue 27 item 2,
+dolfin_rod/analysis/branches.py), from scenes.
+
+* The clamped-free elastica (EI = 1, L = 1, GA = EA = 1e5, a compressive dead load P at
+  the free end ramped from 0): past Euler's load P_cr = pi^2/4 the straight column is
+  unstable and the run switches to the buckled branch.  Reference (Timoshenko & Gere,
+  Theory of Elastic Stability, sec. 2.7), computed here with scipy's complete elliptic
+  integrals: lambda = sqrt(P/EI), k = sin(alpha/2) from L lambda = K(k), tip deflection
+  2k/lambda, axial tip position (2E(k) - K(k))/lambda.  Measured at 16 cells (deflection,
+  axial position, errors): 1.5 P_cr 0.787809 (-0.10 %), 0.368179 (+4.6e-3 L); 3 P_cr
+  0.709506 (+0.30 %), -0.198491 (+5.6e-3 L); at 8 and 32 cells the axial errors are
+  1.83e-2 and 1.39e-3 L: second order in h (ratios 3.98, 4.05).  Tolerance 1e-2 L on
+  both: twice the 16-cell error (extensibility and shear, P/EA <= 7.4e-5, are far below).
+  Reached with no imperfection (the branch switch decides the side) and with a lateral
+  load of 1e-4 P ramped with P, which decides the side: the deflection must be on its
+  side (the issue's runs ended on the other, straight and unstable).
+* The rod of the issue's first bullet: clamped at both ends, twisted 2.5 turns
+  quasi-statically (Greenhill's critical twist 2.861 pi = 8.99 rad, passed at t = 0.58
+  of 50 steps): it switches there and ends buckled and stable, with less energy than
+  the straight (unstable) rod at the same twist (measured 128.485 against 128.499 EI/L)
+  and a bending couple of 0.189 EI/L at the clamps (0 on the straight rod).
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from scipy.optimize import brentq
+from scipy.special import ellipe, ellipk
+
+import dolfin_rod
+from test_stability import COLUMN_SCENE
+
+TWISTED = """
+[geometry]
+length = 1.0
+n_cells = 16
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 1.0], B = [1e5, 1e5, 1e5] }
+[boundary]
+start = "clamped"
+end = "clamped"
+end_rotation = { type = "ramp", value = [0.0, 0.0, 15.707963267948966], duration = 1.0 }
+[time]
+t_end = 1.0
+dt = 0.02
+[stability]
+follow_unstable = true
+[outputs]
+fields = false
+animation = false
+plots = false
+progress = false
+"""
+
+
+def elastica(p: float) -> tuple[float, float]:
+    """(tip deflection, axial tip position) of the clamped-free elastica, EI = L = 1."""
+    lam = math.sqrt(p)
+    k = brentq(lambda k: ellipk(k * k) - lam, 1e-12, 1 - 1e-15)
+    return 2 * k / lam, (2 * ellipe(k * k) - ellipk(k * k)) / lam
+
+
+def rank() -> int:
+    from mpi4py import MPI
+    return MPI.COMM_WORLD.rank
+
+
+def run_scene(tmp_path, text: str, name: str, overrides=None):
+    from mpi4py import MPI
+    path = tmp_path / f"{name}.toml"
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text(text)
+    path = MPI.COMM_WORLD.bcast(str(path))
+    return dolfin_rod.run(path, overrides, out=MPI.COMM_WORLD.bcast(str(tmp_path / name)),
+                          quiet=True)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("imperfection", [0.0, 1e-4])
+@pytest.mark.parametrize("factor, steps", [(1.5, 20), (3.0, 40)])
+def test_post_buckled_elastica_by_branch_switching(tmp_path, capfd, factor, steps,
+                                                   imperfection):
+    """Ramped to 1.5 P_cr in 20 steps or 3 P_cr in 40 (steps of 7.5 % P_cr): one switch,
+    in the first step past P_cr, to the elastica."""
+    p = factor * math.pi ** 2 / 4
+    text = COLUMN_SCENE.format(load=-p, follow="false")     # item 1's column, 8 cells
+    result = run_scene(tmp_path, text, "column", {
+        "geometry.n_cells": 16, "time.dt": 1.0 / steps, "stability.at_bifurcation": "switch",
+        "loads.end_force": {"type": "ramp", "value": [0.0, imperfection * p, -p],
+                            "duration": 1.0}})
+    assert result.status == "completed"
+    err = capfd.readouterr().err
+    t_switch = math.ceil(steps / factor) / steps          # the first step past P_cr
+    if rank() == 0:                                        # (rank 0 warns)
+        assert err.count("switched to a stable branch") == 1, err
+        assert f"t = {t_switch:g}: a bifurcation" in err, err
+    series = result.series
+    assert series["negative_eigenvalues"][-1] == 0
+    deflection, axial = elastica(p)
+    lateral = series["tip_position_y"][-1] if imperfection else math.hypot(
+        series["tip_position_x"][-1], series["tip_position_y"][-1])
+    assert lateral == pytest.approx(deflection, abs=1e-2)      # on the imperfection's side
+    assert series["tip_position_z"][-1] == pytest.approx(axial, abs=1e-2)
+
+
+@pytest.mark.mpi
+def test_twisted_rod_ends_buckled_not_straight(tmp_path, capfd):
+    """2.5 turns in 50 steps: without switching the rod stays straight (sideways 0,
+    unstable: 4 negative eigenvalues at the end); with it, it switches at t = 0.58 (the
+    first step past 2.861 pi) and ends stable, bent (a bending couple at the clamps:
+    none on the straight rod) and with less free energy than the straight rod at the
+    same twist (a stable state the descent reached from it)."""
+    straight = run_scene(tmp_path, TWISTED, "straight", {"stability.at_bifurcation": "stay"})
+    buckled = run_scene(tmp_path, TWISTED, "buckled")
+    err = capfd.readouterr().err
+    if rank() == 0:
+        assert "t = 0.58: a bifurcation" in err and "switched to a stable branch" in err, err
+    assert straight.series["negative_eigenvalues"][-1] == 4
+    assert buckled.series["negative_eigenvalues"][-1] == 0
+    assert buckled.series["free_energy"][-1] < straight.series["free_energy"][-1]
+    lateral = [math.hypot(run.series["reaction_couple_left_x"][-1],
+                          run.series["reaction_couple_left_y"][-1])
+               for run in (straight, buckled)]
+    assert lateral[0] < 1e-8 and lateral[1] > 1e-2, lateral
