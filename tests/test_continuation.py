@@ -18,7 +18,7 @@ points (d steps of ~4e-3: (4e-3)^2 F''/8 ~ 2e-4 F).
 
 from __future__ import annotations
 
-import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,6 +28,7 @@ from dolfin_rod.analysis.continuation import ArcLength
 from dolfin_rod.fem.fe_model import NodeValues
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
 
+ROOT = Path(__file__).resolve().parents[1]
 RADIUS, HALF_ANGLE, CELLS = 10.0, 0.1, 16
 ARCH = RodParameters(length=RADIUS * HALF_ANGLE, A=(1.0, 1.0, 1.0), B=(1e4, 1e4, 1e4),
                      reference_curvature=(1.0 / RADIUS, 0.0, 0.0))   # bends towards -e_2
@@ -89,3 +90,42 @@ def test_shallow_arch_snaps_through_its_limit_points():
     assert extremum(d, lam, bottom) == pytest.approx(extremum(d_ref, F_ref, lower), abs=1e-4)
     assert np.all(np.diff(d) > 0)              # the crown goes down all along the path
     assert lam[-1] >= 1.0 and d[-1] > 0.11     # past the snap, on the far branch
+
+
+@pytest.mark.mpi
+def test_snap_through_scene(tmp_path):
+    """scenes/snap_through_arch.toml ([continuation] method = "arc_length"): the same
+    path as the API's above (its limit loads against displacement control; the series'
+    time is the load factor; the parabola through the steps around each turning point,
+    of equal arc lengths: 0.405589 and -0.149688, 1.2e-5 and 1.8e-5 off; tolerance 1e-3),
+    and the tangent's count is 1 on the branch between the limit points and 0 on the
+    others (item 1)."""
+    import dolfin_rod
+    from mpi4py import MPI
+    out = MPI.COMM_WORLD.bcast(str(tmp_path / "arch"))
+    result = dolfin_rod.run(ROOT / "scenes" / "snap_through_arch.toml",
+                            {"outputs.fields": False, "outputs.animation": False},
+                            out=out, quiet=True)
+    assert result.status == "completed"
+    lam = np.array(result.series["time"])
+    count = np.array(result.series["negative_eigenvalues"])
+    top, bottom = turning_points(lam)
+    steps = np.arange(len(lam), dtype=float)
+    d_ref, F_ref = displacement_controlled()
+    upper, lower = turning_points(F_ref)
+    assert extremum(steps, lam, top) == pytest.approx(extremum(d_ref, F_ref, upper), abs=1e-3)
+    assert extremum(steps, lam, bottom) == pytest.approx(extremum(d_ref, F_ref, lower),
+                                                         abs=1e-3)
+    assert np.all(count[:top] == 0) and np.all(count[top + 2:bottom] == 1) \
+        and np.all(count[bottom + 2:] == 0), count
+
+
+def test_a_continuation_parameter_that_is_not_a_load_is_refused(tmp_path, capsys):
+    from dolfin_rod.cli import main
+    scene = tmp_path / "arch.toml"
+    scene.write_text((ROOT / "scenes" / "snap_through_arch.toml").read_text().replace(
+        'parameter = "loads.start_force"', 'parameter = "material.stiffness"'))
+    assert main(["check", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert "[continuation.parameter]: 'material.stiffness' is not a load of this scene: " \
+           "name one of loads.start_force" in err, err

@@ -138,9 +138,10 @@ class ArcLength:
         self.psi, self.observe, self.max_steps = load_scale, observe, max_steps
         self.points: list[tuple[float, float]] = []
 
-    def run(self, lam0: float, lam_end: float) -> float:
-        """From the equilibrium at lam0 (the model's state) until lambda >= lam_end; the
-        last lambda.  SolverError if a step fails below ds_min."""
+    def run(self, lam0: float, lam_end: float, after_step=None) -> float:
+        """From the equilibrium at lam0 (the model's state) until lambda >= lam_end, at
+        most max_steps steps, ``after_step(lambda)`` after each; the last lambda.
+        SolverError if a step fails below ds_min."""
         lam = lam0
         self.path.set_parameter(lam)
         tangent, d_lam = self._first_tangent(lam)
@@ -149,6 +150,8 @@ class ArcLength:
             if lam >= lam_end:
                 break
             lam, tangent, d_lam = self._step(lam, tangent, d_lam)
+            if after_step is not None:
+                after_step(lam)
         return lam
 
     def _first_tangent(self, lam: float):
