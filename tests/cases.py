@@ -40,3 +40,13 @@ def hinged_door(comm=MPI.COMM_WORLD) -> dict[str, float]:
     model.set_initial_state()
     TimeStepper(model.problem, solver_options=ROUND_OFF).run(0.0, 0.1, 5e-3)
     return model.diagnostics(0.1)
+
+
+def spun_pendulum(comm=MPI.COMM_WORLD) -> dict[str, float]:
+    """The double pendulum started by a rigid rotation (tests/test_system_start.py) for
+    0.02 s."""
+    from test_system_start import spun
+    from dolfin_rod import TimeStepper
+    model = spun(comm=comm)
+    TimeStepper(model.problem).run(0.0, 0.02, 2e-3)
+    return model.diagnostics(0.02)

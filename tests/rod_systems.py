@@ -103,11 +103,12 @@ def double_pendulum(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
                      model="hyperelastic", comm=comm)
 
 
-def rigid_double_pendulum(t_end: float, p: dict = PENDULUM):
+def rigid_double_pendulum(t_end: float, p: dict = PENDULUM, rates=(0.0, 0.0)):
     """The rigid double pendulum of two uniform rods (mass rho_A l, moment of inertia
     about the centre rho_A l^3/12 + rho_I l, the section's rotary inertia included):
     Lagrange's equations in the angles from -e_3, solved by solve_ivp to 1e-12
-    (``p``: g, rho_A, rho_I, l1, l2, angles as PENDULUM)."""
+    (``p``: g, rho_A, rho_I, l1, l2, angles as PENDULUM; ``rates``: the angles' rates
+    at t = 0)."""
     from scipy.integrate import solve_ivp
     g, l1, l2 = p["g"], p["l1"], p["l2"]
     m1, m2 = p["rho_A"] * l1, p["rho_A"] * l2
@@ -115,7 +116,7 @@ def rigid_double_pendulum(t_end: float, p: dict = PENDULUM):
     I2 = m2 * l2 ** 2 / 12 + p["rho_I"] * l2
     c = m2 * l1 * l2 / 2
 
-    def rates(t, y):
+    def equations(t, y):
         a, b, wa, wb = y
         M = np.array([[m1 * l1 ** 2 / 4 + I1 + m2 * l1 ** 2, c * np.cos(a - b)],
                       [c * np.cos(a - b), m2 * l2 ** 2 / 4 + I2]])
@@ -123,8 +124,8 @@ def rigid_double_pendulum(t_end: float, p: dict = PENDULUM):
                        -c * np.sin(a - b) * wa ** 2 + m2 * l2 / 2 * g * np.sin(b)])
         return [wa, wb, *np.linalg.solve(M, f)]
 
-    return solve_ivp(rates, (0.0, t_end), [*p["angles"], 0.0, 0.0], rtol=1e-12, atol=1e-12,
-                     dense_output=True)
+    return solve_ivp(equations, (0.0, t_end), [*p["angles"], *rates], rtol=1e-12,
+                     atol=1e-12, dense_output=True)
 
 
 def pendulum_angles(d: dict) -> np.ndarray:

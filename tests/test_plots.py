@@ -58,6 +58,8 @@ def test_unwrapped_angle_of_a_spin():
     angle, axis = unwrapped_angle(q)
     np.testing.assert_allclose(angle, theta, atol=1e-12)
     np.testing.assert_allclose(axis, [0.0, 0.0, 1.0])
+    q[:, 1:3] = -0.0                  # plectoneme printed "about [-0, -0, 1]"
+    assert not np.any(np.signbit(unwrapped_angle(q)[1]))
 
 
 def test_relative_power_residual_of_a_known_history():

@@ -28,7 +28,9 @@ def test_unjoined_rods_move_as_each_alone(placed):
     (ROUND_OFF), but it stops on the system's residual, one iteration sooner or later
     than a rod alone: measured differences 8e-12 (tips, moved rod), 1e-12 (tips,
     turned rod: its rotations and couple turned, which the discrete strains cancel
-    exactly, rotation_vector.py), 2.3e-11 (reactions ~ 1): tolerance 1e-10."""
+    exactly, rotation_vector.py), 2.3e-11 (reactions ~ 1): tolerance 1e-10.  Each rod's
+    own energies (``<name>.free_energy``, ``.kinetic_energy``) are its run alone's, and
+    they add up to the system's (round-off: 1e-14)."""
     system = run_system(two_rods(placed))
     a, b = run_system(alone("a")), run_system(alone("b"))
     turn = turn_b() if placed else np.eye(3)
@@ -43,6 +45,12 @@ def test_unjoined_rods_move_as_each_alone(placed):
                                rtol=0, atol=tol)
     for key in ("free_energy", "kinetic_energy", "dissipation_rate", "load_power"):
         assert system[key] == pytest.approx(a[key] + b[key], rel=tol, abs=tol)
+    for key in ("free_energy", "kinetic_energy"):
+        for rod, own in (("a", a), ("b", b)):
+            assert system[f"{rod}.{key}"] == pytest.approx(own[key], rel=tol, abs=tol)
+        assert system[f"a.{key}"] + system[f"b.{key}"] == pytest.approx(system[key],
+                                                                      rel=1e-14, abs=1e-16)
+        assert system[f"a.{key}"] > 0 and system[f"b.{key}"] > 0
     assert abs(a["tip_position_x"]) > 0.05 and abs(b["tip_position_x"]) > 0.02  # moved
 
 

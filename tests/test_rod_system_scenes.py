@@ -129,6 +129,55 @@ def test_hinged_door_scene_is_the_api_door():
     assert here["gate.tip_position_y"] > 1e-5          # it turned
 
 
+PENDULUM_SCENE = (ROOT / "scenes" / "double_pendulum.toml").read_text()
+
+
+def test_system_scene_starting_states(tmp_path):
+    """[initial] start keys in a scene of several rods: the scene's for every rod, or a
+    rod's own (rods[k].initial), each in its rod's placed frame (rod/start.RodStarts).
+    double_pendulum.toml spun about its pin, OMEGA e_2, both ways: the kinetic energy at
+    t = 0 the same (round-off, 1e-14) and the rigid rotation's (upper rod 1/2 OMEGA^2
+    (rho_A l^3/3 + rho I_22 l), 1e-12); only the lower rod spun: exit 2 naming
+    `start: joints[0]`; a rod's own initial.natural_curvature: refused (shared)."""
+    from dolfin_rod import run
+    spin = "angular_velocity = [0.0, 1.5, 0.0], rotation_centre = [0.0, 0.0, 0.0]"
+    shared = PENDULUM_SCENE.replace("[[rods]]\nname = \"upper\"",
+                                    f"[initial]\n{spin.replace(', r', chr(10) + 'r')}\n\n"
+                                    "[[rods]]\nname = \"upper\"", 1)
+    own = PENDULUM_SCENE.replace("boundary = { start = \"pinned\" }",
+                                 f"boundary = {{ start = \"pinned\" }}\ninitial = {{ {spin} }}"
+                                 ).replace("boundary = { start = \"free\" }\n",
+                                           f"boundary = {{ start = \"free\" }}\n"
+                                           f"initial = {{ {spin} }}\n")
+    quiet = {"time.t_end": 0.002, "outputs.animation": False, "outputs.plots": False,
+             "outputs.fields": False}
+    energies = []
+    for k, text in enumerate((shared, own)):
+        path = tmp_path / f"spun{k}.toml"
+        path.write_text(text)
+        series = run(path, quiet, out=tmp_path / f"run{k}", quiet=True).series
+        energies.append((series["kinetic_energy"][0], series["upper.kinetic_energy"][0]))
+    assert energies[1] == pytest.approx(energies[0], rel=1e-14)
+    rho_A, rho_I = 7850.0 * np.pi * 0.005 ** 2, 7850.0 * np.pi * 0.005 ** 4 / 4
+    assert energies[0][1] == pytest.approx(0.5 * 1.5 ** 2 * (rho_A / 3 + rho_I), rel=1e-12)
+    half = PENDULUM_SCENE.replace("boundary = { start = \"free\" }\n",
+                                  f"boundary = {{ start = \"free\" }}\ninitial = {{ {spin} }}\n")
+    bad = tmp_path / "half.toml"
+    bad.write_text(half)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run([sys.executable, "-m", "dolfin_rod", "run", str(bad), "--out",
+                          str(tmp_path / "half"), "--quiet"], capture_output=True, text=True,
+                         timeout=300, cwd=ROOT, env=env)
+    assert out.returncode == 2, out.stderr
+    assert "start: joints[0] (elbow)" in out.stderr and "Traceback" not in out.stderr
+    with pytest.raises(SceneError) as err:
+        parse_scene(PENDULUM_SCENE.replace("boundary = { start = \"pinned\" }",
+                                           "boundary = { start = \"pinned\" }\n"
+                                           "initial = { natural_curvature = [0, 1, 0] }"),
+                    source="double_pendulum.toml")
+    assert err.value.key == "rods[0].initial.natural_curvature"
+
+
 def test_tripod_scene_carries_its_load():
     """scenes/tripod.toml (three legs welded at the head, a load F on the head through
     leg3's tip): the three clamps' reactions balance F (reaction = -F summed, measured

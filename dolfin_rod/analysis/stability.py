@@ -99,6 +99,7 @@ class TangentStiffness:
         self.fixed = PETSc.IS().createGeneral(
             (self.system.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         self._ksp = None        # at the first check: its options are then read at once
+        self._symmetric = None  # K as SBAIJ, the factorisation's input
 
     @staticmethod
     def _free_dofs(model, names) -> int:
@@ -148,19 +149,25 @@ class TangentStiffness:
     def inertia(self, t: float, metric: PETSc.Mat | None = None) -> Inertia:
         """The inertia of K at the current state and time t's loads; with a ``metric``
         G, the negative count is that of the eigenvalues of K v = lambda G v below
-        -ZERO max K_ii / max G_ii (of K + that shift times G)."""
+        -ZERO max K_ii / max G_ii (of K + that shift times G).  MUMPS's LDL^T reads
+        SBAIJ: one copy, kept, its values replaced at each check (K's pattern is fixed;
+        G's is a part of it), so that MUMPS keeps its analysis (ordering, symbolic
+        factorisation) and only refactorises."""
         K = self.matrix(t)
         if metric is not None:
             shift = ZERO * _largest_diagonal(K) / _largest_diagonal(metric)
             K.axpy(shift, metric, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
             K.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        K = K.convert("sbaij", PETSc.Mat())   # MUMPS's LDL^T reads SBAIJ
-        self._ksp = self._ksp or self._factorisation(K.getComm())
-        self._ksp.setOperators(K)
+        if self._ksp is None:
+            self._symmetric = K.convert("sbaij", PETSc.Mat())
+            self._ksp = self._factorisation(K.getComm())
+            self._ksp.setOperators(self._symmetric)
+        else:
+            K.convert("sbaij", self._symmetric)            # values only
+        K.destroy()
         pc = self._ksp.getPC()
         pc.setUp()
         negative, zero, _ = pc.getFactorMatrix().getInertia()  # after setUp: this K's
-        K.destroy()
         return Inertia(negative - self.multipliers, zero)
 
     def _factorisation(self, comm) -> PETSc.KSP:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .run_folders import on_root
 
 class FieldOutputs:
     """The fields along the rod of an FE model (RodModel or TorsionModel, anything with
@@ -41,8 +42,11 @@ class FieldOutputs:
         if self.sampler is None:
             return
         sample = self.sampler.sample()
-        if sample is None:
-            return
+        on_root(self.comm, lambda: self._keep(t, sample),     # a full disk: every rank
+                f"cannot write the fields along the rod in {self.folder}")
+
+    def _keep(self, t: float, sample) -> None:
+        """Rank 0: the sample to rod.bp, rod.pvd and the frames."""
         if self.frames is None:
             self._start()
         for writer in self.writers:

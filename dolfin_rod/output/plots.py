@@ -83,7 +83,7 @@ def unwrapped_angle(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if norm == 0.0:
         return np.zeros(len(q)), np.array([0.0, 0.0, 1.0])
     a = v[k] / norm
-    a = a * np.sign(a[np.argmax(np.abs(a))])
+    a = a * np.sign(a[np.argmax(np.abs(a))]) + 0.0     # (+ 0.0: no "-0" printed)
     return np.unwrap(2.0 * np.arctan2(v @ a, q[:, 0])), a
 
 
@@ -170,6 +170,11 @@ def _reactions(ax, col, units, scene):
                      for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
                      if f"{rod}reaction_{name}_left_{c}" in col.rows[0]})
     is_force = {label: label.split(".")[-1][0] == "F" for label in series}
+    if not any(is_force.values()):      # forces all round-off: the couples on the axis
+        for label, x in series.items():
+            ax.plot(col.t, x, "--", label=label)
+        ax.legend(fontsize="small")
+        return "reactions of the support at s = 0", axis_label("couple (dashed)", "moment", units)
     twin = ax.twinx() if not all(is_force.values()) else None
     for label, x in series.items():
         (ax if is_force[label] else twin).plot(col.t, x, "-" if is_force[label] else "--",

@@ -12,11 +12,17 @@ up to that time are kept and the new steps appended after them.
 
     w = LineVTX(path); w.write(t, points, {"d1": ...}, {"u": ...}); w.close()
     steps = read_vtx(path)     # [{"time", "points", "cells", "point", "cell"}, ...]
+
+A failed write (a full disk: ADIOS2 raises RuntimeError "couldn't write to file ...
+errno = 28") is raised as OSError with that errno; the stream is then broken and
+``close`` closes what it can, quietly.
 """
 
 from __future__ import annotations
 
+import errno
 import os
+import re
 import shutil
 from pathlib import Path
 
@@ -67,6 +73,7 @@ class LineVTX:
         io.set_engine("BP4")
         self._stream = adios2.Stream(io, str(self.path), "w")
         self._schema_written = False
+        self.broken = False            # a write failed: close quietly
         for s in kept:
             self.write(s["time"], s["points"], s["point"], s["cell"], s["cells"])
         self.kept = kept
@@ -74,7 +81,14 @@ class LineVTX:
     def write(self, t: float, points: np.ndarray, point_data: dict, cell_data: dict,
               cells: np.ndarray | None = None) -> None:
         """One step; ``cells``: the two point indices of each line (None: the points in
-        order, one line through all)."""
+        order, one line through all).  OSError if ADIOS2 cannot write it."""
+        try:
+            self._write(t, points, point_data, cell_data, cells)
+        except RuntimeError as err:
+            self.broken = True
+            raise adios2_os_error(err, self.path) from None
+
+    def _write(self, t, points, point_data, cell_data, cells) -> None:
         n = len(points)
         if cells is None:
             cells = np.column_stack([np.arange(n - 1), np.arange(1, n)])
@@ -95,7 +109,53 @@ class LineVTX:
         st.end_step()
 
     def close(self) -> None:
-        self._stream.close()
+        """Close the file (OSError if its last data cannot be written); after a failed
+        write, close what can be closed and say nothing (the write raised)."""
+        try:
+            self._stream.close()
+        except RuntimeError as err:
+            if not self.broken:
+                self.broken = True
+                raise adios2_os_error(err, self.path) from None
+        finally:
+            if self.broken:
+                self._forget()
+
+    def _forget(self) -> None:
+        """Drop the broken stream (quietly: ADIOS2's destructor of an engine whose close
+        failed prints "Destroyed without a prior Close()"; the write's error was raised
+        already)."""
+        def drop():
+            self._stream = self._adios = None
+        quietly(drop)
+
+
+def quietly(action) -> None:
+    """``action()`` with file descriptor 2 on /dev/null (C++ destructors' messages),
+    then a garbage collection there too."""
+    import gc
+    import sys
+    sys.stderr.flush()
+    saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+        action()
+        gc.collect()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
+
+
+def adios2_os_error(err: RuntimeError, path: Path) -> OSError:
+    """ADIOS2's RuntimeError of a failed file operation as an OSError: its errno and
+    strerror when the message names them ("errno = 28: No space left on device"), else
+    EIO with the message's first line."""
+    found = re.search(r"errno = (\d+): ([^\x1b\n]+)", str(err))
+    if found:
+        return OSError(int(found.group(1)), found.group(2).strip(), str(path))
+    first = re.sub(r"\x1b\[[0-9;]*m", "", str(err)).strip().split("\n")[0]
+    return OSError(errno.EIO, first, str(path))
 
 
 def _local(stream, name: str, array: np.ndarray) -> None:

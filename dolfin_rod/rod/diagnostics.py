@@ -25,14 +25,29 @@ def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation,
                  support_energy=0) -> dict:
     """free_energy (with the springs' energy of compliant supports), dissipation_rate,
     kinetic_energy, load_power."""
-    V, W, dx_r = unk.V, unk.W, disc.dx_r
-    dynamic = unk.dynamic
-    kinetic = 0.5 * (c["rho_A"] * ufl.inner(V, V) + ufl.inner(W, ufl.dot(c["J"], W)))
+    dx_r = disc.dx_r
     forms = {"free_energy": resp.psi * dx_r + support_energy,
              "dissipation_rate": xi * dx_r + drag_dissipation,
-             "kinetic_energy": kinetic * disc.dx if dynamic else 0 * resp.psi * dx_r,
+             "kinetic_energy": _kinetic(resp, c, unk, disc),
              "load_power": 0 * resp.psi * dx_r + power}
     return forms
+
+
+def _kinetic(resp, c: dict, unk, disc, chi=None):
+    """The kinetic energy's form (on the part of indicator chi, if given; 0
+    quasi-static)."""
+    if not unk.dynamic:
+        return 0 * resp.psi * disc.dx_r
+    V, W = unk.V, unk.W
+    kinetic = 0.5 * (c["rho_A"] * ufl.inner(V, V) + ufl.inner(W, ufl.dot(c["J"], W)))
+    return (kinetic if chi is None else chi * kinetic) * disc.dx
+
+
+def rod_energy_forms(name: str, resp, c: dict, unk, disc, chi, support_energy=0) -> dict:
+    """One rod's free energy (with its springs) and kinetic energy, ``<name>.<key>``, on
+    its indicator chi (layout.Pieces.indicator)."""
+    return {f"{name}.free_energy": chi * resp.psi * disc.dx_r + support_energy,
+            f"{name}.kinetic_energy": _kinetic(resp, c, unk, disc, chi)}
 
 
 class Tip:

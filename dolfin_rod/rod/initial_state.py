@@ -7,6 +7,8 @@ state (rod/start.py: placed, another centre line, velocities, static equilibrium
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import dolfinx.fem as fem
 import numpy as np
 import ufl
@@ -64,7 +66,12 @@ def shape(params, s, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
 def placed_shape(rod, s) -> tuple[np.ndarray, np.ndarray]:
     """(r, q) of one rod (rods.Rod) at its own arc lengths s: the helix of its reference
     strains, turned by its orientation, moved to its position."""
-    r, q = shape(rod.params, s, rod.n_cells)
+    return place(rod, *shape(rod.params, s, rod.n_cells))
+
+
+def place(rod, r, q) -> tuple[np.ndarray, np.ndarray]:
+    """Positions r and rotations q in a rod's own frame turned by its orientation and
+    moved to its position (rods.Rod)."""
     turn = np_quaternion_from_rotation_vector(np.asarray(rod.orientation, float))
     return (np.asarray(rod.position, float) + r @ np_rotation_matrix(turn).T,
             np_qmul(turn, q))
@@ -194,9 +201,12 @@ def settle(model, t: float) -> None:
         g.x.array[:] = 0.0
     problem.set_loads(t)
     problem.set_bcs(t)
+    links = [replace(link, block=names.index(model.names[link.block]))    # joints
+             for link in problem.links]
     solver = BlockSNES([model.residual[n] for n in names], [unk.f[n] for n in names],
                        [bc for n in names for bc in model.bcs_of(n)],
-                       {"snes_max_it": 50}, step_scale=problem.configuration_norm())
+                       {"snes_max_it": 50}, step_scale=problem.configuration_norm(),
+                       links=links)
     try:
         solver.solve()
     except SolverError as err:

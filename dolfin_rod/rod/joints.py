@@ -41,6 +41,7 @@ from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
 from ..theory.rotations import np_qmul, np_rotation_matrix
 from .boundary_conditions import spatial_rotations
 from .initial_state import placed_shape, stress_free
+from .start import RodStarts
 
 KINDS = ("rigid", "ball", "hinge")
 _CONJ = np.array([1.0, -1, -1, -1])
@@ -235,6 +236,47 @@ class Hinge:
             return np.array([self.axis @ (theta_b - alpha)])
         turn = np_qmul(np.concatenate([[2.0], -alpha]), np.concatenate([[2.0], theta_b]))
         return np.array([2.0 * (self.axis @ turn[1:]) / turn[0]])
+
+
+START_TOLERANCE = 1e-9     # joined nodes' mismatch in a starting state, relative
+
+
+def check_joints_at_start(rods, joints: list[Joint], starts: dict) -> None:
+    """The starting states (rod/start.RodStarts of ``starts``, {rod name: StartingState})
+    keep every joint: its two nodes at one point with the same velocity; rigid: the
+    frames' relative rotation as at t = 0 and the same angular velocity; hinge: the
+    hinge axis shared and the relative angular velocity along it.  A ValueError naming
+    ``start`` and the joint otherwise (no model needed: also ``dolfin-rod check``)."""
+    state = RodStarts(starts, rods)
+    scale_r = max(rod.params.length for rod in rods)
+    for k, (joint, (i, node_a, j, node_b)) in enumerate(zip(joints, locate(rods, joints))):
+        (r_a, q_a, v_a, w_a), (r_b, q_b, v_b, w_b) = (
+            (part[0] for part in state.rod_state(rods[m], [node * rods[m].params.length /
+                                                           rods[m].n_cells]))
+            for m, node in ((i, node_a), (j, node_b)))
+        R_a, R_b = np_rotation_matrix(q_a), np_rotation_matrix(q_b)
+        q_a0, q_b0 = (placed_shape(rods[m], [node * rods[m].params.length / rods[m].n_cells])[1][0]
+                      for m, node in ((i, node_a), (j, node_b)))
+        relative = np_rotation_matrix(np_qmul(q_a0 * _CONJ, q_b0))
+        scale_v = max(1.0, np.abs([*v_a, *v_b]).max() + scale_r * np.abs([*w_a, *w_b]).max())
+        mismatch = {"position": np.linalg.norm(r_a - r_b) / scale_r,
+                    "velocity": np.linalg.norm(v_a - v_b) / scale_v}
+        spin = w_b - w_a
+        if joint.kind == "rigid":
+            mismatch["rotation"] = np.linalg.norm(R_a @ relative - R_b)
+            mismatch["angular velocity"] = np.linalg.norm(spin) * scale_r / scale_v
+        elif joint.kind == "hinge":
+            n = np_rotation_matrix(q_b0).T @ np.asarray(joint.axis, float)
+            along = R_b @ n
+            mismatch["rotation"] = np.linalg.norm(R_a @ relative @ n - along)
+            mismatch["angular velocity"] = np.linalg.norm(
+                spin - along * (along @ spin)) * scale_r / scale_v
+        for what, value in mismatch.items():
+            if value > START_TOLERANCE:
+                raise ValueError(f"start: joints[{k}] ({joint_label(joint)}): the starting "
+                                 f"states give its two rods a different {what} there "
+                                 f"({value:.3g} relative); start the joined rods as the "
+                                 "joint holds them")
 
 
 class JointReactions:

@@ -40,7 +40,8 @@ from .constitutive import check_model, energy_function, section_response
 from .contact import ContactLaw, Obstacle, ObstacleContact
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad
-from .joints import Joint, JointReactions, check_joints, joint_nodes, node_links
+from .joints import (Joint, JointReactions, check_joints, check_joints_at_start, joint_nodes,
+                     node_links)
 from .layout import RodLayout
 from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
@@ -48,7 +49,7 @@ from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
 from .segments import PassThroughCheck
 from .structure import structure
-from .start import StartingState, check_start
+from .start import RodStarts, StartingState, check_rod_starts, check_start
 
 _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
 
@@ -216,20 +217,21 @@ class RodModel(FEModel):
 
     def _end_supports(self, F: dict, disc):
         """Every rod's end supports; compliant ones add their energy's variation to the
-        balance F. Returns the springs' energy (0 without springs)."""
+        balance F. Returns each rod's springs' energy (0 without springs)."""
         unk = self.unknowns
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
                                          rod.end_springs, rod.end_turn)
                              for k, rod in enumerate(self.rods)]
-        springs = sum((supports.spring_energy(unk, disc.ds, disc.end_weight,
-                                              disc.pieces.indicator(k))
-                       for k, supports in enumerate(self.end_supports)), 0)
+        per_rod = [supports.spring_energy(unk, disc.ds, disc.end_weight,
+                                          disc.pieces.indicator(k))
+                   for k, supports in enumerate(self.end_supports)]
+        springs = sum(per_rod, 0)
         if any(supports.springs for supports in self.end_supports):
             # compliant supports: their energy's variation in the balance
             for block in ("displacement", unk.rotation):
                 F[block] += ufl.derivative(springs, unk.f[block], unk.t[block])
-        return springs
+        return per_rod
 
     def _diagnostics(self, resp, disc, natural_pairs, power, dissipation, springs) -> None:
         """Dissipation density, tips, the energy forms (diagnostics.py) and the check that
@@ -239,7 +241,11 @@ class RodModel(FEModel):
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
         self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(self.rods))]
         forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
-                                         drag_dissipation + friction_dissipation, springs)
+                                         drag_dissipation + friction_dissipation, sum(springs, 0))
+        if not layout.single:       # each rod's own energies, "<name>.free_energy", ...
+            for k, rod in enumerate(self.rods):
+                forms.update(diagnostics.rod_energy_forms(
+                    rod.name, resp, c, unk, disc, disc.pieces.indicator(k), springs[k]))
         if self.contact:
             forms.update(self.contact.diagnostic_forms())
             forms["friction_dissipation"] = friction_dissipation or 0 * resp.psi * disc.dx_r
@@ -382,20 +388,24 @@ class RodModel(FEModel):
         return initial_state.stress_free(self, s)
 
     def set_initial_state(self, natural_curvature=None, natural_stretch=None,
-                          start: StartingState | None = None) -> None:
+                          start: StartingState | dict | None = None) -> None:
         """Natural strains equal to the discrete reference strains of the stress-free
         configuration (a straight rod along e_3, or the helix/circle of constant
         reference_curvature; uniform variant: their mean) unless given (3-vectors).
         ``start`` None: the rod rests in that configuration, no stress at t = 0;
-        a StartingState (rod/start.py; one rod, not a system): placed at its position
+        a StartingState (rod/start.py; a system: {rod name: StartingState}, each in its
+        rod's placed frame, rod/start.RodStarts, consistent at the joints): placed at its position
         and orientation, on its starting curve (e.g. Arc, Helix, Polyline, a Straight one
         stretched), with its velocities (dynamic rods), or settled in static equilibrium
         with the loads at t = 0 (``equilibrium``); the stress-free shape is unchanged."""
-        if start is not None and not self.layout.single:
-            raise ValueError("start: a StartingState is for a single rod; the rods of a "
-                             "system are placed by Rod.position and Rod.orientation")
-        check_start(start, self.length, self.dynamic, rotation_held=(
-            "clamped" in self.supports.ends or bool(self.supports.rotation)))
+        held = any("clamped" in supports.ends or bool(supports.rotation)
+                   for supports in self.end_supports)
+        if self.layout.single:
+            check_start(start, self.length, self.dynamic, rotation_held=held)
+        elif start is not None:
+            check_rod_starts(start, self.rods, self.dynamic, rotation_held=held)
+            check_joints_at_start(self.rods, self.joints, start)
+            start = RodStarts(start, self.rods, self.layout)
         initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
         self.problem.unset_state = ""
         if self.contact:

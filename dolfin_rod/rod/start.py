@@ -38,7 +38,7 @@ import numpy as np
 from ..checks import EQUILIBRIUM_NEEDS, polyline_problem
 from ..theory.rotations import (np_qmul, np_quaternion_from_matrix,
                                 np_quaternion_from_rotation_vector, np_rotation_matrix)
-from .initial_state import helix
+from .initial_state import helix, place, shape as stress_free_shape
 
 Field = tuple | Callable
 
@@ -184,6 +184,64 @@ class StartingState:
         if self.rotation_centre is not None:
             v = v + np.cross(w, r - np.asarray(self.rotation_centre, float))
         return v, w
+
+
+class RodStarts:
+    """The starting states of rods of a system, by rod name (RodSystem.set_initial_state(
+    start={name: StartingState})): each curve, position and orientation in its rod's
+    placed frame (Rod.position, Rod.orientation: by default the rod starts where it is
+    placed), velocities spatial; the other rods start in their stress-free shapes at
+    rest.  The interface of a StartingState over the system's mesh (``layout``), and
+    ``rod_state`` of one rod (joints.check_joints_at_start)."""
+
+    def __init__(self, starts: dict, rods, layout=None):
+        self.starts, self.rods, self.layout = dict(starts), list(rods), layout
+        self.moving = any(start.moving for start in self.starts.values())
+        self.equilibrium = any(start.equilibrium for start in self.starts.values())
+
+    def rod_state(self, rod, own) -> tuple[np.ndarray, ...]:
+        """(r, q, v, w) of ``rod`` (rods.Rod) at its own nodes' arc lengths ``own``."""
+        own = np.asarray(own, float)
+        start = self.starts.get(rod.name, StartingState())
+        r, q = place(rod, *start.frames(
+            own, lambda x: stress_free_shape(rod.params, x, rod.n_cells), rod.params.length,
+            rod.n_cells))
+        return (r, q, *start.velocities(own, r))
+
+    def _pieces(self, s):
+        """(mask of s on a started rod, its state there) for each started rod."""
+        rod_of = self.layout.rod_of(s)
+        for k, rod in enumerate(self.rods):
+            if rod.name in self.starts:
+                on = rod_of == k
+                yield on, self.rod_state(rod, s[on] - self.layout.starts[k])
+
+    def frames(self, s, stress_free: Callable, length: float, n_cells: int):
+        s = np.asarray(s, float)
+        r, q = stress_free(s)
+        for on, (r_on, q_on, _, _) in self._pieces(s):
+            r[on], q[on] = r_on, q_on
+        return r, q
+
+    def velocities(self, s, r) -> tuple[np.ndarray, np.ndarray]:
+        s = np.asarray(s, float)
+        v, w = np.zeros((len(s), 3)), np.zeros((len(s), 3))
+        for on, (_, _, v_on, w_on) in self._pieces(s):
+            v[on], w[on] = v_on, w_on
+        return v, w
+
+
+def check_rod_starts(starts: dict, rods, dynamic: bool, rotation_held: bool) -> None:
+    """check_start of each rod's start, a ValueError naming ``start['<rod>']``."""
+    names = [rod.name for rod in rods]
+    if not isinstance(starts, dict) or any(name not in names for name in starts):
+        raise ValueError(f"start: a system's starting states are {{rod name: StartingState}}"
+                         f" of its rods {names}, got {starts!r}")
+    for rod in rods:
+        try:
+            check_start(starts.get(rod.name), rod.params.length, dynamic, rotation_held)
+        except ValueError as err:
+            raise ValueError(f"start[{rod.name!r}]" + str(err).removeprefix("start")) from err
 
 
 def _field(value: Field, s) -> np.ndarray:

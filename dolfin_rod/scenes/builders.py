@@ -297,7 +297,7 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     def initial_state():
         model.set_initial_state(natural_curvature=initial["natural_curvature"],
                                 natural_stretch=initial["natural_stretch"],
-                                start=starting_state(scene))
+                                start=rod_starts(scene) if scene.rods else starting_state(scene))
 
     if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
         from ..rod.contact import InitialOverlap
@@ -306,6 +306,13 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
         except InitialOverlap as err:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
     return FESimulation("rod", model, scene, initial_state)
+
+
+def rod_starts(scene: Scene) -> dict | None:
+    """{rod name: StartingState} of the rods of [[rods]] with [initial] start keys (each
+    rod's own or the scene's), None if none has any."""
+    starts = {rod.name: starting_state(rod.scene) for rod in scene.rods}
+    return {name: start for name, start in starts.items() if start is not None} or None
 
 
 def starting_state(scene: Scene):

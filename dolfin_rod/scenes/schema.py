@@ -121,10 +121,12 @@ switching variant on a rod with L != 1 rescales time by L.
 **Several rods** (a RodSystem, docs/systems.md).  `[[rods]]` tables, one per rod: `name`
 (unique; the rod's output columns are `<name>.<key>`), `position` (its s = 0 end, m),
 `orientation` (a rotation vector turning e_3 into its initial tangent), and its own
-`geometry`, `section`, `material`, `boundary`, `loads` as inline tables laid over the
-scene's tables key by key (an error names `rods[k].<table>.<key>`; `material.model`,
-`variant`, `constraints`, `energy` and `geometry.rotations` are shared and given in the
-scene's tables only).  `[[joints]]` tables: `kind` ("rigid": position and rotation tied,
+`geometry`, `section`, `material`, `boundary`, `loads`, `initial` as inline tables laid
+over the scene's tables key by key (an error names `rods[k].<table>.<key>`;
+`material.model`, `variant`, `constraints`, `energy`, `geometry.rotations` and
+`initial.natural_*` are shared and given in the scene's tables only; a rod's starting
+state, `initial.shape`, `position`, `orientation`, velocities, is in its placed frame,
+and the starts of joined rods must meet as the joint holds them).  `[[joints]]` tables: `kind` ("rigid": position and rotation tied,
 "ball": position tied, "hinge": position tied, rotations equal up to a turn about
 `axis`), `rods = [a, b]`, `point = [x, y, z]` (a node of both rods at t = 0, not a
 supported end), `axis = [x, y, z]` (a hinge's, a unit vector at t = 0, turning with the

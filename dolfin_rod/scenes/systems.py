@@ -7,7 +7,8 @@
     geometry = { length = 1.0, n_cells = 8 }          # per-rod tables: any key of
     boundary = { start = "clamped", end = "free" }    # [geometry], [section],
     loads = { end_force = { type = "step", value = [0, 0, -1] } }  # [material],
-                                                      # [boundary], [loads]
+                                                      # [boundary], [loads],
+    initial = { angular_velocity = [0, 1, 0] }       # [initial]: its starting state
     [[joints]]
     kind = "rigid"                       # rigid | ball | hinge
     rods = ["column", "beam"]
@@ -17,7 +18,8 @@
 
 Each rod is the scene's own tables with the rod's tables laid over them key by key, and
 is validated as a scene of its own (an error names ``rods[k].<table>.<key>``); the keys
-every rod shares (``SHARED``) are given in the scene's tables only.  A joint's point is
+every rod shares (``SHARED``) are given in the scene's tables only.  A rod's starting
+state (its ``initial`` keys: rod/start.RodStarts) is in its placed frame.  A joint's point is
 checked against the rods' nodes before any model is built.
 """
 
@@ -30,13 +32,15 @@ from typing import Any, Callable
 from .scene import Scene, SceneError
 from .values import BadValue, choice, run_name, string, type_name, vector3
 
-ROD_TABLES = ("geometry", "section", "material", "boundary", "loads")
+ROD_TABLES = ("geometry", "section", "material", "boundary", "loads", "initial")
 ROD_KEYS = ("name", "position", "orientation") + ROD_TABLES
 SHARED = {("geometry", "rotations"): "the rotation unknowns",
           ("material", "model"): "the constitutive model",
           ("material", "variant"): "the evolution variant",
           ("material", "constraints"): "the constraint",
-          ("material", "energy"): "the energy function"}
+          ("material", "energy"): "the energy function",
+          ("initial", "natural_curvature"): "the initial natural strains",
+          ("initial", "natural_stretch"): "the initial natural strains"}
 JOINT_KEYS = ("kind", "rods", "point", "name", "axis")
 
 
@@ -168,9 +172,10 @@ def _joint_axis(entry: dict, kind: str, where: str, source: str) -> tuple | None
 
 
 def _check_joint_points(scene: Scene) -> None:
-    """Every joint at a node of both its rods (rod.joints.locate), before any model."""
-    from ..rod.joints import locate
-    from .builders import rods_and_joints
+    """Every joint at a node of both its rods (rod.joints.locate) and the rods' starting
+    states meeting there (rod.joints.check_joints_at_start), before any model."""
+    from ..rod.joints import check_joints_at_start, locate
+    from .builders import rod_starts, rods_and_joints
     if not scene.joints:
         return
     rods, joints = rods_and_joints(scene)
@@ -179,3 +184,7 @@ def _check_joint_points(scene: Scene) -> None:
     except ValueError as err:
         key = str(err).partition(" ")[0].rstrip(":")
         raise SceneError(scene.source, key, str(err).partition(" ")[2]) from None
+    try:
+        check_joints_at_start(rods, joints, rod_starts(scene) or {})
+    except ValueError as err:
+        raise SceneError(scene.source, "initial", str(err)) from None
