@@ -213,6 +213,9 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
     choice = agree(comm, lambda: choose_model(scene, comm.size), (SceneError,))
     if (resume or stop_after is not None) and scene["time"]["integrator"] == "ts":
         raise scene.error("time.integrator", "resume/stop_after need integrator = \"stepper\"")
+    if (resume or stop_after is not None) and scene["continuation"]["method"] != "load_steps":
+        raise scene.error("continuation.method", "resume/stop_after need method = "
+                                                 "\"load_steps\"")
     meta = read_checkpoint_meta(out, comm, scene) if resume else None
     made = not resume and (out is None or not os.path.exists(out))   # (False on errors)
     folder = _run_folder(scene, out, comm, resume, overwrite)
@@ -305,12 +308,12 @@ def march(sim, time_table: dict, after_step: Callable[[float], None], done: int 
           stop_after: int | None = None) -> int | None:
     """The one loop over the output times of a scene's [time] table (output_times):
     ``sim.advance`` over each interval from output ``done`` on, ``after_step(t)`` after
-    each; PETSc TS (``sim.ts``) drives the whole run itself (its multistep history must
-    not restart at every output time).  Returns the step after which ``stop_after``
+    each; PETSc TS (``sim.ts``) or an arc-length continuation drives the whole run
+    itself (a multistep history must not restart at every output time).  Returns the step after which ``stop_after``
     stopped the run early, else None."""
     from .integrators.step_control import output_times
     times = output_times(time_table["t_end"], time_table["dt"])
-    if getattr(sim, "ts", None) is not None:
+    if getattr(sim, "ts", None) is not None or getattr(sim, "continuation", None) is not None:
         sim.run_all(times[0], time_table["t_end"], time_table["dt"], after_step)
         return None
     for k in range(done + 1, len(times)):
@@ -390,7 +393,9 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
 
     def after_step(t_k: float) -> None:
         diag = sim.diagnostics(t_k)
-        bound.check(diag, jump=_report_stability_changes(sim, comm))
+        # a continuation's steps are not a motion: its power balance does not hold
+        bound.check(diag, jump=_report_stability_changes(sim, comm)
+                    or getattr(sim, "continuation", None) is not None)
         k = progress["k"] = progress["k"] + 1
         writer.record(k, t_k, diag)
         progress["t"] = t_k
