@@ -138,5 +138,8 @@ def test_supports_without_couples_and_rod_systems_draw(tmp_path, name, prefix, c
     rows = [{"time": t, **dict.fromkeys(keys, t * t)} for t in (0.0, 0.5, 1.0)]
     panels = plot_histories(rows, tmp_path / "h.png", scene)
     assert "reactions" in panels and (tmp_path / "h.png").stat().st_size > 10_000
+    rows = [{**r, "twist": 1.0, "writhe": 2.0} for r in rows]   # a rod's Tw, Wr columns
+    assert plot_histories(rows, tmp_path / "t.png", scene, panels=["twist", "writhe"]) \
+        == ["twist", "writhe"]
     lines = final_values(rows, scene)
     assert any(line.startswith("K + Psi 2 J") for line in lines)

@@ -187,6 +187,8 @@ def _reactions(ax, col, units, scene):
 
 
 def _twist(ax, col, units, scene):
+    if "end_rotation" not in col.rows[0]:   # a rod's "twist" column (self-contact runs)
+        return _column("twist")(ax, col, units, scene)
     ax.plot(col.t, col("end_rotation"), label="end rotation phi(1)")
     ax.plot(col.t, col("mean_natural_twist"), label="mean natural twist")
     ax.legend(fontsize="small")
