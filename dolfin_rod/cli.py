@@ -17,8 +17,8 @@ computed before is kept), 130 interrupted (Ctrl-C or SIGTERM; also while the pic
 are drawn after the last step: summary.json says "pictures": "interrupted").  Failures
 always go to stderr, --quiet or not.  Under MPI every error ends every rank and reaches
 the user whichever rank saw it: expected errors are raised collectively (mpi.agree), or,
-seen by one rank inside collective work, reported by that rank with MPI_Abort(2)
-(mpi.alone); anything else calls MPI_Abort, so no rank is left waiting.  A scene needs
+seen by one rank inside collective work, reported by that rank, which leaves with exit
+2 (mpi.alone, mpi.leave); anything else calls MPI_Abort, so no rank is left waiting.  A scene needs
 2 cells per rank.
 """
 
@@ -161,13 +161,13 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     """The command line; every error ends every rank: expected ones (a bad scene or
-    folder) with exit 2, collectively where every rank saw them, else by MPI_Abort(2)
-    from the rank that saw one (mpi.alone); anything else by MPI_Abort after its
+    folder) with exit 2, collectively where every rank saw them, else by the rank that
+    saw one leaving with exit 2 (mpi.alone, mpi.leave); anything else by MPI_Abort after its
     traceback."""
     from mpi4py import MPI
 
     from .fit.inputs import FitInputError
-    from .mpi import alone
+    from .mpi import alone, leave
     from .output.run_folders import OutputError
     comm = MPI.COMM_WORLD
     guard = comm.Dup() if comm.size > 1 else None    # for mpi.alone only
@@ -176,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     except (SceneError, OutputError, FitInputError) as err:
         if alone(guard):
             print(f"error: {err} (seen on rank {comm.rank} only)", file=sys.stderr, flush=True)
-            comm.Abort(2)                          # the other ranks may wait in a collective
+            leave(2)                               # the other ranks may wait in a collective
         print_on_root(comm, f"error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:                      # Ctrl-C before the run loop
