@@ -140,16 +140,16 @@ def test_markers_found():
     assert any(not b.slow for b in runnable_blocks())
 
 
-def test_the_gallery_names_every_bundled_scene():
-    """docs/gallery.md's table names each scene of scenes/ (so each gallery scene is one
-    that tests/test_scenes.py::test_bundled_scene_runs runs), names no scene that is not
-    bundled, and every picture it shows exists."""
+def test_the_gallery_names_bundled_scenes_only():
+    """Each scene docs/gallery.md names (in its table or as scenes/NAME.toml) is in scenes/,
+    so each gallery scene is one that tests/test_scenes.py::test_bundled_scene_runs runs;
+    every picture it shows exists."""
     text = (ROOT / "docs" / "gallery.md").read_text()
-    table = text[:text.index("These are all the bundled scenes")]
+    table = text[:text.index("Every scene named here is bundled")]
     named = {n for cell in re.findall(r"^\|[^|]*\| ([^|]*) \|", table, flags=re.M)
              for n in re.findall(r"`([a-z_]+)`", cell)}
+    named |= set(re.findall(r"scenes/([a-z_]+)\.toml", text))
     bundled = {p.stem for p in (ROOT / "scenes").glob("*.toml")}
-    assert named == bundled, (bundled - named, named - bundled)
-    assert set(re.findall(r"scenes/([a-z_]+)\.toml", text)) <= bundled
+    assert len(named) >= 20 and named <= bundled, named - bundled
     for picture in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text):
         assert (ROOT / "docs" / picture).is_file(), picture

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from dolfin_rod.output.animation import (Look, colour_field, colour_scale, colour_values,
-                                         magnification, rod_animation, rod_snapshots,
-                                         support_nodes)
+                                         magnification, plane_patch, rod_animation,
+                                         rod_snapshots, support_nodes)
 from dolfin_rod.output.line_fields import LineSample
 
 N = 4   # cells of the synthetic rod: s in [0, 1] along e_3
@@ -96,3 +96,21 @@ def test_snapshots_draw_the_gravity_arrow(tmp_path, gravity):
     rgb = np.asarray(Image.open(tmp_path / "s.png").convert("RGB")).astype(int)
     red = np.sum(np.all(np.abs(rgb - [199, 31, 31]) <= 12, axis=-1))
     assert (red > 20) == (gravity is not None), red
+
+
+def test_a_plane_obstacle_is_drawn_in_its_plane(tmp_path):
+    """rope_on_floor's floor (point (-0.02, 0, 1), normal (0.98, 0, -0.19)) in the box
+    [-1, 1]^3: the square's corners lie in the plane (1e-15), its centre is the foot of
+    the box's centre on it, its sides are the box's width 2."""
+    point, normal = np.array([-0.02, 0.0, 1.0]), np.array([0.98, 0.0, -0.19])
+    corners = plane_patch((-np.ones(3), np.ones(3)), point, normal)
+    n = normal / np.linalg.norm(normal)
+    np.testing.assert_allclose((corners - point) @ n, 0.0, atol=1e-15)
+    np.testing.assert_allclose(corners.mean(axis=(0, 1)), -np.dot(-point, n) * n, atol=1e-15)
+    assert np.linalg.norm(corners[0, 1] - corners[0, 0]) == pytest.approx(2.0, rel=1e-15)
+    assert np.linalg.norm(corners[1, 0] - corners[0, 0]) == pytest.approx(2.0, rel=1e-15)
+    frames = [frame(t, tip=0.3 * t) for t in np.linspace(0, 1, 3)]
+    look = Look("auto", {}, None, ({"shape": "plane", "point": point, "normal": normal},
+                                   {"shape": "sphere", "centre": (0.5, 0, 0.5), "radius": 0.2}))
+    rod_snapshots(frames, tmp_path / "s.png", look=look)      # a plane and a sphere drawn
+    assert (tmp_path / "s.png").stat().st_size > 10_000

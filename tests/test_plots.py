@@ -58,6 +58,8 @@ def test_unwrapped_angle_of_a_spin():
     angle, axis = unwrapped_angle(q)
     np.testing.assert_allclose(angle, theta, atol=1e-12)
     np.testing.assert_allclose(axis, [0.0, 0.0, 1.0])
+    q[:, 1:3] = -0.0                  # plectoneme printed "about [-0, -0, 1]"
+    assert not np.any(np.signbit(unwrapped_angle(q)[1]))
 
 
 def test_relative_power_residual_of_a_known_history():
@@ -136,5 +138,8 @@ def test_supports_without_couples_and_rod_systems_draw(tmp_path, name, prefix, c
     rows = [{"time": t, **dict.fromkeys(keys, t * t)} for t in (0.0, 0.5, 1.0)]
     panels = plot_histories(rows, tmp_path / "h.png", scene)
     assert "reactions" in panels and (tmp_path / "h.png").stat().st_size > 10_000
+    rows = [{**r, "twist": 1.0, "writhe": 2.0} for r in rows]   # a rod's Tw, Wr columns
+    assert plot_histories(rows, tmp_path / "t.png", scene, panels=["twist", "writhe"]) \
+        == ["twist", "writhe"]
     lines = final_values(rows, scene)
     assert any(line.startswith("K + Psi 2 J") for line in lines)

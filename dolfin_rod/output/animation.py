@@ -47,6 +47,7 @@ class Look:
     colour: str = "auto"
     supports: dict = field(default_factory=dict)
     gravity: tuple | None = None
+    obstacles: tuple = ()       # the scene's [[obstacles]] tables (planes, spheres drawn)
 
     @classmethod
     def of(cls, scene, colour: str | None = None) -> Look:
@@ -56,7 +57,7 @@ class Look:
         supports = tuple(ends(r.scene["boundary"]) for r in scene.rods) if scene.rods \
             else ends(scene["boundary"])
         return cls(colour or scene["outputs"]["color"], supports,
-                   scene["loads"].get("gravity"))
+                   scene["loads"].get("gravity"), tuple(scene["obstacles"]))
 
 
 class FrameStore:
@@ -238,6 +239,36 @@ def _gravity_arrow(draw, project, box, gravity) -> None:
     draw.text(tuple(a + 8 * n), "g", fill=(200, 30, 30))
 
 
+def plane_patch(box, point, normal) -> np.ndarray:
+    """(2, 2, 3) corners of a square in the plane through ``point`` normal to ``normal``:
+    centred at the foot of the box's centre, as wide as the box."""
+    lo, hi = box
+    centre, half = 0.5 * (lo + hi), 0.5 * np.max(hi - lo)
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    foot = centre - np.dot(centre - np.asarray(point, dtype=float), n) * n
+    t1 = np.cross(n, np.eye(3)[np.argmin(np.abs(n))])
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(n, t1)
+    a, b = np.meshgrid([-half, half], [-half, half])
+    return foot + a[..., None] * t1 + b[..., None] * t2
+
+
+def draw_obstacles(ax, box, obstacles) -> None:
+    """Planes as a grey square of the box's size about the point nearest the box's
+    centre, spheres as a grey wire sphere (drawn once, in the background); cylinders are
+    not drawn."""
+    grey = {"color": (0.5, 0.5, 0.5), "alpha": 0.25}
+    for ob in obstacles:
+        if ob["shape"] == "plane":
+            corners = plane_patch(box, ob["point"], ob["normal"])
+            ax.plot_surface(*np.moveaxis(corners, -1, 0), linewidth=0, **grey)
+        elif ob["shape"] == "sphere":
+            u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 13), np.linspace(0, np.pi, 7))
+            unit = np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)])
+            points = np.asarray(ob["centre"])[:, None, None] + ob["radius"] * unit
+            ax.plot_wireframe(*points, linewidth=0.5, **grey)
+
+
 def _gravity_quiver(ax, box, gravity) -> None:
     """snapshots.png: the arrow 'g' along gravity near the box's upper corner (as in the
     GIF, _gravity_arrow)."""
@@ -277,6 +308,7 @@ def rod_animation(frames: list, path: Path, title: str = "", look: Look = Look()
     ax = fig.add_subplot(projection="3d")
     box = _box(shapes)
     _setup_3d(ax, box, title)
+    draw_obstacles(ax, box, look.obstacles)
     fig.colorbar(ScalarMappable(norm, cmap_name), ax=ax, shrink=0.7, pad=0.1,
                  label=colour_label(key))
     supports = support_nodes(first, look)
@@ -334,6 +366,7 @@ def rod_snapshots(frames: list, path: Path, title: str = "", n: int = 6,
     box = _box([_shape(frames[i][1], first, factor) for i in pick])
     _setup_3d(ax, box,
               "centre line r(s, t)" + (f", displacement x {factor:g}" if factor != 1 else ""))
+    draw_obstacles(ax, box, look.obstacles)
     if look.gravity is not None and np.any(look.gravity):
         _gravity_quiver(ax, box, look.gravity)
     ax.legend(fontsize=7, loc="upper left")

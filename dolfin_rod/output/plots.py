@@ -83,7 +83,7 @@ def unwrapped_angle(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if norm == 0.0:
         return np.zeros(len(q)), np.array([0.0, 0.0, 1.0])
     a = v[k] / norm
-    a = a * np.sign(a[np.argmax(np.abs(a))])
+    a = a * np.sign(a[np.argmax(np.abs(a))]) + 0.0     # (+ 0.0: no "-0" printed)
     return np.unwrap(2.0 * np.arctan2(v @ a, q[:, 0])), a
 
 
@@ -187,6 +187,8 @@ def _reactions(ax, col, units, scene):
 
 
 def _twist(ax, col, units, scene):
+    if "end_rotation" not in col.rows[0]:   # a rod's "twist" column (self-contact runs)
+        return _column("twist")(ax, col, units, scene)
     ax.plot(col.t, col("end_rotation"), label="end rotation phi(1)")
     ax.plot(col.t, col("mean_natural_twist"), label="mean natural twist")
     ax.legend(fontsize="small")

@@ -100,6 +100,7 @@ class FESimulation:
                 self._ts_problem(), solver_options=options, ts_type=self._ts_type(),
                 adaptive=tim["adaptive"], rtol=tim["ts_rtol"], atol=tim["ts_atol"])
             self.stability, self.branches = self._stability_monitor(), None
+            self.continuation = None
             return
         # not given, a rod with rotation vectors takes its integrator's default scheme
         # (with obstacles: rho_inf = 0, docs/contact.md)
@@ -111,7 +112,18 @@ class FESimulation:
             self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
             predictor=tim["predictor"], tolerance=tolerance), None
         self.stability = self._stability_monitor()
-        self.branches = self._branch_switching()
+        self.continuation = self._continuation()
+        self.branches = None if self.continuation else self._branch_switching()
+
+    def _continuation(self):
+        """Arc-length continuation (analysis/continuation.py) in place of the time steps,
+        if the scene asks for it."""
+        con = self.scene["continuation"]
+        if con["method"] != "arc_length":
+            return None
+        from ..analysis.continuation import ArcLength
+        return ArcLength(self.model, con["arc_length"], con["load_scale"],
+                         max_steps=con["max_steps"])
 
     def _branch_switching(self):
         """Branch switching at bifurcations (analysis/branches.py): quasi-static rods
@@ -151,7 +163,11 @@ class FESimulation:
 
     def run_all(self, t0: float, t_end: float, dt: float, on_step: Callable[[float], None]):
         """PETSc TS over the whole run (its multistep history must not restart at every
-        output time); ``on_step(t)`` after each accepted step."""
+        output time), or the arc-length continuation from t0 until t_end; ``on_step(t)``
+        after each accepted step."""
+        if self.continuation is not None:
+            self.continuation.run(t0, t_end, after_step=on_step)
+            return
         self.ts.run(t0, t_end, dt, observer=lambda t, _: on_step(t) if t > t0 else None)
 
     def start(self) -> float:
