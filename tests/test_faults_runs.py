@@ -745,8 +745,9 @@ def limited_run(ranks: int, limit: int, args: list[str], no_room_check: bool = F
 
 
 @serial_only
-@pytest.mark.parametrize("case, ranks", [("rod.bp", 1), ("rod.bp", 2), ("checkpoint", 1),
-                                         ("checkpoint", 2), ("checkpoint inside ADIOS2", 1)])
+@pytest.mark.parametrize("case, ranks", [
+    ("rod.bp", 1), pytest.param("rod.bp", 2, marks=pytest.mark.slow), ("checkpoint", 1),
+    pytest.param("checkpoint", 2, marks=pytest.mark.slow), ("checkpoint inside ADIOS2", 1)])
 def test_full_disk_while_adios2_writes_fields_or_a_checkpoint(tmp_path, capsys, case, ranks):
     """Item 18 (rod.bp and checkpoints): the disk fills while ADIOS2 writes rod.bp or a
     checkpoint's state.bp: ADIOS2's RuntimeError traceback (MPI_Abort or a hang under
