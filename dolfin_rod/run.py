@@ -213,6 +213,9 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
     choice = agree(comm, lambda: choose_model(scene, comm.size), (SceneError,))
     if (resume or stop_after is not None) and scene["time"]["integrator"] == "ts":
         raise scene.error("time.integrator", "resume/stop_after need integrator = \"stepper\"")
+    if (resume or stop_after is not None) and scene["continuation"]["method"] != "load_steps":
+        raise scene.error("continuation.method", "resume/stop_after need method = "
+                                                 "\"load_steps\"")
     meta = read_checkpoint_meta(out, comm, scene) if resume else None
     made = not resume and (out is None or not os.path.exists(out))   # (False on errors)
     folder = _run_folder(scene, out, comm, resume, overwrite)
@@ -237,8 +240,13 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
     else:
         writer.open()
     t_run = time.perf_counter()
+    def provisional(t: float) -> None:     # at a signal: mpirun may end the ranks soon
+        writer.provisional_summary(_summary(
+            scene, choice, sim, writer, comm, "interrupted", f"interrupted at t = {t:g} "
+            "(a signal; this summary was written at once, as mpirun ends its ranks within "
+            "half a second of a Ctrl-C or SIGTERM sent to it)", t, impulse))
     status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
-                                    meta["step"], stop_after, quiet)
+                                    meta["step"], stop_after, quiet, provisional)
     status, message = _unstable_end(scene, sim, status, message)
     clock["integration"] = time.perf_counter() - t_run
     summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
@@ -300,12 +308,12 @@ def march(sim, time_table: dict, after_step: Callable[[float], None], done: int 
           stop_after: int | None = None) -> int | None:
     """The one loop over the output times of a scene's [time] table (output_times):
     ``sim.advance`` over each interval from output ``done`` on, ``after_step(t)`` after
-    each; PETSc TS (``sim.ts``) drives the whole run itself (its multistep history must
-    not restart at every output time).  Returns the step after which ``stop_after``
+    each; PETSc TS (``sim.ts``) or an arc-length continuation drives the whole run
+    itself (a multistep history must not restart at every output time).  Returns the step after which ``stop_after``
     stopped the run early, else None."""
     from .integrators.step_control import output_times
     times = output_times(time_table["t_end"], time_table["dt"])
-    if getattr(sim, "ts", None) is not None:
+    if getattr(sim, "ts", None) is not None or getattr(sim, "continuation", None) is not None:
         sim.run_all(times[0], time_table["t_end"], time_table["dt"], after_step)
         return None
     for k in range(done + 1, len(times)):
@@ -318,21 +326,30 @@ def march(sim, time_table: dict, after_step: Callable[[float], None], done: int 
 
 class _InterruptFlag:
     """SIGINT or SIGTERM sets a flag; the run stops after the current step (a step is
-    never cut in half, and PETSc callbacks never see a KeyboardInterrupt)."""
+    never cut in half, and PETSc callbacks never see a KeyboardInterrupt).  ``at_once()``
+    at the first signal, in the handler: a native mpirun kills its ranks 0.2-0.5 s after
+    a Ctrl-C or SIGTERM sent to it (SIGCONT, SIGTERM 0.25 s later, SIGKILL 0.2 s later,
+    measured with Open MPI 5), often before the step ends (issue 28 item 22)."""
 
     SIGNALS = ("SIGINT", "SIGTERM")
 
-    def __init__(self):
+    def __init__(self, at_once=lambda: None):
         import signal
         import threading
         self.raised = False
+        self._at_once = at_once
         self._old = {}
         if threading.current_thread() is threading.main_thread():
             self._old = {name: signal.signal(getattr(signal, name), self._handle)
                          for name in self.SIGNALS}
 
     def _handle(self, signum, frame):
-        self.raised = True
+        if not self.raised:
+            self.raised = True
+            try:
+                self._at_once()
+            except OSError:            # (a full disk: the summary at the end says so)
+                pass
 
     def restore(self):
         import signal
@@ -353,9 +370,10 @@ def _first_row(sim, writer, t0: float, fields: bool) -> None:
 
 
 def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | None,
-               quiet: bool) -> tuple[str, str, float]:
+               quiet: bool, provisional=None) -> tuple[str, str, float]:
     """Steps done+1 .. n (PETSc TS: the whole run), recording each; (status, message, t)
-    with t the time of the last recorded row."""
+    with t the time of the last recorded row.  ``provisional(t)`` at the first SIGINT or
+    SIGTERM (rank 0): the summary of the rows so far, before the step ends."""
     from mpi4py import MPI
 
     from .fem.solvers import SolverError
@@ -371,11 +389,13 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
         from tqdm import tqdm
         bar = tqdm(total=n_steps, initial=done, unit="step", desc=scene.name)
     progress = {"k": done, "t": times[done]}
-    interrupted = _InterruptFlag()
+    interrupted = _InterruptFlag(lambda: provisional(progress["t"]) if provisional else None)
 
     def after_step(t_k: float) -> None:
         diag = sim.diagnostics(t_k)
-        bound.check(diag, jump=_report_stability_changes(sim, comm))
+        # a continuation's steps are not a motion: its power balance does not hold
+        bound.check(diag, jump=_report_stability_changes(sim, comm)
+                    or getattr(sim, "continuation", None) is not None)
         k = progress["k"] = progress["k"] + 1
         writer.record(k, t_k, diag)
         progress["t"] = t_k

@@ -2,7 +2,8 @@
 # The user's paths through ./rodenv (issue 28 item 1), as a user meets them on the host:
 #   a scene outside the project, --out in the host's /tmp (the sandbox has a private
 #   /tmp), relative paths from a folder outside the project, --out into a folder that
-#   does not exist yet: the results are on this machine where the user said;
+#   does not exist yet, --overwrite of a run folder there: the results are on this
+#   machine where the user said;
 #   --out inside the environment's system folders: exit 2, a message naming what it can
 #   reach, nothing written into the environment's root.
 # Run by `make test` for each release (DOLFINX=0.9|0.11).
@@ -25,6 +26,11 @@ completed() {  # completed FOLDER: a finished run folder on the host
 # absolute paths outside the project, the results in the host's /tmp
 "$project/rodenv" dolfin-rod run "$work/my scenes/relax.toml" --out "$work/abs" --quiet \
     || fail "absolute paths: exit status $?"
+completed "$work/abs"
+# the same --out again with --overwrite: the folder itself is replaced (./rodenv mounts
+# its parent; a mounted folder cannot be removed: "Device or resource busy")
+"$project/rodenv" dolfin-rod run "$work/my scenes/relax.toml" --out "$work/abs" \
+    --overwrite --quiet || fail "--out DIR --overwrite of a run folder: exit status $?"
 completed "$work/abs"
 
 # relative paths from a folder outside the project; --out=VALUE; a folder not yet there

@@ -178,6 +178,41 @@ def test_expected_error_of_one_rank_inside_collective_work_ends_the_run(tmp_path
                                                } <= {run_folders.MARKER}   # no results
 
 
+@serial_only
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGINT"])
+def test_a_signal_followed_by_a_kill_leaves_the_summary(tmp_path, name):
+    """Item 22 under a native mpirun: Ctrl-C or SIGTERM sent to mpirun (not to the ranks,
+    as ./rodenv mpirun does) makes Open MPI 5 send its ranks SIGCONT, SIGTERM 0.25 s
+    later and SIGKILL 0.2 s after that (measured), exit status 1: no summary before.
+    Now the first signal writes summary.json "interrupted" with the rows so far at once
+    (run._InterruptFlag), before the step ends.  Here that sequence on a serial run:
+    the signal, SIGKILL 0.2 s later; the rows in the CSV are complete and the summary
+    counts at most as many.  (Under mpirun the ranks sometimes die before Python runs
+    the handler: 4 of 6 tries kept the summary; the rows are complete in every case.)"""
+    import signal
+    import time
+
+    from test_faults import _start, _wait_for
+    scene = tmp_path / "long.toml"
+    scene.write_text(TORSION.replace("t_end = 0.08", "t_end = 1e5"))
+    run = tmp_path / "run"
+    proc = _start("run", str(scene), "--out", str(run), "--quiet")
+    try:
+        _wait_for(lambda: (run / "timeseries.csv").exists() and len(
+            (run / "timeseries.csv").read_text().splitlines()) > 10, "10 rows", 120)
+        proc.send_signal(getattr(signal, name))
+        time.sleep(0.2)
+        proc.kill()
+    finally:
+        proc.kill()
+        proc.communicate(timeout=60)
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and "a signal" in summary["message"]
+    rows = list(csv.DictReader((run / "timeseries.csv").open()))
+    assert all(None not in r.values() and "" not in r.values() for r in rows[1:])
+    assert 10 <= summary["steps"] <= len(rows) - 1
+
+
 # --- item 19: more ranks than cells ---------------------------------------------------------
 
 
@@ -710,8 +745,9 @@ def limited_run(ranks: int, limit: int, args: list[str], no_room_check: bool = F
 
 
 @serial_only
-@pytest.mark.parametrize("case, ranks", [("rod.bp", 1), ("rod.bp", 2), ("checkpoint", 1),
-                                         ("checkpoint", 2), ("checkpoint inside ADIOS2", 1)])
+@pytest.mark.parametrize("case, ranks", [
+    ("rod.bp", 1), pytest.param("rod.bp", 2, marks=pytest.mark.slow), ("checkpoint", 1),
+    pytest.param("checkpoint", 2, marks=pytest.mark.slow), ("checkpoint inside ADIOS2", 1)])
 def test_full_disk_while_adios2_writes_fields_or_a_checkpoint(tmp_path, capsys, case, ranks):
     """Item 18 (rod.bp and checkpoints): the disk fills while ADIOS2 writes rod.bp or a
     checkpoint's state.bp: ADIOS2's RuntimeError traceback (MPI_Abort or a hang under

@@ -150,6 +150,8 @@ class _StressStiffness:
     def matrix(self) -> PETSc.Mat:
         """K_sigma, symmetric part, Dirichlet rows and columns zero."""
         system = self.system
+        system.get(0, system.x)                  # the state (its forms read their own copy)
+        system.set(0, system.x)
         system.jacobian(system.A)
         return symmetric_part(system.A, self.fixed, 0.0)
 

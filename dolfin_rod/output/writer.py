@@ -256,6 +256,14 @@ class RunWriter:
         is not finite)."""
         return _finite({k: [r.get(k) for r in self.rows] for k in (self.columns or [])})
 
+    def provisional_summary(self, summary: dict) -> None:
+        """Rank 0: summary.json of the rows so far at once (a signal: mpirun may kill
+        the ranks before the step ends); ``finish`` replaces it."""
+        if self.rank == 0:
+            files = sorted(set(files_in(self.folder)) | {"summary.json"})
+            _dump(self.folder / "summary.json", _finite({**summary, "versions": versions(),
+                                                         "files": files}))
+
     def finish(self, summary: dict, timings: dict) -> None:
         """Rank 0: the time series closed, timeseries.json, the pictures, timings.json and
         summary.json.  Ctrl-C while the pictures are drawn (every step is done) stops the

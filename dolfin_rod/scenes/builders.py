@@ -23,6 +23,7 @@ from .rules import START_KEYS, adaptive_stepper, rod_rotations
 from .scene import Scene, SceneError
 from .values import Coefficient
 
+SIDES = {"start": "left", "end": "right"}    # [boundary]'s ends: the rod's ENDS
 CONTACT_SCHEME = "generalized_alpha:0.0"   # rho_inf = 0: a barrier's impacts (docs/contact.md)
 __all__ = ["Simulation", "MODELS", "register_model", "build", "FESimulation"]
 
@@ -100,6 +101,7 @@ class FESimulation:
                 self._ts_problem(), solver_options=options, ts_type=self._ts_type(),
                 adaptive=tim["adaptive"], rtol=tim["ts_rtol"], atol=tim["ts_atol"])
             self.stability, self.branches = self._stability_monitor(), None
+            self.continuation = None
             return
         # not given, a rod with rotation vectors takes its integrator's default scheme
         # (with obstacles: rho_inf = 0, docs/contact.md)
@@ -111,7 +113,18 @@ class FESimulation:
             self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
             predictor=tim["predictor"], tolerance=tolerance), None
         self.stability = self._stability_monitor()
-        self.branches = self._branch_switching()
+        self.continuation = self._continuation()
+        self.branches = None if self.continuation else self._branch_switching()
+
+    def _continuation(self):
+        """Arc-length continuation (analysis/continuation.py) in place of the time steps,
+        if the scene asks for it."""
+        con = self.scene["continuation"]
+        if con["method"] != "arc_length":
+            return None
+        from ..analysis.continuation import ArcLength
+        return ArcLength(self.model, con["arc_length"], con["load_scale"],
+                         max_steps=con["max_steps"])
 
     def _branch_switching(self):
         """Branch switching at bifurcations (analysis/branches.py): quasi-static rods
@@ -151,7 +164,11 @@ class FESimulation:
 
     def run_all(self, t0: float, t_end: float, dt: float, on_step: Callable[[float], None]):
         """PETSc TS over the whole run (its multistep history must not restart at every
-        output time); ``on_step(t)`` after each accepted step."""
+        output time), or the arc-length continuation from t0 until t_end; ``on_step(t)``
+        after each accepted step."""
+        if self.continuation is not None:
+            self.continuation.run(t0, t_end, after_step=on_step)
+            return
         self.ts.run(t0, t_end, dt, observer=lambda t, _: on_step(t) if t > t0 else None)
 
     def start(self) -> float:
@@ -329,11 +346,7 @@ def rod_arguments(scene: Scene) -> dict:
     """The arguments of one rod (RodModel, rod.Rod) besides its parameters: cells, ends,
     end motions, slides, turning clamps and springs, loads."""
     from ..rod import EndSpring
-    ends = {"start": "left", "end": "right"}
-    boundary = scene["boundary"]
-    motions = {m: {side: spec.vector() for key, side in ends.items()
-                   if (spec := boundary[f"{key}_{m}"]) is not None}
-               for m in ("displacement", "rotation")}
+    ends, boundary, motions = SIDES, scene["boundary"], end_motions(scene)
     end_loads, distributed_loads = rod_loads(scene)
     return dict(n_cells=scene["geometry"]["n_cells"], ends=(boundary["start"], boundary["end"]),
                 end_loads=end_loads, distributed_loads=distributed_loads,
@@ -346,15 +359,46 @@ def rod_arguments(scene: Scene) -> dict:
                           if (axis := boundary[f"{key}_turn"]) is not None})
 
 
+def end_motions(scene: Scene) -> dict:
+    """{"displacement" | "rotation": {end: motion}} of the ends whose motion [boundary]
+    prescribes (start_/end_displacement, start_/end_rotation)."""
+    boundary = scene["boundary"]
+    return {m: {side: spec.vector() for key, side in SIDES.items()
+                if (spec := boundary[f"{key}_{m}"]) is not None}
+            for m in ("displacement", "rotation")}
+
+
+def placed_rods(scene: Scene) -> list:
+    """The rods of a scene with [[rods]] as rod/placement.PlacedRod: where each is at
+    t = 0 and which ends are held, all the joints' checks read (rod/joint_points.py),
+    without building RodParameters (whose materials load DOLFINx)."""
+    from ..rod.placement import Geometry, PlacedRod
+    rods = []
+    for entry in scene.rods:
+        geo, motions = entry.scene["geometry"], end_motions(entry.scene)
+        boundary = entry.scene["boundary"]
+        rods.append(PlacedRod(
+            entry.name, Geometry(geo["length"], geo["reference_curvature"],
+                                 geo["reference_stretch"], curve(geo["reference_shape"])),
+            geo["n_cells"], (boundary["start"], boundary["end"]), motions["displacement"],
+            motions["rotation"], entry.position, entry.orientation))
+    return rods
+
+
 def rods_and_joints(scene: Scene) -> tuple[list, list]:
     """The scene's rods (rod.Rod, from each rod's scene) and joints (rod.Joint) of a
     scene with [[rods]] (scenes/systems.py)."""
-    from ..rod import Joint, Rod
+    from ..rod import Rod
     rods = [Rod(rod_parameters(entry.scene), **rod_arguments(entry.scene), name=entry.name,
                 position=entry.position, orientation=entry.orientation)
             for entry in scene.rods]
-    joints = [Joint(j.kind, j.rods, j.point, j.name, j.axis) for j in scene.joints]
-    return rods, joints
+    return rods, scene_joints(scene)
+
+
+def scene_joints(scene: Scene) -> list:
+    """The joints (rod.Joint) of a scene with [[rods]] (scenes/systems.py)."""
+    from ..rod import Joint
+    return [Joint(j.kind, j.rods, j.point, j.name, j.axis) for j in scene.joints]
 
 
 def rod_parameters(scene: Scene):

@@ -45,7 +45,11 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
                              "between_rods")} | {
     ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue",
-                               "at_bifurcation")}
+                               "at_bifurcation")} | {
+    ("continuation", k) for k in ("method", "parameter", "arc_length", "load_scale",
+                                  "max_steps")}
+# what a continuation parameter may name: a load, or a prescribed end motion
+END_MOTIONS = ("start_displacement", "end_displacement", "start_rotation", "end_rotation")
 TORSION_DEFAULTS = {"alpha": 1.0, "alpha_d": 1.0, "mu": 0.0, "mu_d": 1.0, "nu": 0.0}
 
 
@@ -64,6 +68,7 @@ def check_combinations(scene: Scene) -> None:
         _check_rod_material(scene)
         _check_rod_ends(scene)
         check_contact_keys(scene)
+        _check_continuation(scene)
     else:
         _check_torsion(scene)
     _check_solver_options(scene)
@@ -108,6 +113,28 @@ def time_stepping(scene: Scene) -> str:
     return f"stepper, fixed steps dt = {tim['dt']:g}" + (
         " (time.adaptive is false; setting it true would choose the steps by an error "
         "estimate)" if lie else "")
+
+
+def _check_continuation(scene: Scene) -> None:
+    """Arc-length continuation: a quasi-static rod, the stepper, and a parameter that is a
+    load of the scene (a given key of [loads], or an end motion of [boundary])."""
+    con = scene["continuation"]
+    if con["method"] != "arc_length":
+        return
+    if scene["material"]["dynamic"]:
+        raise scene.error("continuation.method", "arc_length follows static equilibria: a "
+                                                 "quasi-static rod (no material.density)")
+    if scene["time"]["integrator"] != "stepper":
+        raise scene.error("continuation.method", "arc_length replaces the time steps: "
+                                                 "time.integrator = \"stepper\"")
+    loads = [f"loads.{k}" for k in sorted(scene.given["loads"])] + \
+        [f"boundary.{k}" for k in END_MOTIONS if k in scene.given["boundary"]]
+    if con["parameter"] not in loads:
+        raise scene.error("continuation.parameter", (
+            f"{con['parameter']!r} is not a load of this scene: " if con["parameter"]
+            else "arc_length needs the load its parameter scales: ") + (
+            f"name one of {', '.join(loads)}" if loads else
+            "the scene gives no load or end motion to continue in"))
 
 
 def _check_time(scene: Scene) -> None:

@@ -383,6 +383,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "options": Key(petsc_table, None, "PETSc options (without prefix) over the preset, "
                        "e.g. {snes_max_it = 50, ksp_type = \"preonly\"}"),
     },
+    "continuation": {
+        "method": Key(choice("load_steps", "arc_length"), "load_steps", R + "quasi-static: "
+                      "load_steps (the [time] steps) | arc_length (Riks' arc-length "
+                      "continuation in the scene's time, the load factor of the loads linear "
+                      "in it, through limit points (snap-through) until time.t_end; a "
+                      "snap-through visits times below 0, where a ramp holds 0: a table "
+                      "from -1; docs/stability.md)"),
+        "parameter": Key(string, None, R + "arc_length: the load whose factor the time is, a "
+                         "key of [loads] or an end motion of [boundary] the scene gives (e.g. "
+                         "\"loads.end_force\")"),
+        "arc_length": Key(real(0.0, True), 0.05, R + "arc_length: the step along the path in "
+                          "the norm of (unknowns, load_scale x time)"),
+        "load_scale": Key(real(0.0, True), 1.0, R + "arc_length: the weight psi of the time "
+                          "against the unknowns in the step's norm"),
+        "max_steps": Key(integer(1), 1000, R + "arc_length: the most steps"),
+    },
     "stability": {
         "check": Key(boolean, True, R + "quasi-static: after every step the number of negative "
                                     "eigenvalues of the tangent stiffness (column "

@@ -1,0 +1,175 @@
+"""Arc-length continuation through limit points (issue 27 item 6,
+dolfin_rod/analysis/continuation.py).
+
+A shallow circular arch (radius R = 10, half-angle 0.1 rad: span 2.0, rise 0.05; EI = 1,
+EA = GA = 1e4, pinned feet) under a central point load 2 F snaps through.  Half of it
+by symmetry: s = 0 the crown, clamped (no turn) and sliding along the load's direction
+-e_2, s = L = R 0.1 a pinned foot; 16 cells.  Its load F at the crown against the
+crown's deflection d rises to a limit point, falls (the crown snaps: negative F holds
+it), and rises again.  Reference, computed here independently of the arc length: the
+same half-arch with the crown's deflection prescribed (displacement control, 200 steps
+of 5e-4, the crown's reaction), where the curve is single-valued in d; its maximum and
+minimum refined by the parabola through the three samples around them.  Measured
+(16 cells): upper limit F = 0.404559 at d = 0.0300, lower -0.146969 at d = 0.0794; arc
+length (ds = 0.01, psi = 1): 0.404558 and -0.146969 (parabolas through its points).
+Tolerance 1e-3 F: the parabolas' error with the arc length's spacing at the limit
+points (d steps of ~4e-3: (4e-3)^2 F''/8 ~ 2e-4 F).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dolfin_rod import TimeStepper
+from dolfin_rod.analysis.continuation import ArcLength
+from dolfin_rod.fem.fe_model import NodeValues
+from dolfin_rod.rod import EndLoad, RodModel, RodParameters
+
+ROOT = Path(__file__).resolve().parents[1]
+RADIUS, HALF_ANGLE, CELLS = 10.0, 0.1, 16
+ARCH = RodParameters(length=RADIUS * HALF_ANGLE, A=(1.0, 1.0, 1.0), B=(1e4, 1e4, 1e4),
+                     reference_curvature=(1.0 / RADIUS, 0.0, 0.0))   # bends towards -e_2
+DOWN = np.array([0.0, -1.0, 0.0])          # the load's direction at the crown
+
+
+def crown_deflection(rod):
+    crown = NodeValues(rod.f["displacement"].function_space, [0.0])
+    return lambda: float(crown(rod.f["displacement"].x.array)[0] @ DOWN)
+
+
+def extremum(x, y, k):
+    """The vertex of the parabola through the points k - 1, k, k + 1."""
+    a, b, _ = np.polyfit(x[k - 1:k + 2], y[k - 1:k + 2], 2)
+    return float(np.polyval([a, b, _], -b / (2 * a)))
+
+
+def turning_points(y) -> tuple[int, int]:
+    """The first local maximum of y and the first local minimum after it."""
+    rising = np.diff(y) > 0
+    top = int(np.argmin(rising))                  # first step down
+    return top, top + int(np.argmax(rising[top:]))
+
+
+def displacement_controlled(steps: int = 200, d_max: float = 0.1):
+    """(d, F) of the half-arch with the crown's deflection prescribed."""
+    rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", ends=("clamped", "pinned"),
+                   end_displacement={"left": lambda t: d_max * t * DOWN})
+    rod.set_initial_state()
+    out = []
+
+    def record(t, _):
+        d = rod.diagnostics(t)
+        out.append((d_max * t, np.array([d[f"reaction_force_left_{c}"] for c in "xyz"]) @ DOWN))
+
+    TimeStepper(rod.problem).run(0.0, 1.0, 1.0 / steps, record)
+    return np.array(out).T
+
+
+def arc_length(ds: float = 0.01):
+    """(lambda, d) of the arc-length path of the half-arch, F = lambda x 1."""
+    rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", ends=("clamped", "pinned"),
+                   end_slide={"left": (0.0, 1.0, 0.0)},
+                   end_loads=[EndLoad("force", tuple(DOWN), lambda t: t, end="left")])
+    rod.set_initial_state()
+    deflection = crown_deflection(rod)
+    path = ArcLength(rod, ds=ds, observe=lambda lam: deflection())
+    path.run(0.0, 1.0)
+    return np.array(path.points).T
+
+
+@pytest.mark.mpi
+def test_shallow_arch_snaps_through_its_limit_points():
+    d_ref, F_ref = displacement_controlled()
+    upper, lower = turning_points(F_ref)
+    lam, d = arc_length()
+    top, bottom = turning_points(lam)
+    assert extremum(d, lam, top) == pytest.approx(extremum(d_ref, F_ref, upper), abs=1e-4)
+    assert extremum(d, lam, bottom) == pytest.approx(extremum(d_ref, F_ref, lower), abs=1e-4)
+    assert np.all(np.diff(d) > 0)              # the crown goes down all along the path
+    assert lam[-1] >= 1.0 and d[-1] > 0.11     # past the snap, on the far branch
+
+
+@pytest.mark.mpi
+def test_snap_through_scene(tmp_path):
+    """scenes/snap_through_arch.toml ([continuation] method = "arc_length"): the same
+    path as the API's above (its limit loads against displacement control; the series'
+    time is the load factor; the parabola through the steps around each turning point,
+    of equal arc lengths: 0.405589 and -0.149688, 1.2e-5 and 1.8e-5 off; tolerance 1e-3),
+    and the tangent's count is 1 on the branch between the limit points and 0 on the
+    others (item 1)."""
+    import dolfin_rod
+    from mpi4py import MPI
+    out = MPI.COMM_WORLD.bcast(str(tmp_path / "arch"))
+    result = dolfin_rod.run(ROOT / "scenes" / "snap_through_arch.toml",
+                            {"outputs.fields": False, "outputs.animation": False},
+                            out=out, quiet=True)
+    assert result.status == "completed"
+    lam = np.array(result.series["time"])
+    count = np.array(result.series["negative_eigenvalues"])
+    top, bottom = turning_points(lam)
+    steps = np.arange(len(lam), dtype=float)
+    d_ref, F_ref = displacement_controlled()
+    upper, lower = turning_points(F_ref)
+    assert extremum(steps, lam, top) == pytest.approx(extremum(d_ref, F_ref, upper), abs=1e-3)
+    assert extremum(steps, lam, bottom) == pytest.approx(extremum(d_ref, F_ref, lower),
+                                                         abs=1e-3)
+    assert np.all(count[:top] == 0) and np.all(count[top + 2:bottom] == 1) \
+        and np.all(count[bottom + 2:] == 0), count
+
+
+def deep_arch_limit_load(n_cells: int) -> float:
+    """The limit load (x EI/R^2) of the 215-degree clamped-hinged arch, R = 1, EI = 1,
+    EA = GA = 1e6, under a crown load towards the centre: the point load as a hat of
+    width 2h and unit integral around the crown node (its load vector 1/6, 2/3, 1/6 of
+    P on the three nodes: an O(h^2) smearing), F = 20 lambda, arc length ds = 0.04; the
+    first maximum of lambda refined by the parabola through its neighbours."""
+    import ufl
+    from dolfin_rod.rod.external_forces import DistributedLoad
+    length = np.radians(215.0)
+    params = RodParameters(length=length, A=(1.0, 1.0, 1.0), B=(1e6, 1e6, 1e6),
+                           reference_curvature=(1.0, 0.0, 0.0))
+    probe = RodModel(params, n_cells=n_cells, model="hyperelastic")
+    crown = probe.stress_free(np.array([length / 2]))[0][0]
+    inwards = ufl.as_vector([float(c) for c in np.array([0.0, -1.0, 0.0]) - crown])
+    h = length / n_cells
+
+    def point_load(s):
+        return 20.0 * ufl.max_value(0.0, 1.0 - abs(s - length / 2) / h) / h * inwards
+
+    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", ends=("clamped", "pinned"),
+                   distributed_loads=[DistributedLoad("force", point_load, lambda t: t)])
+    rod.set_initial_state()
+    path = ArcLength(rod, ds=0.04, max_steps=1000)
+    path.run(0.0, 1.0)
+    lam = np.array(path.points)[:, 0]
+    top, _ = turning_points(lam)
+    return 20.0 * extremum(np.arange(len(lam), dtype=float), lam, top)
+
+
+@pytest.mark.slow
+def test_deep_arch_limit_load():
+    """The 215-degree clamped-hinged arch (DaDeppo & Schmidt 1975, as quoted by Simo &
+    Vu-Quoc 1986: P_cr = 897 for R = 100, EI = 1e6, i.e. 8.97 EI/R^2; inextensible).
+    Measured: 10.2847, 9.2786, 9.0479 EI/R^2 at 16, 32, 64 cells, observed order 2.12;
+    Richardson's extrapolation 8.971 (0.01 % off).  Asserted: the order within 0.3 of 2
+    (P1 elements and the hat's smearing are both O(h^2)), the extrapolation within 0.5 %
+    of 8.97 (the reference's three digits and our EA = 1e6 against inextensible)."""
+    loads = [deep_arch_limit_load(n) for n in (16, 32, 64)]
+    order = np.log2((loads[0] - loads[1]) / (loads[1] - loads[2]))
+    assert abs(order - 2.0) < 0.3, loads
+    extrapolated = loads[2] + (loads[2] - loads[1]) / 3.0
+    assert extrapolated == pytest.approx(8.97, rel=5e-3), (loads, extrapolated)
+
+
+def test_a_continuation_parameter_that_is_not_a_load_is_refused(tmp_path, capsys):
+    from dolfin_rod.cli import main
+    scene = tmp_path / "arch.toml"
+    scene.write_text((ROOT / "scenes" / "snap_through_arch.toml").read_text().replace(
+        'parameter = "loads.start_force"', 'parameter = "material.stiffness"'))
+    assert main(["check", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert "[continuation.parameter]: 'material.stiffness' is not a load of this scene: " \
+           "name one of loads.start_force" in err, err
