@@ -196,17 +196,9 @@ point = [0.0, 0.0, 1.0]
 t_end = 0.1
 dt = 0.05
 """
-THIRD = """[[rods]]
-name = "c"
-position = [0.0, 0.0, 1.0]
-geometry = { length = 1.0, n_cells = 4 }
-boundary = { start = "free" }
-[[joints]]
-kind = "hinge"
-rods = ["a", "c"]
-point = [0.0, 0.0, 1.0]
-axis = [1.0, 0.0, 0.0]
-"""
+# a third rod "c" at b's place, hinged to a where b is joined to it
+THIRD = PAIR[PAIR.index("[[rods]]\nname = \"b\""):PAIR.index("[time]")].replace(
+    "\"b\"", "\"c\"").replace("ball", "hinge") + "axis = [1.0, 0.0, 0.0]\n"
 SPIN = "initial = { angular_velocity = [0.0, 1.0, 0.0], rotation_centre = [0.0, 0.0, 0.0] }\n"
 
 

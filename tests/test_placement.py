@@ -18,11 +18,14 @@ ROOT = Path(__file__).resolve().parents[1]
 SYSTEMS = sorted(p.name for p in (ROOT / "scenes").glob("*.toml") if "[[rods]]" in p.read_text())
 # a curved rod (reference strains, turned) joined at its start to an interior node of a
 # rod whose stress-free shape is a polyline, held at an end by a prescribed rotation
-CURVED = """[material]
-model = "hyperelastic"
-stiffness = { A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0] }
+CURVED = """[time]
+t_end = 0.1
+dt = 0.05
 [boundary]
 start = "free"
+[material]
+stiffness = { B = [100.0, 100.0, 100.0], A = [1.0, 1.0, 1.0] }
+model = "hyperelastic"
 [[rods]]
 name = "arc"
 position = [0.0, 0.0, 1.0]
@@ -36,9 +39,6 @@ boundary = { start_rotation = { type = "step", value = [0.0, 0.0, 0.0] } }
 kind = "ball"
 rods = ["kinked", "arc"]
 point = [0.0, 0.0, 1.0]
-[time]
-t_end = 0.1
-dt = 0.05
 """
 
 
