@@ -91,7 +91,7 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
     analysis cannot take raises SceneError naming the key, before any work."""
     from mpi4py import MPI
 
-    from .scenes.rules import analysis_problem, at_rest
+    from .scenes.rules import analysis_problem
     if kind not in ANALYSES:
         raise ValueError(f"kind: one of {', '.join(ANALYSES)}, got {kind!r}")
     count = ANALYSES[kind] if count is None else count
@@ -100,15 +100,31 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
     comm = comm or MPI.COMM_WORLD
     given = scene
     scene = agree(comm, lambda: _scene(given, overrides), (SceneError,))
-    rest = agree(comm, lambda: at_rest(scene) if kind == "buckle" else None, (SceneError,))
-    if rest is not None:
-        scene = agree(comm, lambda: _scene(scene, rest[0]), (SceneError,))
-        if not quiet:
-            print_on_root(comm, f"{kind}: {rest[1]}")
+    scene, note = agree(comm, lambda: _at_rest(scene, kind), (SceneError,))
+    if note and not quiet:
+        print_on_root(comm, f"{kind}: {note}")
     agree(comm, lambda: analysis_problem(scene, kind), (SceneError,))
     return _run(scene, None if out is None else Path(out), comm, False, overwrite, quiet,
-                None, _modes_of(scene, kind, int(count), comm, quiet,
-                                None if rest is None else rest[1]))
+                None, _modes_of(scene, kind, int(count), comm, quiet, note))
+
+
+def _at_rest(scene: Scene, kind: str) -> tuple[Scene, str | None]:
+    """The scene buckling analyses (scenes.rules.at_rest: without the rate-dependent forces
+    that made geometry.rotations = "auto" pick quaternions, if it then takes rotation
+    vectors) and a note saying so, or the scene and None."""
+    from .scenes.rules import at_rest, rod_rotations
+    overrides = at_rest(scene) if kind == "buckle" else None
+    if overrides is None:
+        return scene, None
+    try:
+        rested = _scene(scene, overrides)
+    except SceneError:
+        return scene, None
+    if rod_rotations(rested) != "rotation_vector":
+        return scene, None
+    return rested, ("geometry.rotations = 'auto': the analysis runs the rod on rotation "
+                    "vectors without its Kelvin-Voigt viscosity (M, N) and drag, which "
+                    "vanish at rest (the critical loads are those of the rod at rest)")
 
 
 ANALYSES = {"buckle": 4, "modes": 6}        # the analyses of an end state, default counts
