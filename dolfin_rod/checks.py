@@ -35,6 +35,8 @@ def nonnegative(name: str, value: float) -> float:
     return x
 
 
+ENDS = ("left", "right")     # a rod's ends: s = 0 and s = L
+
 # The shortest rod: DOLFINx refuses intervals shorter than machine epsilon, and below
 # this the solvers' absolute tolerances exceed the rod's residuals (a rod of 2 cells
 # and length 1e-12 gives the tip displacement of length 1 scaled by 1e-12; 1e-15 fails).

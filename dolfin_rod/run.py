@@ -92,6 +92,7 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
     from mpi4py import MPI
 
     from .scenes.rules import analysis_problem
+    from .scenes.selection import at_rest
     if kind not in ANALYSES:
         raise ValueError(f"kind: one of {', '.join(ANALYSES)}, got {kind!r}")
     count = ANALYSES[kind] if count is None else count
@@ -100,16 +101,23 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
     comm = comm or MPI.COMM_WORLD
     given = scene
     scene = agree(comm, lambda: _scene(given, overrides), (SceneError,))
+    rest = agree(comm, lambda: at_rest(scene) if kind == "buckle" else None, (SceneError,))
+    if rest is not None:
+        scene = agree(comm, lambda: _scene(scene, rest[0]), (SceneError,))
+        if not quiet:
+            print_on_root(comm, f"{kind}: {rest[1]}")
     agree(comm, lambda: analysis_problem(scene, kind), (SceneError,))
     return _run(scene, None if out is None else Path(out), comm, False, overwrite, quiet,
-                None, _modes_of(scene, kind, int(count), comm, quiet))
+                None, _modes_of(scene, kind, int(count), comm, quiet,
+                                None if rest is None else rest[1]))
 
 
 ANALYSES = {"buckle": 4, "modes": 6}        # the analyses of an end state, default counts
 
 
-def _modes_of(scene: Scene, kind: str, count: int, comm, quiet: bool):
-    """The analysis of a run's end state: (sim, t, folder) -> its summary entry."""
+def _modes_of(scene: Scene, kind: str, count: int, comm, quiet: bool, note: str | None):
+    """The analysis of a run's end state: (sim, t, folder) -> its summary entry (with
+    ``note``, how the scene was changed for the analysis: scenes.selection.at_rest)."""
     def analysis(sim, t: float, folder: Path) -> dict:
         from .output.modes import table, write_modes
         model = sim.model
@@ -131,7 +139,8 @@ def _modes_of(scene: Scene, kind: str, count: int, comm, quiet: bool):
         files = write_modes(folder, model, kind, rows, found.shapes, comm)
         if not quiet:
             print_on_root(comm, f"{kind} at t = {t:g}:\n{table(rows)}")
-        return {kind: {"t": t, "modes": rows, "files": files}}
+        entry = {"t": t, "modes": rows, "files": files}
+        return {kind: entry if note is None else {**entry, "note": note}}
     return analysis
 
 

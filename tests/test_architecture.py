@@ -160,24 +160,77 @@ def _loaded_after(argv_lists: list[list[str]], tmp_path) -> tuple[list, list[str
 
 
 def test_cheap_commands_load_no_dolfinx_petsc_or_ufl(tmp_path):
-    """``dolfin-rod check`` of every bundled scene but the rod systems, ``schema`` and
-    ``--help`` in a fresh interpreter work and never import DOLFINx, PETSc, UFL, Basix or
-    FFCx (the DNA scenes' energy is checked by its derivatives in numpy, dna.py).  A rod
-    system ([[rods]]) still builds its rods to place the joints (DOLFINx): checked apart,
-    it must pass."""
+    """``dolfin-rod check`` of every bundled scene, ``schema`` and ``--help`` in a fresh
+    interpreter work and never import DOLFINx, PETSc, UFL, Basix or FFCx (the DNA scenes'
+    energy is checked by its derivatives in numpy, dna.py; a rod system's joints are
+    placed and checked in numpy, rod/joint_points.py)."""
     scenes = sorted((ROOT / "scenes").glob("*.toml"))
-    system = [s for s in scenes if "[[rods]]" in s.read_text()]
-    single = [s for s in scenes if s not in system]
-    assert any("\nenergy = " in s.read_text() for s in single)    # the DNA scenes are in
+    assert any("\nenergy = " in s.read_text() for s in scenes)    # the DNA scenes are in
+    assert sum("[[rods]]" in s.read_text() for s in scenes) >= 5   # and the rod systems
     out = str(tmp_path / "out")
-    argv = [["check", str(s), "--out", out] for s in single] + \
+    argv = [["check", str(s), "--out", out] for s in scenes] + \
         [["schema"], ["--help"], ["run", "--help"], ["fit", "--help"]]
     codes, heavy, text = _loaded_after(argv, tmp_path)
     assert codes == [0] * len(argv) and heavy == [], (codes, heavy)
-    assert text.count(": OK") == len(single) >= 14
-    codes, _, text = _loaded_after([["check", str(s), "--out", out] for s in system],
-                                   tmp_path)
-    assert codes == [0] * len(system) and text.count(": OK") == len(system) >= 3
+    assert text.count(": OK") == len(scenes) >= 19
+
+
+PAIR = """[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0] }
+density = 1.0
+section_inertia = [0.01, 0.01]
+[[rods]]
+name = "a"
+geometry = { length = 1.0, n_cells = 4 }
+[[rods]]
+name = "b"
+position = [0.0, 0.0, 1.0]
+geometry = { length = 1.0, n_cells = 4 }
+boundary = { start = "free" }
+[[joints]]
+kind = "ball"
+rods = ["a", "b"]
+point = [0.0, 0.0, 1.0]
+[time]
+t_end = 0.1
+dt = 0.05
+"""
+# a third rod "c" at b's place, hinged to a where b is joined to it
+THIRD = PAIR[PAIR.index("[[rods]]\nname = \"b\""):PAIR.index("[time]")].replace(
+    "\"b\"", "\"c\"").replace("ball", "hinge") + "axis = [1.0, 0.0, 0.0]\n"
+SPIN = "initial = { angular_velocity = [0.0, 1.0, 0.0], rotation_centre = [0.0, 0.0, 0.0] }\n"
+
+
+@pytest.mark.parametrize("change, message", [
+    (("point = [0.0, 0.0, 1.0]", "point = [0.0, 0.0, 0.5]"),
+     "[joints[0].point]: [0.0, 0.0, 0.5] is not on rod 'b'"),
+    (("boundary = { start = \"free\" }", "boundary = { start = \"clamped\" }"),
+     "[joints[0]]: rod 'b' is supported at its left"),
+    (("kind = \"ball\"", "kind = \"hinge\""), "[joints[0].axis]: is missing"),
+    (("kind = \"ball\"", "kind = \"hinge\"\naxis = [0.0, 2.0, 0.0]"),
+     "[joints[0].axis]: must be a unit vector"),
+    (("kind = \"ball\"", "kind = \"rigid\"\naxis = [0.0, 1.0, 0.0]"),
+     "[joints[0].axis]: is a hinge's"),
+    (("kind = \"ball\"", "kind = \"rigid\""), None),
+    (("point = [0.0, 0.0, 1.0]\n", "point = [0.0, 0.0, 1.0]\n" + THIRD),
+     "[joints[1]]: a hinge joins two nodes"),
+    (("boundary = { start = \"free\" }", "boundary = { start = \"free\" }\n" + SPIN),
+     "start: joints[0] (a-b): the starting states give its two rods a different velocity"),
+    (("name = \"a\"", "name = \"a\"\ninitial = { orientation = [0.0, 0.2, 0.0] }"),
+     "start: joints[0] (a-b): the starting states give its two rods a different position"),
+])
+def test_cheap_check_refuses_the_joints_the_api_refuses(tmp_path, change, message):
+    """The bad joints of tests/test_joints.py, test_hinge.py and test_system_start.py as
+    scenes: ``dolfin-rod check`` refuses each with exit 2 and the API's message
+    (rod/joint_points.py on the scene's placement.PlacedRods), loading no DOLFINx; the
+    good ones (``None``) pass."""
+    path = tmp_path / "pair.toml"
+    path.write_text(PAIR.replace(*change))
+    codes, heavy, text = _loaded_after([["check", str(path), "--out", str(tmp_path)]],
+                                       tmp_path)
+    assert heavy == [] and codes == [2 if message else 0], (codes, heavy, text)
+    assert message in text if message else ": OK" in text, text
 
 
 def test_one_default_per_scene_key():

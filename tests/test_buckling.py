@@ -290,3 +290,37 @@ def test_analysis_commands_refuse_scenes_they_cannot_take(tmp_path, capsys, kind
         err = capsys.readouterr().err
         assert f"[{key}]: {kind}:" in err, err
         assert not Path(out).exists()
+
+
+@pytest.mark.parametrize("material", [
+    'model = "kelvin_voigt"\nviscosity = { M = [0.1, 0.1, 0.1], N = [1.0, 1.0, 1.0] }',
+    'model = "hyperelastic"\ndrag = 0.5'])
+def test_buckle_puts_an_auto_scene_with_rate_dependent_forces_on_rotation_vectors(
+        tmp_path, capsys, material):
+    """geometry.rotations = "auto" picks quaternions for a quasi-static rod with
+    Kelvin-Voigt viscosity or drag; ``dolfin-rod buckle`` runs the rod without them (they
+    vanish at rest) on rotation vectors and says so: the clamped-free column at 8 cells
+    gives Euler's load pi^2 EI / 4 L^2 within the discretisation error 6.46e-3
+    (test_buckle_command: the same factor 2 x 1.006460, to 5e-5: the O(P/EA) of the
+    linearisation)."""
+    import json
+    from pathlib import Path
+
+    from dolfin_rod.scenes import parse_scene
+    from dolfin_rod.scenes.rules import rod_rotations
+    text = (Path(__file__).parents[1] / "scenes" / "column_buckling.toml").read_text()
+    text = text.replace("n_cells = 16", "n_cells = 8").replace(
+        'model = "hyperelastic"\n', "").replace("[material]\n", f"[material]\n{material}\n")
+    assert rod_rotations(parse_scene(text)) == "quaternion"     # what "auto" picks
+    code, out = _cli(tmp_path, text, ["buckle", "--count", "2"])
+    assert code == 0
+    summary = json.loads((Path(out) / "summary.json").read_text())["buckle"]
+    assert "rotation vectors" in summary["note"]
+    factors = [row["load_factor"] for row in summary["modes"]]
+    assert factors == pytest.approx([2 * 1.006460] * 2, rel=5e-5)
+    assert 0.5 * factors[0] == pytest.approx(1.0, rel=6.5e-3)    # Euler, 8 cells
+    # the explicit choice is kept, and refused
+    code, _ = _cli(tmp_path, text.replace("[geometry]\n",
+                                          '[geometry]\nrotations = "quaternion"\n'),
+                   ["buckle"])
+    assert code == 2

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dolfinx.fem as fem
 import numpy as np
 import pytest
+import ufl
 from mpi4py import MPI
 
 from pathlib import Path
@@ -132,10 +133,18 @@ def test_a_term_more_is_another_structure(change):
         assert signatures(changed) != signatures(base)
 
 
-def test_a_coefficient_given_as_a_function_has_no_text():
-    """A stiffness profile A(s) is UFL holding its own numbers: no text, signatures."""
-    model = make("dynamic, rotation vectors", dict(A=lambda s: (2.0 + s, 3.0, 4.0),
-                                                   B=(50.0, 60.0, 70.0)))
+def user_energy(u_d, v_d, u, v):
+    """A user's energy function (it could read numbers that change between models)."""
+    return 2.0 * ufl.inner(u - u_d, u - u_d) + 50.0 * ufl.inner(v - v_d, v - v_d)
+
+
+@pytest.mark.parametrize("given", ["stiffness profile", "user energy"])
+def test_a_function_not_of_this_package_gives_no_text(given):
+    """A stiffness profile A(s), or a user's energy, is UFL holding its own numbers: no
+    text (the signatures decide); dolfin_rod.dna:psi has one (the bundled DNA scenes)."""
+    values = {"stiffness profile": dict(A=lambda s: (2.0 + s, 3.0, 4.0), B=(50.0, 60.0, 70.0)),
+              "user energy": dict(VALUES[0], energy=user_energy)}[given]
+    model = make("dynamic, rotation vectors", values)
     assert model.problem.structure is None
 
 

@@ -43,6 +43,7 @@ class PathNewton:
         self.tangent, self.system = tangent, tangent.system
         self.problem = tangent.model.problem
         self.max_it, self.rtol = max_it, rtol
+        self.scale = self.problem.configuration_norm() or 1.0
         self.y = self.system.x.duplicate()
         self._F, self._F_shift = self.system.b.duplicate(), self.system.b.duplicate()
         self.ksp = PETSc.KSP().create(self.y.getComm())
@@ -81,18 +82,22 @@ class PathNewton:
     def solve(self, lam: float, constraint: Constraint) -> float:
         """Newton from the current state and lambda; the fields then hold the solution
         (not committed) and its lambda is returned.  SolverError if it does not converge
-        in max_it iterations: |F| <= rtol (|F_lambda| + |F_0|) and |c| <= rtol scale."""
+        in max_it iterations: |F| <= rtol (|F_lambda| + |F_0|) and |c| <= rtol scale, or
+        (a residual at its round-off floor: stiff axial terms on fine meshes) the last
+        update below rtol times the configuration's norm and |dlambda| <= rtol (1 +
+        |lambda|)."""
         y = self.state()
         a, b = y.duplicate(), y.duplicate()
         self.iterations = 0
-        reference = None
+        reference, moved = None, np.inf
         for it in range(self.max_it + 1):
             F_lam = self.load_derivative(y, lam)       # (leaves F(y, lambda) in _F)
             self.system.jacobian(self.system.A)
             c, c_y, c_lam = constraint(y, lam)
             norm = self._F.norm()
             reference = reference or norm + F_lam.norm()
-            if norm <= self.rtol * reference and abs(c) <= self.rtol * (1.0 + abs(lam)):
+            if (norm <= self.rtol * reference or moved <= self.rtol) \
+                    and abs(c) <= self.rtol * (1.0 + abs(lam)):
                 self.iterations = it
                 self.system.set(0, y)
                 return lam
@@ -106,9 +111,10 @@ class PathNewton:
             step = -(c + c_y_a) / (c_lam + c_y_b)
             if not np.isfinite(step) or not np.isfinite(a.norm()):
                 break
+            a.axpy(step, b)
             y.axpy(1.0, a)
-            y.axpy(step, b)
             lam += step
+            moved = max(a.norm() / self.scale, abs(step) / (1.0 + abs(lam)))
         self.system.set(0, y)
         raise SolverError("path Newton: not converged", self.max_it)
 

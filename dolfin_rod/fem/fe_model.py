@@ -14,7 +14,8 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-ENDS = ("left", "right")
+from ..checks import ENDS
+
 _TAGS = {"left": 1, "right": 2}
 
 

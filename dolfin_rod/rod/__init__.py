@@ -4,7 +4,7 @@ the pure-Python parts (sections.py, rotation_choice.py) stay cheap to import."""
 
 from importlib import import_module
 
-_WHERE = {"RodModel": "model", "RodSystem": "system", "Rod": "rods", "Joint": "joints",
+_WHERE = {"RodModel": "model", "RodSystem": "system", "Rod": "rods", "Joint": "joint_points",
           "RodParameters": "material", "EndLoad": "external_forces",
           "DistributedLoad": "external_forces", "EndSpring": "boundary_conditions",
           "MODELS": "constitutive", "END_TYPES": "boundary_conditions",

@@ -17,27 +17,10 @@ from mpi4py import MPI
 from ..fem import compat
 from ..fem.fe_model import ENDS
 from ..fem.solvers import BlockSNES, SolverError
-from ..theory.rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
+from ..theory.rotations import np_qmul
+from .placement import placed_shape, shape
 
 E3 = np.array([0.0, 0.0, 1.0])
-
-
-def helix(s, u0, v0):
-    """Stress-free configuration of constant strains: q(s) = exp(s u0/2), r = int R v0."""
-    u0, v0 = np.asarray(u0, float), np.asarray(v0, float)
-    a = np.linalg.norm(u0)
-    U = np.array([[0, -u0[2], u0[1]], [u0[2], 0, -u0[0]], [-u0[1], u0[0], 0]])
-    r = np.zeros((len(s), 3))
-    for i, si in enumerate(s):
-        if a * si < 1e-4:  # series of (1 - cos)/a^2 and (a s - sin)/a^3 (no 0/0)
-            c1 = si**2 / 2 - a**2 * si**4 / 24
-            c2 = si**3 / 6 - a**2 * si**5 / 120
-        else:
-            c1 = (1 - np.cos(a * si)) / a**2
-            c2 = (a * si - np.sin(a * si)) / a**3
-        r[i] = (si * np.eye(3) + c1 * U + c2 * U @ U) @ v0
-    q = np_quaternion_from_rotation_vector(np.outer(s, u0))
-    return r, q
 
 
 def stress_free(model, s) -> tuple[np.ndarray, np.ndarray]:
@@ -52,29 +35,6 @@ def stress_free(model, s) -> tuple[np.ndarray, np.ndarray]:
         on = rod_of == k
         r[on], q[on] = placed_shape(rod, s[on] - model.layout.starts[k])
     return r, q
-
-
-def shape(params, s, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
-    """(r, q) of a rod's stress-free shape at its nodes' arc lengths s, from the origin
-    with R(0) = I: the curve ``params.reference_shape`` (rod/start.py), else the helix of
-    the reference strains."""
-    if params.reference_shape is not None:
-        return params.reference_shape.frames(s, params.length, n_cells)
-    return helix(s, params.reference_curvature, params.reference_stretch)
-
-
-def placed_shape(rod, s) -> tuple[np.ndarray, np.ndarray]:
-    """(r, q) of one rod (rods.Rod) at its own arc lengths s: the helix of its reference
-    strains, turned by its orientation, moved to its position."""
-    return place(rod, *shape(rod.params, s, rod.n_cells))
-
-
-def place(rod, r, q) -> tuple[np.ndarray, np.ndarray]:
-    """Positions r and rotations q in a rod's own frame turned by its orientation and
-    moved to its position (rods.Rod)."""
-    turn = np_quaternion_from_rotation_vector(np.asarray(rod.orientation, float))
-    return (np.asarray(rod.position, float) + r @ np_rotation_matrix(turn).T,
-            np_qmul(turn, q))
 
 
 def set_initial_state(model, natural_curvature=None, natural_stretch=None,

@@ -30,78 +30,15 @@ second rod's residual at its joined node (as the reactions at a support).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Sequence
-
 import dolfinx.fem as fem
 import numpy as np
 
 from ..fem.multipoint import NodeLink, NodeMap
-from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
-from ..theory.rotations import np_qmul, np_rotation_matrix
+from ..fem.fe_model import NodeValues, near_nodes, nodal_residual
+from ..theory.quaternions import CONJ, np_qmul, np_rotation_matrix
 from .boundary_conditions import spatial_rotations
-from .initial_state import placed_shape, stress_free
-from .start import RodStarts
-
-KINDS = ("rigid", "ball", "hinge")
-_CONJ = np.array([1.0, -1, -1, -1])
-AXIS_TOLERANCE = 1e-9       # |axis| - 1 of a hinge's axis
-
-
-@dataclass
-class Joint:
-    """A joint of ``kind`` (KINDS) between two rods (names) at ``point``."""
-
-    kind: str
-    rods: tuple[str, str]
-    point: Sequence[float]
-    name: str = ""
-    axis: Sequence[float] | None = None     # a hinge's axis (spatial unit vector, t = 0)
-
-
-def check_joints(joints: list[Joint], rods) -> None:
-    """Kinds, rod names and points (a ValueError naming ``joints[k]``)."""
-    names = [rod.name for rod in rods]
-    for k, joint in enumerate(joints):
-        where = f"joints[{k}]"
-        if joint.kind not in KINDS:
-            raise ValueError(f"{where}.kind must be one of {KINDS}, got {joint.kind!r}")
-        if len(joint.rods) != 2 or joint.rods[0] == joint.rods[1] or \
-                any(name not in names for name in joint.rods):
-            raise ValueError(f"{where}.rods must name two different rods of {names}, got "
-                             f"{joint.rods!r}")
-        point = np.asarray(joint.point, dtype=float)
-        if point.shape != (3,) or not np.all(np.isfinite(point)):
-            raise ValueError(f"{where}.point must be a finite 3-vector, got {joint.point!r}")
-        problem = axis_problem(joint)
-        if problem:
-            raise ValueError(f"{where}.axis {problem}")
-    labels = [joint_label(joint) for joint in joints]
-    for k, label in enumerate(labels):
-        if labels.index(label) != k:
-            raise ValueError(f"joints[{k}].name {label!r} is used twice: give the joints "
-                             "of one pair of rods different names")
-
-
-def axis_problem(joint: Joint) -> str | None:
-    """Why a joint's axis is wrong (None if right): a hinge needs a finite unit
-    3-vector, the other kinds none."""
-    if joint.kind != "hinge":
-        return None if joint.axis is None else f"is a hinge's; a {joint.kind} joint has none"
-    if joint.axis is None:
-        return "is missing: a hinge turns about a given axis"
-    axis = np.asarray(joint.axis, dtype=float)
-    if axis.shape != (3,) or not np.all(np.isfinite(axis)):
-        return f"must be a finite 3-vector, got {joint.axis!r}"
-    if abs(np.linalg.norm(axis) - 1.0) > AXIS_TOLERANCE:
-        return f"must be a unit vector, got {axis.tolist()} (length {np.linalg.norm(axis):.6g})"
-    return None
-
-
-def joint_label(joint: Joint) -> str:
-    """The joint's name in the diagnostics: its name, else "<rod a>-<rod b>"."""
-    return joint.name or f"{joint.rods[0]}-{joint.rods[1]}"
-
+from .initial_state import stress_free
+from .joint_points import Joint, joint_label, locate
 
 def joint_nodes(model, joints: list[Joint]) -> list[tuple[float, float]]:
     """(s of the first rod's node, s of the second rod's node) on the system's mesh at
@@ -110,52 +47,6 @@ def joint_nodes(model, joints: list[Joint]) -> list[tuple[float, float]]:
     starts, h = layout.starts, [L / n for L, n in zip(layout.lengths, layout.n_cells)]
     return [(starts[k_a] + i_a * h[k_a], starts[k_b] + i_b * h[k_b])
             for k_a, i_a, k_b, i_b in locate(model.rods, joints)]
-
-
-def locate(rods, joints: list[Joint]) -> list[tuple[int, int, int, int]]:
-    """(rod, node, rod, node) of each joint: the nodes of its two rods (rods.Rod) at its
-    point in the initial configuration; a ValueError naming ``joints[k].point`` if it
-    is not a node of both, or ``joints[k]`` if a joined node is a supported end."""
-    names = [rod.name for rod in rods]
-    tol = 1e-9 * max(rod.params.length for rod in rods)
-    out = []
-    for k, joint in enumerate(joints):
-        pair = []
-        for name in joint.rods:
-            i = names.index(name)
-            rod = rods[i]
-            s = np.linspace(0.0, rod.params.length, rod.n_cells + 1)
-            r = placed_shape(rod, s)[0]
-            distance = np.linalg.norm(r - np.asarray(joint.point, float), axis=1)
-            node = int(np.argmin(distance))
-            if distance[node] > tol:
-                raise ValueError(
-                    f"joints[{k}].point {list(joint.point)} is not on rod {name!r}: its "
-                    f"nearest node is at {r[node].round(12).tolist()} ({distance[node]:.3g} "
-                    "away); a joint is at a node of both rods")
-            for end, end_node, kind in zip(ENDS, (0, rod.n_cells), rod.ends):
-                held = kind != "free" or end in (rod.end_displacement or {}) or \
-                    end in (rod.end_rotation or {})
-                if node == end_node and held:
-                    raise ValueError(f"joints[{k}]: rod {name!r} is supported at its {end} "
-                                     "end, where the joint is; a joint joins free ends or "
-                                     "interior nodes")
-            pair += [i, node]
-        out.append(tuple(pair))
-    _check_hinge_nodes(joints, out)
-    return out
-
-
-def _check_hinge_nodes(joints: list[Joint], nodes: list[tuple]) -> None:
-    """A hinge's nodes in no other joint (its slave rotation is a nonlinear map of a
-    free master, fem/multipoint.py): a ValueError naming ``joints[k]``."""
-    for k, (joint, (a, i, b, j)) in enumerate(zip(joints, nodes)):
-        if joint.kind != "hinge":
-            continue
-        for other, (c, m, d, n) in enumerate(nodes):
-            if other != k and {(a, i), (b, j)} & {(c, m), (d, n)}:
-                raise ValueError(f"joints[{k}]: a hinge joins two nodes that no other joint "
-                                 f"ties, but joints[{other}] ties one of them too")
 
 
 def node_links(model, joints: list[Joint], nodes) -> list[NodeLink | NodeMap]:
@@ -170,7 +61,7 @@ def node_links(model, joints: list[Joint], nodes) -> list[NodeLink | NodeMap]:
                               tuple(map(tuple, np.eye(3)))))
         q_a, q_b = stress_free(model, np.array([s_a, s_b]))[1]
         if joint.kind == "rigid":
-            relative = np_rotation_matrix(np_qmul(q_a * _CONJ, q_b))
+            relative = np_rotation_matrix(np_qmul(q_a * CONJ, q_b))
             links.append(NodeLink(rotation, s_a, s_b, tuple(map(tuple, relative.T))))
         elif joint.kind == "hinge":
             axis = np_rotation_matrix(q_b).T @ np.asarray(joint.axis, float)
@@ -215,7 +106,7 @@ class Hinge:
         """Q from the stored rotations of the two nodes."""
         q_a, q_b = self.stored_rotations()
         if q_a @ q_a > 0 and q_b @ q_b > 0:          # (zero before set_initial_state)
-            self.Q = np_rotation_matrix(np_qmul(q_a * _CONJ, q_b))
+            self.Q = np_rotation_matrix(np_qmul(q_a * CONJ, q_b))
 
     def value(self, theta_a, own, exact: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """(theta_b, d theta_b / d(theta_a, psi)) at theta_a, own = [psi]."""
@@ -236,47 +127,6 @@ class Hinge:
             return np.array([self.axis @ (theta_b - alpha)])
         turn = np_qmul(np.concatenate([[2.0], -alpha]), np.concatenate([[2.0], theta_b]))
         return np.array([2.0 * (self.axis @ turn[1:]) / turn[0]])
-
-
-START_TOLERANCE = 1e-9     # joined nodes' mismatch in a starting state, relative
-
-
-def check_joints_at_start(rods, joints: list[Joint], starts: dict) -> None:
-    """The starting states (rod/start.RodStarts of ``starts``, {rod name: StartingState})
-    keep every joint: its two nodes at one point with the same velocity; rigid: the
-    frames' relative rotation as at t = 0 and the same angular velocity; hinge: the
-    hinge axis shared and the relative angular velocity along it.  A ValueError naming
-    ``start`` and the joint otherwise (no model needed: also ``dolfin-rod check``)."""
-    state = RodStarts(starts, rods)
-    scale_r = max(rod.params.length for rod in rods)
-    for k, (joint, (i, node_a, j, node_b)) in enumerate(zip(joints, locate(rods, joints))):
-        (r_a, q_a, v_a, w_a), (r_b, q_b, v_b, w_b) = (
-            (part[0] for part in state.rod_state(rods[m], [node * rods[m].params.length /
-                                                           rods[m].n_cells]))
-            for m, node in ((i, node_a), (j, node_b)))
-        R_a, R_b = np_rotation_matrix(q_a), np_rotation_matrix(q_b)
-        q_a0, q_b0 = (placed_shape(rods[m], [node * rods[m].params.length / rods[m].n_cells])[1][0]
-                      for m, node in ((i, node_a), (j, node_b)))
-        relative = np_rotation_matrix(np_qmul(q_a0 * _CONJ, q_b0))
-        scale_v = max(1.0, np.abs([*v_a, *v_b]).max() + scale_r * np.abs([*w_a, *w_b]).max())
-        mismatch = {"position": np.linalg.norm(r_a - r_b) / scale_r,
-                    "velocity": np.linalg.norm(v_a - v_b) / scale_v}
-        spin = w_b - w_a
-        if joint.kind == "rigid":
-            mismatch["rotation"] = np.linalg.norm(R_a @ relative - R_b)
-            mismatch["angular velocity"] = np.linalg.norm(spin) * scale_r / scale_v
-        elif joint.kind == "hinge":
-            n = np_rotation_matrix(q_b0).T @ np.asarray(joint.axis, float)
-            along = R_b @ n
-            mismatch["rotation"] = np.linalg.norm(R_a @ relative @ n - along)
-            mismatch["angular velocity"] = np.linalg.norm(
-                spin - along * (along @ spin)) * scale_r / scale_v
-        for what, value in mismatch.items():
-            if value > START_TOLERANCE:
-                raise ValueError(f"start: joints[{k}] ({joint_label(joint)}): the starting "
-                                 f"states give its two rods a different {what} there "
-                                 f"({value:.3g} relative); start the joined rods as the "
-                                 "joint holds them")
 
 
 class JointReactions:

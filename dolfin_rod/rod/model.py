@@ -40,8 +40,8 @@ from .constitutive import check_model, energy_function, section_response
 from .contact import ContactLaw, Obstacle, ObstacleContact
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad
-from .joints import (Joint, JointReactions, check_joints, check_joints_at_start, joint_nodes,
-                     node_links)
+from .joint_points import Joint, check_joints, check_joints_at_start
+from .joints import JointReactions, joint_nodes, node_links
 from .layout import RodLayout
 from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion

@@ -349,8 +349,10 @@ class BoundTerm:
         if not self.solved or self._state is None:
             return
         nodes, _, _, H = self.contact.evaluate(self._state)
-        for n4, h in zip(nodes, H):
-            mine = np.repeat(self.owned[n4], 3)
-            if mine.any():
-                rows = self.global_rows[n4].ravel().astype(PETSc.IntType)
-                A.setValues(rows[mine], rows, h[mine], addv=PETSc.InsertMode.ADD_VALUES)
+        if not len(nodes):
+            return
+        rows = self.global_rows[nodes].reshape(-1, 12)
+        owned = np.repeat(self.owned[nodes], 3, axis=1)
+        # one call for all pairs (PETSc's loop); rows of other ranks' nodes as -1: skipped
+        A.setValuesRCV(np.where(owned, rows, -1).astype(PETSc.IntType),
+                       rows.astype(PETSc.IntType), H, addv=PETSc.InsertMode.ADD_VALUES)

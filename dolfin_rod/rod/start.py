@@ -3,7 +3,7 @@ which way it points, its starting centre line (a curve, possibly stretched), vel
 and a start in static equilibrium.
 
 The stress-free shape stays that of the reference strains (``RodParameters``:
-straight, or the helix/circle of constant ``reference_curvature``; rod/initial_state.py);
+straight, or the helix/circle of constant ``reference_curvature``; rod/placement.py);
 a starting curve only moves the rod, so a bent start of a straight rod is stressed:
 
     StartingState(shape=Arc(radius=0.5))               # a straight rod bent into an arc
@@ -36,9 +36,9 @@ from typing import Callable
 import numpy as np
 
 from ..checks import EQUILIBRIUM_NEEDS, polyline_problem
-from ..theory.rotations import (np_qmul, np_quaternion_from_matrix,
-                                np_quaternion_from_rotation_vector, np_rotation_matrix)
-from .initial_state import helix, place, shape as stress_free_shape
+from ..theory.quaternions import (np_qmul, np_quaternion_from_matrix,
+                                  np_quaternion_from_rotation_vector, np_rotation_matrix)
+from .placement import helix, place, shape as stress_free_shape
 
 Field = tuple | Callable
 
@@ -146,7 +146,7 @@ def parallel_transport(tangents: np.ndarray, normal: np.ndarray) -> np.ndarray:
 
 def constant_strain_curve(s, u0, stretch: float):
     """Centre line and unit quaternions of the curve of constant material strains u0,
-    v0 = stretch e3 from the origin with R(0) = I (initial_state.helix)."""
+    v0 = stretch e3 from the origin with R(0) = I (placement.helix)."""
     return helix(np.asarray(s, float), u0, (0.0, 0.0, stretch))
 
 

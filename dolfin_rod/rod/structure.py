@@ -11,9 +11,10 @@ of RodParameters given as numbers) enter by whether they are zero (which terms t
 residual has) and by shape; every other number enters with its value; a history of a
 load or an end motion enters as "history" (its values reach the residual only through
 Constants set at each time, and its jumps through the chosen rotation unknowns, which
-are part of the text); anything else that is not plain data (a coefficient, load or
-energy given as a function, whose UFL may hold numbers) gives no text (None): such a
-model's key is computed from its signatures.
+are part of the text); an energy function of this package (dolfin_rod.dna:psi) by its
+name; anything else that is not plain data (a coefficient, load or a user's energy given
+as a function, whose UFL may hold numbers) gives no text (None): such a model's key is
+computed from its signatures.
 """
 
 from __future__ import annotations
@@ -55,9 +56,24 @@ def _rod(rod) -> str:
                 raise _NotData(f.name)
             coefficients.append(f"{f.name}:" + ("0" if is_zero(value) else
                                                  str(np.shape(value))))
+        elif f.name == "energy":
+            coefficients.append(f"energy:{_energy(value)}")
         else:
             coefficients.append(f"{f.name}:{_data(value)}")
     return ";".join(coefficients) + _record(rod, skip=("params", "n_cells"))
+
+
+def _energy(psi) -> str:
+    """The quadratic energy (None), or a function of this package at module level (pure:
+    dolfin_rod.dna:psi) by name and identity; any other function is not data (a user's
+    may read numbers that change between models)."""
+    if psi is None:
+        return "None"
+    module, name = getattr(psi, "__module__", None) or "", getattr(psi, "__qualname__", "")
+    if (module.split(".")[0] != __name__.split(".")[0] or "<" in name
+            or getattr(psi, "__closure__", None) or not hasattr(psi, "__code__")):
+        raise _NotData("energy")
+    return f"{module}.{name}@{id(psi)}"
 
 
 def _record(value, skip=()) -> str:

@@ -23,6 +23,7 @@ from .rules import START_KEYS, adaptive_stepper, rod_rotations
 from .scene import Scene, SceneError
 from .values import Coefficient
 
+SIDES = {"start": "left", "end": "right"}    # [boundary]'s ends: the rod's ENDS
 CONTACT_SCHEME = "generalized_alpha:0.0"   # rho_inf = 0: a barrier's impacts (docs/contact.md)
 __all__ = ["Simulation", "MODELS", "register_model", "build", "FESimulation"]
 
@@ -345,11 +346,7 @@ def rod_arguments(scene: Scene) -> dict:
     """The arguments of one rod (RodModel, rod.Rod) besides its parameters: cells, ends,
     end motions, slides, turning clamps and springs, loads."""
     from ..rod import EndSpring
-    ends = {"start": "left", "end": "right"}
-    boundary = scene["boundary"]
-    motions = {m: {side: spec.vector() for key, side in ends.items()
-                   if (spec := boundary[f"{key}_{m}"]) is not None}
-               for m in ("displacement", "rotation")}
+    ends, boundary, motions = SIDES, scene["boundary"], end_motions(scene)
     end_loads, distributed_loads = rod_loads(scene)
     return dict(n_cells=scene["geometry"]["n_cells"], ends=(boundary["start"], boundary["end"]),
                 end_loads=end_loads, distributed_loads=distributed_loads,
@@ -362,15 +359,46 @@ def rod_arguments(scene: Scene) -> dict:
                           if (axis := boundary[f"{key}_turn"]) is not None})
 
 
+def end_motions(scene: Scene) -> dict:
+    """{"displacement" | "rotation": {end: motion}} of the ends whose motion [boundary]
+    prescribes (start_/end_displacement, start_/end_rotation)."""
+    boundary = scene["boundary"]
+    return {m: {side: spec.vector() for key, side in SIDES.items()
+                if (spec := boundary[f"{key}_{m}"]) is not None}
+            for m in ("displacement", "rotation")}
+
+
+def placed_rods(scene: Scene) -> list:
+    """The rods of a scene with [[rods]] as rod/placement.PlacedRod: where each is at
+    t = 0 and which ends are held, all the joints' checks read (rod/joint_points.py),
+    without building RodParameters (whose materials load DOLFINx)."""
+    from ..rod.placement import Geometry, PlacedRod
+    rods = []
+    for entry in scene.rods:
+        geo, motions = entry.scene["geometry"], end_motions(entry.scene)
+        boundary = entry.scene["boundary"]
+        rods.append(PlacedRod(
+            entry.name, Geometry(geo["length"], geo["reference_curvature"],
+                                 geo["reference_stretch"], curve(geo["reference_shape"])),
+            geo["n_cells"], (boundary["start"], boundary["end"]), motions["displacement"],
+            motions["rotation"], entry.position, entry.orientation))
+    return rods
+
+
 def rods_and_joints(scene: Scene) -> tuple[list, list]:
     """The scene's rods (rod.Rod, from each rod's scene) and joints (rod.Joint) of a
     scene with [[rods]] (scenes/systems.py)."""
-    from ..rod import Joint, Rod
+    from ..rod import Rod
     rods = [Rod(rod_parameters(entry.scene), **rod_arguments(entry.scene), name=entry.name,
                 position=entry.position, orientation=entry.orientation)
             for entry in scene.rods]
-    joints = [Joint(j.kind, j.rods, j.point, j.name, j.axis) for j in scene.joints]
-    return rods, joints
+    return rods, scene_joints(scene)
+
+
+def scene_joints(scene: Scene) -> list:
+    """The joints (rod.Joint) of a scene with [[rods]] (scenes/systems.py)."""
+    from ..rod import Joint
+    return [Joint(j.kind, j.rods, j.point, j.name, j.axis) for j in scene.joints]
 
 
 def rod_parameters(scene: Scene):

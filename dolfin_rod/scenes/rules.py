@@ -17,7 +17,7 @@ from ..checks import (EQUILIBRIUM_NEEDS, MAX_CELL_TURN, polyline_problem, sample
                       slide_axis_problem)
 from .contact import check_contact_keys
 from .physical import apply_physical_input
-from .scene import ROD_KEYS, Scene
+from .scene import ROD_KEYS, Scene, SceneError
 from .values import BadValue, Coefficient, load_entry_point
 
 # the rod's starting state (rod/start.py) in [initial]

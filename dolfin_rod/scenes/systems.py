@@ -137,7 +137,7 @@ def _joint(entry: dict, k: int, source: str, names: list[str]) -> JointEntry:
     for key in ("kind", "rods", "point"):
         if key not in entry:
             raise SceneError(source, f"{where}.{key}", "missing required key")
-    from ..rod.joints import KINDS
+    from ..rod.joint_points import KINDS
     try:
         kind = choice(*KINDS)(entry["kind"])
     except BadValue as bad:
@@ -157,8 +157,8 @@ def _joint(entry: dict, k: int, source: str, names: list[str]) -> JointEntry:
 
 
 def _joint_axis(entry: dict, kind: str, where: str, source: str) -> tuple | None:
-    """A hinge's axis (rod.joints.axis_problem), none for the other kinds."""
-    from ..rod.joints import Joint, axis_problem
+    """A hinge's axis (rod.joint_points.axis_problem), none for the other kinds."""
+    from ..rod.joint_points import Joint, axis_problem
     axis = entry.get("axis")
     if axis is not None:
         try:
@@ -172,13 +172,14 @@ def _joint_axis(entry: dict, kind: str, where: str, source: str) -> tuple | None
 
 
 def _check_joint_points(scene: Scene) -> None:
-    """Every joint at a node of both its rods (rod.joints.locate) and the rods' starting
-    states meeting there (rod.joints.check_joints_at_start), before any model."""
-    from ..rod.joints import check_joints_at_start, locate
-    from .builders import rod_starts, rods_and_joints
+    """Every joint at a node of both its rods (rod.joint_points.locate) and the rods'
+    starting states meeting there (check_joints_at_start), before any model: the rods
+    as placed there (builders.placed_rods: no DOLFINx)."""
+    from ..rod.joint_points import check_joints_at_start, locate
+    from .builders import placed_rods, rod_starts, scene_joints
     if not scene.joints:
         return
-    rods, joints = rods_and_joints(scene)
+    rods, joints = placed_rods(scene), scene_joints(scene)
     try:
         locate(rods, joints)
     except ValueError as err:
