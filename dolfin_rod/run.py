@@ -91,7 +91,8 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
     analysis cannot take raises SceneError naming the key, before any work."""
     from mpi4py import MPI
 
-    from .scenes.rules import analysis_problem, at_rest
+    from .scenes.rules import analysis_problem
+    from .scenes.selection import at_rest
     if kind not in ANALYSES:
         raise ValueError(f"kind: one of {', '.join(ANALYSES)}, got {kind!r}")
     count = ANALYSES[kind] if count is None else count
@@ -116,7 +117,7 @@ ANALYSES = {"buckle": 4, "modes": 6}        # the analyses of an end state, defa
 
 def _modes_of(scene: Scene, kind: str, count: int, comm, quiet: bool, note: str | None):
     """The analysis of a run's end state: (sim, t, folder) -> its summary entry (with
-    ``note``, how the scene was changed for the analysis: scenes.rules.at_rest)."""
+    ``note``, how the scene was changed for the analysis: scenes.selection.at_rest)."""
     def analysis(sim, t: float, folder: Path) -> dict:
         from .output.modes import table, write_modes
         model = sim.model

@@ -442,37 +442,6 @@ def _rotations(scene: Scene, choose) -> str:
         raise scene.error(key, str(err)) from err
 
 
-def at_rest(scene: Scene) -> tuple[dict, str] | None:
-    """For ``dolfin-rod buckle``: the overrides that put a quasi-static scene whose
-    geometry.rotations = "auto" picks quaternions only for its rate-dependent forces
-    (Kelvin-Voigt viscosity M, N, drag) on rotation vectors, and a note saying so; None
-    when nothing is to change.  Buckling is about equilibria at rest, where these forces
-    vanish (docs/stability.md): the rod without them has the same critical loads; its
-    pre-load is reached at the load's end value, without the viscous lag."""
-    mat = scene["material"]
-    if mat["dynamic"] or "rotations" in scene.given["geometry"] or \
-            rod_rotations(scene) != "quaternion":
-        return None
-    import tomllib
-
-    from .schema import parse_scene
-    raw = tomllib.loads(scene.text).get("material", {})
-    visc = {k: v for k, v in raw.get("viscosity", {}).items() if k not in ("M", "N")}
-    overrides = {"material.viscosity": visc or None, "material.drag": None,
-                 "material.rotational_drag": None}
-    if mat["model"] == "kelvin_voigt":
-        overrides["material.model"] = "hyperelastic"
-    try:
-        scene = parse_scene(scene.text, scene.source, scene.name, overrides)
-    except SceneError:
-        return None
-    if rod_rotations(scene) != "rotation_vector":
-        return None
-    return overrides, ("geometry.rotations = 'auto': the analysis runs the rod on rotation "
-                       "vectors without its Kelvin-Voigt viscosity (M, N) and drag, which "
-                       "vanish at rest (the critical loads are those of the rod at rest)")
-
-
 def _check_turns_resolved(scene: Scene) -> None:
     """The prescribed end rotations turn one end against the other by at most what
     geometry.n_cells cells represent: each cell's relative rotation stays below
