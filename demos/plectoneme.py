@@ -21,7 +21,7 @@
 #     (pair_contact_force > 0).
 #
 # Run: `./rodenv python3 demos/plectoneme.py` (40 cells, dt = 0.01 s, ~1 min), also under
-# `mpirun -n 2`; `--small` (20 cells, dt = 0.025 s, ~15 s) is the test's resolution.
+# `mpirun -n 2`; `--small` (28 cells, dt = 0.025 s, ~20 s) is the test's resolution.
 # Output: results/plectoneme/ (the run folder: timeseries.csv with twist and writhe,
 # rod.bp with the contact force along the rod, animation.gif, snapshots.png) and
 # plectoneme.png.
@@ -37,7 +37,7 @@ from mpi4py import MPI
 from dolfin_rod import load_scene, run
 
 OUT = pathlib.Path("results/plectoneme")
-SMALL = {"geometry.n_cells": 20, "time.dt": 0.025, "outputs.every": 4}
+SMALL = {"geometry.n_cells": 28, "time.dt": 0.025, "outputs.every": 4}
 
 
 def main() -> None:

@@ -92,6 +92,7 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
     from mpi4py import MPI
 
     from .scenes.rules import analysis_problem
+    from .scenes.selection import at_rest
     if kind not in ANALYSES:
         raise ValueError(f"kind: one of {', '.join(ANALYSES)}, got {kind!r}")
     count = ANALYSES[kind] if count is None else count
@@ -100,31 +101,15 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
     comm = comm or MPI.COMM_WORLD
     given = scene
     scene = agree(comm, lambda: _scene(given, overrides), (SceneError,))
-    scene, note = agree(comm, lambda: _at_rest(scene, kind), (SceneError,))
-    if note and not quiet:
-        print_on_root(comm, f"{kind}: {note}")
+    rest = agree(comm, lambda: at_rest(scene) if kind == "buckle" else None, (SceneError,))
+    if rest is not None:
+        scene = agree(comm, lambda: _scene(scene, rest[0]), (SceneError,))
+        if not quiet:
+            print_on_root(comm, f"{kind}: {rest[1]}")
     agree(comm, lambda: analysis_problem(scene, kind), (SceneError,))
     return _run(scene, None if out is None else Path(out), comm, False, overwrite, quiet,
-                None, _modes_of(scene, kind, int(count), comm, quiet, note))
-
-
-def _at_rest(scene: Scene, kind: str) -> tuple[Scene, str | None]:
-    """The scene buckling analyses (scenes.rules.at_rest: without the rate-dependent forces
-    that made geometry.rotations = "auto" pick quaternions, if it then takes rotation
-    vectors) and a note saying so, or the scene and None."""
-    from .scenes.rules import at_rest, rod_rotations
-    overrides = at_rest(scene) if kind == "buckle" else None
-    if overrides is None:
-        return scene, None
-    try:
-        rested = _scene(scene, overrides)
-    except SceneError:
-        return scene, None
-    if rod_rotations(rested) != "rotation_vector":
-        return scene, None
-    return rested, ("geometry.rotations = 'auto': the analysis runs the rod on rotation "
-                    "vectors without its Kelvin-Voigt viscosity (M, N) and drag, which "
-                    "vanish at rest (the critical loads are those of the rod at rest)")
+                None, _modes_of(scene, kind, int(count), comm, quiet,
+                                None if rest is None else rest[1]))
 
 
 ANALYSES = {"buckle": 4, "modes": 6}        # the analyses of an end state, default counts
@@ -132,7 +117,7 @@ ANALYSES = {"buckle": 4, "modes": 6}        # the analyses of an end state, defa
 
 def _modes_of(scene: Scene, kind: str, count: int, comm, quiet: bool, note: str | None):
     """The analysis of a run's end state: (sim, t, folder) -> its summary entry (with
-    ``note``, how the scene was changed for the analysis: scenes.rules.at_rest)."""
+    ``note``, how the scene was changed for the analysis: scenes.selection.at_rest)."""
     def analysis(sim, t: float, folder: Path) -> dict:
         from .output.modes import table, write_modes
         model = sim.model

@@ -156,7 +156,7 @@ def test_3d_demos_run(name, ranks):
 
 @pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_plectoneme_demo_small(ranks):
-    """The plectoneme at the test's resolution (--small: 20 cells, dt = 0.025 s; ~20 s
+    """The plectoneme at the test's resolution (--small: 28 cells, dt = 0.025 s; ~25 s
     serially): the demo asserts Lk = Tw + Wr to 1e-3 at every output (measured 3e-9: the
     polygon's identity holds while no segments pass through each other), every pair's
     gap > 0 at every step and a formed plectoneme (Wr > 1); here its time series is read

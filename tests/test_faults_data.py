@@ -296,21 +296,26 @@ def test_an_end_couple_turning_a_cell_beyond_what_it_represents_stops_the_run(tm
     assert run_main(capsys, "run", fine, "--out", folder / "fine", "--quiet")[0] == 0
 
 
-def test_api_turn_beyond_what_the_cells_represent_stops_the_integrator():
+@pytest.mark.parametrize("integrator", ["TimeStepper", "TSIntegrator"])
+def test_api_turn_beyond_what_the_cells_represent_stops_the_integrator(integrator):
     """The Python API: a prescribed end rotation ramped to 19 rad on 4 cells of a
     quasi-static rod (no scene check) stops with IntegrationError naming n_cells at the
-    first step whose uniform twist turns a cell by more than 2 rad: t = 0.45, 8.55 / 4."""
-    from dolfin_rod import TimeStepper, loads
+    first step whose uniform twist turns a cell by more than 2 rad: t = 0.45, 8.55 / 4;
+    per-step schemes (rotation vectors) and PETSc TS (quaternions: TS now calls the
+    problem's after_step after each accepted step, where the rod checks)."""
+    from dolfin_rod import TimeStepper, TSIntegrator, loads
     from dolfin_rod.integrators.step_control import IntegrationError
     from dolfin_rod.rod import RodModel, RodParameters
     params = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(100.0, 100.0, 100.0))
     turn = loads.VectorHistory((loads.constant(0.0), loads.constant(0.0), loads.ramp(19.0, 1.0)))
+    ts = integrator == "TSIntegrator"
     rod = RodModel(params, n_cells=4, model="hyperelastic", ends=("clamped", "clamped"),
-                   end_rotation={"right": turn})
+                   end_rotation={"right": turn}, rotations="quaternion" if ts else "auto")
     rod.set_initial_state()
+    stepper = TSIntegrator(rod.problem, "bdf") if ts else TimeStepper(rod.problem)
     with pytest.raises(IntegrationError, match=r"at t = 0.45 a cell's end node turned by "
                        r"2.138 rad .* take n_cells >= 5 for the turn so far"):
-        TimeStepper(rod.problem).run(0.0, 1.0, 0.05)
+        stepper.run(0.0, 1.0, 0.05)
 
 
 # --- item 11: a user module that calls sys.exit at import -------------------------------

@@ -171,6 +171,7 @@ class TSIntegrator:
                                     **self.method.options, **(ts_options or {})}, rtol, atol)
         self.stats = StepStats()
         self._observer = None
+        self._stop = None
         self._t_accepted = None
         self._dt_nominal = None
 
@@ -235,13 +236,14 @@ class TSIntegrator:
         h = t - self._t_accepted if self._t_accepted is not None else 0.0
         if self.second_order:  # TSALPHA2 carries the rate itself
             self.system.set(1, ts.getSolution2()[1])
-            self.problem.after_step()
+            self._after_step(ts)
         elif h > 0:  # backward-difference rate of the accepted step
             rate = x.copy()
             rate.axpy(-1.0, self._x_prev)
             rate.scale(1.0 / h)
             self.system.set(1, rate)
             rate.destroy()
+            self._after_step(ts)
         x.copy(self._x_prev)
         self._t_accepted = t
         if step > 0:
@@ -249,7 +251,21 @@ class TSIntegrator:
         if self._observer:
             self._observer(t, self)
 
+    def _after_step(self, ts) -> None:
+        """problem.after_step (a rod: its checks of the accepted state); an
+        IntegrationError it raises stops TS and is raised by run (not through PETSc's
+        callback error)."""
+        if self._stop is not None:
+            return
+        try:
+            self.problem.after_step()
+        except IntegrationError as err:
+            self._stop = err              # TS stops after the step under way (_post_step)
+
     def _post_step(self, ts):
+        if self._stop is not None:
+            ts.setConvergedReason(PETSc.TS.ConvergedReason.DIVERGED_STEP_REJECTED)
+            return
         dt, t = ts.getTimeStep(), ts.getTime()
         if not self.adaptive and dt < self._dt_nominal:  # grow back after a cut
             dt = grown(dt, self._dt_nominal)
@@ -287,7 +303,10 @@ class TSIntegrator:
         self.ts.setConvergedReason(PETSc.TS.ConvergedReason.CONVERGED_ITERATING)
         self.ts.setMaxSteps(max(10 * nominal_steps(t0, t_end, dt),
                                 10**6 if self.adaptive else 0))
+        self._stop = None
         self.ts.solve(self.x)
+        if self._stop is not None:
+            raise self._stop
         reason = self.ts.getConvergedReason()
         self.stats.rejected = self.ts.getStepRejections()
         self.stats.snes_failures = self.ts.getSNESFailures()

@@ -5,7 +5,6 @@ options, torsion boundary conditions, 3-D rod material, inertia and ends."""
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +17,7 @@ from ..checks import (EQUILIBRIUM_NEEDS, MAX_CELL_TURN, polyline_problem, sample
                       slide_axis_problem)
 from .contact import check_contact_keys
 from .physical import apply_physical_input
-from .scene import ROD_KEYS, Scene
+from .scene import ROD_KEYS, Scene, SceneError
 from .values import BadValue, Coefficient, load_entry_point
 
 # the rod's starting state (rod/start.py) in [initial]
@@ -431,7 +430,7 @@ def _rotations(scene: Scene, choose) -> str:
         mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0)) \
         or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
     motions = [scene["boundary"][f"{end}_rotation"] for end in ("start", "end")]
-    rotation_jumps = any(spec is not None and spec.is_vector and any(
+    rotation_jumps = not mat["dynamic"] and any(spec is not None and spec.is_vector and any(
         load_histories.jumps(spec.build(i)) for i in range(3)) for spec in motions)
     obstacle = rotation_vector_obstacle(mat["dynamic"], mat["variant"], constraint,
                                         rate_dependent=rate_dependent)
@@ -441,26 +440,6 @@ def _rotations(scene: Scene, choose) -> str:
     except ValueError as err:
         key = "geometry.rotations" if obstacle else "time.scheme"
         raise scene.error(key, str(err)) from err
-
-
-def at_rest(scene: Scene) -> dict | None:
-    """For ``dolfin-rod buckle``: the overrides (parse_scene) that drop the Kelvin-Voigt
-    viscosity M, N and the drag of a quasi-static scene on quaternions chosen by
-    geometry.rotations = "auto"; None when not such a scene.  Buckling is about
-    equilibria at rest, where these forces vanish (docs/stability.md): the rod without
-    them has the same critical loads, and may take rotation vectors (run.analyse checks
-    that it does); its pre-load is reached without the viscous lag."""
-    mat = scene["material"]
-    if mat["dynamic"] or "rotations" in scene.given["geometry"] or \
-            rod_rotations(scene) != "quaternion":
-        return None
-    visc = {k: v for k, v in tomllib.loads(scene.text).get("material", {}).get(
-        "viscosity", {}).items() if k not in ("M", "N")}
-    overrides = {"material.viscosity": visc or None, "material.drag": None,
-                 "material.rotational_drag": None}
-    if mat["model"] == "kelvin_voigt":
-        overrides["material.model"] = "hyperelastic"
-    return overrides
 
 
 def _check_turns_resolved(scene: Scene) -> None:

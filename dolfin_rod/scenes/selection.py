@@ -8,15 +8,19 @@
     torsion  isolated torsion otherwise (inertia, s-dependent coefficients, a distributed
              couple): TorsionModel, the PDE of eqs. ``phieq``, ``upeq``.
     rod      a 3-D rod material (tensors), natural curvature, forces: RodModel.
+
+:func:`at_rest` selects, for ``dolfin-rod buckle``, the rod at rest that the analysis runs.
 """
 
 from __future__ import annotations
 
+import tomllib
 from dataclasses import dataclass
 
-from .schema import Scene
+from .rules import rod_rotations
+from .schema import Scene, SceneError, parse_scene
 
-__all__ = ["Choice", "select_model"]
+__all__ = ["Choice", "select_model", "at_rest"]
 
 ORDER = ("ode", "torsion", "rod")
 
@@ -91,3 +95,29 @@ def _ode_time_keys(scene: Scene) -> str:
     return ""
 
 
+def at_rest(scene: Scene) -> tuple[dict, str] | None:
+    """For ``dolfin-rod buckle``: the overrides that put a quasi-static scene whose
+    geometry.rotations = "auto" picks quaternions only for its rate-dependent forces
+    (Kelvin-Voigt viscosity M, N, drag) on rotation vectors, and a note saying so; None
+    when nothing is to change.  Buckling is about equilibria at rest, where these forces
+    vanish (docs/stability.md): the rod without them has the same critical loads; its
+    pre-load is reached at the load's end value, without the viscous lag."""
+    mat = scene["material"]
+    if mat["dynamic"] or "rotations" in scene.given["geometry"] or \
+            rod_rotations(scene) != "quaternion":
+        return None
+    raw = tomllib.loads(scene.text).get("material", {})
+    visc = {k: v for k, v in raw.get("viscosity", {}).items() if k not in ("M", "N")}
+    overrides = {"material.viscosity": visc or None, "material.drag": None,
+                 "material.rotational_drag": None}
+    if mat["model"] == "kelvin_voigt":
+        overrides["material.model"] = "hyperelastic"
+    try:
+        scene = parse_scene(scene.text, scene.source, scene.name, overrides)
+    except SceneError:
+        return None
+    if rod_rotations(scene) != "rotation_vector":
+        return None
+    return overrides, ("geometry.rotations = 'auto': the analysis runs the rod on rotation "
+                       "vectors without its Kelvin-Voigt viscosity (M, N) and drag, which "
+                       "vanish at rest (the critical loads are those of the rod at rest)")
