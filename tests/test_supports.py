@@ -224,24 +224,31 @@ def test_spring_where_the_support_holds_is_a_scene_error():
 
 
 @pytest.mark.mpi
-def test_dynamic_rod_with_an_end_displaced_at_the_start_starts_at_rest_in_equilibrium():
+@pytest.mark.parametrize("motion", ["displacement", "rotation"])
+def test_dynamic_rod_with_an_end_moved_at_the_start_starts_at_rest_in_equilibrium(motion):
     """A dynamic rod (rho A = 2) clamped at s = 0, its end s = L held displaced by
-    d = (0.2, 0, 0.1) from t = 0 on (a constant motion, refused before: issue 25 item 3):
-    the start solves the equilibrium with the end there, so the rod stays at rest --
-    kinetic energy 0 and the free energy constant over the run (to Newton's tolerance)
-    -- in the static shape: its reactions are those of the quasi-static rod (rho A = 0,
-    its own start in equilibrium) to 1e-8."""
+    d = (0.2, 0, 0.1), or turned by 0.6 rad about e_2, from t = 0 on (a constant motion,
+    refused before: issue 25 item 3): the start solves the equilibrium with the end
+    there, so the rod stays at rest -- kinetic energy 0 and the free energy constant
+    over the run (to Newton's tolerance) -- in the static shape: its reactions are those
+    of the quasi-static rod (rho A = 0, its own start in equilibrium) to 1e-8."""
     d = np.array([0.2, 0.0, 0.1])
+    turn = np.array([0.0, 0.6, 0.0])
+    moved = {"end_displacement": {"right": lambda t: d}} if motion == "displacement" \
+        else {"end_rotation": {"right": lambda t: turn}}
     stiff = dict(length=1.0, A=(1.0, 1.0, 1.0), B=(40.0, 40.0, 60.0))
     models = [RodModel(RodParameters(**stiff, **inertia), n_cells=6, model="hyperelastic",
-                       ends=("clamped", "clamped"), end_displacement={"right": lambda t: d})
+                       ends=("clamped", "clamped"), **moved)
               for inertia in ({"rho_A": 2.0, "I11": 0.01, "I22": 0.01}, {})]
     dynamic, static = (run(m, 0.5, 0.05) for m in models)
     assert max(r["kinetic_energy"] for r in dynamic[1:]) < 1e-16
     assert dynamic[-1]["free_energy"] == pytest.approx(dynamic[1]["free_energy"], rel=1e-9)
     assert dynamic[-1]["free_energy"] > 1e-3
-    assert [dynamic[-1][f"tip_position_{c}"] for c in "xyz"] == pytest.approx(
-        [0.2, 0.0, 1.1], abs=1e-12)
+    if motion == "displacement":
+        assert [dynamic[-1][f"tip_position_{c}"] for c in "xyz"] == pytest.approx(
+            [0.2, 0.0, 1.1], abs=1e-12)
+    else:
+        assert dynamic[-1]["tip_rotation_angle"] == pytest.approx(0.6, abs=1e-12)
     for end in ("left", "right"):
         for kind in ("force", "couple"):
             for c in "xyz":
@@ -250,11 +257,27 @@ def test_dynamic_rod_with_an_end_displaced_at_the_start_starts_at_rest_in_equili
                                                          abs=1e-10), key
 
 
-def test_a_dynamic_rod_on_quaternions_refuses_a_displaced_start():
-    with pytest.raises(ValueError, match="consistent start .* rotation-vector unknowns"):
+def test_a_dynamic_rod_turned_at_the_start_by_more_than_a_quarter_turn_is_refused():
+    """The start's consistent solve turns the end in one rotation increment, which the
+    rotation-vector chart bounds (a quarter turn, rotation_vector.MAX_INCREMENT): 2 rad
+    is refused before any step, naming the start and what to do."""
+    from dolfin_rod import TimeStepper
+    from dolfin_rod.integrators.step_control import IntegrationError
+    model = RodModel(RodParameters(rho_A=1.0, I11=0.01, I22=0.01), n_cells=4,
+                     ends=("clamped", "free"), model="hyperelastic",
+                     end_rotation={"left": lambda t: (0.0, 2.0, 0.0)})
+    model.set_initial_state()
+    with pytest.raises(IntegrationError, match="the start at t = 0 .* ramp or smooth_step"):
+        TimeStepper(model.problem).run(0.0, 0.01, 0.01)
+
+
+@pytest.mark.parametrize("motion", ["end_displacement", "end_rotation"])
+def test_a_dynamic_rod_on_quaternions_refuses_a_displaced_start(motion):
+    with pytest.raises(ValueError, match=f"{motion} starts away .* consistent start .* "
+                                         "rotation-vector unknowns"):
         RodModel(RodParameters(rho_A=1.0, I11=0.01, I22=0.01), n_cells=2,
                  rotations="quaternion", ends=("clamped", "clamped"),
-                 end_displacement={"right": lambda t: (0.1, 0.0, 0.0)})
+                 **{motion: {"right": lambda t: (0.1, 0.0, 0.0)}})
 
 
 @pytest.mark.mpi

@@ -158,19 +158,22 @@ class RodModel(FEModel):
         if joints and obstacle:
             raise ValueError(f"joints need rotation-vector unknowns, which this system "
                              f"cannot have: {obstacle}")
-        chosen = choose_rotations(rotations, obstacle, rotation_jumps=any(
+        # a dynamic rod's end rotation jumps at most at t = 0 (later: refused): the
+        # consistent start turns it there (integrators/lie_alpha.py)
+        chosen = choose_rotations(rotations, obstacle, rotation_jumps=not self.dynamic and any(
             load_histories.jumps(motion) for rod in rods
             for motion in (rod.end_rotation or {}).values()))
         if joints and chosen != "rotation_vector":
             raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
-        if self.dynamic and chosen == "quaternion" and any(
-                load_histories.jumps(motion) for rod in rods
-                for motion in (rod.end_displacement or {}).values()):
-            raise ValueError("end_displacement starts away from 0 on a dynamic rod: its "
-                             "consistent start (at rest in equilibrium with the displaced "
-                             "end) is that of rotation-vector unknowns (rotations = "
-                             f"'rotation_vector'), not of {chosen!r}")
+        for name in ("end_displacement", "end_rotation"):
+            if self.dynamic and chosen == "quaternion" and any(
+                    load_histories.jumps(motion) for rod in rods
+                    for motion in (getattr(rod, name) or {}).values()):
+                raise ValueError(f"{name} starts away from 0 on a dynamic rod: its "
+                                 "consistent start (at rest in equilibrium with the moved "
+                                 "end) is that of rotation-vector unknowns (rotations = "
+                                 f"'rotation_vector'), not of {chosen!r}")
         return chosen
 
     def _section_response(self, disc):

@@ -430,7 +430,7 @@ def _rotations(scene: Scene, choose) -> str:
         mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0)) \
         or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
     motions = [scene["boundary"][f"{end}_rotation"] for end in ("start", "end")]
-    rotation_jumps = any(spec is not None and spec.is_vector and any(
+    rotation_jumps = not mat["dynamic"] and any(spec is not None and spec.is_vector and any(
         load_histories.jumps(spec.build(i)) for i in range(3)) for spec in motions)
     obstacle = rotation_vector_obstacle(mat["dynamic"], mat["variant"], constraint,
                                         rate_dependent=rate_dependent)
