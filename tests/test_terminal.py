@@ -3,6 +3,7 @@ in plain words, for every reason rod/rotation_choice.py knows."""
 
 from __future__ import annotations
 
+import io
 import time
 
 import pytest
@@ -89,3 +90,10 @@ def test_a_long_compile_is_announced_once(tmp_path):
     assert (tmp_path / "terminal").read_text() == \
         "compiling kernels (first run only, about 12 s)\n"
     assert compile_notice.estimate(tmp_path / "nothing") == "up to a minute"
+    # a stream without a file descriptor (pytest's capture, a notebook's output): the
+    # run goes on silently (io.UnsupportedOperation from Popen stopped every run before)
+    captured = io.StringIO()
+    with compile_notice.listening(captured, after=0.0):
+        with compile_notice.watching(tmp_path):
+            fem.form(fresh())
+    assert captured.getvalue() == ""

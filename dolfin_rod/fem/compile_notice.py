@@ -43,12 +43,23 @@ def estimate(folder: Path) -> str:
 @contextmanager
 def listening(stream, after: float = SLOW_COMPILE):
     """Within the block, a compile longer than ``after`` s writes its line to ``stream``
-    (a file with a descriptor; None: nothing) once."""
-    _STATE.update(stream=stream, after=after, told=False, seconds=0.0)
+    (a file with a descriptor; None or a stream without one, as pytest's capture or a
+    notebook's output, nothing) once."""
+    _STATE.update(stream=_with_descriptor(stream), after=after, told=False, seconds=0.0)
     try:
         yield
     finally:
         _STATE.update(stream=None, after=SLOW_COMPILE)
+
+
+def _with_descriptor(stream):
+    """``stream`` if a child process can write to it (it has a file descriptor), else
+    None."""
+    try:
+        stream.fileno()
+    except (AttributeError, OSError, ValueError):   # io.UnsupportedOperation is both
+        return None
+    return stream
 
 
 def _speaker(stream, after: float, text: str):

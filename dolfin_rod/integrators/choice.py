@@ -25,6 +25,7 @@ from __future__ import annotations
 from ..checks import MAX_STEP_CUTS, PREDICTOR
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from .lie_alpha import LieGeneralizedAlpha
+from .schemes import get_scheme
 from .stepper import SchemeStepper
 from .ts import TSIntegrator
 
@@ -44,7 +45,10 @@ def choose_integrator(problem: SemiDiscreteProblem, scheme: str | None = None,
                       predictor: str = PREDICTOR, tolerance: float | None = None,
                       ts_type: str | None = None, **ts_options):
     """The integrator of ``problem`` (the module's docstring); ``ts_options`` are
-    TSIntegrator's keywords (adaptive, rtol, atol, ...)."""
+    TSIntegrator's keywords (adaptive, rtol, atol, ...).  An unknown scheme name is
+    refused first (ValueError), before the problem is looked at."""
+    if scheme is not None:
+        get_scheme(scheme)
     if problem.terms and (ts_type is not None or not on_rotation_group(problem, scheme)):
         raise ValueError("terms assembled outside the forms (a rod's segment contact, "
                          "contact.self / contact.between_rods) are solved by "

@@ -178,6 +178,11 @@ class SegmentContact:
         self._cache = (P, value)
         return value
 
+    def forget(self) -> None:
+        """The next :meth:`evaluate` finds the pairs anew even at the same state (the
+        cost of a new state, benchmarks/contact_assembly.py)."""
+        self._cache = (None, None)
+
     def owned_displacement(self) -> np.ndarray:
         return self.x.x.array[: 3 * self.line.n_owned]
 
