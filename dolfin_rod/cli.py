@@ -90,9 +90,9 @@ def _add_fit_parser(sub) -> None:
 def _add_analysis_parsers(sub) -> None:
     """``buckle`` and ``modes``: run a scene, then analyse its end state (run.analyse)."""
     helps = {"buckle": "run a quasi-static rod scene, then its critical load factors and "
-                       "buckling modes about the end state (buckle.json, buckle.bp)",
+                       "buckling modes about the end state (buckle.json, buckle.bp, buckle.png)",
              "modes": "run a rod scene with mass, then its natural frequencies and "
-                      "vibration modes about the end state (modes.json, modes.bp)"}
+                      "vibration modes about the end state (modes.json, modes.bp, modes.png)"}
     for kind, default in ANALYSES.items():
         cmd = sub.add_parser(kind, help=helps[kind])
         cmd.add_argument("scene", type=Path)

@@ -2,8 +2,9 @@
 ``<kind>.json`` (the table: one row per mode), ``<kind>.bp`` (ParaView, the
 ADIOS2VTXReader: one step per mode, "time" = the mode's number, the centre line
 displaced by the mode scaled to a largest displacement of 0.1 L, with the point data
-``mode_displacement`` and ``mode_rotation`` of the mode scaled to 1) and the table as
-text.  The mode shapes are gathered on rank 0 in the order of s (line_fields.py);
+``mode_displacement`` and ``mode_rotation`` of the mode scaled to 1), ``<kind>.png``
+(output/mode_picture.py: the same displaced centre lines, one panel per mode) and the
+table as text.  The mode shapes are gathered on rank 0 in the order of s (line_fields.py);
 rank 0 writes.
 """
 
@@ -13,6 +14,7 @@ import json
 from pathlib import Path
 
 from .line_fields import LineSampler
+from .mode_picture import draw_modes
 from .run_folders import on_root
 from .vtx import LineVTX
 
@@ -35,19 +37,34 @@ def write_modes(folder: Path, model, kind: str, rows: list[dict], shapes: list[d
         fields["mode_displacement"].x.array[:] = shape["displacement"]
         fields["mode_rotation"].x.array[:] = shape["rotation"]
         samples.append(sampler.sample())
-    names = [f"{kind}.json", f"{kind}.bp"]
+    names = [f"{kind}.json", f"{kind}.bp", f"{kind}.png"]
 
     def write() -> None:
         (folder / names[0]).write_text(json.dumps({"kind": kind, "modes": rows}, indent=1))
         vtx = LineVTX(folder / names[1])
+        displaced = []
         for k, sample in enumerate(samples, start=1):
-            points = sample.point["centre_line"] + AMPLITUDE * model.length * \
-                sample.point["mode_displacement"]
-            vtx.write(float(k), points, {n: sample.point[n] for n in fields}, {},
+            displaced.append(sample.point["centre_line"] + AMPLITUDE * model.length *
+                             sample.point["mode_displacement"])
+            vtx.write(float(k), displaced[-1], {n: sample.point[n] for n in fields}, {},
                       sample.segments())
         vtx.close()
+        if samples:
+            draw_modes(folder / names[2], samples[0].point["centre_line"], displaced,
+                       [_title(row) for row in rows], HEADINGS[kind])
     on_root(comm, write, f"cannot write the {kind} modes in {folder}")
     return names
+
+
+HEADINGS = {"buckle": "buckling modes (largest displacement 0.1 L)",
+            "modes": "vibration modes (largest displacement 0.1 L)"}
+
+
+def _title(row: dict) -> str:
+    """A mode's panel title: its number and load factor or frequency."""
+    if "load_factor" in row:
+        return f"mode {row['mode']}: load factor {row['load_factor']:.6g}"
+    return f"mode {row['mode']}: omega {row['omega']:.6g} (f {row['frequency']:.6g})"
 
 
 def table(rows: list[dict]) -> str:
