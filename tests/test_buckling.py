@@ -32,8 +32,10 @@ import math
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
-from scipy.optimize import brentq, minimize_scalar
+from scipy.optimize import brentq
 
+from determinants import first_root
+from determinants import smallest_singular_value as smallest_singular_value_of
 from dolfin_rod import TimeStepper
 from dolfin_rod.analysis.buckling import buckling_modes
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
@@ -117,16 +119,9 @@ def greenhill_with_tension(tension: float) -> float:
             (lambda r: lambda z: (np.exp(r * z), r * np.exp(r * z)))(r) for r in roots]
         D = np.array([[f(z)[k] for f in values] for z in (0.0, 1.0) for k in (0, 1)],
                      dtype=complex)
-        return np.linalg.svd(D / np.linalg.norm(D, axis=0), compute_uv=False)[-1]
+        return smallest_singular_value_of(D)
     low = 2 * math.sqrt(tension) * (1 + 1e-6)           # real exponents below: no root
-    grid = np.linspace(low, 3 * low, 4000)
-    values = [smallest_singular_value(m) for m in grid]
-    k = next(k for k in range(1, len(grid) - 1)
-             if values[k] < values[k - 1] and values[k] < values[k + 1])
-    found = minimize_scalar(smallest_singular_value, bounds=(grid[k - 1], grid[k + 1]),
-                            method="bounded", options={"xatol": 1e-12})
-    assert found.fun < 1e-6                            # a root, not a near miss
-    return found.x
+    return first_root(smallest_singular_value, np.linspace(low, 3 * low, 4000))
 
 
 @pytest.mark.mpi

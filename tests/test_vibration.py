@@ -30,6 +30,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from determinants import first_root
+from determinants import smallest_singular_value as smallest_singular_value_of
 from dolfin_rod.analysis.vibration import vibration_modes
 from dolfin_rod.rod import RodModel, RodParameters, StartingState, Straight
 
@@ -122,21 +124,12 @@ def twisted_clamped_rod(moment: float) -> float:
     Greenhill's twisted-shaft equation with inertia), clamped at both ends: the
     smallest omega where the column-scaled 4 x 4 matrix of w(0), w'(0), w(1), w'(1) is
     singular (numpy: its smallest singular value; a grid, then minimize_scalar)."""
-    from scipy.optimize import minimize_scalar
-
     def smallest_singular_value(omega: float) -> float:
         roots = np.roots([1.0, -1j * moment, 0.0, 0.0, -omega ** 2])
         D = np.array([[(np.exp(r * z), r * np.exp(r * z))[k] for r in roots]
                       for z in (0.0, 1.0) for k in (0, 1)], dtype=complex)
-        return np.linalg.svd(D / np.linalg.norm(D, axis=0), compute_uv=False)[-1]
-    grid = np.linspace(0.5, 30.0, 600)
-    values = [smallest_singular_value(w) for w in grid]
-    k = next(k for k in range(1, len(grid) - 1)
-             if values[k] < values[k - 1] and values[k] < values[k + 1])
-    found = minimize_scalar(smallest_singular_value, bounds=(grid[k - 1], grid[k + 1]),
-                            method="bounded", options={"xatol": 1e-12})
-    assert found.fun < 1e-6                            # a root, not a near miss
-    return found.x
+        return smallest_singular_value_of(D)
+    return first_root(smallest_singular_value, np.linspace(0.5, 30.0, 600))
 
 
 @pytest.mark.mpi
