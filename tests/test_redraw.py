@@ -97,8 +97,9 @@ def test_plot_redraws_chosen_quantities(cantilever, capsys):
 
 
 def test_plot_refuses_what_it_cannot_draw(cantilever, tmp_path, capsys):
-    """A quantity that is neither a panel nor a column, a folder without a run: exit 2,
-    one line naming it, nothing drawn."""
+    """A quantity that is neither a panel nor a column, a folder without a run, a --to
+    that is not a picture or an existing file outside the run folder: exit 2, one line
+    naming it, nothing drawn or replaced."""
     before = (cantilever.folder / "histories.png").stat().st_mtime_ns
     assert main(["plot", str(cantilever.folder), "tip_deflexion"]) == 2
     err = capsys.readouterr().err
@@ -107,6 +108,14 @@ def test_plot_refuses_what_it_cannot_draw(cantilever, tmp_path, capsys):
     assert main(["plot", str(tmp_path)]) == 2
     assert "no timeseries.csv" in capsys.readouterr().err
     assert main(["plot", str(cantilever.folder), "--color", "w"]) == 2
+    # --to never replaces a user's file outside the run folder, and names a picture
+    thesis = tmp_path / "thesis.png"
+    thesis.write_bytes(b"a user's figure")
+    assert main(["plot", str(cantilever.folder), "--to", str(thesis)]) == 2
+    assert "--to" in capsys.readouterr().err and thesis.read_bytes() == b"a user's figure"
+    assert main(["plot", str(cantilever.folder), "--to", str(tmp_path / "notes.tex")]) == 2
+    assert "name a picture file" in capsys.readouterr().err
+    assert not (tmp_path / "notes.tex").exists()
 
 
 def test_plot_of_a_torsion_run_draws_its_spacetime(tmp_path):

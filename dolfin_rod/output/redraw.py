@@ -64,6 +64,23 @@ def _frames(folder: Path) -> list:
     return [(s["time"], sample_from_steps(s)) for s in steps]
 
 
+PICTURE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
+
+
+def _target(folder: Path, to: Path | str | None) -> Path:
+    """The histories figure's file: RUN/histories.png, or ``to`` if it names a picture
+    and replaces no file outside the run folder (a user's file is never overwritten)."""
+    if to is None:
+        return folder / "histories.png"
+    to = Path(to)
+    if to.suffix.lower() not in PICTURE_SUFFIXES:
+        raise RedrawError(f"--to {to}: name a picture file ({', '.join(PICTURE_SUFFIXES)})")
+    if to.exists() and to.resolve().parent != folder.resolve():
+        raise RedrawError(f"--to {to}: the file exists; dolfin-rod plot replaces files of "
+                          "the run folder only: remove it or name a new file")
+    return to
+
+
 def redraw(folder: Path | str, quantities: list[str] | None = None, colour: str = "auto",
            to: Path | str | None = None) -> list[Path]:
     """Draw the run's pictures again (see module); ``to``: the histories figure's file
@@ -83,7 +100,7 @@ def redraw(folder: Path | str, quantities: list[str] | None = None, colour: str 
         raise RedrawError(f"{folder}: its scene.toml cannot be read: {err}") from None
     summary = folder / "summary.json"
     title = json.loads(summary.read_text()).get("title", "") if summary.is_file() else ""
-    written = [Path(to) if to is not None else folder / "histories.png"]
+    written = [_target(folder, to)]
     plot_histories(rows, written[0], scene, title, list(quantities or []) or None)
     frames = _frames(folder)
     if len(frames) > 1 and "centre_line" in frames[0][1].point:
