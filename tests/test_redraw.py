@@ -116,6 +116,13 @@ def test_plot_refuses_what_it_cannot_draw(cantilever, tmp_path, capsys):
     assert main(["plot", str(cantilever.folder), "--to", str(tmp_path / "notes.tex")]) == 2
     assert "name a picture file" in capsys.readouterr().err
     assert not (tmp_path / "notes.tex").exists()
+    # a damaged time series (binary bytes appended): one line, not a traceback
+    damaged = tmp_path / "damaged"
+    damaged.mkdir()
+    (damaged / "timeseries.csv").write_bytes(
+        (cantilever.folder / "timeseries.csv").read_bytes() + bytes(range(128, 256)))
+    assert main(["plot", str(damaged)]) == 2
+    assert "not a time series of numbers" in capsys.readouterr().err
 
 
 def test_plot_of_a_torsion_run_draws_its_spacetime(tmp_path):

@@ -34,9 +34,12 @@ def read_rows(folder: Path) -> list[dict]:
     path = Path(folder) / "timeseries.csv"
     if not path.is_file():
         raise RedrawError(f"{folder}: no timeseries.csv (not a run folder of dolfin-rod?)")
-    with path.open() as f:
-        rows = [{k: float(v) if v != "" else float("nan") for k, v in r.items()}
-                for r in csv.DictReader(f)]
+    try:
+        with path.open() as f:
+            rows = [{k: float(v) if v != "" else float("nan") for k, v in r.items()}
+                    for r in csv.DictReader(f)]
+    except (ValueError, TypeError, csv.Error) as err:     # binary, cut or extra fields
+        raise RedrawError(f"{path}: not a time series of numbers ({err})") from None
     if len(rows) < 2:
         raise RedrawError(f"{path}: fewer than two rows, nothing to draw")
     return rows
