@@ -421,7 +421,7 @@ dt = 0.5
 
 @pytest.mark.mpi
 def test_buckle_command_on_rods_with_joints(tmp_path):
-    """``dolfin-rod buckle`` of column_buckling.toml's column as two rods of 4 cells
+    """``dolfin-rod buckle`` of column_buckling_modes.toml's column as two rods of 4 cells
     joined rigidly ([[rods]], [[joints]]; its load on the upper rod): the factors of the
     one column of 8 cells (test_buckle_command: 2 x 1.006460)."""
     import json
