@@ -235,7 +235,7 @@ def _cli(tmp_path, scene: str, args: list[str]) -> tuple[int, str]:
 
 @pytest.mark.mpi
 def test_buckle_command(tmp_path):
-    """``dolfin-rod buckle scenes/column_buckling.toml`` (8 cells): the table of
+    """``dolfin-rod buckle scenes/column_buckling_modes.toml`` (8 cells): the table of
     buckle.json equals the API's factors (discretisation error 6.46e-3 at 8 cells, the
     first two equal: the two planes), buckle.bp holds one step per mode whose centre line
     is the column's displaced by 0.1 L of the mode (largest displacement)."""
@@ -245,7 +245,7 @@ def test_buckle_command(tmp_path):
     from mpi4py import MPI
 
     from dolfin_rod import read_vtx
-    text = (Path(__file__).parents[1] / "scenes" / "column_buckling.toml").read_text()
+    text = (Path(__file__).parents[1] / "scenes" / "column_buckling_modes.toml").read_text()
     code, out = _cli(tmp_path, text.replace("n_cells = 16", "n_cells = 8"),
                      ["buckle", "--count", "3"])
     assert code == 0
@@ -278,7 +278,7 @@ def test_analysis_commands_refuse_scenes_they_cannot_take(tmp_path, capsys, kind
     from pathlib import Path
 
     from mpi4py import MPI
-    text = (Path(__file__).parents[1] / "scenes" / "column_buckling.toml").read_text()
+    text = (Path(__file__).parents[1] / "scenes" / "column_buckling_modes.toml").read_text()
     code, out = _cli(tmp_path, text.replace(*change), [kind])
     assert code == 2
     if MPI.COMM_WORLD.rank == 0:
@@ -303,7 +303,7 @@ def test_buckle_puts_an_auto_scene_with_rate_dependent_forces_on_rotation_vector
 
     from dolfin_rod.scenes import parse_scene
     from dolfin_rod.scenes.rules import rod_rotations
-    text = (Path(__file__).parents[1] / "scenes" / "column_buckling.toml").read_text()
+    text = (Path(__file__).parents[1] / "scenes" / "column_buckling_modes.toml").read_text()
     text = text.replace("n_cells = 16", "n_cells = 8").replace(
         'model = "hyperelastic"\n', "").replace("[material]\n", f"[material]\n{material}\n")
     assert rod_rotations(parse_scene(text)) == "quaternion"     # what "auto" picks

@@ -13,8 +13,8 @@ from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..rod.rotation_choice import (choose_rotations, rotation_vector_obstacle,
                                    rotations_reason)
-from ..checks import (EQUILIBRIUM_NEEDS, MAX_CELL_TURN, polyline_problem, sample_points,
-                      slide_axis_problem)
+from ..checks import (EQUILIBRIUM_NEEDS, MAX_CELL_TURN, is_coordinate_axis,
+                      polyline_problem, sample_points, slide_axis_problem)
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene, SceneError
@@ -496,10 +496,19 @@ def _slide_axis(scene: Scene, end: str):
     if problem:
         raise scene.error(key, problem)
     motion = bnd[f"{end}_displacement"]
-    if motion is not None and motion.is_vector and _along_and_across(motion, axis)[0]:
+    if motion is not None and not is_coordinate_axis(axis):
+        raise scene.error(f"boundary.{end}_displacement", f"the end slides along {list(axis)} "
+                                                          f"({key}), off the coordinate axes: "
+                                                          "its motion across that axis cannot "
+                                                          "be prescribed (only across +-e_i)")
+    if motion is not None and motion.is_vector and _along(motion, axis):
         raise scene.error(f"boundary.{end}_displacement", f"the end slides freely along "
                                                           f"{list(axis)} ({key}): prescribe "
                                                           "its motion across that axis only")
+    if not is_coordinate_axis(axis) and rod_rotations(scene) != "rotation_vector":
+        raise scene.error(key, "an axis off the coordinate axes needs rotation-vector "
+                               "unknowns (geometry.rotations), which this rod does not have: "
+                               + rod_rotations_reason(scene))
     return np.asarray(axis)
 
 
@@ -523,12 +532,10 @@ def _turn_axis(scene: Scene, end: str):
     return np.asarray(axis)
 
 
-def _along_and_across(spec, axis) -> tuple[bool, bool]:
-    """Whether a vector history has a component along the axis, and one across it."""
+def _along(spec, axis) -> bool:
+    """Whether a vector history has a component along the axis."""
     values = np.array(spec.values if spec.type == "table" else (spec.value,), float)
-    a = np.asarray(axis)
-    along = values @ a
-    return bool(np.any(along != 0.0)), bool(np.any(values - np.outer(along, a) != 0.0))
+    return bool(np.any(values @ np.asarray(axis) != 0.0))
 
 
 def _check_rod_ends(scene: Scene) -> None:
@@ -565,13 +572,14 @@ def _check_rod_ends(scene: Scene) -> None:
                                                        "(or a table of 3-vectors)")
             free_axis = axis if load == "force" else turn
             if free_axis is not None:
-                if spec.follower or _along_and_across(spec, free_axis)[1]:
+                if spec.follower:
                     how = "slides along" if load == "force" else "turns about"
                     raise err(f"loads.{end}_{load}", f"the end {how} {list(free_axis)} "
                                                      f"(boundary.{end}_"
                                                      f"{'slide' if load == 'force' else 'turn'}"
-                                                     f"): only a dead {load} along that axis "
-                                                     "acts on it, the support takes the rest")
+                                                     f"): only a dead {load} acts on it (its "
+                                                     "part along the axis; the support takes "
+                                                     "the rest)")
                 continue
             if fixed:
                 raise err(f"loads.{end}_{load}", f"acts where the {what} is prescribed "
