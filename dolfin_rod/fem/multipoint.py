@@ -156,13 +156,32 @@ class _MappedNode:
     owned: bool
 
 
-class ConstrainedSystem:
-    """A block system restricted by NodeLinks and NodeMaps to its free dofs (see module)."""
+class _ReducedTerm:
+    """A term of the inner system (assembly.add_terms) seen from the free dofs: its
+    Newton-update limit (``limit_step``) on the prolonged state and update."""
 
-    terms: tuple = ()      # none: solvers.BlockSNES refuses terms with links
+    def __init__(self, system: "ConstrainedSystem", term):
+        self.system, self.term = system, term
+
+    def limit_step(self, z_owned: np.ndarray, dz_owned: np.ndarray) -> None:
+        """dz (PETSc's sign: the new z is z - dz) scaled down in place by the factor the
+        inner term gives to the update P dz at y = Phi(z) + c (a hinge's map linearised
+        along the update)."""
+        alpha = self.term.step_factor(*self.system.prolonged(z_owned, dz_owned))
+        if alpha < 1.0:
+            dz_owned *= alpha
+
+
+class ConstrainedSystem:
+    """A block system restricted by NodeLinks and NodeMaps to its free dofs (see module).
+    Terms of the inner system that are not forms (segment contact, assembly.add_terms)
+    enter through P^T and P^T J P like the forms; the pattern of J then grows with new
+    contact pairs, so P^T J P is formed anew at each Jacobian (its symbolic product
+    included) and inserted into A, whose pattern grows."""
 
     def __init__(self, inner, fields: list, links: list):
         self.inner, self.groups = inner, inner.groups
+        self.terms = tuple(_ReducedTerm(self, term) for term in inner.terms)
         comm = inner.x.getComm()
         self._mpi = mpi = comm.tompi4py()
         start, stop = inner.x.getOwnershipRange()
@@ -296,4 +315,27 @@ class ConstrainedSystem:
     def jacobian(self, A) -> None:
         """P^T J P at the z of the last ``set``/``residual``."""
         self.inner.jacobian(self.inner.A)
-        self.inner.A.PtAP(self.P, result=A)
+        if not self.terms:
+            self.inner.A.PtAP(self.P, result=A)
+            return
+        product = self.inner.A.PtAP(self.P)       # J's pattern may have grown (pairs)
+        rows, columns, values = product.getValuesCSR()        # owned rows
+        start, stop = product.getOwnershipRange()
+        # inserted (not a MatAXPY: its new header would hide the new pattern from the
+        # LU, which must analyse it anew; MUMPS crashed)
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        A.zeroEntries()
+        A.setValuesIJV(rows, columns, values, rowmap=np.arange(start, stop,
+                                                             dtype=PETSc.IntType))
+        A.assemble()
+        product.destroy()
+
+    def prolonged(self, z_owned: np.ndarray, dz_owned: np.ndarray):
+        """(owned y = Phi(z) + c, owned P dz) of owned arrays of z and dz, as arrays of
+        the inner system's layout (collective)."""
+        z, dz = self.P.createVecRight(), self.P.createVecRight()
+        z.array_w[:], dz.array_w[:] = z_owned, dz_owned
+        self._prolong(z)
+        dy = self.P.createVecLeft()
+        self.P.mult(dz, dy)
+        return self._y.getArray(readonly=True).copy(), dy.getArray(readonly=True).copy()
