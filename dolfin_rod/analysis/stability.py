@@ -29,6 +29,7 @@ from .eigen import eigenpairs
 from ..fem.assembly import block_system, monolithic_layout
 from ..fem.multipoint import ConstrainedSystem
 from ..fem.fe_model import vertex_measure
+from ..theory.quaternions import np_qmul
 
 __all__ = ["Inertia", "TangentStiffness", "LowestEigenvalues", "StabilityMonitor",
            "at_rest_map", "symmetric_part"]
@@ -73,7 +74,10 @@ def symmetric_part(A: PETSc.Mat, fixed: PETSc.IS, diagonal: float) -> PETSc.Mat:
 
 
 class TangentStiffness:
-    """K of a RodModel at its current state and loads (``inertia(t)``)."""
+    """K of a RodModel at its current state and loads (``inertia(t)``); a model with
+    segment contact (``problem.terms``) adds its pairs' energy Hessians (the pairs
+    within the barrier's reach at the state), the joints' constraints (``links``) make it
+    P^T K P on the free dofs."""
 
     def __init__(self, model):
         names = [n for n in model.names if n in MECHANICAL + MULTIPLIERS]
@@ -90,6 +94,8 @@ class TangentStiffness:
             [ufl.replace(F, at_rest) for F in residuals]
         objects = [*form_cache.registry(residuals), *at_rest.values()]
         self.system = block_system(forms, [fields], bcs=bcs, cache=(key, objects))
+        # segment contact (rod/pair_contact.py): the pairs' Hessians join K
+        self.system.add_terms(model.problem.terms)
         links = [replace(link, block=names.index(model.names[link.block]))
                  for link in model.problem.links]
         if links:           # joints of a rod system: K on the free dofs, P^T K P
@@ -100,6 +106,7 @@ class TangentStiffness:
             (self.system.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         self._ksp = None        # at the first check: its options are then read at once
         self._symmetric = None  # K as SBAIJ, the factorisation's input
+        self._entries = 0       # K's stored entries when _symmetric was made
 
     @staticmethod
     def _free_dofs(model, names) -> int:
@@ -114,21 +121,26 @@ class TangentStiffness:
         return total
 
     def mode_shapes(self, vectors) -> list[dict[str, np.ndarray]]:
-        """Vectors of K's layout as nodal values, {"displacement", "rotation"} (rotation
-        vectors) or {"displacement", "quaternion"}, each scaled to a largest displacement
-        of 1 (if it has one); the state in the fields is kept."""
+        """Vectors of K's layout as nodal values {"displacement", "rotation"}, the
+        rotation the material rotation vector (quaternions: 2 vec(conj(q) dq)/|q|^2 of
+        the state's q), each scaled to a largest displacement of 1 (if it has one); the
+        state in the fields is kept."""
         from ..mpi import largest_on_ranks
         system, model = self.system, self.model
         state = system.x.copy()
         system.get(0, state)
         label = {"displacement": "displacement", "rotation_increment": "rotation",
-                 "quaternion": "quaternion"}
+                 "quaternion": "rotation"}
+        q = model.f["quaternion"].x.array.reshape(-1, 4).copy() \
+            if "quaternion" in self.names else None
         shapes = []
         try:
             for vector in vectors:
-                system.set(0, vector)
+                self._set_direction(vector)
                 shape = {label[n]: model.f[n].x.array.copy() for n in self.names
                          if n in label}
+                if q is not None:
+                    shape["rotation"] = material_rotation(q, shape["rotation"])
                 x = shape["displacement"].reshape(-1, 3)
                 size = largest_on_ranks(model.mesh.comm, float(
                     np.max(np.linalg.norm(x, axis=1), initial=0.0)))
@@ -137,12 +149,24 @@ class TangentStiffness:
             system.set(0, state)
         return shapes
 
+    def _set_direction(self, vector: PETSc.Vec) -> None:
+        """A direction of K's layout into the fields: joints' P v (no offset)."""
+        system = self.system
+        if not isinstance(system, ConstrainedSystem):
+            system.set(0, vector)
+            return
+        y = system.P.createVecLeft()
+        system.P.mult(vector, y)
+        system.inner.set(0, y)
+
     def matrix(self, t: float) -> PETSc.Mat:
         """The symmetric part of K at time t's loads, Dirichlet rows and columns identity."""
         self.model.problem.set_loads(t)
         system = self.system
         system.get(0, system.x)
         system.set(0, system.x)
+        if system.terms:        # the pairs' Hessians are those of the last residual's state
+            system.residual(system.x, system.b)
         system.jacobian(system.A)
         return symmetric_part(system.A, self.fixed, 1.0)
 
@@ -150,18 +174,25 @@ class TangentStiffness:
         """The inertia of K at the current state and time t's loads; with a ``metric``
         G, the negative count is that of the eigenvalues of K v = lambda G v below
         -ZERO max K_ii / max G_ii (of K + that shift times G).  MUMPS's LDL^T reads
-        SBAIJ: one copy, kept, its values replaced at each check (K's pattern is fixed;
-        G's is a part of it), so that MUMPS keeps its analysis (ordering, symbolic
-        factorisation) and only refactorises."""
+        SBAIJ: one copy, kept, its values replaced at each check (K's pattern is fixed
+        unless new segment-contact pairs grow it: then a new copy; G's is a part of it),
+        so that MUMPS keeps its analysis (ordering, symbolic factorisation) and only
+        refactorises."""
         K = self.matrix(t)
         if metric is not None:
             shift = ZERO * _largest_diagonal(K) / _largest_diagonal(metric)
             K.axpy(shift, metric, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
             K.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        if self._ksp is None:
+        entries = K.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"]
+        if self._ksp is None or entries != self._entries:
+            # first check, or new contact pairs grew K's pattern: a new analysis
+            if self._ksp is not None:
+                self._ksp.destroy()
+                self._symmetric.destroy()
             self._symmetric = K.convert("sbaij", PETSc.Mat())
             self._ksp = self._factorisation(K.getComm())
             self._ksp.setOperators(self._symmetric)
+            self._entries = entries
         else:
             K.convert("sbaij", self._symmetric)            # values only
         K.destroy()
@@ -185,6 +216,15 @@ class TangentStiffness:
         pc.setFactorSolverType("mumps")
         ksp.setFromOptions()
         return ksp
+
+
+def material_rotation(q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """2 vec(conj(q) dq)/|q|^2 at the nodes (q, dq: n x 4 and 4n values): a quaternion
+    direction as the material rotation vector (theory/rotations.py's in numpy)."""
+    dq = dq.reshape(-1, 4)
+    conj = q * np.array([1.0, -1.0, -1.0, -1.0])
+    vec = np_qmul(conj, dq)[:, 1:]
+    return (2 * vec / np.sum(q * q, axis=1)[:, None]).ravel()
 
 
 def _largest_diagonal(A: PETSc.Mat) -> float:

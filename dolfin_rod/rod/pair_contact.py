@@ -187,9 +187,11 @@ class SegmentContact:
         return self.x.x.array[: 3 * self.line.n_owned]
 
     def bind(self, system) -> "BoundTerm":
-        """The term in an assembled ``system`` (fem/assembly) whose block ``self.block``
-        (the model's displacement block) holds x or another unknown of its space (the
-        start's accelerations: then x is fixed and the term adds its residual only)."""
+        """The term in an assembled ``system`` (fem/assembly) one of whose unknowns is x
+        (any block: the tangent stiffness of analysis/ holds the mechanical blocks only),
+        or whose block ``self.block`` (the model's displacement block) holds another
+        unknown of its space (the start's accelerations: then x is fixed and the term
+        adds its residual only)."""
         return BoundTerm(self, system)
 
     # -- diagnostics ------------------------------------------------------------------
@@ -313,8 +315,11 @@ class BoundTerm:
     def __init__(self, contact: SegmentContact, system):
         self.contact = contact
         line = contact.line
-        self.solved = system.groups[0][contact.block] is contact.x
-        self.local_rows = system.rows_of(contact.block, np.arange(3 * line.n_owned))
+        unknowns = system.groups[0]
+        held = [k for k, y in enumerate(unknowns) if y is contact.x]
+        self.solved = bool(held)
+        block = held[0] if held else contact.block
+        self.local_rows = system.rows_of(block, np.arange(3 * line.n_owned))
         start = system.x.getOwnershipRange()[0]
         rows = np.full((line.n_nodes, 3), -1, dtype=np.int64)
         rows[line.gathered] = np.concatenate(line.comm.allgather(

@@ -129,8 +129,10 @@ class FESimulation:
     def _branch_switching(self):
         """Branch switching at bifurcations (analysis/branches.py): quasi-static rods
         with rotation vectors whose stability is checked, unless stability.at_bifurcation
-        = "stay"."""
-        if self.stability is None or self.scene["stability"]["at_bifurcation"] != "switch":
+        = "stay"; not with segment contact (the descent's steps have no check that
+        segments pass through each other: the count is reported, the path stays)."""
+        if self.stability is None or self.scene["stability"]["at_bifurcation"] != "switch" \
+                or segment_pairs(self.scene):
             return None
         from ..analysis.branches import BranchSwitching
         try:
@@ -140,12 +142,12 @@ class FESimulation:
 
     def _stability_monitor(self):
         """Quasi-static 3-D rods: the stability of each step's equilibrium
-        (analysis/stability.py); a system with joints or segment contact is not checked
-        (its constraints or pair terms act on the assembled system, not in the forms K is
-        made of)."""
+        (analysis/stability.py; segment contact's pairs included in K); a system with
+        joints is not checked (its constraints act on the assembled system, not in the
+        forms K is made of)."""
         scene, model = self.scene, self.model
         if scene.is_rod_material and not model.dynamic and scene["stability"]["check"] \
-                and not getattr(model, "joints", None) and not segment_pairs(scene):
+                and not getattr(model, "joints", None):
             from ..analysis.stability import StabilityMonitor
             return StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
         return None

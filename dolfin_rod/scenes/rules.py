@@ -605,14 +605,12 @@ MOTION_KEYS = ("end_rotation", "start_rotation", "end_displacement", "start_disp
 
 def analysis_problem(scene: Scene, kind: str) -> None:
     """Refuse (SceneError naming the key) a scene that ``dolfin-rod buckle`` ("buckle")
-    or ``modes`` ("modes") cannot analyse, before any work: a 3-D rod on rotation
-    vectors without joints; buckling a quasi-static one with a load or end motion,
-    modes one with mass (docs/stability.md)."""
+    or ``modes`` ("modes") cannot analyse, before any work: a 3-D rod (or rods with
+    joints), either rotation unknowns; buckling a quasi-static one without constraints
+    with a load or end motion, modes one with mass (docs/stability.md)."""
     if not scene.is_rod_material:
         raise scene.error("material", f"{kind}: a 3-D rod (material.stiffness, or a "
                                       "[section] with material.youngs_modulus)")
-    if scene.joints:
-        raise scene.error("joints", f"{kind}: rods joined by joints are not supported")
     mat = scene["material"]
     if kind == "modes" and not mat["dynamic"]:
         raise scene.error("material.density", "modes: the rod's mass (material.density "
@@ -621,10 +619,12 @@ def analysis_problem(scene: Scene, kind: str) -> None:
         if mat["dynamic"]:
             raise scene.error("material.density", "buckle: a quasi-static rod (no "
                                                    "density); for a dynamic one: modes")
-        if not any(scene["loads"][k] is not None for k in LOAD_KEYS) and not any(
-                scene["boundary"][k] is not None for k in MOTION_KEYS):
+        if not any(any(part["loads"][k] is not None for k in LOAD_KEYS) or any(
+                part["boundary"][k] is not None for k in MOTION_KEYS)
+                for part in [scene, *(rod.scene for rod in scene.rods)]):
             raise scene.error("loads", "buckle: a load (loads.end_force, ...) or an end "
                                        "motion (boundary.end_rotation, ...) to scale")
-    if rod_rotations(scene) != "rotation_vector":
-        raise scene.error("geometry.rotations", f"{kind}: rotation-vector unknowns "
-                                                "(geometry.rotations = \"rotation_vector\")")
+        if mat["constraints"] != "none":
+            raise scene.error("material.constraints", "buckle: a rod without constraints "
+                                                      "(their multipliers' rates are not "
+                                                      "in the analysis)")
