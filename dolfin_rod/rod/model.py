@@ -416,13 +416,17 @@ class RodModel(FEModel):
                           start: StartingState | dict | None = None) -> None:
         """Natural strains equal to the discrete reference strains of the stress-free
         configuration (a straight rod along e_3, or the helix/circle of constant
-        reference_curvature; uniform variant: their mean) unless given (3-vectors).
+        reference_curvature; uniform variant: their mean) unless given (3-vectors; a
+        system: one for every rod, or {rod name: 3-vector} for some rods).
         ``start`` None: the rod rests in that configuration, no stress at t = 0;
         a StartingState (rod/start.py; a system: {rod name: StartingState}, each in its
         rod's placed frame, rod/start.RodStarts, consistent at the joints): placed at its position
         and orientation, on its starting curve (e.g. Arc, Helix, Polyline, a Straight one
         stretched), with its velocities (dynamic rods), or settled in static equilibrium
         with the loads at t = 0 (``equilibrium``); the stress-free shape is unchanged."""
+        for name, given in (("natural_curvature", natural_curvature),
+                            ("natural_stretch", natural_stretch)):
+            initial_state.check_natural(name, given, [rod.name for rod in self.rods])
         held = any("clamped" in supports.ends or bool(supports.rotation)
                    for supports in self.end_supports)
         if self.layout.single:

@@ -298,8 +298,7 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     initial = scene["initial"]
 
     def initial_state():
-        model.set_initial_state(natural_curvature=initial["natural_curvature"],
-                                natural_stretch=initial["natural_stretch"],
+        model.set_initial_state(**natural_strains(scene),
                                 start=rod_starts(scene) if scene.rods else starting_state(scene))
 
     if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
@@ -309,6 +308,17 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
         except InitialOverlap as err:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
     return FESimulation("rod", model, scene, initial_state)
+
+
+def natural_strains(scene: Scene) -> dict:
+    """The initial natural_curvature and natural_stretch of [initial]: a 3-vector or None;
+    with [[rods]] {rod name: 3-vector} of the rods that give one (their own [initial] or
+    the scene's)."""
+    keys = ("natural_curvature", "natural_stretch")
+    if not scene.rods:
+        return {key: scene["initial"][key] for key in keys}
+    return {key: {rod.name: rod.scene["initial"][key] for rod in scene.rods
+                  if rod.scene["initial"][key] is not None} or None for key in keys}
 
 
 def rod_starts(scene: Scene) -> dict | None:
