@@ -119,8 +119,8 @@ class RodModel(FEModel):
         springs = self._end_supports(F, disc)
         self.residual = {name: F[name] for name in self.names}
         self.joints = list(joints)
-        self.segment_contact = self._segment_contact(contact, self.layout)
         nodes = joint_nodes(self, self.joints)
+        self.segment_contact = self._segment_contact(contact, self.layout, nodes)
         self.problem = self._problem(node_links(self, self.joints, nodes) + [
             line for supports in self.end_supports for line in supports.links(self.names)])
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
@@ -284,14 +284,11 @@ class RodModel(FEModel):
             hint="self-contact is off: set contact.self = true (contact.between_rods for "
                  "rods of a system; docs/contact.md)")
 
-    def _segment_contact(self, law, layout) -> SegmentContact | None:
-        """The segment pairs' contact (pair_contact.py) if the law asks for it."""
+    def _segment_contact(self, law, layout, joint_nodes) -> SegmentContact | None:
+        """The segment pairs' contact (pair_contact.py) if the law asks for it; the
+        joints' nodes (s of both rods) join their segments as neighbours."""
         if law is None or not (law.self_contact or law.between_rods):
             return None
-        if self.joints:
-            raise ValueError("contact.self / contact.between_rods with joints: not "
-                             "supported (the joints' constrained solve keeps the "
-                             "Jacobian's sparsity fixed)")
         if self.unknowns.chart is None:
             raise ValueError("contact.self / contact.between_rods need rotation-vector "
                              f"unknowns (rotations 'auto' or 'rotation_vector'), got "
@@ -304,7 +301,7 @@ class RodModel(FEModel):
                              f"{reach:.4g}, which is not shorter than the rod "
                              f"({min(layout.lengths):g}): a smaller radius or more cells")
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
-                                 law.self_contact, law.between_rods)
+                                 law.self_contact, law.between_rods, joint_nodes)
         contact.block = list(self.names).index("displacement")
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
         self.pair_force = fem.Function(P1, name="pair_contact_force")
