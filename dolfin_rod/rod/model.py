@@ -342,7 +342,13 @@ class RodModel(FEModel):
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links, terms=[self.segment_contact] if self.segment_contact else [])
+            links=links, terms=[self.segment_contact] if self.segment_contact else [],
+            scale_motions=self.scale_motions)
+
+    def scale_motions(self, fraction: float) -> None:
+        """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""
+        for supports in self.end_supports:
+            supports.scale(fraction)
 
     def commit_rotations(self) -> None:
         """After an accepted step: rotation vectors q_n <- q_n c(theta), theta <- 0; the
