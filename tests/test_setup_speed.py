@@ -170,7 +170,8 @@ def test_a_gathered_residual_is_the_form_of_its_sum():
     """A block residual gathered term by term (fem/gathered_form.GatheredForm: its
     integrals kept, one ufl.Form made at the end) is the Form that UFL's own + and - give
     (the reference): equal integrals, so the same signature, the key of the compiled
-    kernels, across cell, facet and vertex integrals with several quadrature rules."""
+    kernels, across cell, facet and vertex integrals with several quadrature rules; an
+    integrand added with its measure (``integrate``) is the integral of integrand * dx."""
     import dolfinx.mesh
 
     from dolfin_rod.fem.gathered_form import GatheredForm, as_form
@@ -181,9 +182,11 @@ def test_a_gathered_residual_is_the_form_of_its_sum():
     dx_2 = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 2})
     dx_v = ufl.Measure("dx", domain=mesh, metadata={"quadrature_rule": "vertex",
                                                       "quadrature_degree": 1})
-    terms = [ufl.inner(f.dx(0), v.dx(0)) * ufl.dx, c * ufl.inner(f, v) * dx_2,
+    first = ufl.inner(f.dx(0), v.dx(0))
+    terms = [first * ufl.dx, c * ufl.inner(f, v) * dx_2,
              ufl.inner(f, f) * v[0] * ufl.ds, ufl.inner(f, v) * dx_v, c * v[2] * ufl.dx]
-    chain, gathered = terms[0], GatheredForm(terms[0])
+    chain, gathered = terms[0], GatheredForm()
+    gathered.integrate(first, ufl.dx)                  # terms[0] without its Form
     for k, term in enumerate(terms[1:]):
         if k % 2:
             chain = chain - term

@@ -75,7 +75,10 @@ def symmetric_part(A: PETSc.Mat, fixed: PETSc.IS, diagonal: float) -> PETSc.Mat:
 
 
 class TangentStiffness:
-    """K of a RodModel at its current state and loads (``inertia(t)``)."""
+    """K of a RodModel at its current state and loads (``inertia(t)``); a model with
+    segment contact (``problem.terms``) adds its pairs' energy Hessians (the pairs
+    within the barrier's reach at the state), the joints' constraints (``links``) make it
+    P^T K P on the free dofs."""
 
     def __init__(self, model):
         names = [n for n in model.names if n in MECHANICAL + MULTIPLIERS]
@@ -92,6 +95,8 @@ class TangentStiffness:
             [ufl.replace(F, at_rest) for F in residuals]
         objects = [*form_cache.registry(residuals), *at_rest.values()]
         self.system = block_system(forms, [fields], bcs=bcs, cache=(key, objects))
+        # segment contact (rod/pair_contact.py): the pairs' Hessians join K
+        self.system.add_terms(model.problem.terms)
         links = [replace(link, block=names.index(model.names[link.block]))
                  for link in model.problem.links]
         if links:           # joints of a rod system: K on the free dofs, P^T K P
@@ -102,6 +107,7 @@ class TangentStiffness:
             (self.system.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         self._ksp = None        # at the first check: its options are then read at once
         self._symmetric = None  # K as SBAIJ, the factorisation's input
+        self._entries = 0       # K's stored entries when _symmetric was made
 
     @staticmethod
     def _free_dofs(model, names) -> int:
@@ -160,6 +166,8 @@ class TangentStiffness:
         system = self.system
         system.get(0, system.x)
         system.set(0, system.x)
+        if system.terms:        # the pairs' Hessians are those of the last residual's state
+            system.residual(system.x, system.b)
         system.jacobian(system.A)
         return symmetric_part(system.A, self.fixed, 1.0)
 
@@ -167,18 +175,25 @@ class TangentStiffness:
         """The inertia of K at the current state and time t's loads; with a ``metric``
         G, the negative count is that of the eigenvalues of K v = lambda G v below
         -ZERO max K_ii / max G_ii (of K + that shift times G).  MUMPS's LDL^T reads
-        SBAIJ: one copy, kept, its values replaced at each check (K's pattern is fixed;
-        G's is a part of it), so that MUMPS keeps its analysis (ordering, symbolic
-        factorisation) and only refactorises."""
+        SBAIJ: one copy, kept, its values replaced at each check (K's pattern is fixed
+        unless new segment-contact pairs grow it: then a new copy; G's is a part of it),
+        so that MUMPS keeps its analysis (ordering, symbolic factorisation) and only
+        refactorises."""
         K = self.matrix(t)
         if metric is not None:
             shift = ZERO * _largest_diagonal(K) / _largest_diagonal(metric)
             K.axpy(shift, metric, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
             K.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        if self._ksp is None:
+        entries = K.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"]
+        if self._ksp is None or entries != self._entries:
+            # first check, or new contact pairs grew K's pattern: a new analysis
+            if self._ksp is not None:
+                self._ksp.destroy()
+                self._symmetric.destroy()
             self._symmetric = K.convert("sbaij", PETSc.Mat())
             self._ksp = self._factorisation(K.getComm())
             self._ksp.setOperators(self._symmetric)
+            self._entries = entries
         else:
             K.convert("sbaij", self._symmetric)            # values only
         K.destroy()
