@@ -359,6 +359,7 @@ class RodModel(FEModel):
                 supports.commit()
         if self.contact:
             self.contact.update_normal_forces()
+            self.contact.commit()
         if self.segment_contact:
             self.segment_contact.commit()
         self.check_cell_turns()
@@ -408,11 +409,15 @@ class RodModel(FEModel):
                 "rotations_committed_at": self.supports.committed_time}
 
     def restore_state(self, state: dict) -> None:
-        """After the checkpoint's functions were read (checkpoint_state)."""
+        """After the checkpoint's functions were read (checkpoint_state); the contacts'
+        path checks start from the restored state."""
         if self.unknowns.chart is not None:
             committed = state["rotations_committed_at"]
             for supports in self.end_supports:
                 supports.committed_time = None if committed is None else float(committed)
+        for contact in (self.contact, self.segment_contact):
+            if contact:
+                contact.commit()
 
     def stress_free(self, s):
         """(r, q) of the initial stress-free configuration at parameter values s."""
@@ -446,6 +451,7 @@ class RodModel(FEModel):
         if self.contact:
             self.contact.check_initial()
             self.contact.update_normal_forces()
+            self.contact.commit()
         if self.segment_contact:
             reason = self.segment_contact.check_state()
             if reason:
