@@ -208,6 +208,8 @@ class EndSupports:
         self.values: dict = {}
         self.block = model.unknowns.rotation
         self.committed_time = None      # rotation vectors: time of q_n (None: initial)
+        self.fraction = 1.0            # of the motions at the time set (``scale``)
+        self.committed_fraction = 1.0  # ... and at the time of q_n
         self.time_set = 0.0            # the time of the values last set (set)
         self._fixed_values_of: dict = {}      # end -> the initial (x, q) its values hold
         spaces, mesh = model.unknowns.spaces, model.mesh
@@ -272,15 +274,25 @@ class EndSupports:
         q = self._turned[end](self._rotations.x.array)[0]
         return q / np.linalg.norm(q)
 
-    def prescribed(self, end: str, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """(x, q) of an end at time t."""
+    def prescribed(self, end: str, t: float,
+                   fraction: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(x, q) of an end at time t, its displacement and rotation vector scaled by
+        ``fraction`` (default: the one ``scale`` set, 1 but in the start's path)."""
         x0, q0 = self.initial[end]
-        d = np.asarray(self.displacement[end](t), float) if end in self.displacement \
+        f = self.fraction if fraction is None else fraction
+        d = f * np.asarray(self.displacement[end](t), float) if end in self.displacement \
             else np.zeros(3)
         if end in self.rotation:
-            qr = np_quaternion_from_rotation_vector(np.asarray(self.rotation[end](t), float))
+            qr = np_quaternion_from_rotation_vector(
+                f * np.asarray(self.rotation[end](t), float))
             return x0 + d, np_qmul(qr, q0)
         return x0 + d, q0
+
+    def scale(self, fraction: float) -> None:
+        """The prescribed motions' displacements and rotation vectors scaled by
+        ``fraction`` from now on (the consistent start's path, integrators/lie_alpha.py:
+        a turn of the ends beyond a quarter turn in committed parts)."""
+        self.fraction = fraction
 
     def set(self, t: float) -> None:
         """Values at time t, and (dynamic quaternion rods) the velocities V = x_t and
@@ -307,8 +319,8 @@ class EndSupports:
             self._set(("displacement", end), xe)
             self._set(("quaternion", end), qe)
             if ("rotation_increment", end) in self.values:
-                q_n = self.initial[end][1] if self.committed_time is None \
-                    else self.prescribed(end, self.committed_time)[1]
+                q_n = self.initial[end][1] if self.committed_time is None else \
+                    self.prescribed(end, self.committed_time, self.committed_fraction)[1]
                 self._set(("rotation_increment", end),
                           np_inverse_cayley(np_qmul(q_n * _CONJ, qe)))
             if ("velocity", end) in self.values:
@@ -334,7 +346,7 @@ class EndSupports:
 
     def commit(self) -> None:
         """Rotation vectors: the accepted step ends at the time last set (chart.commit)."""
-        self.committed_time = self.time_set
+        self.committed_time, self.committed_fraction = self.time_set, self.fraction
 
     def _angular_velocity(self, end: str, t: float) -> np.ndarray:
         """Material angular velocity 2 vec(conj(q) q_t)/|q|^2 of a prescribed end."""
