@@ -466,7 +466,7 @@ class RodModel(FEModel):
         reactions at supported ends."""
         d = self.assembled_diagnostics(t)
         d.update(self.tips[0]())
-        d.update(self.supports.reactions(self.residual, t))
+        d.update(self.supports.reactions(self.residual, t, self.problem.structure))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         self.pass_through(t)
