@@ -339,7 +339,12 @@ class RodModel(FEModel):
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links, terms=terms)
+            links=links, terms=terms, scale_motions=self.scale_motions)
+
+    def scale_motions(self, fraction: float) -> None:
+        """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""
+        for supports in self.end_supports:
+            supports.scale(fraction)
 
     def commit_rotations(self) -> None:
         """After an accepted step: rotation vectors q_n <- q_n c(theta), theta <- 0; the
@@ -457,7 +462,7 @@ class RodModel(FEModel):
         reactions at supported ends."""
         d = self.assembled_diagnostics(t)
         d.update(self.tips[0]())
-        d.update(self.supports.reactions(self.residual, t))
+        d.update(self.supports.reactions(self.residual, t, self.problem.structure))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         self.pass_through(t)

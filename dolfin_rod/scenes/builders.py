@@ -128,7 +128,7 @@ class FESimulation:
 
     def _branch_switching(self):
         """Branch switching at bifurcations (analysis/branches.py): quasi-static rods
-        with rotation vectors whose stability is checked, unless stability.at_bifurcation
+        without constraints whose stability is checked, unless stability.at_bifurcation
         = "stay"; not with segment contact (the descent's steps have no check that
         segments pass through each other: the count is reported, the path stays)."""
         if self.stability is None or self.scene["stability"]["at_bifurcation"] != "switch" \
@@ -137,7 +137,7 @@ class FESimulation:
         from ..analysis.branches import BranchSwitching
         try:
             return BranchSwitching(self.stability)
-        except ValueError:          # quaternions or constraints (LowestEigenvalues)
+        except ValueError:          # constraints (LowestEigenvalues)
             return None
 
     def _stability_monitor(self):
