@@ -275,10 +275,15 @@ def pressure(scenario: Scenario, rod: Rod, params) -> float:
 
 
 def solver_options(scenario: Scenario) -> dict:
-    """Newton's options with obstacles (scenes/contact.contact_solver_options' choices)."""
+    """Newton's options with obstacles (scenes/contact.contact_solver_options' choices);
+    on several ranks MUMPS (block Jacobi's GMRES failed the capstan's first step:
+    DIVERGED_LINEAR_SOLVE)."""
+    from mpi4py import MPI
     if not scenario.obstacles:
         return {}
     options = {"snes_rtol": 1e-8}
+    if MPI.COMM_WORLD.size > 1:
+        options.update(ksp_type="preonly", pc_type="lu", pc_factor_mat_solver_type="mumps")
     if any(ob.friction > 0 for ob in scenario.obstacles):
         options["snes_linesearch_type"] = "bt"
     return options
