@@ -11,8 +11,8 @@ from dolfin_rod.theory.rotations import np_quaternion_from_rotation_vector, np_r
 # Newton to round-off, so that the coupled solve stops where each rod's alone does
 ROUND_OFF = {"snes_rtol": 1e-13, "snes_atol": 1e-13}
 T_END, DT = 0.2, 0.02
-A = RodParameters(length=1.0, rho_A=1.0, I11=0.01, I22=0.01, M_d=(5, 5, 5), N_d=(5, 5, 5))
-B = RodParameters(length=0.7, A=(2, 1.5, 1), B=(3, 3, 4), rho_A=2.0, I11=0.02, I22=0.01,
+A = RodParameters(length=1.0, density=1.0, section_inertia=0.01, M_d=(5, 5, 5), N_d=(5, 5, 5))
+B = RodParameters(length=0.7, A=(2, 1.5, 1), B=(3, 3, 4), density=2.0, section_inertia=(0.02, 0.01),
                   M_d=(2, 2, 2), N_d=(2, 2, 2), reference_curvature=(0.3, 0, 0))
 FORCE_A, COUPLE_B = (1.0, 0.0, 0.0), np.array((0.0, 0.5, 0.2))
 POSITION_B, ORIENTATION_B = np.array([1.0, 2.0, 3.0]), np.array([0.3, np.pi / 2, 0.2])
@@ -30,7 +30,7 @@ def two_rods(placed: bool, comm=MPI.COMM_WORLD) -> RodSystem:
     turn = turn_b() if placed else np.eye(3)
     return RodSystem([
         Rod(A, 6, end_loads=[EndLoad("force", FORCE_A)], name="a"),
-        Rod(B, 5, ("pinned", "free"), end_loads=[EndLoad("couple", tuple(turn @ COUPLE_B))],
+        Rod(B, 5, "pinned", end_loads=[EndLoad("couple", tuple(turn @ COUPLE_B))],
             name="b", position=POSITION_B,
             orientation=ORIENTATION_B if placed else (0.0, 0.0, 0.0))], comm=comm)
 
@@ -38,7 +38,7 @@ def two_rods(placed: bool, comm=MPI.COMM_WORLD) -> RodSystem:
 def alone(which: str) -> RodModel:
     if which == "a":
         return RodModel(A, 6, end_loads=[EndLoad("force", FORCE_A)])
-    return RodModel(B, 5, ends=("pinned", "free"), end_loads=[EndLoad("couple", COUPLE_B)])
+    return RodModel(B, 5, start="pinned", end="free", end_loads=[EndLoad("couple", COUPLE_B)])
 
 
 def run_system(model, t_end: float = T_END, dt: float = DT) -> dict[str, float]:
@@ -80,7 +80,7 @@ def solve_frame(n_cells: int, force: float, steps: int = 1, comm=MPI.COMM_WORLD)
     return model.diagnostics(1.0)
 
 
-PENDULUM = dict(g=9.81, rho_A=1.0, rho_I=1e-4, l1=1.0, l2=0.7, E=1e6, angles=(0.6, 1.1))
+PENDULUM = dict(g=9.81, density=1.0, rho_I=1e-4, l1=1.0, l2=0.7, E=1e6, angles=(0.6, 1.1))
 
 
 def double_pendulum(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
@@ -92,8 +92,8 @@ def double_pendulum(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
     p = PENDULUM
     E, (a1, a2) = p["E"], p["angles"]
     gravity = [DistributedLoad("force", (0.0, 0.0, -p["rho_A"] * p["g"]))]
-    params = [RodParameters(length=p[k], A=(E / 100,) * 3, B=(E,) * 3, rho_A=p["rho_A"],
-                            I11=p["rho_I"], I22=p["rho_I"]) for k in ("l1", "l2")]
+    params = [RodParameters(length=p[k], A=(E / 100,) * 3, B=(E,) * 3, density=p["rho_A"],
+                            section_inertia=p["rho_I"]) for k in ("l1", "l2")]
     knee = p["l1"] * np.array([np.sin(a1), 0.0, -np.cos(a1)])
     rods = [Rod(params[0], n_cells, ("pinned", "free"), distributed_loads=gravity,
                 name="upper", orientation=(0.0, np.pi - a1, 0.0)),
@@ -170,7 +170,7 @@ def gravity_potential(model) -> float:
     return p["rho_A"] * p["g"] * total
 
 
-DOOR = dict(g=9.81, rho_A=1.0, rho_I=1e-4, post=0.3, width=1.0, E=1e7, push=0.5)
+DOOR = dict(g=9.81, density=1.0, rho_I=1e-4, post=0.3, width=1.0, E=1e7, push=0.5)
 
 
 def hinged_door(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
@@ -184,8 +184,8 @@ def hinged_door(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
     E, top = p["E"], (0.0, 0.0, p["post"])
     gravity = [DistributedLoad("force", (0.0, 0.0, -p["rho_A"] * p["g"]),
                                loads.smooth_step(1.0, 0.1))]
-    params = [RodParameters(length=p[k], A=(E / 100,) * 3, B=(E,) * 3, rho_A=p["rho_A"],
-                            I11=p["rho_I"], I22=p["rho_I"]) for k in ("post", "width")]
+    params = [RodParameters(length=p[k], A=(E / 100,) * 3, B=(E,) * 3, density=p["rho_A"],
+                            section_inertia=p["rho_I"]) for k in ("post", "width")]
     rods = [Rod(params[0], n_cells, ("clamped", "free"), name="post"),
             Rod(params[1], n_cells, ("free", "free"), distributed_loads=gravity, name="door",
                 position=top, orientation=(0.0, np.pi / 2, 0.0),

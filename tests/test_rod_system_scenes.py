@@ -113,13 +113,13 @@ def test_hinged_door_scene_is_the_api_door():
     steel = sections.Material(youngs_modulus=210e9, shear_modulus=81e9, density=7850.0)
     rods = []
     for name, length, radius, extra in (
-            ("post", 1.0, 0.02, dict(ends=("clamped", "free"))),
-            ("gate", 1.2, 0.01, dict(ends=("free", "free"), position=(0.0, 0.0, 1.0),
+            ("post", 1.0, 0.02, dict(start="clamped", end="free")),
+            ("gate", 1.2, 0.01, dict(start="free", end="free", position=(0.0, 0.0, 1.0),
                                      orientation=(0.0, np.pi / 2, 0.0),
                                      end_loads=[EndLoad("force", (0.0, 2.0, 0.0))]))):
         p = RodParameters(length=length, **sections.section_parameters(
             sections.circle(radius), steel))
-        gravity = DistributedLoad("force", (0.0, 0.0, -9.81 * p.rho_A))
+        gravity = DistributedLoad("force", (0.0, 0.0, -9.81 * p.density))
         rods.append(Rod(p, 8, name=name, distributed_loads=[gravity], **extra))
     api = RodSystem(rods, joints=[Joint("hinge", ("post", "gate"), (0.0, 0.0, 1.0),
                                         name="hinge", axis=(0.0, 0.0, 1.0))],

@@ -19,9 +19,9 @@ PLACE = {"position": (0.4, -1.0, 2.5), "orientation": (0.3, -0.7, 1.1)}
 
 def dynamic_rod(rotations="auto", length=2.0, ends=("free", "free"), end_loads=(), n=8):
     params = RodParameters(length=length, A=(0.8, 1.2, 0.6), B=(40.0, 30.0, EA),
-                           rho_A=RHO_A, I11=I11, I22=I22)
+                           density=RHO_A, section_inertia=(I11, I22))
     return RodModel(params, n_cells=n, model="hyperelastic", rotations=rotations,
-                    ends=ends, end_loads=end_loads)
+                    start=ends[0], end=ends[1], end_loads=end_loads)
 
 
 def nodes(model):
@@ -313,7 +313,7 @@ def test_polyline_rotations_keep_one_sign_near_a_half_turn():
     _, q = line.frames(np.linspace(0.0, length, 9), length, 8)
     assert np.all(np.einsum("ij,ij->i", q[:-1], q[1:]) > 0.99)
     assert abs(q[0, 0]) < 1e-3          # a half turn: the case that flipped signs
-    model = dynamic_rod(length=length, ends=("clamped", "clamped"))
+    model = dynamic_rod(length=length, start="clamped", end="clamped")
     model.set_initial_state(start=StartingState(shape=line))
     x0 = model.f["displacement"].x.array.copy()
     TimeStepper(model.problem).run(0.0, 0.02, 0.01)

@@ -102,12 +102,13 @@ def rod_model(scenario: Scenario, rod: Rod, n_elements: int):
     section = section_parameters(circle(rod.radius), Material(
         m.youngs_modulus, shear_modulus=m.shear_modulus, density=m.density))
     rate = damping_rate(scenario)
-    J = (section["I22"], section["I11"], section["I11"] + section["I22"])   # rho J
-    damping = {"drag": rate * section["rho_A"],
+    I11, I22 = section["section_inertia"]
+    J = (I22, I11, I11 + I22)   # rho J
+    damping = {"drag": rate * section["density"],
                "rotational_drag": tuple(rate * j for j in J)} if rate else {}
     params = RodParameters(length=rod.length, **section, **damping)
     gravity = np.asarray(scenario.gravity, float)
-    loads = [DistributedLoad("force", tuple(section["rho_A"] * gravity))] if gravity.any() \
+    loads = [DistributedLoad("force", tuple(section["density"] * gravity))] if gravity.any() \
         else []
     motions = {"end_displacement": {}, "end_rotation": {}, "end_slide": {}}
     for end, side in ENDS.items():
@@ -118,7 +119,8 @@ def rod_model(scenario: Scenario, rod: Rod, n_elements: int):
             if motion.slides_along is not None:
                 motions["end_slide"][side] = tuple(motion.axis)
     model = RodModel(params, n_cells=n_elements, model="hyperelastic",
-                     ends=tuple(rod.condition(end).value for end in ENDS),
+                     start=rod.condition(End.START).value,
+                     end=rod.condition(End.END).value,
                      end_loads=[EndLoad("force", tuple(load.force), end=ENDS[load.at])
                                 for load in rod.loads],
                      distributed_loads=loads, **motions)

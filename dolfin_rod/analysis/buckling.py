@@ -64,7 +64,7 @@ def buckling_modes(model, t: float, count: int = 4) -> BucklingModes:
     time t's loads).  Raises ValueError for a dynamic rod, a rod system with joints, t
     <= 0, or loads and motions that do not change at t."""
     if model.dynamic:
-        raise ValueError("buckling: a quasi-static rod (rho_A = 0); for a dynamic one, "
+        raise ValueError("buckling: a quasi-static rod (density = 0); for a dynamic one, "
                          "the vibration modes (analysis/vibration.py)")
     if model.problem.links:
         raise ValueError("buckling: rods joined by joints are not supported (their "

@@ -46,10 +46,11 @@ class VibrationModes:
 def vibration_modes(model, t: float, count: int = 6) -> VibrationModes:
     """The ``count`` lowest natural frequencies and modes of a dynamic RodModel about its
     current state under time t's loads.  Raises ValueError for a quasi-static rod
-    (rho_A = 0: no mass), rotary inertia I11 = I22 = 0, quaternion unknowns or joints."""
+    (density = 0: no mass), rotary inertia section_inertia = 0, quaternion unknowns or
+    joints."""
     if not model.dynamic:
-        raise ValueError("vibration modes: a rod with mass (rho_A > 0; a scene's "
-                         "material.density or material.rho_A)")
+        raise ValueError("vibration modes: a rod with mass (density > 0: "
+                         "RodParameters.density or a scene's material.density)")
     if model.unknowns.chart is None:
         raise ValueError("vibration modes: rotation-vector unknowns (geometry.rotations = "
                          "\"rotation_vector\")")
