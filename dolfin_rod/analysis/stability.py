@@ -29,6 +29,7 @@ from .eigen import eigenpairs
 from ..fem.assembly import block_system, monolithic_layout
 from ..fem.multipoint import ConstrainedSystem
 from ..fem.fe_model import vertex_measure
+from ..theory.quaternions import np_qmul
 
 __all__ = ["Inertia", "TangentStiffness", "LowestEigenvalues", "StabilityMonitor",
            "at_rest_map", "symmetric_part"]
@@ -114,21 +115,26 @@ class TangentStiffness:
         return total
 
     def mode_shapes(self, vectors) -> list[dict[str, np.ndarray]]:
-        """Vectors of K's layout as nodal values, {"displacement", "rotation"} (rotation
-        vectors) or {"displacement", "quaternion"}, each scaled to a largest displacement
-        of 1 (if it has one); the state in the fields is kept."""
+        """Vectors of K's layout as nodal values {"displacement", "rotation"}, the
+        rotation the material rotation vector (quaternions: 2 vec(conj(q) dq)/|q|^2 of
+        the state's q), each scaled to a largest displacement of 1 (if it has one); the
+        state in the fields is kept."""
         from ..mpi import largest_on_ranks
         system, model = self.system, self.model
         state = system.x.copy()
         system.get(0, state)
         label = {"displacement": "displacement", "rotation_increment": "rotation",
-                 "quaternion": "quaternion"}
+                 "quaternion": "rotation"}
+        q = model.f["quaternion"].x.array.reshape(-1, 4).copy() \
+            if "quaternion" in self.names else None
         shapes = []
         try:
             for vector in vectors:
-                system.set(0, vector)
+                self._set_direction(vector)
                 shape = {label[n]: model.f[n].x.array.copy() for n in self.names
                          if n in label}
+                if q is not None:
+                    shape["rotation"] = material_rotation(q, shape["rotation"])
                 x = shape["displacement"].reshape(-1, 3)
                 size = largest_on_ranks(model.mesh.comm, float(
                     np.max(np.linalg.norm(x, axis=1), initial=0.0)))
@@ -136,6 +142,16 @@ class TangentStiffness:
         finally:
             system.set(0, state)
         return shapes
+
+    def _set_direction(self, vector: PETSc.Vec) -> None:
+        """A direction of K's layout into the fields: joints' P v (no offset)."""
+        system = self.system
+        if not isinstance(system, ConstrainedSystem):
+            system.set(0, vector)
+            return
+        y = system.P.createVecLeft()
+        system.P.mult(vector, y)
+        system.inner.set(0, y)
 
     def matrix(self, t: float) -> PETSc.Mat:
         """The symmetric part of K at time t's loads, Dirichlet rows and columns identity."""
@@ -185,6 +201,15 @@ class TangentStiffness:
         pc.setFactorSolverType("mumps")
         ksp.setFromOptions()
         return ksp
+
+
+def material_rotation(q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """2 vec(conj(q) dq)/|q|^2 at the nodes (q, dq: n x 4 and 4n values): a quaternion
+    direction as the material rotation vector (theory/rotations.py's in numpy)."""
+    dq = dq.reshape(-1, 4)
+    conj = q * np.array([1.0, -1.0, -1.0, -1.0])
+    vec = np_qmul(conj, dq)[:, 1:]
+    return (2 * vec / np.sum(q * q, axis=1)[:, None]).ravel()
 
 
 def _largest_diagonal(A: PETSc.Mat) -> float:

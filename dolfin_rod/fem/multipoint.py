@@ -27,6 +27,12 @@ an inconsistent predictor), and the law's own state is refreshed at each solve's
 (``get``: law.refresh(), collective).  For a field other than the law's
 ``configuration`` (rates, accelerations of the same block) the law's tangent at 0 is
 used (law.value(..., exact=False)).  A map's master node must be free (not a slave).
+
+A ``NodeLine`` is a one-node linear link: the node's values of a block move along a
+unit ``axis`` only, y = y_0 + a axis (a support sliding along an axis that is not a
+coordinate axis, or turning about one: rod/boundary_conditions.py).  Its component j of
+largest |axis_j| stays free and the others are its slaves, y_i = (axis_i/axis_j) y_j
+(+ the offset across the axis the state has when a solve starts, as a NodeLink's).
 """
 
 from __future__ import annotations
@@ -37,7 +43,7 @@ import dolfinx.fem as fem
 import numpy as np
 from petsc4py import PETSc
 
-__all__ = ["NodeLink", "NodeMap", "ConstrainedSystem"]
+__all__ = ["NodeLink", "NodeLine", "NodeMap", "ConstrainedSystem"]
 
 
 @dataclass(frozen=True)
@@ -49,6 +55,28 @@ class NodeLink:
     master_s: float
     slave_s: float
     matrix: tuple
+
+
+@dataclass(frozen=True)
+class NodeLine:
+    """The values of block ``block`` at the node s move along the unit ``axis`` only (see
+    module)."""
+
+    block: int
+    s: float
+    axis: tuple
+
+    @property
+    def master_s(self) -> float:
+        return self.s
+
+    slave_s = master_s
+
+    def weights(self) -> dict[int, dict[int, float]]:
+        """{slave component i: {master component j: axis_i/axis_j}}."""
+        a = np.asarray(self.axis, float)
+        j = int(np.argmax(np.abs(a)))
+        return {i: {j: a[i] / a[j]} for i in range(len(a)) if i != j}
 
 
 @dataclass(frozen=True)
@@ -88,16 +116,24 @@ def node_rows(inner, fields: list, links: list) -> dict[tuple, int]:
     return {(k, side, i): r for part in comm.allgather(found) for k, side, i, r in part}
 
 
-def slave_rows(inner, fields: list, links: list[NodeLink]) -> dict[int, dict[int, float]]:
-    """{slave row: {master row: weight}} in the inner system's global rows, on every
-    rank; a master that is itself a slave is replaced by its own masters."""
+def _weights(link: NodeLink | NodeLine) -> dict[int, dict[int, float]]:
+    """{slave component i: {master component j: weight}} of a linear link."""
+    if isinstance(link, NodeLine):
+        return link.weights()
+    T = np.asarray(link.matrix, float)
+    return {i: {j: T[i, j] for j in range(T.shape[1]) if T[i, j] != 0.0}
+            for i in range(T.shape[0])}
+
+
+def slave_rows(inner, fields: list, links: list) -> dict[int, dict[int, float]]:
+    """{slave row: {master row: weight}} of the linear links (NodeLink, NodeLine) in the
+    inner system's global rows, on every rank; a master that is itself a slave is
+    replaced by its own masters."""
     row = node_rows(inner, fields, links)
     slaves: dict[int, dict[int, float]] = {}
     for k, link in enumerate(links):
-        T = np.asarray(link.matrix, float)
-        for i in range(T.shape[0]):
-            slaves[row[k, "slave", i]] = {row[k, "master", j]: T[i, j]
-                                          for j in range(T.shape[1]) if T[i, j] != 0.0}
+        for i, masters in _weights(link).items():
+            slaves[row[k, "slave", i]] = {row[k, "master", j]: w for j, w in masters.items()}
     for _ in range(len(links)):            # chains of links: masters that are slaves
         for target in slaves.values():
             for master in [m for m in target if m in slaves]:

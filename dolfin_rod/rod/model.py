@@ -35,7 +35,7 @@ from ..mpi import largest_on_ranks
 from ..theory.rotations import np_qmul, np_rotation_matrix, rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
-from .boundary_conditions import EndSupports, spin_free
+from .boundary_conditions import EndSupports, linked_axes, spin_free
 from .constitutive import check_model, energy_function, section_response
 from .contact import ContactLaw, Obstacle, ObstacleContact
 from .discretisation import discretise, function_spaces, unknowns
@@ -45,6 +45,7 @@ from .joints import JointReactions, joint_nodes, node_links
 from .layout import RodLayout
 from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
+from .placement import placed_shape
 from .material import RodParameters, coefficients, is_zero
 from .rods import OLD_CONSTRAINT, OLD_ENDS, Rod, check_rods, new_keywords, positional_ends
 from .segments import PassThroughCheck
@@ -52,6 +53,20 @@ from .structure import structure
 from .start import RodStarts, StartingState, check_rod_starts, check_start
 
 _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def end_frames(rod: Rod) -> dict:
+    """{end: the stress-free, placed rotation (quaternion) of the rod's end}."""
+    q = placed_shape(rod, np.array([0.0, float(rod.params.length)]))[1]
+    return dict(zip(("left", "right"), q))
+
+
+def oblique_supports(rod: Rod) -> list[tuple[str, str]]:
+    """(end_slide or end_turn, end) of a rod's supports on a one-node link
+    (boundary_conditions.linked_axes)."""
+    names = {"displacement": "end_slide", "rotation_increment": "end_turn"}
+    return [(names[block], end) for block, end in
+            linked_axes(rod.end_slide, rod.end_turn, end_frames(rod))]
 
 
 class RodModel(FEModel):
@@ -112,7 +127,8 @@ class RodModel(FEModel):
         self.joints = list(joints)
         self.segment_contact = self._segment_contact(contact, self.layout)
         nodes = joint_nodes(self, self.joints)
-        self.problem = self._problem(node_links(self, self.joints, nodes))
+        self.problem = self._problem(node_links(self, self.joints, nodes) + [
+            line for supports in self.end_supports for line in supports.links(self.names)])
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
         if self.dynamic:       # the steps must resolve them (integrators' check_run)
             self.problem.prescribed_motions = {
@@ -161,9 +177,14 @@ class RodModel(FEModel):
                               or any(np.all(spring.stiffness("rotational"))
                                      for spring in (rod.end_springs or {}).values())
                               for rod in rods))
+        linked = [f"{name}[{end!r}]" for rod in rods for name, end in oblique_supports(rod)]
         if joints and obstacle:
             raise ValueError(f"joints need rotation-vector unknowns, which this system "
                              f"cannot have: {obstacle}")
+        if linked and obstacle:
+            raise ValueError(f"{linked[0]}: an axis off the coordinate axes needs "
+                             f"rotation-vector unknowns, which this rod cannot have: "
+                             f"{obstacle}")
         # a dynamic rod's end rotation jumps at most at t = 0 (later: refused): the
         # consistent start turns it there (integrators/lie_alpha.py)
         chosen = choose_rotations(rotations, obstacle, rotation_jumps=not self.dynamic and any(
@@ -171,6 +192,10 @@ class RodModel(FEModel):
             for motion in (rod.end_rotation or {}).values()))
         if joints and chosen != "rotation_vector":
             raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
+                             f"'rotation_vector'), got {rotations!r}")
+        if linked and chosen != "rotation_vector":
+            raise ValueError(f"{linked[0]}: an axis off the coordinate axes needs "
+                             "rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
         for name in ("end_displacement", "end_rotation"):
             if self.dynamic and chosen == "quaternion" and any(
@@ -230,7 +255,7 @@ class RodModel(FEModel):
         unk = self.unknowns
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
-                                         rod.end_springs, rod.end_turn)
+                                         rod.end_springs, rod.end_turn, end_frames(rod))
                              for k, rod in enumerate(self.rods)]
         per_rod = [supports.spring_energy(unk, disc.ds, disc.end_weight,
                                           disc.pieces.indicator(k))
