@@ -12,8 +12,8 @@ from dolfin_rod.theory.rotations import np_quaternion_from_rotation_vector, np_r
 ROUND_OFF = {"snes_rtol": 1e-13, "snes_atol": 1e-13}
 T_END, DT = 0.2, 0.02
 A = RodParameters(length=1.0, density=1.0, section_inertia=0.01, M_d=(5, 5, 5), N_d=(5, 5, 5))
-B = RodParameters(length=0.7, A=(2, 1.5, 1), B=(3, 3, 4), density=2.0, section_inertia=(0.02, 0.01),
-                  M_d=(2, 2, 2), N_d=(2, 2, 2), reference_curvature=(0.3, 0, 0))
+B = RodParameters(length=0.7, A=(2, 1.5, 1), B=(3, 3, 4), density=2.0,
+                  section_inertia=(0.02, 0.01), M_d=(2, 2, 2), N_d=(2, 2, 2), reference_curvature=(0.3, 0, 0))
 FORCE_A, COUPLE_B = (1.0, 0.0, 0.0), np.array((0.0, 0.5, 0.2))
 POSITION_B, ORIENTATION_B = np.array([1.0, 2.0, 3.0]), np.array([0.3, np.pi / 2, 0.2])
 
@@ -65,7 +65,7 @@ def l_frame(n_cells: int, force: float, steps_to_full_load: bool = False,
     history = loads.ramp(1.0, 1.0) if steps_to_full_load else (lambda t: 1.0)
     top = (0.0, 0.0, f["L1"])
     rods = [Rod(params[0], n_cells, name="column"),
-            Rod(params[1], n_cells, ("free", "free"), name="beam", position=top,
+            Rod(params[1], n_cells, "free", end="free", name="beam", position=top,
                 orientation=(0.0, np.pi / 2, 0.0),
                 end_loads=[EndLoad("force", (0.0, 0.0, -force), history)])]
     return RodSystem(rods, joints=[Joint("rigid", ("column", "beam"), top, name="knee")],
@@ -80,7 +80,7 @@ def solve_frame(n_cells: int, force: float, steps: int = 1, comm=MPI.COMM_WORLD)
     return model.diagnostics(1.0)
 
 
-PENDULUM = dict(g=9.81, density=1.0, rho_I=1e-4, l1=1.0, l2=0.7, E=1e6, angles=(0.6, 1.1))
+PENDULUM = dict(g=9.81, rho_A=1.0, rho_I=1e-4, l1=1.0, l2=0.7, E=1e6, angles=(0.6, 1.1))
 
 
 def double_pendulum(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
@@ -95,9 +95,9 @@ def double_pendulum(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
     params = [RodParameters(length=p[k], A=(E / 100,) * 3, B=(E,) * 3, density=p["rho_A"],
                             section_inertia=p["rho_I"]) for k in ("l1", "l2")]
     knee = p["l1"] * np.array([np.sin(a1), 0.0, -np.cos(a1)])
-    rods = [Rod(params[0], n_cells, ("pinned", "free"), distributed_loads=gravity,
+    rods = [Rod(params[0], n_cells, "pinned", end="free", distributed_loads=gravity,
                 name="upper", orientation=(0.0, np.pi - a1, 0.0)),
-            Rod(params[1], n_cells, ("free", "free"), distributed_loads=gravity,
+            Rod(params[1], n_cells, "free", end="free", distributed_loads=gravity,
                 name="lower", position=knee, orientation=(0.0, np.pi - a2, 0.0))]
     return RodSystem(rods, joints=[Joint("ball", ("upper", "lower"), knee)],
                      model="hyperelastic", comm=comm)
@@ -170,7 +170,7 @@ def gravity_potential(model) -> float:
     return p["rho_A"] * p["g"] * total
 
 
-DOOR = dict(g=9.81, density=1.0, rho_I=1e-4, post=0.3, width=1.0, E=1e7, push=0.5)
+DOOR = dict(g=9.81, rho_A=1.0, rho_I=1e-4, post=0.3, width=1.0, E=1e7, push=0.5)
 
 
 def hinged_door(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
@@ -186,8 +186,8 @@ def hinged_door(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
                                loads.smooth_step(1.0, 0.1))]
     params = [RodParameters(length=p[k], A=(E / 100,) * 3, B=(E,) * 3, density=p["rho_A"],
                             section_inertia=p["rho_I"]) for k in ("post", "width")]
-    rods = [Rod(params[0], n_cells, ("clamped", "free"), name="post"),
-            Rod(params[1], n_cells, ("free", "free"), distributed_loads=gravity, name="door",
+    rods = [Rod(params[0], n_cells, "clamped", end="free", name="post"),
+            Rod(params[1], n_cells, "free", end="free", distributed_loads=gravity, name="door",
                 position=top, orientation=(0.0, np.pi / 2, 0.0),
                 end_loads=[EndLoad("force", (0.0, p["push"], 0.0))])]
     return RodSystem(rods, joints=[Joint("hinge", ("post", "door"), top, name="hinge",

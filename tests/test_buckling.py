@@ -331,7 +331,8 @@ def column_and_twist(rotations: str) -> tuple[np.ndarray, np.ndarray]:
     """The clamped-free column's factors (pre-loaded to P_cr / 2) and Greenhill's
     (clamped-clamped, pre-twisted to half the critical twist), 8 cells."""
     ends, slide, p_cr = COLUMNS["clamped-free"]
-    column = preloaded(RodModel(STIFF, n_cells=8, model="hyperelastic", ends=ends,
+    column = preloaded(RodModel(STIFF, n_cells=8, model="hyperelastic", start=ends[0],
+                                end=ends[1],
                                 rotations=rotations, end_loads=[EndLoad(
                                     "force", (0.0, 0.0, -p_cr), lambda t: 0.5 * t)]))
     m_cr = 2 * TAN_X
@@ -371,7 +372,7 @@ def jointed_column(n_cells: int):
             for a in ((1.0, 2.0), (2.0, 1.0))]
     load = EndLoad("force", (0.0, 0.0, -p_cr), lambda t: 0.5 * t)
     return RodSystem([Rod(half[0], n_cells, name="lower"),
-                      Rod(half[1], n_cells, ("free", "free"), name="upper",
+                      Rod(half[1], n_cells, "free", end="free", name="upper",
                           position=(0.0, 0.0, 0.5), orientation=(0.0, 0.0, math.pi / 2),
                           end_loads=[load])],
                      joints=[Joint("rigid", ("lower", "upper"), (0.0, 0.0, 0.5))],

@@ -151,7 +151,8 @@ def test_bad_joints_are_named(joint, message):
     p = RodParameters(density=1.0, section_inertia=0.01)
     b_ends = ("clamped", "free") if "supported" in message else ("free", "free")
     b_start = (1.0, 0.0, 1.0) if "supported" in message else (0.0, 0.0, 1.0)
-    rods = [Rod(p, 4, name="a"), Rod(p, 4, b_ends, name="b", position=b_start)]
+    rods = [Rod(p, 4, name="a"), Rod(p, 4, b_ends[0], end=b_ends[1], name="b",
+                                          position=b_start)]
     if "supported" in message:
         rods[0] = Rod(p, 4, name="a", position=(1.0, 0.0, 0.0))
     with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("(", r"\(")):

@@ -50,7 +50,7 @@ def test_frame_scene_is_the_api_frame():
     top = (0.0, 0.0, 2.0)
     api = RodSystem([
         Rod(RodParameters(length=2.0, A=A, B=B), 16, name="column"),
-        Rod(RodParameters(length=1.5, A=A, B=B), 12, ("free", "free"), name="beam",
+        Rod(RodParameters(length=1.5, A=A, B=B), 12, "free", end="free", name="beam",
             position=top, orientation=(0.0, np.pi / 2, 0.0),
             end_loads=[EndLoad("force", (0.0, 0.0, -1.0e4), loads.ramp(1.0, 1.0))])],
         joints=[Joint("rigid", ("column", "beam"), top, name="knee")], model="hyperelastic")

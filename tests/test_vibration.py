@@ -203,7 +203,8 @@ def modes_of(rotations: str, ends) -> object:
     unique up to sign)."""
     params = RodParameters(length=1.0, A=(1.0, 2.0, 1.0), B=(1e5, 1e5, 1e5), density=1.0,
                            section_inertia=(1e-4, 2e-4))
-    rod = RodModel(params, n_cells=8, model="hyperelastic", ends=ends, rotations=rotations)
+    rod = RodModel(params, n_cells=8, model="hyperelastic", start=ends[0], end=ends[1],
+                   rotations=rotations)
     rod.set_initial_state()
     modes = vibration_modes(rod, 0.0, 5)
     assert max(modes.residuals) < 1e-10
@@ -246,7 +247,7 @@ def two_rods_joined(dynamic: bool = True):
                           section_inertia=(i[0], i[1]))
             for a, i in (((1.0, 2.0), (1e-3, 2e-3)), ((2.0, 1.0), (2e-3, 1e-3)))]
     return RodSystem([Rod(half[0], 8, name="lower"),
-                      Rod(half[1], 8, ("free", "free"), name="upper",
+                      Rod(half[1], 8, "free", end="free", name="upper",
                           position=(0.0, 0.0, 0.5), orientation=(0.0, 0.0, math.pi / 2))],
                      joints=[Joint("rigid", ("lower", "upper"), (0.0, 0.0, 0.5))],
                      model="hyperelastic")
