@@ -228,7 +228,7 @@ def kinked_frame(n_column: int, n_beam: int, force: float, steps: int = 1,
     if joined:
         top = (0.0, 0.0, L1)
         model = RodSystem([Rod(params(L1), n_column, name="column"),
-                           Rod(params(L2), n_beam, ("free", "free"), name="beam",
+                           Rod(params(L2), n_beam, "free", end="free", name="beam",
                                position=top, orientation=(0.0, np.pi / 2, 0.0),
                                end_loads=load)],
                           joints=[Joint("rigid", ("column", "beam"), top)],

@@ -516,7 +516,7 @@ NO_ROTARY_INERTIA = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e
     (lambda: RodModel(PARAMS, n_cells=4, model="hyperelastic", variant="uniform",
                       rotations="rotation_vector"), "uniform variant"),
     (lambda: RodModel(NO_ROTARY_INERTIA, n_cells=4, model="hyperelastic",
-                      rotations="rotation_vector"), "without rotary inertia I11, I22 > 0"),
+                      rotations="rotation_vector"), "without rotary inertia section_inertia > 0"),
 ])
 def test_rotation_choice_is_checked(make, match):
     with pytest.raises(ValueError, match=match):

@@ -313,7 +313,7 @@ def test_polyline_rotations_keep_one_sign_near_a_half_turn():
     _, q = line.frames(np.linspace(0.0, length, 9), length, 8)
     assert np.all(np.einsum("ij,ij->i", q[:-1], q[1:]) > 0.99)
     assert abs(q[0, 0]) < 1e-3          # a half turn: the case that flipped signs
-    model = dynamic_rod(length=length, start="clamped", end="clamped")
+    model = dynamic_rod(length=length, ends=("clamped", "clamped"))
     model.set_initial_state(start=StartingState(shape=line))
     x0 = model.f["displacement"].x.array.copy()
     TimeStepper(model.problem).run(0.0, 0.02, 0.01)
