@@ -125,8 +125,8 @@ class RodModel(FEModel):
         springs = self._end_supports(F, disc)
         self.residual = {name: F[name] for name in self.names}
         self.joints = list(joints)
-        self.segment_contact = self._segment_contact(contact, self.layout)
         nodes = joint_nodes(self, self.joints)
+        self.segment_contact = self._segment_contact(contact, self.layout, nodes)
         self.problem = self._problem(node_links(self, self.joints, nodes) + [
             line for supports in self.end_supports for line in supports.links(self.names)])
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
@@ -290,14 +290,11 @@ class RodModel(FEModel):
             hint="self-contact is off: set contact.self = true (contact.between_rods for "
                  "rods of a system; docs/contact.md)")
 
-    def _segment_contact(self, law, layout) -> SegmentContact | None:
-        """The segment pairs' contact (pair_contact.py) if the law asks for it."""
+    def _segment_contact(self, law, layout, joint_nodes) -> SegmentContact | None:
+        """The segment pairs' contact (pair_contact.py) if the law asks for it; the
+        joints' nodes (s of both rods) join their segments as neighbours."""
         if law is None or not (law.self_contact or law.between_rods):
             return None
-        if self.joints:
-            raise ValueError("contact.self / contact.between_rods with joints: not "
-                             "supported (the joints' constrained solve keeps the "
-                             "Jacobian's sparsity fixed)")
         if self.unknowns.chart is None:
             raise ValueError("contact.self / contact.between_rods need rotation-vector "
                              f"unknowns (rotations 'auto' or 'rotation_vector'), got "
@@ -310,7 +307,7 @@ class RodModel(FEModel):
                              f"{reach:.4g}, which is not shorter than the rod "
                              f"({min(layout.lengths):g}): a smaller radius or more cells")
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
-                                 law.self_contact, law.between_rods)
+                                 law.self_contact, law.between_rods, joint_nodes)
         contact.block = list(self.names).index("displacement")
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
         self.pair_force = fem.Function(P1, name="pair_contact_force")
@@ -351,7 +348,13 @@ class RodModel(FEModel):
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links, terms=[self.segment_contact] if self.segment_contact else [])
+            links=links, terms=[self.segment_contact] if self.segment_contact else [],
+            scale_motions=self.scale_motions)
+
+    def scale_motions(self, fraction: float) -> None:
+        """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""
+        for supports in self.end_supports:
+            supports.scale(fraction)
 
     def commit_rotations(self) -> None:
         """After an accepted step: rotation vectors q_n <- q_n c(theta), theta <- 0; the
@@ -362,6 +365,7 @@ class RodModel(FEModel):
                 supports.commit()
         if self.contact:
             self.contact.update_normal_forces()
+            self.contact.commit()
         if self.segment_contact:
             self.segment_contact.commit()
         self.check_cell_turns()
@@ -411,11 +415,15 @@ class RodModel(FEModel):
                 "rotations_committed_at": self.supports.committed_time}
 
     def restore_state(self, state: dict) -> None:
-        """After the checkpoint's functions were read (checkpoint_state)."""
+        """After the checkpoint's functions were read (checkpoint_state); the contacts'
+        path checks start from the restored state."""
         if self.unknowns.chart is not None:
             committed = state["rotations_committed_at"]
             for supports in self.end_supports:
                 supports.committed_time = None if committed is None else float(committed)
+        for contact in (self.contact, self.segment_contact):
+            if contact:
+                contact.commit()
 
     def stress_free(self, s):
         """(r, q) of the initial stress-free configuration at parameter values s."""
@@ -425,13 +433,17 @@ class RodModel(FEModel):
                           start: StartingState | dict | None = None) -> None:
         """Natural strains equal to the discrete reference strains of the stress-free
         configuration (a straight rod along e_3, or the helix/circle of constant
-        reference_curvature; uniform variant: their mean) unless given (3-vectors).
+        reference_curvature; uniform variant: their mean) unless given (3-vectors; a
+        system: one for every rod, or {rod name: 3-vector} for some rods).
         ``start`` None: the rod rests in that configuration, no stress at t = 0;
         a StartingState (rod/start.py; a system: {rod name: StartingState}, each in its
         rod's placed frame, rod/start.RodStarts, consistent at the joints): placed at its position
         and orientation, on its starting curve (e.g. Arc, Helix, Polyline, a Straight one
         stretched), with its velocities (dynamic rods), or settled in static equilibrium
         with the loads at t = 0 (``equilibrium``); the stress-free shape is unchanged."""
+        for name, given in (("natural_curvature", natural_curvature),
+                            ("natural_stretch", natural_stretch)):
+            initial_state.check_natural(name, given, [rod.name for rod in self.rods])
         held = any("clamped" in supports.ends or bool(supports.rotation)
                    for supports in self.end_supports)
         if self.layout.single:
@@ -445,6 +457,7 @@ class RodModel(FEModel):
         if self.contact:
             self.contact.check_initial()
             self.contact.update_normal_forces()
+            self.contact.commit()
         if self.segment_contact:
             reason = self.segment_contact.check_state()
             if reason:
@@ -459,7 +472,7 @@ class RodModel(FEModel):
         reactions at supported ends."""
         d = self.assembled_diagnostics(t)
         d.update(self.tips[0]())
-        d.update(self.supports.reactions(self.residual, t))
+        d.update(self.supports.reactions(self.residual, t, self.problem.structure))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         self.pass_through(t)

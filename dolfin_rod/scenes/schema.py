@@ -123,8 +123,9 @@ switching variant on a rod with L != 1 rescales time by L.
 `orientation` (a rotation vector turning e_3 into its initial tangent), and its own
 `geometry`, `section`, `material`, `boundary`, `loads`, `initial` as inline tables laid
 over the scene's tables key by key (an error names `rods[k].<table>.<key>`;
-`material.model`, `variant`, `constraints`, `energy`, `geometry.rotations` and
-`initial.natural_*` are shared and given in the scene's tables only; a rod's starting
+`material.model`, `variant`, `constraints`, `energy` and `geometry.rotations` are shared
+and given in the scene's tables only; `initial.natural_*` are each rod's own (or the
+scene's for every rod); a rod's starting
 state, `initial.shape`, `position`, `orientation`, velocities, is in its placed frame,
 and the starts of joined rods must meet as the joint holds them).  `[[joints]]` tables: `kind` ("rigid": position and rotation tied,
 "ball": position tied, "hinge": position tied, rotations equal up to a turn about
