@@ -80,7 +80,7 @@ def solve_frame(n_cells: int, force: float, steps: int = 1, comm=MPI.COMM_WORLD)
     return model.diagnostics(1.0)
 
 
-PENDULUM = dict(g=9.81, density=1.0, rho_I=1e-4, l1=1.0, l2=0.7, E=1e6, angles=(0.6, 1.1))
+PENDULUM = dict(g=9.81, rho_A=1.0, rho_I=1e-4, l1=1.0, l2=0.7, E=1e6, angles=(0.6, 1.1))
 
 
 def double_pendulum(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
@@ -170,7 +170,7 @@ def gravity_potential(model) -> float:
     return p["rho_A"] * p["g"] * total
 
 
-DOOR = dict(g=9.81, density=1.0, rho_I=1e-4, post=0.3, width=1.0, E=1e7, push=0.5)
+DOOR = dict(g=9.81, rho_A=1.0, rho_I=1e-4, post=0.3, width=1.0, E=1e7, push=0.5)
 
 
 def hinged_door(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
