@@ -124,6 +124,7 @@ class ConstrainedSystem:
     """A block system restricted by NodeLinks and NodeMaps to its free dofs (see module)."""
 
     terms: tuple = ()      # none: solvers.BlockSNES refuses terms with links
+    pattern_changes = 0    # so the sparsity never grows
 
     def __init__(self, inner, fields: list, links: list):
         self.inner, self.groups = inner, inner.groups
