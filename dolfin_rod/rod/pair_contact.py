@@ -160,7 +160,7 @@ class SegmentContact:
         self.exclusion = exclusion(law.radius, law.gap, h)
         self.self_contact, self.between_rods = self_contact, between_rods
         self.reach = 2 * law.radius + law.gap       # pairs act below this distance
-        self.skin = law.radius                       # the candidate list's margin
+        self.skin = law.radius / 2                   # the candidate list's margin
         self._candidates = (None, 0.0, None)         # positions, distance, pairs
         self._cache = (None, None)
         self.start = None                            # positions at the last commit
