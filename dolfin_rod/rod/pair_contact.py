@@ -151,13 +151,15 @@ class SegmentContact:
     """Self-contact (pairs within a rod) and contact between rods (``between_rods``) of
     the segments of ``x`` (the rod's displacement, P1), a term that fem/assembly adds to
     the residual and Jacobian of the systems that hold x (``bind``); law: the contact
-    law (radius, gap, stiffness)."""
+    law (radius, gap, stiffness); joints: the nodes (s_a, s_b) of the rods' joints."""
 
-    def __init__(self, x, law, rod_of, self_contact: bool, between_rods: bool):
+    def __init__(self, x, law, rod_of, self_contact: bool, between_rods: bool,
+                 joints=()):
         self.x, self.law = x, law
         self.line = Centreline(x, rod_of)
         h = float(np.max(self.line.lengths))
         self.exclusion = exclusion(law.radius, law.gap, h)
+        self.through_joints = self._joint_distances(joints)
         self.self_contact, self.between_rods = self_contact, between_rods
         self.reach = 2 * law.radius + law.gap       # pairs act below this distance
         self.skin = law.radius / 2                   # the candidate list's margin
@@ -196,10 +198,26 @@ class SegmentContact:
         pairs = near_pairs(P[line.ends[:, 0]], P[line.ends[:, 1]], line.mid_s, reach,
                            self.exclusion)
         same = line.rod[pairs[:, 0]] == line.rod[pairs[:, 1]]
-        pairs = pairs[(same & self.self_contact) | (~same & self.between_rods)]
+        keep = (same & self.self_contact) | (~same & self.between_rods)
+        for near in self.through_joints:        # neighbours through a joint
+            keep &= near[pairs[:, 0]] + near[pairs[:, 1]] >= self.exclusion
+        pairs = pairs[keep]
         pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
         self._candidates = (P.copy(), reach, pairs)
         return pairs
+
+    def _joint_distances(self, joints) -> list[np.ndarray]:
+        """Per joint point (the nodes (s_a, s_b) of the joints, those sharing a node
+        merged: one place in space) each segment's distance in s to the nearest of its
+        nodes: two segments whose distances add up to less than the exclusion are
+        neighbours through the joint (as within a rod), no pair."""
+        groups: list[set] = []
+        for joint in joints:
+            linked = [g for g in groups if g & set(joint)]
+            merged = set(joint).union(*linked)
+            groups = [g for g in groups if g not in linked] + [merged]
+        return [np.min(np.abs(self.line.mid_s[:, None] - np.array(sorted(g))[None, :]),
+                       axis=1) for g in groups]
 
     def evaluate(self, owned_displacement: np.ndarray) -> "PairTerms":
         """The active pairs at this state and their energies, gradients, Hessians
@@ -230,9 +248,11 @@ class SegmentContact:
         return self.x.x.array[: 3 * self.line.n_owned]
 
     def bind(self, system) -> "BoundTerm":
-        """The term in an assembled ``system`` (fem/assembly) whose block ``self.block``
-        (the model's displacement block) holds x or another unknown of its space (the
-        start's accelerations: then x is fixed and the term adds its residual only)."""
+        """The term in an assembled ``system`` (fem/assembly) one of whose unknowns is x
+        (any block: the tangent stiffness of analysis/ holds the mechanical blocks only),
+        or whose block ``self.block`` (the model's displacement block) holds another
+        unknown of its space (the start's accelerations: then x is fixed and the term
+        adds its residual only)."""
         return BoundTerm(self, system)
 
     # -- diagnostics ------------------------------------------------------------------
@@ -357,8 +377,11 @@ class BoundTerm:
     def __init__(self, contact: SegmentContact, system):
         self.contact = contact
         line = contact.line
-        self.solved = system.groups[0][contact.block] is contact.x
-        self.local_rows = system.rows_of(contact.block, np.arange(3 * line.n_owned))
+        unknowns = system.groups[0]
+        held = [k for k, y in enumerate(unknowns) if y is contact.x]
+        self.solved = bool(held)
+        block = held[0] if held else contact.block
+        self.local_rows = system.rows_of(block, np.arange(3 * line.n_owned))
         start = system.x.getOwnershipRange()[0]
         rows = np.full((line.n_nodes, 3), -1, dtype=np.int64)
         rows[line.gathered] = np.concatenate(line.comm.allgather(
@@ -383,17 +406,21 @@ class BoundTerm:
                                minlength=len(b_owned))
 
     def limit_step(self, x_owned: np.ndarray, y_owned: np.ndarray) -> None:
-        """Newton's update x - y (PETSc's sign) scaled down in place so that no pair
-        closes to below STEP_FLOOR of its gap along it (SegmentContact.step_fraction;
-        collective: the same factor on every rank)."""
+        """Newton's update x - y (PETSc's sign) scaled down in place by ``step_factor``."""
+        alpha = self.step_factor(x_owned, y_owned)
+        if alpha < 1.0:
+            y_owned *= alpha
+
+    def step_factor(self, x_owned: np.ndarray, y_owned: np.ndarray) -> float:
+        """The factor of Newton's update x - y (PETSc's sign) after which no pair closes
+        to below STEP_FLOOR of its gap along it (SegmentContact.step_fraction;
+        collective: the same factor on every rank); 1 if x is not solved for."""
         if not self.solved:
-            return
+            return 1.0
         u = x_owned[self.local_rows]
         line = self.contact.line
         P0 = line.positions(u)
-        alpha = self.contact.step_fraction(P0, line.positions(u - y_owned[self.local_rows]))
-        if alpha < 1.0:
-            y_owned *= alpha
+        return self.contact.step_fraction(P0, line.positions(u - y_owned[self.local_rows]))
 
     def missing_entries(self):
         """(rows, columns) (global, owned rows) of the Jacobian entries that the pairs at
