@@ -15,11 +15,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from dolfin_rod import TimeStepper
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
 from dolfin_rod.rod.contact import ContactLaw, barrier_derivatives
 from dolfin_rod.rod.pair_contact import exclusion, pair_energy
+from dolfin_rod.rod.segments import closest_points
 from dolfin_rod.rod.rods import Rod
 from dolfin_rod.rod.system import RodSystem
 
@@ -243,3 +245,76 @@ def test_frictionless_contact_conserves_energy_at_second_order():
     drifts = np.array([r[0] for r in runs])
     assert all(r[1] > 1e-6 and r[2] < 0.7 * 0.002 for r in runs), runs
     assert np.all(drifts[:-1] / drifts[1:] > 3.5), drifts
+
+
+def _coiled_rod(n_cells=120):
+    """A rod (r = 1 cm, h = 1 cm) wound into a helix whose coils are 2 r + delta / 2
+    apart: every segment within the barrier's reach of the coils next to it."""
+    params = RodParameters(length=n_cells * R, A=(1.0,) * 3, B=(1e3,) * 3, rho_A=1.0,
+                           I11=1e-4, I22=1e-4)
+    model = RodModel(params, n_cells, model="hyperelastic", ends=("free", "free"),
+                     contact=ContactLaw(R, DELTA, 1e3, self_contact=True))
+    model.set_initial_state()
+    x = model.unknowns.f["displacement"]
+    s = x.function_space.tabulate_dof_coordinates()[:, 0]
+    radius, pitch = 0.05, 2 * R + DELTA / 2
+    phi = s / np.hypot(radius, pitch / (2 * np.pi))
+    helix = np.stack([radius * np.cos(phi), radius * np.sin(phi), pitch * phi / (2 * np.pi)])
+    x.x.array[:] = (helix.T - np.outer(s, (0, 0, 1))).ravel()
+    return model
+
+
+@pytest.mark.mpi
+def test_candidate_list_finds_every_pair_within_reach():
+    """The pairs of the candidate list (kept while the nodes move less than half the
+    skin, else searched anew) are the pairs a search over all segment pairs finds
+    (closest points of every pair i < j farther apart in s than the exclusion), in the
+    same order, after moves of 0.2, 0.45 and 2 skins' worth of random noise (list kept,
+    kept, searched anew).  Exact: the same closest-point arithmetic decides both."""
+    contact = _coiled_rod().segment_contact
+    line = contact.line
+    P0 = line.positions(contact.owned_displacement())
+    i, j = np.triu_indices(len(line.ends), 1)
+    far = np.abs(line.mid_s[i] - line.mid_s[j]) >= contact.exclusion
+    i, j = i[far], j[far]
+    rng = np.random.default_rng(5)
+    contact.pairs(P0)
+    for share in (0.2, 0.45, 2.0):
+        move = rng.uniform(-1, 1, P0.shape)
+        P = P0 + share * contact.skin * move / np.linalg.norm(move, axis=1).max()
+        X = P[line.ends[np.stack([i, j], 1)].reshape(-1, 4)]
+        near = closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])[2] < contact.reach
+        found = contact.pairs(P)
+        assert len(found) > len(line.ends)          # the coils touch all along
+        assert np.array_equal(found, np.stack([i[near], j[near]], 1))
+
+
+@pytest.mark.mpi
+def test_jacobian_pattern_grows_once_and_keeps_the_forms_entries():
+    """The coiled rod's step Jacobian: the first assembly adds the pairs' entries to the
+    matrix pattern (fem/assembly.grow_pattern, which copies the forms' assembled values
+    into the grown matrix) and equals the reference: the forms' Jacobian assembled into
+    a matrix of that pattern and the pairs' Hessians added (to 1e-14: the same sums in
+    another order); the next Jacobian at the same pairs needs no new entry (pattern
+    unchanged, no allocation)."""
+    model = _coiled_rod()
+    system = TimeStepper(model.problem).solver.system
+    x, b = system.x, system.b.duplicate()
+    system.get(0, x)
+    system.residual(x, b)
+    system.jacobian(system.A)
+    assert system.pattern_changes == 1
+    reference = system.A.duplicate(copy=False)
+    terms, system.terms = system.terms, ()
+    system.jacobian(reference)                          # the forms only
+    system.terms = terms
+    reference.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    terms[0].add_jacobian(reference)
+    reference.assemble()
+    reference.axpy(-1.0, system.A, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+    assert reference.norm() <= 1e-14 * system.A.norm()
+    model.segment_contact.forget()
+    system.residual(x, b)
+    system.jacobian(system.A)
+    assert system.pattern_changes == 1
+    assert system.A.getInfo()["mallocs"] == 0
