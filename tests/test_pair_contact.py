@@ -250,9 +250,9 @@ def test_frictionless_contact_conserves_energy_at_second_order():
 def _coiled_rod(n_cells=120):
     """A rod (r = 1 cm, h = 1 cm) wound into a helix whose coils are 2 r + delta / 2
     apart: every segment within the barrier's reach of the coils next to it."""
-    params = RodParameters(length=n_cells * R, A=(1.0,) * 3, B=(1e3,) * 3, rho_A=1.0,
-                           I11=1e-4, I22=1e-4)
-    model = RodModel(params, n_cells, model="hyperelastic", ends=("free", "free"),
+    params = RodParameters(length=n_cells * R, A=(1.0,) * 3, B=(1e3,) * 3, density=1.0,
+                           section_inertia=1e-4)
+    model = RodModel(params, n_cells, model="hyperelastic", start="free", end="free",
                      contact=ContactLaw(R, DELTA, 1e3, self_contact=True))
     model.set_initial_state()
     x = model.unknowns.f["displacement"]
