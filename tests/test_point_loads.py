@@ -30,7 +30,7 @@ def solve(rod):
 
 def midspan_deflection(n_cells: int) -> float:
     """The clamped-clamped beam (L = 1) under P e_1 at s = L/2: its deflection there."""
-    rod = RodModel(BEAM, n_cells=n_cells, model="hyperelastic", ends=("clamped", "clamped"),
+    rod = RodModel(BEAM, n_cells=n_cells, model="hyperelastic", start="clamped", end="clamped",
                    point_loads=[PointLoad("force", (P, 0.0, 0.0), 0.5)])
     solve(rod)
     mid = NodeValues(rod.f["displacement"].function_space, [0.5])
