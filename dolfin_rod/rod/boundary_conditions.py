@@ -51,7 +51,8 @@ import ufl
 
 from .. import loads
 from ..checks import is_coordinate_axis, slide_axis_problem
-from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
+from ..fem import form_cache
+from ..fem.fe_model import ENDS, NodeValues, compiled_near_nodes, nodal_residual
 from ..fem.multipoint import NodeLine
 from ..theory.rotations import (conj, np_qmul, np_quaternion_from_rotation_vector,
                                 np_rotation_matrix, qmul, vec)
@@ -207,6 +208,8 @@ class EndSupports:
         self.values: dict = {}
         self.block = model.unknowns.rotation
         self.committed_time = None      # rotation vectors: time of q_n (None: initial)
+        self.fraction = 1.0            # of the motions at the time set (``scale``)
+        self.committed_fraction = 1.0  # ... and at the time of q_n
         self.time_set = 0.0            # the time of the values last set (set)
         self._fixed_values_of: dict = {}      # end -> the initial (x, q) its values hold
         spaces, mesh = model.unknowns.spaces, model.mesh
@@ -271,15 +274,25 @@ class EndSupports:
         q = self._turned[end](self._rotations.x.array)[0]
         return q / np.linalg.norm(q)
 
-    def prescribed(self, end: str, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """(x, q) of an end at time t."""
+    def prescribed(self, end: str, t: float,
+                   fraction: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(x, q) of an end at time t, its displacement and rotation vector scaled by
+        ``fraction`` (default: the one ``scale`` set, 1 but in the start's path)."""
         x0, q0 = self.initial[end]
-        d = np.asarray(self.displacement[end](t), float) if end in self.displacement \
+        f = self.fraction if fraction is None else fraction
+        d = f * np.asarray(self.displacement[end](t), float) if end in self.displacement \
             else np.zeros(3)
         if end in self.rotation:
-            qr = np_quaternion_from_rotation_vector(np.asarray(self.rotation[end](t), float))
+            qr = np_quaternion_from_rotation_vector(
+                f * np.asarray(self.rotation[end](t), float))
             return x0 + d, np_qmul(qr, q0)
         return x0 + d, q0
+
+    def scale(self, fraction: float) -> None:
+        """The prescribed motions' displacements and rotation vectors scaled by
+        ``fraction`` from now on (the consistent start's path, integrators/lie_alpha.py:
+        a turn of the ends beyond a quarter turn in committed parts)."""
+        self.fraction = fraction
 
     def set(self, t: float) -> None:
         """Values at time t, and (dynamic quaternion rods) the velocities V = x_t and
@@ -306,8 +319,8 @@ class EndSupports:
             self._set(("displacement", end), xe)
             self._set(("quaternion", end), qe)
             if ("rotation_increment", end) in self.values:
-                q_n = self.initial[end][1] if self.committed_time is None \
-                    else self.prescribed(end, self.committed_time)[1]
+                q_n = self.initial[end][1] if self.committed_time is None else \
+                    self.prescribed(end, self.committed_time, self.committed_fraction)[1]
                 self._set(("rotation_increment", end),
                           np_inverse_cayley(np_qmul(q_n * _CONJ, qe)))
             if ("velocity", end) in self.values:
@@ -333,7 +346,7 @@ class EndSupports:
 
     def commit(self) -> None:
         """Rotation vectors: the accepted step ends at the time last set (chart.commit)."""
-        self.committed_time = self.time_set
+        self.committed_time, self.committed_fraction = self.time_set, self.fraction
 
     def _angular_velocity(self, end: str, t: float) -> np.ndarray:
         """Material angular velocity 2 vec(conj(q) q_t)/|q|^2 of a prescribed end."""
@@ -348,16 +361,19 @@ class EndSupports:
         elif target is not None:
             target.value[:] = value
 
-    def reactions(self, residual: dict, t: float) -> dict:
+    def reactions(self, residual: dict, t: float, structure: str | None = None) -> dict:
         """reaction_force_{end}_{xyz}, reaction_couple_{end}_{xyz} at supported ends and the
         reaction_power of moving ends, at t (between steps): the assembled residual of
         the balance blocks at the end node (MPI-summed), i.e. the residual tested with a
         unit nodal translation, or a nodal spatial rotation e: delta q = (0, e) q_end / 2
-        (quaternions) or delta theta = R(q_end)^T e (rotation vectors, theta = 0)."""
+        (quaternions) or delta theta = R(q_end)^T e (rotation vectors, theta = 0).
+        ``structure``: the model's structure as data (its forms' kernels compiled once
+        per structure), or None."""
         out, power, rotation_block = {}, 0.0, self.block
         ends = [e for e in ENDS if any((b, e) in self.values
                                        for b in ("displacement", rotation_block))]
-        at_ends = {block: dict(zip(ends, nodal_residual(*self._compiled(residual, block, ends))))
+        at_ends = {block: dict(zip(ends, nodal_residual(*self._compiled(residual, block, ends,
+                                                                        structure))))
                    for block in ("displacement", rotation_block)
                    if any((block, e) in self.values for e in ends)}
         for end in ends:
@@ -377,19 +393,24 @@ class EndSupports:
             out["reaction_power"] = power
         return out
 
-    def _compiled(self, residual: dict, block: str, ends):
-        """The block's residual form and its end nodes, made at the first diagnostics."""
+    def _compiled(self, residual: dict, block: str, ends, structure: str | None):
+        """The block's residual form at the end nodes (its kernel compiled once per
+        structure) and those nodes, made at the first diagnostics."""
         if block not in self._residual_forms:
             s_ends = [self.s_ends[e] for e in ends]
-            form = near_nodes(residual[block], self.spaces[block].mesh, s_ends)
-            self._residual_forms[block] = (fem.form(form), NodeValues(self.spaces[block],
-                                                                      s_ends))
+            key = form_cache.text_key(structure, "reaction", block, tuple(ends)) \
+                if structure else None
+            form = compiled_near_nodes(residual[block], self.spaces[block].mesh, s_ends, key)
+            self._residual_forms[block] = (form, NodeValues(self.spaces[block], s_ends))
         return self._residual_forms[block]
 
     def _motion_rates(self, end: str, t: float) -> dict:
         """The nodal test values of a moving end's motion at t (between steps): x_t, and
         q_t (quaternions) or W (rotation vectors, theta = 0)."""
-        return {"displacement": loads.rate(lambda s: self.prescribed(end, s)[0], t),
+        # an end that only turns: x_t = 0, as the central difference of its fixed x gives
+        x_t = loads.rate(lambda s: self.prescribed(end, s)[0], t) \
+            if end in self.displacement else np.zeros(3)
+        return {"displacement": x_t,
                 self.block: (loads.rate(lambda s: self.prescribed(end, s)[1], t)
                              if self.block == "quaternion" else self._angular_velocity(end, t))}
 
