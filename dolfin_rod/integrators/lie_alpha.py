@@ -520,6 +520,8 @@ class LieGeneralizedAlpha:
         p.set_loads(t + h)
         p.set_bcs(t + h)
         fresh, self._dt_last = h != self._dt_last, h
+        if p.terms:
+            self._tell_rates(self._rate_maps(h))
         try:
             its = self.solver.solve(fresh_jacobian=fresh)
             if not all(np.isfinite(arrays[0]).all() for arrays in self._arrays):
@@ -530,6 +532,9 @@ class LieGeneralizedAlpha:
         except SolverError:
             self._restore()
             raise
+        finally:
+            if p.terms:
+                self._tell_rates(None)
         if self.local_error is not None:     # error control: accept or reject
             self._check_local_error(h)
         for i, (y, r, y_n, _, alg, acc, _) in enumerate(self._arrays):
@@ -541,6 +546,22 @@ class LieGeneralizedAlpha:
         self.stats.newton_iterations += its
         self.stats.steps += 1
         return its
+
+    def _rate_maps(self, h: float) -> list:
+        """Per block the rate at t_{n+1} as an affine map of the block's unknowns y_{n+1}
+        (_np_update's rate row): (slope, intercept) with rate = slope y + intercept."""
+        maps = []
+        for i, (_, _, y_n, *_) in enumerate(self._arrays):
+            slope = 1 / h if self.order[i] == 0 else self._update_matrix(self.order[i], h)[1, 0]
+            maps.append((slope, self._np_update(i, -y_n, h)[1]))
+        return maps
+
+    def _tell_rates(self, maps) -> None:
+        """Terms whose forces depend on the rates (segment friction: ``set_rates``) get
+        the step's rate maps, or None after it (they then read the rate fields)."""
+        for term in self.problem.terms:
+            if hasattr(term, "set_rates"):
+                term.set_rates(maps)
 
     def _check_local_error(self, h: float) -> None:
         """StepRejected (state restored) if the solved step's local error exceeds the

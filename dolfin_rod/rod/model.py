@@ -37,7 +37,7 @@ from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports, spin_free
 from .constitutive import check_model, energy_function, section_response
-from .contact import ContactLaw, Obstacle, ObstacleContact
+from .contact import ContactLaw, Obstacle, ObstacleContact, check_contact
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
@@ -278,8 +278,14 @@ class RodModel(FEModel):
                              f"neighbours closer along the rod than pi (r + delta) + h = "
                              f"{reach:.4g}, which is not shorter than the rod "
                              f"({min(layout.lengths):g}): a smaller radius or more cells")
+        check_contact([], law)
+        if (law.self_friction or law.between_rods_friction) and not self.dynamic:
+            key = "self_friction" if law.self_friction else "between_rods_friction"
+            raise ValueError(f"contact.{key} needs a dynamic rod (rho_A > 0): the "
+                             "friction force depends on the velocity")
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
-                                 law.self_contact, law.between_rods)
+                                 law.self_contact, law.between_rods,
+                                 velocity=self.unknowns.V if self.dynamic else None)
         contact.block = list(self.names).index("displacement")
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
         self.pair_force = fem.Function(P1, name="pair_contact_force")
@@ -444,6 +450,10 @@ class RodModel(FEModel):
             pairs = self.segment_contact.diagnostics()
             d["contact_energy"] = d.get("contact_energy", 0.0) + pairs.pop(
                 "pair_contact_energy")
+            if "pair_friction_dissipation" in pairs:      # pair_friction.py
+                friction = pairs.pop("pair_friction_dissipation")
+                d["dissipation_rate"] += friction
+                d["friction_dissipation"] = d.get("friction_dissipation", 0.0) + friction
             d.update(pairs)
             self._update_pair_force()
             if self.layout.single and self.supports.ends == ("clamped", "clamped") \

@@ -24,6 +24,10 @@ straight path of the nodes, on which d is Lipschitz in the path's parameter with
 pair's largest node displacements; bisected where the bound cannot exclude it).  A
 step is accepted only if every pair's gap is > 0 at its end and no two segments crossed
 on the straight path from the last accepted state (``crossed``, the same bound).
+
+Coulomb friction of the pairs (``contact.self_friction``, ``between_rods_friction``):
+pair_friction.py, with the pairs and normal forces lagged at each accepted state
+(``commit``) and the nodes' velocities of the step's affine rate map (``set_rates``).
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .contact import barrier_derivatives
+from .pair_friction import PairFriction
 from .segments import closest_points, near_pairs
 
 CROSSING_DEPTH = 24     # bisections of a step's path before a pair counts as crossed
@@ -130,11 +135,17 @@ class SegmentContact:
     """Self-contact (pairs within a rod) and contact between rods (``between_rods``) of
     the segments of ``x`` (the rod's displacement, P1), a term that fem/assembly adds to
     the residual and Jacobian of the systems that hold x (``bind``); law: the contact
-    law (radius, gap, stiffness)."""
+    law (radius, gap, stiffness; friction coefficients and slip tolerance: with
+    ``velocity``, x's rate, the pairs' Coulomb friction, pair_friction.py)."""
 
-    def __init__(self, x, law, rod_of, self_contact: bool, between_rods: bool):
+    def __init__(self, x, law, rod_of, self_contact: bool, between_rods: bool,
+                 velocity=None):
         self.x, self.law = x, law
         self.line = Centreline(x, rod_of)
+        mu = (law.self_friction * self_contact, law.between_rods_friction * between_rods)
+        self.friction = (PairFriction(self.line, law, *mu)
+                         if velocity is not None and max(mu) > 0 else None)
+        self.velocity_field, self.rates = velocity, None
         h = float(np.max(self.line.lengths))
         self.exclusion = exclusion(law.radius, law.gap, h)
         self.self_contact, self.between_rods = self_contact, between_rods
@@ -186,6 +197,22 @@ class SegmentContact:
     def owned_displacement(self) -> np.ndarray:
         return self.x.x.array[: 3 * self.line.n_owned]
 
+    def set_rates(self, maps) -> None:
+        """The step's rates as affine maps of the unknowns, per block (slope, intercept):
+        rate = slope y + intercept (the integrator's, before a step's solve), or None (the
+        rate fields as they are: the start's solves, after the step)."""
+        self.rates = None if maps is None else maps[self.block]
+
+    def velocities(self, owned_displacement: np.ndarray) -> np.ndarray:
+        """(nodes, 3) the nodes' velocities at the displacement (owned) of a solve."""
+        n = 3 * self.line.n_owned
+        if self.rates is None:
+            owned = self.velocity_field.x.array[:n]
+        else:
+            slope, intercept = self.rates
+            owned = slope * owned_displacement + intercept[:n]
+        return self.line.gather(owned.reshape(-1, 3))
+
     def bind(self, system) -> "BoundTerm":
         """The term in an assembled ``system`` (fem/assembly) whose block ``self.block``
         (the model's displacement block) holds x or another unknown of its space (the
@@ -201,11 +228,15 @@ class SegmentContact:
         nodes, E, G, _ = self.evaluate(self.owned_displacement())
         P = self.line.positions(self.owned_displacement())
         gaps = self._gaps(P, self.pairs(P))
-        return {"pair_contact_energy": float(E.sum()),
-                "pair_contact_force": float(np.linalg.norm(G[:, :6].reshape(-1, 2, 3).sum(1),
-                                                           axis=1).sum()),
-                "min_pair_gap": float(gaps.min(initial=self.law.gap)),
-                "contact_pairs": float(len(E))}
+        out = {"pair_contact_energy": float(E.sum()),
+               "pair_contact_force": float(np.linalg.norm(G[:, :6].reshape(-1, 2, 3).sum(1),
+                                                          axis=1).sum()),
+               "min_pair_gap": float(gaps.min(initial=self.law.gap)),
+               "contact_pairs": float(len(E))}
+        if self.friction is not None:       # of the force the last step applied (commit)
+            out["pair_friction_dissipation"] = self.friction.dissipation
+            out["pair_friction_force"] = self.friction.force
+        return out
 
     def _gaps(self, P, pairs):
         X = self._coordinates(P, pairs)
@@ -225,8 +256,15 @@ class SegmentContact:
     # -- the step's checks ------------------------------------------------------------
 
     def commit(self) -> None:
-        """After an accepted step: its positions start the next step's crossing check."""
+        """After an accepted step: its positions start the next step's crossing check;
+        friction: the power of the force the step applied (its lagged pairs, the step's
+        velocities), then the pairs lagged anew at this state."""
         self.start = self.line.positions(self.owned_displacement())
+        if self.friction is not None:
+            friction = self.friction
+            friction.dissipation, friction.force = friction.power(
+                self.velocities(self.owned_displacement()))
+            friction.lag(self.start, self.pairs(self.start))
 
     def check_state(self) -> str | None:
         """A reason to reject a converged step: a pair at gap <= 0, or two segments that
@@ -325,12 +363,21 @@ class BoundTerm:
         self.row_of_node = np.full(line.n_nodes, -1, dtype=np.int64)
         self.row_of_node[line.owned_global] = np.arange(line.n_owned)
         self._state = None
+        self._friction = None       # the friction's (nodes, G, dR/dV) at _state
 
     def add_residual(self, x_owned: np.ndarray, b_owned: np.ndarray) -> None:
-        """b += dE/dX at the owned nodes' rows (x: the system's owned unknowns)."""
+        """b += dE/dX at the owned nodes' rows (x: the system's owned unknowns), and the
+        friction's -w_k F (pair_friction.py)."""
+        contact = self.contact
         self._state = (x_owned[self.local_rows] if self.solved
-                       else self.contact.owned_displacement())
-        nodes, _, G, _ = self.contact.evaluate(self._state)
+                       else contact.owned_displacement())
+        nodes, _, G, _ = contact.evaluate(self._state)
+        self._add_rows(b_owned, nodes, G)
+        if contact.friction is not None:
+            self._friction = contact.friction.residual(contact.velocities(self._state))
+            self._add_rows(b_owned, *self._friction[:2])
+
+    def _add_rows(self, b_owned: np.ndarray, nodes: np.ndarray, G: np.ndarray) -> None:
         mine = self.owned[nodes.ravel()]
         rows = self.local_rows.reshape(-1, 3)[self.row_of_node[nodes.ravel()[mine]]]
         np.add.at(b_owned, rows.ravel(), G.reshape(-1, 3)[mine].ravel())
@@ -349,11 +396,20 @@ class BoundTerm:
             y_owned *= alpha
 
     def add_jacobian(self, A) -> None:
-        """A += the pairs' Hessians (rows of owned nodes) at the last residual's state;
-        new entries grow A's sparsity."""
+        """A += the pairs' Hessians (rows of owned nodes) at the last residual's state,
+        and the friction's dR/dV times the rates' slope dV/dx; new entries grow A's
+        sparsity."""
         if not self.solved or self._state is None:
             return
         nodes, _, _, H = self.contact.evaluate(self._state)
+        self._add_matrix(A, nodes, H)
+        rates = self.contact.rates
+        if self.contact.friction is not None and rates is not None:
+            nodes, _, H = self._friction
+            self._add_matrix(A, nodes, rates[0] * H)
+
+    def _add_matrix(self, A, nodes: np.ndarray, H: np.ndarray) -> None:
+        """A += the 12 x 12 blocks H of the pairs' nodes (rows of owned nodes)."""
         if not len(nodes):
             return
         rows = self.global_rows[nodes].reshape(-1, 12)

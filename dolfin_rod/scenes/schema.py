@@ -459,6 +459,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                     "(docs/contact.md)"),
         "between_rods": Key(boolean, False, R + "[[rods]]: segments of different rods "
                             "repel each other through the barrier (docs/contact.md)"),
+        "self_friction": Key(real(0.0), 0.0, R + "Coulomb friction coefficient mu >= 0 "
+                             "between the rod's own segments in contact (contact.self; "
+                             "needs density > 0; slip tolerance contact.slip_tolerance)"),
+        "between_rods_friction": Key(real(0.0), 0.0, R + "Coulomb friction coefficient mu "
+                                     ">= 0 between segments of different rods "
+                                     "(contact.between_rods; needs density > 0)"),
     },
     "obstacles": {
         "shape": Key(choice(*OBSTACLE_SHAPES), REQUIRED, R + "plane (a half-space) | sphere "
