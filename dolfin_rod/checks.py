@@ -144,17 +144,20 @@ def profile_violation(values: np.ndarray, s: np.ndarray, strict: bool) -> str | 
 
 
 def slide_axis_problem(axis) -> str | None:
-    """Why ``axis`` cannot be a slide axis (None if it can): not a finite unit 3-vector
-    along a coordinate axis (Dirichlet conditions on the other two components)."""
+    """Why ``axis`` cannot be a slide or turning axis (None if it can): not a finite unit
+    3-vector (any direction: a coordinate axis holds the other two components by
+    Dirichlet conditions, another one by a one-node link, fem/multipoint.NodeLine)."""
     a = np.asarray(axis, dtype=float)
     if a.shape != (3,) or not np.all(np.isfinite(a)):
         return f"must be a finite 3-vector, got {axis!r}"
     if abs(np.linalg.norm(a) - 1.0) > 1e-12:
         return f"must be a unit vector, got {a.tolist()} (length {np.linalg.norm(a):.6g})"
-    if np.count_nonzero(a) != 1:
-        return (f"must be a coordinate axis (+-e_1, +-e_2 or +-e_3), got {a.tolist()}: "
-                "an end sliding along a direction off the axes is not supported")
     return None
+
+
+def is_coordinate_axis(axis) -> bool:
+    """+-e_1, +-e_2 or +-e_3 (a slide_axis_problem-free axis)."""
+    return int(np.count_nonzero(np.asarray(axis, dtype=float))) == 1
 
 
 # A start in static equilibrium (rod/start.py) with only pinned or free ends is singular.

@@ -63,6 +63,19 @@ class RunResult:
         from .output.redraw import redraw
         return redraw(self.folder, quantities, colour)
 
+    def dataframe(self):
+        """The time series as a pandas DataFrame, one column per column of ``series``
+        (timeseries.csv), in its order; an ImportError that says how to install pandas
+        when it is missing (``series`` holds the same columns as lists)."""
+        try:
+            import pandas
+        except ImportError as err:
+            raise ImportError(
+                "RunResult.dataframe() needs pandas, which is not installed: install it "
+                "with 'pip install pandas' (or 'apt install python3-pandas'); "
+                "result.series holds the same columns as lists") from err
+        return pandas.DataFrame(self.series)
+
 
 def run(scene: Scene | str | Path, overrides: dict[str, Any] | None = None, *,
         out: Path | str | None = None, comm=None, resume: bool = False,

@@ -125,3 +125,58 @@ def test_twisted_rod_ends_buckled_not_straight(tmp_path, capfd):
                           run.series["reaction_couple_left_y"][-1])
                for run in (straight, buckled)]
     assert lateral[0] < 1e-8 and lateral[1] > 1e-2, lateral
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("imperfection", [0.0, 1e-4])
+def test_quaternion_form_switches_to_the_same_elastica(tmp_path, capfd, imperfection):
+    """The column of test_post_buckled_elastica_by_branch_switching at 1.5 P_cr (20
+    steps, 16 cells) on quaternions (K bordered by the gauge multiplier, G on the
+    material rotations of quaternion directions: analysis/stability.LowestEigenvalues):
+    one switch at t = 0.7 and the rotation vectors' elastica, tip deflection 0.787809
+    (no imperfection; its side is the descent's) or 0.787818 (1e-4 P) and axial position
+    0.368179 / 0.368152 (elliptic integrals: 0.788576, 0.363588; the 16-cell error).
+    Measured against the rotation vectors' run: 3e-10 and 1e-11."""
+    p = 1.5 * math.pi ** 2 / 4
+    text = COLUMN_SCENE.format(load=-p, follow="false").replace(
+        "[geometry]\n", '[geometry]\nrotations = "quaternion"\n')
+    result = run_scene(tmp_path, text, "column", {
+        "geometry.n_cells": 16, "time.dt": 1.0 / 20, "stability.at_bifurcation": "switch",
+        "loads.end_force": {"type": "ramp", "value": [0.0, imperfection * p, -p],
+                            "duration": 1.0}})
+    assert result.status == "completed"
+    err = capfd.readouterr().err
+    if rank() == 0:
+        assert err.count("switched to a stable branch") == 1, err
+        assert "t = 0.7: a bifurcation" in err, err
+    series = result.series
+    assert series["negative_eigenvalues"][-1] == 0
+    lateral = series["tip_position_y"][-1] if imperfection else math.hypot(
+        series["tip_position_x"][-1], series["tip_position_y"][-1])
+    vectors = (0.7878178412, 0.3681522831) if imperfection else (0.7878093531, 0.3681786030)
+    assert lateral == pytest.approx(vectors[0], abs=1e-8)
+    assert series["tip_position_z"][-1] == pytest.approx(vectors[1], abs=1e-8)
+    deflection, axial = elastica(p)
+    assert lateral == pytest.approx(deflection, abs=1e-2)
+
+
+@pytest.mark.mpi
+def test_quaternion_form_twisted_rod_ends_buckled_as_rotation_vectors(tmp_path, capfd):
+    """TWISTED on quaternions: the switch at t = 0.58 and the end state of the rotation
+    vectors' run (test_twisted_rod_ends_buckled_not_straight: free energy 128.484832 EI/L,
+    bending couple 0.188531 EI/L at the clamps; measured equal to 1e-11).  Newton needs
+    the backtracking line search after the switch on quaternions (without it: DIVERGED_DTOL
+    at t = 0.88, at any step size)."""
+    text = TWISTED.replace("[geometry]\n", '[geometry]\nrotations = "quaternion"\n')
+    result = run_scene(tmp_path, text, "twisted",
+                       {"solver.options": {"snes_linesearch_type": "bt"}})
+    assert result.status == "completed"
+    if rank() == 0:
+        err = capfd.readouterr().err
+        assert "t = 0.58: a bifurcation" in err and "switched to a stable branch" in err, err
+    series = result.series
+    assert series["negative_eigenvalues"][-1] == 0
+    assert series["free_energy"][-1] == pytest.approx(128.484832, abs=1e-5)
+    couple = math.hypot(series["reaction_couple_left_x"][-1],
+                        series["reaction_couple_left_y"][-1])
+    assert couple == pytest.approx(0.188531, abs=1e-5)

@@ -235,7 +235,7 @@ def _cli(tmp_path, scene: str, args: list[str]) -> tuple[int, str]:
 
 @pytest.mark.mpi
 def test_buckle_command(tmp_path):
-    """``dolfin-rod buckle scenes/column_buckling.toml`` (8 cells): the table of
+    """``dolfin-rod buckle scenes/column_buckling_modes.toml`` (8 cells): the table of
     buckle.json equals the API's factors (discretisation error 6.46e-3 at 8 cells, the
     first two equal: the two planes), buckle.bp holds one step per mode whose centre line
     is the column's displaced by 0.1 L of the mode (largest displacement)."""
@@ -245,7 +245,7 @@ def test_buckle_command(tmp_path):
     from mpi4py import MPI
 
     from dolfin_rod import read_vtx
-    text = (Path(__file__).parents[1] / "scenes" / "column_buckling.toml").read_text()
+    text = (Path(__file__).parents[1] / "scenes" / "column_buckling_modes.toml").read_text()
     code, out = _cli(tmp_path, text.replace("n_cells = 16", "n_cells = 8"),
                      ["buckle", "--count", "3"])
     assert code == 0
@@ -269,16 +269,16 @@ def test_buckle_command(tmp_path):
 @pytest.mark.parametrize("kind, change, key", [
     ("buckle", ("[loads]\nend_force", "[loads]\n# end_force"), "loads"),
     ("modes", ("", ""), "material.density"),
-    ("buckle", ("[geometry]\n", "[geometry]\nrotations = \"quaternion\"\n"),
-     "geometry.rotations")])
+    ("buckle", ("[material]\n", "[material]\nconstraints = \"unshearable\"\n"),
+     "material.constraints")])
 def test_analysis_commands_refuse_scenes_they_cannot_take(tmp_path, capsys, kind, change,
                                                           key):
-    """Exit 2 and the key named before any work: buckle without a load to scale, modes
-    without mass, either on quaternion unknowns; nothing is written."""
+    """Exit 2 and the key named before any work: buckle without a load to scale or of a
+    constrained rod, modes without mass; nothing is written."""
     from pathlib import Path
 
     from mpi4py import MPI
-    text = (Path(__file__).parents[1] / "scenes" / "column_buckling.toml").read_text()
+    text = (Path(__file__).parents[1] / "scenes" / "column_buckling_modes.toml").read_text()
     code, out = _cli(tmp_path, text.replace(*change), [kind])
     assert code == 2
     if MPI.COMM_WORLD.rank == 0:
@@ -303,7 +303,7 @@ def test_buckle_puts_an_auto_scene_with_rate_dependent_forces_on_rotation_vector
 
     from dolfin_rod.scenes import parse_scene
     from dolfin_rod.scenes.rules import rod_rotations
-    text = (Path(__file__).parents[1] / "scenes" / "column_buckling.toml").read_text()
+    text = (Path(__file__).parents[1] / "scenes" / "column_buckling_modes.toml").read_text()
     text = text.replace("n_cells = 16", "n_cells = 8").replace(
         'model = "hyperelastic"\n', "").replace("[material]\n", f"[material]\n{material}\n")
     assert rod_rotations(parse_scene(text)) == "quaternion"     # what "auto" picks
@@ -314,8 +314,123 @@ def test_buckle_puts_an_auto_scene_with_rate_dependent_forces_on_rotation_vector
     factors = [row["load_factor"] for row in summary["modes"]]
     assert factors == pytest.approx([2 * 1.006460] * 2, rel=5e-5)
     assert 0.5 * factors[0] == pytest.approx(1.0, rel=6.5e-3)    # Euler, 8 cells
-    # the explicit choice is kept, and refused
-    code, _ = _cli(tmp_path, text.replace("[geometry]\n",
-                                          '[geometry]\nrotations = "quaternion"\n'),
-                   ["buckle"])
-    assert code == 2
+    # the explicit choice is kept: the quaternion form's analysis
+    code, out = _cli(tmp_path, text.replace("[geometry]\n",
+                                            '[geometry]\nrotations = "quaternion"\n'),
+                     ["buckle", "--count", "2", "--overwrite"])
+    assert code == 0
+    summary = json.loads((Path(out) / "summary.json").read_text())["buckle"]
+    assert "note" not in summary
+    # the pre-load reached with the viscous lag (or drag) of the last load step: the
+    # factor of the rod at rest's (measured: 5.0e-6 Kelvin-Voigt, 5.7e-7 drag)
+    assert summary["modes"][0]["load_factor"] == pytest.approx(factors[0], rel=1e-4)
+
+
+def column_and_twist(rotations: str) -> tuple[np.ndarray, np.ndarray]:
+    """The clamped-free column's factors (pre-loaded to P_cr / 2) and Greenhill's
+    (clamped-clamped, pre-twisted to half the critical twist), 8 cells."""
+    ends, slide, p_cr = COLUMNS["clamped-free"]
+    column = preloaded(RodModel(STIFF, n_cells=8, model="hyperelastic", ends=ends,
+                                rotations=rotations, end_loads=[EndLoad(
+                                    "force", (0.0, 0.0, -p_cr), lambda t: 0.5 * t)]))
+    m_cr = 2 * TAN_X
+    twisted = preloaded(RodModel(STIFF, n_cells=8, model="hyperelastic",
+                                 ends=("clamped", "clamped"), rotations=rotations,
+                                 end_rotation={"right": lambda t: np.array(
+                                     [0.0, 0.0, 0.5 * m_cr * t])}), dt=0.5)
+    found = [buckling_modes(rod, 1.0, count) for rod, count in ((column, 4), (twisted, 2))]
+    assert all(max(modes.residuals) < 1e-8 for modes in found)
+    return tuple(0.5 * modes.load_factors for modes in found)
+
+
+@pytest.mark.mpi
+def test_quaternion_form_buckles_as_rotation_vectors():
+    """The quaternion form (K bordered by the gauge multiplier; analysis/buckling.py)
+    gives the rotation vectors' critical loads: the column's first two modes (2 x
+    1.006448, 2 x 9.545129 P_cr at 8 cells; Euler's 1 and 9 with the 8-cell error) and
+    Greenhill's twist (2 x 1.041693 of 2.8606 pi: the 8-cell error 4.17e-2 of
+    test_greenhill_critical_twist_at_second_order).  Measured differences between the
+    forms: < 1e-8 (the difference quotients of K', delta = 1e-4 t)."""
+    vectors, quaternions = column_and_twist("rotation_vector"), column_and_twist("quaternion")
+    for a, b in zip(vectors, quaternions):
+        assert b == pytest.approx(a, rel=1e-7)
+    column, twist = quaternions
+    assert column == pytest.approx([1.006448] * 2 + [9.545129] * 2, rel=1e-6)
+    assert twist == pytest.approx([1.041693] * 2, rel=1e-6)
+
+
+def jointed_column(n_cells: int):
+    """The clamped-free column (P_cr / 2 at its tip) as two rods of half its length
+    joined rigidly, the upper turned by pi/2 about the axis with its bending stiffnesses
+    swapped (A = (2, 1) in its frame is (1, 2) in the lower's): the same column."""
+    from dolfin_rod import Rod, RodSystem
+    from dolfin_rod.rod.joints import Joint
+    p_cr = math.pi ** 2 / 4
+    half = [RodParameters(length=0.5, A=(*a, 1.0), B=(1e5, 1e5, 1e5))
+            for a in ((1.0, 2.0), (2.0, 1.0))]
+    load = EndLoad("force", (0.0, 0.0, -p_cr), lambda t: 0.5 * t)
+    return RodSystem([Rod(half[0], n_cells, name="lower"),
+                      Rod(half[1], n_cells, ("free", "free"), name="upper",
+                          position=(0.0, 0.0, 0.5), orientation=(0.0, 0.0, math.pi / 2),
+                          end_loads=[load])],
+                     joints=[Joint("rigid", ("lower", "upper"), (0.0, 0.0, 0.5))],
+                     model="hyperelastic")
+
+
+@pytest.mark.mpi
+def test_jointed_column_buckles_as_one_column():
+    """Buckling through the joint's constraint map (P^T K P, P^T K' P): the jointed
+    column of 2 x 8 cells has the factors of the one column of 16 cells (A = (1, 2):
+    the planes apart, 1.001596 and 2.003143 P_cr: Euler's 1 and 2 with the 16-cell
+    error 1.6e-3).  Measured: equal to 3e-8 (the pre-loads' Newton tolerance and K''s
+    difference quotients)."""
+    one = RodParameters(length=1.0, A=(1.0, 2.0, 1.0), B=(1e5, 1e5, 1e5))
+    single = preloaded(RodModel(one, n_cells=16, model="hyperelastic", end_loads=[
+        EndLoad("force", (0.0, 0.0, -math.pi ** 2 / 4), lambda t: 0.5 * t)]))
+    joined = preloaded(jointed_column(8))
+    factors = [0.5 * buckling_modes(rod, 1.0, 4).load_factors for rod in (single, joined)]
+    assert factors[1] == pytest.approx(factors[0], rel=1e-6)
+    assert factors[0][:2] == pytest.approx([1.0016, 2.0031], rel=1e-4)
+
+
+JOINTED_SCENE = """
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 1.0], B = [1e5, 1e5, 1e5] }
+[boundary]
+end = "free"
+[[rods]]
+name = "lower"
+geometry = { length = 0.5, n_cells = 4 }
+boundary = { start = "clamped" }
+[[rods]]
+name = "upper"
+position = [0.0, 0.0, 0.5]
+geometry = { length = 0.5, n_cells = 4 }
+boundary = { start = "free" }
+loads = { end_force = { type = "ramp", value = [0.0, 0.0, -1.2337005501361697], duration = 1.0 } }
+[[joints]]
+kind = "rigid"
+rods = ["lower", "upper"]
+point = [0.0, 0.0, 0.5]
+[time]
+t_end = 1.0
+dt = 0.5
+"""
+
+
+@pytest.mark.mpi
+def test_buckle_command_on_rods_with_joints(tmp_path):
+    """``dolfin-rod buckle`` of column_buckling_modes.toml's column as two rods of 4 cells
+    joined rigidly ([[rods]], [[joints]]; its load on the upper rod): the factors of the
+    one column of 8 cells (test_buckle_command: 2 x 1.006460)."""
+    import json
+    from pathlib import Path
+    from mpi4py import MPI
+    code, out = _cli(tmp_path, JOINTED_SCENE, ["buckle", "--count", "2"])
+    assert code == 0
+    if MPI.COMM_WORLD.rank != 0:
+        return
+    factors = [row["load_factor"] for row in json.loads(
+        (Path(out) / "summary.json").read_text())["buckle"]["modes"]]
+    assert factors == pytest.approx([2 * 1.006460] * 2, rel=5e-5)

@@ -153,3 +153,19 @@ def test_the_gallery_names_bundled_scenes_only():
     assert len(named) >= 20 and named <= bundled, named - bundled
     for picture in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text):
         assert (ROOT / "docs" / picture).is_file(), picture
+
+
+def test_links_stay_in_the_repository_and_the_paper_is_cited():
+    """Every relative link of the README and the docs (Markdown links and pictures) names
+    a file of this repository (a clone has nothing beside it: no ../shared/...), and the
+    README cites the paper by its authors and title (the paper's source carries no arXiv
+    identifier, so none is given: docs/corrections.md says so)."""
+    for page in DOCS:
+        for target in re.findall(r"\]\(([^)\s]+)\)", page.read_text()):
+            if re.match(r"[a-z]+:", target) or target.startswith("#"):
+                continue                       # a web address or an anchor of the page
+            path = (page.parent / target.split("#")[0]).resolve()
+            assert path.is_relative_to(ROOT) and path.exists(), f"{page.name}: {target}"
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    assert ("K. R. Rajagopal and C. Rodriguez, *Special Cosserat rods with rate-dependent "
+            "evolving natural configurations*") in readme

@@ -18,7 +18,7 @@ from dolfin_rod.output.mode_picture import mode_figure, view_plane
 
 def test_buckle_writes_a_picture_of_its_modes(tmp_path):
     import matplotlib.image
-    text = (Path(__file__).parents[1] / "scenes" / "column_buckling.toml").read_text()
+    text = (Path(__file__).parents[1] / "scenes" / "column_buckling_modes.toml").read_text()
     scene = tmp_path / "column.toml"
     scene.write_text(text.replace("n_cells = 16", "n_cells = 8"))
     analyse(scene, "buckle", count=2, out=tmp_path / "out", quiet=True)

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import csv
 import json
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -55,6 +57,25 @@ def test_the_vtu_files_hold_the_rod_bp_steps(cantilever):
     np.testing.assert_allclose(tip, expected, atol=1e-12)
     files = json.loads((folder / "summary.json").read_text())["files"]
     assert "rod.pvd" in files and "rod/step-00003.vtu" in files
+
+
+def test_the_series_as_a_table_says_how_to_get_pandas(cantilever, monkeypatch):
+    """RunResult.dataframe() without pandas (None in sys.modules makes its import fail,
+    as on a system without it): an ImportError that names the install command."""
+    monkeypatch.setitem(sys.modules, "pandas", None)
+    with pytest.raises(ImportError, match=r"needs pandas.*pip install pandas"):
+        cantilever.dataframe()
+
+
+def test_the_series_as_a_table():
+    """With pandas: the DataFrame's columns are the series' columns in their order, and
+    its values are theirs (float64: equal to the bit)."""
+    pytest.importorskip("pandas")
+    from dolfin_rod import RunResult
+    series = {"time": [0.0, 0.5, 1.0], "tip_position_x": [0.0, 0.125, 0.5]}
+    table = RunResult({"status": "completed"}, series, Path(".")).dataframe()
+    assert list(table.columns) == list(series)
+    assert all(table[c].tolist() == v for c, v in series.items())
 
 
 def test_a_vtu_round_trip_and_a_resumed_collection(tmp_path):

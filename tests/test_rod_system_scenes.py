@@ -138,7 +138,8 @@ def test_system_scene_starting_states(tmp_path):
     double_pendulum.toml spun about its pin, OMEGA e_2, both ways: the kinetic energy at
     t = 0 the same (round-off, 1e-14) and the rigid rotation's (upper rod 1/2 OMEGA^2
     (rho_A l^3/3 + rho I_22 l), 1e-12); only the lower rod spun: exit 2 naming
-    `start: joints[0]`; a rod's own initial.natural_curvature: refused (shared)."""
+    `start: joints[0]`; a rod's own initial.natural_curvature on a hyperelastic rod:
+    refused (no natural strains)."""
     from dolfin_rod import run
     spin = "angular_velocity = [0.0, 1.5, 0.0], rotation_centre = [0.0, 0.0, 0.0]"
     shared = PENDULUM_SCENE.replace("[[rods]]\nname = \"upper\"",
@@ -273,3 +274,49 @@ def test_double_pendulum_scene_resumes_exactly(tmp_path):
         for k in x:
             if not (math.isnan(x[k]) and math.isnan(y[k])):
                 assert abs(x[k] - y[k]) <= resume_bound(x, full[i - 1] if i else None, k), k
+
+
+TWO_EVOLVING_RODS = """
+[scene]
+name = "two_rods"
+[material]
+model = "evolving"
+stiffness = { A = [1.0, 1.0, 1.0], B = [1.0, 1.0, 1.0], A_d = [1.0, 1.0, 1.0], B_d = [1.0, 1.0, 1.0] }
+viscosity = { M = [0.0, 0.0, 0.0], N = [0.0, 0.0, 0.0], M_d = [5.0, 5.0, 5.0], N_d = [5.0, 5.0, 5.0] }
+[time]
+t_end = 0.1
+dt = 0.1
+[[rods]]
+name = "a"
+boundary = { start = "clamped" }
+initial = { natural_curvature = [0.0, 0.4, 0.0], natural_stretch = [0.0, 0.0, 1.1] }
+[[rods]]
+name = "b"
+position = [1.0, 2.0, 3.0]
+geometry = { length = 0.7, n_cells = 5, reference_curvature = [0.3, 0.0, 0.0] }
+boundary = { start = "clamped" }
+initial = { natural_curvature = [0.1, 0.0, 0.2] }
+"""
+
+
+def test_each_rod_of_a_scene_has_its_own_initial_natural_strains():
+    """[[rods]] with their own initial.natural_curvature / natural_stretch (rod b's
+    stretch left at its discrete reference strains): the built system starts with each rod's
+    values on its cells, exactly as the API's set_initial_state(natural_curvature=
+    {rod: value}) writes them (the same field, bit for bit)."""
+    sim = build(parse_scene(TWO_EVOLVING_RODS, source="two_rods.toml"), "rod")
+    sim.start()
+    model = sim.model
+    api = RodSystem(model.rods, model="evolving")
+    api.set_initial_state(natural_curvature={"a": (0.0, 0.4, 0.0), "b": (0.1, 0.0, 0.2)},
+                          natural_stretch={"a": (0.0, 0.0, 1.1)})
+    for name in ("natural_curvature", "natural_stretch"):
+        assert np.array_equal(model.unknowns.f[name].x.array, api.unknowns.f[name].x.array)
+    field = model.unknowns.f["natural_curvature"]
+    rod_of = model.layout.rod_of(field.function_space.tabulate_dof_coordinates()[:, 0])
+    values = field.x.array.reshape(-1, 3)
+    assert np.array_equal(values[rod_of == 0], np.tile([0.0, 0.4, 0.0], ((rod_of == 0).sum(), 1)))
+    assert np.array_equal(values[rod_of == 1], np.tile([0.1, 0.0, 0.2], ((rod_of == 1).sum(), 1)))
+    stretch = model.unknowns.f["natural_stretch"].x.array.reshape(-1, 3)[rod_of == 1]
+    reference = model.reference[1].x.array.reshape(-1, 3)[rod_of == 1]   # b's discrete v_ref
+    assert np.array_equal(stretch, reference) and abs(reference[0, 2] - 1.0) > 1e-5

@@ -28,6 +28,7 @@ from mpi4py import MPI
 from dolfin_rod import closed_forms
 from dolfin_rod import run_scene
 from dolfin_rod.scenes import SceneError, build, load_scene, parse_scene, select_model, validate
+from dolfin_rod.scenes.schema import UNITS
 from quick_scenes import resume_bound
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -71,7 +72,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "cantilever_creep.toml": "rod", "gravity_cantilever.toml": "rod",
                   "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod",
                   "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
-                  "hanging_twist.toml": "rod", "spin_up.toml": "rod",
+                  "hanging_twist.toml": "rod", "inclined_clamp.toml": "rod",
+                  "spin_up.toml": "rod",
                   "sprung_cantilever.toml": "rod", "rod_on_incline.toml": "rod",
                   "rope_on_floor.toml": "rod", "frame.toml": "rod",
                   "crossing_rods.toml": "rod", "plectoneme.toml": "rod",
@@ -79,7 +81,7 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "double_pendulum.toml": "rod", "tripod.toml": "rod",
                   "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod",
                   "hinged_door.toml": "rod", "bent_frame.toml": "rod",
-                  "column_buckling.toml": "rod", "string_modes.toml": "rod",
+                  "column_buckling_modes.toml": "rod", "string_modes.toml": "rod",
                   "buckled_column.toml": "rod", "snap_through_arch.toml": "rod"}
 
 
@@ -87,6 +89,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
 def test_bundled_scenes_are_valid(path):
     scene = load_scene(path)
     assert select_model(scene).model == BUNDLED_MODELS[path.name]
+    # every bundled scene names its unit system, so no plot axis reads "[scene units]"
+    assert scene["scene"]["units"] in UNITS, f"{path.name}: no scene.units"
 
 
 def relaxation_rederived(t, u0, alpha, alpha_d, mu_d):

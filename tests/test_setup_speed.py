@@ -163,3 +163,38 @@ def test_bundled_rod_scenes_at_two_cell_counts(path):
     assert texts[0] == texts[1] or contact
     if texts[0] == texts[1] and texts[0] is not None:
         assert signatures(models[0]) == signatures(models[1])
+
+
+@pytest.mark.mpi
+def test_a_gathered_residual_is_the_form_of_its_sum():
+    """A block residual gathered term by term (fem/gathered_form.GatheredForm: its
+    integrals kept, one ufl.Form made at the end) is the Form that UFL's own + and - give
+    (the reference): equal integrals, so the same signature, the key of the compiled
+    kernels, across cell, facet and vertex integrals with several quadrature rules; an
+    integrand added with its measure (``integrate``) is the integral of integrand * dx."""
+    import dolfinx.mesh
+
+    from dolfin_rod.fem.gathered_form import GatheredForm, as_form
+    mesh = dolfinx.mesh.create_unit_interval(MPI.COMM_WORLD, 4)
+    f = fem.Function(fem.functionspace(mesh, ("Lagrange", 1, (3,))))
+    v = ufl.TestFunction(f.function_space)
+    c = fem.Constant(mesh, 2.0)
+    dx_2 = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 2})
+    dx_v = ufl.Measure("dx", domain=mesh, metadata={"quadrature_rule": "vertex",
+                                                      "quadrature_degree": 1})
+    first = ufl.inner(f.dx(0), v.dx(0))
+    terms = [first * ufl.dx, c * ufl.inner(f, v) * dx_2,
+             ufl.inner(f, f) * v[0] * ufl.ds, ufl.inner(f, v) * dx_v, c * v[2] * ufl.dx]
+    chain, gathered = terms[0], GatheredForm()
+    gathered.integrate(first, ufl.dx)                  # terms[0] without its Form
+    for k, term in enumerate(terms[1:]):
+        if k % 2:
+            chain = chain - term
+            gathered -= term
+        else:
+            chain = chain + term
+            gathered += term
+    form = as_form(gathered)
+    assert form == chain
+    assert form.signature() == chain.signature()
+    assert as_form(chain) is chain

@@ -14,7 +14,8 @@ from dolfin_rod import loads
 from dolfin_rod import run_scene
 from dolfin_rod.torsion.closed_forms import p1_twist
 from dolfin_rod import TimeStepper
-from dolfin_rod.rod import DistributedLoad, EndLoad, EndSpring, RodModel, RodParameters
+from dolfin_rod.rod import (DistributedLoad, EndLoad, EndSpring, RodModel, RodParameters,
+                            StartingState)
 from quick_scenes import ROOT, assert_serial_run_equal, quick_scene
 
 comm = MPI.COMM_WORLD
@@ -90,7 +91,7 @@ def test_dynamic_hanging_rod_on_a_sliding_clamp_settles_to_the_static_stretch():
 
 @pytest.mark.parametrize("slide, match", [
     ((0.0, 0.0, 2.0), "must be a unit vector"),
-    ((0.6, 0.0, 0.8), "must be a coordinate axis"),
+    ((0.0, 0.0, 0.0), "must be a unit vector"),
     ((0.0, np.nan, 1.0), "must be a finite"),
 ])
 def test_bad_slide_axis_is_refused_naming_it(slide, match):
@@ -128,10 +129,13 @@ def test_hanging_twist_scene_carries_the_weight_serially_and_on_two_ranks(tmp_pa
 
 @pytest.mark.parametrize("change, key, match", [
     ({"boundary.start_slide": [0.0, 0.0, 2.0]}, "boundary.start_slide", "must be a unit vector"),
-    ({"boundary.start_slide": [0.0, 0.6, 0.8]}, "boundary.start_slide", "coordinate axis"),
+    ({"boundary.start_slide": [0.0, 0.0, 0.0]}, "boundary.start_slide", "must be a unit vector"),
+    ({"boundary.start_slide": [0.0, 0.6, 0.8], "boundary.start_displacement": {
+        "type": "ramp", "value": [0.1, 0.0, 0.0], "duration": 1.0}},
+     "boundary.start_displacement", "off the coordinate axes"),
     ({"boundary.start": "free"}, "boundary.start_slide", "only a clamped or pinned end"),
-    ({"loads.start_force": {"type": "constant", "value": [0.1, 0.0, -0.5]}},
-     "loads.start_force", "only a dead force along that axis"),
+    ({"loads.start_force": {"type": "constant", "value": [0.1, 0.0, -0.5], "follower": True}},
+     "loads.start_force", "only a dead force acts on it"),
     ({"boundary.start_displacement": {"type": "ramp", "value": [0.0, 0.0, 0.1],
                                       "duration": 1.0}},
      "boundary.start_displacement", "across that axis only"),
@@ -257,15 +261,47 @@ def test_dynamic_rod_with_an_end_moved_at_the_start_starts_at_rest_in_equilibriu
                                                          abs=1e-10), key
 
 
-def test_a_dynamic_rod_turned_at_the_start_by_more_than_a_quarter_turn_is_refused():
-    """The start's consistent solve turns the end in one rotation increment, which the
-    rotation-vector chart bounds (a quarter turn, rotation_vector.MAX_INCREMENT): 2 rad
-    is refused before any step, naming the start and what to do."""
+@pytest.mark.mpi
+@pytest.mark.parametrize("case", ["rigid", "twist"])
+def test_a_dynamic_rod_turned_at_the_start_beyond_a_quarter_turn_starts_at_rest(case):
+    """An end turned at t = 0 by more than a quarter turn (issue 25 item 4; refused
+    before: one rotation increment is bounded by a quarter turn), reached in committed
+    parts (lie_alpha's start, 4 parts).  "rigid": a dynamic rod clamped at s = 0 turned
+    by 2.5 rad about e_2, its other end free: the equilibrium is the rigid rotation, tip
+    at L (sin 2.5, 0, cos 2.5), no energy, at rest (kinetic energy < 1e-16 over the
+    run).  "twist": both ends clamped, s = 0 turned by 3 rad about the axis e_3: a
+    uniform twist, the clamp's couple the discrete twist's GJ u_h sec^2(dphi/4)
+    (closed_forms.p1_twist), the rod at rest.  Tolerances: Newton's (rtol 1e-11; the
+    rigid tip measured 1.4e-12 off)."""
+    L, GJ, N = 1.0, 1.0, 8
+    angle = 2.5 if case == "rigid" else 3.0
+    axis = np.array([0.0, 1.0, 0.0] if case == "rigid" else [0.0, 0.0, 1.0])
+    model = RodModel(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(40.0, 40.0, 60.0),
+                                   rho_A=2.0, I11=0.01, I22=0.01), n_cells=N,
+                     model="hyperelastic",
+                     ends=("clamped", "free" if case == "rigid" else "clamped"),
+                     end_rotation={"left": lambda t: angle * axis})
+    rows = run(model, 0.2, 0.05)
+    assert max(r["kinetic_energy"] for r in rows[1:]) < 1e-16
+    d = rows[-1]
+    if case == "rigid":
+        tip = [d[f"tip_position_{c}"] for c in "xyz"]
+        assert tip == pytest.approx([L * np.sin(angle), 0.0, L * np.cos(angle)], abs=1e-10)
+        assert d["free_energy"] < 1e-20
+    else:
+        u_h, factor = p1_twist(angle / L, L, N)
+        assert d["reaction_couple_left_z"] == pytest.approx(GJ * u_h * factor, rel=1e-9)
+        assert d["reaction_couple_right_z"] == pytest.approx(-GJ * u_h * factor, rel=1e-9)
+
+
+def test_a_dynamic_rod_turned_at_the_start_by_more_than_its_parts_reach_is_refused():
+    """The start's 4 committed parts turn a node by at most a quarter turn each: 7 rad
+    (1.75 rad a part) is refused before any step, naming the start and what to do."""
     from dolfin_rod import TimeStepper
     from dolfin_rod.integrators.step_control import IntegrationError
     model = RodModel(RodParameters(rho_A=1.0, I11=0.01, I22=0.01), n_cells=4,
                      ends=("clamped", "free"), model="hyperelastic",
-                     end_rotation={"left": lambda t: (0.0, 2.0, 0.0)})
+                     end_rotation={"left": lambda t: (0.0, 7.0, 0.0)})
     model.set_initial_state()
     with pytest.raises(IntegrationError, match="the start at t = 0 .* ramp or smooth_step"):
         TimeStepper(model.problem).run(0.0, 0.01, 0.01)
@@ -317,8 +353,9 @@ def test_a_turning_end_must_be_clamped_and_keep_its_axis():
                  end_slide={"right": (0.0, 0.0, 1.0)}, end_turn={"right": (1.0, 0.0, 0.0)})
     helix = RodModel(RodParameters(reference_curvature=(1.0, 0.0, 0.0)), n_cells=2,
                      ends=("clamped", "clamped"), end_turn={"right": (0.0, 0.0, 1.0)})
+    helix.set_initial_state()      # its end's frame turns e_3 away: a one-node link holds it
     with pytest.raises(ValueError, match="initial frame must keep its axis"):
-        helix.set_initial_state()
+        helix.set_initial_state(start=StartingState(orientation=(0.3, 0.0, 0.0)))
 
 
 @pytest.mark.parametrize("change, key, match", [
@@ -328,8 +365,8 @@ def test_a_turning_end_must_be_clamped_and_keep_its_axis():
     ({"boundary.start_turn": [1.0, 0.0, 0.0], "boundary.start_rotation": None},
      "boundary.start_turn", "must equal boundary.start_slide"),
     ({"boundary.start_turn": [0.0, 0.0, 1.0], "boundary.start_rotation": None,
-      "loads.start_couple": {"value": [0.01, 0.0, 0.0]}}, "loads.start_couple",
-     "only a dead couple along that axis"),
+      "loads.start_couple": {"value": [0.01, 0.0, 0.0], "follower": True}},
+     "loads.start_couple", "only a dead couple acts on it"),
 ])
 def test_turning_clamp_in_a_scene(change, key, match):
     """The hanging twist with its bottom clamp turning freely (a couple about the axis

@@ -164,9 +164,6 @@ def test_bad_requests_are_refused():
     quasi_static = RodParameters(length=1.0, B=(1e5, 1e5, 1e5))
     with pytest.raises(ValueError, match="rho_A > 0"):
         vibration_modes(RodModel(quasi_static, n_cells=4, model="hyperelastic"), 0.0)
-    with pytest.raises(ValueError, match="rotation_vector"):
-        vibration_modes(RodModel(SLENDER, n_cells=4, model="hyperelastic",
-                                 rotations="quaternion"), 0.0)
 
 
 @pytest.mark.mpi
@@ -198,3 +195,110 @@ def test_modes_command(tmp_path):
     assert table[1]["frequency"] == pytest.approx(omega[1] / (2 * math.pi))
     assert json.loads((Path(out) / "summary.json").read_text())["modes"]["modes"] == table
     assert [s["time"] for s in read_vtx(Path(out) / "modes.bp")] == [1.0, 2.0, 3.0]
+
+
+def modes_of(rotations: str, ends) -> object:
+    """8 cells, unequal bending stiffnesses (A = (1, 2): every mode single, its shape
+    unique up to sign)."""
+    params = RodParameters(length=1.0, A=(1.0, 2.0, 1.0), B=(1e5, 1e5, 1e5), rho_A=1.0,
+                           I11=1e-4, I22=2e-4)
+    rod = RodModel(params, n_cells=8, model="hyperelastic", ends=ends, rotations=rotations)
+    rod.set_initial_state()
+    modes = vibration_modes(rod, 0.0, 5)
+    assert max(modes.residuals) < 1e-10
+    return modes
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("ends", [("clamped", "free"), ("pinned", "pinned")])
+def test_quaternion_form_has_the_rotation_vectors_modes(ends):
+    """The quaternion form (M's rotation block rho J in 2 vec(conj(q) dq)/|q|^2, K and M
+    bordered by the gauge multiplier: analysis/vibration.py) gives the rotation vectors'
+    frequencies and modes (the rotation part as material rotation vectors), to 1e-9
+    (measured: 1e-14); the cantilever's first two against (beta L)^2 sqrt(EI/rho A)
+    with EI = 1, 2, the pinned-pinned rod's rigid spin (0) and pi^2, within their 8-cell
+    errors (test_cantilever_frequencies, test_pinned_pinned_frequencies: 1.85e-3,
+    1.95e-2; rotary inertia 1e-4 lowers them by < 1e-3)."""
+    vectors, quaternions = (modes_of(r, ends) for r in ("rotation_vector", "quaternion"))
+    assert quaternions.omega == pytest.approx(vectors.omega, rel=1e-9, abs=1e-9)
+    for a, b, omega in zip(vectors.shapes, quaternions.shapes, vectors.omega):
+        if omega == 0:      # the rigid spin: no displacement to scale by (round-off)
+            continue
+        sign = np.sign(np.dot(a["displacement"], b["displacement"]))
+        for key in ("displacement", "rotation"):
+            assert sign * b[key] == pytest.approx(a[key], abs=1e-7)
+    first = 1.8751 ** 2 if ends[0] == "clamped" else math.pi ** 2
+    bending = quaternions.omega[quaternions.omega > 0][:2]
+    tolerance = 2.5e-3 if ends[0] == "clamped" else 2.2e-2
+    assert bending / (first * np.sqrt([1.0, 2.0])) == pytest.approx([1, 1], rel=tolerance)
+    if ends[0] == "pinned":
+        assert quaternions.omega[0] == 0.0
+
+
+def two_rods_joined(dynamic: bool = True):
+    """A cantilever of length 1 as two rods of 8 cells joined rigidly at s = 0.5, the
+    upper one turned by pi/2 about the axis with its section's stiffnesses and inertias
+    swapped: the one rod of 16 cells (A = (1, 2), I = (1e-3, 2e-3))."""
+    from dolfin_rod import Rod, RodSystem
+    from dolfin_rod.rod.joints import Joint
+    half = [RodParameters(length=0.5, A=(*a, 1.5), B=(1e5, 1e5, 1e5), rho_A=1.0,
+                          I11=i[0], I22=i[1])
+            for a, i in (((1.0, 2.0), (1e-3, 2e-3)), ((2.0, 1.0), (2e-3, 1e-3)))]
+    return RodSystem([Rod(half[0], 8, name="lower"),
+                      Rod(half[1], 8, ("free", "free"), name="upper",
+                          position=(0.0, 0.0, 0.5), orientation=(0.0, 0.0, math.pi / 2))],
+                     joints=[Joint("rigid", ("lower", "upper"), (0.0, 0.0, 0.5))],
+                     model="hyperelastic")
+
+
+@pytest.mark.mpi
+def test_rods_joined_rigidly_vibrate_as_one_rod():
+    """Modes through the joint's constraint map (P^T K P, P^T M P): the jointed cantilever
+    has the one rod's frequencies to round-off (measured 1e-15 relative; asserted 1e-10),
+    3.5013, 4.9630 for (beta L)^2 sqrt(EI / rho A) = 3.5160 sqrt(1, 2) (8.5e-3 below:
+    the 16-cell error and rotary inertia 1e-3)."""
+    one = RodParameters(length=1.0, A=(1.0, 2.0, 1.5), B=(1e5, 1e5, 1e5), rho_A=1.0,
+                        I11=1e-3, I22=2e-3)
+    single = RodModel(one, n_cells=16, model="hyperelastic")
+    joined = two_rods_joined()
+    omega = []
+    for rod in (single, joined):
+        rod.set_initial_state()
+        modes = vibration_modes(rod, 0.0, 6)
+        assert max(modes.residuals) < 1e-10
+        omega.append(modes.omega)
+    assert omega[1] == pytest.approx(omega[0], rel=1e-10)
+    assert omega[1][:2] / (1.8751 ** 2 * np.sqrt([1.0, 2.0])) == pytest.approx(
+        [1.0, 1.0], rel=1e-2)
+
+
+@pytest.mark.mpi
+def test_modes_command_on_an_auto_scene_with_quaternions(tmp_path):
+    """``dolfin-rod modes`` of the string scene with time.scheme = "bdf2", for which
+    geometry.rotations = "auto" picks quaternions: the table of the rotation vectors'
+    (test_modes_command: the rigid spin, then the 8-cell error 6.44e-3)."""
+    import json
+    from pathlib import Path
+
+    from mpi4py import MPI
+
+    from dolfin_rod.cli import main
+    from dolfin_rod.scenes import parse_scene
+    from dolfin_rod.scenes.rules import rod_rotations
+    comm = MPI.COMM_WORLD
+    text = (Path(__file__).parents[1] / "scenes" / "string_modes.toml").read_text()
+    text = text.replace("n_cells = 16", "n_cells = 8").replace(
+        "[time]\n", '[time]\nscheme = "bdf2"\n')
+    assert rod_rotations(parse_scene(text)) == "quaternion"
+    scene, out = tmp_path / "string.toml", tmp_path / "out"
+    if comm.rank == 0:
+        scene.write_text(text)
+    scene, out = comm.bcast((str(scene), str(out)))
+    assert main(["modes", scene, "--out", out, "--quiet", "--count", "3"]) == 0
+    if comm.rank != 0:
+        return
+    omega = [row["omega"] for row in json.loads((Path(out) / "modes.json").read_text())[
+        "modes"]]
+    exact = math.pi * math.sqrt(1e3 * 1e-3 / 1.001)
+    assert omega[0] == 0.0
+    assert np.array(omega[1:]) / exact - 1 == pytest.approx([6.44e-3] * 2, abs=1e-5)

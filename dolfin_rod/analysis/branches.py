@@ -23,7 +23,10 @@ Newton on the amplitude of the mode (the load an unknown) does not serve here: f
 unstable state of an imperfect column the complementary branch it follows runs off to
 infinite load instead of to the stable branch (tried, docs/stability.md).
 
-Rotation vectors only (the eigenvectors of LowestEigenvalues).
+Both rotation unknowns: on quaternions K is bordered by the gauge multiplier and G
+measures the material rotations of quaternion directions (LowestEigenvalues), so the
+modes, the descent and the switched branch are those of the rotation vectors
+(tests/test_branches.py compares them).
 """
 
 from __future__ import annotations
@@ -70,7 +73,10 @@ class BranchSwitching:
         self.monitor, self.tangent = monitor, tangent
         self.modes = monitor.eigenvalues or LowestEigenvalues(tangent)
         self.problem = tangent.model.problem
-        self.scale = self.problem.configuration_norm()
+        # the size of a configuration (steps are measured against it): the problem's
+        # (rotation vectors), else (quaternions) sqrt(dofs) L
+        self.scale = self.problem.configuration_norm() or \
+            np.sqrt(tangent.system.x.getSize()) * tangent.model.length
         self._ksp = PETSc.KSP().create(self.problem.comm)     # K + G / tau: MUMPS LU
         self._ksp.setType("preonly")
         self._ksp.getPC().setType("lu")

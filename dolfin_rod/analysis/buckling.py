@@ -21,8 +21,13 @@ Only K_sigma, not the full derivative of K along the path: on rotation vectors t
 unknowns are increments in a basis that turns with the rod, and the difference of two
 tangents along a path that turns it (a twist) holds the basis's turn, of the size of
 the shear stiffness (measured: Greenhill's critical twist off by a factor 100).  For a
-straight column both are the same.  Rotation vectors without constraints only
-(quaternions add the gauge's multiplier, the constraints theirs).
+straight column both are the same.  The quaternion form: K bordered by the gauge
+multiplier (zero rows of K'); the strains depend on q/|q| only (u, v are invariant
+under q -> c(s) q), so the energy's gradient along q vanishes and the Hessians in q,
+restricted to the directions |q| = 1 leaves free, are those in rotation increments; the
+gauge's multiplier is 0 at every equilibrium, its rate too.  Rod systems with joints:
+P^T K P and P^T K' P (fem/multipoint.py).  Not for constrained rods (their multipliers
+are stresses whose rates K' would need).
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ from petsc4py import PETSc
 
 from ..fem.assembly import block_system
 from ..fem.compat import interpolation_points
+from ..fem.multipoint import ConstrainedSystem
 from .eigen import eigenpairs
 from .stability import TangentStiffness, at_rest_map, symmetric_part
 
@@ -60,15 +66,13 @@ class BucklingModes:
 
 def buckling_modes(model, t: float, count: int = 4) -> BucklingModes:
     """The ``count`` critical points of the linearised load path of a quasi-static
-    RodModel nearest its current equilibrium at time t (> 0: the state reached under
+    RodModel (or RodSystem) nearest its current equilibrium at time t (> 0: the state reached under
     time t's loads).  Raises ValueError for a dynamic rod, a rod system with joints, t
-    <= 0, or loads and motions that do not change at t."""
+    <= 0, a constrained rod (material.constraint), or loads and motions that do not
+    change at t."""
     if model.dynamic:
         raise ValueError("buckling: a quasi-static rod (rho_A = 0); for a dynamic one, "
                          "the vibration modes (analysis/vibration.py)")
-    if model.problem.links:
-        raise ValueError("buckling: rods joined by joints are not supported (their "
-                         "constraints are not in the tangent's forms)")
     if not t > 0:
         raise ValueError(f"buckling: t > 0 (the loads of time t are scaled), got {t!r}")
     tangent = TangentStiffness(model)
@@ -122,10 +126,8 @@ class _StressStiffness:
 
     def __init__(self, tangent: TangentStiffness):
         model = tangent.model
-        if tangent.multipliers or model.unknowns.chart is None:
-            raise ValueError("buckling: a rod with rotation vectors and without constraints "
-                             "(geometry.rotations = \"rotation_vector\", no "
-                             "material.constraint)")
+        if "constraint_multiplier" in tangent.names:
+            raise ValueError("buckling: a rod without constraints (no material.constraint)")
         S = fem.functionspace(model.mesh, ("DG", 0, (3,)))
         at_rest = at_rest_map(model)
         points = interpolation_points(S)
@@ -139,6 +141,8 @@ class _StressStiffness:
         bcs = [bc for n in tangent.names for bc in model.bcs_of(n)]
         self.system = block_system(forms, [fields], bcs=bcs)
         self.fixed = tangent.fixed
+        self.joints = tangent.system.P if isinstance(tangent.system, ConstrainedSystem) \
+            else None
 
     def add_stresses(self, weight: float) -> None:
         """m', n' += weight (m, n) of the state in the fields."""
@@ -153,7 +157,8 @@ class _StressStiffness:
         system.get(0, system.x)                  # the state (its forms read their own copy)
         system.set(0, system.x)
         system.jacobian(system.A)
-        return symmetric_part(system.A, self.fixed, 0.0)
+        A = system.A if self.joints is None else system.A.PtAP(self.joints)
+        return symmetric_part(A, self.fixed, 0.0)
 
 
 def _path_rate(tangent: TangentStiffness, state: PETSc.Vec, t: float,

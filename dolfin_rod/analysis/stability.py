@@ -29,6 +29,8 @@ from .eigen import eigenpairs
 from ..fem.assembly import block_system, monolithic_layout
 from ..fem.multipoint import ConstrainedSystem
 from ..fem.fe_model import vertex_measure
+from ..theory.quaternions import np_qmul
+from ..theory.rotations import material_derivative_vector
 
 __all__ = ["Inertia", "TangentStiffness", "LowestEigenvalues", "StabilityMonitor",
            "at_rest_map", "symmetric_part"]
@@ -73,7 +75,10 @@ def symmetric_part(A: PETSc.Mat, fixed: PETSc.IS, diagonal: float) -> PETSc.Mat:
 
 
 class TangentStiffness:
-    """K of a RodModel at its current state and loads (``inertia(t)``)."""
+    """K of a RodModel at its current state and loads (``inertia(t)``); a model with
+    segment contact (``problem.terms``) adds its pairs' energy Hessians (the pairs
+    within the barrier's reach at the state), the joints' constraints (``links``) make it
+    P^T K P on the free dofs."""
 
     def __init__(self, model):
         names = [n for n in model.names if n in MECHANICAL + MULTIPLIERS]
@@ -90,6 +95,8 @@ class TangentStiffness:
             [ufl.replace(F, at_rest) for F in residuals]
         objects = [*form_cache.registry(residuals), *at_rest.values()]
         self.system = block_system(forms, [fields], bcs=bcs, cache=(key, objects))
+        # segment contact (rod/pair_contact.py): the pairs' Hessians join K
+        self.system.add_terms(model.problem.terms)
         links = [replace(link, block=names.index(model.names[link.block]))
                  for link in model.problem.links]
         if links:           # joints of a rod system: K on the free dofs, P^T K P
@@ -100,6 +107,7 @@ class TangentStiffness:
             (self.system.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         self._ksp = None        # at the first check: its options are then read at once
         self._symmetric = None  # K as SBAIJ, the factorisation's input
+        self._entries = 0       # K's stored entries when _symmetric was made
 
     @staticmethod
     def _free_dofs(model, names) -> int:
@@ -114,21 +122,26 @@ class TangentStiffness:
         return total
 
     def mode_shapes(self, vectors) -> list[dict[str, np.ndarray]]:
-        """Vectors of K's layout as nodal values, {"displacement", "rotation"} (rotation
-        vectors) or {"displacement", "quaternion"}, each scaled to a largest displacement
-        of 1 (if it has one); the state in the fields is kept."""
+        """Vectors of K's layout as nodal values {"displacement", "rotation"}, the
+        rotation the material rotation vector (quaternions: 2 vec(conj(q) dq)/|q|^2 of
+        the state's q), each scaled to a largest displacement of 1 (if it has one); the
+        state in the fields is kept."""
         from ..mpi import largest_on_ranks
         system, model = self.system, self.model
         state = system.x.copy()
         system.get(0, state)
         label = {"displacement": "displacement", "rotation_increment": "rotation",
-                 "quaternion": "quaternion"}
+                 "quaternion": "rotation"}
+        q = model.f["quaternion"].x.array.reshape(-1, 4).copy() \
+            if "quaternion" in self.names else None
         shapes = []
         try:
             for vector in vectors:
-                system.set(0, vector)
+                self._set_direction(vector)
                 shape = {label[n]: model.f[n].x.array.copy() for n in self.names
                          if n in label}
+                if q is not None:
+                    shape["rotation"] = material_rotation(q, shape["rotation"])
                 x = shape["displacement"].reshape(-1, 3)
                 size = largest_on_ranks(model.mesh.comm, float(
                     np.max(np.linalg.norm(x, axis=1), initial=0.0)))
@@ -137,12 +150,24 @@ class TangentStiffness:
             system.set(0, state)
         return shapes
 
+    def _set_direction(self, vector: PETSc.Vec) -> None:
+        """A direction of K's layout into the fields: joints' P v (no offset)."""
+        system = self.system
+        if not isinstance(system, ConstrainedSystem):
+            system.set(0, vector)
+            return
+        y = system.P.createVecLeft()
+        system.P.mult(vector, y)
+        system.inner.set(0, y)
+
     def matrix(self, t: float) -> PETSc.Mat:
         """The symmetric part of K at time t's loads, Dirichlet rows and columns identity."""
         self.model.problem.set_loads(t)
         system = self.system
         system.get(0, system.x)
         system.set(0, system.x)
+        if system.terms:        # the pairs' Hessians are those of the last residual's state
+            system.residual(system.x, system.b)
         system.jacobian(system.A)
         return symmetric_part(system.A, self.fixed, 1.0)
 
@@ -150,18 +175,25 @@ class TangentStiffness:
         """The inertia of K at the current state and time t's loads; with a ``metric``
         G, the negative count is that of the eigenvalues of K v = lambda G v below
         -ZERO max K_ii / max G_ii (of K + that shift times G).  MUMPS's LDL^T reads
-        SBAIJ: one copy, kept, its values replaced at each check (K's pattern is fixed;
-        G's is a part of it), so that MUMPS keeps its analysis (ordering, symbolic
-        factorisation) and only refactorises."""
+        SBAIJ: one copy, kept, its values replaced at each check (K's pattern is fixed
+        unless new segment-contact pairs grow it: then a new copy; G's is a part of it),
+        so that MUMPS keeps its analysis (ordering, symbolic factorisation) and only
+        refactorises."""
         K = self.matrix(t)
         if metric is not None:
             shift = ZERO * _largest_diagonal(K) / _largest_diagonal(metric)
             K.axpy(shift, metric, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
             K.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        if self._ksp is None:
+        entries = K.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"]
+        if self._ksp is None or entries != self._entries:
+            # first check, or new contact pairs grew K's pattern: a new analysis
+            if self._ksp is not None:
+                self._ksp.destroy()
+                self._symmetric.destroy()
             self._symmetric = K.convert("sbaij", PETSc.Mat())
             self._ksp = self._factorisation(K.getComm())
             self._ksp.setOperators(self._symmetric)
+            self._entries = entries
         else:
             K.convert("sbaij", self._symmetric)            # values only
         K.destroy()
@@ -187,35 +219,77 @@ class TangentStiffness:
         return ksp
 
 
+def _metric_forms(model, names: list[str]) -> tuple[list, list]:
+    """The forms of LowestEigenvalues' metric G, one per block of ``names``, and the
+    fields G is their derivative by: the displacement, the rotation increment or a
+    direction dq of the quaternions at the state's q (its residual linear in dq), the
+    gauge multiplier's own residual (no dq in it: zero rows)."""
+    dx = vertex_measure(model.mesh)
+    x = model.f["displacement"]
+    forms = {"displacement": ufl.inner(x, model.t["displacement"]) * dx}
+    fields = {"displacement": x}
+    if "rotation_increment" in names:
+        theta = fields["rotation_increment"] = model.f["rotation_increment"]
+        forms["rotation_increment"] = model.length ** 2 * ufl.inner(
+            theta, model.t["rotation_increment"]) * dx
+    else:
+        q = model.f["quaternion"]
+        dq = fields["quaternion"] = fem.Function(q.function_space)
+        forms["quaternion"] = model.length ** 2 * ufl.inner(
+            material_derivative_vector(q, dq),
+            material_derivative_vector(q, model.t["quaternion"])) * dx
+        fields["gauge_multiplier"] = fem.Function(model.f["gauge_multiplier"].function_space)
+        forms["gauge_multiplier"] = model.residual["gauge_multiplier"]
+    return [forms[n] for n in names], [[fields[n] for n in names]]
+
+
+def material_rotation(q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """2 vec(conj(q) dq)/|q|^2 at the nodes (q, dq: n x 4 and 4n values): a quaternion
+    direction as the material rotation vector (theory/rotations.py's in numpy)."""
+    dq = dq.reshape(-1, 4)
+    conj = q * np.array([1.0, -1.0, -1.0, -1.0])
+    vec = np_qmul(conj, dq)[:, 1:]
+    return (2 * vec / np.sum(q * q, axis=1)[:, None]).ravel()
+
+
 def _largest_diagonal(A: PETSc.Mat) -> float:
     return A.getDiagonal().norm(PETSc.NormType.INFINITY)
 
 
 class LowestEigenvalues:
-    """The lowest eigenvalues of K v = lambda G v on a rod with rotation vectors (no
-    multipliers), G the lumped metric int (dx . x + L^2 dtheta . theta) ds (vertex rule:
-    diagonal; units of K per length^3, e.g. EI/L^4: independent of the mesh), by SLEPc
-    (analysis/eigen.py: shift-and-invert at 0, MUMPS).  Dirichlet dofs have G = 0 (infinite eigenvalues, out
-    of the way)."""
+    """The lowest eigenvalues of K v = lambda G v on a rod without constraints, G the
+    lumped metric int (dx . x + L^2 dtheta . theta) ds (vertex rule: diagonal per node;
+    units of K per length^3, e.g. EI/L^4: independent of the mesh), by SLEPc
+    (analysis/eigen.py: shift-and-invert at 0, MUMPS).  dtheta: the rotation increment,
+    or for quaternions the material rotation 2 vec(conj(q) dq)/|q|^2 of a direction dq
+    (K bordered by the gauge multiplier, whose rows and the direction dq along q have
+    G = 0: the eigenvalues are those of the rotation increments).  Dirichlet dofs have
+    G = 0 (infinite eigenvalues, out of the way)."""
 
     def __init__(self, tangent: TangentStiffness):
         model = tangent.model
-        if tangent.multipliers or "rotation_increment" not in tangent.names:
-            raise ValueError("lowest eigenvalues: a rod with rotation vectors and without "
-                             "constraints (geometry.rotations = \"rotation_vector\")")
+        if "constraint_multiplier" in tangent.names:
+            raise ValueError("lowest eigenvalues: a rod without constraints (no "
+                             "material.constraint)")
         self.tangent = tangent
-        dx = vertex_measure(model.mesh)
-        x, theta = model.f["displacement"], model.f["rotation_increment"]
-        metric = [ufl.inner(x, model.t["displacement"]) * dx,
-                  model.length ** 2 * ufl.inner(theta, model.t["rotation_increment"]) * dx]
         bcs = [bc for n in tangent.names for bc in model.bcs_of(n)]
-        system = block_system(metric, [[x, theta]], bcs=bcs)
+        self._system = block_system(*_metric_forms(model, tangent.names), bcs=bcs)
+        self._moving = "quaternion" in tangent.names      # G depends on the state's q
+        self._G: PETSc.Mat | None = None
+
+    @property
+    def G(self) -> PETSc.Mat:
+        """G at the state in the fields (assembled once for rotation increments)."""
+        if self._G is not None and not self._moving:
+            return self._G
+        system, joints = self._system, self.tangent.system
         system.jacobian(system.A)
-        G = system.A
-        if isinstance(tangent.system, ConstrainedSystem):      # joints: P^T G P
-            G = G.PtAP(tangent.system.P)
-        G.zeroRowsColumns(tangent.fixed, diag=0.0)
-        self.G = G
+        if not isinstance(joints, ConstrainedSystem):
+            self._G = system.A
+        else:                                                 # joints: P^T G P
+            self._G = system.A.PtAP(joints.P, result=self._G)
+        self._G.zeroRowsColumns(self.tangent.fixed, diag=0.0)
+        return self._G
 
     def __call__(self, t: float, count: int = 1) -> list[float]:
         """The ``count`` eigenvalues nearest 0 at time t, ascending (all of them below 0
@@ -234,7 +308,7 @@ class StabilityMonitor:
     def __init__(self, model, lowest: bool = False):
         self.tangent = TangentStiffness(model)
         self.eigenvalues = LowestEigenvalues(self.tangent) if lowest else None
-        self.metric = self._metric()
+        self.metric = self._metric()     # LowestEigenvalues (its G) or None
         self.negative: int | None = None
         self._before: int | None = None     # the count before the last check
         self.lowest: float | None = None
@@ -242,18 +316,18 @@ class StabilityMonitor:
         self.seconds, self.checks = 0.0, 0
         self.reported = 0       # changes the run has warned about
 
-    def _metric(self) -> PETSc.Mat | None:
-        """G of LowestEigenvalues where it exists (rotation vectors, no multipliers):
-        the count then takes round-off zero eigenvalues as zero (``count``)."""
+    def _metric(self) -> LowestEigenvalues | None:
+        """LowestEigenvalues, whose metric G exists without constraint multipliers: the
+        count then takes round-off zero eigenvalues as zero (``count``)."""
         try:
-            return (self.eigenvalues or LowestEigenvalues(self.tangent)).G
+            return self.eigenvalues or LowestEigenvalues(self.tangent)
         except ValueError:
             return None
 
     def count(self, t: float) -> int:
         """The negative eigenvalues of K at time t (eigenvalues within round-off of 0
         counted as 0 where the metric exists: TangentStiffness.inertia)."""
-        return self.tangent.inertia(t, self.metric).negative
+        return self.tangent.inertia(t, None if self.metric is None else self.metric.G).negative
 
     def check(self, t: float, again: bool = False) -> int:
         """The count at time t, recorded; ``again``: the state at t changed since the

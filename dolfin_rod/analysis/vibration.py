@@ -9,19 +9,27 @@ the rotary inertia rho J for the rotations, eqs. linmom, angmom), both with Diri
 rows and columns removed (K: identity, M: zero, so those dofs give omega = infinity).
 The lowest pairs by analysis/eigen.py (shift-and-invert below the spectrum: rigid
 modes, omega = 0, are found too).  Damping and gyroscopic terms are left out (undamped
-modes; a state at rest).  Rotation vectors only (the quaternion form's rotations enter
-through its kinematic equation, not an acceleration).
+modes; a state at rest).  The quaternion form: its rotations' inertia enters through
+the kinematic equation W = 2 vec(conj(q) q_t)/|q|^2, so M's rotation block is rho J in
+the material rotations 2 vec(conj(q) dq)/|q|^2 of quaternion directions dq; K and M are
+bordered by the gauge multiplier (|q| = 1), whose rows have no mass (infinite
+eigenvalues, out of the way), and dq along q has neither energy nor mass: the modes are
+those of the rotation vectors (tests/test_vibration.py compares them).  Rod systems with
+joints: K and M on the free dofs, P^T K P and P^T M P (fem/multipoint.py).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import dolfinx.fem as fem
 import numpy as np
 import ufl
 from petsc4py import PETSc
 
 from ..fem.assembly import block_system
+from ..fem.multipoint import ConstrainedSystem
+from ..theory.rotations import material_derivative_vector
 from .eigen import eigenpairs
 from .stability import TangentStiffness, at_rest_map, symmetric_part
 
@@ -44,17 +52,12 @@ class VibrationModes:
 
 
 def vibration_modes(model, t: float, count: int = 6) -> VibrationModes:
-    """The ``count`` lowest natural frequencies and modes of a dynamic RodModel about its
-    current state under time t's loads.  Raises ValueError for a quasi-static rod
-    (rho_A = 0: no mass), rotary inertia I11 = I22 = 0, quaternion unknowns or joints."""
+    """The ``count`` lowest natural frequencies and modes of a dynamic RodModel (or
+    RodSystem) about its current state under time t's loads.  Raises ValueError for a
+    quasi-static rod (rho_A = 0: no mass)."""
     if not model.dynamic:
         raise ValueError("vibration modes: a rod with mass (rho_A > 0; a scene's "
                          "material.density or material.rho_A)")
-    if model.unknowns.chart is None:
-        raise ValueError("vibration modes: rotation-vector unknowns (geometry.rotations = "
-                         "\"rotation_vector\")")
-    if model.problem.links:
-        raise ValueError("vibration modes: rods joined by joints are not supported")
     tangent = TangentStiffness(model)
     K = tangent.matrix(t)
     M = _mass(tangent)
@@ -69,22 +72,40 @@ def vibration_modes(model, t: float, count: int = 6) -> VibrationModes:
 
 
 def _mass(tangent: TangentStiffness) -> PETSc.Mat:
-    """M = dR/d(accelerations) of the mechanical blocks, symmetric part, Dirichlet rows
-    and columns zero."""
+    """M = dR/d(accelerations) of the tangent's blocks, symmetric part, Dirichlet rows
+    and columns zero (multipliers: zero rows; joints: P^T M P)."""
     model = tangent.model
-    problem = model.problem
-    accelerations = dict(zip(model.names, problem.accelerations))
-    if any(accelerations.get(n) is None for n in tangent.names):
-        raise ValueError("vibration modes: every position and rotation block needs an "
-                         "acceleration (a dynamic rod on rotation vectors)")
-    moving = [accelerations[n] for n in tangent.names]
+    accelerations, swap = _accelerations(model, tangent.names)
     at_rest = {f: g for f, g in at_rest_map(model).items()
-               if not any(f is a for a in moving)}
-    forms = [ufl.replace(model.residual[n], at_rest) for n in tangent.names]
+               if not any(f is a for a in [*accelerations, *swap])}
+    forms = [ufl.replace(model.residual[n], {**at_rest, **swap}) for n in tangent.names]
     fields = [model.f[n] for n in tangent.names]
     bcs = [bc for n in tangent.names for bc in model.bcs_of(n)]
-    system = block_system(forms, [fields, moving], jacobian_terms=((1.0, 1),), bcs=bcs)
+    system = block_system(forms, [fields, accelerations], jacobian_terms=((1.0, 1),),
+                          bcs=bcs)
     system.get(0, system.x)
     system.set(0, system.x)
     system.jacobian(system.A)
-    return symmetric_part(system.A, tangent.fixed, 0.0)
+    M = system.A
+    if isinstance(tangent.system, ConstrainedSystem):
+        M = M.PtAP(tangent.system.P)
+    return symmetric_part(M, tangent.fixed, 0.0)
+
+
+def _accelerations(model, names: list[str]) -> tuple[list, dict]:
+    """Per block of ``names`` the Function the mass differentiates by, and what replaces
+    the residual's accelerations: rotation vectors, the accelerations themselves; the
+    quaternion form, x_tt and the rate of W = 2 vec(conj(q) q_t)/|q|^2 at rest,
+    2 vec(conj(q) q_tt)/|q|^2 (its kinematic equations; the multipliers' own, unused)."""
+    problem = model.problem
+    if model.unknowns.chart is not None:
+        given = dict(zip(model.names, problem.accelerations))
+        if any(given.get(n) is None for n in names):
+            raise ValueError("vibration modes: every position and rotation block needs an "
+                             "acceleration (a dynamic rod with rotary inertia)")
+        return [given[n] for n in names], {}
+    own = {n: fem.Function(model.f[n].function_space) for n in names}
+    swap = {model.r["velocity"]: own["displacement"],
+            model.r["angular_velocity"]: material_derivative_vector(
+                model.f["quaternion"], own["quaternion"])}
+    return [own[n] for n in names], swap

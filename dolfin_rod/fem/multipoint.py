@@ -21,12 +21,19 @@ ends or interior nodes).
 A ``NodeMap`` is a nonlinear link: y_slave = law(y_master, a) with p own parameters a
 of the slave node (a hinge's angle, rod/joints.py), Newton unknowns stored in the
 slave's first p rows of z.  Then y = Phi(z) + c, P = dPhi/dz at the current z (its map
-rows refreshed at each ``set``: same pattern, new values), residual P^T F and Jacobian
-P^T J P; the map rows carry no offset (the law holds exactly at the solution, also from
+rows refreshed at each ``set``: same pattern, new values), residual P^T F and its exact
+Jacobian P^T J P + sum_i F_i d^2 Phi_i/dz^2 over the map's slave rows i (the law's
+``curvature``: Newton converges quadratically); the map rows carry no offset (the law holds exactly at the solution, also from
 an inconsistent predictor), and the law's own state is refreshed at each solve's start
 (``get``: law.refresh(), collective).  For a field other than the law's
 ``configuration`` (rates, accelerations of the same block) the law's tangent at 0 is
 used (law.value(..., exact=False)).  A map's master node must be free (not a slave).
+
+A ``NodeLine`` is a one-node linear link: the node's values of a block move along a
+unit ``axis`` only, y = y_0 + a axis (a support sliding along an axis that is not a
+coordinate axis, or turning about one: rod/boundary_conditions.py).  Its component j of
+largest |axis_j| stays free and the others are its slaves, y_i = (axis_i/axis_j) y_j
+(+ the offset across the axis the state has when a solve starts, as a NodeLink's).
 """
 
 from __future__ import annotations
@@ -37,7 +44,7 @@ import dolfinx.fem as fem
 import numpy as np
 from petsc4py import PETSc
 
-__all__ = ["NodeLink", "NodeMap", "ConstrainedSystem"]
+__all__ = ["NodeLink", "NodeLine", "NodeMap", "ConstrainedSystem"]
 
 
 @dataclass(frozen=True)
@@ -52,11 +59,34 @@ class NodeLink:
 
 
 @dataclass(frozen=True)
+class NodeLine:
+    """The values of block ``block`` at the node s move along the unit ``axis`` only (see
+    module)."""
+
+    block: int
+    s: float
+    axis: tuple
+
+    @property
+    def master_s(self) -> float:
+        return self.s
+
+    slave_s = master_s
+
+    def weights(self) -> dict[int, dict[int, float]]:
+        """{slave component i: {master component j: axis_i/axis_j}}."""
+        a = np.asarray(self.axis, float)
+        j = int(np.argmax(np.abs(a)))
+        return {i: {j: a[i] / a[j]} for i in range(len(a)) if i != j}
+
+
+@dataclass(frozen=True)
 class NodeMap:
     """y_slave = law.value(y_master, a) for block ``block`` at the nodes s = slave_s,
     master_s, with law.size own parameters a (see module).  The law: ``size``,
     ``configuration`` (the Function it holds exactly), ``refresh()`` (collective, at a
     solve's start), ``value(master, a, exact) -> (slave, dslave/d(master, a))``,
+    ``curvature(master, a) -> d^2 slave/d(master, a)^2`` (of the exact law),
     ``parameters(master, slave, exact) -> a`` (the a that fits)."""
 
     block: int
@@ -88,16 +118,24 @@ def node_rows(inner, fields: list, links: list) -> dict[tuple, int]:
     return {(k, side, i): r for part in comm.allgather(found) for k, side, i, r in part}
 
 
-def slave_rows(inner, fields: list, links: list[NodeLink]) -> dict[int, dict[int, float]]:
-    """{slave row: {master row: weight}} in the inner system's global rows, on every
-    rank; a master that is itself a slave is replaced by its own masters."""
+def _weights(link: NodeLink | NodeLine) -> dict[int, dict[int, float]]:
+    """{slave component i: {master component j: weight}} of a linear link."""
+    if isinstance(link, NodeLine):
+        return link.weights()
+    T = np.asarray(link.matrix, float)
+    return {i: {j: T[i, j] for j in range(T.shape[1]) if T[i, j] != 0.0}
+            for i in range(T.shape[0])}
+
+
+def slave_rows(inner, fields: list, links: list) -> dict[int, dict[int, float]]:
+    """{slave row: {master row: weight}} of the linear links (NodeLink, NodeLine) in the
+    inner system's global rows, on every rank; a master that is itself a slave is
+    replaced by its own masters."""
     row = node_rows(inner, fields, links)
     slaves: dict[int, dict[int, float]] = {}
     for k, link in enumerate(links):
-        T = np.asarray(link.matrix, float)
-        for i in range(T.shape[0]):
-            slaves[row[k, "slave", i]] = {row[k, "master", j]: T[i, j]
-                                          for j in range(T.shape[1]) if T[i, j] != 0.0}
+        for i, masters in _weights(link).items():
+            slaves[row[k, "slave", i]] = {row[k, "master", j]: w for j, w in masters.items()}
     for _ in range(len(links)):            # chains of links: masters that are slaves
         for target in slaves.values():
             for master in [m for m in target if m in slaves]:
@@ -118,15 +156,35 @@ class _MappedNode:
     columns: list
     exact: bool
     owned: bool
+    arguments: np.ndarray | None = None     # (masters, own parameters) at the last set
+
+
+class _ReducedTerm:
+    """A term of the inner system (assembly.add_terms) seen from the free dofs: its
+    Newton-update limit (``limit_step``) on the prolonged state and update."""
+
+    def __init__(self, system: "ConstrainedSystem", term):
+        self.system, self.term = system, term
+
+    def limit_step(self, z_owned: np.ndarray, dz_owned: np.ndarray) -> None:
+        """dz (PETSc's sign: the new z is z - dz) scaled down in place by the factor the
+        inner term gives to the update P dz at y = Phi(z) + c (a hinge's map linearised
+        along the update)."""
+        alpha = self.term.step_factor(*self.system.prolonged(z_owned, dz_owned))
+        if alpha < 1.0:
+            dz_owned *= alpha
 
 
 class ConstrainedSystem:
-    """A block system restricted by NodeLinks and NodeMaps to its free dofs (see module)."""
-
-    terms: tuple = ()      # none: solvers.BlockSNES refuses terms with links
+    """A block system restricted by NodeLinks and NodeMaps to its free dofs (see module).
+    Terms of the inner system that are not forms (segment contact, assembly.add_terms)
+    enter through P^T and P^T J P like the forms; the pattern of J then grows with new
+    contact pairs, so P^T J P is formed anew at each Jacobian (its symbolic product
+    included) and inserted into A, whose pattern grows."""
 
     def __init__(self, inner, fields: list, links: list):
         self.inner, self.groups = inner, inner.groups
+        self.terms = tuple(_ReducedTerm(self, term) for term in inner.terms)
         comm = inner.x.getComm()
         self._mpi = mpi = comm.tompi4py()
         start, stop = inner.x.getOwnershipRange()
@@ -200,7 +258,7 @@ class ConstrainedSystem:
         values = self._values(z, [c for m in self.maps for c in m.columns])
         self._slave_values = []
         for m in self.maps:
-            args = np.array([values[c] for c in m.columns])
+            m.arguments = args = np.array([values[c] for c in m.columns])
             slave, derivative = m.law.value(args[:len(m.masters)], args[len(m.masters):],
                                             m.exact)
             if m.owned:
@@ -258,6 +316,52 @@ class ConstrainedSystem:
         self.P.multTranspose(self._b, b)
 
     def jacobian(self, A) -> None:
-        """P^T J P at the z of the last ``set``/``residual``."""
+        """P^T J P + sum_i F_i d^2 Phi_i/dz^2 (the exact maps' slave rows i) at the z of
+        the last ``set``/``residual``."""
         self.inner.jacobian(self.inner.A)
-        self.inner.A.PtAP(self.P, result=A)
+        if self.terms:
+            self._insert_product(A)
+        else:
+            self.inner.A.PtAP(self.P, result=A)
+        curved = [m for m in self.maps if m.exact]
+        if curved:
+            self._add_curvature(A, curved)
+
+    def _insert_product(self, A) -> None:
+        """A = P^T J P formed anew and inserted: J's pattern may have grown (pairs)."""
+        product = self.inner.A.PtAP(self.P)
+        rows, columns, values = product.getValuesCSR()        # owned rows
+        start, stop = product.getOwnershipRange()
+        # inserted (not a MatAXPY: its new header would hide the new pattern from the
+        # LU, which must analyse it anew; MUMPS crashed)
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        A.zeroEntries()
+        A.setValuesIJV(rows, columns, values, rowmap=np.arange(start, stop,
+                                                             dtype=PETSc.IntType))
+        A.assemble()
+        product.destroy()
+
+    def _add_curvature(self, A, maps: list) -> None:
+        """A += sum_i F_i d^2 slave_i/d(arguments)^2 on each map's columns, F the inner
+        residual at y = Phi(z) + c (its slave rows: the force the map transmits)."""
+        self.inner.residual(self._y, self._b)
+        forces = self._values(self._b, [r for m in maps for r in m.slaves])
+        for m in maps:
+            if not m.owned:
+                continue
+            n = len(m.masters)
+            H = m.law.curvature(m.arguments[:n], m.arguments[n:])
+            F = np.array([forces[r] for r in m.slaves])
+            A.setValues(m.columns, m.columns, np.einsum("i,ikl->kl", F, H).ravel(),
+                        addv=PETSc.InsertMode.ADD_VALUES)
+        A.assemble()
+
+    def prolonged(self, z_owned: np.ndarray, dz_owned: np.ndarray):
+        """(owned y = Phi(z) + c, owned P dz) of owned arrays of z and dz, as arrays of
+        the inner system's layout (collective)."""
+        z, dz = self.P.createVecRight(), self.P.createVecRight()
+        z.array_w[:], dz.array_w[:] = z_owned, dz_owned
+        self._prolong(z)
+        dy = self.P.createVecLeft()
+        self.P.mult(dz, dy)
+        return self._y.getArray(readonly=True).copy(), dy.getArray(readonly=True).copy()

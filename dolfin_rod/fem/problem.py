@@ -107,12 +107,18 @@ class SecondOrderProblem(SemiDiscreteProblem):
     error_scales:  per block the size its local time error is measured against (error
                    control, lie_alpha.LocalError: atol times it): a length for
                    displacements, 1 (rad) for angles; empty: the mesh's extent for each.
+    scale_motions: fraction -> None: the prescribed motions' values scaled by the
+                   fraction from then on (1: as prescribed), which the consistent start
+                   follows in committed parts (integrators/lie_alpha.py: a rod's end
+                   turned beyond a quarter turn at t0); None: sub-solves of the
+                   Dirichlet values.
     """
 
     accelerations: list[fem.Function] = field(default_factory=list)
     time_orders: list[int] = field(default_factory=list)
     lie_group: bool = False
     error_scales: list[float] = field(default_factory=list)
+    scale_motions: Callable[[float], None] | None = None
 
     def __post_init__(self):
         super().__post_init__()

@@ -293,9 +293,6 @@ class BlockSNES:
             settings.update(snes_lag_jacobian=1, snes_lag_preconditioner=1)
         self.system = block_system(F, [y], bcs=bcs, cache=cache)
         self.system.add_terms(terms)
-        if links and terms:
-            raise ValueError("terms assembled outside the forms (segment contact) and "
-                             "multi-point constraints (joints) together are not supported")
         if links:       # joints: Newton on the free dofs (fem/multipoint.py)
             self.system = ConstrainedSystem(self.system, y, list(links))
         self.x = self.system.x

@@ -379,9 +379,12 @@ class LieGeneralizedAlpha:
         """The consistent start of a dynamic problem whose prescribed values at t0 differ
         from its state: its second-order blocks (positions, rotations) solved at rest (zero
         velocities and accelerations) in equilibrium with them, approached in
-        EQUILIBRIUM_SUB_SOLVES solves (BlockSNES.solve), the first-order blocks' rates with
-        them; checked and committed.  The first step then starts from equilibrium instead
-        of a jump."""
+        EQUILIBRIUM_SUB_SOLVES parts (problem.scale_motions: each committed, so that an
+        end may turn by up to that many quarter turns; without it, sub-solves of the
+        Dirichlet values, BlockSNES.solve), the first-order blocks' rates with them;
+        checked and committed.  The first step then starts from equilibrium instead of a
+        jump.  (A refused start leaves the fields as given, a rod's stored rotations as
+        its last committed part turned them.)"""
         p = self.problem
         unknowns = [f if k == 2 else u
                     for f, u, k in zip(p.fields, self._unknowns_at_start(), self.order)]
@@ -392,17 +395,42 @@ class LieGeneralizedAlpha:
                            terms=p.terms)
         initial = [f.x.array.copy() for f in p.fields]
         try:
-            solver.solve(sub_solves=EQUILIBRIUM_SUB_SOLVES)
-            reason = p.check_step()
-            if reason:
-                raise SolverError(reason, 0)
+            if p.scale_motions is None:
+                solver.solve(sub_solves=EQUILIBRIUM_SUB_SOLVES)
+                self._checked(p)
+            else:
+                self._committed_path(solver, t0)
         except SolverError as err:
             for f, array in zip(p.fields, initial):
                 f.x.array[:] = array
             raise IntegrationError(f"the start at t = {t0:.6g} in equilibrium with the end "
                                    f"motions' values there: {err}; start them from 0 (a ramp "
                                    "or smooth_step)", t0) from err
+        finally:
+            if p.scale_motions is not None:
+                p.scale_motions(1.0)
+                p.set_bcs(t0)
         p.after_step()
+
+    @staticmethod
+    def _checked(p) -> None:
+        reason = p.check_step()
+        if reason:
+            raise SolverError(reason, 0)
+
+    def _committed_path(self, solver, t0: float) -> None:
+        """The motions' values at t0 reached in EQUILIBRIUM_SUB_SOLVES parts (scaled by
+        k/n: problem.scale_motions), each solved, checked and committed (after_step): a
+        part turns a node by its own rotation increment, so the ends may turn by up to
+        n quarter turns (the chart bounds one increment, rotation_vector.py)."""
+        p, n = self.problem, EQUILIBRIUM_SUB_SOLVES
+        for k in range(1, n + 1):
+            p.scale_motions(k / n)
+            p.set_bcs(t0)
+            solver.solve()
+            self._checked(p)
+            if k < n:
+                p.after_step()
 
     def _start_algebraic(self, t0: float) -> None:
         """After the start's solve: its algebraic state is checked (check_step: a

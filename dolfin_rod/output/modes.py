@@ -27,9 +27,8 @@ def write_modes(folder: Path, model, kind: str, rows: list[dict], shapes: list[d
                 comm) -> list[str]:
     """``<kind>.json`` and ``<kind>.bp`` in ``folder`` (see the module); the file names."""
     import dolfinx.fem as fem
-    fields = {name: fem.Function(model.f[block].function_space)
-              for name, block in (("mode_displacement", "displacement"),
-                                  ("mode_rotation", model.unknowns.rotation))}
+    space = model.f["displacement"].function_space    # P1 vectors: the rotation alike
+    fields = {name: fem.Function(space) for name in ("mode_displacement", "mode_rotation")}
     observables = {"centre_line": model.observables()["centre_line"], **fields}
     sampler = LineSampler(model.mesh, observables, tuple(observables))
     samples = []

@@ -11,15 +11,23 @@ cannot be detected.  A displacement or rotation that is not 0 at t = 0 gives a
 consistent start (rotation vectors): the rod at rest in equilibrium with its ends where
 they are at t = 0 (integrators/lie_alpha.py, the start).
 
-end_slide: {end: axis}: a clamped or pinned end that slides freely along a coordinate
-axis (a unit vector +-e_1, +-e_2 or +-e_3): its position is held (or prescribed) across
-the axis only, its rotation as a clamped (or pinned) end's; a force along the axis acts
-on it (a weight on a sliding clamp, cosseratbench's twist experiment).
+end_slide: {end: axis}: a clamped or pinned end that slides freely along a unit axis:
+its position is held (or prescribed) across the axis only, its rotation as a clamped (or
+pinned) end's; a force along the axis acts on it (a weight on a sliding clamp,
+cosseratbench's twist experiment).
 
-end_turn: {end: axis}: a clamped end that turns freely about a coordinate axis (a hinge;
-with end_slide along the same axis a cylindrical joint): its rotation is held about the
-other two axes only; a couple about the axis acts on it.  Its initial rotation must keep
-the axis (R_0^T axis = axis, e.g. a straight rod along e_3 turning about e_3).
+end_turn: {end: axis}: a clamped end that turns freely about a unit axis (spatial; a
+hinge; with end_slide along the same axis a cylindrical joint): its rotation is held
+about the other two axes only; a couple about the axis acts on it.  Its initial rotation
+must turn the axis as its stress-free rotation R_sf does (R_0^T axis = R_sf^T axis: a
+start may turn the end about the axis only).
+
+A coordinate axis (+-e_i; for a turn, one its stress-free end frame keeps, R_sf^T axis =
+axis) is held by Dirichlet conditions on the components across it (any rotation
+unknowns).  Any other axis by a one-node link (fem/multipoint.NodeLine, ``linked_axes``;
+rotation-vector unknowns): the end's displacement x = x_0 + a axis, its rotation
+increment theta = psi R_sf^T axis (q_n c(theta) turns q_n about the spatial axis, exact),
+with no motion prescribed across a linked slide axis.
 
 end_springs: {end: EndSpring}: a compliant support, translational stiffness K (spatial
 components, N/m) about the end's initial position and rotational stiffness K_r (material
@@ -42,8 +50,9 @@ import numpy as np
 import ufl
 
 from .. import loads
-from ..checks import slide_axis_problem
+from ..checks import is_coordinate_axis, slide_axis_problem
 from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
+from ..fem.multipoint import NodeLine
 from ..theory.rotations import (conj, np_qmul, np_quaternion_from_rotation_vector,
                                 np_rotation_matrix, qmul, vec)
 from .rotation_vector import np_inverse_cayley
@@ -94,6 +103,11 @@ def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False,
         problem = slide_axis_problem(axis)
         if problem:
             raise ValueError(f"end_slide[{end!r}] {problem}")
+        if end in (end_displacement or {}) and not is_coordinate_axis(axis):
+            raise ValueError(f"end_displacement[{end!r}]: the end slides along "
+                             f"{np.asarray(axis, float).tolist()} (end_slide), off the "
+                             "coordinate axes: its motion across that axis cannot be "
+                             "prescribed (only across +-e_i)")
     for name, motion in (("end_displacement", end_displacement),
                          ("end_rotation", end_rotation)):
         for end, history in (motion or {}).items():
@@ -121,6 +135,24 @@ def _check_spring(end, spring, kind, slide: dict, moving) -> None:
             raise ValueError(f"end_springs[{end!r}].{part}: the end's "
                              f"{'position' if part == 'translational' else 'rotation'} is "
                              "held or prescribed there, the support takes the spring's place")
+
+
+def linked_axes(end_slide, end_turn, end_frames: dict) -> dict:
+    """{(block, end): axis in the block's components} of the supports a one-node link
+    holds (module docstring): a slide along an axis off the coordinate axes
+    ("displacement": the spatial axis), a turn about an axis that is not a coordinate
+    axis kept by the end's stress-free rotation ``end_frames[end]`` (a quaternion)
+    ("rotation_increment": the material axis R_sf^T axis)."""
+    linked = {}
+    for end, axis in (end_slide or {}).items():
+        if not is_coordinate_axis(axis):
+            linked["displacement", end] = np.asarray(axis, float)
+    for end, axis in (end_turn or {}).items():
+        a = np.asarray(axis, float)
+        material = np_rotation_matrix(end_frames[end]).T @ a
+        if not (is_coordinate_axis(a) and np.allclose(material, a, rtol=0, atol=1e-12)):
+            linked["rotation_increment", end] = material
+    return linked
 
 
 def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:
@@ -158,9 +190,13 @@ class EndSupports:
     may jump at t0 in a quasi-static rod), so that q_n,end c(theta_end) = q_end(t)."""
 
     def __init__(self, model, ends, end_displacement, end_rotation, end_slide,
-                 span: tuple[float, float], end_springs=None, end_turn=None):
+                 span: tuple[float, float], end_springs=None, end_turn=None,
+                 end_frames: dict | None = None):
         self.ends = tuple(ends)
         self.turn = {end: np.asarray(a, float) for end, a in (end_turn or {}).items()}
+        self.linked = linked_axes(end_slide, end_turn, end_frames or {})
+        self.turn_material = {end: self.linked.get(("rotation_increment", end), a)
+                              for end, a in self.turn.items()}  # R_0^T axis at the start
         self.springs = dict(end_springs or {})
         self.rest = {end: (fem.Constant(model.mesh, np.zeros(3)),
                            fem.Constant(model.mesh, _IDENTITY.copy())) for end in self.springs}
@@ -171,6 +207,8 @@ class EndSupports:
         self.values: dict = {}
         self.block = model.unknowns.rotation
         self.committed_time = None      # rotation vectors: time of q_n (None: initial)
+        self.fraction = 1.0            # of the motions at the time set (``scale``)
+        self.committed_fraction = 1.0  # ... and at the time of q_n
         self.time_set = 0.0            # the time of the values last set (set)
         self._fixed_values_of: dict = {}      # end -> the initial (x, q) its values hold
         spaces, mesh = model.unknowns.spaces, model.mesh
@@ -212,6 +250,8 @@ class EndSupports:
         across the slide axis of the position and velocity, across the turning axis of
         the rotation increment, angular velocity and quaternion vector (its gauge
         multiplier: none)."""
+        if (block, end) in self.linked:    # a one-node link holds it (``links``)
+            return ()
         if end in self.slide and block in ("displacement", "velocity"):
             return np.flatnonzero(self.slide[end] == 0.0)
         if end not in self.turn:
@@ -220,6 +260,12 @@ class EndSupports:
         return {"rotation_increment": across, "angular_velocity": across,
                 "quaternion": 1 + across, "gauge_multiplier": ()}.get(block)
 
+    def links(self, blocks: list[str]) -> list[NodeLine]:
+        """The one-node links of the supports on axes that are not coordinate axes
+        (``linked_axes``), for a model whose blocks are ``blocks``."""
+        return [NodeLine(blocks.index(block), self.s_ends[end], tuple(axis.tolist()))
+                for (block, end), axis in self.linked.items()]
+
     def _end_rotation(self, end: str, t: float) -> np.ndarray:
         """The end's rotation now: prescribed, or of the state at a turning end."""
         if end not in self.turn:
@@ -227,15 +273,25 @@ class EndSupports:
         q = self._turned[end](self._rotations.x.array)[0]
         return q / np.linalg.norm(q)
 
-    def prescribed(self, end: str, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """(x, q) of an end at time t."""
+    def prescribed(self, end: str, t: float,
+                   fraction: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(x, q) of an end at time t, its displacement and rotation vector scaled by
+        ``fraction`` (default: the one ``scale`` set, 1 but in the start's path)."""
         x0, q0 = self.initial[end]
-        d = np.asarray(self.displacement[end](t), float) if end in self.displacement \
+        f = self.fraction if fraction is None else fraction
+        d = f * np.asarray(self.displacement[end](t), float) if end in self.displacement \
             else np.zeros(3)
         if end in self.rotation:
-            qr = np_quaternion_from_rotation_vector(np.asarray(self.rotation[end](t), float))
+            qr = np_quaternion_from_rotation_vector(
+                f * np.asarray(self.rotation[end](t), float))
             return x0 + d, np_qmul(qr, q0)
         return x0 + d, q0
+
+    def scale(self, fraction: float) -> None:
+        """The prescribed motions' displacements and rotation vectors scaled by
+        ``fraction`` from now on (the consistent start's path, integrators/lie_alpha.py:
+        a turn of the ends beyond a quarter turn in committed parts)."""
+        self.fraction = fraction
 
     def set(self, t: float) -> None:
         """Values at time t, and (dynamic quaternion rods) the velocities V = x_t and
@@ -250,10 +306,11 @@ class EndSupports:
             self._fixed_values_of[end] = self.initial[end] if fixed else None
             if end in self.turn and not np.allclose(
                     np_rotation_matrix(self.initial[end][1]).T @ self.turn[end],
-                    self.turn[end], rtol=0, atol=1e-12):
+                    self.turn_material[end], rtol=0, atol=1e-12):
                 raise ValueError(f"end_turn[{end!r}]: the end's initial rotation turns the "
                                  f"axis {self.turn[end].tolist()} away: a turning end's "
-                                 "initial frame must keep its axis")
+                                 "initial frame must keep its axis (turn it about the "
+                                 "axis only against its stress-free frame)")
             if end in self.rest:                 # a spring's rest state: the initial one
                 for const, value in zip(self.rest[end], self.initial[end]):
                     const.value[:] = value
@@ -261,8 +318,8 @@ class EndSupports:
             self._set(("displacement", end), xe)
             self._set(("quaternion", end), qe)
             if ("rotation_increment", end) in self.values:
-                q_n = self.initial[end][1] if self.committed_time is None \
-                    else self.prescribed(end, self.committed_time)[1]
+                q_n = self.initial[end][1] if self.committed_time is None else \
+                    self.prescribed(end, self.committed_time, self.committed_fraction)[1]
                 self._set(("rotation_increment", end),
                           np_inverse_cayley(np_qmul(q_n * _CONJ, qe)))
             if ("velocity", end) in self.values:
@@ -288,7 +345,7 @@ class EndSupports:
 
     def commit(self) -> None:
         """Rotation vectors: the accepted step ends at the time last set (chart.commit)."""
-        self.committed_time = self.time_set
+        self.committed_time, self.committed_fraction = self.time_set, self.fraction
 
     def _angular_velocity(self, end: str, t: float) -> np.ndarray:
         """Material angular velocity 2 vec(conj(q) q_t)/|q|^2 of a prescribed end."""

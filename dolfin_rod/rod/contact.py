@@ -37,6 +37,7 @@ from ..checks import nonnegative, positive, sample_points
 SHAPES = ("plane", "sphere", "cylinder")
 XI_MIN = 1e-4             # g_min / delta: the barrier's exact range is [g_min, delta]
 BARRIER_CURVATURE = 2 * math.log(2) + 5.0   # b''(delta / 2) (dimensionless)
+PATH_DEPTH = 24           # bisections of a node's path in a step (path_entry)
 
 
 class InitialOverlap(ValueError):
@@ -177,6 +178,39 @@ def signed_distance(pose: Pose, p, ops: _Ops = UFL_OPS):
     return ops.where(inside, ops.max(e_r, e_z), ops.sqrt(ops.where(inside, 1.0, outside)))
 
 
+def path_entry(poses: Sequence[Pose], P0: np.ndarray, P1: np.ndarray):
+    """(node, obstacle) of a node whose straight path P0 -> P1 ((n, 3) each) enters an
+    obstacle (numpy poses: signed distance d <= 0), or None.  d is 1-Lipschitz in the
+    point, so on [a, b] of the path's parameter it stays > 0 if d(a) + d(b) > |P1 - P0|
+    (b - a); other intervals are bisected (PATH_DEPTH times at most; still open after
+    them: counted as an entry).  (The body, not the body thickened by the rod's radius:
+    a node sliding on a curved obstacle at a small gap has chords that cut into the
+    gap, not into the body.)"""
+    move = np.linalg.norm(P1 - P0, axis=1)
+    for k, pose in enumerate(poses):
+        def gap(tau, i):
+            point = P0[i] + tau[:, None] * (P1 - P0)[i]
+            return signed_distance(pose, point, NP_OPS)
+        idx = np.arange(len(P0))
+        a, b = np.zeros(len(idx)), np.ones(len(idx))
+        ga, gb = gap(a, idx), gap(b, idx)
+        for _ in range(PATH_DEPTH):
+            inside = np.minimum(ga, gb) <= 0
+            if inside.any():
+                return int(idx[inside][0]), k
+            open_ = ga + gb <= move[idx] * (b - a)
+            if not open_.any():
+                break
+            idx, a, b, ga, gb = idx[open_], a[open_], b[open_], ga[open_], gb[open_]
+            m = 0.5 * (a + b)
+            gm = gap(m, idx)
+            idx, a, b, ga, gb = (np.concatenate(v) for v in
+                                 ((idx, idx), (a, m), (m, b), (ga, gm), (gm, gb)))
+        else:
+            return int(idx[0]), k
+    return None
+
+
 # -- the law -------------------------------------------------------------------------------
 
 def _beta(xi):
@@ -246,6 +280,7 @@ class ObstacleContact:
         self._owned = space.dofmap.index_map.size_local
         self._nodes = space.tabulate_dof_coordinates()[: self._owned, 0]
         self.V = V if any(ob.friction > 0 for ob in obstacles) else None
+        self.start = None       # the nodes' points at the last commit (path check)
 
     # densities at a point p of the centre line (UFL), per obstacle
     def _gap(self, pose, p):
@@ -332,8 +367,7 @@ class ObstacleContact:
 
     def gaps(self) -> np.ndarray:
         """(owned nodes, obstacles) gaps of the current state."""
-        x = self.x.x.array.reshape(-1, 3)[: self._owned]
-        p = x + np.outer(self._nodes, (0.0, 0.0, 1.0))
+        p = self._positions()
         return np.stack([signed_distance(pose, p, NP_OPS) - self.law.radius
                          for pose in self.numbers], axis=-1).reshape(len(p), -1)
 
@@ -355,12 +389,33 @@ class ObstacleContact:
                                  "the obstacle or the rod", k)
 
     def check_state(self) -> str | None:
-        """A reason to reject a converged step: a node at or inside an obstacle."""
+        """A reason to reject a converged step: a node at or inside an obstacle, or a
+        node whose straight path from the last committed state entered one's body
+        (jumped through a thin obstacle within the step: path_entry)."""
         g, s, k = self.closest()
-        if g > 0:
+        if g <= 0:
+            return (f"the centre line at s = {s:.4g} is {-g:.3g} inside obstacles[{k}] "
+                    f"(gap {g:.3g}; the barrier was overcome: raise contact.stiffness)")
+        if self.start is None:
             return None
-        return (f"the centre line at s = {s:.4g} is {-g:.3g} inside obstacles[{k}] (gap "
-                f"{g:.3g}; the barrier was overcome: raise contact.stiffness)")
+        hit = path_entry(self.numbers, self.start, self._positions())
+        found = self.mesh.comm.allgather(None if hit is None else
+                                         (float(self._nodes[hit[0]]), hit[1]))
+        hit = next((h for h in found if h is not None), None)
+        if hit is None:
+            return None
+        return (f"the centre line at s = {hit[0]:.4g} passed through obstacles[{hit[1]}] "
+                "during the step (a node's path entered it: the step is cut)")
+
+    def _positions(self) -> np.ndarray:
+        """(owned nodes, 3) the centre line's points."""
+        x = self.x.x.array.reshape(-1, 3)[: self._owned]
+        return x + np.outer(self._nodes, (0.0, 0.0, 1.0))
+
+    def commit(self) -> None:
+        """After an accepted step (and at the start): its points start the next step's
+        path check."""
+        self.start = self._positions()
 
     def update_normal_forces(self) -> None:
         """lambda_k := the normal force density of the current state at the nodes (after

@@ -166,7 +166,7 @@ def settle(model, t: float) -> None:
     solver = BlockSNES([model.residual[n] for n in names], [unk.f[n] for n in names],
                        [bc for n in names for bc in model.bcs_of(n)],
                        {"snes_max_it": 50}, step_scale=problem.configuration_norm(),
-                       links=links)
+                       links=links, terms=problem.terms)      # segment contact's pairs
     try:
         solver.solve()
     except SolverError as err:
@@ -189,14 +189,37 @@ def _means(model, field) -> np.ndarray:
     return total / np.array(model.layout.lengths)[:, None]
 
 
+def check_natural(name: str, given, rod_names: list[str]) -> None:
+    """A given natural strain: None, a finite 3-vector, or {rod name: finite 3-vector}
+    (ValueError naming ``name`` and the rod)."""
+    if given is None:
+        return
+    for rod_name, value in (given.items() if isinstance(given, dict) else [(None, given)]):
+        where = name if rod_name is None else f"{name}[{rod_name!r}]"
+        if rod_name is not None and rod_name not in rod_names:
+            raise ValueError(f"{where}: no rod of that name (rods: {rod_names})")
+        value = np.asarray(value, float)
+        if value.shape != (3,) or not np.all(np.isfinite(value)):
+            raise ValueError(f"{where} must be a finite 3-vector, got {value.tolist()}")
+
+
 def _fill_natural(model, name, given, discrete) -> None:
+    """The natural strain block ``name``: each rod's given 3-vector (``given``: one for
+    every rod, or {rod name: 3-vector} for some), else its discrete reference strains
+    (local variant) or their mean (uniform: one global value per rod, so no initial
+    stress)."""
     g = model.unknowns.f[name]
-    if given is not None:
-        val = np.broadcast_to(np.asarray(given, float), (g.x.array.size // 3 or 1, 3))
-    elif model.variant == "local":
-        val = discrete.x.array.reshape(-1, 3)
-    else:     # one global value: the mean of the discrete strains, so no initial stress
+    names = [rod.name for rod in model.rods]
+    per_rod = given if isinstance(given, dict) else dict.fromkeys(
+        names if given is not None else (), given)
+    if model.variant == "local":
+        val = discrete.x.array.reshape(-1, 3).copy()
+        rod_of = model.layout.rod_of(discrete.function_space.tabulate_dof_coordinates()[:, 0])
+    else:
         val = _means(model, discrete)
+        rod_of = np.arange(len(names))
+    for rod_name, value in per_rod.items():
+        val[rod_of == names.index(rod_name)] = np.asarray(value, float)
     if model.constraint == "unshearable" and name == "natural_stretch":
         g.x.array[:] = np.broadcast_to(val[:, 2], g.x.array.shape)
     else:

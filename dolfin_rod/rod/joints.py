@@ -120,6 +120,28 @@ class Hinge:
         d_psi = (n + 0.5 * np.cross(alpha, n)) / D + N * (alpha @ n) / (4 * D * D)
         return N / D, np.column_stack([d_alpha @ self.Q.T, d_psi])
 
+    def curvature(self, theta_a, own) -> np.ndarray:
+        """d^2 theta_b / d(theta_a, psi)^2 of the exact map (3 x 4 x 4, symmetric in its
+        last two indices): of N/D with x = (alpha, psi), N_x = [I - psi/2 [n]x, n + alpha
+        x n/2], D_x = -(psi n, alpha.n)/4, whose only second derivatives are the mixed
+        alpha_j psi ones, N: -[n]x e_j/2, D: -n_j/4; then alpha = Q^T theta_a."""
+        n, psi = self.axis, float(own[0])
+        alpha = self.Q.T @ theta_a
+        D = 1.0 - psi * (alpha @ n) / 4.0
+        N = alpha + psi * n + 0.5 * psi * np.cross(alpha, n)
+        dN = np.column_stack([np.eye(3) - 0.5 * psi * _skew(n), n + 0.5 * np.cross(alpha, n)])
+        dD = np.append(-psi * n / 4.0, -(alpha @ n) / 4.0)
+        ddN, ddD = np.zeros((3, 4, 4)), np.zeros((4, 4))
+        ddN[:, :3, 3] = ddN[:, 3, :3] = -0.5 * _skew(n)
+        ddD[:3, 3] = ddD[3, :3] = -n / 4.0
+        cross = np.einsum("ik,l->ikl", dN, dD)
+        H = (ddN / D - (cross + cross.transpose(0, 2, 1)) / D ** 2
+             - np.einsum("i,kl->ikl", N, ddD) / D ** 2
+             + 2.0 * np.einsum("i,k,l->ikl", N, dD, dD) / D ** 3)
+        T = np.eye(4)
+        T[:3, :3] = self.Q.T
+        return np.einsum("ikl,ka,lb->iab", H, T, T)
+
     def parameters(self, theta_a, theta_b, exact: bool = True) -> np.ndarray:
         """psi fitted to theta_a, theta_b: the n part of c(alpha)^-1 c(theta_b)."""
         alpha = self.Q.T @ theta_a

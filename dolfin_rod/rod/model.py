@@ -35,7 +35,7 @@ from ..mpi import largest_on_ranks
 from ..theory.rotations import np_qmul, np_rotation_matrix, rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
-from .boundary_conditions import EndSupports, spin_free
+from .boundary_conditions import EndSupports, linked_axes, spin_free
 from .constitutive import check_model, energy_function, section_response
 from .contact import ContactLaw, Obstacle, ObstacleContact, check_contact
 from .discretisation import discretise, function_spaces, unknowns
@@ -45,6 +45,7 @@ from .joints import JointReactions, joint_nodes, node_links
 from .layout import RodLayout
 from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
+from .placement import placed_shape
 from .material import RodParameters, coefficients, is_zero
 from .rods import Rod, check_rods
 from .segments import PassThroughCheck
@@ -52,6 +53,20 @@ from .structure import structure
 from .start import RodStarts, StartingState, check_rod_starts, check_start
 
 _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def end_frames(rod: Rod) -> dict:
+    """{end: the stress-free, placed rotation (quaternion) of the rod's end}."""
+    q = placed_shape(rod, np.array([0.0, float(rod.params.length)]))[1]
+    return dict(zip(("left", "right"), q))
+
+
+def oblique_supports(rod: Rod) -> list[tuple[str, str]]:
+    """(end_slide or end_turn, end) of a rod's supports on a one-node link
+    (boundary_conditions.linked_axes)."""
+    names = {"displacement": "end_slide", "rotation_increment": "end_turn"}
+    return [(names[block], end) for block, end in
+            linked_axes(rod.end_slide, rod.end_turn, end_frames(rod))]
 
 
 class RodModel(FEModel):
@@ -104,9 +119,10 @@ class RodModel(FEModel):
         springs = self._end_supports(F, disc)
         self.residual = {name: F[name] for name in self.names}
         self.joints = list(joints)
-        self.segment_contact = self._segment_contact(contact, self.layout)
         nodes = joint_nodes(self, self.joints)
-        self.problem = self._problem(node_links(self, self.joints, nodes))
+        self.segment_contact = self._segment_contact(contact, self.layout, nodes)
+        self.problem = self._problem(node_links(self, self.joints, nodes) + [
+            line for supports in self.end_supports for line in supports.links(self.names)])
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
         if self.dynamic:       # the steps must resolve them (integrators' check_run)
             self.problem.prescribed_motions = {
@@ -155,9 +171,14 @@ class RodModel(FEModel):
                               or any(np.all(spring.stiffness("rotational"))
                                      for spring in (rod.end_springs or {}).values())
                               for rod in rods))
+        linked = [f"{name}[{end!r}]" for rod in rods for name, end in oblique_supports(rod)]
         if joints and obstacle:
             raise ValueError(f"joints need rotation-vector unknowns, which this system "
                              f"cannot have: {obstacle}")
+        if linked and obstacle:
+            raise ValueError(f"{linked[0]}: an axis off the coordinate axes needs "
+                             f"rotation-vector unknowns, which this rod cannot have: "
+                             f"{obstacle}")
         # a dynamic rod's end rotation jumps at most at t = 0 (later: refused): the
         # consistent start turns it there (integrators/lie_alpha.py)
         chosen = choose_rotations(rotations, obstacle, rotation_jumps=not self.dynamic and any(
@@ -165,6 +186,10 @@ class RodModel(FEModel):
             for motion in (rod.end_rotation or {}).values()))
         if joints and chosen != "rotation_vector":
             raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
+                             f"'rotation_vector'), got {rotations!r}")
+        if linked and chosen != "rotation_vector":
+            raise ValueError(f"{linked[0]}: an axis off the coordinate axes needs "
+                             "rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
         for name in ("end_displacement", "end_rotation"):
             if self.dynamic and chosen == "quaternion" and any(
@@ -224,7 +249,7 @@ class RodModel(FEModel):
         unk = self.unknowns
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
-                                         rod.end_springs, rod.end_turn)
+                                         rod.end_springs, rod.end_turn, end_frames(rod))
                              for k, rod in enumerate(self.rods)]
         per_rod = [supports.spring_energy(unk, disc.ds, disc.end_weight,
                                           disc.pieces.indicator(k))
@@ -259,14 +284,11 @@ class RodModel(FEModel):
             hint="self-contact is off: set contact.self = true (contact.between_rods for "
                  "rods of a system; docs/contact.md)")
 
-    def _segment_contact(self, law, layout) -> SegmentContact | None:
-        """The segment pairs' contact (pair_contact.py) if the law asks for it."""
+    def _segment_contact(self, law, layout, joint_nodes) -> SegmentContact | None:
+        """The segment pairs' contact (pair_contact.py) if the law asks for it; the
+        joints' nodes (s of both rods) join their segments as neighbours."""
         if law is None or not (law.self_contact or law.between_rods):
             return None
-        if self.joints:
-            raise ValueError("contact.self / contact.between_rods with joints: not "
-                             "supported (the joints' constrained solve keeps the "
-                             "Jacobian's sparsity fixed)")
         if self.unknowns.chart is None:
             raise ValueError("contact.self / contact.between_rods need rotation-vector "
                              f"unknowns (rotations 'auto' or 'rotation_vector'), got "
@@ -284,7 +306,7 @@ class RodModel(FEModel):
             raise ValueError(f"contact.{key} needs a dynamic rod (rho_A > 0): the "
                              "friction force depends on the velocity")
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
-                                 law.self_contact, law.between_rods,
+                                 law.self_contact, law.between_rods, joint_nodes,
                                  velocity=self.unknowns.V if self.dynamic else None)
         contact.block = list(self.names).index("displacement")
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
@@ -326,7 +348,13 @@ class RodModel(FEModel):
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links, terms=[self.segment_contact] if self.segment_contact else [])
+            links=links, terms=[self.segment_contact] if self.segment_contact else [],
+            scale_motions=self.scale_motions)
+
+    def scale_motions(self, fraction: float) -> None:
+        """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""
+        for supports in self.end_supports:
+            supports.scale(fraction)
 
     def commit_rotations(self) -> None:
         """After an accepted step: rotation vectors q_n <- q_n c(theta), theta <- 0; the
@@ -337,6 +365,7 @@ class RodModel(FEModel):
                 supports.commit()
         if self.contact:
             self.contact.update_normal_forces()
+            self.contact.commit()
         if self.segment_contact:
             self.segment_contact.commit()
         self.check_cell_turns()
@@ -386,11 +415,15 @@ class RodModel(FEModel):
                 "rotations_committed_at": self.supports.committed_time}
 
     def restore_state(self, state: dict) -> None:
-        """After the checkpoint's functions were read (checkpoint_state)."""
+        """After the checkpoint's functions were read (checkpoint_state); the contacts'
+        path checks start from the restored state."""
         if self.unknowns.chart is not None:
             committed = state["rotations_committed_at"]
             for supports in self.end_supports:
                 supports.committed_time = None if committed is None else float(committed)
+        for contact in (self.contact, self.segment_contact):
+            if contact:
+                contact.commit()
 
     def stress_free(self, s):
         """(r, q) of the initial stress-free configuration at parameter values s."""
@@ -400,13 +433,17 @@ class RodModel(FEModel):
                           start: StartingState | dict | None = None) -> None:
         """Natural strains equal to the discrete reference strains of the stress-free
         configuration (a straight rod along e_3, or the helix/circle of constant
-        reference_curvature; uniform variant: their mean) unless given (3-vectors).
+        reference_curvature; uniform variant: their mean) unless given (3-vectors; a
+        system: one for every rod, or {rod name: 3-vector} for some rods).
         ``start`` None: the rod rests in that configuration, no stress at t = 0;
         a StartingState (rod/start.py; a system: {rod name: StartingState}, each in its
         rod's placed frame, rod/start.RodStarts, consistent at the joints): placed at its position
         and orientation, on its starting curve (e.g. Arc, Helix, Polyline, a Straight one
         stretched), with its velocities (dynamic rods), or settled in static equilibrium
         with the loads at t = 0 (``equilibrium``); the stress-free shape is unchanged."""
+        for name, given in (("natural_curvature", natural_curvature),
+                            ("natural_stretch", natural_stretch)):
+            initial_state.check_natural(name, given, [rod.name for rod in self.rods])
         held = any("clamped" in supports.ends or bool(supports.rotation)
                    for supports in self.end_supports)
         if self.layout.single:
@@ -420,6 +457,7 @@ class RodModel(FEModel):
         if self.contact:
             self.contact.check_initial()
             self.contact.update_normal_forces()
+            self.contact.commit()
         if self.segment_contact:
             reason = self.segment_contact.check_state()
             if reason:

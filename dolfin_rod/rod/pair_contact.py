@@ -136,10 +136,11 @@ class SegmentContact:
     the segments of ``x`` (the rod's displacement, P1), a term that fem/assembly adds to
     the residual and Jacobian of the systems that hold x (``bind``); law: the contact
     law (radius, gap, stiffness; friction coefficients and slip tolerance: with
-    ``velocity``, x's rate, the pairs' Coulomb friction, pair_friction.py)."""
+    ``velocity``, x's rate, the pairs' Coulomb friction, pair_friction.py); joints: the
+    nodes (s_a, s_b) of the rods' joints."""
 
     def __init__(self, x, law, rod_of, self_contact: bool, between_rods: bool,
-                 velocity=None):
+                 joints=(), velocity=None):
         self.x, self.law = x, law
         self.line = Centreline(x, rod_of)
         mu = (law.self_friction * self_contact, law.between_rods_friction * between_rods)
@@ -148,6 +149,7 @@ class SegmentContact:
         self.velocity_field, self.rates = velocity, None
         h = float(np.max(self.line.lengths))
         self.exclusion = exclusion(law.radius, law.gap, h)
+        self.through_joints = self._joint_distances(joints)
         self.self_contact, self.between_rods = self_contact, between_rods
         self.reach = 2 * law.radius + law.gap       # pairs act below this distance
         self._cache = (None, None)
@@ -167,7 +169,22 @@ class SegmentContact:
                            self.exclusion)
         same = line.rod[pairs[:, 0]] == line.rod[pairs[:, 1]]
         keep = (same & self.self_contact) | (~same & self.between_rods)
+        for near in self.through_joints:        # neighbours through a joint
+            keep &= near[pairs[:, 0]] + near[pairs[:, 1]] >= self.exclusion
         return pairs[keep]
+
+    def _joint_distances(self, joints) -> list[np.ndarray]:
+        """Per joint point (the nodes (s_a, s_b) of the joints, those sharing a node
+        merged: one place in space) each segment's distance in s to the nearest of its
+        nodes: two segments whose distances add up to less than the exclusion are
+        neighbours through the joint (as within a rod), no pair."""
+        groups: list[set] = []
+        for joint in joints:
+            linked = [g for g in groups if g & set(joint)]
+            merged = set(joint).union(*linked)
+            groups = [g for g in groups if g not in linked] + [merged]
+        return [np.min(np.abs(self.line.mid_s[:, None] - np.array(sorted(g))[None, :]),
+                       axis=1) for g in groups]
 
     def _coordinates(self, P, pairs):
         e = self.line.ends
@@ -214,9 +231,11 @@ class SegmentContact:
         return self.line.gather(owned.reshape(-1, 3))
 
     def bind(self, system) -> "BoundTerm":
-        """The term in an assembled ``system`` (fem/assembly) whose block ``self.block``
-        (the model's displacement block) holds x or another unknown of its space (the
-        start's accelerations: then x is fixed and the term adds its residual only)."""
+        """The term in an assembled ``system`` (fem/assembly) one of whose unknowns is x
+        (any block: the tangent stiffness of analysis/ holds the mechanical blocks only),
+        or whose block ``self.block`` (the model's displacement block) holds another
+        unknown of its space (the start's accelerations: then x is fixed and the term
+        adds its residual only)."""
         return BoundTerm(self, system)
 
     # -- diagnostics ------------------------------------------------------------------
@@ -351,8 +370,11 @@ class BoundTerm:
     def __init__(self, contact: SegmentContact, system):
         self.contact = contact
         line = contact.line
-        self.solved = system.groups[0][contact.block] is contact.x
-        self.local_rows = system.rows_of(contact.block, np.arange(3 * line.n_owned))
+        unknowns = system.groups[0]
+        held = [k for k, y in enumerate(unknowns) if y is contact.x]
+        self.solved = bool(held)
+        block = held[0] if held else contact.block
+        self.local_rows = system.rows_of(block, np.arange(3 * line.n_owned))
         start = system.x.getOwnershipRange()[0]
         rows = np.full((line.n_nodes, 3), -1, dtype=np.int64)
         rows[line.gathered] = np.concatenate(line.comm.allgather(
@@ -383,17 +405,21 @@ class BoundTerm:
         np.add.at(b_owned, rows.ravel(), G.reshape(-1, 3)[mine].ravel())
 
     def limit_step(self, x_owned: np.ndarray, y_owned: np.ndarray) -> None:
-        """Newton's update x - y (PETSc's sign) scaled down in place so that no pair
-        closes to below STEP_FLOOR of its gap along it (SegmentContact.step_fraction;
-        collective: the same factor on every rank)."""
+        """Newton's update x - y (PETSc's sign) scaled down in place by ``step_factor``."""
+        alpha = self.step_factor(x_owned, y_owned)
+        if alpha < 1.0:
+            y_owned *= alpha
+
+    def step_factor(self, x_owned: np.ndarray, y_owned: np.ndarray) -> float:
+        """The factor of Newton's update x - y (PETSc's sign) after which no pair closes
+        to below STEP_FLOOR of its gap along it (SegmentContact.step_fraction;
+        collective: the same factor on every rank); 1 if x is not solved for."""
         if not self.solved:
-            return
+            return 1.0
         u = x_owned[self.local_rows]
         line = self.contact.line
         P0 = line.positions(u)
-        alpha = self.contact.step_fraction(P0, line.positions(u - y_owned[self.local_rows]))
-        if alpha < 1.0:
-            y_owned *= alpha
+        return self.contact.step_fraction(P0, line.positions(u - y_owned[self.local_rows]))
 
     def add_jacobian(self, A) -> None:
         """A += the pairs' Hessians (rows of owned nodes) at the last residual's state,

@@ -12,6 +12,7 @@ import ufl
 
 from ..theory import balance, constraints
 from ..theory.evolution import evolution_residual
+from ..fem.gathered_form import as_form
 from .constitutive import SectionResponse
 from .discretisation import Discretisation, Unknowns
 
@@ -102,10 +103,10 @@ def zero_diagonals(F: dict, unk: Unknowns, disc: Discretisation) -> None:
 
 
 def one_quadrature_rule(F: dict, unk: Unknowns, disc: Discretisation) -> None:
-    """Rotation vectors: the 2-point Gauss integrals (inertia, loads, drag) as 1-point
-    integrals of their values at the Gauss points (RotationVectorChart.one_point_rule, the
-    same quadrature), so that each block's cell integrals form one kernel."""
-    if unk.chart is None:
-        return
+    """Each block's terms as one ufl.Form (fem/gathered_form.py); rotation vectors: the
+    2-point Gauss integrals (inertia, loads, drag) as 1-point integrals of their values at
+    the Gauss points (RotationVectorChart.one_point_rule, the same quadrature), so that
+    each block's cell integrals form one kernel."""
     for name, form in F.items():
-        F[name] = unk.chart.one_point_rule(form, disc.dx_r)
+        F[name] = (unk.chart.one_point_rule(form.integrals(), disc.dx_r)
+                   if unk.chart is not None else as_form(form))

@@ -33,7 +33,6 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
-from ufl.algorithms.analysis import extract_arguments, extract_coefficients
 from ufl.corealg.traversal import unique_pre_traversal
 
 from ..mpi import largest_on_ranks
@@ -102,15 +101,23 @@ def strains(k_a, k_b, r_s, q_n_a, p_n, h):
     return u, rotate_back(m, ufl.dot(_RT(q_n_a), r_s))
 
 
-def _pointwise(g) -> bool:
-    """No derivatives in g, and its fields are of degree <= 1 on a cell."""
+def _linear_fields(g) -> list | None:
+    """The arguments and coefficients of g of degree 1 on a cell, in the order of
+    extract_arguments + extract_coefficients (the order in which their values at a point
+    are built decides the form's index numbering, so its signature), or None if g has
+    derivatives or a field of higher degree: one traversal of g instead of three."""
+    arguments, coefficients = [], []
     for node in unique_pre_traversal(g):
         if isinstance(node, ufl.classes.Derivative):
-            return False
-        if isinstance(node, (ufl.Argument, ufl.Coefficient)) and \
-                node.ufl_element().embedded_superdegree > 1:
-            return False
-    return True
+            return None
+        if isinstance(node, (ufl.Argument, ufl.Coefficient)):
+            degree = node.ufl_element().embedded_superdegree
+            if degree > 1:
+                return None
+            if degree == 1:
+                (arguments if isinstance(node, ufl.Argument) else coefficients).append(node)
+    return (sorted(arguments, key=lambda a: a.number())
+            + sorted(coefficients, key=lambda c: c.count()))
 
 
 def _k(theta):
@@ -154,21 +161,21 @@ class RotationVectorChart:
         of the cell: f + (s_point - s) f_s."""
         return f + (s_point - ufl.SpatialCoordinate(self.mesh)[0]) * f.dx(0)
 
-    def one_point_rule(self, form: ufl.Form, dx_r: ufl.Measure) -> ufl.Form:
-        """``form`` with its 2-point Gauss integrals (inertia, loads, drag) written as
-        1-point integrals of (g(s_1) + g(s_2))/2, s_1,2 = s_mid -+ h/(2 sqrt 3): the same
-        quadrature (to round-off), so that the step's residual and Jacobian are one kernel
-        each (docs/performance.md: one assembly call instead of two).  g(s_k) replaces
-        each field f of degree <= 1 on the cell (P1, DG0) by f(s_k) (``_value_at``: exact)
-        and s by s_k; an integral whose integrand has derivatives or other data stays."""
-        integrals = []
-        for itg in form.integrals():
+    def one_point_rule(self, integrals, dx_r: ufl.Measure) -> ufl.Form:
+        """The form of ``integrals`` with its 2-point Gauss integrals (inertia, loads, drag)
+        written as 1-point integrals of (g(s_1) + g(s_2))/2, s_1,2 = s_mid -+ h/(2 sqrt 3):
+        the same quadrature (to round-off), so that the step's residual and Jacobian are
+        one kernel each (docs/performance.md: one assembly call instead of two).  g(s_k)
+        replaces each field f of degree <= 1 on the cell (P1, DG0) by f(s_k)
+        (``_value_at``: exact) and s by s_k; an integral whose integrand has derivatives
+        or other data stays."""
+        out = []
+        for itg in integrals:
             g = itg.integrand()
-            if itg.integral_type() == "cell" and itg.metadata() != dx_r.metadata() \
-                    and _pointwise(g):
+            linear = (_linear_fields(g) if itg.integral_type() == "cell"
+                      and itg.metadata() != dx_r.metadata() else None)
+            if linear is not None:
                 h, x = ufl.CellVolume(self.mesh), ufl.SpatialCoordinate(self.mesh)
-                linear = [f for f in extract_arguments(g) + extract_coefficients(g)
-                          if f.ufl_element().embedded_superdegree == 1]
                 values = []
                 for s_k in (self.s_mid - GAUSS_2 * h, self.s_mid + GAUSS_2 * h):
                     mapping = {f: self._value_at(f, s_k) for f in linear}
@@ -176,8 +183,8 @@ class RotationVectorChart:
                     values.append(ufl.replace(g, mapping))
                 itg = itg.reconstruct(integrand=0.5 * (values[0] + values[1]),
                                       metadata=dx_r.metadata())
-            integrals.append(itg)
-        return ufl.Form(integrals)
+            out.append(itg)
+        return ufl.Form(out)
 
     def strain_rates(self, u, v, x, V, W):
         """(u_t, v_t) along the velocity V and material angular velocity W (nodal)."""

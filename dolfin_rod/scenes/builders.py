@@ -128,24 +128,26 @@ class FESimulation:
 
     def _branch_switching(self):
         """Branch switching at bifurcations (analysis/branches.py): quasi-static rods
-        with rotation vectors whose stability is checked, unless stability.at_bifurcation
-        = "stay"."""
-        if self.stability is None or self.scene["stability"]["at_bifurcation"] != "switch":
+        without constraints whose stability is checked, unless stability.at_bifurcation
+        = "stay"; not with segment contact (the descent's steps have no check that
+        segments pass through each other: the count is reported, the path stays)."""
+        if self.stability is None or self.scene["stability"]["at_bifurcation"] != "switch" \
+                or segment_pairs(self.scene):
             return None
         from ..analysis.branches import BranchSwitching
         try:
             return BranchSwitching(self.stability)
-        except ValueError:          # quaternions or constraints (LowestEigenvalues)
+        except ValueError:          # constraints (LowestEigenvalues)
             return None
 
     def _stability_monitor(self):
         """Quasi-static 3-D rods: the stability of each step's equilibrium
-        (analysis/stability.py); a system with joints or segment contact is not checked
-        (its constraints or pair terms act on the assembled system, not in the forms K is
-        made of)."""
+        (analysis/stability.py; segment contact's pairs included in K); a system with
+        joints is not checked (its constraints act on the assembled system, not in the
+        forms K is made of)."""
         scene, model = self.scene, self.model
         if scene.is_rod_material and not model.dynamic and scene["stability"]["check"] \
-                and not getattr(model, "joints", None) and not segment_pairs(scene):
+                and not getattr(model, "joints", None):
             from ..analysis.stability import StabilityMonitor
             return StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
         return None
@@ -296,8 +298,7 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     initial = scene["initial"]
 
     def initial_state():
-        model.set_initial_state(natural_curvature=initial["natural_curvature"],
-                                natural_stretch=initial["natural_stretch"],
+        model.set_initial_state(**natural_strains(scene),
                                 start=rod_starts(scene) if scene.rods else starting_state(scene))
 
     if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
@@ -307,6 +308,17 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
         except InitialOverlap as err:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
     return FESimulation("rod", model, scene, initial_state)
+
+
+def natural_strains(scene: Scene) -> dict:
+    """The initial natural_curvature and natural_stretch of [initial]: a 3-vector or None;
+    with [[rods]] {rod name: 3-vector} of the rods that give one (their own [initial] or
+    the scene's)."""
+    keys = ("natural_curvature", "natural_stretch")
+    if not scene.rods:
+        return {key: scene["initial"][key] for key in keys}
+    return {key: {rod.name: rod.scene["initial"][key] for rod in scene.rods
+                  if rod.scene["initial"][key] is not None} or None for key in keys}
 
 
 def rod_starts(scene: Scene) -> dict | None:

@@ -13,8 +13,8 @@ from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
 from ..rod.rotation_choice import (choose_rotations, rotation_vector_obstacle,
                                    rotations_reason)
-from ..checks import (EQUILIBRIUM_NEEDS, MAX_CELL_TURN, polyline_problem, sample_points,
-                      slide_axis_problem)
+from ..checks import (EQUILIBRIUM_NEEDS, MAX_CELL_TURN, is_coordinate_axis,
+                      polyline_problem, sample_points, slide_axis_problem)
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene, SceneError
@@ -496,10 +496,19 @@ def _slide_axis(scene: Scene, end: str):
     if problem:
         raise scene.error(key, problem)
     motion = bnd[f"{end}_displacement"]
-    if motion is not None and motion.is_vector and _along_and_across(motion, axis)[0]:
+    if motion is not None and not is_coordinate_axis(axis):
+        raise scene.error(f"boundary.{end}_displacement", f"the end slides along {list(axis)} "
+                                                          f"({key}), off the coordinate axes: "
+                                                          "its motion across that axis cannot "
+                                                          "be prescribed (only across +-e_i)")
+    if motion is not None and motion.is_vector and _along(motion, axis):
         raise scene.error(f"boundary.{end}_displacement", f"the end slides freely along "
                                                           f"{list(axis)} ({key}): prescribe "
                                                           "its motion across that axis only")
+    if not is_coordinate_axis(axis) and rod_rotations(scene) != "rotation_vector":
+        raise scene.error(key, "an axis off the coordinate axes needs rotation-vector "
+                               "unknowns (geometry.rotations), which this rod does not have: "
+                               + rod_rotations_reason(scene))
     return np.asarray(axis)
 
 
@@ -523,12 +532,10 @@ def _turn_axis(scene: Scene, end: str):
     return np.asarray(axis)
 
 
-def _along_and_across(spec, axis) -> tuple[bool, bool]:
-    """Whether a vector history has a component along the axis, and one across it."""
+def _along(spec, axis) -> bool:
+    """Whether a vector history has a component along the axis."""
     values = np.array(spec.values if spec.type == "table" else (spec.value,), float)
-    a = np.asarray(axis)
-    along = values @ a
-    return bool(np.any(along != 0.0)), bool(np.any(values - np.outer(along, a) != 0.0))
+    return bool(np.any(values @ np.asarray(axis) != 0.0))
 
 
 def _check_rod_ends(scene: Scene) -> None:
@@ -565,13 +572,14 @@ def _check_rod_ends(scene: Scene) -> None:
                                                        "(or a table of 3-vectors)")
             free_axis = axis if load == "force" else turn
             if free_axis is not None:
-                if spec.follower or _along_and_across(spec, free_axis)[1]:
+                if spec.follower:
                     how = "slides along" if load == "force" else "turns about"
                     raise err(f"loads.{end}_{load}", f"the end {how} {list(free_axis)} "
                                                      f"(boundary.{end}_"
                                                      f"{'slide' if load == 'force' else 'turn'}"
-                                                     f"): only a dead {load} along that axis "
-                                                     "acts on it, the support takes the rest")
+                                                     f"): only a dead {load} acts on it (its "
+                                                     "part along the axis; the support takes "
+                                                     "the rest)")
                 continue
             if fixed:
                 raise err(f"loads.{end}_{load}", f"acts where the {what} is prescribed "
@@ -597,14 +605,12 @@ MOTION_KEYS = ("end_rotation", "start_rotation", "end_displacement", "start_disp
 
 def analysis_problem(scene: Scene, kind: str) -> None:
     """Refuse (SceneError naming the key) a scene that ``dolfin-rod buckle`` ("buckle")
-    or ``modes`` ("modes") cannot analyse, before any work: a 3-D rod on rotation
-    vectors without joints; buckling a quasi-static one with a load or end motion,
-    modes one with mass (docs/stability.md)."""
+    or ``modes`` ("modes") cannot analyse, before any work: a 3-D rod (or rods with
+    joints), either rotation unknowns; buckling a quasi-static one without constraints
+    with a load or end motion, modes one with mass (docs/stability.md)."""
     if not scene.is_rod_material:
         raise scene.error("material", f"{kind}: a 3-D rod (material.stiffness, or a "
                                       "[section] with material.youngs_modulus)")
-    if scene.joints:
-        raise scene.error("joints", f"{kind}: rods joined by joints are not supported")
     mat = scene["material"]
     if kind == "modes" and not mat["dynamic"]:
         raise scene.error("material.density", "modes: the rod's mass (material.density "
@@ -613,10 +619,12 @@ def analysis_problem(scene: Scene, kind: str) -> None:
         if mat["dynamic"]:
             raise scene.error("material.density", "buckle: a quasi-static rod (no "
                                                    "density); for a dynamic one: modes")
-        if not any(scene["loads"][k] is not None for k in LOAD_KEYS) and not any(
-                scene["boundary"][k] is not None for k in MOTION_KEYS):
+        if not any(any(part["loads"][k] is not None for k in LOAD_KEYS) or any(
+                part["boundary"][k] is not None for k in MOTION_KEYS)
+                for part in [scene, *(rod.scene for rod in scene.rods)]):
             raise scene.error("loads", "buckle: a load (loads.end_force, ...) or an end "
                                        "motion (boundary.end_rotation, ...) to scale")
-    if rod_rotations(scene) != "rotation_vector":
-        raise scene.error("geometry.rotations", f"{kind}: rotation-vector unknowns "
-                                                "(geometry.rotations = \"rotation_vector\")")
+        if mat["constraints"] != "none":
+            raise scene.error("material.constraints", "buckle: a rod without constraints "
+                                                      "(their multipliers' rates are not "
+                                                      "in the analysis)")

@@ -123,8 +123,9 @@ switching variant on a rod with L != 1 rescales time by L.
 `orientation` (a rotation vector turning e_3 into its initial tangent), and its own
 `geometry`, `section`, `material`, `boundary`, `loads`, `initial` as inline tables laid
 over the scene's tables key by key (an error names `rods[k].<table>.<key>`;
-`material.model`, `variant`, `constraints`, `energy`, `geometry.rotations` and
-`initial.natural_*` are shared and given in the scene's tables only; a rod's starting
+`material.model`, `variant`, `constraints`, `energy` and `geometry.rotations` are shared
+and given in the scene's tables only; `initial.natural_*` are each rod's own (or the
+scene's for every rod); a rod's starting
 state, `initial.shape`, `position`, `orientation`, velocities, is in its placed frame,
 and the starts of joined rods must meet as the joint holds them).  `[[joints]]` tables: `kind` ("rigid": position and rotation tied,
 "ball": position tied, "hinge": position tied, rotations equal up to a turn about
@@ -302,18 +303,20 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                 "rod a value at t = 0 (a constant, a step at t0 = 0) starts "
                                 "the rod at rest in equilibrium with it"),
         "start_displacement": Key(history(True), None, R + "as end_displacement, at s = 0"),
-        "end_slide": Key(vector3(), None, R + "axis [x, y, z] (a unit coordinate axis, e.g. "
+        "end_slide": Key(vector3(), None, R + "unit axis [x, y, z] (any direction, e.g. "
                          "[0, 0, 1]) along which the clamped or pinned end s = L slides "
-                         "freely: its position is held (or end_displacement prescribed) "
-                         "across the axis only; a clamped end keeps its rotation (or "
-                         "follows end_rotation, e.g. turning about the axis); an end_force "
-                         "along the axis acts on it (a weight on a sliding clamp)"),
+                         "freely: its position is held (or, on a coordinate axis, "
+                         "end_displacement prescribed) across the axis only; a clamped end "
+                         "keeps its rotation (or follows end_rotation, e.g. turning about "
+                         "the axis); an end_force acts on it along the axis, the support "
+                         "takes its part across (a weight on a sliding clamp); an axis off "
+                         "the coordinate axes needs rotation-vector unknowns"),
         "start_slide": Key(vector3(), None, R + "as end_slide, at s = 0"),
-        "end_turn": Key(vector3(), None, R + "axis [x, y, z] (a unit coordinate axis) about "
-                        "which the clamped end s = L turns freely (a hinge; with end_slide "
-                        "along the same axis a cylindrical joint): its rotation is held "
-                        "about the other two axes only, a dead end_couple about the axis "
-                        "acts on it; its initial frame must keep the axis"),
+        "end_turn": Key(vector3(), None, R + "unit axis [x, y, z] (spatial, any direction) "
+                        "about which the clamped end s = L turns freely (a hinge; with "
+                        "end_slide along the same axis a cylindrical joint): its rotation "
+                        "is held about the other two axes only, a dead end_couple acts on "
+                        "it about the axis; a start may turn the end about the axis only"),
         "start_turn": Key(vector3(), None, R + "as end_turn, at s = 0"),
         "end_spring": Key(spring_table, None, R + "a compliant support at s = L: "
                           "{translational = k or [k_x, k_y, k_z] (N/m, spatial), rotational = "

@@ -38,9 +38,7 @@ SHARED = {("geometry", "rotations"): "the rotation unknowns",
           ("material", "model"): "the constitutive model",
           ("material", "variant"): "the evolution variant",
           ("material", "constraints"): "the constraint",
-          ("material", "energy"): "the energy function",
-          ("initial", "natural_curvature"): "the initial natural strains",
-          ("initial", "natural_stretch"): "the initial natural strains"}
+          ("material", "energy"): "the energy function"}
 JOINT_KEYS = ("kind", "rods", "point", "name", "axis")
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import ufl
 
+from ..fem.gathered_form import GatheredForm
 from .rotations import material_derivative_vector, rotation_matrix
 
 
@@ -32,12 +33,14 @@ def virtual_rotation(q, dq):
 
 
 def internal_work(m, n, u, v, fields, tests, dx):
-    """int m . delta u + n . delta v ds, with delta u, delta v by ufl.derivative."""
+    """int m . delta u + n . delta v ds, with delta u, delta v by ufl.derivative: a block
+    residual's first terms, gathered (more terms are added to it; fem/gathered_form.py)."""
     du = sum(ufl.derivative(u, f, w) for f, w in zip(fields, tests))
-    form = ufl.inner(m, du) * dx
+    form = GatheredForm()
+    form.integrate(ufl.inner(m, du), dx)
     if n is not None:
         dv = sum(ufl.derivative(v, f, w) for f, w in zip(fields, tests))
-        form += ufl.inner(n, dv) * dx
+        form.integrate(ufl.inner(n, dv), dx)
     return form
 
 
