@@ -1,5 +1,6 @@
 """The pictures of docs/gallery.md: runs the bundled scenes of issue 25 (sliding turning
-clamp, compliant support, rotational damping) and plots each against its closed form.
+clamp, on a vertical and on an inclined rail, compliant support, rotational damping) and
+plots each against its closed form.
 
     ./rodenv python3 docs/gallery.py        # ~1 min; writes docs/figures/gallery_*.png
 """
@@ -27,7 +28,7 @@ def series(name: str) -> dict:
     folder = ROOT / "results" / "gallery" / name
     run_scene(load_scene(ROOT / "scenes" / f"{name}.toml", QUIET), folder, quiet=True,
               overwrite=True)
-    rows = np.genfromtxt(folder / "timeseries.csv", delimiter=",", names=True)
+    rows = np.genfromtxt(folder / "timeseries.csv", delimiter=",", names=True, deletechars="")
     return {k: rows[k] for k in rows.dtype.names}
 
 
@@ -43,6 +44,20 @@ def hanging_twist(ax) -> None:
     ax.plot(s["time"], 100 * derived["A"][2] * twist, "k--", lw=0.8,
             label="GJ phi(t)/L x 100")
     ax.set(xlabel="t (s)", title="hanging weight on a sliding, turning clamp")
+    ax.legend(fontsize=7)
+
+
+def inclined_clamp(ax) -> None:
+    s = series("inclined_clamp")
+    t = np.linspace(0, 1, 50)
+    weight = 0.5 * t                                     # the ramped weight W(t)
+    top, carriage = (np.sqrt(sum(s[f"rod.reaction_force_{end}_{c}"] ** 2 for c in "xyz"))
+                     for end in ("right", "left"))
+    ax.plot(s["time"], top, "o", label="top clamp: |force| (N)")
+    ax.plot(t, weight / np.sqrt(3), "k--", lw=0.8, label="W/sqrt 3: the weight along the rail")
+    ax.plot(s["time"], carriage, "s", label="carriage: |force| (N)")
+    ax.plot(t, weight * np.sqrt(2 / 3), "k:", label="W sqrt(2/3): the weight across it")
+    ax.set(xlabel="t (s)", title="weight on a clamp sliding along a rail (1,1,1)/sqrt 3")
     ax.legend(fontsize=7)
 
 
@@ -70,8 +85,8 @@ def spin_up(ax) -> None:
 
 
 def main() -> None:
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
-    for draw, ax in zip((hanging_twist, sprung_cantilever, spin_up), axes):
+    fig, axes = plt.subplots(1, 4, figsize=(20, 4.2))
+    for draw, ax in zip((hanging_twist, inclined_clamp, sprung_cantilever, spin_up), axes):
         draw(ax)
     fig.tight_layout()
     FIGURES.mkdir(parents=True, exist_ok=True)

@@ -201,9 +201,6 @@ def test_neighbour_exclusion_and_bad_radius():
     with pytest.raises(ValueError, match="contact.radius"):
         RodModel(BEAM, N, model="hyperelastic",
                  contact=ContactLaw(0.3, 0.03, 1.0, self_contact=True))
-    with pytest.raises(ValueError, match="rotation-vector"):
-        RodModel(BEAM, N, model="hyperelastic", rotations="quaternion",
-                 contact=ContactLaw(R, DELTA, 1.0, self_contact=True))
 
 
 def _ring_drift(dt, t_end=0.5):

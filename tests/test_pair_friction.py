@@ -213,3 +213,16 @@ def test_negative_friction_exits_2_naming_the_key(tmp_path):
     proc = cli("check", path)
     assert proc.returncode == 2
     assert "contact.between_rods_friction" in proc.stderr and "must be >= 0" in proc.stderr
+
+
+def test_friction_needs_generalized_alpha_velocities():
+    """Quaternion unknowns (per-step schemes: no step velocities for the friction) and a
+    quasi-static rod are refused, naming the key."""
+    params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, rho_A=0.1, I11=1e-6,
+                           I22=1e-6)
+    law = ContactLaw(0.01, 0.002, 1e3, EPS, self_contact=True, self_friction=0.5)
+    with pytest.raises(ValueError, match="contact.self_friction needs rotation-vector"):
+        RodModel(params, 40, model="hyperelastic", rotations="quaternion", contact=law)
+    still = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3)
+    with pytest.raises(ValueError, match="contact.self_friction needs a dynamic rod"):
+        RodModel(still, 40, model="hyperelastic", contact=law)

@@ -88,13 +88,17 @@ def contains(V: fem.FunctionSpace, bc: fem.DirichletBC) -> bool:
     return V._cpp_object.contains(bc.function_space)
 
 
-def cpp_form(cpp_class, pointer, spaces, coefficients, constants, integral_types, mesh):
+def cpp_form(cpp_class, pointer, spaces, coefficients, constants, integral_types, mesh,
+             subdomains=None):
     """The C++ form of a compiled ufcx form (``pointer``) on ``spaces`` with the data of
-    ``coefficients``, ``constants`` (Python objects) and no subdomain data."""
+    ``coefficients``, ``constants`` (Python objects) and ``subdomains`` ({IntegralType:
+    [(id, integration entities)]} of its tagged integrals; none: no subdomain data)."""
     old = DOLFINX_VERSION < (0, 10)
+    subdomains = subdomains or {}
     return cpp_class(pointer if old else [int(pointer)], [V._cpp_object for V in spaces],
                      [c._cpp_object for c in coefficients], [c._cpp_object for c in constants],
-                     {t: [] for t in integral_types}, {} if old else [], mesh._cpp_object)
+                     {t: list(subdomains.get(t, [])) for t in integral_types},
+                     {} if old else [], mesh._cpp_object)
 
 
 def interpolation_points(V: fem.FunctionSpace):

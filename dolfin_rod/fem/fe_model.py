@@ -15,6 +15,7 @@ import ufl
 from mpi4py import MPI
 
 from ..checks import ENDS
+from . import form_cache
 
 _TAGS = {"left": 1, "right": 2}
 
@@ -84,12 +85,22 @@ class FormSums:
     assemblies: k coefficient packings, kernel calls and reductions; the rod's four at
     16 cells after a step: 105 -> 86 us)."""
 
-    def __init__(self, mesh, forms: list[ufl.Form]):
+    def __init__(self, mesh, forms: list[ufl.Form], key: str | None = None):
+        """``key`` (form_cache.py): the kernel is compiled once per key and bound to the
+        data of each later model of the key."""
         V = fem.functionspace(mesh, ("DG", 0, (max(1, len(forms)),)))
-        w = ufl.TestFunction(V)
-        integrals = [itg.reconstruct(integrand=itg.integrand() * w[k])
-                     for k, form in enumerate(forms) for itg in form.integrals()]
-        self.form = fem.form(ufl.Form(integrals)) if integrals else None
+        entry = form_cache.lookup(key)
+        objects = form_cache.registry(forms) if key else []
+        if entry is not None:
+            self.form = form_cache.bind(entry, objects, V, mesh)[0]
+        else:
+            w = ufl.TestFunction(V)
+            integrals = [itg.reconstruct(integrand=itg.integrand() * w[k])
+                         for k, form in enumerate(forms) for itg in form.integrals()]
+            summed = ufl.Form(integrals) if integrals else None
+            self.form = fem.form(summed) if summed else None
+            if key and summed:
+                form_cache.store(key, [self.form], [summed], objects)
         self.n, self.comm = len(forms), mesh.comm
         self.owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
 
@@ -121,6 +132,29 @@ def near_nodes(form: ufl.Form, mesh, s_nodes) -> ufl.Form:
     tags = dolfinx.mesh.meshtags(mesh, tdim, cells, np.ones_like(cells))
     return ufl.Form([itg.reconstruct(subdomain_id=1, subdomain_data=tags)
                      if itg.integral_type() == "cell" else itg for itg in form.integrals()])
+
+
+def compiled_near_nodes(form: ufl.Form, mesh, s_nodes, key: str | None = None) -> fem.Form:
+    """``near_nodes(form, mesh, s_nodes)`` compiled.  With a ``key`` (form_cache.py, e.g.
+    from the model's structure as data) its kernel is compiled once per key and bound to
+    the data and the cells of each later form of the key (a fit's trials: the reactions'
+    forms cost 0.1 s a trial compiled again)."""
+    restricted = near_nodes(form, mesh, s_nodes)
+    tags = [itg.subdomain_data() for itg in restricted.integrals()
+            if itg.integral_type() == "cell"]
+    if restricted is form or not tags:        # no cells of its own to bind: compiled
+        key = None
+    entry = form_cache.lookup(key)
+    objects = form_cache.registry([form])
+    if entry is None:
+        compiled = fem.form(restricted)
+        if key:
+            form_cache.store(key, [compiled], [restricted], objects, tagged=True)
+        return compiled
+    cell = fem.IntegralType.cell
+    cells = {cell: dolfinx.fem.forms.get_integration_domains(cell, tags[0], [1])}
+    return form_cache.bind(entry, objects, form.arguments()[0].ufl_function_space(), mesh,
+                           cells)[0]
 
 
 def nodal_residual(form: fem.Form, nodes: NodeValues) -> np.ndarray:
@@ -183,7 +217,10 @@ class FEModel:
         assembly: FormSums), and the time."""
         self.problem.set_loads(t)
         if self._diagnostic_sums is None:
-            self._diagnostic_sums = FormSums(self.mesh, list(self.diagnostic_forms.values()))
+            forms = list(self.diagnostic_forms.values())
+            structure = self.problem.structure      # the kernel compiled once per structure
+            self._diagnostic_sums = FormSums(self.mesh, forms, form_cache.structure_key(
+                forms, "diagnostic sums", structure=structure) if structure else None)
         d = dict(zip(self.diagnostic_forms, self._diagnostic_sums().tolist()))
         d["time"] = t
         return d

@@ -150,10 +150,13 @@ def lookup(key: str | None):
     return _ENTRIES.get(key)
 
 
-def store(key: str, compiled: list[fem.Form], ufl_forms: list[ufl.Form], objects) -> None:
+def store(key: str, compiled: list[fem.Form], ufl_forms: list[ufl.Form], objects,
+          tagged: bool = False) -> None:
     """Remember compiled forms with the registry positions of their data (skipped when a
-    form integrates over tagged subdomains, whose tags are not in the registry)."""
-    if any(itg.subdomain_data() is not None for form in ufl_forms for itg in form.integrals()):
+    form integrates over tagged subdomains, whose tags are not in the registry, unless
+    ``tagged``: the caller gives their integration entities to ``bind``)."""
+    if not tagged and any(itg.subdomain_data() is not None for form in ufl_forms
+                          for itg in form.integrals()):
         return
     index = {id(obj): i for i, obj in enumerate(objects)}
     entry = []
@@ -170,19 +173,20 @@ def store(key: str, compiled: list[fem.Form], ufl_forms: list[ufl.Form], objects
         _save(key, entry)
 
 
-def bind(entry, objects, space, mesh) -> list[fem.Form]:
-    """The cached kernels with the data of ``objects``, arguments in ``space``."""
+def bind(entry, objects, space, mesh, subdomains=None) -> list[fem.Form]:
+    """The cached kernels with the data of ``objects``, arguments in ``space``;
+    ``subdomains``: {IntegralType: [(id, integration entities)]} of tagged integrals."""
     return [_bound_form(k, [objects[i] for i in k.roles], [objects[i] for i in k.const_roles],
-                        space, mesh) for k in entry]
+                        space, mesh, subdomains) for k in entry]
 
 
-def _bound_form(k: Kernel, coefficients, constants, space, mesh) -> fem.Form:
+def _bound_form(k: Kernel, coefficients, constants, space, mesh, subdomains) -> fem.Form:
     """A DOLFINx form from a compiled kernel with other data (the C++ constructor differs
     between DOLFINx 0.9 and 0.11: compat.cpp_form)."""
     pointer = k.module.ffi.cast("uintptr_t", k.module.ffi.addressof(k.ufcx))
     types = [getattr(IntegralType, name) for name in k.integral_types]
     f = compat.cpp_form(form_cpp_class(np.dtype(k.dtype)), pointer, [space] * k.rank,
-                        coefficients, constants, types, mesh)
+                        coefficients, constants, types, mesh, subdomains)
     return fem.Form(f, k.ufcx, None, k.module)
 
 

@@ -49,11 +49,11 @@ def choose_integrator(problem: SemiDiscreteProblem, scheme: str | None = None,
     refused first (ValueError), before the problem is looked at."""
     if scheme is not None:
         get_scheme(scheme)
-    if problem.terms and (ts_type is not None or not on_rotation_group(problem, scheme)):
+    if problem.terms and ts_type is not None:
         raise ValueError("terms assembled outside the forms (a rod's segment contact, "
-                         "contact.self / contact.between_rods) are solved by "
-                         "generalized-alpha on the rotation group only: rotation-vector "
-                         "unknowns, no ts_type, scheme generalized_alpha[:rho_inf]")
+                         "contact.self / contact.between_rods) are not solved by PETSc TS "
+                         "(ts_type): its residual and Jacobian callbacks see the forms "
+                         "only; a per-step scheme (time.scheme) or generalized-alpha")
     if ts_type is not None:
         return TSIntegrator(problem, ts_type, solver_options=solver_options, **ts_options)
     if on_rotation_group(problem, scheme):

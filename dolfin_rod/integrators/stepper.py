@@ -71,9 +71,11 @@ class _StepResidual:
                    *(c for _, stage in self.stage_loads for c, _ in stage)]
         F = None if shared and form_cache.lookup(key) else step_forms(
             problem, scheme, history, dt, self.stage_loads)[0]
+        stages = [(st.w, st.a) for st in scheme.stages]      # terms: a rod's segment contact
+        terms = [term.for_step(stages, problem.fields, *history[:2]) for term in problem.terms]
         self.solver = BlockSNES(F, problem.fields, problem.bcs, options, cache=(key, objects),
                                 step_scale=problem.configuration_norm(),
-                                links=problem.links)
+                                links=problem.links, terms=terms)
         self._dt_last = None
 
     def solve(self, t_n: float, dt: float, sub_solves: int = 1) -> int:

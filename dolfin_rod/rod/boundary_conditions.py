@@ -51,7 +51,8 @@ import ufl
 
 from .. import loads
 from ..checks import is_coordinate_axis, slide_axis_problem
-from ..fem.fe_model import ENDS, NodeValues, near_nodes, nodal_residual
+from ..fem import form_cache
+from ..fem.fe_model import ENDS, NodeValues, compiled_near_nodes, nodal_residual
 from ..fem.multipoint import NodeLine
 from ..theory.rotations import (conj, np_qmul, np_quaternion_from_rotation_vector,
                                 np_rotation_matrix, qmul, vec)
@@ -360,16 +361,19 @@ class EndSupports:
         elif target is not None:
             target.value[:] = value
 
-    def reactions(self, residual: dict, t: float) -> dict:
+    def reactions(self, residual: dict, t: float, structure: str | None = None) -> dict:
         """reaction_force_{end}_{xyz}, reaction_couple_{end}_{xyz} at supported ends and the
         reaction_power of moving ends, at t (between steps): the assembled residual of
         the balance blocks at the end node (MPI-summed), i.e. the residual tested with a
         unit nodal translation, or a nodal spatial rotation e: delta q = (0, e) q_end / 2
-        (quaternions) or delta theta = R(q_end)^T e (rotation vectors, theta = 0)."""
+        (quaternions) or delta theta = R(q_end)^T e (rotation vectors, theta = 0).
+        ``structure``: the model's structure as data (its forms' kernels compiled once
+        per structure), or None."""
         out, power, rotation_block = {}, 0.0, self.block
         ends = [e for e in ENDS if any((b, e) in self.values
                                        for b in ("displacement", rotation_block))]
-        at_ends = {block: dict(zip(ends, nodal_residual(*self._compiled(residual, block, ends))))
+        at_ends = {block: dict(zip(ends, nodal_residual(*self._compiled(residual, block, ends,
+                                                                        structure))))
                    for block in ("displacement", rotation_block)
                    if any((block, e) in self.values for e in ends)}
         for end in ends:
@@ -389,19 +393,24 @@ class EndSupports:
             out["reaction_power"] = power
         return out
 
-    def _compiled(self, residual: dict, block: str, ends):
-        """The block's residual form and its end nodes, made at the first diagnostics."""
+    def _compiled(self, residual: dict, block: str, ends, structure: str | None):
+        """The block's residual form at the end nodes (its kernel compiled once per
+        structure) and those nodes, made at the first diagnostics."""
         if block not in self._residual_forms:
             s_ends = [self.s_ends[e] for e in ends]
-            form = near_nodes(residual[block], self.spaces[block].mesh, s_ends)
-            self._residual_forms[block] = (fem.form(form), NodeValues(self.spaces[block],
-                                                                      s_ends))
+            key = form_cache.structure_key([residual[block]], "reaction", block, tuple(ends),
+                                           structure=structure) if structure else None
+            form = compiled_near_nodes(residual[block], self.spaces[block].mesh, s_ends, key)
+            self._residual_forms[block] = (form, NodeValues(self.spaces[block], s_ends))
         return self._residual_forms[block]
 
     def _motion_rates(self, end: str, t: float) -> dict:
         """The nodal test values of a moving end's motion at t (between steps): x_t, and
         q_t (quaternions) or W (rotation vectors, theta = 0)."""
-        return {"displacement": loads.rate(lambda s: self.prescribed(end, s)[0], t),
+        # an end that only turns: x_t = 0, as the central difference of its fixed x gives
+        x_t = loads.rate(lambda s: self.prescribed(end, s)[0], t) \
+            if end in self.displacement else np.zeros(3)
+        return {"displacement": x_t,
                 self.block: (loads.rate(lambda s: self.prescribed(end, s)[1], t)
                              if self.block == "quaternion" else self._angular_velocity(end, t))}
 

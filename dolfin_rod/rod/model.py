@@ -289,10 +289,6 @@ class RodModel(FEModel):
         joints' nodes (s of both rods) join their segments as neighbours."""
         if law is None or not (law.self_contact or law.between_rods):
             return None
-        if self.unknowns.chart is None:
-            raise ValueError("contact.self / contact.between_rods need rotation-vector "
-                             f"unknowns (rotations 'auto' or 'rotation_vector'), got "
-                             f"{self.rotations!r}")
         h = max(length / n for length, n in zip(layout.lengths, layout.n_cells))
         reach = exclusion(law.radius, law.gap, h)
         if law.self_contact and reach >= min(layout.lengths):
@@ -301,10 +297,7 @@ class RodModel(FEModel):
                              f"{reach:.4g}, which is not shorter than the rod "
                              f"({min(layout.lengths):g}): a smaller radius or more cells")
         check_contact([], law)
-        if (law.self_friction or law.between_rods_friction) and not self.dynamic:
-            key = "self_friction" if law.self_friction else "between_rods_friction"
-            raise ValueError(f"contact.{key} needs a dynamic rod (rho_A > 0): the "
-                             "friction force depends on the velocity")
+        self._check_pair_friction(law)
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
                                  law.self_contact, law.between_rods, joint_nodes,
                                  velocity=self.unknowns.V if self.dynamic else None)
@@ -312,6 +305,20 @@ class RodModel(FEModel):
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
         self.pair_force = fem.Function(P1, name="pair_contact_force")
         return contact
+
+    def _check_pair_friction(self, law) -> None:
+        """Friction between segments (pair_friction.py) follows the velocities of
+        generalized-alpha's steps: a dynamic rod with rotation-vector unknowns."""
+        if not (law.self_friction or law.between_rods_friction):
+            return
+        key = "self_friction" if law.self_friction else "between_rods_friction"
+        if not self.dynamic:
+            raise ValueError(f"contact.{key} needs a dynamic rod (rho_A > 0): the "
+                             "friction force depends on the velocity")
+        if self.unknowns.chart is None:
+            raise ValueError(f"contact.{key} needs rotation-vector unknowns (advanced by "
+                             "generalized-alpha, whose velocities the friction follows), got "
+                             f"{self.rotations!r}")
 
     def _obstacle_contact(self, obstacles, law, disc) -> ObstacleContact | None:
         if not obstacles:
@@ -338,9 +345,10 @@ class RodModel(FEModel):
         unk = self.unknowns
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
                   list(self.residual.values()), self.loads, self.bcs, self.set_supports)
+        terms = [self.segment_contact] if self.segment_contact else []
         if unk.chart is None:
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
-                                       check_step=self.check_step)
+                                       check_step=self.check_step, terms=terms)
         rates_used = {c for F in self.residual.values() for c in F.coefficients()}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
@@ -348,8 +356,7 @@ class RodModel(FEModel):
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links, terms=[self.segment_contact] if self.segment_contact else [],
-            scale_motions=self.scale_motions)
+            links=links, terms=terms, scale_motions=self.scale_motions)
 
     def scale_motions(self, fraction: float) -> None:
         """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""
@@ -472,7 +479,7 @@ class RodModel(FEModel):
         reactions at supported ends."""
         d = self.assembled_diagnostics(t)
         d.update(self.tips[0]())
-        d.update(self.supports.reactions(self.residual, t))
+        d.update(self.supports.reactions(self.residual, t, self.problem.structure))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         self.pass_through(t)
@@ -504,8 +511,10 @@ class RodModel(FEModel):
         line = self.segment_contact.line
         order = np.argsort(line.reference[:, 2])
         points = line.positions(self.segment_contact.owned_displacement())[order]
-        q_n = self.unknowns.chart.q_n       # the nodal rotations (committed: theta = 0)
+        chart = self.unknowns.chart         # the nodal rotations (committed: theta = 0)
+        q_n = chart.q_n if chart is not None else self.unknowns.f["quaternion"]
         q = line.gather(q_n.x.array.reshape(-1, 4)[: line.n_owned])[order]
+        q /= np.linalg.norm(q, axis=1)[:, None]         # (quaternions: off the unit sphere)
         R = np.stack([np_rotation_matrix(qk) for qk in q])
         return clamped_rod_linking(points, R[:, :, 0], R[0, :, 2], R[-1, :, 2])
 

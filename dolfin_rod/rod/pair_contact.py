@@ -230,6 +230,13 @@ class SegmentContact:
             owned = slope * owned_displacement + intercept[:n]
         return self.line.gather(owned.reshape(-1, 3))
 
+    def for_step(self, stages, fields, previous, before_previous) -> "StepTerm":
+        """The term in a per-step scheme's residual sum_k w_k F(Y_k, ...) (stages: (w_k,
+        (a0, a1, a2)) with Y_k = a0 y + a1 y_n + a2 y_{n-1}; fields, previous,
+        before_previous: the problem's unknowns y and their y_n, y_{n-1})."""
+        block = next(k for k, y in enumerate(fields) if y is self.x)
+        return StepTerm(self, stages, previous[block], before_previous[block])
+
     def bind(self, system) -> "BoundTerm":
         """The term in an assembled ``system`` (fem/assembly) one of whose unknowns is x
         (any block: the tangent stiffness of analysis/ holds the mechanical blocks only),
@@ -363,12 +370,32 @@ class SegmentContact:
         return alpha
 
 
+class StepTerm:
+    """SegmentContact in a per-step scheme's residual (SegmentContact.for_step): stage k
+    adds w_k dE/dX(Y_k) to the residual and w_k a0_k H(Y_k) to the Jacobian, Y_k the
+    stage's displacement (a0 x + a1 x_n + a2 x_{n-1})."""
+
+    def __init__(self, contact: SegmentContact, stages, previous, before_previous):
+        self.contact, self.stages = contact, list(stages)
+        self.previous, self.before_previous = previous, before_previous
+
+    def bind(self, system) -> "BoundTerm":
+        return BoundTerm(self.contact, system, self)
+
+    def states(self, u: np.ndarray) -> list[tuple[float, float, np.ndarray]]:
+        """(w_k, a0_k, Y_k) of the stages at the owned displacement u."""
+        n = len(u)
+        return [(w, a[0], a[0] * u + a[1] * self.previous.x.array[:n]
+                 + a[2] * self.before_previous.x.array[:n]) for w, a in self.stages]
+
+
 class BoundTerm:
     """SegmentContact in one assembled system (fem/assembly): residual rows and Jacobian
-    entries of the owned nodes (the system's global row numbers for the columns)."""
+    entries of the owned nodes (the system's global row numbers for the columns); with a
+    StepTerm ``step``, its stages' sum."""
 
-    def __init__(self, contact: SegmentContact, system):
-        self.contact = contact
+    def __init__(self, contact: SegmentContact, system, step: StepTerm | None = None):
+        self.contact, self.step = contact, step
         line = contact.line
         unknowns = system.groups[0]
         held = [k for k, y in enumerate(unknowns) if y is contact.x]
@@ -389,14 +416,15 @@ class BoundTerm:
 
     def add_residual(self, x_owned: np.ndarray, b_owned: np.ndarray) -> None:
         """b += dE/dX at the owned nodes' rows (x: the system's owned unknowns), and the
-        friction's -w_k F (pair_friction.py)."""
+        friction's -w_k F (pair_friction.py; generalized-alpha's steps only)."""
         contact = self.contact
-        self._state = (x_owned[self.local_rows] if self.solved
-                       else contact.owned_displacement())
-        nodes, _, G, _ = contact.evaluate(self._state)
-        self._add_rows(b_owned, nodes, G)
+        u = x_owned[self.local_rows] if self.solved else contact.owned_displacement()
+        self._state = [(1.0, 1.0, u)] if self.step is None else self.step.states(u)
+        for weight, _, state in self._state:
+            nodes, _, G, _ = contact.evaluate(state)
+            self._add_rows(b_owned, nodes, weight * G)
         if contact.friction is not None:
-            self._friction = contact.friction.residual(contact.velocities(self._state))
+            self._friction = contact.friction.residual(contact.velocities(u))
             self._add_rows(b_owned, *self._friction[:2])
 
     def _add_rows(self, b_owned: np.ndarray, nodes: np.ndarray, G: np.ndarray) -> None:
@@ -427,8 +455,10 @@ class BoundTerm:
         sparsity."""
         if not self.solved or self._state is None:
             return
-        nodes, _, _, H = self.contact.evaluate(self._state)
-        self._add_matrix(A, nodes, H)
+        for weight, a0, state in self._state:
+            nodes, _, _, H = self.contact.evaluate(state)
+            if weight * a0 != 0.0:
+                self._add_matrix(A, nodes, weight * a0 * H)
         rates = self.contact.rates
         if self.contact.friction is not None and rates is not None:
             nodes, _, H = self._friction

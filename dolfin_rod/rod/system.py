@@ -61,7 +61,7 @@ class RodSystem(RodModel):
         moving, reaction_power = False, 0.0
         for rod, tip, supports in zip(self.rods, self.tips, self.end_supports):
             own = tip()
-            own.update(supports.reactions(self.residual, t))
+            own.update(supports.reactions(self.residual, t, self.problem.structure))
             moving = moving or "reaction_power" in own
             reaction_power += own.pop("reaction_power", 0.0)
             own["tip_rotation_angle"] = diagnostics.tip_rotation_angle(own)

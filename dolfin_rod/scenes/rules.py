@@ -267,7 +267,8 @@ def _check_rod_material(scene: Scene) -> None:
     for table, have in (("stiffness", stiff), ("viscosity", visc)):
         for k, t in have.items():
             semidefinite = k in ("M", "N")
-            samples = _sampled(t.at, L)
+            # a constant tensor: its one value (the samples' first, at s = 0)
+            samples = [t.terms[0]] if len(t.terms) == 1 else _sampled(t.at, L)
             if _not_finite(samples, L):
                 raise err(f"material.{table}.{k}", _not_finite(samples, L))
             for si, a in zip(sample_points(L), samples):
