@@ -38,7 +38,7 @@ from ..fem.solvers import BlockSNES, SolverError
 from ..mpi import largest_on_ranks
 from .schemes import alpha_rho_inf
 from .step_control import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
-                           march, nominal_steps)
+                           march, nominal_steps, step_failure)
 
 
 def default_options(comm, second_order: bool = True, direct: bool = False) -> dict:
@@ -500,8 +500,7 @@ class LieGeneralizedAlpha:
         self.stats.rejected += 1
         self._rejections += 1
         if self._rejections > self.max_cuts:
-            raise IntegrationError(f"time step failed at t = {t:.6g} after {self.max_cuts} "
-                                   f"step cuts (last dt = {h:.3g}): {err}", t) from err
+            raise step_failure(t, self.max_cuts, h, err, self.problem) from err
         if isinstance(err, StepRejected):
             return h * self.control.growth(err.error)
         return CUT_FACTOR * h
@@ -512,9 +511,7 @@ class LieGeneralizedAlpha:
         except SolverError as err:
             self.stats.rejected += 1
             if cuts_left == 0:
-                raise IntegrationError(f"time step failed at t = {t:.6g} after "
-                                       f"{self.max_cuts} step cuts (last dt = {h:.3g}): "
-                                       f"{err}", t) from err
+                raise step_failure(t, self.max_cuts, h, err, self.problem) from err
             self._substep(t, h / 2, cuts_left - 1, observer)
             self._substep(t + h / 2, h / 2, cuts_left - 1, observer)
             return

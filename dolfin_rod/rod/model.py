@@ -302,6 +302,7 @@ class RodModel(FEModel):
                                  law.self_contact, law.between_rods, joint_nodes,
                                  velocity=self.unknowns.V if self.dynamic else None)
         contact.block = list(self.names).index("displacement")
+        contact.rod_names, contact.rod_starts = layout.names, layout.starts
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
         self.pair_force = fem.Function(P1, name="pair_contact_force")
         return contact
@@ -346,9 +347,11 @@ class RodModel(FEModel):
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
                   list(self.residual.values()), self.loads, self.bcs, self.set_supports)
         terms = [self.segment_contact] if self.segment_contact else []
+        where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
         if unk.chart is None:
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
-                                       check_step=self.check_step, terms=terms)
+                                       check_step=self.check_step, terms=terms,
+                                       where_failed=where)
         rates_used = {c for F in self.residual.values() for c in F.coefficients()}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
@@ -356,7 +359,7 @@ class RodModel(FEModel):
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links, terms=terms, scale_motions=self.scale_motions)
+            links=links, terms=terms, scale_motions=self.scale_motions, where_failed=where)
 
     def scale_motions(self, fraction: float) -> None:
         """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""

@@ -155,6 +155,7 @@ class SegmentContact:
         self._cache = (None, None)
         self.start = None                            # positions at the last commit
         self.block = 0          # the displacement's block in the problem (model sets it)
+        self.rod_names, self.rod_starts = ("rod",), (0.0,)  # the rods' (model sets them)
 
     # -- pairs and their terms ----------------------------------------------------------
 
@@ -308,9 +309,39 @@ class SegmentContact:
         return None if crossed is None else self._where(crossed, "passed through each "
                                                         "other during the step")
 
-    def _where(self, pair, what: str) -> str:
-        s = self.line.mid_s
-        return f"segments at s = {s[pair[0]]:.4g} and s = {s[pair[1]]:.4g}: {what}"
+    def _where(self, pair, what: str, P: np.ndarray | None = None) -> str:
+        """The pair's segments named by rod and arc length (their midpoints), the point
+        between their closest points at positions P (default the current state), and
+        ``what``."""
+        P = self.line.positions(self.owned_displacement()) if P is None else P
+        X = self._coordinates(P, np.asarray(pair)[None])[0]
+        s, t, _ = closest_points(*(X[k][None] for k in range(4)))
+        point = 0.5 * (X[0] + s[0] * (X[1] - X[0]) + X[2] + t[0] * (X[3] - X[2]))
+        names = [self.segment_name(k) for k in pair]
+        return (f"segments of {names[0]} and {names[1]}, near ("
+                f"{', '.join(f'{v:.4g}' for v in point)}): {what}")
+
+    def segment_name(self, k: int) -> str:
+        """'rod NAME at s = ...' of segment k (its midpoint's arc length on its rod)."""
+        rod = int(self.line.rod[k])
+        start, name = self.rod_starts[rod], self.rod_names[rod]
+        return f"{'the rod' if len(self.rod_names) == 1 else f'rod {name}'} at s = " \
+               f"{self.line.mid_s[k] - start:.4g}"
+
+    def nearest_pair(self) -> str | None:
+        """Where a failed solve was: the pair with the smallest gap at the last state
+        evaluated (Newton's last iterate; the current state if that is not finite),
+        named by ``_where``; None without a pair within the barrier's reach."""
+        P = self._cache[0]
+        if P is None or not np.isfinite(P).all():
+            P = self.line.positions(self.owned_displacement())
+        pairs = self.pairs(P)
+        if not len(pairs):
+            return None
+        gaps = self._gaps(P, pairs)
+        k = int(np.argmin(gaps))
+        return self._where(pairs[k], f"gap {gaps[k]:.3g} (the barrier acts below "
+                                     f"{self.law.gap:g}) at Newton's last iterate", P)
 
     def crossed(self, P0: np.ndarray, P1: np.ndarray):
         """A pair whose centre lines meet on the straight path P0 -> P1 of the nodes, or
