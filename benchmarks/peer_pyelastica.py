@@ -12,8 +12,8 @@ vs the time of set-up plus time loop (``total_s``: model, stepper or simulator b
 the process after a first warm-up run, i.e. a second model of the structure for
 dolfin_rod and numba's JIT done for PyElastica; issue 30).
 
-    PyElastica 1.0  PositionVerlet, n = 20 .. 320 elements (sqrt(2) apart),
-                    dt = 0.01 dx sqrt(E_0/E)
+    PyElastica 1.0  PositionVerlet, n = 20 .. 320 elements (sqrt(2) apart; --quick:
+                    2 apart, so that n = 320 reaches 1e-3), dt = 0.01 dx sqrt(E_0/E)
                     (PyElastica's examples' rule, scaled with the wave speed);
                     reference n = 1280 (640 with --quick)
     dolfin_rod      RodModel and TimeStepper(model.problem) with every default (rotation
@@ -110,7 +110,7 @@ def _pyelastica(scene, quick, out):
     dt_factor = cant.SCENES[scene].pyelastica_dt_factor
     # full mode: sqrt(2) apart, so that the interpolated time at a target error is not
     # biased by coarse sampling of a convex work-precision curve (the same for both codes)
-    pe_sizes = [20, 40, 80, 160] if quick else [20, 28, 40, 57, 80, 113, 160, 226, 320]
+    pe_sizes = [20, 40, 80, 160, 320] if quick else [20, 28, 40, 57, 80, 113, 160, 226, 320]
     pe_ref = 640 if quick else 1280
     cant.run_pyelastica(10, 1e-3, scene)       # numba compiles on the first run (excluded)
     ref = cant.run_pyelastica(pe_ref, dt_factor / pe_ref, scene)
@@ -132,7 +132,7 @@ def _dolfin(scene, quick, label, scheme, opts, rotations, tolerance, out):
         tol = tolerance(n) if tolerance and adaptive else None
         return cant.run_dolfin_rod(n, dt, scene, scheme, options, rotations=rotations,
                                    tolerance=tol)
-    run(4, 0.05, scene)                        # JIT/cache load (excluded)
+    run(8, 0.05, scene)                        # JIT/cache load (excluded)
     # atol above round-off: with the default atol = 1e-11 the n = 256 residual stalls at
     # round-off (~ EA n eps), SNES "fails", and every rejected step restarts
     # generalized-alpha with a first-order backward Euler step, spoiling the reference

@@ -14,8 +14,21 @@ scores dolfin_rod next to PyElastica and MuJoCo.  How a scenario is mapped:
   ends free / pinned / clamped, a driven clamp as prescribed end displacement and
   rotation (the Motion's piecewise-linear rotation vector), ``slides_along`` as a
   sliding end; point loads as dead end forces, gravity as the weight rho A g;
-- the rods of a scenario do not touch (no contact is claimed): each runs alone (the
-  twist experiment's six rods; independent rods of one system give the same numbers);
+- obstacles (contact.py): a Cylinder or Plane as the obstacle of the same shape and
+  friction with its surface moved back by ``OFFSET`` = delta / 2 (the barrier's gap
+  delta = radius / 10), so that a rod starting on the surface (the capstan's rope)
+  starts half-way into the barrier, not at its pole: cosseratbench's contact surface
+  is reached where the barrier's gap is delta / 2 and its penetration measure reads
+  (delta / 2 - g) / radius, within +-0.05 radii; the barrier's stiffness the larger of
+  the rod and time step's (``default_stiffness``) and the one whose force at delta / 2
+  carries the obstacle's pressure (``pressure``), friction with a slip tolerance of
+  1e-3 L per duration (a rope held by friction creeps less than that);
+- rods run alone (the twist experiment's six rods 0.25 m apart: independent rods of
+  one system give the same numbers); the twist experiment's ``self_contact`` is not
+  mapped (its rods are held straight while it measures: its docstring);
+- with obstacles: generalized-alpha with rho_inf = 0 (a barrier's impacts damped,
+  docs/contact.md), Newton to rtol 1e-8, with friction a backtracking line search
+  (scenes/contact.py's choices) and FRICTION_STEPS times more steps;
 - dynamics: generalized-alpha on the rotation group (dolfin_rod's default), at most
   ``STEPS_PER_PERIOD`` steps per period of the scenario's slowest mode and at least one
   per frame; a quasi-static scenario adds damping proportional to mass at the rate
@@ -23,8 +36,9 @@ scores dolfin_rod next to PyElastica and MuJoCo.  How a scenario is mapped:
   PyElastica's choice): drag 2 omega rho A and rotational drag 2 omega rho J, so that
   the twist experiment's growth law s^2 + c s = a (twist - critical) holds.
 
-What the adapter does not map raises ``NotImplementedError`` naming it: obstacles
-(cylinders, planes), friction between rods.
+What the adapter does not map raises ``NotImplementedError`` naming it (``unsupported``):
+rods within reach of each other (contact between rods: the crossing experiment) and
+self-contact together with obstacles (the pile).
 """
 
 from __future__ import annotations
@@ -39,18 +53,10 @@ from cosseratbench.trajectory import Trajectory
 from .. import __version__
 
 STEPS_PER_PERIOD = 100      # time steps per period of the slowest mode (at least)
+FRICTION_STEPS = 4          # times more with friction on an obstacle (the capstan's rope at
+                            # mu = 0.6 failed its first step at 100 per period, not at 400)
+OFFSET = 0.5                # obstacles' surfaces moved back by OFFSET barrier gaps
 ENDS = {End.START: "left", End.END: "right"}
-
-
-def unsupported(scenario: Scenario) -> str | None:
-    """What of ``scenario`` the adapter cannot map, or None."""
-    if scenario.obstacles:
-        kinds = sorted({type(o).__name__.lower() for o in scenario.obstacles})
-        return (f"obstacles ({', '.join(kinds)}): contact with fixed obstacles is not mapped "
-                "by the dolfin_rod adapter")
-    if len(scenario.rods) > 1 and any(rod.friction for rod in scenario.rods):
-        return "friction between rods: dolfin_rod has no rod-rod contact"
-    return None
 
 
 class DolfinRodSolver:
@@ -58,7 +64,8 @@ class DolfinRodSolver:
 
     name = "dolfin_rod"
     backend_version = __version__
-    capabilities = frozenset({Capability.STRETCH, Capability.SHEAR})
+    capabilities = frozenset({Capability.STRETCH, Capability.SHEAR,
+                              Capability.CYLINDER_CONTACT, Capability.PLANE_CONTACT})
 
     def __init__(self, time_step_scale: float = 1.0) -> None:
         self.time_step_scale = float(time_step_scale)
@@ -66,16 +73,23 @@ class DolfinRodSolver:
     def settings(self, scenario: Scenario, *, n_elements: int, n_frames: int) -> dict:
         """The numerical choices of a run (recorded by cosseratbench with its result)."""
         dt, _ = self.time_step(scenario, n_frames)
-        return {"integrator": "generalized-alpha on the rotation group (rho_inf = 0.8)",
-                "time_step": dt, "damping_rate": damping_rate(scenario),
-                "unknowns": "rotation vectors, 6 per node"}
+        rho_inf = 0.0 if scenario.obstacles else 0.8
+        chosen = {"integrator": f"generalized-alpha on the rotation group (rho_inf = {rho_inf})",
+                  "time_step": dt, "damping_rate": damping_rate(scenario),
+                  "unknowns": "rotation vectors, 6 per node"}
+        if scenario.obstacles:
+            radius = min(rod.radius for rod in scenario.rods)
+            chosen.update({"barrier_gap": radius / 10, "obstacle_offset": OFFSET * radius / 10})
+        return chosen
 
     def time_step(self, scenario: Scenario, n_frames: int) -> tuple[float, int]:
-        """(dt, steps per frame): STEPS_PER_PERIOD per period of the slowest mode, times
-        ``time_step_scale``, at least one step per frame."""
+        """(dt, steps per frame): STEPS_PER_PERIOD per period of the slowest mode (times
+        FRICTION_STEPS with friction on an obstacle), times ``time_step_scale``, at least
+        one step per frame."""
         frame = scenario.duration / (n_frames - 1)
-        limit = self.time_step_scale * 2 * math.pi / (STEPS_PER_PERIOD *
-                                                      scenario.slowest_frequency())
+        steps = STEPS_PER_PERIOD * (FRICTION_STEPS if any(ob.friction > 0 for ob in
+                                                          scenario.obstacles) else 1)
+        limit = self.time_step_scale * 2 * math.pi / (steps * scenario.slowest_frequency())
         steps = max(1, math.ceil(frame / limit))
         return frame / steps, steps
 
@@ -89,25 +103,55 @@ class DolfinRodSolver:
         return Trajectory(times, tuple(p for p, _ in runs), tuple(d for _, d in runs))
 
 
+def unsupported(scenario: Scenario) -> str | None:
+    """What of ``scenario`` the adapter cannot map, or None."""
+    rods = scenario.rods
+    if any(in_reach(a, b) for k, a in enumerate(rods) for b in rods[k + 1:]):
+        return ("rods within reach of each other: contact between rods is not mapped by "
+                "the dolfin_rod adapter")
+    if scenario.self_contact and scenario.obstacles:
+        return ("self-contact together with obstacles: not mapped by the dolfin_rod "
+                "adapter")
+    return None
+
+
+def in_reach(a: Rod, b: Rod) -> bool:
+    """Whether the starting centre lines of ``a`` and ``b`` come within a tenth of the
+    shorter rod's length (plus both radii) of each other: bounding boxes, then points."""
+    from scipy.spatial import cKDTree
+    p, q = (np.asarray(rod.centerline, float) for rod in (a, b))
+    reach = 0.1 * min(a.length, b.length) + a.radius + b.radius
+    if np.any(p.min(0) - reach > q.max(0)) or np.any(q.min(0) - reach > p.max(0)):
+        return False
+    return bool(cKDTree(q).query(p, distance_upper_bound=reach)[0].min() < reach)
+
+
 def damping_rate(scenario: Scenario) -> float:
     """2 omega of the slowest mode for a quasi-static scenario, else 0."""
     return 2.0 * scenario.slowest_frequency() if scenario.quasi_static else 0.0
 
 
-def rod_model(scenario: Scenario, rod: Rod, n_elements: int):
-    """The RodModel of one rod of ``scenario`` (module docstring) and its StartingState."""
-    from ..rod import DistributedLoad, EndLoad, Polyline, RodModel, RodParameters, StartingState
+def section(rod: Rod, scenario: Scenario) -> dict:
+    """RodParameters' section, material and damping keywords of ``rod`` (module
+    docstring)."""
     from ..rod.sections import Material, circle, section_parameters
     m = rod.material
-    section = section_parameters(circle(rod.radius), Material(
+    constants = section_parameters(circle(rod.radius), Material(
         m.youngs_modulus, shear_modulus=m.shear_modulus, density=m.density))
     rate = damping_rate(scenario)
-    J = (section["I22"], section["I11"], section["I11"] + section["I22"])   # rho J
-    damping = {"drag": rate * section["rho_A"],
+    J = (constants["I22"], constants["I11"], constants["I11"] + constants["I22"])   # rho J
+    damping = {"drag": rate * constants["rho_A"],
                "rotational_drag": tuple(rate * j for j in J)} if rate else {}
-    params = RodParameters(length=rod.length, **section, **damping)
+    return {"length": rod.length, **constants, **damping}
+
+
+def rod_data(scenario: Scenario, rod: Rod, n_elements: int):
+    """rods.Rod of ``rod``: parameters, cells, ends, motions, loads."""
+    from ..rod import DistributedLoad, EndLoad, RodParameters
+    from ..rod.rods import Rod as RodData
+    params = RodParameters(**section(rod, scenario))
     gravity = np.asarray(scenario.gravity, float)
-    loads = [DistributedLoad("force", tuple(section["rho_A"] * gravity))] if gravity.any() \
+    loads = [DistributedLoad("force", tuple(params.rho_A * gravity))] if gravity.any() \
         else []
     motions = {"end_displacement": {}, "end_rotation": {}, "end_slide": {}}
     for end, side in ENDS.items():
@@ -117,15 +161,150 @@ def rod_model(scenario: Scenario, rod: Rod, n_elements: int):
             motions["end_rotation"][side] = lambda t, mo=motion: rotation_vector(mo, t)
             if motion.slides_along is not None:
                 motions["end_slide"][side] = tuple(motion.axis)
-    model = RodModel(params, n_cells=n_elements, model="hyperelastic",
-                     ends=tuple(rod.condition(end).value for end in ENDS),
-                     end_loads=[EndLoad("force", tuple(load.force), end=ENDS[load.at])
-                                for load in rod.loads],
-                     distributed_loads=loads, **motions)
-    start = StartingState(shape=Polyline(tuple(map(tuple, rod.centerline)),
-                                         rest_arc_length=rod.rest_arc_length,
-                                         normal=tuple(rod.normal)))
-    return model, start
+    data = RodData(params, n_elements, tuple(rod.condition(end).value for end in ENDS),
+                   end_loads=[EndLoad("force", tuple(load.force), end=ENDS[load.at])
+                              for load in rod.loads],
+                   distributed_loads=loads,
+                   **{key: value or None for key, value in motions.items()})
+    return data
+
+
+def starting_state(rod: Rod, n_elements: int, params, pressed=None):
+    """The rod's StartingState: its centre line at the n_elements + 1 nodes (Rod.nodes),
+    the nodes moved by ``pressed(nodes, params)`` (``barrier_start``) with obstacles."""
+    from ..rod import Polyline, StartingState
+    nodes = rod.nodes(n_elements)
+    if pressed is not None:
+        nodes = pressed(nodes, params)
+    return StartingState(shape=Polyline(tuple(map(tuple, nodes)),
+                                        rest_arc_length=tuple(np.linspace(0.0, rod.length,
+                                                                          n_elements + 1)),
+                                        normal=tuple(rod.normal)))
+
+
+def barrier_start(scenario: Scenario, obstacles: list, law):
+    """nodes, params -> nodes: each node that starts within the barrier's reach of an
+    obstacle moved along the obstacle's normal to the gap at which the barrier carries
+    what the rod presses on it with at the start (its weight and the pull of its
+    stretched neighbours: the rod as a string, its bending neglected), so that a rod
+    starting at rest on an obstacle (the capstan's rope, in equilibrium as it hangs)
+    starts in equilibrium with the barrier too, not with a jolt."""
+    from ..rod.contact import NP_OPS, Pose, signed_distance
+    poses = [Pose(ob) for ob in obstacles]
+
+    def gaps(points):
+        return np.stack([signed_distance(pose, points, NP_OPS) for pose in poses]) \
+            - law.radius
+
+    def pressed(nodes, params):
+        rest = params.length / (len(nodes) - 1)
+        weights = np.full(len(nodes), rest)                 # the trapezoidal rule's
+        weights[[0, -1]] /= 2
+        g = gaps(nodes)
+        nearest = (np.argmin(g, axis=0), np.arange(len(nodes)))
+        step = 1e-7 * law.radius
+        normal = np.stack([(gaps(nodes + step * e)[nearest] - gaps(nodes - step * e)[nearest])
+                           / (2 * step) for e in np.eye(3)], axis=1)
+        carried = -np.einsum("ij,ij->i", string_load(nodes, params, scenario.gravity),
+                             normal) / weights
+        touching = g[nearest] < law.gap
+        moved = nodes.copy()
+        moved[touching] += ((equilibrium_gap(carried[touching], law) - g[nearest][touching])
+                            [:, None] * normal[touching])
+        return moved
+    return pressed
+
+
+def string_load(nodes: np.ndarray, params, gravity) -> np.ndarray:
+    """The force on each node of a string through ``nodes`` (rest length params.length,
+    axial stiffness EA = params.B[2], weight rho_A g per length, trapezoidal rule)."""
+    rest = params.length / (len(nodes) - 1)
+    chords = np.diff(nodes, axis=0)
+    lengths = np.linalg.norm(chords, axis=1)
+    pull = (params.B[2] * (lengths / rest - 1.0) / lengths)[:, None] * chords
+    load = np.zeros_like(nodes)
+    load[:-1] += pull
+    load[1:] -= pull
+    weights = np.full(len(nodes), rest)
+    weights[[0, -1]] /= 2
+    return load + weights[:, None] * params.rho_A * np.asarray(gravity, float)
+
+
+def equilibrium_gap(carried: np.ndarray, law) -> np.ndarray:
+    """The gap g in (0, delta] at which the barrier's force kappa (-b'(g)) is ``carried``
+    (per length; delta where it is <= 0), by bisection on [XI_MIN delta, delta]."""
+    from ..rod.contact import XI_MIN, barrier_derivatives
+    low, high = np.full(carried.shape, XI_MIN * law.gap), np.full(carried.shape, law.gap)
+    for _ in range(60):
+        middle = (low + high) / 2
+        weak = -law.stiffness * barrier_derivatives(middle, law.gap)[1] < carried
+        low, high = np.where(weak, low, middle), np.where(weak, middle, high)
+    return (low + high) / 2
+
+
+def obstacles(scenario: Scenario, gap: float) -> list:
+    """contact.py's obstacles of the scenario's, their surfaces moved back by OFFSET gap."""
+    from ..rod.contact import Obstacle
+    back = OFFSET * gap
+    return [Obstacle("cylinder", point=tuple(ob.center), axis=tuple(ob.unit_axis),
+                     radius=ob.radius - back, length=ob.length, friction=ob.friction)
+            if ob.kind == "cylinder" else
+            Obstacle("plane", point=tuple(np.asarray(ob.point) - back * ob.unit_normal),
+                     axis=tuple(ob.unit_normal), friction=ob.friction)
+            for ob in scenario.obstacles]
+
+
+def contact_law(scenario: Scenario, rod: Rod, params, n_elements: int, dt: float):
+    """The ContactLaw of a rod touching the scenario's obstacles (module docstring)."""
+    from ..rod.contact import ContactLaw, barrier_derivatives, default_stiffness
+    gap = rod.radius / 10
+    stiffness = max(default_stiffness(params.rho_A, params.A, rod.length, n_elements, dt),
+                    pressure(scenario, rod, params)
+                    / -barrier_derivatives(OFFSET * gap, gap)[1])
+    return ContactLaw(rod.radius, gap, stiffness,
+                      slip_tolerance=1e-3 * rod.length / scenario.duration)
+
+
+def pressure(scenario: Scenario, rod: Rod, params) -> float:
+    """The force per length the obstacles carry, at most: the rod's weight rho A g on a
+    floor, its whole weight's tension rho A g L over the radius R of a cylinder it hangs
+    over (the capstan's rope)."""
+    radii = [ob.radius for ob in scenario.obstacles if ob.kind == "cylinder"]
+    weight = params.rho_A * float(np.linalg.norm(scenario.gravity))
+    return weight * max(1.0, rod.length / min(radii)) if radii else weight
+
+
+def solver_options(scenario: Scenario) -> dict:
+    """Newton's options with obstacles (scenes/contact.contact_solver_options' choices);
+    on several ranks MUMPS (block Jacobi's GMRES failed the capstan's first step:
+    DIVERGED_LINEAR_SOLVE)."""
+    from mpi4py import MPI
+    if not scenario.obstacles:
+        return {}
+    options = {"snes_rtol": 1e-8}
+    if MPI.COMM_WORLD.size > 1:
+        options.update(ksp_type="preonly", pc_type="lu", pc_factor_mat_solver_type="mumps")
+    if any(ob.friction > 0 for ob in scenario.obstacles):
+        options["snes_linesearch_type"] = "bt"
+    return options
+
+
+def rod_model(scenario: Scenario, rod: Rod, n_elements: int, dt: float):
+    """The RodModel of one rod of ``scenario`` (module docstring) and its StartingState."""
+    from ..rod import RodModel
+    data = rod_data(scenario, rod, n_elements)
+    touching, pressed = {}, None
+    if scenario.obstacles:
+        law = contact_law(scenario, rod, data.params, n_elements, dt)
+        touching = {"obstacles": obstacles(scenario, law.gap), "contact": law}
+        pressed = barrier_start(scenario, touching["obstacles"], law)
+    model = RodModel(data.params, n_cells=n_elements, model="hyperelastic",
+                     ends=data.ends, end_loads=data.end_loads,
+                     distributed_loads=data.distributed_loads,
+                     end_displacement=data.end_displacement or {},
+                     end_rotation=data.end_rotation or {},
+                     end_slide=data.end_slide or {}, **touching)
+    return model, starting_state(rod, n_elements, data.params, pressed)
 
 
 def rotation_vector(motion: Motion, t: float) -> np.ndarray:
@@ -148,9 +327,10 @@ def run_rod(scenario: Scenario, rod: Rod, n_elements: int, times: np.ndarray, dt
     """(positions [T, n + 1, 3], directors [T, n, 3]) of one rod at ``times``."""
     from ..integrators.step_control import IntegrationError
     from ..integrators.choice import TimeStepper
-    model, start = rod_model(scenario, rod, n_elements)
+    model, start = rod_model(scenario, rod, n_elements, dt)
     model.set_initial_state(start=start)
-    stepper = TimeStepper(model.problem)
+    scheme = "generalized_alpha:0.0" if scenario.obstacles else None
+    stepper = TimeStepper(model.problem, scheme, solver_options(scenario))
     frames = [frame(model)]
     try:
         for t0, t1 in zip(times[:-1], times[1:]):

@@ -219,8 +219,8 @@ class FEModel:
         if self._diagnostic_sums is None:
             forms = list(self.diagnostic_forms.values())
             structure = self.problem.structure      # the kernel compiled once per structure
-            self._diagnostic_sums = FormSums(self.mesh, forms, form_cache.structure_key(
-                forms, "diagnostic sums", structure=structure) if structure else None)
+            self._diagnostic_sums = FormSums(self.mesh, forms, form_cache.text_key(
+                structure, "diagnostic sums", *self.diagnostic_forms) if structure else None)
         d = dict(zip(self.diagnostic_forms, self._diagnostic_sums().tolist()))
         d["time"] = t
         return d

@@ -131,6 +131,15 @@ def structure_key(forms, *extra, structure: str | None = None) -> str:
     return hashlib.sha1(text.encode()).hexdigest()
 
 
+def text_key(structure: str, *extra) -> str:
+    """A key from a model's structure as data and ``extra`` items alone, without UFL
+    signatures (which cost the first model in a new process more than a compile): for
+    forms that the text determines, such as a rod's diagnostics and reactions (equal
+    texts, equal forms up to the values of their data: rod/structure.py).  On disk the
+    key adds the hash of this package's source, so no changed code finds an old kernel."""
+    return hashlib.sha1("|".join(["text", structure, *map(repr, extra)]).encode()).hexdigest()
+
+
 def clear(disk: bool = True) -> None:
     """Forget every compiled form in this process and, if ``disk``, on disk (the next
     model of each structure compiles again; without ``disk``: loads it from disk)."""

@@ -398,8 +398,8 @@ class EndSupports:
         structure) and those nodes, made at the first diagnostics."""
         if block not in self._residual_forms:
             s_ends = [self.s_ends[e] for e in ends]
-            key = form_cache.structure_key([residual[block]], "reaction", block, tuple(ends),
-                                           structure=structure) if structure else None
+            key = form_cache.text_key(structure, "reaction", block, tuple(ends)) \
+                if structure else None
             form = compiled_near_nodes(residual[block], self.spaces[block].mesh, s_ends, key)
             self._residual_forms[block] = (form, NodeValues(self.spaces[block], s_ends))
         return self._residual_forms[block]
