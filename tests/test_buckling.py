@@ -63,7 +63,8 @@ def preloaded(rod: RodModel, dt: float = 1.0) -> RodModel:
 def column_factor(case: str, n_cells: int) -> float:
     """The critical multiple of P_cr from a pre-load of P_cr / 2 (ramped)."""
     ends, slide, p_cr = COLUMNS[case]
-    rod = preloaded(RodModel(STIFF, n_cells=n_cells, model="hyperelastic", ends=ends,
+    rod = preloaded(RodModel(STIFF, n_cells=n_cells, model="hyperelastic",
+                             start=ends[0], end=ends[1],
                              end_slide=slide, end_loads=[EndLoad(
                                  "force", (0.0, 0.0, -p_cr), lambda t: 0.5 * t)]))
     modes = buckling_modes(rod, 1.0, count=2)
@@ -89,7 +90,7 @@ def twisted_rod(n_cells: int, phi: float, stretch: float = 0.0) -> RodModel:
     """Clamped-clamped; the right end stretched by ``stretch`` over t in [0, 1/2] (if
     given) and turned about the axis at the rate phi (from t = 1/2 if stretched)."""
     start = 0.5 if stretch else 0.0
-    return RodModel(STIFF, n_cells=n_cells, model="hyperelastic", ends=("clamped", "clamped"),
+    return RodModel(STIFF, n_cells=n_cells, model="hyperelastic", start="clamped", end="clamped",
                     end_displacement={"right": lambda t: np.array(
                         [0.0, 0.0, stretch * min(t / 0.5, 1.0)])} if stretch else None,
                     end_rotation={"right": lambda t: np.array(
@@ -177,8 +178,8 @@ def test_lateral_torsional_buckling_of_a_deep_cantilever():
 @pytest.mark.mpi
 def test_bad_requests_are_refused():
     """A dynamic rod, t <= 0, loads that do not change: ValueError naming the reason."""
-    dynamic = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5), rho_A=1.0,
-                            I11=1.0, I22=1.0)
+    dynamic = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5), density=1.0,
+                            section_inertia=1.0)
     with pytest.raises(ValueError, match="quasi-static"):
         buckling_modes(RodModel(dynamic, n_cells=4, model="hyperelastic"), 1.0)
     rod = preloaded(RodModel(STIFF, n_cells=4, model="hyperelastic", end_loads=[
@@ -208,7 +209,7 @@ def test_hinged_arch_under_follower_pressure():
     errors = []
     for n in (16, 32):
         rod = preloaded(RodModel(arch, n_cells=n, model="hyperelastic",
-                                 ends=("pinned", "pinned"), distributed_loads=[
+                                 start="pinned", end="pinned", distributed_loads=[
                                      DistributedLoad("force", (q_cr, 0.0, 0.0),
                                                      lambda t: 0.5 * t, follower=True)]),
                         dt=0.5)
@@ -330,12 +331,13 @@ def column_and_twist(rotations: str) -> tuple[np.ndarray, np.ndarray]:
     """The clamped-free column's factors (pre-loaded to P_cr / 2) and Greenhill's
     (clamped-clamped, pre-twisted to half the critical twist), 8 cells."""
     ends, slide, p_cr = COLUMNS["clamped-free"]
-    column = preloaded(RodModel(STIFF, n_cells=8, model="hyperelastic", ends=ends,
+    column = preloaded(RodModel(STIFF, n_cells=8, model="hyperelastic", start=ends[0],
+                                end=ends[1],
                                 rotations=rotations, end_loads=[EndLoad(
                                     "force", (0.0, 0.0, -p_cr), lambda t: 0.5 * t)]))
     m_cr = 2 * TAN_X
     twisted = preloaded(RodModel(STIFF, n_cells=8, model="hyperelastic",
-                                 ends=("clamped", "clamped"), rotations=rotations,
+                                 start="clamped", end="clamped", rotations=rotations,
                                  end_rotation={"right": lambda t: np.array(
                                      [0.0, 0.0, 0.5 * m_cr * t])}), dt=0.5)
     found = [buckling_modes(rod, 1.0, count) for rod, count in ((column, 4), (twisted, 2))]
@@ -370,7 +372,7 @@ def jointed_column(n_cells: int):
             for a in ((1.0, 2.0), (2.0, 1.0))]
     load = EndLoad("force", (0.0, 0.0, -p_cr), lambda t: 0.5 * t)
     return RodSystem([Rod(half[0], n_cells, name="lower"),
-                      Rod(half[1], n_cells, ("free", "free"), name="upper",
+                      Rod(half[1], n_cells, "free", end="free", name="upper",
                           position=(0.0, 0.0, 0.5), orientation=(0.0, 0.0, math.pi / 2),
                           end_loads=[load])],
                      joints=[Joint("rigid", ("lower", "upper"), (0.0, 0.0, 0.5))],

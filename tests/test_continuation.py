@@ -55,7 +55,7 @@ def turning_points(y) -> tuple[int, int]:
 
 def displacement_controlled(steps: int = 200, d_max: float = 0.1):
     """(d, F) of the half-arch with the crown's deflection prescribed."""
-    rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", ends=("clamped", "pinned"),
+    rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", start="clamped", end="pinned",
                    end_displacement={"left": lambda t: d_max * t * DOWN})
     rod.set_initial_state()
     out = []
@@ -70,7 +70,7 @@ def displacement_controlled(steps: int = 200, d_max: float = 0.1):
 
 def arc_length(ds: float = 0.01):
     """(lambda, d) of the arc-length path of the half-arch, F = lambda x 1."""
-    rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", ends=("clamped", "pinned"),
+    rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", start="clamped", end="pinned",
                    end_slide={"left": (0.0, 1.0, 0.0)},
                    end_loads=[EndLoad("force", tuple(DOWN), lambda t: t, end="left")])
     rod.set_initial_state()
@@ -139,7 +139,7 @@ def deep_arch_limit_load(n_cells: int) -> float:
     def point_load(s):
         return 20.0 * ufl.max_value(0.0, 1.0 - abs(s - length / 2) / h) / h * inwards
 
-    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", ends=("clamped", "pinned"),
+    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", start="clamped", end="pinned",
                    distributed_loads=[DistributedLoad("force", point_load, lambda t: t)])
     rod.set_initial_state()
     path = ArcLength(rod, ds=0.04, max_steps=1000)

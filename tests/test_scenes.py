@@ -627,7 +627,7 @@ def test_rod_keys_reach_the_model():
     assert model.supports.ends == ("pinned", "free") and model.constraint is None
     quasi_static = build(_rod(material__constraints="unshearable"), "rod").model
     assert quasi_static.constraint == "unshearable"
-    assert (p.I11, p.I22, p.drag) == (0.01, 0.02, 0.3) and p.rho_A(0.5) == 1.5
+    assert (p.section_inertia, p.drag) == ((0.01, 0.02), 0.3) and p.density(0.5) == 1.5
     assert np.allclose(np.asarray(p.A(0.5), float), [[2.5, 0.5, 0], [0.5, 2.5, 0], [0, 0, 1.5]])
     assert p.reference_stretch == (0.0, 0.0, 1.1)
     kinds = [(d.kind, d.follower) for d in model.distributed_loads]

@@ -35,12 +35,13 @@ from determinants import smallest_singular_value as smallest_singular_value_of
 from dolfin_rod.analysis.vibration import vibration_modes
 from dolfin_rod.rod import RodModel, RodParameters, StartingState, Straight
 
-SLENDER = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5), rho_A=1.0,
-                        I11=1e-8, I22=1e-8)
+SLENDER = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5), density=1.0,
+                        section_inertia=1e-8)
 
 
 def frequencies(params, ends, n_cells, count, start=None) -> np.ndarray:
-    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", ends=ends)
+    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", start=ends[0],
+                   end=ends[1])
     rod.set_initial_state(start=start)
     modes = vibration_modes(rod, 0.0, count)
     assert max(modes.residuals) < 1e-10
@@ -95,7 +96,7 @@ def test_thick_rod_against_timoshenko():
     """Measured relative errors at 8 / 16 cells: 1.82e-2, 6.40e-2, 0.126 / 4.49e-3,
     1.55e-2, 3.01e-2 (orders 2.01, 2.04, 2.07)."""
     thick = RodParameters(length=1.0, A=(1.0, 1.0, 100.0), B=(100.0, 100.0, 1e4),
-                          rho_A=1.0, I11=2.5e-3, I22=2.5e-3)
+                          density=1.0, section_inertia=2.5e-3)
     exact = np.array([timoshenko(n) for n in (1, 2, 3)])
     assert exact == pytest.approx([9.3209, 32.595, 62.617], abs=1e-3)
     errors = [frequencies(thick, ("pinned", "pinned"), n, 7)[1::2] / exact - 1
@@ -107,8 +108,8 @@ def test_thick_rod_against_timoshenko():
 def test_string_under_tension():
     """Measured relative errors at 8 / 16 cells: 6.44e-3, 2.59e-2, 5.84e-2 / 1.61e-3,
     6.46e-3, 1.46e-2 (orders 2.00)."""
-    string = RodParameters(length=1.0, A=(1e-6, 1e-6, 1e-6), B=(1e5, 1e5, 1e3), rho_A=1.0,
-                           I11=1e-8, I22=1e-8)
+    string = RodParameters(length=1.0, A=(1e-6, 1e-6, 1e-6), B=(1e5, 1e5, 1e3), density=1.0,
+                           section_inertia=1e-8)
     stretch = 1.001
     exact = np.arange(1, 4) * math.pi * math.sqrt(1e3 * (stretch - 1) / stretch)
     errors = [frequencies(string, ("pinned", "pinned"), n, 7,
@@ -149,7 +150,7 @@ def test_pre_twisted_clamped_rod():
     assert exact == pytest.approx(21.5947, abs=1e-4)
     errors = []
     for n in (8, 16):
-        rod = RodModel(SLENDER, n_cells=n, model="hyperelastic", ends=("clamped", "clamped"),
+        rod = RodModel(SLENDER, n_cells=n, model="hyperelastic", start="clamped", end="clamped",
                        end_turn={"right": (0.0, 0.0, 1.0)},
                        end_loads=[EndLoad("couple", (0.0, 0.0, moment))])
         rod.set_initial_state(start=StartingState(equilibrium=True))
@@ -162,7 +163,7 @@ def test_pre_twisted_clamped_rod():
 @pytest.mark.mpi
 def test_bad_requests_are_refused():
     quasi_static = RodParameters(length=1.0, B=(1e5, 1e5, 1e5))
-    with pytest.raises(ValueError, match="rho_A > 0"):
+    with pytest.raises(ValueError, match="density > 0"):
         vibration_modes(RodModel(quasi_static, n_cells=4, model="hyperelastic"), 0.0)
 
 
@@ -200,9 +201,10 @@ def test_modes_command(tmp_path):
 def modes_of(rotations: str, ends) -> object:
     """8 cells, unequal bending stiffnesses (A = (1, 2): every mode single, its shape
     unique up to sign)."""
-    params = RodParameters(length=1.0, A=(1.0, 2.0, 1.0), B=(1e5, 1e5, 1e5), rho_A=1.0,
-                           I11=1e-4, I22=2e-4)
-    rod = RodModel(params, n_cells=8, model="hyperelastic", ends=ends, rotations=rotations)
+    params = RodParameters(length=1.0, A=(1.0, 2.0, 1.0), B=(1e5, 1e5, 1e5), density=1.0,
+                           section_inertia=(1e-4, 2e-4))
+    rod = RodModel(params, n_cells=8, model="hyperelastic", start=ends[0], end=ends[1],
+                   rotations=rotations)
     rod.set_initial_state()
     modes = vibration_modes(rod, 0.0, 5)
     assert max(modes.residuals) < 1e-10
@@ -241,11 +243,11 @@ def two_rods_joined(dynamic: bool = True):
     swapped: the one rod of 16 cells (A = (1, 2), I = (1e-3, 2e-3))."""
     from dolfin_rod import Rod, RodSystem
     from dolfin_rod.rod.joints import Joint
-    half = [RodParameters(length=0.5, A=(*a, 1.5), B=(1e5, 1e5, 1e5), rho_A=1.0,
-                          I11=i[0], I22=i[1])
+    half = [RodParameters(length=0.5, A=(*a, 1.5), B=(1e5, 1e5, 1e5), density=1.0,
+                          section_inertia=(i[0], i[1]))
             for a, i in (((1.0, 2.0), (1e-3, 2e-3)), ((2.0, 1.0), (2e-3, 1e-3)))]
     return RodSystem([Rod(half[0], 8, name="lower"),
-                      Rod(half[1], 8, ("free", "free"), name="upper",
+                      Rod(half[1], 8, "free", end="free", name="upper",
                           position=(0.0, 0.0, 0.5), orientation=(0.0, 0.0, math.pi / 2))],
                      joints=[Joint("rigid", ("lower", "upper"), (0.0, 0.0, 0.5))],
                      model="hyperelastic")
@@ -257,8 +259,8 @@ def test_rods_joined_rigidly_vibrate_as_one_rod():
     has the one rod's frequencies to round-off (measured 1e-15 relative; asserted 1e-10),
     3.5013, 4.9630 for (beta L)^2 sqrt(EI / rho A) = 3.5160 sqrt(1, 2) (8.5e-3 below:
     the 16-cell error and rotary inertia 1e-3)."""
-    one = RodParameters(length=1.0, A=(1.0, 2.0, 1.5), B=(1e5, 1e5, 1e5), rho_A=1.0,
-                        I11=1e-3, I22=2e-3)
+    one = RodParameters(length=1.0, A=(1.0, 2.0, 1.5), B=(1e5, 1e5, 1e5), density=1.0,
+                        section_inertia=(1e-3, 2e-3))
     single = RodModel(one, n_cells=16, model="hyperelastic")
     joined = two_rods_joined()
     omega = []

@@ -54,10 +54,10 @@ class VibrationModes:
 def vibration_modes(model, t: float, count: int = 6) -> VibrationModes:
     """The ``count`` lowest natural frequencies and modes of a dynamic RodModel (or
     RodSystem) about its current state under time t's loads.  Raises ValueError for a
-    quasi-static rod (rho_A = 0: no mass)."""
+    quasi-static rod (density = 0: no mass)."""
     if not model.dynamic:
-        raise ValueError("vibration modes: a rod with mass (rho_A > 0; a scene's "
-                         "material.density or material.rho_A)")
+        raise ValueError("vibration modes: a rod with mass (density > 0: "
+                         "RodParameters.density or a scene's material.density)")
     tangent = TangentStiffness(model)
     K = tangent.matrix(t)
     M = _mass(tangent)

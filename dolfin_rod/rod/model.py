@@ -27,7 +27,7 @@ from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
 from ..checks import (MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
-                      check_n_cells)
+                      check_n_cells, old_keywords)
 from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..integrators.step_control import IntegrationError
@@ -47,7 +47,7 @@ from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
 from .placement import placed_shape
 from .material import RodParameters, coefficients, is_zero
-from .rods import Rod, check_rods
+from .rods import OLD_CONSTRAINT, OLD_ENDS, Rod, check_rods, new_keywords, positional_ends
 from .segments import PassThroughCheck
 from .structure import structure
 from .start import RodStarts, StartingState, check_rod_starts, check_start
@@ -73,8 +73,9 @@ class RodModel(FEModel):
     """The 3-D rod as a SemiDiscreteProblem.
 
     model: "evolving", "kelvin_voigt" or "hyperelastic" (constitutive.py); variant:
-    "local" or "uniform" (evolution.py); constraint: None, "unshearable" or
-    "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
+    "local" or "uniform" (evolution.py); constraints: None, "unshearable" or
+    "inextensible_unshearable" (constraints.py); start, end (the supports at s = 0 and
+    s = L: "clamped", "pinned" or "free"), end_displacement, end_rotation:
     boundary_conditions.py (end_slide: {end: axis}, a clamped or pinned end sliding
     along a coordinate axis; end_turn: {end: axis}, a clamped end turning freely about
     one; end_springs: {end: EndSpring}, compliant supports); end_loads, distributed_loads: external_forces.py; rotations:
@@ -86,22 +87,27 @@ class RodModel(FEModel):
     ``problem`` is a SemiDiscreteProblem (quaternions: any scheme of TimeStepper or
     TSIntegrator) or a SecondOrderProblem (rotation vectors: generalized-alpha on the
     rotation group, integrators/lie_alpha.py, which TimeStepper uses for it).
-    Several rods in one model: system.RodSystem.
+    Several rods in one model: system.RodSystem.  The keywords are the scene's keys
+    (docs/rod.md, "One vocabulary"); ``ends=(start, end)`` and ``constraint`` are
+    deprecated names of ``start``, ``end`` and ``constraints``.
     """
 
+    @old_keywords("RodModel", OLD_ENDS | OLD_CONSTRAINT, new_keywords)
     def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = ROD_MODEL,
-                 variant: str = VARIANT, constraint: str | None = None,
-                 ends: tuple[str, str] = ("clamped", "free"),
+                 variant: str = VARIANT, constraints: str | None = None,
+                 start: str = "clamped",
                  end_loads: Sequence[EndLoad] = (),
                  distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
                  rotations: str = ROTATION_UNKNOWNS, comm: MPI.Comm = MPI.COMM_WORLD,
                  end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
                  contact: ContactLaw | None = None, end_springs: dict | None = None,
-                 end_turn: dict | None = None):
-        rod = Rod(params, n_cells, ends, end_loads, distributed_loads, end_displacement,
-                  end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn)
-        self._build([rod], model, variant, constraint, rotations, comm, obstacles=obstacles,
+                 end_turn: dict | None = None, end: str = "free"):
+        start, end = positional_ends("RodModel", start, end, stacklevel=5)
+        rod = Rod(params, n_cells, start, end_loads, distributed_loads, end_displacement,
+                  end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn,
+                  end=end)
+        self._build([rod], model, variant, constraints, rotations, comm, obstacles=obstacles,
                     contact=contact)
 
     def _build(self, rods: list[Rod], model: str, variant: str, constraint: str | None,
@@ -140,7 +146,7 @@ class RodModel(FEModel):
         """Refuse bad input before any mesh; the rods' data and their layout on one mesh."""
         check_model(model, rods[0].params)
         check_variant(variant)
-        constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.rho_A))
+        constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.density))
         check_rods(rods, model, variant)
         check_joints(list(joints), rods)
         check_n_cells(sum(rod.n_cells for rod in rods), comm.size)   # cells per rank
@@ -154,7 +160,7 @@ class RodModel(FEModel):
                                          tuple(rod.n_cells for rod in rods))
         self.length = max(layout.lengths)
         self.evolving = model == "evolving"
-        self.dynamic = not is_zero(rods[0].params.rho_A)
+        self.dynamic = not is_zero(rods[0].params.density)
 
     def _rotation_unknowns(self, rotations: str, joints: Sequence[Joint]) -> str:
         """The rotation unknowns ("quaternion" or "rotation_vector") the rods can have
@@ -162,7 +168,7 @@ class RodModel(FEModel):
         rods, all_params = self.rods, [rod.params for rod in self.rods]
         obstacle = rotation_vector_obstacle(
             self.dynamic, self.variant, self.constraint,
-            rotary_inertia=not any(is_zero(p.I11) or is_zero(p.I22) for p in all_params),
+            rotary_inertia=not any(any(map(is_zero, p.section_inertia)) for p in all_params),
             rate_dependent=not all(is_zero(v) for p in all_params for v in (
                 p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
             rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
@@ -327,7 +333,7 @@ class RodModel(FEModel):
         if law is None:
             raise ValueError("obstacles need a contact law (contact = ContactLaw(...))")
         if any(ob.friction > 0 for ob in obstacles) and not self.dynamic:
-            raise ValueError("obstacles[k].friction needs a dynamic rod (rho_A > 0): "
+            raise ValueError("obstacles[k].friction needs a dynamic rod (density > 0): "
                              "the friction force depends on the velocity")
         return ObstacleContact(obstacles, law, disc, self.unknowns.f["displacement"],
                                self.unknowns.V if self.dynamic else None)

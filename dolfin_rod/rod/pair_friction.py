@@ -47,6 +47,7 @@ class PairFriction:
     def __init__(self, line, law, mu_self: float, mu_between: float):
         self.line, self.law = line, law
         self.mu = (mu_self, mu_between)
+        self.pairs = np.zeros((0, 2), dtype=np.int64)     # the frozen pairs' segments
         self.nodes = np.zeros((0, 4), dtype=np.int64)
         self.w = np.zeros((0, 4))
         self.T = np.zeros((0, 3, 3))
@@ -69,6 +70,7 @@ class PairFriction:
         n = (X[:, 0] + s[:, None] * (X[:, 1] - X[:, 0])
              - X[:, 2] - t[:, None] * (X[:, 3] - X[:, 2]))
         n /= np.linalg.norm(n, axis=1)[:, None]
+        self.pairs = pairs[keep]
         self.nodes = np.concatenate([e[pairs[keep, 0]], e[pairs[keep, 1]]], axis=1)
         self.w = np.stack([1 - s, s, -(1 - t), -t], axis=1)
         self.T = np.eye(3)[None] - n[:, :, None] * n[:, None, :]

@@ -92,7 +92,7 @@ def contact_law(scene: Scene, params):
     if not touching(scene):
         return None
     c, geo, tim = scene["contact"], scene["geometry"], scene["time"]
-    stiffness = c["stiffness"] or default_stiffness(params.rho_A, params.A, geo["length"],
+    stiffness = c["stiffness"] or default_stiffness(params.density, params.A, geo["length"],
                                                     geo["n_cells"], tim["dt"])
     return ContactLaw(c["radius"], c["gap"] or c["radius"] / 10, stiffness,
                       c["slip_tolerance"] or 1e-3 * geo["length"] / tim["t_end"],
