@@ -29,14 +29,16 @@ from dolfin_rod.rod.start import StartingState
 from dolfin_rod.rod.system import RodSystem
 from dolfin_rod.scenes import SceneError, build, parse_scene
 
-R, DELTA, RHO_A, G, L, MU, EPS, N_CELLS, DT = 0.005, 5e-4, 0.1, 10.0, 0.2, 0.5, 1e-3, 9, 1e-3
+R, DELTA, RHO_A, G, L = 0.005, 5e-4, 0.1, 10.0, 0.2
+MU, EPS, N_CELLS, DT = 0.5, 1e-3, 9, 1e-3
 WEIGHT = RHO_A * L * G                  # the normal force N (0.2 N)
-OPTIONS = {"snes_rtol": 1e-8, "snes_linesearch_type": "bt", "snes_divergence_tolerance": -1.0}
+OPTIONS = {"snes_rtol": 1e-8, "snes_linesearch_type": "bt",
+           "snes_divergence_tolerance": -1.0}
 # A, stiff (its bending modes are far above 1 / dt: damped by rho_inf = 0 at once)
-UPPER = RodParameters(length=L, A=(5.0,) * 3, B=(1e5,) * 3, rho_A=RHO_A, I11=6.25e-7,
-                      I22=6.25e-7)
-LOWER = RodParameters(length=0.2, A=(50.0,) * 3, B=(1e6,) * 3, rho_A=RHO_A, I11=6.25e-7,
-                      I22=6.25e-7)
+UPPER = RodParameters(length=L, A=(5.0,) * 3, B=(1e5,) * 3, density=RHO_A,
+                      section_inertia=(6.25e-7, 6.25e-7))
+LOWER = RodParameters(length=0.2, A=(50.0,) * 3, B=(1e6,) * 3, density=RHO_A,
+                      section_inertia=(6.25e-7, 6.25e-7))
 
 
 def _smooth(t, t0, t1):
@@ -53,10 +55,10 @@ def _crossing(pull: float, mu: float = MU, friction_key: bool = True, steps: int
     and friction forces, friction dissipation, smallest gap)."""
     loads = [DistributedLoad("force", (0, 0, -RHO_A * G)),
              DistributedLoad("force", (pull / L, 0, 0), lambda t: _smooth(t, 0.01, 0.03))]
-    rods = [Rod(UPPER, N_CELLS, ("free", "free"), distributed_loads=loads,
+    rods = [Rod(UPPER, N_CELLS, start="free", end="free", distributed_loads=loads,
                 position=(0, -L / 2, 2 * R + 0.5 * DELTA), orientation=(-np.pi / 2, 0, 0),
                 name="A"),
-            Rod(LOWER, N_CELLS, ("clamped", "clamped"), position=(-0.1, 0, 0),
+            Rod(LOWER, N_CELLS, start="clamped", end="clamped", position=(-0.1, 0, 0),
                 orientation=(0, np.pi / 2, 0), name="B")]
     kappa = WEIGHT / (L / N_CELLS * 1.19 * DELTA)
     friction = {"between_rods_friction": mu} if friction_key else {}
@@ -141,9 +143,10 @@ def _ring(dt: float, t_end: float = 0.5):
     generalized-alpha with rho_inf = 1 (no numerical dissipation).  Returns (largest
     |W(t) - W(0)| of W = K + Psi + E_c + int_0^t D, the energy friction dissipated, the
     smallest friction dissipation rate of a step)."""
-    params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, rho_A=0.1, I11=1e-6,
-                           I22=1e-6, reference_curvature=(2 * np.pi * 0.95, 0, 0))
-    rod = RodModel(params, 40, model="hyperelastic", ends=("free", "free"),
+    params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, density=0.1,
+                           section_inertia=(1e-6, 1e-6),
+                           reference_curvature=(2 * np.pi * 0.95, 0, 0))
+    rod = RodModel(params, 40, model="hyperelastic", start="free", end="free",
                    contact=ContactLaw(0.01, 0.002, 1e3, EPS, self_contact=True,
                                       self_friction=0.5))
     ends, _ = rod.stress_free(np.array([0.0, 1.0]))
@@ -218,8 +221,8 @@ def test_negative_friction_exits_2_naming_the_key(tmp_path):
 def test_friction_needs_generalized_alpha_velocities():
     """Quaternion unknowns (per-step schemes: no step velocities for the friction) and a
     quasi-static rod are refused, naming the key."""
-    params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, rho_A=0.1, I11=1e-6,
-                           I22=1e-6)
+    params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, density=0.1,
+                           section_inertia=(1e-6, 1e-6))
     law = ContactLaw(0.01, 0.002, 1e3, EPS, self_contact=True, self_friction=0.5)
     with pytest.raises(ValueError, match="contact.self_friction needs rotation-vector"):
         RodModel(params, 40, model="hyperelastic", rotations="quaternion", contact=law)
