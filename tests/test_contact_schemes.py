@@ -34,9 +34,9 @@ def _propped(rotations: str, dynamic: bool, drop: float, kappa: float) -> RodSys
     prop = RodParameters(length=0.5, A=(1e3,) * 3, B=(1e6,) * 3, **mass)
     load = EndLoad("force", (0, 0, -P), (lambda t: 1.0) if dynamic else (lambda t: t))
     x_prop = 1.0 if dynamic else 0.75 + 1 / 24       # quasi-static: inside A's segment
-    rods = [Rod(beam, 8, ("clamped", "free"), [load], orientation=(0, np.pi / 2, 0),
+    rods = [Rod(beam, 8, "clamped", [load], orientation=(0, np.pi / 2, 0),
                 name="A"),
-            Rod(prop, 5, ("clamped", "clamped"), position=(x_prop, -0.25, -(2 * R + drop)),
+            Rod(prop, 5, "clamped", end="clamped", position=(x_prop, -0.25, -(2 * R + drop)),
                 orientation=(-np.pi / 2, 0, 0), name="B")]
     system = RodSystem(rods, model="hyperelastic", rotations=rotations,
                        contact=ContactLaw(R, DELTA, kappa, between_rods=True))

@@ -46,7 +46,7 @@ def _resting(n_cells: int, dynamic: bool, stiff_plane: float = EI,
     loads = [EndLoad("force", (0, 0, -push), ramp)]
     if axial:
         loads.append(EndLoad("force", (-axial, 0, 0), lambda t: t))
-    rods = [Rod(beam, n_cells, ("clamped", "free"), loads,
+    rods = [Rod(beam, n_cells, "clamped", loads,
                 orientation=(0, np.pi / 2, 0), name="A"),
             Rod(prop, B_CELLS, "clamped", end="clamped",
                 position=(L, -B_LENGTH / 2, -(2 * R + 1.5 * DELTA)),

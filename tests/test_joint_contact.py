@@ -47,11 +47,11 @@ def _system(joined: bool) -> RodSystem:
     if joined:
         half = RodParameters(**{**BEAM.__dict__, "length": L / 2})
         rods = [Rod(half, N // 2, "clamped", end="free", orientation=ALONG_E1, name="A1"),
-                Rod(half, N // 2, ("free", "free"), _load(), position=(L / 2, 0, 0),
+                Rod(half, N // 2, "free", _load(), end="free", position=(L / 2, 0, 0),
                     orientation=ALONG_E1, name="A2"), _prop()]
         joints = [Joint("rigid", ("A1", "A2"), (L / 2, 0, 0), name="knee")]
     else:
-        rods = [Rod(BEAM, N, ("clamped", "free"), _load(), orientation=ALONG_E1,
+        rods = [Rod(BEAM, N, "clamped", _load(), orientation=ALONG_E1,
                     name="A"), _prop()]
         joints = []
     system = RodSystem(rods, joints, model="hyperelastic",

@@ -83,7 +83,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod",
                   "hinged_door.toml": "rod", "bent_frame.toml": "rod",
                   "column_buckling_modes.toml": "rod", "string_modes.toml": "rod",
-                  "buckled_column.toml": "rod", "snap_through_arch.toml": "rod"}
+                  "buckled_column.toml": "rod", "snap_through_arch.toml": "rod",
+                  "beck_column.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])

@@ -39,7 +39,7 @@ from .boundary_conditions import EndSupports, linked_axes, spin_free
 from .constitutive import check_model, energy_function, section_response
 from .contact import ContactLaw, Obstacle, ObstacleContact, check_contact
 from .discretisation import discretise, function_spaces, unknowns
-from .external_forces import DistributedLoad, EndLoad
+from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
 from .joints import JointReactions, joint_nodes, node_links
 from .layout import RodLayout
@@ -78,7 +78,8 @@ class RodModel(FEModel):
     s = L: "clamped", "pinned" or "free"), end_displacement, end_rotation:
     boundary_conditions.py (end_slide: {end: axis}, a clamped or pinned end sliding
     along a coordinate axis; end_turn: {end: axis}, a clamped end turning freely about
-    one; end_springs: {end: EndSpring}, compliant supports); end_loads, distributed_loads: external_forces.py; rotations:
+    one; end_springs: {end: EndSpring}, compliant supports); end_loads, distributed_loads,
+    point_loads (at points inside the rod): external_forces.py; rotations:
     "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
     vectors for the local variant without a constraint, a dynamic rod with rotary
     inertia or a quasi-static one without Kelvin-Voigt viscosity and drag: 6 unknowns
@@ -102,11 +103,12 @@ class RodModel(FEModel):
                  rotations: str = ROTATION_UNKNOWNS, comm: MPI.Comm = MPI.COMM_WORLD,
                  end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
                  contact: ContactLaw | None = None, end_springs: dict | None = None,
-                 end_turn: dict | None = None, end: str = "free"):
+                 end_turn: dict | None = None, end: str = "free",
+                 point_loads: Sequence[PointLoad] = ()):
         start, end = positional_ends("RodModel", start, end, stacklevel=5)
         rod = Rod(params, n_cells, start, end_loads, distributed_loads, end_displacement,
                   end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn,
-                  end=end)
+                  end=end, point_loads=point_loads)
         self._build([rod], model, variant, constraints, rotations, comm, obstacles=obstacles,
                     contact=contact)
 
@@ -155,6 +157,7 @@ class RodModel(FEModel):
                                                                   variant, constraint)
         self.end_loads = [load for rod in rods for load in rod.end_loads]
         self.distributed_loads = [load for rod in rods for load in rod.distributed_loads]
+        self.point_loads = [load for rod in rods for load in rod.point_loads]
         self.layout = layout = RodLayout(tuple(rod.name for rod in rods),
                                          tuple(float(rod.params.length) for rod in rods),
                                          tuple(rod.n_cells for rod in rods))
@@ -245,7 +248,8 @@ class RodModel(FEModel):
         residual.zero_diagonals(F, unk, disc)
         self.loads, power = external_forces.apply_loads(
             F, unk, disc, [(k, load) for k, rod in enumerate(rods) for load in rod.end_loads],
-            [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads])
+            [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads],
+            [(k, load) for k, rod in enumerate(rods) for load in rod.point_loads])
         residual.one_quadrature_rule(F, unk, disc)
         return F, natural_pairs, (drag_dissipation, friction_dissipation), power
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..checks import N_CELLS, check_n_cells, deprecated_names, old_keywords
 from .boundary_conditions import check_supports
-from .external_forces import DistributedLoad, EndLoad, check_loads
+from .external_forces import DistributedLoad, EndLoad, PointLoad, check_loads
 from .material import RodParameters, check_parameters, is_zero
 from .start import shape_problem
 
@@ -22,8 +22,8 @@ NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
 class Rod:
     """A rod of a system: its parameters (length, material, reference strains), cells,
     ends and their motions, loads (end loads at its own "left" end s = 0 and "right" end
-    s = L; distributed loads and coefficients as functions of its own arc length), and
-    where it starts: ``position`` of its left end and ``orientation``, the rotation
+    s = L; distributed loads, point loads and coefficients as functions of its own arc
+    length), and where it starts: ``position`` of its left end and ``orientation``, the rotation
     vector (axis times angle) that turns e_3 into its initial tangent and e_1, e_2 into
     its initial directors d_1, d_2 there."""
 
@@ -42,9 +42,11 @@ class Rod:
     end_springs: dict | None = None      # {end: EndSpring} (boundary_conditions.py)
     end_turn: dict | None = None         # {end: axis}: a clamped end turning freely
     end: str = "free"                    # the support at s = L: clamped | pinned | free
+    point_loads: Sequence[PointLoad] = ()   # at points s of its own arc length
 
     def __post_init__(self):
         self.end_loads, self.distributed_loads = list(self.end_loads), list(self.distributed_loads)
+        self.point_loads = list(self.point_loads)
         self.start, self.end = positional_ends("Rod", self.start, self.end, stacklevel=6)
 
     @property
@@ -121,7 +123,7 @@ def _check_rod(rod: Rod, model: str, variant: str) -> None:
                    rod.end_turn)
     check_parameters(rod.params, model == "evolving", model != "hyperelastic", variant)
     _check_reference_shape(rod.params)
-    check_loads(rod.end_loads, rod.distributed_loads)
+    check_loads(rod.end_loads, rod.distributed_loads, rod.point_loads, rod.params.length)
     for name in ("position", "orientation"):
         value = np.asarray(getattr(rod, name), dtype=float)
         if value.shape != (3,) or not np.all(np.isfinite(value)):

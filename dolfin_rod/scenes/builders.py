@@ -362,6 +362,7 @@ def rod_arguments(scene: Scene) -> dict:
     end_loads, distributed_loads = rod_loads(scene)
     return dict(n_cells=scene["geometry"]["n_cells"], start=boundary["start"], end=boundary["end"],
                 end_loads=end_loads, distributed_loads=distributed_loads,
+                point_loads=rod_point_loads(scene),
                 end_displacement=motions["displacement"], end_rotation=motions["rotation"],
                 end_slide={side: axis for key, side in ends.items()
                            if (axis := boundary[f"{key}_slide"]) is not None},
@@ -459,6 +460,14 @@ def rod_loads(scene: Scene) -> tuple[list, list]:
     if lds["gravity"] is not None:
         distributed.append(DistributedLoad("force", _profiled(lds["gravity"], mat["density"])))
     return end_loads, distributed
+
+
+def rod_point_loads(scene: Scene) -> list:
+    """PointLoads (point_force/couple) of a rod scene."""
+    from ..rod import PointLoad
+    return [PointLoad(kind, value, spec.s, history, spec.follower)
+            for kind in ("force", "couple") if (spec := scene["loads"][f"point_{kind}"])
+            for value, history in _vector_parts(spec)]
 
 
 def _vector_parts(spec):
