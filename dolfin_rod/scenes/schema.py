@@ -64,10 +64,11 @@ PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "re
 # quantity kind -> unit per unit system
 UNITS = {
     "SI": {"length": "m", "time": "s", "force": "N", "moment": "N m", "energy": "J",
-           "angle": "rad"},
+           "power": "W", "angle": "rad"},
     "pN-nm-s": {"length": "nm", "time": "s", "force": "pN", "moment": "pN nm",
-                "energy": "pN nm", "angle": "rad"},
-    "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy"), "1")
+                "energy": "pN nm", "power": "pN nm/s", "angle": "rad"},
+    "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy",
+                                    "power"), "1")
     | {"angle": "rad"},       # the torsion scenes' Section 5.1 variables
 }
 
