@@ -190,6 +190,50 @@ def test_deep_arch_from_its_scene(tmp_path):
     assert extrapolated == pytest.approx(8.97, rel=5e-3), (loads, extrapolated)
 
 
+def lee_frame_limit_load(n_cells: int) -> float:
+    """The limit load (x EI/L^2) of Lee's frame: a column (L = 1, pinned at its foot)
+    and a beam (L = 1, pinned at its far end) joined rigidly at the knee, a dead point
+    force down on the beam 0.2 L from the knee (a node), F = 40 lambda; the pins clamped
+    ends turning freely about the normal of the frame's plane (end_turn), out of the
+    plane stiff (100 EI, 100 GJ); EA = 43200 EI/L^2 (A = 6, I = 2, L = 120), GA = EA /
+    2.6 (nu = 0.3).  Arc length ds = 0.02 on the rod system (the joint's constraint map
+    in the bordered Newton); the first maximum of lambda by a parabola."""
+    import math
+
+    from dolfin_rod import Rod, RodSystem
+    from dolfin_rod.rod.external_forces import PointLoad
+    from dolfin_rod.rod.joints import Joint
+    params = RodParameters(length=1.0, A=(100.0, 1.0, 100.0), B=(16615.0, 16615.0, 43200.0))
+    in_plane = {"left": (0.0, 1.0, 0.0)}, {"right": (0.0, 1.0, 0.0)}
+    rods = [Rod(params, n_cells, start="clamped", end="free", end_turn=in_plane[0],
+                name="column"),
+            Rod(params, n_cells, start="free", end="clamped", end_turn=in_plane[1],
+                name="beam", position=(0.0, 0.0, 1.0), orientation=(0.0, math.pi / 2, 0.0),
+                point_loads=[PointLoad("force", (0.0, 0.0, -1.0), 0.2, lambda t: 40.0 * t)])]
+    frame = RodSystem(rods, joints=[Joint("rigid", ("column", "beam"), (0.0, 0.0, 1.0))],
+                      model="hyperelastic")
+    frame.set_initial_state()
+    path = ArcLength(frame, ds=0.02, max_steps=20 * n_cells + 200)   # past the limit
+    path.run(0.0, 1.0)
+    lam = np.array(path.points)[:, 0]
+    top, _ = turning_points(lam)
+    return 40.0 * extremum(np.arange(len(lam), dtype=float), lam, top)
+
+
+@pytest.mark.slow
+def test_lee_frame_limit_load():
+    """Lee's frame (Lee, Manuel & Rossow 1968; Schweizerhof & Wriggers 1986: limit load
+    about 18.5 EI/L^2): arc-length continuation through the joint.  Measured 19.097394,
+    18.681955, 18.580192 EI/L^2 at 10, 20, 40 cells per member (order 2.03), Richardson's
+    extrapolation 18.5463.  Asserted: the order within 0.3 of 2, the extrapolation within
+    0.5 % of 18.5 (the published value's digits)."""
+    loads = [lee_frame_limit_load(n) for n in (10, 20, 40)]
+    order = np.log2((loads[0] - loads[1]) / (loads[1] - loads[2]))
+    assert abs(order - 2.0) < 0.3, loads
+    extrapolated = loads[2] + (loads[2] - loads[1]) / 3.0
+    assert extrapolated == pytest.approx(18.5, rel=5e-3), (loads, extrapolated)
+
+
 def test_a_continuation_parameter_that_is_not_a_load_is_refused(tmp_path, capsys):
     from dolfin_rod.cli import main
     scene = tmp_path / "arch.toml"
