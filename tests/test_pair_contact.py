@@ -15,11 +15,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from dolfin_rod import TimeStepper
 from dolfin_rod.rod import EndLoad, RodModel, RodParameters
 from dolfin_rod.rod.contact import ContactLaw, barrier_derivatives
 from dolfin_rod.rod.pair_contact import exclusion, pair_energy
+from dolfin_rod.rod.segments import closest_points
 from dolfin_rod.rod.rods import Rod
 from dolfin_rod.rod.system import RodSystem
 
@@ -83,9 +85,9 @@ def _propped(a, y0, between=True):
     """Rod A along e_1 (clamped at 0, tip load -P e_3 ramped over t in [0, 1]) over the
     stiff clamped-clamped rod B along e_2 at x = a, from y = y0, its centre line
     2 r + 1.5 delta below A's."""
-    rods = [Rod(BEAM, N, ("clamped", "free"), [EndLoad("force", (0, 0, -P), lambda t: t)],
+    rods = [Rod(BEAM, N, "clamped", [EndLoad("force", (0, 0, -P), lambda t: t)],
                 orientation=(0, np.pi / 2, 0), name="A"),
-            Rod(PROP, 4, ("clamped", "clamped"), position=(a, y0, -(2 * R + 1.5 * DELTA)),
+            Rod(PROP, 4, "clamped", end="clamped", position=(a, y0, -(2 * R + 1.5 * DELTA)),
                 orientation=(-np.pi / 2, 0, 0), name="B")]
     system = RodSystem(rods, model="hyperelastic",
                        contact=ContactLaw(R, DELTA, 1e6, between_rods=between))
@@ -182,9 +184,9 @@ def test_contact_off_changes_nothing():
     without a contact law bit for bit (A then falls through B's place)."""
     off = _propped(0.75, -0.25, between=False)
     assert not off.problem.terms
-    rods = [Rod(BEAM, N, ("clamped", "free"), [EndLoad("force", (0, 0, -P), lambda t: t)],
+    rods = [Rod(BEAM, N, "clamped", [EndLoad("force", (0, 0, -P), lambda t: t)],
                 orientation=(0, np.pi / 2, 0), name="A"),
-            Rod(PROP, 4, ("clamped", "clamped"), position=(0.75, -0.25, -(2 * R + 1.5 * DELTA)),
+            Rod(PROP, 4, "clamped", end="clamped", position=(0.75, -0.25, -(2 * R + 1.5 * DELTA)),
                 orientation=(-np.pi / 2, 0, 0), name="B")]
     plain = RodSystem(rods, model="hyperelastic")
     plain.set_initial_state()
@@ -211,9 +213,9 @@ def _ring_drift(dt, t_end=0.5):
     contact energy, smallest pair gap)."""
     from dolfin_rod.rod.start import StartingState
     kappa = 2 * np.pi * 0.95
-    params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, rho_A=0.1, I11=1e-6,
-                           I22=1e-6, reference_curvature=(kappa, 0, 0))
-    rod = RodModel(params, 40, model="hyperelastic", ends=("free", "free"),
+    params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, density=0.1,
+                           section_inertia=1e-6, reference_curvature=(kappa, 0, 0))
+    rod = RodModel(params, 40, model="hyperelastic", start="free", end="free",
                    contact=ContactLaw(0.01, 0.002, 1e3, self_contact=True))
     ends, _ = rod.stress_free(np.array([0.0, 1.0]))
     chord = (ends[0] - ends[1]) / np.linalg.norm(ends[0] - ends[1])
@@ -243,3 +245,76 @@ def test_frictionless_contact_conserves_energy_at_second_order():
     drifts = np.array([r[0] for r in runs])
     assert all(r[1] > 1e-6 and r[2] < 0.7 * 0.002 for r in runs), runs
     assert np.all(drifts[:-1] / drifts[1:] > 3.5), drifts
+
+
+def _coiled_rod(n_cells=120):
+    """A rod (r = 1 cm, h = 1 cm) wound into a helix whose coils are 2 r + delta / 2
+    apart: every segment within the barrier's reach of the coils next to it."""
+    params = RodParameters(length=n_cells * R, A=(1.0,) * 3, B=(1e3,) * 3, density=1.0,
+                           section_inertia=1e-4)
+    model = RodModel(params, n_cells, model="hyperelastic", start="free", end="free",
+                     contact=ContactLaw(R, DELTA, 1e3, self_contact=True))
+    model.set_initial_state()
+    x = model.unknowns.f["displacement"]
+    s = x.function_space.tabulate_dof_coordinates()[:, 0]
+    radius, pitch = 0.05, 2 * R + DELTA / 2
+    phi = s / np.hypot(radius, pitch / (2 * np.pi))
+    helix = np.stack([radius * np.cos(phi), radius * np.sin(phi), pitch * phi / (2 * np.pi)])
+    x.x.array[:] = (helix.T - np.outer(s, (0, 0, 1))).ravel()
+    return model
+
+
+@pytest.mark.mpi
+def test_candidate_list_finds_every_pair_within_reach():
+    """The pairs of the candidate list (kept while the nodes move less than half the
+    skin, else searched anew) are the pairs a search over all segment pairs finds
+    (closest points of every pair i < j farther apart in s than the exclusion), in the
+    same order, after moves of 0.2, 0.45 and 2 skins' worth of random noise (list kept,
+    kept, searched anew).  Exact: the same closest-point arithmetic decides both."""
+    contact = _coiled_rod().segment_contact
+    line = contact.line
+    P0 = line.positions(contact.owned_displacement())
+    i, j = np.triu_indices(len(line.ends), 1)
+    far = np.abs(line.mid_s[i] - line.mid_s[j]) >= contact.exclusion
+    i, j = i[far], j[far]
+    rng = np.random.default_rng(5)
+    contact.pairs(P0)
+    for share in (0.2, 0.45, 2.0):
+        move = rng.uniform(-1, 1, P0.shape)
+        P = P0 + share * contact.skin * move / np.linalg.norm(move, axis=1).max()
+        X = P[line.ends[np.stack([i, j], 1)].reshape(-1, 4)]
+        near = closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])[2] < contact.reach
+        found = contact.pairs(P)
+        assert len(found) > len(line.ends)          # the coils touch all along
+        assert np.array_equal(found, np.stack([i[near], j[near]], 1))
+
+
+@pytest.mark.mpi
+def test_jacobian_pattern_grows_once_and_keeps_the_forms_entries():
+    """The coiled rod's step Jacobian: the first assembly adds the pairs' entries to the
+    matrix pattern (fem/assembly.grow_pattern, which copies the forms' assembled values
+    into the grown matrix) and equals the reference: the forms' Jacobian assembled into
+    a matrix of that pattern and the pairs' Hessians added (to 1e-14: the same sums in
+    another order); the next Jacobian at the same pairs needs no new entry (pattern
+    unchanged, no allocation)."""
+    model = _coiled_rod()
+    system = TimeStepper(model.problem).solver.system
+    x, b = system.x, system.b.duplicate()
+    system.get(0, x)
+    system.residual(x, b)
+    system.jacobian(system.A)
+    assert system.pattern_changes == 1
+    reference = system.A.duplicate(copy=False)
+    terms, system.terms = system.terms, ()
+    system.jacobian(reference)                          # the forms only
+    system.terms = terms
+    reference.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    terms[0].add_jacobian(reference)
+    reference.assemble()
+    reference.axpy(-1.0, system.A, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+    assert reference.norm() <= 1e-14 * system.A.norm()
+    model.segment_contact.forget()
+    system.residual(x, b)
+    system.jacobian(system.A)
+    assert system.pattern_changes == 1
+    assert system.A.getInfo()["mallocs"] == 0

@@ -53,6 +53,24 @@ def jacobian_blocks(F: list[ufl.Form], y: list[fem.Function], wrt=None) -> list[
     return J
 
 
+def grow_pattern(A: PETSc.Mat, rows: np.ndarray, cols: np.ndarray) -> None:
+    """A (assembled, AIJ) preallocated anew with its entries and their values plus zero
+    entries at (rows, cols) (global numbers, owned rows; collective).  Entries added to
+    an assembled matrix outside its pattern cost PETSc a reallocation each (a minute for
+    the 4e5 entries of 1e4 segment pairs, docs/performance.md); in the pattern they cost
+    a search in the row."""
+    indptr, indices, values = A.getValuesCSR()
+    start, n = A.getOwnershipRange()[0], len(indptr) - 1
+    width = np.int64(A.getSize()[1])
+    old = np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr)) * width + indices
+    keys = np.union1d(old, (np.asarray(rows, np.int64) - start) * width + cols)
+    merged = np.zeros(len(keys), dtype=values.dtype)
+    merged[np.searchsorted(keys, old)] = values
+    pointers = np.searchsorted(keys // width, np.arange(n + 1))
+    A.setPreallocationCSR((pointers.astype(PETSc.IntType),
+                           (keys % width).astype(PETSc.IntType), merged))
+
+
 def _is_real(V) -> bool:
     """A real space: one global dof block on a mesh of several cells."""
     tdim = V.mesh.topology.dim
@@ -65,6 +83,7 @@ class _System:
     assembled outside the forms (``add_terms``)."""
 
     terms: tuple = ()
+    pattern_changes = 0     # how often the terms grew the Jacobian's sparsity (grow_pattern)
 
     def _setup_bc_rows(self, bcs, rows_of):
         """rows_of(j, dofs): local rows of block j's (unrolled, owned) dofs."""
@@ -83,21 +102,28 @@ class _System:
         self._bc_global = PETSc.IS().createGeneral(
             (self.bc_rows + start).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         self._scratch = [np.zeros_like(y.x.array) for y in self.groups[0]]
-        self.A.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
+        self._set_matrix_options(self.A)
+
+    def _set_matrix_options(self, A) -> None:
+        A.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
         # MPI: after the first assembly the off-rank entries go to the same ranks, and each
         # rank zeroes only its own (owned) rows: no rendezvous (BuildTwoSided) per Jacobian
-        self.A.setOption(PETSc.Mat.Option.SUBSET_OFF_PROC_ENTRIES, True)
-        self.A.setOption(PETSc.Mat.Option.NO_OFF_PROC_ZERO_ROWS, True)
+        A.setOption(PETSc.Mat.Option.SUBSET_OFF_PROC_ENTRIES, True)
+        A.setOption(PETSc.Mat.Option.NO_OFF_PROC_ZERO_ROWS, True)
+        if self.terms:
+            A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
 
     def add_terms(self, terms) -> None:
         """Terms of the residual and Jacobian that are not forms (e.g. a rod's segment
         pairs in contact, rod/pair_contact.py): each ``term.bind(system)`` gives an object
-        with add_residual(x_owned, b_owned) (before the Dirichlet rows are replaced) and
-        add_jacobian(A) (global rows, before A.assemble(); new entries grow A's
-        sparsity)."""
+        with add_residual(x_owned, b_owned) (before the Dirichlet rows are replaced),
+        missing_entries() (the Jacobian entries it will add that A lacks, or None: the
+        system then grows A's sparsity, ``pattern_changes`` counts it, and a solver
+        that keeps a factorisation of A must set it up anew: under MPI PETSc's nonzero
+        state of A does not always show the change) and add_jacobian(A) (global rows,
+        before A.assemble())."""
         self.terms = tuple(term.bind(self) for term in terms)
-        if self.terms:
-            self.A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        self._set_matrix_options(self.A)
 
     def _add_terms_to_residual(self, x, b) -> None:
         if self.terms:
@@ -107,6 +133,12 @@ class _System:
 
     def _add_terms_to_jacobian(self, A) -> None:
         for term in self.terms:
+            entries = term.missing_entries()
+            if entries is not None:
+                A.assemble()
+                grow_pattern(A, *entries)
+                self._set_matrix_options(A)
+                self.pattern_changes += 1
             term.add_jacobian(A)
 
     def bc_values(self) -> np.ndarray:

@@ -182,6 +182,8 @@ class ConstrainedSystem:
     contact pairs, so P^T J P is formed anew at each Jacobian (its symbolic product
     included) and inserted into A, whose pattern grows."""
 
+    pattern_changes = 0     # A grows by insertion: PETSc's nonzero state shows it
+
     def __init__(self, inner, fields: list, links: list):
         self.inner, self.groups = inner, inner.groups
         self.terms = tuple(_ReducedTerm(self, term) for term in inner.terms)

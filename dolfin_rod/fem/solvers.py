@@ -346,7 +346,10 @@ class BlockSNES:
         if self.reuse_ratio is not None and not self._new_jacobian_needed(snes):
             return      # A unchanged: PETSc keeps its LU as well (PCSetUp: same state)
         t0 = time.perf_counter()
+        changes = self.system.pattern_changes
         self.system.jacobian(A)
+        if self.system.pattern_changes != changes:    # a new factorisation, symbolic too
+            snes.getKSP().getPC().reset()
         self.timings["jacobian"] += time.perf_counter() - t0
         self.counts["jacobian"] += 1
 

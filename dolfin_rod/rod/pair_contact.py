@@ -24,16 +24,22 @@ straight path of the nodes, on which d is Lipschitz in the path's parameter with
 pair's largest node displacements; bisected where the bound cannot exclude it).  A
 step is accepted only if every pair's gap is > 0 at its end and no two segments crossed
 on the straight path from the last accepted state (``crossed``, the same bound).
+
+Coulomb friction of the pairs (``contact.self_friction``, ``between_rods_friction``):
+pair_friction.py, with the pairs and normal forces lagged at each accepted state
+(``commit``) and the nodes' velocities of the step's affine rate map (``set_rates``).
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from petsc4py import PETSc
 
 from .contact import barrier_derivatives
+from .pair_friction import PairFriction
 from .segments import closest_points, near_pairs
 
 CROSSING_DEPTH = 24     # bisections of a step's path before a pair counts as crossed
@@ -45,45 +51,65 @@ def exclusion(radius: float, gap: float, h: float) -> float:
     return math.pi * (radius + gap) + h
 
 
-def distance_derivatives(X):
-    """Centre-line distance d of segment pairs X (m, 4, 3) = (p0, p1, q0, q1) and its
-    gradient (m, 12) and Hessian (m, 12, 12) with respect to the 12 coordinates."""
+def pair_energy(X, radius: float, gap: float, stiffness, weights, order: int = 2):
+    """Energy (m,), gradient (m, 12) and (order 2) Hessian (m, 12, 12) of segment pairs
+    X (m, 4, 3) = (p0, p1, q0, q1) with weights w_ij (m,): E = kappa w b(d - 2 r), d the
+    centre-line distance.  With D = p(s) - q(t) = sum_k w_k X_k at the closest points,
+    w = (1 - s, s, t - 1, -t), the gradient of d is w (x) D / d (envelope theorem)."""
     p0, p1, q0, q1 = (X[:, k] for k in range(4))
     s, t, d = closest_points(p0, p1, q0, q1)
     d1, d2 = p1 - p0, q1 - q0
     D = p0 + s[:, None] * d1 - q0 - t[:, None] * d2
-    w = np.stack([1 - s, s, -(1 - t), -t], axis=1)                  # D = sum_k w_k X_k
-    eye = np.eye(3)
-    f_X = 2 * (w[:, :, None] * D[:, None, :]).reshape(-1, 12)        # grad of d^2
-    f_XX = 2 * np.einsum("mk,ml,ij->mkilj", w, w, eye).reshape(-1, 12, 12)
-    ds_w, dt_w = np.array([-1.0, 1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0, -1.0])
-    f_Xs = 2 * (ds_w[None, :, None] * D[:, None, :] + w[:, :, None] * d1[:, None, :])
-    f_Xt = 2 * (dt_w[None, :, None] * D[:, None, :] - w[:, :, None] * d2[:, None, :])
-    free = np.stack([(s > 0) & (s < 1), (t > 0) & (t < 1)], axis=1)
-    B = np.stack([f_Xs.reshape(-1, 12), f_Xt.reshape(-1, 12)], axis=2) * free[:, None, :]
-    a, b, e = (np.einsum("ij,ij->i", u, v) for u, v in ((d1, d1), (d1, d2), (d2, d2)))
-    K = 2 * np.stack([np.stack([a, -b], 1), np.stack([-b, e], 1)], 1)
-    both = free[:, 0] & free[:, 1]
-    K[~both, 0, 1] = K[~both, 1, 0] = 0.0
-    K[~free[:, 0], 0, 0] = K[~free[:, 1], 1, 1] = 1.0
-    H2 = f_XX - B @ np.linalg.solve(K, np.transpose(B, (0, 2, 1)))
-    grad = f_X / (2 * d[:, None])
-    hess = (H2 - 2 * grad[:, :, None] * grad[:, None, :]) / (2 * d[:, None, None])
-    return d, grad, hess
-
-
-def pair_energy(X, radius: float, gap: float, stiffness, weights, order: int = 2):
-    """Energy (m,), gradient (m, 12) and (order 2) Hessian (m, 12, 12) of segment pairs
-    X (m, 4, 3) with weights w_ij (m,): E = kappa w b(d - 2 r)."""
-    d, grad, hess = distance_derivatives(X)
+    w = np.stack([1 - s, s, t - 1, -t], axis=1)
+    grad = (w[:, :, None] * (D / d[:, None])[:, None, :]).reshape(-1, 12)
     b, b1, b2 = barrier_derivatives(d - 2 * radius, gap)
     k = stiffness * np.asarray(weights, float)
     E, G = k * b, (k * b1)[:, None] * grad
     if order < 2:
         return E, G, None
-    H = (k * b2)[:, None, None] * grad[:, :, None] * grad[:, None, :] + \
-        (k * b1)[:, None, None] * hess
-    return E, G, H
+    return E, G, _pair_hessian(k * b1, k * b2, d, grad, w, D, d1, d2, s, t)
+
+
+def _pair_hessian(e1, e2, d, grad, w, D, d1, d2, s, t):
+    """e1 hess d + e2 grad d grad d^T (e1, e2: the energy's first and second derivatives
+    in d), (m, 12, 12).  d^2 is the value of f = |sum_k w_k X_k|^2 minimised over the
+    free parameters a of (s, t) (those inside (0, 1)), so its Hessian is f_XX - f_Xa
+    f_aa^-1 f_aX (a value function's Hessian), with f_XX = 2 (w w^T) (x) I, f_Xs =
+    2 (DS (x) D + w (x) d1), f_Xt = 2 (DT (x) D - w (x) d2) (DS = dw/ds, DT = dw/dt), f_aa = 2 [[a, -b], [-b, e]];
+    and hess d = (hess d^2 - 2 grad d grad d^T) / (2 d).  The sum is U^T C U with the
+    six rows U = (grad d, f_Xs, f_Xt, w (x) e_1, w (x) e_2, w (x) e_3): one batched
+    product of (12 x 6) by (6 x 12) matrices."""
+    m = len(d)
+    gamma = e1 / (2 * d)
+    ss, st, tt = _free_inverse(d1, d2, s, t)
+    U = np.zeros((m, 6, 4, 3))
+    U[:, 0] = grad.reshape(m, 4, 3)
+    U[:, 1] = (2 * w)[:, :, None] * d1[:, None, :]
+    U[:, 2] = (-2 * w)[:, :, None] * d2[:, None, :]
+    for row, k, sign in ((1, 0, -2), (1, 1, 2), (2, 2, 2), (2, 3, -2)):
+        U[:, row, k] += sign * D        # DS = (-1, 1, 0, 0), DT = (0, 0, 1, -1)
+    for i in range(3):
+        U[:, 3 + i, :, i] = w
+    U = U.reshape(m, 6, 12)
+    CU = np.empty_like(U)
+    CU[:, 0] = (e2 - 2 * gamma)[:, None] * U[:, 0]
+    CU[:, 1] = -gamma[:, None] * (ss[:, None] * U[:, 1] + st[:, None] * U[:, 2])
+    CU[:, 2] = -gamma[:, None] * (st[:, None] * U[:, 1] + tt[:, None] * U[:, 2])
+    CU[:, 3:] = (2 * gamma)[:, None, None] * U[:, 3:]
+    return np.matmul(np.transpose(U, (0, 2, 1)), CU)
+
+
+def _free_inverse(d1, d2, s, t):
+    """The entries (ss, st, tt) of f_aa^-1, f_aa = 2 [[a, -b], [-b, e]] (a = d1.d1,
+    b = d1.d2, e = d2.d2), on the free parameters (those inside (0, 1)); 0 elsewhere."""
+    a, b, e = (np.einsum("ij,ij->i", u, v) for u, v in ((d1, d1), (d1, d2), (d2, d2)))
+    free_s, free_t = (s > 0) & (s < 1), (t > 0) & (t < 1)
+    both = free_s & free_t
+    det = 2 * np.where(both, a * e - b * b, 1.0)
+    only_s, only_t = free_s & ~both, free_t & ~both
+    ss = np.where(both, e / det, np.where(only_s, 0.5 / np.where(only_s, a, 1.0), 0.0))
+    tt = np.where(both, a / det, np.where(only_t, 0.5 / np.where(only_t, e, 1.0), 0.0))
+    return ss, np.where(both, b / det, 0.0), tt
 
 
 class Centreline:
@@ -130,37 +156,67 @@ class SegmentContact:
     """Self-contact (pairs within a rod) and contact between rods (``between_rods``) of
     the segments of ``x`` (the rod's displacement, P1), a term that fem/assembly adds to
     the residual and Jacobian of the systems that hold x (``bind``); law: the contact
-    law (radius, gap, stiffness); joints: the nodes (s_a, s_b) of the rods' joints."""
+    law (radius, gap, stiffness; friction coefficients and slip tolerance: with
+    ``velocity``, x's rate, the pairs' Coulomb friction, pair_friction.py); joints: the
+    nodes (s_a, s_b) of the rods' joints."""
 
     def __init__(self, x, law, rod_of, self_contact: bool, between_rods: bool,
-                 joints=()):
+                 joints=(), velocity=None):
         self.x, self.law = x, law
         self.line = Centreline(x, rod_of)
+        mu = (law.self_friction * self_contact, law.between_rods_friction * between_rods)
+        self.friction = (PairFriction(self.line, law, *mu)
+                         if velocity is not None and max(mu) > 0 else None)
+        self.velocity_field, self.rates = velocity, None
         h = float(np.max(self.line.lengths))
         self.exclusion = exclusion(law.radius, law.gap, h)
         self.through_joints = self._joint_distances(joints)
         self.self_contact, self.between_rods = self_contact, between_rods
         self.reach = 2 * law.radius + law.gap       # pairs act below this distance
+        self.skin = law.radius / 2                   # the candidate list's margin
+        self._candidates = (None, 0.0, None)         # positions, distance, pairs
         self._cache = (None, None)
         self.start = None                            # positions at the last commit
         self.block = 0          # the displacement's block in the problem (model sets it)
+        self.rod_names, self.rod_starts = ("rod",), (0.0,)  # the rods' (model sets them)
 
     # -- pairs and their terms ----------------------------------------------------------
 
     def pairs(self, P: np.ndarray, distance: float | None = None) -> np.ndarray:
-        """(m, 2) segment pairs of positions P whose centre lines are nearer than
-        ``distance`` (default the barrier's reach), filtered by self/between rods."""
+        """(m, 2) segment pairs i < j of positions P whose centre lines are nearer than
+        ``distance`` (default the barrier's reach), filtered by self/between rods, in
+        lexicographic order: the pairs of the candidate list (``candidates``) that are
+        that near."""
+        distance = self.reach if distance is None else distance
+        candidates = self.candidates(P, distance)
+        X = P[self.line.ends[candidates].reshape(-1, 4)]
+        return candidates[closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])[2] < distance]
+
+    def candidates(self, P: np.ndarray, distance: float) -> np.ndarray:
+        """A superset of the pairs nearer than ``distance`` at P (a Verlet list): the
+        pairs nearer than D = distance + skin at the positions P_c of the last tree
+        search, kept while every node stays within (D - distance) / 2 of P_c (a pair's
+        distance changes by at most the sum of its two segments' largest node
+        displacements); else searched anew (segments.near_pairs: a cKDTree)."""
+        P_c, reach, pairs = self._candidates
+        if P_c is not None and distance <= reach <= distance + 2 * self.skin and \
+                2 * np.sqrt(np.max(np.einsum("ij,ij->i", P - P_c, P - P_c))) <= \
+                reach - distance:
+            return pairs
         line = self.line
-        p0, p1 = P[line.ends[:, 0]], P[line.ends[:, 1]]
+        reach = distance + self.skin
         # the exclusion in s applies within a rod: other rods are placed a rod's length
         # or more apart in s (layout.py), so the s test never removes them
-        pairs = near_pairs(p0, p1, line.mid_s, self.reach if distance is None else distance,
+        pairs = near_pairs(P[line.ends[:, 0]], P[line.ends[:, 1]], line.mid_s, reach,
                            self.exclusion)
         same = line.rod[pairs[:, 0]] == line.rod[pairs[:, 1]]
         keep = (same & self.self_contact) | (~same & self.between_rods)
         for near in self.through_joints:        # neighbours through a joint
             keep &= near[pairs[:, 0]] + near[pairs[:, 1]] >= self.exclusion
-        return pairs[keep]
+        pairs = pairs[keep]
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+        self._candidates = (P.copy(), reach, pairs)
+        return pairs
 
     def _joint_distances(self, joints) -> list[np.ndarray]:
         """Per joint point (the nodes (s_a, s_b) of the joints, those sharing a node
@@ -175,33 +231,49 @@ class SegmentContact:
         return [np.min(np.abs(self.line.mid_s[:, None] - np.array(sorted(g))[None, :]),
                        axis=1) for g in groups]
 
-    def _coordinates(self, P, pairs):
-        e = self.line.ends
-        return np.concatenate([P[e[pairs[:, 0]]], P[e[pairs[:, 1]]]], axis=1)
-
-    def evaluate(self, owned_displacement: np.ndarray):
-        """(global nodes (m, 4), E, G, H) of the active pairs at this state (collective;
-        kept for the Jacobian at the same state)."""
+    def evaluate(self, owned_displacement: np.ndarray) -> "PairTerms":
+        """The active pairs at this state and their energies, gradients, Hessians
+        (collective; kept for the Jacobian at the same state)."""
         P = self.line.positions(owned_displacement)
         key, value = self._cache
         if key is not None and np.array_equal(key, P):
             return value
         pairs = self.pairs(P)
-        nodes = np.concatenate([self.line.ends[pairs[:, 0]], self.line.ends[pairs[:, 1]]], 1)
-        weights = 0.5 * (self.line.lengths[pairs[:, 0]] + self.line.lengths[pairs[:, 1]])
-        E, G, H = pair_energy(self._coordinates(P, pairs), self.law.radius, self.law.gap,
-                              self.law.stiffness, weights)
-        value = (nodes, E, G, H)
+        nodes = self.line.ends[pairs].reshape(-1, 4)
+        weights = 0.5 * self.line.lengths[pairs].sum(axis=1)
+        value = PairTerms(pairs, nodes, *pair_energy(
+            P[nodes], self.law.radius, self.law.gap, self.law.stiffness, weights))
         self._cache = (P, value)
         return value
 
     def forget(self) -> None:
-        """The next :meth:`evaluate` finds the pairs anew even at the same state (the
-        cost of a new state, benchmarks/contact_assembly.py)."""
+        """The next :meth:`evaluate` computes the pairs' terms anew even at the same
+        state (the cost of a new state near the last one,
+        benchmarks/contact_assembly.py)."""
         self._cache = (None, None)
+
+    def forget_candidates(self) -> None:
+        """The next pair search builds its tree anew (benchmarks/contact_assembly.py)."""
+        self._candidates = (None, 0.0, None)
 
     def owned_displacement(self) -> np.ndarray:
         return self.x.x.array[: 3 * self.line.n_owned]
+
+    def set_rates(self, maps) -> None:
+        """The step's rates as affine maps of the unknowns, per block (slope, intercept):
+        rate = slope y + intercept (the integrator's, before a step's solve), or None (the
+        rate fields as they are: the start's solves, after the step)."""
+        self.rates = None if maps is None else maps[self.block]
+
+    def velocities(self, owned_displacement: np.ndarray) -> np.ndarray:
+        """(nodes, 3) the nodes' velocities at the displacement (owned) of a solve."""
+        n = 3 * self.line.n_owned
+        if self.rates is None:
+            owned = self.velocity_field.x.array[:n]
+        else:
+            slope, intercept = self.rates
+            owned = slope * owned_displacement + intercept[:n]
+        return self.line.gather(owned.reshape(-1, 3))
 
     def for_step(self, stages, fields, previous, before_previous) -> "StepTerm":
         """The term in a per-step scheme's residual sum_k w_k F(Y_k, ...) (stages: (w_k,
@@ -224,25 +296,30 @@ class SegmentContact:
         """Pair energy, the sum of the pair forces' magnitudes, the smallest pair gap
         (capped at the barrier's gap delta: farther pairs are not searched) and the
         count of pairs within the barrier's reach, of the current state."""
-        nodes, E, G, _ = self.evaluate(self.owned_displacement())
+        terms = self.evaluate(self.owned_displacement())
         P = self.line.positions(self.owned_displacement())
-        gaps = self._gaps(P, self.pairs(P))
-        return {"pair_contact_energy": float(E.sum()),
-                "pair_contact_force": float(np.linalg.norm(G[:, :6].reshape(-1, 2, 3).sum(1),
-                                                           axis=1).sum()),
-                "min_pair_gap": float(gaps.min(initial=self.law.gap)),
-                "contact_pairs": float(len(E))}
+        gaps = self._gaps(P, terms.pairs)
+        G = terms.gradient
+        out = {"pair_contact_energy": float(terms.energy.sum()),
+               "pair_contact_force": float(np.linalg.norm(G[:, :6].reshape(-1, 2, 3).sum(1),
+                                                          axis=1).sum()),
+               "min_pair_gap": float(gaps.min(initial=self.law.gap)),
+               "contact_pairs": float(len(gaps))}
+        if self.friction is not None:       # of the force the last step applied (commit)
+            out["pair_friction_dissipation"] = self.friction.dissipation
+            out["pair_friction_force"] = self.friction.force
+        return out
 
     def _gaps(self, P, pairs):
-        X = self._coordinates(P, pairs)
+        X = P[self.line.ends[pairs].reshape(-1, 4)]
         return closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])[2] - 2 * self.law.radius
 
     def force_density(self) -> np.ndarray:
         """(owned nodes, 3) the pairs' contact force per unit length at the owned nodes
         (the nodes' forces over their share of the reference length, h/2 per cell)."""
-        nodes, _, G, _ = self.evaluate(self.owned_displacement())
+        terms = self.evaluate(self.owned_displacement())
         forces = np.zeros((self.line.n_nodes, 3))
-        np.add.at(forces, nodes.ravel(), -G.reshape(-1, 3))
+        np.add.at(forces, terms.nodes.ravel(), -terms.gradient.reshape(-1, 3))
         share = np.zeros(self.line.n_nodes)
         np.add.at(share, self.line.ends.ravel(), np.repeat(self.line.lengths / 2, 2))
         owned = self.line.owned_global
@@ -251,8 +328,15 @@ class SegmentContact:
     # -- the step's checks ------------------------------------------------------------
 
     def commit(self) -> None:
-        """After an accepted step: its positions start the next step's crossing check."""
+        """After an accepted step: its positions start the next step's crossing check;
+        friction: the power of the force the step applied (its lagged pairs, the step's
+        velocities), then the pairs lagged anew at this state."""
         self.start = self.line.positions(self.owned_displacement())
+        if self.friction is not None:
+            friction = self.friction
+            friction.dissipation, friction.force = friction.power(
+                self.velocities(self.owned_displacement()))
+            friction.lag(self.start, self.pairs(self.start))
 
     def check_state(self) -> str | None:
         """A reason to reject a converged step: a pair at gap <= 0, or two segments that
@@ -270,9 +354,39 @@ class SegmentContact:
         return None if crossed is None else self._where(crossed, "passed through each "
                                                         "other during the step")
 
-    def _where(self, pair, what: str) -> str:
-        s = self.line.mid_s
-        return f"segments at s = {s[pair[0]]:.4g} and s = {s[pair[1]]:.4g}: {what}"
+    def _where(self, pair, what: str, P: np.ndarray | None = None) -> str:
+        """The pair's segments named by rod and arc length (their midpoints), the point
+        between their closest points at positions P (default the current state), and
+        ``what``."""
+        P = self.line.positions(self.owned_displacement()) if P is None else P
+        X = P[self.line.ends[np.asarray(pair)].reshape(4)]
+        s, t, _ = closest_points(*(X[k][None] for k in range(4)))
+        point = 0.5 * (X[0] + s[0] * (X[1] - X[0]) + X[2] + t[0] * (X[3] - X[2]))
+        names = [self.segment_name(k) for k in pair]
+        return (f"segments of {names[0]} and {names[1]}, near ("
+                f"{', '.join(f'{v:.4g}' for v in point)}): {what}")
+
+    def segment_name(self, k: int) -> str:
+        """'rod NAME at s = ...' of segment k (its midpoint's arc length on its rod)."""
+        rod = int(self.line.rod[k])
+        start, name = self.rod_starts[rod], self.rod_names[rod]
+        return f"{'the rod' if len(self.rod_names) == 1 else f'rod {name}'} at s = " \
+               f"{self.line.mid_s[k] - start:.4g}"
+
+    def nearest_pair(self) -> str | None:
+        """Where a failed solve was: the pair with the smallest gap at the last state
+        evaluated (Newton's last iterate; the current state if that is not finite),
+        named by ``_where``; None without a pair within the barrier's reach."""
+        P = self._cache[0]
+        if P is None or not np.isfinite(P).all():
+            P = self.line.positions(self.owned_displacement())
+        pairs = self.pairs(P)
+        if not len(pairs):
+            return None
+        gaps = self._gaps(P, pairs)
+        k = int(np.argmin(gaps))
+        return self._where(pairs[k], f"gap {gaps[k]:.3g} (the barrier acts below "
+                                     f"{self.law.gap:g}) at Newton's last iterate", P)
 
     def crossed(self, P0: np.ndarray, P1: np.ndarray):
         """A pair whose centre lines meet on the straight path P0 -> P1 of the nodes, or
@@ -373,17 +487,30 @@ class BoundTerm:
         self.owned[line.owned_global] = True
         self.row_of_node = np.full(line.n_nodes, -1, dtype=np.int64)
         self.row_of_node[line.owned_global] = np.arange(line.n_owned)
-        self._state = None
+        self.in_pattern = np.zeros(0, dtype=np.int64)    # pairs i * segments + j with
+        self._state = None                               # entries in the matrix
+        self._friction = None       # the friction's (nodes, G, dR/dV) at the last state
 
     def add_residual(self, x_owned: np.ndarray, b_owned: np.ndarray) -> None:
-        """b += dE/dX at the owned nodes' rows (x: the system's owned unknowns)."""
-        u = x_owned[self.local_rows] if self.solved else self.contact.owned_displacement()
+        """b += dE/dX at the owned nodes' rows (x: the system's owned unknowns), and the
+        friction's -w_k F (pair_friction.py; generalized-alpha's steps only)."""
+        contact = self.contact
+        u = x_owned[self.local_rows] if self.solved else contact.owned_displacement()
         self._state = [(1.0, 1.0, u)] if self.step is None else self.step.states(u)
         for weight, _, state in self._state:
-            nodes, _, G, _ = self.contact.evaluate(state)
-            mine = self.owned[nodes.ravel()]
-            rows = self.local_rows.reshape(-1, 3)[self.row_of_node[nodes.ravel()[mine]]]
-            np.add.at(b_owned, rows.ravel(), weight * G.reshape(-1, 3)[mine].ravel())
+            terms = contact.evaluate(state)
+            self._add_rows(b_owned, terms.nodes, weight * terms.gradient)
+        if contact.friction is not None:
+            self._friction = contact.friction.residual(contact.velocities(u))
+            self._add_rows(b_owned, *self._friction[:2])
+
+    def _add_rows(self, b_owned: np.ndarray, nodes: np.ndarray, G: np.ndarray) -> None:
+        """b += the pairs' entries G (m, 12) at the rows of their owned nodes (m, 4)."""
+        nodes = nodes.ravel()
+        mine = self.owned[nodes]
+        rows = self.local_rows.reshape(-1, 3)[self.row_of_node[nodes[mine]]]
+        b_owned += np.bincount(rows.ravel(), G.reshape(-1, 3)[mine].ravel(),
+                               minlength=len(b_owned))
 
     def limit_step(self, x_owned: np.ndarray, y_owned: np.ndarray) -> None:
         """Newton's update x - y (PETSc's sign) scaled down in place by ``step_factor``."""
@@ -402,18 +529,73 @@ class BoundTerm:
         P0 = line.positions(u)
         return self.contact.step_fraction(P0, line.positions(u - y_owned[self.local_rows]))
 
+    def missing_entries(self):
+        """(rows, columns) (global, owned rows) of the Jacobian entries that the pairs at
+        the last residual's states need and the system's matrix lacks, or None (the same
+        answer on every rank: the pairs are found on the gathered centre line).  With
+        them come the entries of the pairs within one more barrier gap delta (the pairs
+        that may come next), so that the pattern grows in few, large steps."""
+        if not self.solved or self._state is None:
+            return None
+        contact = self.contact
+        n_segments = len(contact.line.ends)
+        pairs = np.vstack([contact.evaluate(state).pairs for _, _, state in self._state]
+                          + ([contact.friction.pairs] if contact.friction is not None else []))
+        keys = pairs[:, 0] * n_segments + pairs[:, 1]
+        place = np.searchsorted(self.in_pattern, keys)
+        if np.all(place < len(self.in_pattern)) and \
+                np.array_equal(self.in_pattern[place], keys):
+            return None
+        coming = np.vstack([contact.pairs(contact.line.positions(state),
+                                          contact.reach + contact.law.gap)
+                            for _, _, state in self._state])
+        self.in_pattern = np.union1d(self.in_pattern, np.concatenate(
+            [keys, coming[:, 0] * n_segments + coming[:, 1]]))
+        return self._entries(np.vstack([pairs, coming]))
+
+    def _entries(self, pairs):
+        """(rows, columns) of the 3 x 3 blocks of every two nodes of each pair's four
+        nodes, rows of owned nodes only."""
+        n_nodes = self.contact.line.n_nodes
+        nodes = self.contact.line.ends[pairs].reshape(-1, 4)
+        keys = np.unique((nodes[:, :, None] * n_nodes + nodes[:, None, :]).ravel())
+        a, b = keys // n_nodes, keys % n_nodes
+        a, b = a[self.owned[a]], b[self.owned[a]]
+        rows, cols = self.global_rows[a], self.global_rows[b]
+        return (np.repeat(rows, 3, axis=1).ravel(),
+                np.broadcast_to(cols[:, None, :], (len(a), 3, 3)).ravel())
+
     def add_jacobian(self, A) -> None:
-        """A += the pairs' Hessians (rows of owned nodes) at the last residual's state;
-        new entries grow A's sparsity."""
+        """A += the pairs' Hessians (rows of owned nodes) at the last residual's state
+        (into entries the system added for ``missing_entries``), and the friction's
+        dR/dV times the rates' slope dV/dx."""
         if not self.solved or self._state is None:
             return
         for weight, a0, state in self._state:
-            nodes, _, _, H = self.contact.evaluate(state)
-            if not len(nodes) or weight * a0 == 0.0:
-                continue
-            rows = self.global_rows[nodes].reshape(-1, 12)
-            owned = np.repeat(self.owned[nodes], 3, axis=1)
-            # one call for all pairs (PETSc's loop); other ranks' rows as -1: skipped
-            A.setValuesRCV(np.where(owned, rows, -1).astype(PETSc.IntType),
-                           rows.astype(PETSc.IntType), weight * a0 * H,
-                           addv=PETSc.InsertMode.ADD_VALUES)
+            terms = self.contact.evaluate(state)
+            if weight * a0 != 0.0:
+                self._add_matrix(A, terms.nodes, weight * a0 * terms.hessian)
+        rates = self.contact.rates
+        if self.contact.friction is not None and rates is not None:
+            nodes, _, H = self._friction
+            self._add_matrix(A, nodes, rates[0] * H)
+
+    def _add_matrix(self, A, nodes: np.ndarray, H: np.ndarray) -> None:
+        """A += the 12 x 12 blocks H of the pairs' nodes (rows of owned nodes)."""
+        if not len(nodes):
+            return
+        rows = self.global_rows[nodes].reshape(-1, 12)
+        owned = np.repeat(self.owned[nodes], 3, axis=1)
+        # one call for all pairs (PETSc's loop); other ranks' rows as -1: skipped
+        A.setValuesRCV(np.where(owned, rows, -1).astype(PETSc.IntType),
+                       rows.astype(PETSc.IntType), H, addv=PETSc.InsertMode.ADD_VALUES)
+
+
+class PairTerms(NamedTuple):
+    """The active pairs (m, 2) of segments, their nodes (m, 4) (global numbers), and
+    their energies (m,), gradients (m, 12) and Hessians (m, 12, 12)."""
+    pairs: np.ndarray
+    nodes: np.ndarray
+    energy: np.ndarray
+    gradient: np.ndarray
+    hessian: np.ndarray
