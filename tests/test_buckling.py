@@ -146,6 +146,53 @@ def test_greenhill_with_tension():
     assert modes.load_factors[1] == pytest.approx(modes.load_factors[0], rel=1e-8)
 
 
+def straight_twisted_critical_twist(n_cells: int, tension: float) -> float:
+    """The twist M L / GJ at which the stability count (item 1, TangentStiffness's
+    inertia) of the straight clamped-clamped rod, stretched by T / EA and twisted
+    uniformly (nodal rotations about the axis by M s / GJ: an exact equilibrium of the
+    discrete rod, uniform strains), leaves 0: bisection to 1e-10, no load path and so
+    no linearisation.  EI = GJ = 1, axial and shear stiffness 1e7 (T / EA = 1e-5: the
+    stretch's change of the length and the Engesser-type corrections below 1e-4 of the
+    32-cell error)."""
+    from dolfin_rod.analysis.stability import TangentStiffness
+    from dolfin_rod.rod import StartingState, Straight
+    stiff = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e7, 1e7, 1e7))
+    rod = RodModel(stiff, n_cells=n_cells, model="hyperelastic", start="clamped",
+                   end="clamped")
+    tangent = TangentStiffness(rod)
+
+    def negative(twist: float) -> int:
+        rod.set_initial_state(start=StartingState(shape=Straight(1 + tension / 1e7)))
+        chart = rod.unknowns.chart
+        half = 0.5 * twist * chart.node_s            # L = 1
+        q = np.zeros((len(half), 4))
+        q[:, 0], q[:, 3] = np.cos(half), np.sin(half)
+        chart.q_n.x.array[:] = q.ravel()
+        return tangent.inertia(1.0).negative
+    low, high = 7.0, 25.0
+    assert negative(low) == 0 and negative(high) > 0
+    while high - low > 1e-10 * high:
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if negative(middle) == 0 else (low, middle)
+    return low
+
+
+@pytest.mark.mpi
+def test_greenhill_with_tension_at_second_order():
+    """The critical twist of the straight rod under tension T L^2 / B = 100 by the
+    stability count (straight_twisted_critical_twist) against the determinant's M L / B
+    = 20.9835 (greenhill_with_tension): measured relative errors at 16 / 32 / 64 / 128
+    cells -3.38e-2, -8.86e-3, -2.24e-3, -5.63e-4 (orders 1.93, 1.98, 2.00: the boundary
+    layers sqrt(B / T) = L / 10 need h << L / 10); without tension 1.31e-3, 3.26e-4,
+    8.10e-5, 1.99e-5 against 2 x (tan x = x) (orders 2.01, 2.01, 2.02)."""
+    cases = {100.0: (greenhill_with_tension(100.0), 2.24e-3),
+             0.0: (2 * TAN_X, 8.10e-5)}
+    for tension, (exact, measured64) in cases.items():
+        errors = [straight_twisted_critical_twist(n, tension) / exact - 1 for n in (32, 64)]
+        assert abs(order(errors) - 2) < 0.1, (tension, errors)
+        assert abs(errors[1]) < 1.1 * measured64, (tension, errors)
+
+
 def lateral_torsional_gamma() -> float:
     def end_slope(gamma):
         sol = solve_ivp(lambda z, y: [y[1], -gamma ** 2 * (1 - z) ** 2 * y[0]], (0, 1),

@@ -37,7 +37,7 @@ from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports, linked_axes, spin_free
 from .constitutive import check_model, energy_function, section_response
-from .contact import ContactLaw, Obstacle, ObstacleContact
+from .contact import ContactLaw, Obstacle, ObstacleContact, check_contact
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
@@ -309,12 +309,30 @@ class RodModel(FEModel):
                              f"neighbours closer along the rod than pi (r + delta) + h = "
                              f"{reach:.4g}, which is not shorter than the rod "
                              f"({min(layout.lengths):g}): a smaller radius or more cells")
+        check_contact([], law)
+        self._check_pair_friction(law)
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
-                                 law.self_contact, law.between_rods, joint_nodes)
+                                 law.self_contact, law.between_rods, joint_nodes,
+                                 velocity=self.unknowns.V if self.dynamic else None)
         contact.block = list(self.names).index("displacement")
+        contact.rod_names, contact.rod_starts = layout.names, layout.starts
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
         self.pair_force = fem.Function(P1, name="pair_contact_force")
         return contact
+
+    def _check_pair_friction(self, law) -> None:
+        """Friction between segments (pair_friction.py) follows the velocities of
+        generalized-alpha's steps: a dynamic rod with rotation-vector unknowns."""
+        if not (law.self_friction or law.between_rods_friction):
+            return
+        key = "self_friction" if law.self_friction else "between_rods_friction"
+        if not self.dynamic:
+            raise ValueError(f"contact.{key} needs a dynamic rod (rho_A > 0): the "
+                             "friction force depends on the velocity")
+        if self.unknowns.chart is None:
+            raise ValueError(f"contact.{key} needs rotation-vector unknowns (advanced by "
+                             "generalized-alpha, whose velocities the friction follows), got "
+                             f"{self.rotations!r}")
 
     def _obstacle_contact(self, obstacles, law, disc) -> ObstacleContact | None:
         if not obstacles:
@@ -342,9 +360,11 @@ class RodModel(FEModel):
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
                   list(self.residual.values()), self.loads, self.bcs, self.set_supports)
         terms = [self.segment_contact] if self.segment_contact else []
+        where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
         if unk.chart is None:
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
-                                       check_step=self.check_step, terms=terms)
+                                       check_step=self.check_step, terms=terms,
+                                       where_failed=where)
         rates_used = {c for F in self.residual.values() for c in F.coefficients()}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
@@ -352,7 +372,7 @@ class RodModel(FEModel):
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links, terms=terms, scale_motions=self.scale_motions)
+            links=links, terms=terms, scale_motions=self.scale_motions, where_failed=where)
 
     def scale_motions(self, fraction: float) -> None:
         """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""
@@ -493,6 +513,10 @@ class RodModel(FEModel):
             pairs = self.segment_contact.diagnostics()
             d["contact_energy"] = d.get("contact_energy", 0.0) + pairs.pop(
                 "pair_contact_energy")
+            if "pair_friction_dissipation" in pairs:      # pair_friction.py
+                friction = pairs.pop("pair_friction_dissipation")
+                d["dissipation_rate"] += friction
+                d["friction_dissipation"] = d.get("friction_dissipation", 0.0) + friction
             d.update(pairs)
             self._update_pair_force()
             if self.layout.single and self.supports.ends == ("clamped", "clamped") \

@@ -64,10 +64,11 @@ PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "re
 # quantity kind -> unit per unit system
 UNITS = {
     "SI": {"length": "m", "time": "s", "force": "N", "moment": "N m", "energy": "J",
-           "angle": "rad"},
+           "power": "W", "angle": "rad"},
     "pN-nm-s": {"length": "nm", "time": "s", "force": "pN", "moment": "pN nm",
-                "energy": "pN nm", "angle": "rad"},
-    "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy"), "1")
+                "energy": "pN nm", "power": "pN nm/s", "angle": "rad"},
+    "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy",
+                                    "power"), "1")
     | {"angle": "rad"},       # the torsion scenes' Section 5.1 variables
 }
 
@@ -470,6 +471,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                     "(docs/contact.md)"),
         "between_rods": Key(boolean, False, R + "[[rods]]: segments of different rods "
                             "repel each other through the barrier (docs/contact.md)"),
+        "self_friction": Key(real(0.0), 0.0, R + "Coulomb friction coefficient mu >= 0 "
+                             "between the rod's own segments in contact (contact.self; "
+                             "needs density > 0; slip tolerance contact.slip_tolerance)"),
+        "between_rods_friction": Key(real(0.0), 0.0, R + "Coulomb friction coefficient mu "
+                                     ">= 0 between segments of different rods "
+                                     "(contact.between_rods; needs density > 0)"),
     },
     "obstacles": {
         "shape": Key(choice(*OBSTACLE_SHAPES), REQUIRED, R + "plane (a half-space) | sphere "
