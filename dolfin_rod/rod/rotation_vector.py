@@ -168,12 +168,13 @@ class RotationVectorChart:
         one kernel each (docs/performance.md: one assembly call instead of two).  g(s_k)
         replaces each field f of degree <= 1 on the cell (P1, DG0) by f(s_k)
         (``_value_at``: exact) and s by s_k; an integral whose integrand has derivatives
-        or other data stays."""
+        or other data stays, and so does a vertex-rule integral (point loads: nodal)."""
         out = []
         for itg in integrals:
             g = itg.integrand()
             linear = (_linear_fields(g) if itg.integral_type() == "cell"
-                      and itg.metadata() != dx_r.metadata() else None)
+                      and itg.metadata() != dx_r.metadata()
+                      and itg.metadata().get("quadrature_rule") != "vertex" else None)
             if linear is not None:
                 h, x = ufl.CellVolume(self.mesh), ufl.SpatialCoordinate(self.mesh)
                 values = []
