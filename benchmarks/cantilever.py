@@ -88,8 +88,8 @@ def dolfin_rod_parameters(scene: Scene):
     kw = {}
     if scene.evolving:
         kw = dict(A_d=A, B_d=B, M_d=tuple(TAU * a for a in A), N_d=tuple(TAU * b for b in B))
-    params = RodParameters(length=L, A=A, B=B, rho_A=RHO * AREA, I11=RHO * I_SEC,
-                           I22=RHO * I_SEC, **kw)
+    params = RodParameters(length=L, A=A, B=B, density=RHO * AREA,
+                           section_inertia=RHO * I_SEC, **kw)
     weight = DistributedLoad("force", tuple(RHO * AREA * GRAV * np.asarray(scene.gravity)))
     return params, "evolving" if scene.evolving else "hyperelastic", [weight]
 
@@ -101,7 +101,7 @@ def dolfin_rod_model(n_cells: int, scene: str, comm=None, rotations: str = "auto
     from dolfin_rod import RodModel
     params, model_name, loads = dolfin_rod_parameters(SCENES[scene])
     model = RodModel(params, n_cells=n_cells, model=model_name, variant="local",
-                     ends=("clamped", "free"), distributed_loads=loads, rotations=rotations,
+                     start="clamped", end="free", distributed_loads=loads, rotations=rotations,
                      comm=comm or MPI.COMM_WORLD)
     model.set_initial_state()
     return model

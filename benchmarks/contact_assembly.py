@@ -73,9 +73,9 @@ def best_pair(f, g, repeats=7):
 def measure(n_cells: int, comm) -> dict:
     t0 = time.perf_counter()
     length = n_cells * R                                   # h = r
-    params = RodParameters(length=length, A=(1.0, 1.0, 1.0), B=(1e3, 1e3, 1e3), rho_A=1.0,
-                           I11=1e-4, I22=1e-4)
-    model = RodModel(params, n_cells, model="hyperelastic", ends=("free", "free"),
+    params = RodParameters(length=length, A=(1.0, 1.0, 1.0), B=(1e3, 1e3, 1e3), density=1.0,
+                           section_inertia=1e-4)
+    model = RodModel(params, n_cells, model="hyperelastic", start="free", end="free",
                      contact=ContactLaw(R, DELTA, 1e3, self_contact=True), comm=comm)
     model.set_initial_state()
     helix_state(model, n_cells)

@@ -83,12 +83,12 @@ def dolfin_rod_model(n_cells: int):
     from dolfin_rod import DistributedLoad, RodModel, RodParameters
     A = (cant.E * cant.I_SEC, cant.E * cant.I_SEC, cant.G * cant.J_SEC)
     B = (cant.ALPHA_C * cant.G * cant.AREA, cant.ALPHA_C * cant.G * cant.AREA, cant.E * cant.AREA)
-    params = RodParameters(length=cant.L, A=A, B=B, rho_A=cant.RHO * cant.AREA,
-                           I11=cant.RHO * cant.I_SEC, I22=cant.RHO * cant.I_SEC,
+    params = RodParameters(length=cant.L, A=A, B=B, density=cant.RHO * cant.AREA,
+                           section_inertia=cant.RHO * cant.I_SEC,
                            A_d=A, B_d=B, M_d=tuple(TAU * a for a in A),
                            N_d=tuple(TAU * b for b in B), drag=DRAG)
     model = RodModel(params, n_cells=n_cells, model="evolving", variant="local",
-                     ends=("clamped", "free"), rotations="quaternion",   # PETSc TS
+                     start="clamped", end="free", rotations="quaternion",   # PETSc TS
                      distributed_loads=[DistributedLoad(
                          "force", (-cant.RHO * cant.AREA * cant.GRAV, 0.0, 0.0))],
                      comm=MPI.COMM_WORLD)

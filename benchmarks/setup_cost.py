@@ -51,7 +51,7 @@ t1 = time.perf_counter()
 from mpi4py import MPI
 from dolfin_rod import RodModel
 params, name, loads = cant.dolfin_rod_parameters(cant.SCENES["elastic"])
-model = RodModel(params, n_cells=16, model=name, variant="local", ends=("clamped", "free"),
+model = RodModel(params, n_cells=16, model=name, variant="local", start="clamped", end="free",
                  distributed_loads=loads, comm=MPI.COMM_WORLD)
 t2 = time.perf_counter()
 model.set_initial_state()

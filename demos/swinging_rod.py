@@ -67,7 +67,7 @@ B = np.array([500.0, 500.0, 1000.0])
 tau = 1.0
 I_sec = rho_A * 0.06**2 / 4
 params = RodParameters(length=L, A=A, B=B, A_d=A, B_d=B, M_d=2 * tau * A, N_d=2 * tau * B,
-                       rho_A=rho_A, I11=I_sec, I22=I_sec)
+                       density=rho_A, section_inertia=I_sec)
 gravity = DistributedLoad("force", (-rho_A * g, 0.0, 0.0))
 n_cells, t_end = 16, 1.5
 # Newton: residual entries are forces ~ rho A g h = 0.6 N next to B = 1e3 N stiffnesses.
@@ -79,7 +79,7 @@ def build():
     V = w0 e_1 x r (rigid rotation about the vertical through the pin), W = R^T w0 e_1."""
     # implicit midpoint advances the quaternion form (the default for a dynamic rod,
     # rotation vectors, is advanced by generalized-alpha on the rotation group)
-    model = RodModel(params, n_cells=n_cells, ends=("pinned", "free"),
+    model = RodModel(params, n_cells=n_cells, start="pinned", end="free",
                      distributed_loads=[gravity], rotations="quaternion")
     model.set_initial_state()
     model.f["velocity"].interpolate(

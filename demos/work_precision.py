@@ -76,8 +76,8 @@ def scene_creep():
 ROD_A = np.array([1.0, 1.0, 0.8])
 ROD_B = np.array([100.0, 100.0, 200.0])
 ROD_PARAMS = RodParameters(A=ROD_A, B=ROD_B, A_d=ROD_A, B_d=ROD_B, M_d=2 * ROD_A,
-                           N_d=2 * ROD_B, M=0.02 * ROD_A, N=0.05 * ROD_B, rho_A=1.0,
-                           I11=2.5e-3, I22=2.5e-3)
+                           N_d=2 * ROD_B, M=0.02 * ROD_A, N=0.05 * ROD_B, density=1.0,
+                           section_inertia=2.5e-3)
 ROD_OPTIONS = {"snes_rtol": 1e-10, "snes_atol": 1e-10, "snes_stol": 1e-12}
 SPIN, DT_REF = 2.0, 0.0025
 _reference: dict[str, np.ndarray] = {}   # the reference state, computed once per run
@@ -86,7 +86,7 @@ _reference: dict[str, np.ndarray] = {}   # the reference state, computed once pe
 def _swinging_rod(rotations="quaternion"):
     """The swinging rod; "quaternion" for every scheme and TS type (the default rotation
     vectors take generalized-alpha on the rotation group only), "auto" for the default."""
-    model = RodModel(ROD_PARAMS, n_cells=4, ends=("pinned", "free"), rotations=rotations,
+    model = RodModel(ROD_PARAMS, n_cells=4, start="pinned", end="free", rotations=rotations,
                      distributed_loads=[
         DistributedLoad("force", (-9.81, 0.0, 0.0), loads.smooth_step(1.0, 0.1))])
     model.set_initial_state()

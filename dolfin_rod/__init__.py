@@ -4,8 +4,8 @@ The public API (what a user imports); names load on first use, so ``import dolfi
 stays cheap (e.g. for ``dolfin-rod check``):
 
     from dolfin_rod import RodModel, RodParameters, EndLoad, TimeStepper, loads
-    model = RodModel(RodParameters(rho_A=1.0, I11=0.01, I22=0.01),
-                     end_loads=[EndLoad("force", (1, 0, 0))])
+    model = RodModel(RodParameters(density=1.0, section_inertia=0.01),
+                     start="clamped", end="free", end_loads=[EndLoad("force", (1, 0, 0))])
     model.set_initial_state()
     TimeStepper(model.problem).run(0.0, 1.0, 0.01, observer)   # the defaults: fast
 """
@@ -21,6 +21,7 @@ from .run import RunResult, analyse, run, run_scene  # noqa: E402
 _WHERE = {
     # models and their data
     "RodModel": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
+    "PointLoad": "rod",
     "StartingState": "rod", "Straight": "rod", "Arc": "rod", "Helix": "rod", "Polyline": "rod",
     "EndSpring": "rod",
     "RodSystem": "rod", "Rod": "rod", "Joint": "rod",   # rod systems (docs/systems.md)

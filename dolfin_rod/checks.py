@@ -3,8 +3,10 @@ defaults a scene key and the API argument of the same quantity share."""
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
+import warnings
 
 import numpy as np
 
@@ -36,6 +38,40 @@ def nonnegative(name: str, value: float) -> float:
 
 
 ENDS = ("left", "right")     # a rod's ends: s = 0 and s = L
+
+
+def deprecated_names(owner: str, given: dict, renamed: dict[str, str],
+                     stacklevel: int = 3) -> dict:
+    """``given`` {old name: value}, the keywords of ``owner`` whose names changed to the
+    scene's (docs/rod.md, "One vocabulary"): a DeprecationWarning for each, naming its
+    new name ``renamed[old]`` (the old names go in the next release); TypeError for a
+    name that never was a keyword.  The warning's line is the caller's (``stacklevel``
+    frames up: that of the function that calls this one)."""
+    for old in given:
+        if old not in renamed:
+            raise TypeError(f"{owner}() got an unexpected keyword argument {old!r}")
+        warnings.warn(f"{owner}: {old!r} is deprecated and goes in the next release: use "
+                      f"{renamed[old]} (the scene key's name)", DeprecationWarning,
+                      stacklevel=stacklevel)
+    return given
+
+
+def old_keywords(owner: str, renamed: dict[str, str], translate):
+    """A decorator of ``owner`` (a function or an __init__) that also takes the deprecated
+    keywords of ``renamed`` {old: new} (``deprecated_names``): ``translate`` turns them,
+    {old: value}, into the new ones; TypeError if a new one is given too."""
+    def decorate(func):
+        @functools.wraps(func)
+        def accepting(*args, **kwargs):
+            old = deprecated_names(owner, {k: kwargs.pop(k) for k in list(kwargs)
+                                           if k in renamed}, renamed)
+            new = translate(old) if old else {}
+            for name in set(new) & set(kwargs):
+                raise TypeError(f"{owner}: give {name} or the deprecated "
+                                f"{', '.join(old)}, not both")
+            return func(*args, **kwargs, **new)
+        return accepting
+    return decorate
 
 # The shortest rod: DOLFINx refuses intervals shorter than machine epsilon, and below
 # this the solvers' absolute tolerances exceed the rod's residuals (a rod of 2 cells

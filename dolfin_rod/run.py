@@ -147,8 +147,10 @@ def _modes_of(scene: Scene, kind: str, count: int, comm, quiet: bool, note: str 
             from .analysis.vibration import vibration_modes
             found = vibration_modes(model, t, count)
             rows = [{"mode": k + 1, "omega": float(w), "frequency": float(f),
-                     "residual": float(r)} for k, (w, f, r) in enumerate(
-                         zip(found.omega, found.frequencies, found.residuals))]
+                     **({"growth_rate": float(g)} if found.flutter else {}),
+                     "residual": float(r)} for k, (w, f, g, r) in enumerate(
+                         zip(found.omega, found.frequencies, found.growth_rates,
+                             found.residuals))]
         files = write_modes(folder, model, kind, rows, found.shapes, comm)
         if not quiet:
             print_on_root(comm, f"{kind} at t = {t:g}:\n{table(rows)}")

@@ -11,9 +11,9 @@ from dolfin_rod.theory.rotations import np_quaternion_from_rotation_vector, np_r
 # Newton to round-off, so that the coupled solve stops where each rod's alone does
 ROUND_OFF = {"snes_rtol": 1e-13, "snes_atol": 1e-13}
 T_END, DT = 0.2, 0.02
-A = RodParameters(length=1.0, rho_A=1.0, I11=0.01, I22=0.01, M_d=(5, 5, 5), N_d=(5, 5, 5))
-B = RodParameters(length=0.7, A=(2, 1.5, 1), B=(3, 3, 4), rho_A=2.0, I11=0.02, I22=0.01,
-                  M_d=(2, 2, 2), N_d=(2, 2, 2), reference_curvature=(0.3, 0, 0))
+A = RodParameters(length=1.0, density=1.0, section_inertia=0.01, M_d=(5, 5, 5), N_d=(5, 5, 5))
+B = RodParameters(length=0.7, A=(2, 1.5, 1), B=(3, 3, 4), density=2.0,
+                  section_inertia=(0.02, 0.01), M_d=(2, 2, 2), N_d=(2, 2, 2), reference_curvature=(0.3, 0, 0))
 FORCE_A, COUPLE_B = (1.0, 0.0, 0.0), np.array((0.0, 0.5, 0.2))
 POSITION_B, ORIENTATION_B = np.array([1.0, 2.0, 3.0]), np.array([0.3, np.pi / 2, 0.2])
 
@@ -30,7 +30,7 @@ def two_rods(placed: bool, comm=MPI.COMM_WORLD) -> RodSystem:
     turn = turn_b() if placed else np.eye(3)
     return RodSystem([
         Rod(A, 6, end_loads=[EndLoad("force", FORCE_A)], name="a"),
-        Rod(B, 5, ("pinned", "free"), end_loads=[EndLoad("couple", tuple(turn @ COUPLE_B))],
+        Rod(B, 5, "pinned", end_loads=[EndLoad("couple", tuple(turn @ COUPLE_B))],
             name="b", position=POSITION_B,
             orientation=ORIENTATION_B if placed else (0.0, 0.0, 0.0))], comm=comm)
 
@@ -38,7 +38,7 @@ def two_rods(placed: bool, comm=MPI.COMM_WORLD) -> RodSystem:
 def alone(which: str) -> RodModel:
     if which == "a":
         return RodModel(A, 6, end_loads=[EndLoad("force", FORCE_A)])
-    return RodModel(B, 5, ends=("pinned", "free"), end_loads=[EndLoad("couple", COUPLE_B)])
+    return RodModel(B, 5, start="pinned", end="free", end_loads=[EndLoad("couple", COUPLE_B)])
 
 
 def run_system(model, t_end: float = T_END, dt: float = DT) -> dict[str, float]:
@@ -65,7 +65,7 @@ def l_frame(n_cells: int, force: float, steps_to_full_load: bool = False,
     history = loads.ramp(1.0, 1.0) if steps_to_full_load else (lambda t: 1.0)
     top = (0.0, 0.0, f["L1"])
     rods = [Rod(params[0], n_cells, name="column"),
-            Rod(params[1], n_cells, ("free", "free"), name="beam", position=top,
+            Rod(params[1], n_cells, "free", end="free", name="beam", position=top,
                 orientation=(0.0, np.pi / 2, 0.0),
                 end_loads=[EndLoad("force", (0.0, 0.0, -force), history)])]
     return RodSystem(rods, joints=[Joint("rigid", ("column", "beam"), top, name="knee")],
@@ -92,12 +92,12 @@ def double_pendulum(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
     p = PENDULUM
     E, (a1, a2) = p["E"], p["angles"]
     gravity = [DistributedLoad("force", (0.0, 0.0, -p["rho_A"] * p["g"]))]
-    params = [RodParameters(length=p[k], A=(E / 100,) * 3, B=(E,) * 3, rho_A=p["rho_A"],
-                            I11=p["rho_I"], I22=p["rho_I"]) for k in ("l1", "l2")]
+    params = [RodParameters(length=p[k], A=(E / 100,) * 3, B=(E,) * 3, density=p["rho_A"],
+                            section_inertia=p["rho_I"]) for k in ("l1", "l2")]
     knee = p["l1"] * np.array([np.sin(a1), 0.0, -np.cos(a1)])
-    rods = [Rod(params[0], n_cells, ("pinned", "free"), distributed_loads=gravity,
+    rods = [Rod(params[0], n_cells, "pinned", end="free", distributed_loads=gravity,
                 name="upper", orientation=(0.0, np.pi - a1, 0.0)),
-            Rod(params[1], n_cells, ("free", "free"), distributed_loads=gravity,
+            Rod(params[1], n_cells, "free", end="free", distributed_loads=gravity,
                 name="lower", position=knee, orientation=(0.0, np.pi - a2, 0.0))]
     return RodSystem(rods, joints=[Joint("ball", ("upper", "lower"), knee)],
                      model="hyperelastic", comm=comm)
@@ -184,10 +184,10 @@ def hinged_door(n_cells: int, comm=MPI.COMM_WORLD) -> RodSystem:
     E, top = p["E"], (0.0, 0.0, p["post"])
     gravity = [DistributedLoad("force", (0.0, 0.0, -p["rho_A"] * p["g"]),
                                loads.smooth_step(1.0, 0.1))]
-    params = [RodParameters(length=p[k], A=(E / 100,) * 3, B=(E,) * 3, rho_A=p["rho_A"],
-                            I11=p["rho_I"], I22=p["rho_I"]) for k in ("post", "width")]
-    rods = [Rod(params[0], n_cells, ("clamped", "free"), name="post"),
-            Rod(params[1], n_cells, ("free", "free"), distributed_loads=gravity, name="door",
+    params = [RodParameters(length=p[k], A=(E / 100,) * 3, B=(E,) * 3, density=p["rho_A"],
+                            section_inertia=p["rho_I"]) for k in ("post", "width")]
+    rods = [Rod(params[0], n_cells, "clamped", end="free", name="post"),
+            Rod(params[1], n_cells, "free", end="free", distributed_loads=gravity, name="door",
                 position=top, orientation=(0.0, np.pi / 2, 0.0),
                 end_loads=[EndLoad("force", (0.0, p["push"], 0.0))])]
     return RodSystem(rods, joints=[Joint("hinge", ("post", "door"), top, name="hinge",
@@ -228,7 +228,7 @@ def kinked_frame(n_column: int, n_beam: int, force: float, steps: int = 1,
     if joined:
         top = (0.0, 0.0, L1)
         model = RodSystem([Rod(params(L1), n_column, name="column"),
-                           Rod(params(L2), n_beam, ("free", "free"), name="beam",
+                           Rod(params(L2), n_beam, "free", end="free", name="beam",
                                position=top, orientation=(0.0, np.pi / 2, 0.0),
                                end_loads=load)],
                           joints=[Joint("rigid", ("column", "beam"), top)],

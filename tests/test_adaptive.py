@@ -21,8 +21,8 @@ from dolfin_rod.integrators.step_control import StepControl
 from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
 from quick_scenes import resume_bound
 
-PARAMS = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2), rho_A=2.0,
-                       I11=1e-3, I22=1e-3)
+PARAMS = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2), density=2.0,
+                       section_inertia=1e-3)
 # full Newton to 1e-10: the Newton error stays far below the local errors measured here
 TIGHT = {"snes_lag_jacobian": 1, "snes_lag_preconditioner": 1, "snes_rtol": 1e-10}
 T = 0.2
@@ -120,7 +120,7 @@ def test_steps_grow_in_a_smooth_phase_and_shrink_at_a_sudden_load():
 def test_too_many_rejections_stop_at_the_last_accepted_step():
     from dolfin_rod.integrators.step_control import IntegrationError
     rod = _rod(lambda t: t / T + (20.0 if t >= 0.1 else 0.0))
-    stepper = TimeStepper(rod.problem, solver_options=TIGHT, tolerance=1e-4, max_cuts=0)
+    stepper = TimeStepper(rod.problem, solver_options=TIGHT, tolerance=1e-4, max_step_cuts=0)
     times = []
     with pytest.raises(IntegrationError, match="local error") as info:
         stepper.run(0.0, 0.15, 0.001, observer=lambda t, _: times.append(t))

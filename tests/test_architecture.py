@@ -264,9 +264,10 @@ def test_one_default_per_scene_key():
                for arg, key in (("rotations", "geometry.rotations"),
                                 ("variant", "material.variant"), ("model", "material.model"))],
              (TorsionModel.__init__, "variant", "material.variant"),
+             *[(func, "max_step_cuts", "time.max_step_cuts") for func in (
+                 TimeStepper.__init__, choose_integrator)],
              *[(func, "max_cuts", "time.max_step_cuts") for func in (
-                 TimeStepper.__init__, choose_integrator, SchemeStepper.__init__,
-                 LieGeneralizedAlpha.__init__)],
+                 SchemeStepper.__init__, LieGeneralizedAlpha.__init__)],
              *[(func, "predictor", "time.predictor") for func in (
                  TimeStepper.__init__, choose_integrator, SchemeStepper.__init__)],
              (TSIntegrator.__init__, "adaptive", "time.adaptive"),
@@ -283,10 +284,11 @@ def test_one_default_per_scene_key():
         assert default(func, arg) == (tuple(want) if isinstance(want, list) else want), \
             (func, arg, key)
     # the ends; the scene's "none" constraint is the API's None
-    assert default(RodModel.__init__, "ends") == (SCHEMA["boundary"]["start"].default,
-                                                   SCHEMA["boundary"]["end"].default)
+    for func in (RodModel.__init__, Rod.__init__):
+        assert (default(func, "start"), default(func, "end")) == \
+            (SCHEMA["boundary"]["start"].default, SCHEMA["boundary"]["end"].default)
     assert SCHEMA["material"]["constraints"].default == "none" and \
-        default(RodModel.__init__, "constraint") is None
+        default(RodModel.__init__, "constraints") is None
     # the Newton tolerances time.rtol, time.atol; the scheme of a first-order form
     assert (DEFAULT_OPTIONS["snes_rtol"], DEFAULT_OPTIONS["snes_atol"]) == \
         (SCHEMA["time"]["rtol"].default, SCHEMA["time"]["atol"].default)
@@ -296,7 +298,7 @@ def test_one_default_per_scene_key():
 
 def _rod(rotations: str, dynamic: bool):
     from dolfin_rod import EndLoad, RodModel, RodParameters
-    inertia = dict(rho_A=1.0, I11=0.01, I22=0.01) if dynamic else {}
+    inertia = dict(density=1.0, section_inertia=0.01) if dynamic else {}
     model = RodModel(RodParameters(**inertia), n_cells=4, model="hyperelastic",
                      end_loads=[EndLoad("force", (0.1, 0.0, 0.0), loads.ramp(1.0, 1.0))],
                      rotations=rotations)

@@ -22,8 +22,8 @@ from dolfin_rod.torsion.model import TorsionModel, TorsionParameters
 
 
 def creeping_cantilever(n_cells=4):
-    p = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2), rho_A=2.0,
-                      I11=1e-3, I22=1e-3, A_d=(0.3, 0.4, 0.2), B_d=(1e2, 1e2, 3e2),
+    p = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2), density=2.0,
+                      section_inertia=1e-3, A_d=(0.3, 0.4, 0.2), B_d=(1e2, 1e2, 3e2),
                       M_d=(0.1, 0.1, 0.1), N_d=(10.0, 10.0, 30.0))
     model = RodModel(p, n_cells=n_cells, model="evolving", variant="local",
                      rotations="quaternion",           # the blocked/mixed layouts' case
@@ -153,7 +153,7 @@ def test_a_solver_takes_its_options_away():
 
     from petsc4py import PETSc
     model = RodModel(RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2),
-                                   rho_A=2.0, I11=1e-3, I22=1e-3), n_cells=4)
+                                   density=2.0, section_inertia=1e-3), n_cells=4)
     stepper = TimeStepper(model.problem)
     prefix = stepper.solver.prefix
 
@@ -180,7 +180,7 @@ def _random_state(model, seed):
 @pytest.mark.parametrize("build", [
     creeping_cantilever,
     lambda: RodModel(RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2),
-                                   rho_A=2.0, I11=1e-3, I22=2e-3, drag=0.3), n_cells=4,
+                                   density=2.0, section_inertia=(1e-3, 2e-3), drag=0.3), n_cells=4,
                      model="hyperelastic", end_loads=[EndLoad("force", (0.0, 1.0, -2.0))],
                      distributed_loads=[DistributedLoad("force", (-5.0, 0.0, 1.0))]),
     lambda: TorsionModel(TorsionParameters(mu=0.1, mu_d=0.5, nu=0.2), n_cells=4,

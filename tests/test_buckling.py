@@ -63,7 +63,8 @@ def preloaded(rod: RodModel, dt: float = 1.0) -> RodModel:
 def column_factor(case: str, n_cells: int) -> float:
     """The critical multiple of P_cr from a pre-load of P_cr / 2 (ramped)."""
     ends, slide, p_cr = COLUMNS[case]
-    rod = preloaded(RodModel(STIFF, n_cells=n_cells, model="hyperelastic", ends=ends,
+    rod = preloaded(RodModel(STIFF, n_cells=n_cells, model="hyperelastic",
+                             start=ends[0], end=ends[1],
                              end_slide=slide, end_loads=[EndLoad(
                                  "force", (0.0, 0.0, -p_cr), lambda t: 0.5 * t)]))
     modes = buckling_modes(rod, 1.0, count=2)
@@ -89,7 +90,7 @@ def twisted_rod(n_cells: int, phi: float, stretch: float = 0.0) -> RodModel:
     """Clamped-clamped; the right end stretched by ``stretch`` over t in [0, 1/2] (if
     given) and turned about the axis at the rate phi (from t = 1/2 if stretched)."""
     start = 0.5 if stretch else 0.0
-    return RodModel(STIFF, n_cells=n_cells, model="hyperelastic", ends=("clamped", "clamped"),
+    return RodModel(STIFF, n_cells=n_cells, model="hyperelastic", start="clamped", end="clamped",
                     end_displacement={"right": lambda t: np.array(
                         [0.0, 0.0, stretch * min(t / 0.5, 1.0)])} if stretch else None,
                     end_rotation={"right": lambda t: np.array(
@@ -145,6 +146,53 @@ def test_greenhill_with_tension():
     assert modes.load_factors[1] == pytest.approx(modes.load_factors[0], rel=1e-8)
 
 
+def straight_twisted_critical_twist(n_cells: int, tension: float) -> float:
+    """The twist M L / GJ at which the stability count (item 1, TangentStiffness's
+    inertia) of the straight clamped-clamped rod, stretched by T / EA and twisted
+    uniformly (nodal rotations about the axis by M s / GJ: an exact equilibrium of the
+    discrete rod, uniform strains), leaves 0: bisection to 1e-10, no load path and so
+    no linearisation.  EI = GJ = 1, axial and shear stiffness 1e7 (T / EA = 1e-5: the
+    stretch's change of the length and the Engesser-type corrections below 1e-4 of the
+    32-cell error)."""
+    from dolfin_rod.analysis.stability import TangentStiffness
+    from dolfin_rod.rod import StartingState, Straight
+    stiff = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e7, 1e7, 1e7))
+    rod = RodModel(stiff, n_cells=n_cells, model="hyperelastic", start="clamped",
+                   end="clamped")
+    tangent = TangentStiffness(rod)
+
+    def negative(twist: float) -> int:
+        rod.set_initial_state(start=StartingState(shape=Straight(1 + tension / 1e7)))
+        chart = rod.unknowns.chart
+        half = 0.5 * twist * chart.node_s            # L = 1
+        q = np.zeros((len(half), 4))
+        q[:, 0], q[:, 3] = np.cos(half), np.sin(half)
+        chart.q_n.x.array[:] = q.ravel()
+        return tangent.inertia(1.0).negative
+    low, high = 7.0, 25.0
+    assert negative(low) == 0 and negative(high) > 0
+    while high - low > 1e-10 * high:
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if negative(middle) == 0 else (low, middle)
+    return low
+
+
+@pytest.mark.mpi
+def test_greenhill_with_tension_at_second_order():
+    """The critical twist of the straight rod under tension T L^2 / B = 100 by the
+    stability count (straight_twisted_critical_twist) against the determinant's M L / B
+    = 20.9835 (greenhill_with_tension): measured relative errors at 16 / 32 / 64 / 128
+    cells -3.38e-2, -8.86e-3, -2.24e-3, -5.63e-4 (orders 1.93, 1.98, 2.00: the boundary
+    layers sqrt(B / T) = L / 10 need h << L / 10); without tension 1.31e-3, 3.26e-4,
+    8.10e-5, 1.99e-5 against 2 x (tan x = x) (orders 2.01, 2.01, 2.02)."""
+    cases = {100.0: (greenhill_with_tension(100.0), 2.24e-3),
+             0.0: (2 * TAN_X, 8.10e-5)}
+    for tension, (exact, measured64) in cases.items():
+        errors = [straight_twisted_critical_twist(n, tension) / exact - 1 for n in (32, 64)]
+        assert abs(order(errors) - 2) < 0.1, (tension, errors)
+        assert abs(errors[1]) < 1.1 * measured64, (tension, errors)
+
+
 def lateral_torsional_gamma() -> float:
     def end_slope(gamma):
         sol = solve_ivp(lambda z, y: [y[1], -gamma ** 2 * (1 - z) ** 2 * y[0]], (0, 1),
@@ -177,8 +225,8 @@ def test_lateral_torsional_buckling_of_a_deep_cantilever():
 @pytest.mark.mpi
 def test_bad_requests_are_refused():
     """A dynamic rod, t <= 0, loads that do not change: ValueError naming the reason."""
-    dynamic = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5), rho_A=1.0,
-                            I11=1.0, I22=1.0)
+    dynamic = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5), density=1.0,
+                            section_inertia=1.0)
     with pytest.raises(ValueError, match="quasi-static"):
         buckling_modes(RodModel(dynamic, n_cells=4, model="hyperelastic"), 1.0)
     rod = preloaded(RodModel(STIFF, n_cells=4, model="hyperelastic", end_loads=[
@@ -208,7 +256,7 @@ def test_hinged_arch_under_follower_pressure():
     errors = []
     for n in (16, 32):
         rod = preloaded(RodModel(arch, n_cells=n, model="hyperelastic",
-                                 ends=("pinned", "pinned"), distributed_loads=[
+                                 start="pinned", end="pinned", distributed_loads=[
                                      DistributedLoad("force", (q_cr, 0.0, 0.0),
                                                      lambda t: 0.5 * t, follower=True)]),
                         dt=0.5)
@@ -330,12 +378,13 @@ def column_and_twist(rotations: str) -> tuple[np.ndarray, np.ndarray]:
     """The clamped-free column's factors (pre-loaded to P_cr / 2) and Greenhill's
     (clamped-clamped, pre-twisted to half the critical twist), 8 cells."""
     ends, slide, p_cr = COLUMNS["clamped-free"]
-    column = preloaded(RodModel(STIFF, n_cells=8, model="hyperelastic", ends=ends,
+    column = preloaded(RodModel(STIFF, n_cells=8, model="hyperelastic", start=ends[0],
+                                end=ends[1],
                                 rotations=rotations, end_loads=[EndLoad(
                                     "force", (0.0, 0.0, -p_cr), lambda t: 0.5 * t)]))
     m_cr = 2 * TAN_X
     twisted = preloaded(RodModel(STIFF, n_cells=8, model="hyperelastic",
-                                 ends=("clamped", "clamped"), rotations=rotations,
+                                 start="clamped", end="clamped", rotations=rotations,
                                  end_rotation={"right": lambda t: np.array(
                                      [0.0, 0.0, 0.5 * m_cr * t])}), dt=0.5)
     found = [buckling_modes(rod, 1.0, count) for rod, count in ((column, 4), (twisted, 2))]
@@ -370,7 +419,7 @@ def jointed_column(n_cells: int):
             for a in ((1.0, 2.0), (2.0, 1.0))]
     load = EndLoad("force", (0.0, 0.0, -p_cr), lambda t: 0.5 * t)
     return RodSystem([Rod(half[0], n_cells, name="lower"),
-                      Rod(half[1], n_cells, ("free", "free"), name="upper",
+                      Rod(half[1], n_cells, "free", end="free", name="upper",
                           position=(0.0, 0.0, 0.5), orientation=(0.0, 0.0, math.pi / 2),
                           end_loads=[load])],
                      joints=[Joint("rigid", ("lower", "upper"), (0.0, 0.0, 0.5))],

@@ -23,8 +23,8 @@ from dolfin_rod.rod.contact import (NP_OPS, ContactLaw, Obstacle, Pose, default_
 from dolfin_rod.scenes import SceneError, build, load_scene, parse_scene
 
 G, R, DELTA = 9.81, 0.01, 1e-3
-ROD = RodParameters(length=1.0, A=(1e-2, 1e-2, 1e-2), B=(10.0, 10.0, 10.0), rho_A=1.0,
-                    I11=1e-5, I22=1e-5)
+ROD = RodParameters(length=1.0, A=(1e-2, 1e-2, 1e-2), B=(10.0, 10.0, 10.0), density=1.0,
+                    section_inertia=1e-5)
 TIGHT = {"snes_rtol": 1e-10, "snes_atol": 1e-12}
 RHO_0 = "generalized_alpha:0.0"     # the contact scenes' integrator (docs/contact.md)
 
@@ -32,11 +32,11 @@ RHO_0 = "generalized_alpha:0.0"     # the contact scenes' integrator (docs/conta
 def _lying_rod(dt, gravity, friction=0.0, n_cells=8, drag=0.0, gap0=1.5 * DELTA, eps=1e-4):
     """A free rod along e_3 at gap gap0 above the plane x = -(r + gap0), under gravity."""
     params = RodParameters(**{**ROD.__dict__, "drag": drag})
-    law = ContactLaw(R, DELTA, default_stiffness(params.rho_A, params.A, 1.0, n_cells, dt),
+    law = ContactLaw(R, DELTA, default_stiffness(params.density, params.A, 1.0, n_cells, dt),
                      slip_tolerance=eps)
     plane = Obstacle("plane", point=(-(R + gap0), 0.0, 0.0), axis=(1.0, 0.0, 0.0),
                      friction=friction)
-    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", ends=("free", "free"),
+    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", start="free", end="free",
                    distributed_loads=[DistributedLoad("force", tuple(gravity))],
                    obstacles=[plane], contact=law)
     rod.set_initial_state()
@@ -242,7 +242,7 @@ def test_contact_jacobian_is_the_residuals_derivative(shape):
     if shape != "plane":        # a sphere / cylinder under the rod's middle
         ob = Obstacle(shape, point=(-(R + 0.5 * DELTA + 0.05), 0.0, 0.5),
                       axis=(0.0, 1.0, 0.0), radius=0.05, length=0.1)
-        rod = RodModel(ROD, n_cells=4, model="hyperelastic", ends=("free", "free"),
+        rod = RodModel(ROD, n_cells=4, model="hyperelastic", start="free", end="free",
                        obstacles=[ob], contact=ContactLaw(R, DELTA, 1e3))
         rod.set_initial_state()
     x = rod.f["displacement"]
@@ -309,14 +309,14 @@ def _capstan(mu: float, ratio: float, n_cells: int = 64, dt: float = 2e-3):
                                                           rho * np.sin(phi)], 1),
                              [[-h2, 0, rho]]])
     L = float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
-    params = RodParameters(length=L, A=(1e-5,) * 3, B=(50.0, 50.0, 100.0), rho_A=0.1,
-                           I11=1e-7, I22=1e-7)
-    law = ContactLaw(r, delta, default_stiffness(params.rho_A, params.A, L, n_cells, dt),
+    params = RodParameters(length=L, A=(1e-5,) * 3, B=(50.0, 50.0, 100.0), density=0.1,
+                           section_inertia=1e-7)
+    law = ContactLaw(r, delta, default_stiffness(params.density, params.A, L, n_cells, dt),
                      slip_tolerance=1e-3)
     cylinder = Obstacle("cylinder", point=(0, 0, 0), axis=(0, 1, 0), radius=Rc, length=0.2,
                         friction=mu)
-    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", ends=("free", "free"),
-                   distributed_loads=[DistributedLoad("force", (-G * params.rho_A, 0, 0),
+    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", start="free", end="free",
+                   distributed_loads=[DistributedLoad("force", (-G * params.density, 0, 0),
                                                       lambda t: min(t / 0.5, 1.0))],
                    obstacles=[cylinder], contact=law)
     rod.set_initial_state(start=StartingState(

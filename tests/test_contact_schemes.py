@@ -29,14 +29,14 @@ def _propped(rotations: str, dynamic: bool, drop: float, kappa: float) -> RodSys
     """Cantilever A (EI = 1, 8 cells) along e_1 under the tip load -P e_3 (ramped over t
     in [0, 1] if quasi-static, at once if dynamic) over the stiff clamped-clamped rod B
     along e_2 near A's tip, B's centre line 2 r + drop below A's."""
-    mass = dict(rho_A=1.0, I11=1e-4, I22=1e-4) if dynamic else {}
+    mass = dict(density=1.0, section_inertia=1e-4) if dynamic else {}
     beam = RodParameters(length=L, A=(1.0,) * 3, B=(1e4,) * 3, **mass)
     prop = RodParameters(length=0.5, A=(1e3,) * 3, B=(1e6,) * 3, **mass)
     load = EndLoad("force", (0, 0, -P), (lambda t: 1.0) if dynamic else (lambda t: t))
     x_prop = 1.0 if dynamic else 0.75 + 1 / 24       # quasi-static: inside A's segment
-    rods = [Rod(beam, 8, ("clamped", "free"), [load], orientation=(0, np.pi / 2, 0),
+    rods = [Rod(beam, 8, "clamped", [load], orientation=(0, np.pi / 2, 0),
                 name="A"),
-            Rod(prop, 5, ("clamped", "clamped"), position=(x_prop, -0.25, -(2 * R + drop)),
+            Rod(prop, 5, "clamped", end="clamped", position=(x_prop, -0.25, -(2 * R + drop)),
                 orientation=(-np.pi / 2, 0, 0), name="B")]
     system = RodSystem(rods, model="hyperelastic", rotations=rotations,
                        contact=ContactLaw(R, DELTA, kappa, between_rods=True))

@@ -39,16 +39,16 @@ def _resting(n_cells: int, dynamic: bool, stiff_plane: float = EI,
     B along e_2 at x = L, B's centre line 2 r + 1.5 delta below A's; dynamic: the start
     settled in static equilibrium (pairs included); quasi-static: the push ramped over t
     in [0, 1] in 4 steps (the state at t = 1)."""
-    mass = dict(rho_A=1.0, I11=1e-8, I22=1e-8) if dynamic else {}
+    mass = dict(density=1.0, section_inertia=1e-8) if dynamic else {}
     beam = RodParameters(length=L, A=(stiff_plane, EI, EI), B=(1e4,) * 3, **mass)
     prop = RodParameters(length=B_LENGTH, A=(B_EI,) * 3, B=(1e6,) * 3, **mass)
     ramp = (lambda t: 1.0) if dynamic else (lambda t: min(t, 1.0))
     loads = [EndLoad("force", (0, 0, -push), ramp)]
     if axial:
         loads.append(EndLoad("force", (-axial, 0, 0), lambda t: t))
-    rods = [Rod(beam, n_cells, ("clamped", "free"), loads,
+    rods = [Rod(beam, n_cells, "clamped", loads,
                 orientation=(0, np.pi / 2, 0), name="A"),
-            Rod(prop, B_CELLS, ("clamped", "clamped"),
+            Rod(prop, B_CELLS, "clamped", end="clamped",
                 position=(L, -B_LENGTH / 2, -(2 * R + 1.5 * DELTA)),
                 orientation=(-np.pi / 2, 0, 0), name="B")]
     system = RodSystem(rods, model="hyperelastic",

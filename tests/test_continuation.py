@@ -55,7 +55,7 @@ def turning_points(y) -> tuple[int, int]:
 
 def displacement_controlled(steps: int = 200, d_max: float = 0.1):
     """(d, F) of the half-arch with the crown's deflection prescribed."""
-    rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", ends=("clamped", "pinned"),
+    rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", start="clamped", end="pinned",
                    end_displacement={"left": lambda t: d_max * t * DOWN})
     rod.set_initial_state()
     out = []
@@ -70,7 +70,7 @@ def displacement_controlled(steps: int = 200, d_max: float = 0.1):
 
 def arc_length(ds: float = 0.01):
     """(lambda, d) of the arc-length path of the half-arch, F = lambda x 1."""
-    rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", ends=("clamped", "pinned"),
+    rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", start="clamped", end="pinned",
                    end_slide={"left": (0.0, 1.0, 0.0)},
                    end_loads=[EndLoad("force", tuple(DOWN), lambda t: t, end="left")])
     rod.set_initial_state()
@@ -139,7 +139,7 @@ def deep_arch_limit_load(n_cells: int) -> float:
     def point_load(s):
         return 20.0 * ufl.max_value(0.0, 1.0 - abs(s - length / 2) / h) / h * inwards
 
-    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", ends=("clamped", "pinned"),
+    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", start="clamped", end="pinned",
                    distributed_loads=[DistributedLoad("force", point_load, lambda t: t)])
     rod.set_initial_state()
     path = ArcLength(rod, ds=0.04, max_steps=1000)
@@ -162,6 +162,76 @@ def test_deep_arch_limit_load():
     assert abs(order - 2.0) < 0.3, loads
     extrapolated = loads[2] + (loads[2] - loads[1]) / 3.0
     assert extrapolated == pytest.approx(8.97, rel=5e-3), (loads, extrapolated)
+
+
+@pytest.mark.slow
+def test_deep_arch_from_its_scene(tmp_path):
+    """scenes/deep_arch.toml (the arch of test_deep_arch_limit_load, its crown force a
+    scene's loads.point_force: a true point load, the consistent P1 nodal vector; out
+    of the plane stiff, 100 EI): the first maximum of the time series' load factor, x 20
+    EI/R^2, at 16, 32, 64 cells: measured 10.284677, 9.278412, 9.047902 (order 2.13),
+    Richardson's extrapolation 8.971065 against DaDeppo & Schmidt's 8.97 (asserted as
+    there: order within 0.3 of 2, the extrapolation within 0.5 %); the stability count
+    turns 1 at the limit point (within one step of it)."""
+    import dolfin_rod
+    loads = []
+    for n in (16, 32, 64):
+        result = dolfin_rod.run(ROOT / "scenes" / "deep_arch.toml", {
+            "geometry.n_cells": n, "outputs.fields": False, "outputs.animation": False,
+            "outputs.plots": False}, out=tmp_path / f"arch{n}", quiet=True)
+        lam = np.array(result.series["time"])
+        top, _ = turning_points(lam)
+        loads.append(20.0 * extremum(np.arange(len(lam), dtype=float), lam, top))
+        count = np.array(result.series["negative_eigenvalues"])
+        assert np.all(count[:top] == 0) and count[top + 2] == 1, (n, count[top - 2:top + 3])
+    order = np.log2((loads[0] - loads[1]) / (loads[1] - loads[2]))
+    assert abs(order - 2.0) < 0.3, loads
+    extrapolated = loads[2] + (loads[2] - loads[1]) / 3.0
+    assert extrapolated == pytest.approx(8.97, rel=5e-3), (loads, extrapolated)
+
+
+def lee_frame_limit_load(n_cells: int) -> float:
+    """The limit load (x EI/L^2) of Lee's frame: a column (L = 1, pinned at its foot)
+    and a beam (L = 1, pinned at its far end) joined rigidly at the knee, a dead point
+    force down on the beam 0.2 L from the knee (a node), F = 40 lambda; the pins clamped
+    ends turning freely about the normal of the frame's plane (end_turn), out of the
+    plane stiff (100 EI, 100 GJ); EA = 43200 EI/L^2 (A = 6, I = 2, L = 120), GA = EA /
+    2.6 (nu = 0.3).  Arc length ds = 0.02 on the rod system (the joint's constraint map
+    in the bordered Newton); the first maximum of lambda by a parabola."""
+    import math
+
+    from dolfin_rod import Rod, RodSystem
+    from dolfin_rod.rod.external_forces import PointLoad
+    from dolfin_rod.rod.joints import Joint
+    params = RodParameters(length=1.0, A=(100.0, 1.0, 100.0), B=(16615.0, 16615.0, 43200.0))
+    in_plane = {"left": (0.0, 1.0, 0.0)}, {"right": (0.0, 1.0, 0.0)}
+    rods = [Rod(params, n_cells, start="clamped", end="free", end_turn=in_plane[0],
+                name="column"),
+            Rod(params, n_cells, start="free", end="clamped", end_turn=in_plane[1],
+                name="beam", position=(0.0, 0.0, 1.0), orientation=(0.0, math.pi / 2, 0.0),
+                point_loads=[PointLoad("force", (0.0, 0.0, -1.0), 0.2, lambda t: 40.0 * t)])]
+    frame = RodSystem(rods, joints=[Joint("rigid", ("column", "beam"), (0.0, 0.0, 1.0))],
+                      model="hyperelastic")
+    frame.set_initial_state()
+    path = ArcLength(frame, ds=0.02, max_steps=20 * n_cells + 200)   # past the limit
+    path.run(0.0, 1.0)
+    lam = np.array(path.points)[:, 0]
+    top, _ = turning_points(lam)
+    return 40.0 * extremum(np.arange(len(lam), dtype=float), lam, top)
+
+
+@pytest.mark.slow
+def test_lee_frame_limit_load():
+    """Lee's frame (Lee, Manuel & Rossow 1968; Schweizerhof & Wriggers 1986: limit load
+    about 18.5 EI/L^2): arc-length continuation through the joint.  Measured 19.097394,
+    18.681955, 18.580192 EI/L^2 at 10, 20, 40 cells per member (order 2.03), Richardson's
+    extrapolation 18.5463.  Asserted: the order within 0.3 of 2, the extrapolation within
+    0.5 % of 18.5 (the published value's digits)."""
+    loads = [lee_frame_limit_load(n) for n in (10, 20, 40)]
+    order = np.log2((loads[0] - loads[1]) / (loads[1] - loads[2]))
+    assert abs(order - 2.0) < 0.3, loads
+    extrapolated = loads[2] + (loads[2] - loads[1]) / 3.0
+    assert extrapolated == pytest.approx(18.5, rel=5e-3), (loads, extrapolated)
 
 
 def test_a_continuation_parameter_that_is_not_a_load_is_refused(tmp_path, capsys):

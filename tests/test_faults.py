@@ -730,11 +730,11 @@ def test_check_and_run_warn_before_an_unstable_explicit_run(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("kwargs, params, match", [
-    ({}, {"I11": 0.01}, "I11 > 0 needs rho_A > 0"),                     # item 15
-    ({}, {"I22": 0.01}, "I22 > 0 needs rho_A > 0"),
-    ({"constraint": "unshearable"}, {"rho_A": 1.0, "I11": 0.01, "I22": 0.01},
+    ({}, {"section_inertia": (0.01, 0.0)}, "section_inertia > 0 needs density > 0"),  # 15
+    ({}, {"section_inertia": (0.0, 0.01)}, "section_inertia > 0 needs density > 0"),
+    ({"constraints": "unshearable"}, {"density": 1.0, "section_inertia": 0.01},
      "index-3 DAE"),                                                     # item 17
-    ({"constraint": "inextensible_unshearable"}, {"rho_A": 1.0}, "index-3 DAE"),
+    ({"constraints": "inextensible_unshearable"}, {"density": 1.0}, "index-3 DAE"),
 ])
 def test_rod_inputs_that_would_be_silently_wrong_are_refused(kwargs, params, match):
     from dolfin_rod.rod import RodModel, RodParameters
@@ -777,7 +777,7 @@ def _power_defect_with_moving_end(kind: str, dynamic: bool, scheme: str, dt: flo
     from dolfin_rod import loads
     from dolfin_rod import TimeStepper
     from dolfin_rod.rod import RodModel, RodParameters
-    extra = {"rho_A": 1.0, "I11": 0.01, "I22": 0.01} if dynamic else {}
+    extra = {"density": 1.0, "section_inertia": 0.01} if dynamic else {}
     p = RodParameters(A=(1.0, 1.0, 1.0), B=(10.0, 10.0, 10.0), M=(0.2, 0.2, 0.2),
                       N=(1.0, 1.0, 1.0), M_d=(0.5,) * 3, N_d=(5.0,) * 3, **extra)
     s = loads.smooth_step(1.0, 1.0)
@@ -785,7 +785,7 @@ def _power_defect_with_moving_end(kind: str, dynamic: bool, scheme: str, dt: flo
               if kind == "move" else
               {"end_rotation": {"right": lambda t: np.array([0.3, 0.0, 0.2]) * s(t)}})
     rotations = "auto" if scheme.startswith("generalized_alpha") else "quaternion"
-    model = RodModel(p, n_cells=6, ends=("clamped", "free"), rotations=rotations, **motion)
+    model = RodModel(p, n_cells=6, start="clamped", end="free", rotations=rotations, **motion)
     model.set_initial_state()
     rows = []
     TimeStepper(model.problem, scheme, solver_options={"snes_rtol": 1e-12, "snes_atol": 1e-13}
@@ -826,7 +826,7 @@ def test_dynamic_rod_refuses_a_jump_of_a_prescribed_end(motion):
     a consistent start since issue 25 item 3 (tests/test_supports.py)."""
     from dolfin_rod import loads
     from dolfin_rod.rod import RodModel, RodParameters
-    p = RodParameters(rho_A=1.0, I11=0.01, I22=0.01)
+    p = RodParameters(density=1.0, section_inertia=0.01)
     for history in (loads.step(0.1, 0.3),):
         with pytest.raises(ValueError, match=f"end_{motion}.*cannot follow a jump"):
             RodModel(p, n_cells=2, **{f"end_{motion}": {"right": history}})

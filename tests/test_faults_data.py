@@ -309,7 +309,7 @@ def test_api_turn_beyond_what_the_cells_represent_stops_the_integrator(integrato
     params = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(100.0, 100.0, 100.0))
     turn = loads.VectorHistory((loads.constant(0.0), loads.constant(0.0), loads.ramp(19.0, 1.0)))
     ts = integrator == "TSIntegrator"
-    rod = RodModel(params, n_cells=4, model="hyperelastic", ends=("clamped", "clamped"),
+    rod = RodModel(params, n_cells=4, model="hyperelastic", start="clamped", end="clamped",
                    end_rotation={"right": turn}, rotations="quaternion" if ts else "auto")
     rod.set_initial_state()
     stepper = TSIntegrator(rod.problem, "bdf") if ts else TimeStepper(rod.problem)
@@ -498,8 +498,8 @@ def _dynamic_torsion(end_rotation):
 
 def _dynamic_rod(**motions):
     from dolfin_rod.rod import RodModel, RodParameters
-    params = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2), rho_A=2.0,
-                           I11=1e-3, I22=1e-3)
+    params = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2), density=2.0,
+                           section_inertia=1e-3)
     rod = RodModel(params, n_cells=4, model="hyperelastic", **motions)
     rod.set_initial_state()
     return rod

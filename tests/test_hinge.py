@@ -154,8 +154,8 @@ def test_hinged_door_serial_equals_two_ranks():
      "joints[0].axis is a hinge's"),
 ])
 def test_bad_hinges_are_named(joint, message):
-    p = RodParameters(rho_A=1.0, I11=0.01, I22=0.01)
-    rods = [Rod(p, 4, name="a"), Rod(p, 4, ("free", "free"), name="b", position=(0, 0, 1))]
+    p = RodParameters(density=1.0, section_inertia=0.01)
+    rods = [Rod(p, 4, name="a"), Rod(p, 4, "free", end="free", name="b", position=(0, 0, 1))]
     with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("(", r"\(")):
         RodSystem(rods, joints=[joint])
 
@@ -163,10 +163,10 @@ def test_bad_hinges_are_named(joint, message):
 def test_hinge_node_in_another_joint_is_named():
     """Three rods at one point, a hinge among them: refused naming the hinge (its slave
     rotation is a nonlinear map of a free master node)."""
-    p = RodParameters(rho_A=1.0, I11=0.01, I22=0.01)
+    p = RodParameters(density=1.0, section_inertia=0.01)
     top = (0.0, 0.0, 1.0)
-    rods = [Rod(p, 4, name="a"), Rod(p, 4, ("free", "free"), name="b", position=top),
-            Rod(p, 4, ("free", "free"), name="c", position=top)]
+    rods = [Rod(p, 4, name="a"), Rod(p, 4, "free", end="free", name="b", position=top),
+            Rod(p, 4, "free", end="free", name="c", position=top)]
     joints = [Joint("rigid", ("a", "b"), top), Joint("hinge", ("a", "c"), top,
                                                      axis=(1.0, 0.0, 0.0))]
     with pytest.raises(ValueError, match=r"joints\[1\]: a hinge joins two nodes"):
@@ -189,9 +189,9 @@ def test_newton_converges_quadratically_through_a_hinge():
     from dolfin_rod import EndLoad
     from dolfin_rod.fem import solvers
     p = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(10.0, 10.0, 10.0))
-    rods = [Rod(p, 4, ("clamped", "free"), name="a",
+    rods = [Rod(p, 4, "clamped", end="free", name="a",
                 end_loads=[EndLoad("force", (0.6, 0.6, 0.0))]),
-            Rod(p, 4, ("free", "clamped"), name="b", position=(0.0, 0.0, 1.0),
+            Rod(p, 4, "free", end="clamped", name="b", position=(0.0, 0.0, 1.0),
                 orientation=(0.0, np.pi / 2, 0.0))]
     model = RodSystem(rods, joints=[Joint("hinge", ("a", "b"), (0.0, 0.0, 1.0),
                                           axis=(0.0, 1.0, 0.0))], model="hyperelastic")

@@ -198,7 +198,7 @@ def blow_up_problem(comm=MPI.COMM_WORLD):
 def _integrator(kind, problem):
     if kind == "step":
         return TimeStepper(problem, "backward_euler", solver_options={"snes_max_it": 10},
-                           max_cuts=6)
+                           max_step_cuts=6)
     return TSIntegrator(problem, "backward_euler", solver_options={"snes_max_it": 10},
                         max_rejections=6)
 

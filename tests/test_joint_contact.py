@@ -32,7 +32,7 @@ ALONG_E1 = (0, np.pi / 2, 0)
 def _prop() -> Rod:
     """The stiff clamped-clamped rod B along e_2 under x = A, its centre line 2 r + 1.5
     delta below the cantilever's (crossing it at B's s = 0.5 + 1/30: inside a segment)."""
-    return Rod(PROP, 4, ("clamped", "clamped"),
+    return Rod(PROP, 4, "clamped", end="clamped",
                position=(A, -0.5 - 1 / 30, -(2 * R + 1.5 * DELTA)),
                orientation=(-np.pi / 2, 0, 0), name="B")
 
@@ -46,12 +46,12 @@ def _system(joined: bool) -> RodSystem:
     [0, 1]) as one rod, or as two rods of 4 cells rigidly joined at x = L/2; on B."""
     if joined:
         half = RodParameters(**{**BEAM.__dict__, "length": L / 2})
-        rods = [Rod(half, N // 2, ("clamped", "free"), orientation=ALONG_E1, name="A1"),
-                Rod(half, N // 2, ("free", "free"), _load(), position=(L / 2, 0, 0),
+        rods = [Rod(half, N // 2, "clamped", end="free", orientation=ALONG_E1, name="A1"),
+                Rod(half, N // 2, "free", _load(), end="free", position=(L / 2, 0, 0),
                     orientation=ALONG_E1, name="A2"), _prop()]
         joints = [Joint("rigid", ("A1", "A2"), (L / 2, 0, 0), name="knee")]
     else:
-        rods = [Rod(BEAM, N, ("clamped", "free"), _load(), orientation=ALONG_E1,
+        rods = [Rod(BEAM, N, "clamped", _load(), orientation=ALONG_E1,
                     name="A"), _prop()]
         joints = []
     system = RodSystem(rods, joints, model="hyperelastic",

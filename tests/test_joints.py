@@ -29,14 +29,14 @@ def test_rigid_joint_of_a_split_rod_is_the_rod():
     rods joined rigidly there, placed where the halves were: the same discrete equations
     (the joint ties the nodes exactly), so the same motion to round-off (measured
     1.2e-15 on the tip after 10 steps, Newton to 1e-13)."""
-    p = RodParameters(length=1.0, rho_A=1.0, I11=0.01, I22=0.01,
+    p = RodParameters(length=1.0, density=1.0, section_inertia=0.01,
                       reference_curvature=(0.8, 0.0, 0.3))
     load = [EndLoad("force", (1.0, 0.5, 0.0))]
     whole = RodModel(p, n_cells=8, end_loads=load, model="hyperelastic")
     r, q = whole.stress_free(np.array([0.5]))
     half = replace(p, length=0.5)
     split = RodSystem([Rod(half, 4, name="a"),
-                       Rod(half, 4, ("free", "free"), end_loads=load, name="b", position=r[0],
+                       Rod(half, 4, "free", end="free", end_loads=load, name="b", position=r[0],
                            orientation=np_rotation_vector(q[0]))],
                       joints=[Joint("rigid", ("a", "b"), r[0])], model="hyperelastic")
     d_whole, d_split = run_system(whole), run_system(split)
@@ -148,10 +148,11 @@ def test_double_pendulum_against_rigid_ode():
     (Joint("ball", ("a", "b"), (1.0, 0.0, 1.0)), "joints[0]: rod 'b' is supported at its left"),
 ])
 def test_bad_joints_are_named(joint, message):
-    p = RodParameters(rho_A=1.0, I11=0.01, I22=0.01)
+    p = RodParameters(density=1.0, section_inertia=0.01)
     b_ends = ("clamped", "free") if "supported" in message else ("free", "free")
     b_start = (1.0, 0.0, 1.0) if "supported" in message else (0.0, 0.0, 1.0)
-    rods = [Rod(p, 4, name="a"), Rod(p, 4, b_ends, name="b", position=b_start)]
+    rods = [Rod(p, 4, name="a"), Rod(p, 4, b_ends[0], end=b_ends[1], name="b",
+                                          position=b_start)]
     if "supported" in message:
         rods[0] = Rod(p, 4, name="a", position=(1.0, 0.0, 0.0))
     with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("(", r"\(")):
@@ -173,7 +174,7 @@ def test_split_column_buckles_as_the_column(factor, unstable):
     half = replace(p, length=0.5)
     whole = RodModel(p, 8, model="hyperelastic", end_loads=load)
     split = RodSystem([Rod(half, 4, name="a"),
-                       Rod(half, 4, ("free", "free"), end_loads=load, name="b",
+                       Rod(half, 4, "free", end="free", end_loads=load, name="b",
                            position=(0.0, 0.0, 0.5))],
                       joints=[Joint("rigid", ("a", "b"), (0.0, 0.0, 0.5))], model="hyperelastic")
     for model in (whole, split):

@@ -28,7 +28,7 @@ P_CR = math.pi ** 2 / 4                       # clamped-free, EI = L = 1
 def load_factors(comm) -> np.ndarray:
     """The clamped-free column pre-loaded to P_cr / 2: its 4 critical load factors."""
     rod = RodModel(RodParameters(**STIFF), n_cells=8, model="hyperelastic",
-                   ends=("clamped", "free"), comm=comm, end_loads=[EndLoad(
+                   start="clamped", end="free", comm=comm, end_loads=[EndLoad(
                        "force", (0.0, 0.0, -P_CR), lambda t: 0.5 * t)])
     rod.set_initial_state()
     TimeStepper(rod.problem).run(0.0, 1.0, 1.0)
@@ -37,8 +37,8 @@ def load_factors(comm) -> np.ndarray:
 
 def frequencies(comm) -> np.ndarray:
     """The cantilever (rho A = 1, slender): its 4 lowest angular frequencies."""
-    rod = RodModel(RodParameters(**STIFF, rho_A=1.0, I11=1e-8, I22=1e-8), n_cells=8,
-                   model="hyperelastic", ends=("clamped", "free"), comm=comm)
+    rod = RodModel(RodParameters(**STIFF, density=1.0, section_inertia=1e-8), n_cells=8,
+                   model="hyperelastic", start="clamped", end="free", comm=comm)
     rod.set_initial_state()
     return np.asarray(vibration_modes(rod, 0.0, count=4).omega)
 

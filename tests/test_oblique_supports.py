@@ -37,10 +37,10 @@ def inclined_rod(dynamic: bool = False) -> RodSystem:
     s = L; its bottom s = 0 in a clamp that slides along AXIS and turns about it, loaded
     there by a weight W (-W e_z) and a couple C AXIS, both ramped over [0, 1]."""
     ramp = loads.ramp(1.0, 1.0)
-    inertia = dict(rho_A=0.5, I11=1e-3, I22=1e-3, drag=5.0,
+    inertia = dict(density=0.5, section_inertia=1e-3, drag=5.0,
                    rotational_drag=(0.05, 0.05, 0.05)) if dynamic else {}
     rod = Rod(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(20.0, 20.0, EA), **inertia),
-              n_cells=N, ends=("clamped", "clamped"), orientation=tuple(along_the_axis()),
+              n_cells=N, start="clamped", end="clamped", orientation=tuple(along_the_axis()),
               end_slide={"left": tuple(AXIS)}, end_turn={"left": tuple(AXIS)},
               end_loads=[EndLoad("force", (0.0, 0.0, -W), ramp, end="left"),
                          EndLoad("couple", tuple(C * AXIS), ramp, end="left")])
@@ -134,17 +134,17 @@ def test_dynamic_rod_on_an_inclined_sliding_clamp_settles_and_stays_on_the_axis(
 ])
 def test_a_slide_axis_that_is_not_unit_is_refused_naming_it(axis, match):
     with pytest.raises(ValueError, match=r"end_slide\['right'\] " + match):
-        RodModel(RodParameters(), n_cells=2, ends=("clamped", "clamped"),
+        RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
                  end_slide={"right": axis})
 
 
 def test_inclined_supports_need_rotation_vectors_and_no_motion_across():
     with pytest.raises(ValueError, match=r"end_slide\['right'\]: an axis off the coordinate "
                                          "axes needs rotation-vector unknowns"):
-        RodModel(RodParameters(), n_cells=2, ends=("clamped", "clamped"),
+        RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
                  rotations="quaternion", end_slide={"right": (0.6, 0.0, 0.8)})
     with pytest.raises(ValueError, match=r"end_displacement\['right'\]: the end slides"):
-        RodModel(RodParameters(), n_cells=2, ends=("clamped", "clamped"),
+        RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
                  end_slide={"right": (0.6, 0.0, 0.8)},
                  end_displacement={"right": lambda t: (0.0, t, 0.0)})
 

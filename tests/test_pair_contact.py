@@ -85,9 +85,9 @@ def _propped(a, y0, between=True):
     """Rod A along e_1 (clamped at 0, tip load -P e_3 ramped over t in [0, 1]) over the
     stiff clamped-clamped rod B along e_2 at x = a, from y = y0, its centre line
     2 r + 1.5 delta below A's."""
-    rods = [Rod(BEAM, N, ("clamped", "free"), [EndLoad("force", (0, 0, -P), lambda t: t)],
+    rods = [Rod(BEAM, N, "clamped", [EndLoad("force", (0, 0, -P), lambda t: t)],
                 orientation=(0, np.pi / 2, 0), name="A"),
-            Rod(PROP, 4, ("clamped", "clamped"), position=(a, y0, -(2 * R + 1.5 * DELTA)),
+            Rod(PROP, 4, "clamped", end="clamped", position=(a, y0, -(2 * R + 1.5 * DELTA)),
                 orientation=(-np.pi / 2, 0, 0), name="B")]
     system = RodSystem(rods, model="hyperelastic",
                        contact=ContactLaw(R, DELTA, 1e6, between_rods=between))
@@ -184,9 +184,9 @@ def test_contact_off_changes_nothing():
     without a contact law bit for bit (A then falls through B's place)."""
     off = _propped(0.75, -0.25, between=False)
     assert not off.problem.terms
-    rods = [Rod(BEAM, N, ("clamped", "free"), [EndLoad("force", (0, 0, -P), lambda t: t)],
+    rods = [Rod(BEAM, N, "clamped", [EndLoad("force", (0, 0, -P), lambda t: t)],
                 orientation=(0, np.pi / 2, 0), name="A"),
-            Rod(PROP, 4, ("clamped", "clamped"), position=(0.75, -0.25, -(2 * R + 1.5 * DELTA)),
+            Rod(PROP, 4, "clamped", end="clamped", position=(0.75, -0.25, -(2 * R + 1.5 * DELTA)),
                 orientation=(-np.pi / 2, 0, 0), name="B")]
     plain = RodSystem(rods, model="hyperelastic")
     plain.set_initial_state()
@@ -213,9 +213,9 @@ def _ring_drift(dt, t_end=0.5):
     contact energy, smallest pair gap)."""
     from dolfin_rod.rod.start import StartingState
     kappa = 2 * np.pi * 0.95
-    params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, rho_A=0.1, I11=1e-6,
-                           I22=1e-6, reference_curvature=(kappa, 0, 0))
-    rod = RodModel(params, 40, model="hyperelastic", ends=("free", "free"),
+    params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, density=0.1,
+                           section_inertia=1e-6, reference_curvature=(kappa, 0, 0))
+    rod = RodModel(params, 40, model="hyperelastic", start="free", end="free",
                    contact=ContactLaw(0.01, 0.002, 1e3, self_contact=True))
     ends, _ = rod.stress_free(np.array([0.0, 1.0]))
     chord = (ends[0] - ends[1]) / np.linalg.norm(ends[0] - ends[1])
@@ -250,9 +250,9 @@ def test_frictionless_contact_conserves_energy_at_second_order():
 def _coiled_rod(n_cells=120):
     """A rod (r = 1 cm, h = 1 cm) wound into a helix whose coils are 2 r + delta / 2
     apart: every segment within the barrier's reach of the coils next to it."""
-    params = RodParameters(length=n_cells * R, A=(1.0,) * 3, B=(1e3,) * 3, rho_A=1.0,
-                           I11=1e-4, I22=1e-4)
-    model = RodModel(params, n_cells, model="hyperelastic", ends=("free", "free"),
+    params = RodParameters(length=n_cells * R, A=(1.0,) * 3, B=(1e3,) * 3, density=1.0,
+                           section_inertia=1e-4)
+    model = RodModel(params, n_cells, model="hyperelastic", start="free", end="free",
                      contact=ContactLaw(R, DELTA, 1e3, self_contact=True))
     model.set_initial_state()
     x = model.unknowns.f["displacement"]

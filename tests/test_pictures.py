@@ -6,9 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dolfin_rod.output.animation import (Look, colour_field, colour_scale, colour_values,
-                                         magnification, plane_patch, rod_animation,
-                                         rod_snapshots, support_nodes)
+from dolfin_rod.output.animation import (Look, animation_name, colour_field, colour_scale,
+                                         colour_values, magnification, plane_patch,
+                                         rod_animation, rod_snapshots, support_nodes)
+from dolfin_rod.output.closing import FILES
 from dolfin_rod.output.line_fields import LineSample
 
 N = 4   # cells of the synthetic rod: s in [0, 1] along e_3
@@ -61,6 +62,28 @@ def test_animation_is_wide_and_marks_the_motion(tmp_path):
     last = np.asarray(gif.convert("RGB"))
     gif.seek(0)
     assert np.any(last != np.asarray(gif.convert("RGB")))     # the rod moved on screen
+
+
+def test_the_animation_is_an_mp4_where_ffmpeg_exists_and_a_gif_otherwise(tmp_path,
+                                                                           monkeypatch):
+    """The choice follows the PATH, as matplotlib's FFMpegWriter would: with an executable
+    named ffmpeg on it, animation.mp4; without, animation.gif, written as a GIF (Pillow
+    reads its 5 frames) and named so with the reason on the terminal (closing.FILES).
+    The MP4 itself cannot be written here (no ffmpeg in this environment)."""
+    from PIL import Image
+    with_ffmpeg, without = tmp_path / "with", tmp_path / "without"
+    with_ffmpeg.mkdir(), without.mkdir()
+    (with_ffmpeg / "ffmpeg").write_text("#!/bin/sh\nexit 0\n")
+    (with_ffmpeg / "ffmpeg").chmod(0o755)
+    monkeypatch.setenv("PATH", str(with_ffmpeg))
+    assert animation_name() == "animation.mp4" and "MP4" in FILES["animation.mp4"]
+    monkeypatch.setenv("PATH", str(without))
+    name = animation_name()
+    assert name == "animation.gif" and "no ffmpeg" in FILES[name]
+    frames = [frame(t, tip=0.1 * t) for t in np.linspace(0, 1, 5)]
+    rod_animation(frames, tmp_path / name, "test")
+    gif = Image.open(tmp_path / name)
+    assert gif.format == "GIF" and gif.n_frames == 5
 
 
 def test_a_signed_field_gets_a_colour_scale_symmetric_about_zero():

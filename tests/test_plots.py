@@ -143,3 +143,14 @@ def test_supports_without_couples_and_rod_systems_draw(tmp_path, name, prefix, c
         == ["twist", "writhe"]
     lines = final_values(rows, scene)
     assert any(line.startswith("K + Psi 2 J") for line in lines)
+
+
+def test_rates_are_labelled_as_powers():
+    """Dissipation rates and powers are W (J/s), the integrated dissipation J; contact
+    forces N, gaps m (the time-series columns of docs/outputs.md and docs/contact.md)."""
+    from dolfin_rod.output.plots import axis_label, column_kind
+    labels = {name: axis_label(name, column_kind(name), "SI") for name in (
+        "dissipation_rate", "friction_dissipation", "load_power", "total_dissipation",
+        "contact_energy", "pair_friction_force", "contact_force_x", "min_pair_gap")}
+    assert [v.split("[")[1] for v in labels.values()] == \
+        ["W]", "W]", "W]", "J]", "J]", "N]", "N]", "m]"]

@@ -151,18 +151,19 @@ def test_a_start_that_turns_a_node_by_more_than_a_quarter_turn_is_refused():
     ({"drag": 0.5}, "quaternion"),
     ({"end_rotation": {"right": loads.step(1.0)}}, "quaternion"),   # a jumping end
     ({"variant": "uniform"}, "quaternion"),
-    ({"ends": ("pinned", "pinned")}, "rotation_vector"),  # the spin held at s = 0
-    ({"ends": ("pinned", "free")}, "quaternion"),    # no end holds a rotation
+    ({"start": "pinned", "end": "pinned"}, "rotation_vector"),  # spin held at s = 0
+    ({"start": "pinned", "end": "free"}, "quaternion"),    # no end holds a rotation
 ])
 def test_auto_takes_rotation_vectors_where_they_apply(change, expected):
     """The contract of rotations = "auto" for quasi-static rods (validation.
     choose_rotations)."""
     change = dict(change)
-    kwargs = {k: change.pop(k) for k in ("end_rotation", "variant", "ends") if k in change}
+    kwargs = {k: change.pop(k) for k in ("end_rotation", "variant", "start", "end")
+              if k in change}
     if "end_rotation" in kwargs:
         motion = kwargs["end_rotation"]["right"]
         kwargs["end_rotation"] = {"right": lambda t: np.array([0.0, 0.0, motion(t)])}
-        kwargs["ends"] = ("clamped", "free")
+        kwargs.update(start="clamped", end="free")
     params = RodParameters(**{**PARAMS.__dict__, **change})
     assert RodModel(params, n_cells=2, **kwargs).rotations == expected
 

@@ -158,3 +158,39 @@ def test_plot_of_a_torsion_run_draws_its_spacetime(tmp_path):
     np.testing.assert_allclose(steps[0]["points"][:, 2], np.linspace(0, 1, 5), atol=1e-15)
     names = [p.name for p in result.plot()]
     assert names == ["histories.png", "spacetime.png"]
+
+
+# the last-step bounds (xmin, xmax, ymin, ymax, zmin, zmax) and s range of two full runs
+# (read from their rod.pvd): the DNA molecule at its longest (dna_overstretching.toml,
+# t = 8.6 s: 169 nm along e_3) and back at 100 nm (t = 17 s), which the fixed tube radius
+# and camera of the old script rendered blank; the gravity cantilever at t = 1 s (m)
+RUN_BOUNDS = {"dna longest": ((0.0, 0.0, 0.0, 0.0, 0.0, 169.11441), (0.0, 100.0)),
+              "dna end": ((0.0, 0.0, 0.0, 0.0, 0.0, 100.0), (0.0, 100.0)),
+              "cantilever": ((-0.359182, 0.0, 0.0, 0.0, -0.517436, 0.097584), (0.0, 1.0))}
+
+
+@pytest.mark.parametrize("run", RUN_BOUNDS)
+def test_paraview_screenshot_frames_the_rod_from_its_own_size(run):
+    """docs/paraview_screenshot.py's framing (no pvpython needed) against a pinhole camera
+    with ParaView's 30 degree view angle and the 900 x 700 px picture: the camera looks
+    across the thinnest side of the bounds, the whole rod fits in the picture, it spans
+    at least half of it (the script aims at 60 %), and the tube is at least 5 px thick."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("paraview_screenshot",
+                                                  ROOT / "docs" / "paraview_screenshot.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    bounds, s_range = RUN_BOUNDS[run]
+    frame = script.framing(bounds, s_range)
+    extents = np.array(bounds[1::2]) - np.array(bounds[0::2])
+    view = np.array(frame["position"]) - np.array(frame["focal_point"])
+    distance = np.linalg.norm(view)
+    up = np.array(frame["view_up"])
+    across = np.cross(view / distance, up)
+    assert abs(view @ up) < 1e-12 * distance and extents[np.argmax(np.abs(view))] == extents.min()
+    height = 2 * distance * np.tan(np.radians(15.0))          # world size of 700 px
+    width = height * 900 / 700
+    assert extents @ np.abs(up) <= height and extents @ np.abs(across) <= width
+    assert max(extents @ np.abs(up) / height, extents @ np.abs(across) / width) >= 0.5
+    assert 2 * frame["tube"] / height * 700 >= 5.0
+    assert frame["size"] == max(extents.max(), s_range[1] - s_range[0])

@@ -29,7 +29,7 @@ def test_arc_shape_is_the_reference_curvature():
     stress-free configuration (the same helix), so the same dynamic run bit for bit."""
     results = []
     for shape in ({"reference_shape": Arc(0.7)}, {"reference_curvature": (0.0, 1 / 0.7, 0.0)}):
-        p = RodParameters(length=1.0, rho_A=1.0, I11=0.01, I22=0.01, **shape)
+        p = RodParameters(length=1.0, density=1.0, section_inertia=0.01, **shape)
         model = RodModel(p, 8, model="hyperelastic", end_loads=[EndLoad("force", (0, 1, 0))])
         model.set_initial_state()
         TimeStepper(model.problem).run(0.0, 0.05, 0.01)

@@ -271,7 +271,7 @@ def test_dynamic_isolated_torsion_reproduces_torsion_model(variant):
             0.0, 2.0, 0.02, lambda t, s: th.append(tm.diagnostics(t)))
         rp = RodParameters(A=(5.0, 5.0, alpha), B=(50.0, 50.0, 50.0), A_d=(1.0, 1.0, alpha_d),
                            B_d=(10.0, 10.0, 10.0), M=(0.0, 0.0, mu), M_d=(mu_d,) * 3,
-                           rho_A=1.0, I11=nu / 2, I22=nu / 2)
+                           density=1.0, section_inertia=nu / 2)
         rm = RodModel(rp, n_cells=n_cells, variant=variant, rotations="quaternion", end_loads=[
             EndLoad("couple", (0, 0, 1.0), loads.smooth_step(0.3, 0.2))])  # midpoint
         rh = run(rm, 2.0, 0.02, "implicit_midpoint")
@@ -336,7 +336,7 @@ def power_defect(scheme, dt, dynamic=False, **damping):
     """|E(T) - E(0) + int xi dt - int P dt| with E = free + kinetic energy, integrals by
     the trapezoidal rule over the scheme's end-point rate estimates; ``damping``: more
     RodParameters (rotational drag)."""
-    extra = {"rho_A": 1.0, "I11": 0.01, "I22": 0.01, "drag": 0.3} if dynamic else {}
+    extra = {"density": 1.0, "section_inertia": 0.01, "drag": 0.3} if dynamic else {}
     extra.update(damping)
     p = RodParameters(A=(1.0, 1.0, 1.0), B=(50.0, 50.0, 50.0), M=(0.1, 0.1, 0.1),
                       N=(0.1, 0.1, 0.1), M_d=(0.5,) * 3, N_d=(5.0,) * 3, **extra)
@@ -389,8 +389,8 @@ def test_power_balance_with_rotational_damping(frame):
 @pytest.mark.parametrize("kwargs,params,match", [
     ({"model": "plastic"}, {}, "unknown model"),
     ({"variant": "global"}, {}, "unknown evolution variant"),
-    ({"constraint": "rigid"}, {}, "unknown constraint"),
-    ({"ends": ("clamped", "welded")}, {}, "ends"),
+    ({"constraints": "rigid"}, {}, "unknown constraint"),
+    ({"end": "welded"}, {}, r"end \(the support at s = L\) must be one of"),
     ({}, {"A": (1.0, -1.0, 1.0)}, "A must be positive definite"),
     ({}, {"B": ((1, 2, 0), (0, 1, 0), (0, 0, 1))}, "B must be symmetric"),
     ({}, {"A_d": (1.0, 1.0)}, "A_d must have 3"),
@@ -398,7 +398,7 @@ def test_power_balance_with_rotational_damping(frame):
     ({}, {"energy": lambda ud, vd, u, v: u}, "energy must return a scalar"),
     ({"variant": "uniform"}, {"M_d": lambda s: (1 + s, 1, 1)}, "M_d must be constant"),
     ({"model": "kelvin_voigt"}, {}, "kelvin_voigt needs a viscosity"),
-    ({}, {"rho_A": -1.0}, "rho_A"),
+    ({}, {"density": -1.0}, "density"),
 ])
 def test_bad_input_raises_value_error_naming_it(kwargs, params, match):
     with pytest.raises(ValueError, match=match):
@@ -416,7 +416,7 @@ def test_constrained_cantilever_is_euler_bernoulli(constraint):
     Timoshenko test), here with a soft shear stiffness that would add 50 % otherwise."""
     EI, GA, n_cells, P = 1.0, 0.2, 10, 3e-6
     p = RodParameters(A=(EI, EI, 1.0), B=(GA, GA, 1e3))
-    model = RodModel(p, n_cells=n_cells, model="hyperelastic", constraint=constraint,
+    model = RodModel(p, n_cells=n_cells, model="hyperelastic", constraints=constraint,
                      end_loads=[EndLoad("force", (P, 0.0, 0.0))])
     d = run(model, 1.0, 1.0, options={"snes_rtol": 1e-10, "snes_atol": 1e-20,
                                       "snes_stol": 1e-14})[-1]
@@ -428,7 +428,7 @@ def test_inextensible_unshearable_rod_keeps_its_length_under_large_deflection():
     """v = e_3 at every element midpoint: each chord is h and normal to d_1, d_2 there,
     whatever the (large, viscoelastic) deformation; the creep of u_d continues."""
     p = RodParameters(A=(1.0, 2.0, 1.0), M_d=(0.5,) * 3)
-    model = RodModel(p, n_cells=8, constraint="inextensible_unshearable", end_loads=[
+    model = RodModel(p, n_cells=8, constraints="inextensible_unshearable", end_loads=[
         EndLoad("force", (1.0, 0.5, 0.0), loads.ramp(1.0, 0.2))])
     h = run(model, 1.0, 0.1)
     r = model.f["displacement"].x.array.reshape(-1, 3).copy()
@@ -548,7 +548,7 @@ def test_prescribed_end_displacement_and_reaction_of_a_viscous_bar():
     EA, N33, L, dt = 50.0, 0.7, 2.0, 0.1
     d = loads.ramp(0.4, 0.5)
     p = RodParameters(length=L, A=(1.0, 1.0, 1.0), B=(20.0, 20.0, EA), N=(0.0, 0.0, N33))
-    model = RodModel(p, n_cells=4, model="kelvin_voigt", ends=("clamped", "free"),
+    model = RodModel(p, n_cells=4, model="kelvin_voigt", start="clamped", end="free",
                      end_displacement={"right": lambda t: (0.0, 0.0, float(d(t)))})
     h = run(model, 1.0, dt)
     t = series(h, "time")
@@ -572,8 +572,8 @@ def test_jacobian_reuse_gives_the_same_dynamics():
     from dolfin_rod.fem.solvers import JACOBIAN_REUSE
     tips = []
     for options in ({}, JACOBIAN_REUSE):
-        p = RodParameters(length=1.0, A=(0.3, 0.3, 0.3), B=(1e3, 1e3, 2e3), rho_A=2.0,
-                          I11=1e-3, I22=1e-3)
+        p = RodParameters(length=1.0, A=(0.3, 0.3, 0.3), B=(1e3, 1e3, 2e3), density=2.0,
+                          section_inertia=1e-3)
         model = RodModel(p, n_cells=8, model="hyperelastic", rotations="quaternion",
                          distributed_loads=[DistributedLoad("force", (-20.0, 0.0, 0.0))])
         d = run(model, 0.3, 0.01, "generalized_alpha",

@@ -37,7 +37,7 @@ def test_simply_supported_beam_with_pinned_ends():
     terms 1e-12) and Newton at rtol 1e-10: 1e-8 relative."""
     n_cells, f, L, EI, GA = 10, 3e-6, 1.0, 2.0, 50.0
     model = RodModel(RodParameters(length=L, A=(EI, EI, 1.0), B=(GA, GA, 1e3)),
-                     n_cells=n_cells, model="hyperelastic", ends=("pinned", "pinned"),
+                     n_cells=n_cells, model="hyperelastic", start="pinned", end="pinned",
                      distributed_loads=[DistributedLoad("force", (f, 0.0, 0.0))])
     model.set_initial_state()
     TimeStepper(model.problem, "backward_euler", solver_options=TIGHT).run(0.0, 1.0, 1.0)
@@ -69,7 +69,7 @@ def test_kinetic_energy_of_a_rectangular_section_with_i11_not_i22(rotations):
     L times that, to round-off (1e-12 relative)."""
     a, b, rho, L = 0.3, 0.1, 2.0, 1.5
     I11, I22 = rho * b * a**3 / 12, rho * a * b**3 / 12
-    model = RodModel(RodParameters(length=L, rho_A=rho * a * b, I11=I11, I22=I22),
+    model = RodModel(RodParameters(length=L, density=rho * a * b, section_inertia=(I11, I22)),
                      n_cells=4, model="hyperelastic", rotations=rotations)
     model.set_initial_state()
     w = np.array([0.7, -1.3, 2.1])

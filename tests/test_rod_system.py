@@ -67,13 +67,13 @@ def test_rod_system_serial_equals_two_ranks():
 
 @pytest.mark.parametrize("change, message", [
     (dict(name="a"), "rods[1].name 'a' is used twice"),
-    (dict(params=RodParameters(length=0.5)), "rods[1].params.rho_A"),
+    (dict(params=RodParameters(length=0.5)), "rods[1].params.density"),
     (dict(position=(1.0, 2.0)), "rods[1] 'b': position must be a finite 3-vector"),
     (dict(end_loads=[EndLoad("force", (1, 0, 0), end="middle")]), "rods[1] 'b': load end"),
 ])
 def test_bad_rods_are_named(change, message):
-    rods = [Rod(RodParameters(rho_A=1.0), 4, name="a"),
-            Rod(**{**dict(params=RodParameters(rho_A=1.0), n_cells=4, name="b"), **change})]
+    rods = [Rod(RodParameters(density=1.0), 4, name="a"),
+            Rod(**{**dict(params=RodParameters(density=1.0), n_cells=4, name="b"), **change})]
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace("[", r"\[")):
         RodSystem(rods)
 

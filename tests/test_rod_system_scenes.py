@@ -50,7 +50,7 @@ def test_frame_scene_is_the_api_frame():
     top = (0.0, 0.0, 2.0)
     api = RodSystem([
         Rod(RodParameters(length=2.0, A=A, B=B), 16, name="column"),
-        Rod(RodParameters(length=1.5, A=A, B=B), 12, ("free", "free"), name="beam",
+        Rod(RodParameters(length=1.5, A=A, B=B), 12, "free", end="free", name="beam",
             position=top, orientation=(0.0, np.pi / 2, 0.0),
             end_loads=[EndLoad("force", (0.0, 0.0, -1.0e4), loads.ramp(1.0, 1.0))])],
         joints=[Joint("rigid", ("column", "beam"), top, name="knee")], model="hyperelastic")
@@ -113,13 +113,13 @@ def test_hinged_door_scene_is_the_api_door():
     steel = sections.Material(youngs_modulus=210e9, shear_modulus=81e9, density=7850.0)
     rods = []
     for name, length, radius, extra in (
-            ("post", 1.0, 0.02, dict(ends=("clamped", "free"))),
-            ("gate", 1.2, 0.01, dict(ends=("free", "free"), position=(0.0, 0.0, 1.0),
+            ("post", 1.0, 0.02, dict(start="clamped", end="free")),
+            ("gate", 1.2, 0.01, dict(start="free", end="free", position=(0.0, 0.0, 1.0),
                                      orientation=(0.0, np.pi / 2, 0.0),
                                      end_loads=[EndLoad("force", (0.0, 2.0, 0.0))]))):
         p = RodParameters(length=length, **sections.section_parameters(
             sections.circle(radius), steel))
-        gravity = DistributedLoad("force", (0.0, 0.0, -9.81 * p.rho_A))
+        gravity = DistributedLoad("force", (0.0, 0.0, -9.81 * p.density))
         rods.append(Rod(p, 8, name=name, distributed_loads=[gravity], **extra))
     api = RodSystem(rods, joints=[Joint("hinge", ("post", "gate"), (0.0, 0.0, 1.0),
                                         name="hinge", axis=(0.0, 0.0, 1.0))],

@@ -23,8 +23,8 @@ from dolfin_rod.rod.rotation_vector import np_cayley
 from dolfin_rod.theory.rotations import np_qmul, np_quaternion_from_rotation_vector, np_rotation_matrix
 
 TIGHT = {"snes_lag_jacobian": 1, "snes_lag_preconditioner": 1, "snes_rtol": 1e-10}
-PARAMS = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2), rho_A=2.0,
-                       I11=1e-3, I22=1e-3)
+PARAMS = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2), density=2.0,
+                       section_inertia=1e-3)
 
 
 def _nodal(rod, fn, width):
@@ -158,7 +158,7 @@ def test_the_start_solves_the_mass_matrix_for_the_accelerations():
     rod.set_initial_state()
     stepper = TimeStepper(rod.problem)
     stepper.initial_accelerations(0.0)
-    h, rho_A = PARAMS.length / n, PARAMS.rho_A
+    h, rho_A = PARAMS.length / n, PARAMS.density
     M = np.diag(np.full(n + 1, 4.0)) + np.diag(np.ones(n), 1) + np.diag(np.ones(n), -1)
     M[-1, -1] = 2.0
     M *= rho_A * h / 6
@@ -228,8 +228,8 @@ def _three_steps(params, n_cells):
 
 @pytest.mark.mpi
 def test_cached_step_forms_give_the_fresh_forms_results():
-    other = RodParameters(length=2.0, A=(1.0, 2.0, 3.0), B=(4e2, 5e2, 6e2), rho_A=1.0,
-                          I11=2e-3, I22=3e-3)
+    other = RodParameters(length=2.0, A=(1.0, 2.0, 3.0), B=(4e2, 5e2, 6e2), density=1.0,
+                          section_inertia=(2e-3, 3e-3))
     form_cache.clear()
     _three_steps(other, 6)                      # compiles; other mesh and data
     cached = _three_steps(PARAMS, 5)            # binds the same kernels to its own data
@@ -322,7 +322,7 @@ def test_reactions_equal_the_quaternion_rods_reactions():
     translation, or a spatial rotation: delta q_a = (0, e) q_a / 2 and delta theta_a =
     R(q_a)^T e), so the clamp reactions agree to round-off."""
     weight = [DistributedLoad("force", (-3.0, 0.5, 1.0))]
-    rod = _rod(ends=("clamped", "free"), distributed_loads=weight)
+    rod = _rod(start="clamped", end="free", distributed_loads=weight)
     _deformed(rod)
     th = rod.f["rotation_increment"].x.array.reshape(-1, 3)
     chart = rod.unknowns.chart
@@ -352,8 +352,8 @@ def _power_defect(model_name, dt, **kw):
     visc = dict(M=(0.05,) * 3, N=(0.05,) * 3)
     if model_name == "evolving":
         visc.update(M_d=(0.5,) * 3, N_d=(5.0,) * 3)
-    p = RodParameters(A=(1.0, 1.0, 1.0), B=(50.0, 50.0, 50.0), rho_A=1.0, I11=0.01,
-                      I22=0.01, drag=0.3, **visc)
+    p = RodParameters(A=(1.0, 1.0, 1.0), B=(50.0, 50.0, 50.0), density=1.0,
+                      section_inertia=0.01, drag=0.3, **visc)
     rod = RodModel(p, n_cells=6, model=model_name, **kw)
     assert rod.rotations == "rotation_vector"
     h = _history(rod, 1.0, dt)
@@ -370,7 +370,7 @@ LOADED = dict(end_loads=[EndLoad("force", (0.4, 0.0, 0.1), loads.smooth_step(1.0
                                                  loads.smooth_step(1.0, 0.3)),
                                  DistributedLoad("couple", (0.1, 0.0, 0.05),
                                                  loads.smooth_step(1.0, 0.3), follower=True)])
-TWISTED = dict(ends=("clamped", "pinned"),
+TWISTED = dict(start="clamped", end="pinned",
                end_rotation={"left": lambda t: np.array([0.3, 0.0, 1.0]) * 3 * t**2},
                distributed_loads=[DistributedLoad("force", (0.0, -0.3, 0.0))])
 
@@ -400,7 +400,7 @@ def test_prescribed_end_rotation_is_followed_exactly():
     prescribed one at every step, over more than a full turn (round-off per step)."""
     axis = np.array([0.6, 0.0, 0.8])
     turn = loads.smooth_step(8.0, 1.0)                     # 8 rad: past 2 pi
-    rod = _rod(ends=("clamped", "clamped"),
+    rod = _rod(start="clamped", end="clamped",
                end_rotation={"right": lambda t: axis * float(turn(t))})
     h = _history(rod, 1.0, 0.05)
     for d in h:
@@ -414,9 +414,9 @@ def test_prescribed_end_rotation_is_followed_exactly():
 def test_stress_free_helix_stays_at_rest():
     """A helix of the reference curvature is stress free: without loads nothing moves
     (the nodal rotations are set from the helix, the strains are its discrete strains)."""
-    p = RodParameters(A=(1.0, 1.5, 0.8), B=(30.0, 40.0, 50.0), rho_A=1.0, I11=0.01,
-                      I22=0.01, reference_curvature=(0.9, 0.0, 1.7))
-    rod = RodModel(p, n_cells=8, model="hyperelastic", ends=("clamped", "free"))
+    p = RodParameters(A=(1.0, 1.5, 0.8), B=(30.0, 40.0, 50.0), density=1.0,
+                      section_inertia=0.01, reference_curvature=(0.9, 0.0, 1.7))
+    rod = RodModel(p, n_cells=8, model="hyperelastic", start="clamped", end="free")
     h = _history(rod, 0.2, 0.05)
     # energies of O(1e2) stiffness times round-off strains squared
     assert max(_series(h, "free_energy")) < 1e-20
@@ -501,7 +501,7 @@ QUASI_STATIC = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2))
 KELVIN_VOIGT = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2),
                              M=(0.1, 0.1, 0.1))
 NO_ROTARY_INERTIA = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2),
-                                  rho_A=2.0, I11=1e-3)
+                                  density=2.0, section_inertia=(1e-3, 0.0))
 
 
 @pytest.mark.mpi       # under mpirun: both ranks refuse alike, none hangs (4 cells: two per rank)
@@ -511,12 +511,12 @@ NO_ROTARY_INERTIA = RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e
      "rotations must be one of"),
     (lambda: RodModel(KELVIN_VOIGT, n_cells=4, model="kelvin_voigt",
                       rotations="rotation_vector"), "Kelvin-Voigt viscosity"),
-    (lambda: RodModel(QUASI_STATIC, n_cells=4, model="hyperelastic", ends=("pinned", "free"),
+    (lambda: RodModel(QUASI_STATIC, n_cells=4, model="hyperelastic", start="pinned", end="free",
                       rotations="rotation_vector"), "no end holds"),
     (lambda: RodModel(PARAMS, n_cells=4, model="hyperelastic", variant="uniform",
                       rotations="rotation_vector"), "uniform variant"),
     (lambda: RodModel(NO_ROTARY_INERTIA, n_cells=4, model="hyperelastic",
-                      rotations="rotation_vector"), "without rotary inertia I11, I22 > 0"),
+                      rotations="rotation_vector"), "without rotary inertia section_inertia > 0"),
 ])
 def test_rotation_choice_is_checked(make, match):
     with pytest.raises(ValueError, match=match):

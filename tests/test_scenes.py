@@ -78,11 +78,13 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "sprung_cantilever.toml": "rod", "rod_on_incline.toml": "rod",
                   "rope_on_floor.toml": "rod", "frame.toml": "rod",
                   "crossing_rods.toml": "rod", "plectoneme.toml": "rod",
+                  "ropes_pulled_over_each_other.toml": "rod",
                   "double_pendulum.toml": "rod", "tripod.toml": "rod",
                   "sagging_cable.toml": "rod", "hanging_pendulum.toml": "rod",
                   "hinged_door.toml": "rod", "bent_frame.toml": "rod",
                   "column_buckling_modes.toml": "rod", "string_modes.toml": "rod",
-                  "buckled_column.toml": "rod", "snap_through_arch.toml": "rod"}
+                  "buckled_column.toml": "rod", "snap_through_arch.toml": "rod",
+                  "beck_column.toml": "rod", "deep_arch.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
@@ -626,7 +628,7 @@ def test_rod_keys_reach_the_model():
     assert model.supports.ends == ("pinned", "free") and model.constraint is None
     quasi_static = build(_rod(material__constraints="unshearable"), "rod").model
     assert quasi_static.constraint == "unshearable"
-    assert (p.I11, p.I22, p.drag) == (0.01, 0.02, 0.3) and p.rho_A(0.5) == 1.5
+    assert (p.section_inertia, p.drag) == ((0.01, 0.02), 0.3) and p.density(0.5) == 1.5
     assert np.allclose(np.asarray(p.A(0.5), float), [[2.5, 0.5, 0], [0.5, 2.5, 0], [0, 0, 1.5]])
     assert p.reference_stretch == (0.0, 0.0, 1.1)
     kinds = [(d.kind, d.follower) for d in model.distributed_loads]

@@ -82,7 +82,7 @@ def test_a_rod_passing_through_itself_is_reported_once():
     """Between two output times the rod's branches swap sides at the crossing: one
     warning naming the time and the two places (s = 1/7, 6/7 within a cell); nothing
     while the branches keep their sides."""
-    rod = RodModel(RodParameters(), n_cells=28, model="hyperelastic", ends=("free", "free"),
+    rod = RodModel(RodParameters(), n_cells=28, model="hyperelastic", start="free", end="free",
                    rotations="quaternion")
     rod.set_initial_state()
     with warnings.catch_warnings(record=True) as caught:

@@ -34,14 +34,14 @@ ROD_SCENES = [p for p in SCENES if choose_model(load_scene(p), 1).model == "rod"
 
 CASES = {
     "dynamic, rotation vectors": dict(
-        params=dict(rho_A=2.0, I11=1e-3, I22=1e-3), model="hyperelastic"),
+        params=dict(density=2.0, section_inertia=1e-3), model="hyperelastic"),
     "quasi-static creep, quaternions": dict(
         params=dict(A_d=(1.0, 1.0, 1.0), B_d=(10.0, 10.0, 10.0), M_d=(1.0, 1.0, 1.0),
                     N_d=(1.0, 1.0, 1.0)), model="evolving", rotations="quaternion"),
     "unshearable, uniform variant": dict(
         params=dict(A_d=(1.0, 1.0, 1.0), B_d=(10.0, 10.0, 10.0), M_d=(1.0, 1.0, 1.0),
                     N_d=(1.0, 1.0, 1.0)), model="evolving", variant="uniform",
-        constraint="unshearable"),
+        constraints="unshearable"),
 }
 
 
@@ -66,7 +66,7 @@ def make(case: str, values: dict = VALUES[0], n_cells: int = 4, loads=None,
     params = RodParameters(**values, **{**spec["params"], **changes})
     loads = loads or dict(distributed_loads=[DistributedLoad("force", (1.0, 0.0, 0.0))])
     return RodModel(params, n_cells=n_cells, model=spec["model"],
-                    variant=spec.get("variant", "local"), constraint=spec.get("constraint"),
+                    variant=spec.get("variant", "local"), constraints=spec.get("constraint"),
                     rotations=spec.get("rotations", "auto"), comm=MPI.COMM_WORLD, **loads)
 
 
@@ -126,7 +126,7 @@ def test_a_term_more_is_another_structure(change):
             DistributedLoad("force", (1.0, 0.0, 0.0))])),
         "end slide": lambda: make(case, loads=dict(
             distributed_loads=[DistributedLoad("force", (1.0, 0.0, 0.0))],
-            ends=("clamped", "pinned"), end_slide={"right": (0.0, 0.0, 1.0)})),
+            start="clamped", end="pinned", end_slide={"right": (0.0, 0.0, 1.0)})),
     }[change]()
     base = make(case)
     assert changed.problem.structure not in (None, base.problem.structure)

@@ -41,7 +41,7 @@ def test_a_step_that_starts_at_the_round_off_floor_is_accepted(monkeypatch):
     monkeypatch.setattr(BlockSNES, "round_off_floor", recorded)
 
     rod = RodModel(RodParameters(length=1.0, A=(1.0,) * 3, B=(B,) * 3), n_cells=4,
-                   model="hyperelastic", ends=("clamped", "free"),
+                   model="hyperelastic", start="clamped", end="free",
                    end_loads=[EndLoad("force", (0.0, 0.0, -LOAD), lambda t: t)])
     rod.set_initial_state()
     TimeStepper(rod.problem, solver_options={"snes_atol": 1e-11}).run(0.0, 0.3, 0.1)

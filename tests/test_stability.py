@@ -52,7 +52,8 @@ def critical_load(case: str, n_cells: int, halvings: int = 18) -> float:
     bisection (each load: one quasi-static step from the straight rod)."""
     ends, slide, p_cr = COLUMNS[case]
     scale = [0.0]
-    rod = RodModel(STIFF, n_cells=n_cells, model="hyperelastic", ends=ends, end_slide=slide,
+    rod = RodModel(STIFF, n_cells=n_cells, model="hyperelastic", start=ends[0], end=ends[1],
+                   end_slide=slide,
                    end_loads=[EndLoad("force", (0.0, 0.0, -p_cr), lambda t: scale[0])])
     tangent = TangentStiffness(rod)
 
@@ -86,7 +87,7 @@ def test_greenhill_twisted_rod_becomes_unstable_at_the_critical_twist():
     the count is 0 up to the step before Phi_cr and > 0 after it."""
     phi_cr = 2.861 * math.pi            # M L / B with M = GJ Phi / L, GJ = B = 1
     n_steps = 120                       # Phi in steps of 1 % of Phi_cr
-    rod = RodModel(STIFF, n_cells=16, model="hyperelastic", ends=("clamped", "clamped"),
+    rod = RodModel(STIFF, n_cells=16, model="hyperelastic", start="clamped", end="clamped",
                    end_rotation={"right": lambda t: np.array([0.0, 0.0, 1.2 * phi_cr * t])})
     rod.set_initial_state()
     tangent = TangentStiffness(rod)
@@ -207,7 +208,7 @@ def test_pinned_pinned_catenary_solves_at_any_orientation():
     def mid_node(direction):
         g = np.array(direction) / np.linalg.norm(direction)
         rod = RodModel(RodParameters(length=1.0, A=(1e-2,) * 3, B=(1e3,) * 3), n_cells=16,
-                       model="hyperelastic", ends=("pinned", "pinned"),
+                       model="hyperelastic", start="pinned", end="pinned",
                        end_displacement={"right": lambda t: np.array([0, 0, -0.3 * min(t, 1)])},
                        distributed_loads=[DistributedLoad("force", tuple(g),
                                                           loads.ramp(1.0, 1.0))])
@@ -241,7 +242,7 @@ def test_a_second_tangent_binds_the_kernels_of_the_first(monkeypatch):
     (form_cache, issue 30) instead of building its forms: its K equals the one compiled
     from this model's own forms (the cache bypassed) to round-off (1e-13 relative)."""
     from dolfin_rod.fem import form_cache
-    rod = RodModel(STIFF, n_cells=4, model="hyperelastic", ends=("clamped", "free"),
+    rod = RodModel(STIFF, n_cells=4, model="hyperelastic", start="clamped", end="free",
                    end_loads=[EndLoad("force", (0.3, 0.0, -1.0), lambda t: t)])
     rod.set_initial_state()
     TimeStepper(rod.problem).run(0.0, 1.0, 0.5)

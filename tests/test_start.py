@@ -19,9 +19,9 @@ PLACE = {"position": (0.4, -1.0, 2.5), "orientation": (0.3, -0.7, 1.1)}
 
 def dynamic_rod(rotations="auto", length=2.0, ends=("free", "free"), end_loads=(), n=8):
     params = RodParameters(length=length, A=(0.8, 1.2, 0.6), B=(40.0, 30.0, EA),
-                           rho_A=RHO_A, I11=I11, I22=I22)
+                           density=RHO_A, section_inertia=(I11, I22))
     return RodModel(params, n_cells=n, model="hyperelastic", rotations=rotations,
-                    ends=ends, end_loads=end_loads)
+                    start=ends[0], end=ends[1], end_loads=end_loads)
 
 
 def nodes(model):

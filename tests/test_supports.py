@@ -39,7 +39,7 @@ def hanging_rod(n_cells=8, turns=1.0, slide=True, **kw):
     params = RodParameters(length=L, A=(1.0, 1.0, GJ), B=(30.0, 30.0, EA), **kw)
     phi = loads.ramp(turns, 1.0)
     model = RodModel(params, n_cells=n_cells, model="hyperelastic",
-                     ends=("clamped", "clamped"),
+                     start="clamped", end="clamped",
                      end_rotation={"right": lambda t: (0.0, 0.0, float(phi(t)))},
                      end_slide={"right": (0.0, 0.0, 1.0)} if slide else None,
                      end_loads=[EndLoad("force", (0.0, 0.0, W), end="right")] if slide else (),
@@ -79,7 +79,7 @@ def test_dynamic_hanging_rod_on_a_sliding_clamp_settles_to_the_static_stretch():
     the end is at the static stretch L + (W L + p L^2/2)/EA to ~1e-8 L; throughout,
     the sliding clamp takes no force along its axis (the residual there is solved, to
     Newton's tolerance) and the end stays on the axis."""
-    model, c = hanging_rod(n_cells=4, turns=0.0, rho_A=0.5, I11=1e-3, I22=1e-3, drag=5.0)
+    model, c = hanging_rod(n_cells=4, turns=0.0, density=0.5, section_inertia=1e-3, drag=5.0)
     h = run(model, 4.0, 0.02)
     static = c["L"] + (c["W"] * c["L"] + c["p"] * c["L"] ** 2 / 2) / c["EA"]
     assert h[-1]["tip_position_z"] == pytest.approx(static, abs=1e-6)
@@ -96,7 +96,7 @@ def test_dynamic_hanging_rod_on_a_sliding_clamp_settles_to_the_static_stretch():
 ])
 def test_bad_slide_axis_is_refused_naming_it(slide, match):
     with pytest.raises(ValueError, match=r"end_slide\['right'\] " + match):
-        RodModel(RodParameters(), n_cells=2, ends=("clamped", "clamped"),
+        RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
                  end_slide={"right": slide})
 
 
@@ -159,7 +159,7 @@ def test_cantilever_on_springs_against_the_closed_form(rotations):
     EI, GA, EA, GJ, L, N, P, k_t, k_r = 2.0, 50.0, 80.0, 1.5, 1.0, 8, 3e-6, 4.0, 0.8
     spring = EndSpring(translational=(k_t, k_t, 2 * k_t), rotational=k_r)
     model = RodModel(RodParameters(length=L, A=(EI, EI, GJ), B=(GA, GA, EA)), n_cells=N,
-                     model="hyperelastic", ends=("free", "free"), rotations=rotations,
+                     model="hyperelastic", start="free", end="free", rotations=rotations,
                      end_loads=[EndLoad("force", (P, 0.0, 0.0))], end_springs={"left": spring})
     d = run(model, 1.0, 1.0, scheme="backward_euler",
             options={"snes_rtol": 1e-12, "snes_atol": 1e-20, "snes_stol": 1e-16})[-1]
@@ -179,7 +179,7 @@ def test_pinned_end_on_a_torsional_spring():
     tolerance (1e-9)."""
     GJ, L, N, k_r, C = 2.0, 1.5, 4, 1.2, 0.3
     model = RodModel(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(20.0, 20.0, 30.0)),
-                     n_cells=N, model="hyperelastic", ends=("pinned", "free"),
+                     n_cells=N, model="hyperelastic", start="pinned", end="free",
                      end_loads=[EndLoad("couple", (0.0, 0.0, C))],
                      end_springs={"left": EndSpring(rotational=(0.0, 0.0, k_r))})
     d = run(model, 1.0, 1.0, scheme="backward_euler")[-1]
@@ -198,7 +198,8 @@ def test_pinned_end_on_a_torsional_spring():
 ])
 def test_bad_springs_are_refused_naming_them(ends, spring, match):
     with pytest.raises(ValueError, match=r"end_springs\['left'\]" + ".*" + match):
-        RodModel(RodParameters(), n_cells=2, ends=ends, end_springs={"left": spring})
+        RodModel(RodParameters(), n_cells=2, start=ends[0], end=ends[1],
+                 end_springs={"left": spring})
 
 
 SPRUNG = ROOT / "scenes/sprung_cantilever.toml"
@@ -242,8 +243,8 @@ def test_dynamic_rod_with_an_end_moved_at_the_start_starts_at_rest_in_equilibriu
         else {"end_rotation": {"right": lambda t: turn}}
     stiff = dict(length=1.0, A=(1.0, 1.0, 1.0), B=(40.0, 40.0, 60.0))
     models = [RodModel(RodParameters(**stiff, **inertia), n_cells=6, model="hyperelastic",
-                       ends=("clamped", "clamped"), **moved)
-              for inertia in ({"rho_A": 2.0, "I11": 0.01, "I22": 0.01}, {})]
+                       start="clamped", end="clamped", **moved)
+              for inertia in ({"density": 2.0, "section_inertia": 0.01}, {})]
     dynamic, static = (run(m, 0.5, 0.05) for m in models)
     assert max(r["kinetic_energy"] for r in dynamic[1:]) < 1e-16
     assert dynamic[-1]["free_energy"] == pytest.approx(dynamic[1]["free_energy"], rel=1e-9)
@@ -277,9 +278,9 @@ def test_a_dynamic_rod_turned_at_the_start_beyond_a_quarter_turn_starts_at_rest(
     angle = 2.5 if case == "rigid" else 3.0
     axis = np.array([0.0, 1.0, 0.0] if case == "rigid" else [0.0, 0.0, 1.0])
     model = RodModel(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(40.0, 40.0, 60.0),
-                                   rho_A=2.0, I11=0.01, I22=0.01), n_cells=N,
+                                   density=2.0, section_inertia=0.01), n_cells=N,
                      model="hyperelastic",
-                     ends=("clamped", "free" if case == "rigid" else "clamped"),
+                     start="clamped", end="free" if case == "rigid" else "clamped",
                      end_rotation={"left": lambda t: angle * axis})
     rows = run(model, 0.2, 0.05)
     assert max(r["kinetic_energy"] for r in rows[1:]) < 1e-16
@@ -299,8 +300,8 @@ def test_a_dynamic_rod_turned_at_the_start_by_more_than_its_parts_reach_is_refus
     (1.75 rad a part) is refused before any step, naming the start and what to do."""
     from dolfin_rod import TimeStepper
     from dolfin_rod.integrators.step_control import IntegrationError
-    model = RodModel(RodParameters(rho_A=1.0, I11=0.01, I22=0.01), n_cells=4,
-                     ends=("clamped", "free"), model="hyperelastic",
+    model = RodModel(RodParameters(density=1.0, section_inertia=0.01), n_cells=4,
+                     start="clamped", end="free", model="hyperelastic",
                      end_rotation={"left": lambda t: (0.0, 7.0, 0.0)})
     model.set_initial_state()
     with pytest.raises(IntegrationError, match="the start at t = 0 .* ramp or smooth_step"):
@@ -311,8 +312,8 @@ def test_a_dynamic_rod_turned_at_the_start_by_more_than_its_parts_reach_is_refus
 def test_a_dynamic_rod_on_quaternions_refuses_a_displaced_start(motion):
     with pytest.raises(ValueError, match=f"{motion} starts away .* consistent start .* "
                                          "rotation-vector unknowns"):
-        RodModel(RodParameters(rho_A=1.0, I11=0.01, I22=0.01), n_cells=2,
-                 rotations="quaternion", ends=("clamped", "clamped"),
+        RodModel(RodParameters(density=1.0, section_inertia=0.01), n_cells=2,
+                 rotations="quaternion", start="clamped", end="clamped",
                  **{motion: {"right": lambda t: (0.1, 0.0, 0.0)}})
 
 
@@ -328,7 +329,7 @@ def test_clamp_turning_freely_about_its_axis_under_a_couple(rotations):
     and no force along it.  Tolerance: Newton's (1e-9)."""
     GJ, EA, L, N, C, F = 2.0, 30.0, 1.5, 4, 0.3, 0.6
     model = RodModel(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(20.0, 20.0, EA)),
-                     n_cells=N, model="hyperelastic", ends=("clamped", "clamped"),
+                     n_cells=N, model="hyperelastic", start="clamped", end="clamped",
                      rotations=rotations, end_slide={"right": (0.0, 0.0, 1.0)},
                      end_turn={"right": (0.0, 0.0, 1.0)},
                      end_loads=[EndLoad("couple", (0.0, 0.0, C), loads.ramp(1.0, 1.0)),
@@ -346,13 +347,13 @@ def test_clamp_turning_freely_about_its_axis_under_a_couple(rotations):
 
 def test_a_turning_end_must_be_clamped_and_keep_its_axis():
     with pytest.raises(ValueError, match=r"end_turn\['right'\]: only a clamped end"):
-        RodModel(RodParameters(), n_cells=2, ends=("clamped", "pinned"),
+        RodModel(RodParameters(), n_cells=2, start="clamped", end="pinned",
                  end_turn={"right": (0.0, 0.0, 1.0)})
     with pytest.raises(ValueError, match=r"end_turn\['right'\] must equal end_slide's axis"):
-        RodModel(RodParameters(), n_cells=2, ends=("clamped", "clamped"),
+        RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
                  end_slide={"right": (0.0, 0.0, 1.0)}, end_turn={"right": (1.0, 0.0, 0.0)})
     helix = RodModel(RodParameters(reference_curvature=(1.0, 0.0, 0.0)), n_cells=2,
-                     ends=("clamped", "clamped"), end_turn={"right": (0.0, 0.0, 1.0)})
+                     start="clamped", end="clamped", end_turn={"right": (0.0, 0.0, 1.0)})
     helix.set_initial_state()      # its end's frame turns e_3 away: a one-node link holds it
     with pytest.raises(ValueError, match="initial frame must keep its axis"):
         helix.set_initial_state(start=StartingState(orientation=(0.3, 0.0, 0.0)))

@@ -54,10 +54,10 @@ def _thrown(dt: float, t_end: float):
     towards the thin cylinder (radius 3 mm, axis e_2, 5 cm from it, at its middle
     node's height); the default barrier stiffness for dt.  Returns the middle node's x
     at every step and the steps' stats."""
-    params = RodParameters(length=0.2, A=(1e-2,) * 3, B=(10.0,) * 3, rho_A=1.0,
-                           I11=1e-6, I22=1e-6)
+    params = RodParameters(length=0.2, A=(1e-2,) * 3, B=(10.0,) * 3, density=1.0,
+                           section_inertia=1e-6)
     law = ContactLaw(RADIUS, 5e-4, default_stiffness(1.0, (1e-2,) * 3, 0.2, 4, dt))
-    rod = RodModel(params, 4, model="hyperelastic", ends=("free", "free"),
+    rod = RodModel(params, 4, model="hyperelastic", start="free", end="free",
                    obstacles=[THIN], contact=law)
     rod.set_initial_state(start=StartingState(velocity=(-1.0, 0.0, 0.0)))
     stepper = TimeStepper(rod.problem)

@@ -28,19 +28,20 @@ import math
 
 import numpy as np
 import pytest
-from scipy.optimize import brentq
+from scipy.optimize import brentq, minimize_scalar
 
 from determinants import first_root
 from determinants import smallest_singular_value as smallest_singular_value_of
 from dolfin_rod.analysis.vibration import vibration_modes
-from dolfin_rod.rod import RodModel, RodParameters, StartingState, Straight
+from dolfin_rod.rod import EndLoad, RodModel, RodParameters, StartingState, Straight
 
-SLENDER = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5), rho_A=1.0,
-                        I11=1e-8, I22=1e-8)
+SLENDER = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5), density=1.0,
+                        section_inertia=1e-8)
 
 
 def frequencies(params, ends, n_cells, count, start=None) -> np.ndarray:
-    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", ends=ends)
+    rod = RodModel(params, n_cells=n_cells, model="hyperelastic", start=ends[0],
+                   end=ends[1])
     rod.set_initial_state(start=start)
     modes = vibration_modes(rod, 0.0, count)
     assert max(modes.residuals) < 1e-10
@@ -95,7 +96,7 @@ def test_thick_rod_against_timoshenko():
     """Measured relative errors at 8 / 16 cells: 1.82e-2, 6.40e-2, 0.126 / 4.49e-3,
     1.55e-2, 3.01e-2 (orders 2.01, 2.04, 2.07)."""
     thick = RodParameters(length=1.0, A=(1.0, 1.0, 100.0), B=(100.0, 100.0, 1e4),
-                          rho_A=1.0, I11=2.5e-3, I22=2.5e-3)
+                          density=1.0, section_inertia=2.5e-3)
     exact = np.array([timoshenko(n) for n in (1, 2, 3)])
     assert exact == pytest.approx([9.3209, 32.595, 62.617], abs=1e-3)
     errors = [frequencies(thick, ("pinned", "pinned"), n, 7)[1::2] / exact - 1
@@ -107,8 +108,8 @@ def test_thick_rod_against_timoshenko():
 def test_string_under_tension():
     """Measured relative errors at 8 / 16 cells: 6.44e-3, 2.59e-2, 5.84e-2 / 1.61e-3,
     6.46e-3, 1.46e-2 (orders 2.00)."""
-    string = RodParameters(length=1.0, A=(1e-6, 1e-6, 1e-6), B=(1e5, 1e5, 1e3), rho_A=1.0,
-                           I11=1e-8, I22=1e-8)
+    string = RodParameters(length=1.0, A=(1e-6, 1e-6, 1e-6), B=(1e5, 1e5, 1e3), density=1.0,
+                           section_inertia=1e-8)
     stretch = 1.001
     exact = np.arange(1, 4) * math.pi * math.sqrt(1e3 * (stretch - 1) / stretch)
     errors = [frequencies(string, ("pinned", "pinned"), n, 7,
@@ -149,7 +150,7 @@ def test_pre_twisted_clamped_rod():
     assert exact == pytest.approx(21.5947, abs=1e-4)
     errors = []
     for n in (8, 16):
-        rod = RodModel(SLENDER, n_cells=n, model="hyperelastic", ends=("clamped", "clamped"),
+        rod = RodModel(SLENDER, n_cells=n, model="hyperelastic", start="clamped", end="clamped",
                        end_turn={"right": (0.0, 0.0, 1.0)},
                        end_loads=[EndLoad("couple", (0.0, 0.0, moment))])
         rod.set_initial_state(start=StartingState(equilibrium=True))
@@ -162,7 +163,7 @@ def test_pre_twisted_clamped_rod():
 @pytest.mark.mpi
 def test_bad_requests_are_refused():
     quasi_static = RodParameters(length=1.0, B=(1e5, 1e5, 1e5))
-    with pytest.raises(ValueError, match="rho_A > 0"):
+    with pytest.raises(ValueError, match="density > 0"):
         vibration_modes(RodModel(quasi_static, n_cells=4, model="hyperelastic"), 0.0)
 
 
@@ -200,9 +201,10 @@ def test_modes_command(tmp_path):
 def modes_of(rotations: str, ends) -> object:
     """8 cells, unequal bending stiffnesses (A = (1, 2): every mode single, its shape
     unique up to sign)."""
-    params = RodParameters(length=1.0, A=(1.0, 2.0, 1.0), B=(1e5, 1e5, 1e5), rho_A=1.0,
-                           I11=1e-4, I22=2e-4)
-    rod = RodModel(params, n_cells=8, model="hyperelastic", ends=ends, rotations=rotations)
+    params = RodParameters(length=1.0, A=(1.0, 2.0, 1.0), B=(1e5, 1e5, 1e5), density=1.0,
+                           section_inertia=(1e-4, 2e-4))
+    rod = RodModel(params, n_cells=8, model="hyperelastic", start=ends[0], end=ends[1],
+                   rotations=rotations)
     rod.set_initial_state()
     modes = vibration_modes(rod, 0.0, 5)
     assert max(modes.residuals) < 1e-10
@@ -241,11 +243,11 @@ def two_rods_joined(dynamic: bool = True):
     swapped: the one rod of 16 cells (A = (1, 2), I = (1e-3, 2e-3))."""
     from dolfin_rod import Rod, RodSystem
     from dolfin_rod.rod.joints import Joint
-    half = [RodParameters(length=0.5, A=(*a, 1.5), B=(1e5, 1e5, 1e5), rho_A=1.0,
-                          I11=i[0], I22=i[1])
+    half = [RodParameters(length=0.5, A=(*a, 1.5), B=(1e5, 1e5, 1e5), density=1.0,
+                          section_inertia=(i[0], i[1]))
             for a, i in (((1.0, 2.0), (1e-3, 2e-3)), ((2.0, 1.0), (2e-3, 1e-3)))]
     return RodSystem([Rod(half[0], 8, name="lower"),
-                      Rod(half[1], 8, ("free", "free"), name="upper",
+                      Rod(half[1], 8, "free", end="free", name="upper",
                           position=(0.0, 0.0, 0.5), orientation=(0.0, 0.0, math.pi / 2))],
                      joints=[Joint("rigid", ("lower", "upper"), (0.0, 0.0, 0.5))],
                      model="hyperelastic")
@@ -257,8 +259,8 @@ def test_rods_joined_rigidly_vibrate_as_one_rod():
     has the one rod's frequencies to round-off (measured 1e-15 relative; asserted 1e-10),
     3.5013, 4.9630 for (beta L)^2 sqrt(EI / rho A) = 3.5160 sqrt(1, 2) (8.5e-3 below:
     the 16-cell error and rotary inertia 1e-3)."""
-    one = RodParameters(length=1.0, A=(1.0, 2.0, 1.5), B=(1e5, 1e5, 1e5), rho_A=1.0,
-                        I11=1e-3, I22=2e-3)
+    one = RodParameters(length=1.0, A=(1.0, 2.0, 1.5), B=(1e5, 1e5, 1e5), density=1.0,
+                        section_inertia=(1e-3, 2e-3))
     single = RodModel(one, n_cells=16, model="hyperelastic")
     joined = two_rods_joined()
     omega = []
@@ -302,3 +304,111 @@ def test_modes_command_on_an_auto_scene_with_quaternions(tmp_path):
     exact = math.pi * math.sqrt(1e3 * 1e-3 / 1.001)
     assert omega[0] == 0.0
     assert np.array(omega[1:]) / exact - 1 == pytest.approx([6.44e-3] * 2, abs=1e-5)
+
+
+def beck_determinant(w2: float, p: float) -> float:
+    """Beck's column (clamped at z = 0; at z = 1 a follower force P tangent to the rod,
+    EI = rho A = L = 1, p = P L^2 / EI, w2 = rho A omega^2 L^4 / EI): w'''' + p w'' -
+    w2 w = 0 with w = a_1 cosh(a z) + a_2 sinh(a z) + a_3 cos(b z) + a_4 sin(b z), a^2,
+    b^2 = (sqrt(p^2 + 4 w2) -+ p) / 2; w(0) = w'(0) = 0 leave a_3 = -a_1, a_4 = -a a_2
+    / b, and w''(1) = 0, w'''(1) = 0 (the follower force's transverse part P w'
+    cancels the axial force's) the 2 x 2 determinant, divided by a cosh^2 a (at p = 0:
+    2 (1 + cos b cosh b), the cantilever's)."""
+    s = math.sqrt(p * p + 4 * w2)
+    a, b = math.sqrt((s - p) / 2), math.sqrt((s + p) / 2)
+    ch, sh, c, sn = math.cosh(a), math.sinh(a), math.cos(b), math.sin(b)
+    return ((a * a * ch + b * b * c) ** 2
+            - (a * sh + b * sn) * (a ** 3 * sh - b ** 3 * sn)) / ch ** 2
+
+
+def beck_flutter_load() -> float:
+    """p where the two lowest roots w2 of beck_determinant meet: between them the
+    determinant has the sign opposite to its sign outside (w2 = 60, 200 here), its
+    extremum there crosses 0 when they meet (brentq on it)."""
+    def gap(p):
+        outside = np.sign(beck_determinant(60.0, p))
+        found = minimize_scalar(lambda w2: outside * beck_determinant(w2, p),
+                                bounds=(60.0, 200.0), method="bounded",
+                                options={"xatol": 1e-10})
+        return -found.fun
+    return brentq(gap, 19.5, 20.5, xtol=1e-12)
+
+
+BECK = RodParameters(length=1.0, A=(1.0, 100.0, 1.0), B=(1e5, 1e5, 1e5), density=1.0,
+                     section_inertia=1e-8)
+
+
+def discrete_flutter_load(n_cells: int) -> tuple[float, object]:
+    """The follower tip force at which the lowest two omega^2 of the rod meet: brentq on
+    the discriminant (omega_2^2 - omega_1^2)^2, real on both sides (a complex pair a +- ib
+    gives -4 b^2) and smooth through the meeting; the modes just above it."""
+    scale = [0.0]
+    rod = RodModel(BECK, n_cells=n_cells, model="hyperelastic", end_loads=[
+        EndLoad("force", (0.0, 0.0, -1.0), lambda t: scale[0], follower=True)])
+
+    def modes(p):
+        scale[0] = p
+        rod.set_initial_state(start=StartingState(equilibrium=True))   # compressed
+        return vibration_modes(rod, 0.0, 2)
+
+    def discriminant(p):
+        found = modes(p)
+        assert max(found.residuals) < 1e-10
+        return (np.diff(found.eigenvalues)[0] ** 2 - np.diff(found.imaginary)[0] ** 2)
+    p = brentq(discriminant, 19.0, 23.0, xtol=1e-10)
+    return p, modes(p * (1 + 1e-3))
+
+
+@pytest.mark.mpi
+def test_beck_column_flutters():
+    """Beck's column (clamped-free, a follower tip force P: not conservative, K not
+    symmetric; analysis/vibration.py solves the non-Hermitian pencil): the lowest two
+    bending frequencies meet at P L^2 / EI = 20.050954 (beck_flutter_load; Beck 1952:
+    20.05) at omega^2 = 121.34, above it they are a complex pair (flutter: a growing
+    mode).  EI = 1 in the plane of the modes, 100 out of it (those modes stay above),
+    axial and shear 1e5, rotary inertia 1e-8 (their corrections <= 1e-4).  Measured
+    discrete flutter loads at 8 / 16 / 32 cells: 21.60768, 20.42061, 20.14069, relative
+    errors 7.76e-2, 1.84e-2, 4.48e-3 (orders 2.07, 2.04)."""
+    reference = beck_flutter_load()
+    assert reference == pytest.approx(20.05, abs=5e-3)
+    errors = []
+    for n in (8, 16):
+        p, above = discrete_flutter_load(n)
+        errors.append(p / reference - 1)
+        assert above.flutter and above.growth_rates[0] > 0
+        assert above.omega[0] == pytest.approx(above.omega[1], rel=1e-12)
+        assert above.omega[0] ** 2 == pytest.approx(121.34, rel=2 * errors[-1])
+    assert abs(math.log2(errors[0] / errors[1]) - 2) < 0.15, errors
+    assert 0 < errors[1] < 1.2 * 1.84e-2, errors
+    # below it: two real frequencies, no growth
+    below = RodModel(BECK, n_cells=16, model="hyperelastic", end_loads=[
+        EndLoad("force", (0.0, 0.0, -0.95 * reference), follower=True)])
+    below.set_initial_state(start=StartingState(equilibrium=True))
+    modes = vibration_modes(below, 0.0, 2)
+    assert not modes.flutter and modes.omega[1] > modes.omega[0] * 1.2
+
+
+@pytest.mark.mpi
+def test_modes_command_reports_flutter(tmp_path):
+    """``dolfin-rod modes scenes/beck_column.toml`` (16 cells, 20.5 EI/L^2: above the
+    16-cell flutter load 20.42 of test_beck_column_flutters): the first two rows are the
+    complex pair, one omega (measured 11.1677; 11.0 at Beck's load) with the growth rate
+    (measured 0.614), the others real (growth_rate 0)."""
+    import json
+    from pathlib import Path
+
+    from mpi4py import MPI
+
+    from dolfin_rod.cli import main
+    comm = MPI.COMM_WORLD
+    scene = str(Path(__file__).parents[1] / "scenes" / "beck_column.toml")
+    out = comm.bcast(str(tmp_path / "out"))
+    assert main(["modes", scene, "--out", out, "--quiet", "--count", "3"]) == 0
+    if comm.rank != 0:
+        return
+    rows = json.loads((Path(out) / "modes.json").read_text())["modes"]
+    assert rows[0]["omega"] == pytest.approx(rows[1]["omega"], rel=1e-12)
+    assert rows[0]["omega"] == pytest.approx(11.1677, rel=1e-4)
+    assert rows[0]["growth_rate"] == rows[1]["growth_rate"] == pytest.approx(0.614227,
+                                                                             rel=1e-4)
+    assert rows[2]["growth_rate"] == 0.0

@@ -139,8 +139,9 @@ def section(rod: Rod, scenario: Scenario) -> dict:
     constants = section_parameters(circle(rod.radius), Material(
         m.youngs_modulus, shear_modulus=m.shear_modulus, density=m.density))
     rate = damping_rate(scenario)
-    J = (constants["I22"], constants["I11"], constants["I11"] + constants["I22"])   # rho J
-    damping = {"drag": rate * constants["rho_A"],
+    I11, I22 = constants["section_inertia"]
+    J = (I22, I11, I11 + I22)   # rho J
+    damping = {"drag": rate * constants["density"],
                "rotational_drag": tuple(rate * j for j in J)} if rate else {}
     return {"length": rod.length, **constants, **damping}
 
@@ -151,7 +152,7 @@ def rod_data(scenario: Scenario, rod: Rod, n_elements: int):
     from ..rod.rods import Rod as RodData
     params = RodParameters(**section(rod, scenario))
     gravity = np.asarray(scenario.gravity, float)
-    loads = [DistributedLoad("force", tuple(params.rho_A * gravity))] if gravity.any() \
+    loads = [DistributedLoad("force", tuple(params.density * gravity))] if gravity.any() \
         else []
     motions = {"end_displacement": {}, "end_rotation": {}, "end_slide": {}}
     for end, side in ENDS.items():
@@ -161,7 +162,8 @@ def rod_data(scenario: Scenario, rod: Rod, n_elements: int):
             motions["end_rotation"][side] = lambda t, mo=motion: rotation_vector(mo, t)
             if motion.slides_along is not None:
                 motions["end_slide"][side] = tuple(motion.axis)
-    data = RodData(params, n_elements, tuple(rod.condition(end).value for end in ENDS),
+    data = RodData(params, n_elements, start=rod.condition(End.START).value,
+                   end=rod.condition(End.END).value,
                    end_loads=[EndLoad("force", tuple(load.force), end=ENDS[load.at])
                               for load in rod.loads],
                    distributed_loads=loads,
@@ -227,7 +229,7 @@ def string_load(nodes: np.ndarray, params, gravity) -> np.ndarray:
     load[1:] -= pull
     weights = np.full(len(nodes), rest)
     weights[[0, -1]] /= 2
-    return load + weights[:, None] * params.rho_A * np.asarray(gravity, float)
+    return load + weights[:, None] * params.density * np.asarray(gravity, float)
 
 
 def equilibrium_gap(carried: np.ndarray, law) -> np.ndarray:
@@ -258,7 +260,7 @@ def contact_law(scenario: Scenario, rod: Rod, params, n_elements: int, dt: float
     """The ContactLaw of a rod touching the scenario's obstacles (module docstring)."""
     from ..rod.contact import ContactLaw, barrier_derivatives, default_stiffness
     gap = rod.radius / 10
-    stiffness = max(default_stiffness(params.rho_A, params.A, rod.length, n_elements, dt),
+    stiffness = max(default_stiffness(params.density, params.A, rod.length, n_elements, dt),
                     pressure(scenario, rod, params)
                     / -barrier_derivatives(OFFSET * gap, gap)[1])
     return ContactLaw(rod.radius, gap, stiffness,
@@ -270,7 +272,7 @@ def pressure(scenario: Scenario, rod: Rod, params) -> float:
     floor, its whole weight's tension rho A g L over the radius R of a cylinder it hangs
     over (the capstan's rope)."""
     radii = [ob.radius for ob in scenario.obstacles if ob.kind == "cylinder"]
-    weight = params.rho_A * float(np.linalg.norm(scenario.gravity))
+    weight = params.density * float(np.linalg.norm(scenario.gravity))
     return weight * max(1.0, rod.length / min(radii)) if radii else weight
 
 
@@ -299,7 +301,7 @@ def rod_model(scenario: Scenario, rod: Rod, n_elements: int, dt: float):
         touching = {"obstacles": obstacles(scenario, law.gap), "contact": law}
         pressed = barrier_start(scenario, touching["obstacles"], law)
     model = RodModel(data.params, n_cells=n_elements, model="hyperelastic",
-                     ends=data.ends, end_loads=data.end_loads,
+                     start=data.start, end=data.end, end_loads=data.end_loads,
                      distributed_loads=data.distributed_loads,
                      end_displacement=data.end_displacement or {},
                      end_rotation=data.end_rotation or {},

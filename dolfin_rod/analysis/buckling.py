@@ -71,7 +71,7 @@ def buckling_modes(model, t: float, count: int = 4) -> BucklingModes:
     <= 0, a constrained rod (material.constraint), or loads and motions that do not
     change at t."""
     if model.dynamic:
-        raise ValueError("buckling: a quasi-static rod (rho_A = 0); for a dynamic one, "
+        raise ValueError("buckling: a quasi-static rod (density = 0); for a dynamic one, "
                          "the vibration modes (analysis/vibration.py)")
     if not t > 0:
         raise ValueError(f"buckling: t > 0 (the loads of time t are scaled), got {t!r}")

@@ -33,8 +33,9 @@ class EigenError(RuntimeError):
 class Eigenpairs:
     """``values`` (real parts; ``imaginary`` their imaginary parts, 0 for the symmetric
     kinds), ``vectors`` (PETSc Vecs in A's layout, normalised: x^T B x = 1 for a
-    positive-definite B, else |x|_2 = 1) and the relative residuals
-    |A x - lambda B x| / (|A| + |lambda| |B|) |x|, ordered by |lambda - target| (equal
+    positive-definite B, else |x|_2 = 1; of a complex pair the real part) and the
+    relative residuals |A z - lambda B z| / (|A| + |lambda| |B|) |z| (z complex for a
+    complex pair), ordered by |lambda - target| (equal
     distances by value: -lambda before lambda)."""
 
     values: np.ndarray
@@ -94,17 +95,15 @@ def _pairs(eps, A, B, found: int, count: int, target: float, kind: str) -> Eigen
     norm_A = A.norm(PETSc.NormType.INFINITY)
     norm_B = 1.0 if B is None else B.norm(PETSc.NormType.INFINITY)
     for i in range(found):
-        x = A.createVecRight()
-        value = eps.getEigenpair(i, x)
-        values.append(complex(value))
-        _normalise(x, B if kind == "symmetric" else None)
-        r = A.createVecLeft()
-        A.mult(x, r)
-        Bx = x.copy() if B is None else B.createVecLeft()
-        if B is not None:
-            B.mult(x, Bx)
-        r.axpy(-value.real, Bx)
-        residuals.append(r.norm() / ((norm_A + abs(value) * norm_B) * x.norm()))
+        x, y = A.createVecRight(), A.createVecRight()
+        value = complex(eps.getEigenpair(i, x, y))       # x + i y (real arithmetic)
+        values.append(value)
+        if value.imag == 0.0:
+            y.set(0.0)
+        scale = _normalise(x, B if kind == "symmetric" else None)
+        y.scale(scale)
+        residuals.append(_residual(A, B, value, x, y) / (norm_A + abs(value) * norm_B))
+        y.destroy()
         vectors.append(x)
     # by distance, equal distances (to 9 digits: +-lambda pairs) by value
     order = sorted(range(found), key=lambda i: (float(f"{abs(values[i] - target):.9e}"),
@@ -116,9 +115,26 @@ def _pairs(eps, A, B, found: int, count: int, target: float, kind: str) -> Eigen
                       np.array(residuals)[order])
 
 
-def _normalise(x: PETSc.Vec, B: PETSc.Mat | None) -> None:
+def _residual(A: PETSc.Mat, B: PETSc.Mat | None, value: complex, x: PETSc.Vec,
+              y: PETSc.Vec) -> float:
+    """|A z - lambda B z| / |z| for z = x + i y (y = 0 for a real pair)."""
+    def times(M, v):
+        w = v.copy() if M is None else M.createVecLeft()
+        if M is not None:
+            M.mult(v, w)
+        return w
+    Ax, Ay, Bx, By = times(A, x), times(A, y), times(B, x), times(B, y)
+    Ax.axpy(-value.real, Bx)            # real part: A x - a B x + b B y
+    Ax.axpy(value.imag, By)
+    Ay.axpy(-value.real, By)            # imaginary: A y - a B y - b B x
+    Ay.axpy(-value.imag, Bx)
+    return float(np.hypot(Ax.norm(), Ay.norm()) / np.hypot(x.norm(), y.norm()))
+
+
+def _normalise(x: PETSc.Vec, B: PETSc.Mat | None) -> float:
     """x^T B x = 1 (B positive semi-definite and x^T B x > 0), else |x|_2 = 1; the sign
-    such that the largest entry in magnitude is positive (reproducible across ranks)."""
+    such that the largest entry in magnitude is positive (reproducible across ranks);
+    returns the factor x was scaled by."""
     size = x.norm()
     if B is not None:
         Bx = B.createVecLeft()
@@ -133,3 +149,5 @@ def _normalise(x: PETSc.Vec, B: PETSc.Mat | None) -> None:
     biggest = comm.allgather(big)
     if biggest[int(np.argmax(np.abs(biggest)))] < 0:
         x.scale(-1.0)
+        return -1.0 / size
+    return 1.0 / size

@@ -160,8 +160,10 @@ class TangentStiffness:
         system.P.mult(vector, y)
         system.inner.set(0, y)
 
-    def matrix(self, t: float) -> PETSc.Mat:
-        """The symmetric part of K at time t's loads, Dirichlet rows and columns identity."""
+    def matrix(self, t: float, symmetric: bool = True) -> PETSc.Mat:
+        """The symmetric part of K at time t's loads (``symmetric`` False: K itself,
+        non-symmetric with non-conservative loads), a new matrix, Dirichlet rows and
+        columns identity."""
         self.model.problem.set_loads(t)
         system = self.system
         system.get(0, system.x)
@@ -169,6 +171,9 @@ class TangentStiffness:
         if system.terms:        # the pairs' Hessians are those of the last residual's state
             system.residual(system.x, system.b)
         system.jacobian(system.A)
+        if not symmetric:
+            system.A.zeroRowsColumns(self.fixed, diag=1.0)
+            return system.A.copy()
         return symmetric_part(system.A, self.fixed, 1.0)
 
     def inertia(self, t: float, metric: PETSc.Mat | None = None) -> Inertia:

@@ -3,13 +3,17 @@
 Small motions y = phi e^{i omega t} about an equilibrium (pre-stressed, pre-twisted,
 with evolved natural strains: they are frozen, they move on the viscous time scale)
 solve K phi = omega^2 M phi: K the tangent stiffness at the state and the loads of time
-t (analysis/stability.py: the symmetric part, rates and accelerations zero), M the
+t (analysis/stability.py: rates and accelerations zero; its symmetric part unless
+follower loads act), M the
 derivative of the residual with respect to the accelerations (rho A for the positions,
 the rotary inertia rho J for the rotations, eqs. linmom, angmom), both with Dirichlet
 rows and columns removed (K: identity, M: zero, so those dofs give omega = infinity).
 The lowest pairs by analysis/eigen.py (shift-and-invert below the spectrum: rigid
 modes, omega = 0, are found too).  Damping and gyroscopic terms are left out (undamped
-modes; a state at rest).  The quaternion form: its rotations' inertia enters through
+modes; a state at rest).  Follower loads are not conservative: K is not symmetric and
+the pencil is solved as it is (non-Hermitian: analysis/eigen.py's "general"); where two
+frequencies meet, omega^2 turns into a complex pair, a growing mode (flutter; Beck's
+column in tests/test_vibration.py).  The quaternion form: its rotations' inertia enters through
 the kinematic equation W = 2 vec(conj(q) q_t)/|q|^2, so M's rotation block is rho J in
 the material rotations 2 vec(conj(q) dq)/|q|^2 of quaternion directions dq; K and M are
 bordered by the gauge multiplier (|q| = 1), whose rows have no mass (infinite
@@ -40,8 +44,12 @@ __all__ = ["VibrationModes", "vibration_modes"]
 class VibrationModes:
     """``omega``: angular frequencies (rad per time unit), ascending; ``frequencies``:
     omega / 2 pi; ``eigenvalues``: omega^2 (negative: an unstable state, omega then
-    reported as -sqrt|omega^2|; below 1e-10 |K|/|M|: 0, a rigid mode); ``shapes``: per mode {"displacement", "rotation"}
-    nodal values (largest displacement 1); ``residuals``: the eigen-solve's."""
+    reported as -sqrt|omega^2|; below 1e-10 |K|/|M|: 0, a rigid mode); with follower
+    loads (a non-symmetric K) ``imaginary``: the imaginary parts of omega^2, a complex
+    pair omega^2 = a +- i b is flutter: omega = Re sqrt(a + i b) and ``growth_rates`` =
+    |Im sqrt(a + i b)| (the motion e^{i omega t} grows as e^{growth t}; 0 otherwise);
+    ``shapes``: per mode {"displacement", "rotation"} nodal values (largest displacement
+    1; of a complex pair its real part); ``residuals``: the eigen-solve's."""
 
     t: float
     eigenvalues: np.ndarray
@@ -49,26 +57,43 @@ class VibrationModes:
     frequencies: np.ndarray
     shapes: list[dict[str, np.ndarray]]
     residuals: np.ndarray
+    imaginary: np.ndarray
+    growth_rates: np.ndarray
+
+    @property
+    def flutter(self) -> bool:
+        """Whether a mode grows (a complex pair of omega^2: non-conservative loads)."""
+        return bool(np.any(self.growth_rates > 0))
 
 
 def vibration_modes(model, t: float, count: int = 6) -> VibrationModes:
     """The ``count`` lowest natural frequencies and modes of a dynamic RodModel (or
-    RodSystem) about its current state under time t's loads.  Raises ValueError for a
-    quasi-static rod (rho_A = 0: no mass)."""
+    RodSystem) about its current state under time t's loads; with follower loads the
+    non-symmetric K (non-conservative: flutter, a complex pair of omega^2, is found).
+    Raises ValueError for a quasi-static rod (density = 0: no mass)."""
     if not model.dynamic:
-        raise ValueError("vibration modes: a rod with mass (rho_A > 0; a scene's "
-                         "material.density or material.rho_A)")
+        raise ValueError("vibration modes: a rod with mass (density > 0: "
+                         "RodParameters.density or a scene's material.density)")
     tangent = TangentStiffness(model)
-    K = tangent.matrix(t)
+    follower = any(load.follower for load in [*model.end_loads, *model.distributed_loads])
+    K = tangent.matrix(t, symmetric=not follower)
     M = _mass(tangent)
     scale = K.norm(PETSc.NormType.INFINITY) / M.norm(PETSc.NormType.INFINITY)
-    pairs = eigenpairs(K, M, count, target=-1e-8 * scale, kind="symmetric")
+    pairs = eigenpairs(K, M, count, target=-1e-8 * scale,
+                       kind="general" if follower else "symmetric")
     K.destroy()
     M.destroy()
+    complex_pair = np.abs(pairs.imaginary) > 1e-10 * scale
     values = np.where(np.abs(pairs.values) < 1e-10 * scale, 0.0, pairs.values)
-    omega = np.sign(values) * np.sqrt(np.abs(values))
-    return VibrationModes(t, values, omega, omega / (2 * np.pi),
-                          tangent.mode_shapes(pairs.vectors), pairs.residuals)
+    root = np.sqrt(values + 1j * np.where(complex_pair, pairs.imaginary, 0.0))
+    omega = np.where(complex_pair, root.real, np.sign(values) * np.sqrt(np.abs(values)))
+    growth = np.where(complex_pair, np.abs(root.imag), 0.0)
+    order = np.lexsort((-np.sign(pairs.imaginary), omega))
+    shapes = tangent.mode_shapes(pairs.vectors)
+    return VibrationModes(t, values[order], omega[order], omega[order] / (2 * np.pi),
+                          [shapes[k] for k in order], pairs.residuals[order],
+                          np.where(complex_pair, pairs.imaginary, 0.0)[order],
+                          growth[order])
 
 
 def _mass(tangent: TangentStiffness) -> PETSc.Mat:

@@ -57,6 +57,9 @@ class SemiDiscreteProblem:
     terms:       residual and Jacobian terms that are not forms, evaluated at the
                  unknowns of the solve (fem/assembly add_terms: a rod's segment contact);
                  only integrators that solve for the fields at the step's end take them.
+    where_failed: a description of where a step that finally failed went wrong (a rod's
+                 segment pair nearest to touching), or None; added to the integrators'
+                 IntegrationError.
     """
 
     fields: list[fem.Function]
@@ -72,6 +75,7 @@ class SemiDiscreteProblem:
     prescribed_motions: dict = field(default_factory=dict)
     structure: str | None = None
     terms: list = field(default_factory=list)
+    where_failed: Callable[[], str | None] = lambda: None
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):

@@ -22,7 +22,7 @@ integrator's (run, step, stats, description, checkpoint_state, ...).
 
 from __future__ import annotations
 
-from ..checks import MAX_STEP_CUTS, PREDICTOR
+from ..checks import MAX_STEP_CUTS, PREDICTOR, old_keywords
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from .lie_alpha import LieGeneralizedAlpha
 from .schemes import get_scheme
@@ -40,8 +40,18 @@ def on_rotation_group(problem: SemiDiscreteProblem, scheme: str | None) -> bool:
         and not scheme.startswith("generalized_alpha"))
 
 
+OLD_CUTS = {"max_cuts": "max_step_cuts"}     # deprecated keyword (docs/rod.md)
+
+
+def _step_cuts(old: dict) -> dict:
+    """max_step_cuts of the deprecated max_cuts."""
+    return {"max_step_cuts": old["max_cuts"]}
+
+
+@old_keywords("choose_integrator", OLD_CUTS, _step_cuts)
 def choose_integrator(problem: SemiDiscreteProblem, scheme: str | None = None,
-                      solver_options: dict | None = None, max_cuts: int = MAX_STEP_CUTS,
+                      solver_options: dict | None = None,
+                      max_step_cuts: int = MAX_STEP_CUTS,
                       predictor: str = PREDICTOR, tolerance: float | None = None,
                       ts_type: str | None = None, **ts_options):
     """The integrator of ``problem`` (the module's docstring); ``ts_options`` are
@@ -57,24 +67,26 @@ def choose_integrator(problem: SemiDiscreteProblem, scheme: str | None = None,
     if ts_type is not None:
         return TSIntegrator(problem, ts_type, solver_options=solver_options, **ts_options)
     if on_rotation_group(problem, scheme):
-        return LieGeneralizedAlpha.for_scheme(problem, scheme, solver_options, max_cuts,
-                                              tolerance)
-    return SchemeStepper(problem, scheme, solver_options, max_cuts, predictor, tolerance)
+        return LieGeneralizedAlpha.for_scheme(problem, scheme, solver_options,
+                                              max_step_cuts, tolerance)
+    return SchemeStepper(problem, scheme, solver_options, max_step_cuts, predictor,
+                         tolerance)
 
 
 class TimeStepper:
-    """``TimeStepper(problem, scheme=None, solver_options=None, max_cuts=6,
+    """``TimeStepper(problem, scheme=None, solver_options=None, max_step_cuts=6,
     predictor="linear", tolerance=None)``: the integrator that ``choose_integrator``
     picks for the problem, held as ``.integrator``; its attributes are read and set
     through this object."""
 
     PREDICTORS = SchemeStepper.PREDICTORS
 
+    @old_keywords("TimeStepper", OLD_CUTS, _step_cuts)
     def __init__(self, problem: SemiDiscreteProblem, scheme: str | None = None,
-                 solver_options: dict | None = None, max_cuts: int = MAX_STEP_CUTS,
+                 solver_options: dict | None = None, max_step_cuts: int = MAX_STEP_CUTS,
                  predictor: str = PREDICTOR, tolerance: float | None = None):
         object.__setattr__(self, "integrator", choose_integrator(
-            problem, scheme, solver_options, max_cuts, predictor, tolerance))
+            problem, scheme, solver_options, max_step_cuts, predictor, tolerance))
 
     def __getattr__(self, name: str):
         if name == "integrator":            # (not built: its constructor raised)

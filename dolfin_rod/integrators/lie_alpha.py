@@ -38,7 +38,7 @@ from ..fem.solvers import BlockSNES, SolverError
 from ..mpi import largest_on_ranks
 from .schemes import alpha_rho_inf
 from .step_control import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
-                           march, nominal_steps)
+                           march, nominal_steps, step_failure)
 
 
 def default_options(comm, second_order: bool = True, direct: bool = False) -> dict:
@@ -500,8 +500,7 @@ class LieGeneralizedAlpha:
         self.stats.rejected += 1
         self._rejections += 1
         if self._rejections > self.max_cuts:
-            raise IntegrationError(f"time step failed at t = {t:.6g} after {self.max_cuts} "
-                                   f"step cuts (last dt = {h:.3g}): {err}", t) from err
+            raise step_failure(t, self.max_cuts, h, err, self.problem) from err
         if isinstance(err, StepRejected):
             return h * self.control.growth(err.error)
         return CUT_FACTOR * h
@@ -512,9 +511,7 @@ class LieGeneralizedAlpha:
         except SolverError as err:
             self.stats.rejected += 1
             if cuts_left == 0:
-                raise IntegrationError(f"time step failed at t = {t:.6g} after "
-                                       f"{self.max_cuts} step cuts (last dt = {h:.3g}): "
-                                       f"{err}", t) from err
+                raise step_failure(t, self.max_cuts, h, err, self.problem) from err
             self._substep(t, h / 2, cuts_left - 1, observer)
             self._substep(t + h / 2, h / 2, cuts_left - 1, observer)
             return
@@ -548,6 +545,8 @@ class LieGeneralizedAlpha:
         p.set_loads(t + h)
         p.set_bcs(t + h)
         fresh, self._dt_last = h != self._dt_last, h
+        if p.terms:
+            self._tell_rates(self._rate_maps(h))
         try:
             its = self.solver.solve(fresh_jacobian=fresh)
             if not all(np.isfinite(arrays[0]).all() for arrays in self._arrays):
@@ -558,6 +557,9 @@ class LieGeneralizedAlpha:
         except SolverError:
             self._restore()
             raise
+        finally:
+            if p.terms:
+                self._tell_rates(None)
         if self.local_error is not None:     # error control: accept or reject
             self._check_local_error(h)
         for i, (y, r, y_n, _, alg, acc, _) in enumerate(self._arrays):
@@ -569,6 +571,22 @@ class LieGeneralizedAlpha:
         self.stats.newton_iterations += its
         self.stats.steps += 1
         return its
+
+    def _rate_maps(self, h: float) -> list:
+        """Per block the rate at t_{n+1} as an affine map of the block's unknowns y_{n+1}
+        (_np_update's rate row): (slope, intercept) with rate = slope y + intercept."""
+        maps = []
+        for i, (_, _, y_n, *_) in enumerate(self._arrays):
+            slope = 1 / h if self.order[i] == 0 else self._update_matrix(self.order[i], h)[1, 0]
+            maps.append((slope, self._np_update(i, -y_n, h)[1]))
+        return maps
+
+    def _tell_rates(self, maps) -> None:
+        """Terms whose forces depend on the rates (segment friction: ``set_rates``) get
+        the step's rate maps, or None after it (they then read the rate fields)."""
+        for term in self.problem.terms:
+            if hasattr(term, "set_rates"):
+                term.set_rates(maps)
 
     def _check_local_error(self, h: float) -> None:
         """StepRejected (state restored) if the solved step's local error exceeds the

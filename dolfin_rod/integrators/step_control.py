@@ -32,6 +32,18 @@ class IntegrationError(RuntimeError):
         self.t = t
 
 
+def step_failure(t: float, cuts: int, h: float, err: Exception, problem) -> IntegrationError:
+    """The error of a step that still failed after ``cuts`` step cuts (last step h), with
+    where the problem says it failed (``problem.where_failed``: e.g. a rod's segment pair
+    nearest to touching at Newton's last iterate: "PLACE: what", left out when the
+    error names that place already)."""
+    where = getattr(problem, "where_failed", lambda: None)()
+    said = where is not None and where.partition(": ")[0] in str(err)
+    return IntegrationError(f"time step failed at t = {t:.6g} after {cuts} step cuts (last "
+                            f"dt = {h:.3g}): {err}" + (f"; where: {where}" if where and
+                                                       not said else ""), t)
+
+
 @dataclass(frozen=True)
 class StepControl:
     """The standard step-size controller of a local error estimate of order ``order``

@@ -21,7 +21,7 @@ from ..mpi import largest_on_ranks
 from .lie_alpha import solver_settings
 from .schemes import Scheme, get_scheme
 from .step_control import (CUT_FACTOR, ROUND_OFF, IntegrationError, StepStats, check_run,
-                           grown, march, nominal_steps, same_step)
+                           grown, march, nominal_steps, same_step, step_failure)
 
 __all__ = ["SchemeStepper", "IntegrationError", "StepStats", "step_forms"]
 
@@ -253,9 +253,7 @@ class SchemeStepper:
         """The step after a failure at t (IntegrationError after max_cuts cuts)."""
         self.stats.rejected += 1
         if cuts > self.max_cuts:
-            raise IntegrationError(
-                f"time step failed at t = {t:.6g} after {self.max_cuts} step cuts "
-                f"(last dt = {h_try:.3g}): {err}", t) from err
+            raise step_failure(t, self.max_cuts, h_try, err, self.problem) from err
         h = CUT_FACTOR * h_try
         if self.scheme.startup and get_scheme(self.scheme.startup).order < self.scheme.order:
             warnings.warn(f"step at t = {t:.6g} cut to dt = {h:.3g} ({err}); "

@@ -1,6 +1,8 @@
 """Pictures of a run from the gathered line samples (rank 0 only).
 
-3-D rod:  ``animation.gif``  the centre line in 3-D, a short fading trail of the
+3-D rod:  ``animation.mp4`` where the system's ffmpeg exists (matplotlib's FFMpegWriter,
+          H.264), ``animation.gif`` otherwise (``animation_name``): the centre line in
+          3-D, a short fading trail of the
           previous frames, coloured by a field along the rod (``Look.colour``:
           ``outputs.color``; default ``colour_field``: the evolving strain with the largest
           change), the deformation magnified when the motion is small (stated on the
@@ -10,7 +12,7 @@ torsion:  ``spacetime.png``  phi(s, t) and u_d(s, t) as space-time images.
 
 The GIF is cheap (issue 30): matplotlib draws the axes, colour bar and labels once; each
 frame is that image with the projected centre line drawn on it by Pillow, and the GIF is
-written once with one palette.
+written once with one palette (an MP4: the same frames through FFMpegWriter).
 
 Frames are kept thinned (``FrameStore``: at most ``max_frames``, every other frame is
 dropped when full), so memory does not grow with the number of steps; the GIF draws at
@@ -19,6 +21,7 @@ most ``GIF_FRAMES`` of them.
 
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,11 +30,12 @@ import numpy as np
 from ..scenes.schema import COLOURS
 
 __all__ = ["FrameStore", "Look", "rod_animation", "rod_snapshots", "torsion_spacetime",
-           "colour_field", "magnification", "GIF_FRAMES", "COLOURS"]
+           "colour_field", "magnification", "animation_name", "GIF_FRAMES", "COLOURS"]
 
 GIF_FRAMES = 24
 TRAIL = 3
 SIZE = (8.4, 6.4)            # inches at 100 dpi: 840 x 640 px
+FRAME_MS = 160               # ms a frame is shown (GIF and MP4)
 STRAINS = ("u", "v", "u_d", "v_d")
 SMALL_MOTION = 0.05          # motion below 5 % of the rod's size is magnified ...
 SHOWN_MOTION = 0.2           # ... to about 20 % of it
@@ -292,8 +296,15 @@ def _draw_supports(draw, pixels, supports) -> None:
         (draw.rectangle if kind == "clamped" else draw.ellipse)(box, fill=(0, 0, 0))
 
 
+def animation_name() -> str:
+    """The animation's file: animation.mp4 when the system's ffmpeg is on the PATH (what
+    matplotlib's FFMpegWriter runs), animation.gif otherwise."""
+    return "animation.mp4" if shutil.which("ffmpeg") else "animation.gif"
+
+
 def rod_animation(frames: list, path: Path, title: str = "", look: Look = Look()) -> None:
-    """The GIF of the 3-D shape (see module docstring)."""
+    """The animation of the 3-D shape (see module docstring): an MP4 if ``path`` ends in
+    .mp4 (``animation_name``), else a GIF."""
     from matplotlib.cm import ScalarMappable
     from PIL import Image, ImageDraw, ImageFont
     plt = _pyplot()
@@ -335,10 +346,32 @@ def rod_animation(frames: list, path: Path, title: str = "", look: Look = Look()
         _draw_supports(draw, pixels[k], supports)
         draw.text((20, 40), f"t = {t:.4g}", fill=(0, 0, 0), font=font)
         images.append(image)
+    if Path(path).suffix == ".mp4":
+        _write_mp4(images, path)
+        return
     palette = background.quantize(colors=255)
     gif = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in images]
-    gif[0].save(path, save_all=True, append_images=gif[1:], duration=160, loop=0,
+    gif[0].save(path, save_all=True, append_images=gif[1:], duration=FRAME_MS, loop=0,
                 optimize=False)     # (optimize: 0.7 s of palette work for no gain)
+
+
+def _write_mp4(images: list, path: Path) -> None:
+    """The frames (Pillow images) as an H.264 MP4 by matplotlib's FFMpegWriter: each
+    shown at its own pixel size on a figure without axes."""
+    from matplotlib.animation import FFMpegWriter
+    plt = _pyplot()
+    width, height = images[0].size
+    fig = plt.figure(figsize=(width / 100, height / 100), dpi=100)
+    ax = fig.add_axes((0, 0, 1, 1))
+    ax.set_axis_off()
+    shown = ax.imshow(np.asarray(images[0]))
+    writer = FFMpegWriter(fps=1000 / FRAME_MS, codec="libx264",
+                          extra_args=["-pix_fmt", "yuv420p"])   # plays in every browser
+    with writer.saving(fig, str(path), dpi=100):
+        for image in images:
+            shown.set_data(np.asarray(image))
+            writer.grab_frame()
+    plt.close(fig)
 
 
 def rod_snapshots(frames: list, path: Path, title: str = "", n: int = 6,

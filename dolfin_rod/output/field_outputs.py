@@ -93,8 +93,9 @@ class FieldOutputs:
             return []
         path = self.folder.joinpath
         if "centre_line" in frames[0][1].point:
-            return [("animation.gif", lambda: animation.rod_animation(
-                        frames, path("animation.gif"), title, look)),
+            video = animation.animation_name()         # MP4 with ffmpeg, else GIF
+            return [(video, lambda: animation.rod_animation(
+                        frames, path(video), title, look)),
                     ("snapshots.png", lambda: animation.rod_snapshots(
                         frames, path("snapshots.png"), title, look=look))]
         return [("spacetime.png", lambda: animation.torsion_spacetime(

@@ -63,7 +63,8 @@ def _title(row: dict) -> str:
     """A mode's panel title: its number and load factor or frequency."""
     if "load_factor" in row:
         return f"mode {row['mode']}: load factor {row['load_factor']:.6g}"
-    return f"mode {row['mode']}: omega {row['omega']:.6g} (f {row['frequency']:.6g})"
+    growth = f", grows {row['growth_rate']:.3g}" if row.get("growth_rate") else ""
+    return f"mode {row['mode']}: omega {row['omega']:.6g} (f {row['frequency']:.6g}{growth})"
 
 
 def table(rows: list[dict]) -> str:

@@ -209,10 +209,13 @@ def _power_residual(ax, col, units, scene):
 
 
 def column_kind(name: str) -> str | None:
-    """The quantity kind of a time-series column by its name (None: no unit known)."""
+    """The quantity kind of a time-series column by its name (None: no unit known);
+    the dissipation rates and powers are powers, total_dissipation an energy."""
     for stem, kind in (("reaction_force", "force"), ("reaction_couple", "moment"),
                        ("tip_position", "length"), ("energy", "energy"),
-                       ("dissipation", "energy"), ("time", "time")):
+                       ("total_dissipation", "energy"), ("dissipation", "power"),
+                       ("power", "power"), ("contact_force", "force"),
+                       ("friction_force", "force"), ("gap", "length"), ("time", "time")):
         if stem in name:
             return kind
     return None

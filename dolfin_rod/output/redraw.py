@@ -4,8 +4,9 @@
     histories.png   from timeseries.csv and scene.toml: the scene's panels (plots.py), or
                     the ``quantities`` named: panels (tip_deflection, end_torque, ...) or
                     columns of the CSV (reaction_couple_right_z, ...) against time
-    snapshots.png, animation.gif   3-D rod; spacetime.png torsion: from rod.pvd (or
-                    rod.bp) when the run wrote its fields, coloured by ``colour``
+    snapshots.png, animation.gif (animation.mp4 where ffmpeg exists)   3-D rod;
+    spacetime.png   torsion: from rod.pvd (or rod.bp) when the run wrote its fields,
+                    coloured by ``colour``
 
     redraw("results/gravity_cantilever-...", ["tip_deflection", "reaction_force_left_z"])
 
@@ -109,8 +110,9 @@ def redraw(folder: Path | str, quantities: list[str] | None = None, colour: str 
     if len(frames) > 1 and "centre_line" in frames[0][1].point:
         look = animation.Look.of(scene, None if colour == "auto" else colour)
         animation.rod_snapshots(frames, folder / "snapshots.png", title, look=look)
-        animation.rod_animation(frames, folder / "animation.gif", title, look)
-        written += [folder / "snapshots.png", folder / "animation.gif"]
+        video = folder / animation.animation_name()
+        animation.rod_animation(frames, video, title, look)
+        written += [folder / "snapshots.png", video]
     elif len(frames) > 1:
         animation.torsion_spacetime(frames, folder / "spacetime.png", title)
         written.append(folder / "spacetime.png")

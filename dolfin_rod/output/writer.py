@@ -11,7 +11,8 @@
     <run>/rod.bp            ParaView (ADIOS2VTXReader) of FE models: the deformed centre
                             line with directors d1, d2, d3 (points) and u, v, u_d, v_d, n,
                             m, xi (cells); torsion: phi (points), u, u_d, m, xi (cells)
-    <run>/animation.gif     3-D rod: the moving centre line coloured by outputs.color
+    <run>/animation.gif     3-D rod: the moving centre line coloured by outputs.color (an
+                            MP4, animation.mp4, where the system's ffmpeg exists)
                             (animation.py), magnified when the motion is small
     <run>/snapshots.png     3-D rod: selected frames; torsion: spacetime.png (phi, u_d)
     <run>/checkpoint/step-N/  adios4dolfinx state.bp + meta.json after step N, for resume

@@ -79,8 +79,12 @@ _CONJ = np.array([1.0, -1, -1, -1])
 
 def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False,
                    end_slide=None, end_springs=None, end_turn=None) -> None:
-    if len(ends) != 2 or any(e not in END_TYPES for e in ends):
-        raise ValueError(f"ends must be two of {END_TYPES}, got {ends!r}")
+    if len(ends) != 2:
+        raise ValueError(f"ends must be (start, end), got {ends!r}")
+    for name, kind in zip(("start", "end"), ends):
+        if kind not in END_TYPES:
+            raise ValueError(f"{name} (the support at s = {'0' if name == 'start' else 'L'}) "
+                             f"must be one of {END_TYPES}, got {kind!r}")
     for end, axis in (end_turn or {}).items():
         if end not in ENDS or dict(zip(ENDS, ends))[end] != "clamped":
             raise ValueError(f"end_turn[{end!r}]: only a clamped end turns in its support "
@@ -116,7 +120,7 @@ def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False,
                 raise ValueError(f"{name}: unknown end {end!r}")
             later = any(size for time, size in getattr(history, "jumps", ()) if time > 0)
             if dynamic and later:
-                raise ValueError(f"{name}[{end!r}] jumps (after t = 0), but rho_A > 0: a rod "
+                raise ValueError(f"{name}[{end!r}] jumps (after t = 0), but density > 0: a rod "
                                  "with inertia cannot follow a jump of its end; use a "
                                  "smooth_step or a ramp (a motion may start away from 0: "
                                  "the rod starts at rest in equilibrium with it)")

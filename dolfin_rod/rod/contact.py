@@ -68,7 +68,8 @@ class ContactLaw:
     """The rod's radius r, the barrier's gap delta (0 < delta < r), its stiffness kappa
     (``default_stiffness``), the friction's slip tolerance eps (a velocity) and whether
     segments touch each other: of one rod (``self_contact``), of different rods
-    (``between_rods``; pair_contact.py)."""
+    (``between_rods``; pair_contact.py), with Coulomb friction of coefficients
+    ``self_friction`` and ``between_rods_friction`` (pair_friction.py)."""
 
     radius: float
     gap: float
@@ -76,6 +77,8 @@ class ContactLaw:
     slip_tolerance: float = 1e-4
     self_contact: bool = False      # pairs of the rod's own segments (pair_contact.py)
     between_rods: bool = False      # pairs of segments of different rods of a system
+    self_friction: float = 0.0      # Coulomb's mu of self-contact (pair_friction.py)
+    between_rods_friction: float = 0.0      # ... of contact between rods
 
 
 def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
@@ -84,6 +87,8 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
     positive("contact.gap", law.gap)
     positive("contact.stiffness", law.stiffness)
     positive("contact.slip_tolerance", law.slip_tolerance)
+    nonnegative("contact.self_friction", law.self_friction)
+    nonnegative("contact.between_rods_friction", law.between_rods_friction)
     if law.gap >= law.radius:
         raise ValueError(f"contact.gap must be < contact.radius ({law.radius:g}): the "
                          f"barrier acts within delta of the surface, got {law.gap:g}")
@@ -123,11 +128,13 @@ class _Ops:
     def __init__(self, ufl_forms: bool):
         if ufl_forms:
             self.dot, self.sqrt = ufl.dot, ufl.sqrt
-            self.max, self.where, self.le = ufl.max_value, ufl.conditional, ufl.le
+            self.max, self.where, self.le, self.lt = (ufl.max_value, ufl.conditional, ufl.le,
+                                                      ufl.lt)
             self.scale = lambda z, a: z * a
         else:
             self.dot = lambda a, b: np.sum(a * b, axis=-1)
-            self.sqrt, self.max, self.where, self.le = np.sqrt, np.maximum, np.where, np.less_equal
+            self.sqrt, self.max, self.where = np.sqrt, np.maximum, np.where
+            self.le, self.lt = np.less_equal, np.less
             self.scale = lambda z, a: z[..., None] * a
 
 
@@ -241,11 +248,11 @@ def barrier_derivatives(g, delta: float):
                  for k, (e, t) in enumerate(zip(exact, taylor)))
 
 
-def mollifier(y2):
+def mollifier(y2, ops: _Ops = UFL_OPS):
     """phi(y) / y of the friction law at y^2 = (|v_t| / eps)^2: 3/2 - y^2/2 for y < 1, 1/y
-    beyond (only y^2 enters below 1: smooth at rest)."""
-    return ufl.conditional(ufl.lt(y2, 1.0), 1.5 - 0.5 * y2,
-                           1.0 / ufl.sqrt(ufl.max_value(y2, 1.0)))
+    beyond (only y^2 enters below 1: smooth at rest); UFL, or numpy with NP_OPS (segment
+    pairs, pair_friction.py)."""
+    return ops.where(ops.lt(y2, 1.0), 1.5 - 0.5 * y2, 1.0 / ops.sqrt(ops.max(y2, 1.0)))
 
 
 class ObstacleContact:

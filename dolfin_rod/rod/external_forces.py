@@ -1,5 +1,5 @@
-"""Loads on the rod (PyElastica's ``external_forces``): end and distributed forces and
-couples, dead or follower, with their histories, and linear drag f = -c dr/dt.
+"""Loads on the rod (PyElastica's ``external_forces``): end, distributed and point forces
+and couples, dead or follower, with their histories, and linear drag f = -c dr/dt.
 
 Their virtual work enters the balance blocks (balance.force_work, balance.couple_work);
 the same densities tested with the velocities (V, W) give the power of the loads.
@@ -44,8 +44,24 @@ class DistributedLoad:
     follower: bool = False
 
 
-def check_loads(end_loads, distributed_loads) -> None:
-    for load in list(end_loads) + list(distributed_loads):
+@dataclass
+class PointLoad:
+    """A concentrated force or couple at the rod's own arc length s (0 <= s <= L):
+    value(3,) * history(t), dead or follower (as EndLoad)."""
+
+    kind: str                        # "force" or "couple"
+    value: Sequence[float]
+    s: float
+    history: Callable = field(default=lambda t: 1.0)
+    follower: bool = False
+
+
+def check_loads(end_loads, distributed_loads, point_loads=(), length: float = np.inf) -> None:
+    for load in point_loads:
+        if not (np.isfinite(load.s) and 0.0 <= load.s <= length):
+            raise ValueError(f"PointLoad s must be on the rod, 0 <= s <= L = {length:g}, "
+                             f"got {load.s!r}")
+    for load in list(end_loads) + list(distributed_loads) + list(point_loads):
         if load.kind not in ("force", "couple"):
             raise ValueError(f"load kind must be 'force' or 'couple', got {load.kind!r}")
         if not callable(load.value) and np.shape(load.value) != (3,):
@@ -70,27 +86,50 @@ def _load_value(load, rod: int, disc: Discretisation):
     return fem.Constant(disc.mesh, np.asarray(load.value, float))
 
 
-def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, end_loads, distributed_loads):
+def point_weight(load: PointLoad, rod: int, disc: Discretisation):
+    """The density that puts a point load at s_0 on the nodes when integrated by
+    ``point_measure``: the P1 hat functions' values N_i(s_0) (the consistent load vector,
+    exact for P1 test functions; at a node, all of it on that node)."""
+    layout = disc.pieces.layout
+    # Constants, not numbers: the compiled kernels are shared by models of other s, h
+    h = fem.Constant(disc.mesh, layout.lengths[rod] / layout.n_cells[rod])
+    distance = abs(disc.pieces.local_s(rod) - fem.Constant(disc.mesh, float(load.s)))
+    return ufl.max_value(0.0, 1.0 - distance / h) / h, h
+
+
+def point_measure(density, h, disc: Discretisation):
+    """density integrated by the vertex rule (h/2 per cell at each node) plus h/2 at the
+    end points: every node's value times h."""
+    return density * disc.dx_v + (h / 2) * density * disc.ds
+
+
+def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, end_loads, distributed_loads,
+                point_loads=()):
     """Subtracts each load's virtual work from its balance block; returns the load
     histories (TimeDependentValue) and the power of the loads (a UFL form, or 0).
-    end_loads, distributed_loads: (rod index, load) pairs (layout.py: a load acts on
-    its rod only)."""
+    end_loads, distributed_loads, point_loads: (rod index, load) pairs (layout.py: a
+    load acts on its rod only)."""
     q, dTheta = unk.q, unk.dTheta
     histories, power = [], 0
     chi = disc.pieces.indicator
-    placed = [(k, load, disc.end_weight[load.end] * chi(k), disc.ds) for k, load in end_loads]
-    placed += [(k, load, chi(k), disc.dx) for k, load in distributed_loads]
-    for rod, load, weight, measure in placed:
+    placed = [(k, load, disc.end_weight[load.end] * chi(k), lambda f: f * disc.ds)
+              for k, load in end_loads]
+    placed += [(k, load, chi(k), lambda f: f * disc.dx) for k, load in distributed_loads]
+    for k, load in point_loads:
+        density, h = point_weight(load, k, disc)
+        placed.append((k, load, chi(k) * density,
+                       lambda f, h=h: point_measure(f, h, disc)))
+    for rod, load, weight, integral in placed:
         amp = fem.Constant(disc.mesh, 0.0)
         histories.append(TimeDependentValue(amp, load.history))
         val = weight * amp * _load_value(load, rod, disc)
         if load.kind == "force":
-            F["displacement"] -= balance.force_work(
-                val, q, unk.t["displacement"], load.follower) * measure
-            power += balance.force_work(val, q, unk.V, load.follower) * measure
+            F["displacement"] -= integral(balance.force_work(
+                val, q, unk.t["displacement"], load.follower))
+            power += integral(balance.force_work(val, q, unk.V, load.follower))
         else:
-            F[unk.rotation] -= balance.couple_work(val, q, dTheta, load.follower) * measure
-            power += balance.couple_work(val, q, unk.W, load.follower) * measure
+            F[unk.rotation] -= integral(balance.couple_work(val, q, dTheta, load.follower))
+            power += integral(balance.couple_work(val, q, unk.W, load.follower))
     return histories, power
 
 

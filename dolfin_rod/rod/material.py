@@ -14,13 +14,17 @@ import numpy as np
 import ufl
 
 from ..fem.fe_model import scalar_coefficient
-from ..checks import rod_length, sample_points
+from ..checks import deprecated_names, old_keywords, rod_length, sample_points
 
 Tensor = Sequence | np.ndarray | Callable | None
 TENSORS = ("A", "B", "A_d", "B_d", "M", "N", "M_d", "N_d", "rotational_drag",
            "spatial_rotational_drag")
 DAMPING = ("rotational_drag", "spatial_rotational_drag")
-SCALARS = ("rho_A", "I11", "I22", "drag")
+SCALARS = ("rho_A", "I11", "I22", "drag")    # the scalar coefficients' symbols in the forms
+SCALAR_FIELDS = ("density", "section_inertia", "drag")   # RodParameters' fields giving them
+# RodParameters' keywords before they took the scene's names (deprecated, docs/rod.md)
+RENAMED = {"rho_A": "density", "I11": "section_inertia=(I11, I22)",
+           "I22": "section_inertia=(I11, I22)"}
 
 
 @dataclass
@@ -37,9 +41,11 @@ class RodParameters:
     N: Tensor = None
     M_d: Tensor = (1.0, 1.0, 1.0)    # natural-configuration viscosities; uniform variant:
     N_d: Tensor = (1.0, 1.0, 1.0)    #   per unit length too (evolution.py, docs/rod.md)
-    rho_A: float | Callable = 0.0    # mass per length; 0: quasi-static
-    I11: float | Callable = 0.0      # section mass moments (rho J, Section 2.2)
-    I22: float | Callable = 0.0
+    density: float | Callable = 0.0  # mass per length rho A (as the scene's material.density
+                                     # without a [section]); 0: quasi-static
+    section_inertia: float | Callable | Sequence = 0.0   # section mass moments rho I_11 =
+                                     # rho I_22 (one value) or (rho I_11, rho I_22): rho J
+                                     # of Section 2.2; stored as the pair
     drag: float | Callable = 0.0     # linear drag f = -c dr/dt
     rotational_drag: Tensor = None   # couple -C W per length (material W, C); None: 0
     spatial_rotational_drag: Tensor = None   # couple -C w per length (spatial w = R W, C)
@@ -48,6 +54,56 @@ class RodParameters:
     reference_stretch: Sequence[float] = (0.0, 0.0, 1.0)
     reference_shape: object = None   # or the stress-free shape as a curve of rod/start.py
                                      # (Arc, Helix, Polyline: a kinked or bent frame)
+
+    def __post_init__(self):
+        self.section_inertia = inertia_pair(self.section_inertia)
+
+    @property
+    def rho_A(self):
+        """Deprecated: ``density``."""
+        deprecated_names("RodParameters", {"rho_A": None}, RENAMED)
+        return self.density
+
+    @property
+    def I11(self):
+        """Deprecated: ``section_inertia[0]``."""
+        deprecated_names("RodParameters", {"I11": None}, RENAMED)
+        return self.section_inertia[0]
+
+    @property
+    def I22(self):
+        """Deprecated: ``section_inertia[1]``."""
+        deprecated_names("RodParameters", {"I22": None}, RENAMED)
+        return self.section_inertia[1]
+
+
+def _new_names(old: dict) -> dict:
+    """RodParameters' keywords of its deprecated ones (RENAMED)."""
+    new = {"density": old["rho_A"]} if "rho_A" in old else {}
+    if "I11" in old or "I22" in old:
+        new["section_inertia"] = (old.get("I11", 0.0), old.get("I22", 0.0))
+    return new
+
+
+RodParameters.__init__ = old_keywords("RodParameters", RENAMED, _new_names)(
+    RodParameters.__init__)
+
+
+def inertia_pair(value) -> tuple:
+    """section_inertia as (rho I_11, rho I_22): one value (a number or a function of s)
+    for both, or a pair; ValueError otherwise."""
+    if callable(value) or np.ndim(value) == 0:
+        return (value, value)
+    if len(value) != 2:
+        raise ValueError(f"section_inertia must be one value (rho I_11 = rho I_22) or a "
+                         f"pair (rho I_11, rho I_22), got {value!r}")
+    return tuple(value)
+
+
+def scalars(params: RodParameters) -> dict:
+    """The scalar coefficients by their symbols in the forms (SCALARS): rho A (density),
+    rho I_11, rho I_22 (section_inertia) and the drag c."""
+    return dict(zip(SCALARS, (params.density, *params.section_inertia, params.drag)))
 
 
 def is_zero(value) -> bool:
@@ -115,13 +171,12 @@ def check_parameters(params: RodParameters, evolving: bool, viscous: bool,
     for name in DAMPING:
         if getattr(params, name) is not None:
             check_tensor(name, getattr(params, name), L, semidefinite=True)
-    for name in SCALARS:
-        check_scalar(name, getattr(params, name), L)
-    if is_zero(params.rho_A):
-        for name in ("I11", "I22"):
-            if not is_zero(getattr(params, name)):
-                raise ValueError(f"{name} > 0 needs rho_A > 0: with rho_A = 0 the rod is "
-                                 "quasi-static and its rotary inertia would be dropped")
+    for name, value in zip(("density", "section_inertia[0]", "section_inertia[1]", "drag"),
+                           scalars(params).values()):
+        check_scalar(name, value, L)
+    if is_zero(params.density) and not all(map(is_zero, params.section_inertia)):
+        raise ValueError("section_inertia > 0 needs density > 0: with density = 0 the rod "
+                         "is quasi-static and its rotary inertia would be dropped")
     for name in ("reference_curvature", "reference_stretch"):
         if np.shape(getattr(params, name)) != (3,):
             raise ValueError(f"{name} must be a 3-vector")
@@ -149,12 +204,12 @@ def coefficients(params: list[RodParameters], pieces) -> dict:
         mesh, s = pieces.mesh, pieces.s
         c = {n: ufl_tensor(getattr(params[0], n), mesh, s) for n in TENSORS
              if not is_zero(getattr(params[0], n))}
-        for n in SCALARS:
-            c[n] = scalar_coefficient(getattr(params[0], n), mesh, s)
+        for n, value in scalars(params[0]).items():
+            c[n] = scalar_coefficient(value, mesh, s)
     else:
         c = {n: _piecewise(n, [getattr(p, n) for p in params], pieces, (3, 3))
              for n in TENSORS if not all(is_zero(getattr(p, n)) for p in params)}
-        c.update({n: _piecewise(n, [getattr(p, n) for p in params], pieces, ())
+        c.update({n: _piecewise(n, [scalars(p)[n] for p in params], pieces, ())
                   for n in SCALARS})
     c["J"] = ufl.diag(ufl.as_vector((c["I22"], c["I11"], c["I11"] + c["I22"])))
     return c

@@ -27,7 +27,7 @@ from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
 from ..checks import (MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
-                      check_n_cells)
+                      check_n_cells, old_keywords)
 from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..integrators.step_control import IntegrationError
@@ -37,9 +37,9 @@ from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports, linked_axes, spin_free
 from .constitutive import check_model, energy_function, section_response
-from .contact import ContactLaw, Obstacle, ObstacleContact
+from .contact import ContactLaw, Obstacle, ObstacleContact, check_contact
 from .discretisation import discretise, function_spaces, unknowns
-from .external_forces import DistributedLoad, EndLoad
+from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
 from .joints import JointReactions, joint_nodes, node_links
 from .layout import RodLayout
@@ -47,7 +47,7 @@ from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
 from .placement import placed_shape
 from .material import RodParameters, coefficients, is_zero
-from .rods import Rod, check_rods
+from .rods import OLD_CONSTRAINT, OLD_ENDS, Rod, check_rods, new_keywords, positional_ends
 from .segments import PassThroughCheck
 from .structure import structure
 from .start import RodStarts, StartingState, check_rod_starts, check_start
@@ -73,11 +73,13 @@ class RodModel(FEModel):
     """The 3-D rod as a SemiDiscreteProblem.
 
     model: "evolving", "kelvin_voigt" or "hyperelastic" (constitutive.py); variant:
-    "local" or "uniform" (evolution.py); constraint: None, "unshearable" or
-    "inextensible_unshearable" (constraints.py); ends, end_displacement, end_rotation:
+    "local" or "uniform" (evolution.py); constraints: None, "unshearable" or
+    "inextensible_unshearable" (constraints.py); start, end (the supports at s = 0 and
+    s = L: "clamped", "pinned" or "free"), end_displacement, end_rotation:
     boundary_conditions.py (end_slide: {end: axis}, a clamped or pinned end sliding
     along a coordinate axis; end_turn: {end: axis}, a clamped end turning freely about
-    one; end_springs: {end: EndSpring}, compliant supports); end_loads, distributed_loads: external_forces.py; rotations:
+    one; end_springs: {end: EndSpring}, compliant supports); end_loads, distributed_loads,
+    point_loads (at points inside the rod): external_forces.py; rotations:
     "auto", "quaternion" or "rotation_vector" (discretisation.py; "auto" takes rotation
     vectors for the local variant without a constraint, a dynamic rod with rotary
     inertia or a quasi-static one without Kelvin-Voigt viscosity and drag: 6 unknowns
@@ -86,22 +88,28 @@ class RodModel(FEModel):
     ``problem`` is a SemiDiscreteProblem (quaternions: any scheme of TimeStepper or
     TSIntegrator) or a SecondOrderProblem (rotation vectors: generalized-alpha on the
     rotation group, integrators/lie_alpha.py, which TimeStepper uses for it).
-    Several rods in one model: system.RodSystem.
+    Several rods in one model: system.RodSystem.  The keywords are the scene's keys
+    (docs/rod.md, "One vocabulary"); ``ends=(start, end)`` and ``constraint`` are
+    deprecated names of ``start``, ``end`` and ``constraints``.
     """
 
+    @old_keywords("RodModel", OLD_ENDS | OLD_CONSTRAINT, new_keywords)
     def __init__(self, params: RodParameters, n_cells: int = N_CELLS, model: str = ROD_MODEL,
-                 variant: str = VARIANT, constraint: str | None = None,
-                 ends: tuple[str, str] = ("clamped", "free"),
+                 variant: str = VARIANT, constraints: str | None = None,
+                 start: str = "clamped",
                  end_loads: Sequence[EndLoad] = (),
                  distributed_loads: Sequence[DistributedLoad] = (),
                  end_displacement: dict | None = None, end_rotation: dict | None = None,
                  rotations: str = ROTATION_UNKNOWNS, comm: MPI.Comm = MPI.COMM_WORLD,
                  end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
                  contact: ContactLaw | None = None, end_springs: dict | None = None,
-                 end_turn: dict | None = None):
-        rod = Rod(params, n_cells, ends, end_loads, distributed_loads, end_displacement,
-                  end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn)
-        self._build([rod], model, variant, constraint, rotations, comm, obstacles=obstacles,
+                 end_turn: dict | None = None, end: str = "free",
+                 point_loads: Sequence[PointLoad] = ()):
+        start, end = positional_ends("RodModel", start, end, stacklevel=5)
+        rod = Rod(params, n_cells, start, end_loads, distributed_loads, end_displacement,
+                  end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn,
+                  end=end, point_loads=point_loads)
+        self._build([rod], model, variant, constraints, rotations, comm, obstacles=obstacles,
                     contact=contact)
 
     def _build(self, rods: list[Rod], model: str, variant: str, constraint: str | None,
@@ -140,7 +148,7 @@ class RodModel(FEModel):
         """Refuse bad input before any mesh; the rods' data and their layout on one mesh."""
         check_model(model, rods[0].params)
         check_variant(variant)
-        constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.rho_A))
+        constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.density))
         check_rods(rods, model, variant)
         check_joints(list(joints), rods)
         check_n_cells(sum(rod.n_cells for rod in rods), comm.size)   # cells per rank
@@ -149,12 +157,13 @@ class RodModel(FEModel):
                                                                   variant, constraint)
         self.end_loads = [load for rod in rods for load in rod.end_loads]
         self.distributed_loads = [load for rod in rods for load in rod.distributed_loads]
+        self.point_loads = [load for rod in rods for load in rod.point_loads]
         self.layout = layout = RodLayout(tuple(rod.name for rod in rods),
                                          tuple(float(rod.params.length) for rod in rods),
                                          tuple(rod.n_cells for rod in rods))
         self.length = max(layout.lengths)
         self.evolving = model == "evolving"
-        self.dynamic = not is_zero(rods[0].params.rho_A)
+        self.dynamic = not is_zero(rods[0].params.density)
 
     def _rotation_unknowns(self, rotations: str, joints: Sequence[Joint]) -> str:
         """The rotation unknowns ("quaternion" or "rotation_vector") the rods can have
@@ -162,7 +171,7 @@ class RodModel(FEModel):
         rods, all_params = self.rods, [rod.params for rod in self.rods]
         obstacle = rotation_vector_obstacle(
             self.dynamic, self.variant, self.constraint,
-            rotary_inertia=not any(is_zero(p.I11) or is_zero(p.I22) for p in all_params),
+            rotary_inertia=not any(any(map(is_zero, p.section_inertia)) for p in all_params),
             rate_dependent=not all(is_zero(v) for p in all_params for v in (
                 p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
             rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
@@ -239,7 +248,8 @@ class RodModel(FEModel):
         residual.zero_diagonals(F, unk, disc)
         self.loads, power = external_forces.apply_loads(
             F, unk, disc, [(k, load) for k, rod in enumerate(rods) for load in rod.end_loads],
-            [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads])
+            [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads],
+            [(k, load) for k, rod in enumerate(rods) for load in rod.point_loads])
         residual.one_quadrature_rule(F, unk, disc)
         return F, natural_pairs, (drag_dissipation, friction_dissipation), power
 
@@ -296,12 +306,30 @@ class RodModel(FEModel):
                              f"neighbours closer along the rod than pi (r + delta) + h = "
                              f"{reach:.4g}, which is not shorter than the rod "
                              f"({min(layout.lengths):g}): a smaller radius or more cells")
+        check_contact([], law)
+        self._check_pair_friction(law)
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
-                                 law.self_contact, law.between_rods, joint_nodes)
+                                 law.self_contact, law.between_rods, joint_nodes,
+                                 velocity=self.unknowns.V if self.dynamic else None)
         contact.block = list(self.names).index("displacement")
+        contact.rod_names, contact.rod_starts = layout.names, layout.starts
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
         self.pair_force = fem.Function(P1, name="pair_contact_force")
         return contact
+
+    def _check_pair_friction(self, law) -> None:
+        """Friction between segments (pair_friction.py) follows the velocities of
+        generalized-alpha's steps: a dynamic rod with rotation-vector unknowns."""
+        if not (law.self_friction or law.between_rods_friction):
+            return
+        key = "self_friction" if law.self_friction else "between_rods_friction"
+        if not self.dynamic:
+            raise ValueError(f"contact.{key} needs a dynamic rod (rho_A > 0): the "
+                             "friction force depends on the velocity")
+        if self.unknowns.chart is None:
+            raise ValueError(f"contact.{key} needs rotation-vector unknowns (advanced by "
+                             "generalized-alpha, whose velocities the friction follows), got "
+                             f"{self.rotations!r}")
 
     def _obstacle_contact(self, obstacles, law, disc) -> ObstacleContact | None:
         if not obstacles:
@@ -309,7 +337,7 @@ class RodModel(FEModel):
         if law is None:
             raise ValueError("obstacles need a contact law (contact = ContactLaw(...))")
         if any(ob.friction > 0 for ob in obstacles) and not self.dynamic:
-            raise ValueError("obstacles[k].friction needs a dynamic rod (rho_A > 0): "
+            raise ValueError("obstacles[k].friction needs a dynamic rod (density > 0): "
                              "the friction force depends on the velocity")
         return ObstacleContact(obstacles, law, disc, self.unknowns.f["displacement"],
                                self.unknowns.V if self.dynamic else None)
@@ -329,9 +357,11 @@ class RodModel(FEModel):
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
                   list(self.residual.values()), self.loads, self.bcs, self.set_supports)
         terms = [self.segment_contact] if self.segment_contact else []
+        where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
         if unk.chart is None:
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
-                                       check_step=self.check_step, terms=terms)
+                                       check_step=self.check_step, terms=terms,
+                                       where_failed=where)
         rates_used = {c for F in self.residual.values() for c in F.coefficients()}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
@@ -339,7 +369,7 @@ class RodModel(FEModel):
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links, terms=terms, scale_motions=self.scale_motions)
+            links=links, terms=terms, scale_motions=self.scale_motions, where_failed=where)
 
     def scale_motions(self, fraction: float) -> None:
         """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""
@@ -478,6 +508,10 @@ class RodModel(FEModel):
             pairs = self.segment_contact.diagnostics()
             d["contact_energy"] = d.get("contact_energy", 0.0) + pairs.pop(
                 "pair_contact_energy")
+            if "pair_friction_dissipation" in pairs:      # pair_friction.py
+                friction = pairs.pop("pair_friction_dissipation")
+                d["dissipation_rate"] += friction
+                d["friction_dissipation"] = d.get("friction_dissipation", 0.0) + friction
             d.update(pairs)
             self._update_pair_force()
             if self.layout.single and self.supports.ends == ("clamped", "clamped") \

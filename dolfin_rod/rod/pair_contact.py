@@ -24,6 +24,10 @@ straight path of the nodes, on which d is Lipschitz in the path's parameter with
 pair's largest node displacements; bisected where the bound cannot exclude it).  A
 step is accepted only if every pair's gap is > 0 at its end and no two segments crossed
 on the straight path from the last accepted state (``crossed``, the same bound).
+
+Coulomb friction of the pairs (``contact.self_friction``, ``between_rods_friction``):
+pair_friction.py, with the pairs and normal forces lagged at each accepted state
+(``commit``) and the nodes' velocities of the step's affine rate map (``set_rates``).
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .contact import barrier_derivatives
+from .pair_friction import PairFriction
 from .segments import closest_points, near_pairs
 
 CROSSING_DEPTH = 24     # bisections of a step's path before a pair counts as crossed
@@ -151,12 +156,18 @@ class SegmentContact:
     """Self-contact (pairs within a rod) and contact between rods (``between_rods``) of
     the segments of ``x`` (the rod's displacement, P1), a term that fem/assembly adds to
     the residual and Jacobian of the systems that hold x (``bind``); law: the contact
-    law (radius, gap, stiffness); joints: the nodes (s_a, s_b) of the rods' joints."""
+    law (radius, gap, stiffness; friction coefficients and slip tolerance: with
+    ``velocity``, x's rate, the pairs' Coulomb friction, pair_friction.py); joints: the
+    nodes (s_a, s_b) of the rods' joints."""
 
     def __init__(self, x, law, rod_of, self_contact: bool, between_rods: bool,
-                 joints=()):
+                 joints=(), velocity=None):
         self.x, self.law = x, law
         self.line = Centreline(x, rod_of)
+        mu = (law.self_friction * self_contact, law.between_rods_friction * between_rods)
+        self.friction = (PairFriction(self.line, law, *mu)
+                         if velocity is not None and max(mu) > 0 else None)
+        self.velocity_field, self.rates = velocity, None
         h = float(np.max(self.line.lengths))
         self.exclusion = exclusion(law.radius, law.gap, h)
         self.through_joints = self._joint_distances(joints)
@@ -167,6 +178,7 @@ class SegmentContact:
         self._cache = (None, None)
         self.start = None                            # positions at the last commit
         self.block = 0          # the displacement's block in the problem (model sets it)
+        self.rod_names, self.rod_starts = ("rod",), (0.0,)  # the rods' (model sets them)
 
     # -- pairs and their terms ----------------------------------------------------------
 
@@ -247,6 +259,22 @@ class SegmentContact:
     def owned_displacement(self) -> np.ndarray:
         return self.x.x.array[: 3 * self.line.n_owned]
 
+    def set_rates(self, maps) -> None:
+        """The step's rates as affine maps of the unknowns, per block (slope, intercept):
+        rate = slope y + intercept (the integrator's, before a step's solve), or None (the
+        rate fields as they are: the start's solves, after the step)."""
+        self.rates = None if maps is None else maps[self.block]
+
+    def velocities(self, owned_displacement: np.ndarray) -> np.ndarray:
+        """(nodes, 3) the nodes' velocities at the displacement (owned) of a solve."""
+        n = 3 * self.line.n_owned
+        if self.rates is None:
+            owned = self.velocity_field.x.array[:n]
+        else:
+            slope, intercept = self.rates
+            owned = slope * owned_displacement + intercept[:n]
+        return self.line.gather(owned.reshape(-1, 3))
+
     def for_step(self, stages, fields, previous, before_previous) -> "StepTerm":
         """The term in a per-step scheme's residual sum_k w_k F(Y_k, ...) (stages: (w_k,
         (a0, a1, a2)) with Y_k = a0 y + a1 y_n + a2 y_{n-1}; fields, previous,
@@ -272,11 +300,15 @@ class SegmentContact:
         P = self.line.positions(self.owned_displacement())
         gaps = self._gaps(P, terms.pairs)
         G = terms.gradient
-        return {"pair_contact_energy": float(terms.energy.sum()),
-                "pair_contact_force": float(np.linalg.norm(G[:, :6].reshape(-1, 2, 3).sum(1),
-                                                           axis=1).sum()),
-                "min_pair_gap": float(gaps.min(initial=self.law.gap)),
-                "contact_pairs": float(len(gaps))}
+        out = {"pair_contact_energy": float(terms.energy.sum()),
+               "pair_contact_force": float(np.linalg.norm(G[:, :6].reshape(-1, 2, 3).sum(1),
+                                                          axis=1).sum()),
+               "min_pair_gap": float(gaps.min(initial=self.law.gap)),
+               "contact_pairs": float(len(gaps))}
+        if self.friction is not None:       # of the force the last step applied (commit)
+            out["pair_friction_dissipation"] = self.friction.dissipation
+            out["pair_friction_force"] = self.friction.force
+        return out
 
     def _gaps(self, P, pairs):
         X = P[self.line.ends[pairs].reshape(-1, 4)]
@@ -296,8 +328,15 @@ class SegmentContact:
     # -- the step's checks ------------------------------------------------------------
 
     def commit(self) -> None:
-        """After an accepted step: its positions start the next step's crossing check."""
+        """After an accepted step: its positions start the next step's crossing check;
+        friction: the power of the force the step applied (its lagged pairs, the step's
+        velocities), then the pairs lagged anew at this state."""
         self.start = self.line.positions(self.owned_displacement())
+        if self.friction is not None:
+            friction = self.friction
+            friction.dissipation, friction.force = friction.power(
+                self.velocities(self.owned_displacement()))
+            friction.lag(self.start, self.pairs(self.start))
 
     def check_state(self) -> str | None:
         """A reason to reject a converged step: a pair at gap <= 0, or two segments that
@@ -315,9 +354,39 @@ class SegmentContact:
         return None if crossed is None else self._where(crossed, "passed through each "
                                                         "other during the step")
 
-    def _where(self, pair, what: str) -> str:
-        s = self.line.mid_s
-        return f"segments at s = {s[pair[0]]:.4g} and s = {s[pair[1]]:.4g}: {what}"
+    def _where(self, pair, what: str, P: np.ndarray | None = None) -> str:
+        """The pair's segments named by rod and arc length (their midpoints), the point
+        between their closest points at positions P (default the current state), and
+        ``what``."""
+        P = self.line.positions(self.owned_displacement()) if P is None else P
+        X = P[self.line.ends[np.asarray(pair)].reshape(4)]
+        s, t, _ = closest_points(*(X[k][None] for k in range(4)))
+        point = 0.5 * (X[0] + s[0] * (X[1] - X[0]) + X[2] + t[0] * (X[3] - X[2]))
+        names = [self.segment_name(k) for k in pair]
+        return (f"segments of {names[0]} and {names[1]}, near ("
+                f"{', '.join(f'{v:.4g}' for v in point)}): {what}")
+
+    def segment_name(self, k: int) -> str:
+        """'rod NAME at s = ...' of segment k (its midpoint's arc length on its rod)."""
+        rod = int(self.line.rod[k])
+        start, name = self.rod_starts[rod], self.rod_names[rod]
+        return f"{'the rod' if len(self.rod_names) == 1 else f'rod {name}'} at s = " \
+               f"{self.line.mid_s[k] - start:.4g}"
+
+    def nearest_pair(self) -> str | None:
+        """Where a failed solve was: the pair with the smallest gap at the last state
+        evaluated (Newton's last iterate; the current state if that is not finite),
+        named by ``_where``; None without a pair within the barrier's reach."""
+        P = self._cache[0]
+        if P is None or not np.isfinite(P).all():
+            P = self.line.positions(self.owned_displacement())
+        pairs = self.pairs(P)
+        if not len(pairs):
+            return None
+        gaps = self._gaps(P, pairs)
+        k = int(np.argmin(gaps))
+        return self._where(pairs[k], f"gap {gaps[k]:.3g} (the barrier acts below "
+                                     f"{self.law.gap:g}) at Newton's last iterate", P)
 
     def crossed(self, P0: np.ndarray, P1: np.ndarray):
         """A pair whose centre lines meet on the straight path P0 -> P1 of the nodes, or
@@ -420,19 +489,28 @@ class BoundTerm:
         self.row_of_node[line.owned_global] = np.arange(line.n_owned)
         self.in_pattern = np.zeros(0, dtype=np.int64)    # pairs i * segments + j with
         self._state = None                               # entries in the matrix
+        self._friction = None       # the friction's (nodes, G, dR/dV) at the last state
 
     def add_residual(self, x_owned: np.ndarray, b_owned: np.ndarray) -> None:
-        """b += dE/dX at the owned nodes' rows (x: the system's owned unknowns)."""
-        u = x_owned[self.local_rows] if self.solved else self.contact.owned_displacement()
+        """b += dE/dX at the owned nodes' rows (x: the system's owned unknowns), and the
+        friction's -w_k F (pair_friction.py; generalized-alpha's steps only)."""
+        contact = self.contact
+        u = x_owned[self.local_rows] if self.solved else contact.owned_displacement()
         self._state = [(1.0, 1.0, u)] if self.step is None else self.step.states(u)
         for weight, _, state in self._state:
-            terms = self.contact.evaluate(state)
-            nodes = terms.nodes.ravel()
-            mine = self.owned[nodes]
-            rows = self.local_rows.reshape(-1, 3)[self.row_of_node[nodes[mine]]]
-            b_owned += np.bincount(rows.ravel(),
-                                   weight * terms.gradient.reshape(-1, 3)[mine].ravel(),
-                                   minlength=len(b_owned))
+            terms = contact.evaluate(state)
+            self._add_rows(b_owned, terms.nodes, weight * terms.gradient)
+        if contact.friction is not None:
+            self._friction = contact.friction.residual(contact.velocities(u))
+            self._add_rows(b_owned, *self._friction[:2])
+
+    def _add_rows(self, b_owned: np.ndarray, nodes: np.ndarray, G: np.ndarray) -> None:
+        """b += the pairs' entries G (m, 12) at the rows of their owned nodes (m, 4)."""
+        nodes = nodes.ravel()
+        mine = self.owned[nodes]
+        rows = self.local_rows.reshape(-1, 3)[self.row_of_node[nodes[mine]]]
+        b_owned += np.bincount(rows.ravel(), G.reshape(-1, 3)[mine].ravel(),
+                               minlength=len(b_owned))
 
     def limit_step(self, x_owned: np.ndarray, y_owned: np.ndarray) -> None:
         """Newton's update x - y (PETSc's sign) scaled down in place by ``step_factor``."""
@@ -461,7 +539,8 @@ class BoundTerm:
             return None
         contact = self.contact
         n_segments = len(contact.line.ends)
-        pairs = np.vstack([contact.evaluate(state).pairs for _, _, state in self._state])
+        pairs = np.vstack([contact.evaluate(state).pairs for _, _, state in self._state]
+                          + ([contact.friction.pairs] if contact.friction is not None else []))
         keys = pairs[:, 0] * n_segments + pairs[:, 1]
         place = np.searchsorted(self.in_pattern, keys)
         if np.all(place < len(self.in_pattern)) and \
@@ -488,19 +567,28 @@ class BoundTerm:
 
     def add_jacobian(self, A) -> None:
         """A += the pairs' Hessians (rows of owned nodes) at the last residual's state
-        (into entries the system added for ``missing_entries``)."""
+        (into entries the system added for ``missing_entries``), and the friction's
+        dR/dV times the rates' slope dV/dx."""
         if not self.solved or self._state is None:
             return
         for weight, a0, state in self._state:
             terms = self.contact.evaluate(state)
-            if not len(terms.nodes) or weight * a0 == 0.0:
-                continue
-            rows = self.global_rows[terms.nodes].reshape(-1, 12)
-            owned = np.repeat(self.owned[terms.nodes], 3, axis=1)
-            # one call for all pairs (PETSc's loop); other ranks' rows as -1: skipped
-            A.setValuesRCV(np.where(owned, rows, -1).astype(PETSc.IntType),
-                           rows.astype(PETSc.IntType), weight * a0 * terms.hessian,
-                           addv=PETSc.InsertMode.ADD_VALUES)
+            if weight * a0 != 0.0:
+                self._add_matrix(A, terms.nodes, weight * a0 * terms.hessian)
+        rates = self.contact.rates
+        if self.contact.friction is not None and rates is not None:
+            nodes, _, H = self._friction
+            self._add_matrix(A, nodes, rates[0] * H)
+
+    def _add_matrix(self, A, nodes: np.ndarray, H: np.ndarray) -> None:
+        """A += the 12 x 12 blocks H of the pairs' nodes (rows of owned nodes)."""
+        if not len(nodes):
+            return
+        rows = self.global_rows[nodes].reshape(-1, 12)
+        owned = np.repeat(self.owned[nodes], 3, axis=1)
+        # one call for all pairs (PETSc's loop); other ranks' rows as -1: skipped
+        A.setValuesRCV(np.where(owned, rows, -1).astype(PETSc.IntType),
+                       rows.astype(PETSc.IntType), H, addv=PETSc.InsertMode.ADD_VALUES)
 
 
 class PairTerms(NamedTuple):

@@ -13,7 +13,7 @@ def rotation_vector_obstacle(dynamic: bool, variant: str, constraint,
     """Why rotation vectors (rod/rotation_vector.py) do not fit a rod, or None.  They
     need the local variant (the uniform one's real-space natural strains take the
     blocked assembly) and no constraint (its multipliers make a saddle point); a dynamic
-    rod needs rotary inertia I11, I22 > 0 (the integrator's start solves the mass
+    rod needs rotary inertia section_inertia > 0 (the integrator's start solves the mass
     matrices for the accelerations); a quasi-static rod needs no rate-dependent force
     (``rate_dependent``: Kelvin-Voigt viscosity M, N or drag; its positions and rotations
     are then algebraic unknowns) and an end that holds its rotation (``rotation_held``:
@@ -23,7 +23,7 @@ def rotation_vector_obstacle(dynamic: bool, variant: str, constraint,
     if constraint is not None:
         return f"a constrained rod ({constraint})"
     if dynamic and not rotary_inertia:
-        return "a dynamic rod without rotary inertia I11, I22 > 0"
+        return "a dynamic rod without rotary inertia section_inertia > 0"
     if not dynamic and rate_dependent:
         return "a quasi-static rod with Kelvin-Voigt viscosity (M, N) or drag"
     if not dynamic and not rotation_held:

@@ -11,8 +11,8 @@ Rod data (``section_parameters``): bending u_1 (about d_1) stretches the fibres 
 so A = (E I_22, E I_11, G J) [N m^2]; B = (k_1 G a, k_2 G a, E a) [N] with shear
 factors k_1, k_2 (Cowper 1966, J. Appl. Mech. 33, 335, by shape and Poisson's ratio,
 unless given); rho A = rho a [kg/m] and the section mass moments (rho I_11, rho I_22)
-[kg m] (RodParameters.I11, I22: the rotary inertia rho J = diag(rho I_22, rho I_11,
-rho (I_11 + I_22))).  G = E / (2 (1 + nu)) or nu = E / (2 G) - 1.
+[kg m] (RodParameters.section_inertia: the rotary inertia rho J = diag(rho I_22,
+rho I_11, rho (I_11 + I_22))).  G = E / (2 (1 + nu)) or nu = E / (2 G) - 1.
 
 Natural configuration (evolving model): A_d = r A, B_d = r B (natural_stiffness_ratio
 r), and relaxation times tau_u, tau_v [s]: M_d = tau_u (A + A_d), N_d = tau_v (B + B_d),
@@ -133,7 +133,8 @@ def section_parameters(section: Section, material: Material,
                        shear_factor: tuple[float, float] | None = None,
                        natural_stiffness_ratio: float | None = None,
                        relaxation_time: tuple[float, float] | None = None) -> dict:
-    """RodParameters keywords of a section and material: A, B, rho_A, I11, I22 and, with
+    """RodParameters keywords of a section and material: A, B, density (rho a, per
+    length), section_inertia (rho I_11, rho I_22) and, with
     natural_stiffness_ratio r, A_d = r A, B_d = r B; with relaxation_time (tau_u, tau_v)
     also M_d, N_d (module docstring).  Tensors as diagonals (3-tuples)."""
     E, G, nu = material.moduli()
@@ -144,7 +145,7 @@ def section_parameters(section: Section, material: Material,
     a = section.area
     out = {"A": (E * section.I22, E * section.I11, G * section.J),
            "B": (k1 * G * a, k2 * G * a, E * a),
-           "rho_A": rho * a, "I11": rho * section.I11, "I22": rho * section.I22}
+           "density": rho * a, "section_inertia": (rho * section.I11, rho * section.I22)}
     if natural_stiffness_ratio is not None:
         r = _positive("natural_stiffness_ratio", natural_stiffness_ratio)
         out["A_d"], out["B_d"] = (tuple(r * x for x in out[k]) for k in ("A", "B"))

@@ -264,7 +264,7 @@ def check_start(start: StartingState | None, length: float, dynamic: bool,
         _vector("start.rotation_centre", start.rotation_centre)
     if not dynamic and (start.moving or start.equilibrium):
         name = "equilibrium" if start.equilibrium else "velocity"
-        raise ValueError(f"start.{name}: the rod is quasi-static (rho_A = 0): it has no "
+        raise ValueError(f"start.{name}: the rod is quasi-static (density = 0): it has no "
                          "velocities and is in equilibrium at every step")
     problem = shape_problem(start.shape, length)
     if problem:

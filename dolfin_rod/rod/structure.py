@@ -23,7 +23,7 @@ import dataclasses
 
 import numpy as np
 
-from .material import SCALARS, TENSORS, is_zero
+from .material import SCALAR_FIELDS, TENSORS, is_zero, scalars
 
 HISTORIES = ("history", "end_displacement", "end_rotation")   # fields holding histories
 
@@ -49,14 +49,15 @@ def structure(rods, model: str, variant: str, constraint: str | None, rotations:
 def _rod(rod) -> str:
     params = rod.params
     coefficients = []
+    for name, value in {**{n: getattr(params, n) for n in TENSORS}, **scalars(params)}.items():
+        if callable(value):
+            raise _NotData(name)
+        coefficients.append(f"{name}:" + ("0" if is_zero(value) else str(np.shape(value))))
     for f in dataclasses.fields(params):
         value = getattr(params, f.name)
-        if f.name in TENSORS + SCALARS:
-            if callable(value):
-                raise _NotData(f.name)
-            coefficients.append(f"{f.name}:" + ("0" if is_zero(value) else
-                                                 str(np.shape(value))))
-        elif f.name == "energy":
+        if f.name in TENSORS + SCALAR_FIELDS:
+            continue
+        if f.name == "energy":
             coefficients.append(f"energy:{_energy(value)}")
         else:
             coefficients.append(f"{f.name}:{_data(value)}")

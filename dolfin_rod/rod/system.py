@@ -29,27 +29,28 @@ from typing import Sequence
 
 from mpi4py import MPI
 
-from ..checks import ROD_MODEL, ROTATION_UNKNOWNS, VARIANT
+from ..checks import ROD_MODEL, ROTATION_UNKNOWNS, VARIANT, old_keywords
 from . import diagnostics
 from .model import RodModel
 from .contact import ContactLaw, Obstacle
 from .joints import Joint
-from .rods import Rod
+from .rods import OLD_CONSTRAINT, Rod, new_keywords
 
 
 class RodSystem(RodModel):
     """Several rods (rods.Rod) in one model, joined by ``joints`` (joints.Joint); model,
-    variant, constraint, rotations, obstacles and contact as RodModel (common to all
+    variant, constraints, rotations, obstacles and contact as RodModel (common to all
     rods).  Diagnostics: the
     system's energies and powers under the single rod's names, each rod's tip and
     reactions as ``<name>.<key>``, each joint's reactions as ``joint_<name>_...``."""
 
+    @old_keywords("RodSystem", OLD_CONSTRAINT, new_keywords)
     def __init__(self, rods: Sequence[Rod], joints: Sequence[Joint] = (),
                  model: str = ROD_MODEL, variant: str = VARIANT,
-                 constraint: str | None = None, rotations: str = ROTATION_UNKNOWNS,
+                 constraints: str | None = None, rotations: str = ROTATION_UNKNOWNS,
                  comm: MPI.Comm = MPI.COMM_WORLD, obstacles: Sequence[Obstacle] = (),
                  contact: ContactLaw | None = None):
-        self._build(list(rods), model, variant, constraint, rotations, comm, joints,
+        self._build(list(rods), model, variant, constraints, rotations, comm, joints,
                     obstacles=obstacles, contact=contact)
 
     def diagnostics(self, t: float) -> dict[str, float]:

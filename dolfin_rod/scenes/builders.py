@@ -110,7 +110,7 @@ class FESimulation:
             scheme = CONTACT_SCHEME if touching(scene) and model.dynamic else None
         tolerance = tim["tolerance"] if adaptive_stepper(scene) else None
         self.stepper, self.ts = choose_integrator(
-            self.problem, scheme, options, max_cuts=tim["max_step_cuts"],
+            self.problem, scheme, options, max_step_cuts=tim["max_step_cuts"],
             predictor=tim["predictor"], tolerance=tolerance), None
         self.stability = self._stability_monitor()
         self.continuation = self._continuation()
@@ -283,7 +283,7 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     mat = scene["material"]
     params = rod_parameters(scene)
     common = dict(model=mat["model"], variant=mat["variant"],
-                  constraint=None if mat["constraints"] == "none" else mat["constraints"],
+                  constraints=None if mat["constraints"] == "none" else mat["constraints"],
                   rotations=rod_rotations(scene), comm=comm or MPI.COMM_WORLD,
                   obstacles=obstacles(scene), contact=contact_law(scene, params))
     try:
@@ -360,8 +360,9 @@ def rod_arguments(scene: Scene) -> dict:
     from ..rod import EndSpring
     ends, boundary, motions = SIDES, scene["boundary"], end_motions(scene)
     end_loads, distributed_loads = rod_loads(scene)
-    return dict(n_cells=scene["geometry"]["n_cells"], ends=(boundary["start"], boundary["end"]),
+    return dict(n_cells=scene["geometry"]["n_cells"], start=boundary["start"], end=boundary["end"],
                 end_loads=end_loads, distributed_loads=distributed_loads,
+                point_loads=rod_point_loads(scene),
                 end_displacement=motions["displacement"], end_rotation=motions["rotation"],
                 end_slide={side: axis for key, side in ends.items()
                            if (axis := boundary[f"{key}_slide"]) is not None},
@@ -422,7 +423,6 @@ def rod_parameters(scene: Scene):
     tensors = {k: t.value() for k, t in {**stiff, **visc}.items()
                if not (k in ("M", "N") and t.is_zero)}
     scalars = {k: mat[k].value() for k in ("density", "drag") if mat[k] is not None}
-    I11, I22 = mat["section_inertia"] or (0.0, 0.0)
     energy = None
     if mat["energy"] is not None:
         folder = Path(scene.source).parent if Path(scene.source).is_file() else None
@@ -430,8 +430,9 @@ def rod_parameters(scene: Scene):
     if mat["rotational_drag"] is not None:
         frame = "" if mat["rotational_drag_frame"] == "material" else "spatial_"
         tensors[frame + "rotational_drag"] = mat["rotational_drag"].value()
-    return RodParameters(length=geo["length"], **tensors, rho_A=scalars.get("density", 0.0),
-                         drag=scalars.get("drag", 0.0), I11=I11, I22=I22, energy=energy,
+    return RodParameters(length=geo["length"], **tensors, density=scalars.get("density", 0.0),
+                         drag=scalars.get("drag", 0.0),
+                         section_inertia=mat["section_inertia"] or 0.0, energy=energy,
                          reference_curvature=geo["reference_curvature"],
                          reference_stretch=geo["reference_stretch"],
                          reference_shape=curve(geo["reference_shape"]))
@@ -439,7 +440,7 @@ def rod_parameters(scene: Scene):
 
 def rod_loads(scene: Scene) -> tuple[list, list]:
     """EndLoads (start_/end_force/couple) and DistributedLoads (distributed_force/couple,
-    gravity as rho_A g) of a rod scene."""
+    gravity as density g) of a rod scene."""
     from ..rod import DistributedLoad, EndLoad
     lds, mat = scene["loads"], scene["material"]
     end_loads = []
@@ -459,6 +460,14 @@ def rod_loads(scene: Scene) -> tuple[list, list]:
     if lds["gravity"] is not None:
         distributed.append(DistributedLoad("force", _profiled(lds["gravity"], mat["density"])))
     return end_loads, distributed
+
+
+def rod_point_loads(scene: Scene) -> list:
+    """PointLoads (point_force/couple) of a rod scene."""
+    from ..rod import PointLoad
+    return [PointLoad(kind, value, spec.s, history, spec.follower)
+            for kind in ("force", "couple") if (spec := scene["loads"][f"point_{kind}"])
+            for value, history in _vector_parts(spec)]
 
 
 def _vector_parts(spec):

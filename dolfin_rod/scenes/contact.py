@@ -15,7 +15,8 @@ DIRECTIONS = ("normal", "axis")
 
 def check_contact_keys(scene: Scene) -> None:
     """[[obstacles]] need contact.radius; [contact] needs obstacles; each obstacle has the
-    pose keys of its shape; gap < radius; friction needs a dynamic rod."""
+    pose keys of its shape; gap < radius; friction needs a dynamic rod (segment friction
+    also its kind of contact)."""
     err, contact, obstacles = scene.error, scene["contact"], scene["obstacles"]
     given = scene.given["contact"]
     if not touching(scene):
@@ -46,6 +47,13 @@ def check_contact_keys(scene: Scene) -> None:
         if ob["friction"] > 0 and not scene["material"]["dynamic"]:
             raise err(f"{name}.friction", "friction depends on the velocity: it needs a "
                                           "dynamic rod (material.density > 0)")
+    for key, pairs in (("self_friction", "self"), ("between_rods_friction", "between_rods")):
+        if contact[key] > 0 and not contact[pairs]:
+            raise err(f"contact.{key}", f"applies to segments in contact: set "
+                                        f"contact.{pairs} = true")
+        if contact[key] > 0 and not scene["material"]["dynamic"]:
+            raise err(f"contact.{key}", "friction depends on the velocity: it needs a "
+                                        "dynamic rod (material.density > 0)")
 
 
 def touching(scene: Scene) -> bool:
@@ -84,11 +92,13 @@ def contact_law(scene: Scene, params):
     if not touching(scene):
         return None
     c, geo, tim = scene["contact"], scene["geometry"], scene["time"]
-    stiffness = c["stiffness"] or default_stiffness(params.rho_A, params.A, geo["length"],
+    stiffness = c["stiffness"] or default_stiffness(params.density, params.A, geo["length"],
                                                     geo["n_cells"], tim["dt"])
     return ContactLaw(c["radius"], c["gap"] or c["radius"] / 10, stiffness,
                       c["slip_tolerance"] or 1e-3 * geo["length"] / tim["t_end"],
-                      self_contact=c["self"], between_rods=c["between_rods"])
+                      self_contact=c["self"], between_rods=c["between_rods"],
+                      self_friction=c["self_friction"],
+                      between_rods_friction=c["between_rods_friction"])
 
 
 def contact_solver_options(scene: Scene) -> dict:
@@ -99,7 +109,9 @@ def contact_solver_options(scene: Scene) -> dict:
     if not touching(scene):
         return {}
     options = {} if "rtol" in scene.given["time"] else {"snes_rtol": 1e-8}
-    if any(ob["friction"] > 0 for ob in scene["obstacles"]):
+    c = scene["contact"]
+    if any(ob["friction"] > 0 for ob in scene["obstacles"]) or c["self_friction"] > 0 \
+            or c["between_rods_friction"] > 0:
         options["snes_linesearch_type"] = "bt"
     if segment_pairs(scene):    # a pair's barrier may raise the residual 1e4-fold on the
         options["snes_divergence_tolerance"] = -1.0     # way to its root: no divergence stop

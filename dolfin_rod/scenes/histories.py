@@ -2,7 +2,7 @@
 item 6): ``{type = "step" | "ramp" | "smooth_step" | "table" | "constant", value, t0,
 duration, follower, profile}`` -> :class:`HistorySpec`, which builds the
 :mod:`dolfin_rod.loads` history the models evaluate.  ``follower`` is for rod loads,
-``profile`` (a function of s) for distributed loads only.
+``profile`` (a function of s) for distributed loads only, ``s`` (where) for point loads.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ class HistorySpec:
     values: tuple = ()         # numbers, or 3-vectors (a vector table)
     follower: bool = False     # rod loads: components in the material (rotating) frame
     profile: Coefficient | None = None   # distributed loads: the factor profile(s)
+    s: float | None = None     # point loads: where on the rod (its own arc length)
 
     def build(self, component: int | None = None):
         """The loads.LoadHistory (component of a vector value if given)."""
@@ -96,17 +97,22 @@ _HISTORY_KEYS = {
 }
 
 
-def history(vector_ok: bool, follower_ok: bool = False, profile_ok: bool = False):
+def history(vector_ok: bool, follower_ok: bool = False, profile_ok: bool = False,
+            point: bool = False):
     """The checker of a load or motion {type, value, t0, duration, times, values} (type
-    "constant" if not given), with follower (rod loads) and profile (distributed loads)
-    where they apply."""
+    "constant" if not given), with follower (rod loads), profile (distributed loads)
+    and s (point loads: required) where they apply."""
     def check(v):
         if not isinstance(v, dict):
             raise BadValue(f"must be a table {{type = \"step\"|\"ramp\"|...}}, got {type_name(v)}")
         v, extra = dict(v), {}
+        if point and "s" not in v:
+            raise BadValue("missing required key: where on the rod the load acts (its arc "
+                           "length, 0 <= s <= geometry.length)", "s")
         for key, allowed, checker, where in (
                 ("follower", follower_ok, boolean, "3-D rod loads"),
-                ("profile", profile_ok, profile, "distributed loads")):
+                ("profile", profile_ok, profile, "distributed loads"),
+                ("s", point, real(), "point loads")):
             if key in v and not allowed:
                 raise BadValue(f"{'a profile along s' if key == 'profile' else key} is for "
                                f"{where} only", key)
@@ -121,7 +127,8 @@ def history(vector_ok: bool, follower_ok: bool = False, profile_ok: bool = False
             raise BadValue(bad.reason, "type") from None
         keys = _HISTORY_KEYS[kind]
         refuse_unknown(v, {"type", *keys}, also=[k for k, ok in (("follower", follower_ok),
-                                                                 ("profile", profile_ok)) if ok])
+                                                                 ("profile", profile_ok),
+                                                                 ("s", point)) if ok])
         for k, required in keys.items():
             if required and k not in v:
                 raise BadValue(f"missing required key for a {kind} history", k)

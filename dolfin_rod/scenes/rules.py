@@ -41,9 +41,10 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("boundary", "start_turn"), ("boundary", "end_turn"),
     ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
-    ("loads", "start_couple"), ("obstacles", "shape")} | {
+    ("loads", "start_couple"), ("loads", "point_force"), ("loads", "point_couple"),
+    ("obstacles", "shape")} | {
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
-                             "between_rods")} | {
+                             "between_rods", "self_friction", "between_rods_friction")} | {
     ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue",
                                "at_bifurcation")} | {
     ("continuation", k) for k in ("method", "parameter", "arc_length", "load_scale",
@@ -586,10 +587,15 @@ def _check_rod_ends(scene: Scene) -> None:
                 raise err(f"loads.{end}_{load}", f"acts where the {what} is prescribed "
                                                  f"(boundary.{end} = {kind!r}): the support "
                                                  "takes it")
-    for k in ("distributed_force", "distributed_couple"):
+    for k in ("distributed_force", "distributed_couple", "point_force", "point_couple"):
         if lds[k] is not None and not lds[k].is_vector:
             raise err(f"loads.{k}.value", "3-D rod: a vector value = [x, y, z] (or a table "
                                           "of 3-vectors)")
+    length = scene["geometry"]["length"]
+    for k in ("point_force", "point_couple"):
+        if lds[k] is not None and not 0.0 <= lds[k].s <= length:
+            raise err(f"loads.{k}.s", f"{lds[k].s:g} is not on the rod: 0 <= s <= "
+                                      f"geometry.length = {length:g}")
     _check_turns_resolved(scene)
     if not scene["material"]["dynamic"] and not scene.joined and \
             not (any(fixed_x) and any(fixed_q)):
@@ -600,7 +606,7 @@ def _check_rod_ends(scene: Scene) -> None:
 
 # loads and end motions a buckling analysis scales ([loads] and [boundary] keys)
 LOAD_KEYS = ("end_force", "end_couple", "start_force", "start_couple", "distributed_force",
-             "distributed_couple")
+             "distributed_couple", "point_force", "point_couple")
 MOTION_KEYS = ("end_rotation", "start_rotation", "end_displacement", "start_displacement")
 
 

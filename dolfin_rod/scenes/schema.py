@@ -64,10 +64,11 @@ PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "re
 # quantity kind -> unit per unit system
 UNITS = {
     "SI": {"length": "m", "time": "s", "force": "N", "moment": "N m", "energy": "J",
-           "angle": "rad"},
+           "power": "W", "angle": "rad"},
     "pN-nm-s": {"length": "nm", "time": "s", "force": "pN", "moment": "pN nm",
-                "energy": "pN nm", "angle": "rad"},
-    "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy"), "1")
+                "energy": "pN nm", "power": "pN nm/s", "angle": "rad"},
+    "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy",
+                                    "power"), "1")
     | {"angle": "rad"},       # the torsion scenes' Section 5.1 variables
 }
 
@@ -106,10 +107,12 @@ step's time, the ramp's and smooth step's start; default 0), `duration` (ramp, s
 step), or `times` and `values` (table: piecewise linear; rod: `values` of 3-vectors);
 `follower = true` for rod loads (components in the material frame, rotating with the
 section), `profile` (a number or `{polynomial}` in s) for distributed loads, which are
-value profile(s) history(t) per unit length.  `type` defaults to "constant".  E.g.
+value profile(s) history(t) per unit length, `s` (where, required) for point loads.
+`type` defaults to "constant".  E.g.
 `end_force = { type = "ramp", value = [0.0, 0.0, 2.0], t0 = 1.0, duration = 0.5 }`,
 `distributed_force = { type = "step", value = [0.1, 0.0, 0.0], profile = { polynomial =
-[1.0, -1.0] } }`.  The old distributed form `{value, profile, history = {...}}` is an
+[1.0, -1.0] } }`, `point_force = { s = 0.5, type = "ramp", value = [0.0, -1.0, 0.0],
+duration = 1.0 }`.  The old distributed form `{value, profile, history = {...}}` is an
 error that shows its new spelling.
 A torsion coefficient or a density/drag/profile is a number or `{polynomial = [c0, c1,
 ...]}` in s.  A rod tensor (A, B, A_d, B_d, M, N, M_d, N_d) is `[a, b, c]` (diagonal),
@@ -342,6 +345,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "end_couple": Key(history(True, True), None, R + "couple at s = L (as end_force)"),
         "start_force": Key(history(True, True), None, R + "force at s = 0 (as end_force)"),
         "start_couple": Key(history(True, True), None, R + "couple at s = 0 (as end_force)"),
+        "point_force": Key(history(True, True, point=True), None, R + "a concentrated force "
+                           "at the point s of the rod, {s, type, value, t0, duration, "
+                           "follower} (as end_force; 0 <= s <= geometry.length; between "
+                           "nodes shared by the two nearest as the P1 hat functions there)"),
+        "point_couple": Key(history(True, True, point=True), None, R + "a concentrated "
+                            "couple at the point s (as point_force)"),
     },
     "time": {
         "t_end": Key(real(0.0, True), REQUIRED, "final time"),
@@ -462,6 +471,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                     "(docs/contact.md)"),
         "between_rods": Key(boolean, False, R + "[[rods]]: segments of different rods "
                             "repel each other through the barrier (docs/contact.md)"),
+        "self_friction": Key(real(0.0), 0.0, R + "Coulomb friction coefficient mu >= 0 "
+                             "between the rod's own segments in contact (contact.self; "
+                             "needs density > 0; slip tolerance contact.slip_tolerance)"),
+        "between_rods_friction": Key(real(0.0), 0.0, R + "Coulomb friction coefficient mu "
+                                     ">= 0 between segments of different rods "
+                                     "(contact.between_rods; needs density > 0)"),
     },
     "obstacles": {
         "shape": Key(choice(*OBSTACLE_SHAPES), REQUIRED, R + "plane (a half-space) | sphere "

@@ -22,9 +22,9 @@ def check_constraint(name, dynamic: bool = False):
         raise ValueError(f"unknown constraint '{name}' (known: unshearable, "
                          "inextensible_unshearable, or None)")
     if name is not None and dynamic:
-        raise ValueError(f"constraint = {name!r} with rho_A > 0: a dynamic rod with "
+        raise ValueError(f"constraint = {name!r} with density > 0: a dynamic rod with "
                          "constraint multipliers is an index-3 DAE, which no integrator "
-                         "here solves reliably; use a quasi-static rod (rho_A = 0) or "
+                         "here solves reliably; use a quasi-static rod (density = 0) or "
                          "stiff shear/axial B instead of the constraint")
     return name
 
