@@ -1,11 +1,14 @@
 """dolfin_rod against PyElastica on cosseratbench's four validation experiments (issue 25
-item 7): each solver through cosseratbench's own ``experiment.run`` (a warm-up run first,
+item 7) and its contact experiments (issue 26 item 9; crossing and pile are reported
+unsupported by dolfin_rod's adapter): each solver through cosseratbench's own ``experiment.run`` (a warm-up run first,
 then the timed run; its metrics), the same elements per rod for both, every default of
 both adapters.  Prints a markdown table of the metrics and the wall-time ratio
 PyElastica / dolfin_rod, saves results/bench/<--out>.json.
 
     ./rodenv python3 benchmarks/cosseratbench_peer.py            # 20 elements per rod
     ./rodenv python3 benchmarks/cosseratbench_peer.py --n 50     # cosseratbench's default
+    ./rodenv python3 benchmarks/cosseratbench_peer.py --n 100 --experiments capstan \
+        --out cosseratbench_capstan      # the capstan at its default resolution
 """
 
 from __future__ import annotations
@@ -17,7 +20,8 @@ from pathlib import Path
 from cosseratbench import registry
 from cosseratbench.experiment import run
 
-EXPERIMENTS = ("cantilever", "catenary", "pendulum", "twist")
+EXPERIMENTS = ("cantilever", "catenary", "pendulum", "twist")    # the default
+CONTACT = ("crossing", "capstan", "pile")
 SOLVERS = ("pyelastica", "dolfin_rod")
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -31,9 +35,9 @@ def load(solver: str):
     return registry.load_solver(solver)
 
 
-def measure(n: int) -> list[dict]:
+def measure(n: int, experiments) -> list[dict]:
     rows = []
-    for name in EXPERIMENTS:
+    for name in experiments:
         experiment = registry.load_experiment(name)
         for solver in SOLVERS:
             result = run(experiment, load(solver), n_elements=n)
@@ -49,15 +53,22 @@ def measure(n: int) -> list[dict]:
     return rows
 
 
-def table(rows: list[dict]) -> str:
-    """Markdown: per experiment and metric both solvers' values, and the wall-time ratio."""
+def table(rows: list[dict], experiments) -> str:
+    """Markdown: per experiment and metric both solvers' values (metrics and cosseratbench's
+    observations), and the wall-time ratio; an outcome other than completed as such."""
     out = ["| experiment | metric | PyElastica | dolfin_rod |", "|---|---|---|---|"]
-    for name in EXPERIMENTS:
+    for name in experiments:
         by = {r["solver"]: r for r in rows if r["experiment"] == name}
-        for metric in by["dolfin_rod"]["metrics"]:
-            values = [by[s]["metrics"].get(metric) for s in SOLVERS]
+        if any(by[s]["outcome"] != "completed" for s in SOLVERS):
+            out.append(f"| {name} | outcome | " + " | ".join(
+                by[s]["outcome"] + "".join(f": {m}" for m in by[s]["missing"])
+                for s in SOLVERS) + " |")
+            continue
+        for metric in [*by["dolfin_rod"]["metrics"], "max_penetration", "max_rod_overlap"]:
+            values = [{**by[s]["observations"], **by[s]["metrics"]}.get(metric)
+                      for s in SOLVERS]
             out.append(f"| {name} | {metric} | " + " | ".join(
-                "-" if v is None else f"{v:.3g}" for v in values) + " |")
+                "-" if v is None or v != v else f"{v:.3g}" for v in values) + " |")
         walls = [by[s]["wall_time"] for s in SOLVERS]
         ratio = walls[0] / walls[1] if all(walls) else float("nan")
         out.append(f"| {name} | wall time (s) | {walls[0]:.3g} | {walls[1]:.3g} "
@@ -69,9 +80,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=20, help="elements per rod")
     parser.add_argument("--out", default="cosseratbench_peer")
+    parser.add_argument("--experiments", nargs="+", default=EXPERIMENTS,
+                        choices=EXPERIMENTS + CONTACT)
     args = parser.parse_args()
-    rows = measure(args.n)
-    text = table(rows)
+    rows = measure(args.n, args.experiments)
+    text = table(rows, args.experiments)
     print(text)
     folder = ROOT / "results" / "bench"
     folder.mkdir(parents=True, exist_ok=True)

@@ -105,7 +105,8 @@ plots = false
 @pytest.mark.mpi
 def test_central_force_from_a_scene(tmp_path):
     """loads.point_force: the same beam (16 cells) as above from a scene: each clamp takes
-    -P/2 (equilibrium and symmetry: the load enters whole, at the middle) and the
+    -P/2 (equilibrium and symmetry: the load enters whole, at the middle), the
+    position of the load's point (column point0_position_x) is the API's, and the
     clamped beam's end moment P L/8 (Roark; independent of the shear compliance; measured
     -5.2e-3 off, the O(h^2) error, h^2 = 3.9e-3: tolerance 1e-2)."""
     import dolfin_rod
@@ -119,6 +120,9 @@ def test_central_force_from_a_scene(tmp_path):
     assert result.status == "completed"
     for end in ("left", "right"):
         assert result.series[f"reaction_force_{end}_x"][-1] == pytest.approx(-P / 2, rel=1e-6)
+    # the column at the load's point: the API's deflection (same model and kernels)
+    assert result.series["point0_position_x"][-1] == pytest.approx(midspan_deflection(16),
+                                                                     rel=1e-9)
     for end, sign in (("left", -1), ("right", 1)):      # measured 1.2435e-5: O(h^2)
         assert sign * result.series[f"reaction_couple_{end}_y"][-1] == pytest.approx(
             P / 8, rel=1e-2)

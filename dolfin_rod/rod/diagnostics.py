@@ -4,6 +4,7 @@ rotation angle."""
 
 from __future__ import annotations
 
+import numpy as np
 import ufl
 
 from ..theory.dissipation import dissipation_rate
@@ -74,6 +75,29 @@ class Tip:
         d = {f"tip_position_{c}": x[i] for i, c in enumerate("xyz")}
         d["tip_position_z"] += self.length
         d.update({f"tip_quaternion_{i}": q[i] for i in range(4)})
+        return d
+
+
+class PointPositions:
+    """point{j}_position_{xyz} (r = s e_3 + x, as Tip's) at the j-th distinct point s of
+    the point loads (P1: the two nodes around s weighted by their hat functions there).
+    points: (start a_k of its rod on the mesh, h of its rod, its own s) triples."""
+
+    def __init__(self, unk, points):
+        self.unk, self.samples = unk, []
+        space = unk.f["displacement"].function_space
+        for a, h, s in points:
+            i = int(round(s / h)) if abs(s / h - round(s / h)) < 1e-9 else int(s // h)
+            weight = max(s / h - i, 0.0)        # of the node above: 0 at a node
+            nodes = [a + i * h] + ([a + (i + 1) * h] if weight else [])
+            weights = [1.0 - weight] + ([weight] if weight else [])
+            self.samples.append((NodeValues(space, nodes), np.array(weights), a + s))
+
+    def __call__(self) -> dict:
+        d = {}
+        for j, (nodes, weights, s) in enumerate(self.samples):
+            x = weights @ nodes(self.unk.f["displacement"].x.array) + np.array([0.0, 0.0, s])
+            d.update({f"point{j}_position_{c}": x[i] for i, c in enumerate("xyz")})
         return d
 
 

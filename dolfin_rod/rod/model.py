@@ -278,6 +278,9 @@ class RodModel(FEModel):
         drag_dissipation, friction_dissipation = dissipation
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
         self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(self.rods))]
+        self.point_positions = diagnostics.PointPositions(unk, dict.fromkeys(
+            (layout.starts[k], layout.lengths[k] / layout.n_cells[k], load.s)
+            for k, rod in enumerate(self.rods) for load in rod.point_loads))
         forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
                                          drag_dissipation + friction_dissipation, sum(springs, 0))
         if not layout.single:       # each rod's own energies, "<name>.free_energy", ...
@@ -486,12 +489,14 @@ class RodModel(FEModel):
 
     def diagnostics(self, t: float) -> dict[str, float]:
         """MPI-reduced scalars at time t: tip position and quaternion, tip rotation angle
-        (of the rotation path, in [0, 2 pi]), free and kinetic energy, dissipation rate
+        (of the rotation path, in [0, 2 pi]), the position at each point s of the
+        point loads (point{j}_position_{xyz}), free and kinetic energy, dissipation rate
         (incl. drag), power of the applied loads and of the reactions at ends with a
         prescribed motion (load_power; the latter also alone as reaction_power),
         reactions at supported ends."""
         d = self.assembled_diagnostics(t)
         d.update(self.tips[0]())
+        d.update(self.point_positions())
         d.update(self.supports.reactions(self.residual, t, self.problem.structure))
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
