@@ -53,6 +53,14 @@ def turning_points(y) -> tuple[int, int]:
     return top, top + int(np.argmax(rising[top:]))
 
 
+def first_maximum(lam) -> tuple[float, int]:
+    """The first maximum of the load factors lam along a path (the parabola through the
+    steps around it) and its step."""
+    lam = np.asarray(lam, dtype=float)
+    top, _ = turning_points(lam)
+    return extremum(np.arange(len(lam), dtype=float), lam, top), top
+
+
 def displacement_controlled(steps: int = 200, d_max: float = 0.1):
     """(d, F) of the half-arch with the crown's deflection prescribed."""
     rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", start="clamped", end="pinned",
@@ -138,9 +146,7 @@ def deep_arch_limit_load(n_cells: int) -> float:
     rod.set_initial_state()
     path = ArcLength(rod, ds=0.04, max_steps=1000)
     path.run(0.0, 1.0)
-    lam = np.array(path.points)[:, 0]
-    top, _ = turning_points(lam)
-    return 20.0 * extremum(np.arange(len(lam), dtype=float), lam, top)
+    return 20.0 * first_maximum(np.array(path.points)[:, 0])[0]
 
 
 @pytest.mark.slow
@@ -170,10 +176,8 @@ def deep_arch_scene(n_cells: int, folder: str):
         "continuation.max_steps": 100, "outputs.fields": False, "outputs.animation": False,
         "outputs.plots": False}, out=folder, quiet=True)
     assert result.status == "completed"
-    lam = np.array(result.series["time"])
-    top, _ = turning_points(lam)
-    return (20.0 * extremum(np.arange(len(lam), dtype=float), lam, top), top,
-            np.array(result.series["negative_eigenvalues"]))
+    limit, top = first_maximum(result.series["time"])
+    return 20.0 * limit, top, np.array(result.series["negative_eigenvalues"])
 
 
 @pytest.mark.mpi
@@ -238,9 +242,7 @@ def lee_frame_limit_load(n_cells: int) -> float:
     frame.set_initial_state()
     path = ArcLength(frame, ds=0.02, max_steps=20 * n_cells + 200)   # past the limit
     path.run(0.0, 1.0)
-    lam = np.array(path.points)[:, 0]
-    top, _ = turning_points(lam)
-    return 40.0 * extremum(np.arange(len(lam), dtype=float), lam, top)
+    return 40.0 * first_maximum(np.array(path.points)[:, 0])[0]
 
 
 @pytest.mark.slow
