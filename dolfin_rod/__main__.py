@@ -5,18 +5,34 @@ Ctrl-C before the run has started (imports, model set-up) ends with exit status 
 one line instead of a traceback; during the run dolfin_rod.cli stops after the current
 step and writes the summary.  SIGTERM (kill, a batch system's time limit, mpirun passing
 on Ctrl-C to its ranks) is handled as Ctrl-C.
+
+Python drops a KeyboardInterrupt raised while it runs a weakref callback or a ``__del__``
+(it prints "Exception ignored ..." and goes on), so an interrupt that lands there would
+be lost and the run would end with exit 0.  The start-up handler therefore also records
+the signal (``StartUpInterrupt.received``), and the run loop ends the start-up when it
+takes over the signals and finds one recorded (dolfin_rod.run).
 """
 
 import signal
 import sys
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
+class StartUpInterrupt:
+    """The SIGINT and SIGTERM handler until the run loop starts: raises KeyboardInterrupt
+    and remembers that it did (``received``), in case Python drops the exception."""
+
+    def __init__(self):
+        self.received = False
+
+    def __call__(self, signum, frame):
+        self.received = True
+        raise KeyboardInterrupt
 
 
 def main() -> int:
-    signal.signal(signal.SIGTERM, _interrupt)
+    handler = StartUpInterrupt()
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
     try:
         from .cli import main as cli_main
         return cli_main()

@@ -353,7 +353,8 @@ class _InterruptFlag:
     never cut in half, and PETSc callbacks never see a KeyboardInterrupt).  ``at_once()``
     at the first signal, in the handler: a native mpirun kills its ranks 0.2-0.5 s after
     a Ctrl-C or SIGTERM sent to it (SIGCONT, SIGTERM 0.25 s later, SIGKILL 0.2 s later,
-    measured with Open MPI 5), often before the step ends (issue 28 item 22)."""
+    measured with Open MPI 5), often before the step ends (issue 28 item 22).  A signal
+    received during the start-up and dropped by Python is ``raised`` from the start."""
 
     SIGNALS = ("SIGINT", "SIGTERM")
 
@@ -366,6 +367,8 @@ class _InterruptFlag:
         if threading.current_thread() is threading.main_thread():
             self._old = {name: signal.signal(getattr(signal, name), self._handle)
                          for name in self.SIGNALS}
+        # a start-up signal that Python dropped (dolfin_rod.__main__.StartUpInterrupt)
+        self.raised = any(getattr(old, "received", False) for old in self._old.values())
 
     def _handle(self, signum, frame):
         if not self.raised:
@@ -414,6 +417,9 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
         bar = tqdm(total=n_steps, initial=done, unit="step", desc=scene.name)
     progress = {"k": done, "t": times[done]}
     interrupted = _InterruptFlag(lambda: provisional(progress["t"]) if provisional else None)
+    if comm.allreduce(interrupted.raised, op=MPI.LOR):   # Ctrl-C during the start-up
+        interrupted.restore()
+        raise KeyboardInterrupt
 
     def after_step(t_k: float) -> None:
         diag = sim.diagnostics(t_k)

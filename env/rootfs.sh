@@ -70,9 +70,12 @@ sandbox() {  # sandbox ROOT CMD...: run CMD as root inside ROOT with the project
 
 build() {
     [ -f "$root/.dolfin_rod-complete" ] && return 0
-    host_tools
-    check_disk
     mkdir -p "$cache"
+    exec 8>"$cache/.lock-host-tools"
+    flock 8   # two first builds at once (0.9 and 0.11): one apt-get at a time
+    host_tools
+    flock -u 8
+    check_disk
     exec 9>"$cache/.lock-$release"
     flock 9   # a second rodenv waits for the first build instead of racing it
     [ -f "$root/.dolfin_rod-complete" ] && return 0

@@ -606,6 +606,42 @@ def test_ctrl_c_during_start_up_is_a_clean_interruption(tmp_path, name):
     assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted"), err
 
 
+DROPPED_INTERRUPT = """
+import os, signal, sys
+import dolfin_rod.scenes as scenes
+from dolfin_rod.__main__ import main
+
+class Dropped:      # Python drops an exception raised in __del__ ("Exception ignored")
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIG{name})
+
+def build(*args, **kwargs):
+    Dropped()
+    return real_build(*args, **kwargs)
+
+real_build, scenes.build = scenes.build, build
+sys.argv = ["dolfin-rod", "run", *sys.argv[1:]]
+sys.exit(main())
+"""
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="signals one process")
+@pytest.mark.parametrize("name", ["INT", "TERM"])
+def test_an_interrupt_python_drops_during_start_up_still_ends_the_run(tmp_path, name):
+    """The CI failure of 2452a62: SIGINT landed in a weakref callback during the start-up,
+    Python dropped the KeyboardInterrupt, and the run went on to exit 0.  Here the signal
+    lands in a __del__ while the model is built: exit 130, no step taken."""
+    scene = write(tmp_path / "s.toml", CREEP)
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    proc = subprocess.run([sys.executable, "-c", DROPPED_INTERRUPT.format(name=name),
+                           str(scene), "--out", str(tmp_path / "run")], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert "Exception ignored" in proc.stderr        # the exception was indeed dropped
+    assert proc.returncode == 130, proc.stderr
+    assert proc.stderr.strip().splitlines()[-1].startswith("interrupted"), proc.stderr
+    assert "completed" not in proc.stdout
+
+
 # --- item 6: Crank-Nicolson and implicit midpoint after a step load ----------------------
 
 A, AD, MU, MUD = 2.0, 1.0, 0.2, 0.5      # Kelvin-Voigt (mu > 0) torsion, as CREEP
