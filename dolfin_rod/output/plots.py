@@ -14,6 +14,9 @@ from the scene's supports and loads):
                      displacement along it (a hysteresis loop when the rod is viscous;
                      a force that varies: ramp, smooth step, table)
     reactions        force and couple of the support at s = 0 (reaction_*_left_*)
+    contact          the total contact force (obstacles: |sum of the force|; segment
+                     pairs: the sum of the pair forces' magnitudes) and the smallest gap
+                     (scenes with obstacles or contact between segments)
     twist            torsion models: end rotation phi(1, t) and mean natural twist
     energy           K + Psi and the dissipated energy int D dt
     power_residual   |d/dt(K + Psi + E_c) + D - P| / power scale (relative_power_residual)
@@ -67,6 +70,8 @@ def choose_panels(scene, columns) -> list[str]:
         or boundary.get("end_slide") is not None
     if not panels and tip_moves and any(c.endswith("tip_position_x") for c in cols):
         panels.append("tip_deflection")
+    if any(c.endswith(("contact_force_x", "pair_contact_force")) for c in cols):
+        panels.append("contact")
     if any(c.endswith("reaction_force_left_x") for c in cols) and len(panels) < 2:
         panels.append("reactions")
     return panels + ["energy", "power_residual"]
@@ -164,11 +169,30 @@ def _force_extension(ax, col, units, scene):
         axis_label("end force", "force", units)
 
 
+def unloaded(reactions: dict, energy: float, length: float) -> bool:
+    """Every reaction (label '[rod.]F_c' or '[rod.]M_c' -> series) below 1e-9 of the
+    run's scale: energy / length for the forces, energy for the couples, energy the
+    largest of K + Psi and int D dt over the run."""
+    scale = {"F": energy / length, "M": energy}
+    return all(np.max(np.abs(x)) <= 1e-9 * scale[label.split(".")[-1][0]]
+               for label, x in reactions.items())
+
+
 def _reactions(ax, col, units, scene):
-    series = _shown({f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_left_{c}")
-                     for rod in col.prefixes("reaction_force_left_x")
-                     for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
-                     if f"{rod}reaction_{name}_left_{c}" in col.rows[0]})
+    raw = {f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_left_{c}")
+           for rod in col.prefixes("reaction_force_left_x")
+           for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
+           if f"{rod}reaction_{name}_left_{c}" in col.rows[0]}
+    energy = max(np.max(np.abs(col("free_energy") + col("kinetic_energy"))),
+                 np.max(np.abs(col("total_dissipation"))))
+    if unloaded(raw, energy, scene["geometry"]["length"]):
+        ax.text(0.5, 0.5, "the support carries no load:\nevery reaction is round-off\n"
+                "(below 1e-9 of the run's energy / L)", ha="center", va="center",
+                transform=ax.transAxes)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        return "reactions of the support at s = 0", ""
+    series = _shown(raw)
     is_force = {label: label.split(".")[-1][0] == "F" for label in series}
     if not any(is_force.values()):      # forces all round-off: the couples on the axis
         for label, x in series.items():
@@ -184,6 +208,27 @@ def _reactions(ax, col, units, scene):
         twin.set_ylabel(axis_label("couple (dashed)", "moment", units))
         twin.legend(fontsize="small", loc="upper right")
     return "reactions of the support at s = 0", axis_label("force (solid)", "force", units)
+
+
+def _contact(ax, col, units, scene):
+    forces = {f"{rod}obstacles": np.linalg.norm(
+        np.stack([col(f"{rod}contact_force_{c}") for c in "xyz"], axis=1), axis=1)
+        for rod in col.prefixes("contact_force_x")}
+    forces.update({f"{rod}segment pairs": col(f"{rod}pair_contact_force")
+                   for rod in col.prefixes("pair_contact_force")})
+    for label, f in forces.items():
+        ax.plot(col.t, f, label=f"{label}: force")
+    ax.legend(fontsize="small", loc="upper left")
+    gaps = {f"{rod}obstacles": col(f"{rod}min_gap") for rod in col.prefixes("min_gap")}
+    gaps.update({f"{rod}segment pairs": col(f"{rod}min_pair_gap")
+                 for rod in col.prefixes("min_pair_gap")})
+    if gaps:
+        twin = ax.twinx()
+        for label, g in gaps.items():
+            twin.plot(col.t, g, "--", label=f"{label}: smallest gap")
+        twin.set_ylabel(axis_label("smallest gap (dashed)", "length", units))
+        twin.legend(fontsize="small", loc="upper right")
+    return "contact: total force and smallest gap", axis_label("force (solid)", "force", units)
 
 
 def _twist(ax, col, units, scene):
@@ -232,7 +277,7 @@ def _column(name: str):
 
 DRAW = {"tip_deflection": _tip_deflection, "tip_rotation": _tip_rotation,
         "end_torque": _end_torque, "force_extension": _force_extension,
-        "reactions": _reactions, "twist": _twist, "energy": _energy,
+        "reactions": _reactions, "contact": _contact, "twist": _twist, "energy": _energy,
         "power_residual": _power_residual}
 
 
