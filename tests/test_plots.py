@@ -50,6 +50,13 @@ def test_contact_scenes_show_the_contact_panel(name, columns):
                                           ROD_COLUMNS)
 
 
+def test_a_point_force_path_is_drawn_against_its_point():
+    """The deep arch pushed at its crown (a point force in a table, arc length): by
+    default its force against the crown's motion (the limit point shows there)."""
+    arch = load_scene(SCENES / "deep_arch.toml", {"outputs.plots": True})
+    assert choose_panels(arch, ROD_COLUMNS[:-1] + ["point0_position_x"])[0] == "force_extension"
+
+
 def test_an_unloaded_support_is_told_not_plotted():
     """curling_pair's supports carry nothing: its reactions were 1e-12 (forces) and 1e-10
     (couples) beside an energy of 0.9 on a rod of length 1, drawn as noise.  The bound is

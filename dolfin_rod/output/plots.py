@@ -12,7 +12,8 @@ from the scene's supports and loads):
                      torsion models: the end torsion m(1, t)
     force_extension  the applied end force along its direction against the tip
                      displacement along it (a hysteresis loop when the rod is viscous;
-                     a force that varies: ramp, smooth step, table)
+                     a force that varies: ramp, smooth step, table); without an end
+                     force, a point force against its point's displacement
     reactions        force and couple of the support at s = 0 (reaction_*_left_*)
     contact          the total contact force (obstacles: |sum of the force|; segment
                      pairs: the sum of the pair forces' magnitudes) and the smallest gap
@@ -46,6 +47,14 @@ def axis_label(name: str, kind: str, units: str | None) -> str:
     return f"{name} [{unit(kind, units)}]"
 
 
+def time_label(scene, units: str | None) -> str:
+    """The time axis' label: the load factor under arc-length continuation (the loads
+    linear in it; it turns back at limit points), else 't [time unit]'."""
+    if scene["continuation"]["method"] == "arc_length":
+        return "load factor t [1] (arc-length continuation)"
+    return axis_label("t", "time", units)
+
+
 def choose_panels(scene, columns) -> list[str]:
     """The panels for the scene: its ``outputs.plots`` if given, else from its supports
     and loads (see module docstring); always ending with energy and power residual."""
@@ -57,9 +66,10 @@ def choose_panels(scene, columns) -> list[str]:
         return ["end_torque", "twist", "energy", "power_residual"]
     boundary, loads = scene["boundary"], scene["loads"]
     panels = []
-    force = loads.get("end_force")
-    if force is not None and force.type not in ("constant", "step") \
-            and boundary["end"] == "free" and "tip_position_x" in cols:
+    force = loaded_point(scene)
+    if force is not None and loads[force[0]].type not in ("constant", "step") \
+            and (force[0] == "point_force" or boundary["end"] == "free") \
+            and f"{force[1]}_position_x" in cols:
         panels.append("force_extension")
     if boundary.get("end_rotation") is not None and "reaction_couple_right_z" in cols:
         panels += ["end_torque", "tip_rotation"]
@@ -157,16 +167,31 @@ def _end_torque(ax, col, units, scene):
     return "end torque: couple of the support at s = L", axis_label("couple", "moment", units)
 
 
+def loaded_point(scene) -> tuple[str, str] | None:
+    """The force of force_extension and the columns of its point: ("end_force", "tip")
+    for a free end's force, else ("point_force", "point0") for a point force (point0 is
+    the first point of the point loads: the force's where no couple is elsewhere)."""
+    loads = scene["loads"]
+    if loads.get("end_force") is not None:
+        return "end_force", "tip"
+    force, couple = loads.get("point_force"), loads.get("point_couple")
+    if force is not None and (couple is None or couple.s == force.s):
+        return "point_force", "point0"
+    return None
+
+
 def _force_extension(ax, col, units, scene):
-    force = scene["loads"]["end_force"].vector()
+    key, point = loaded_point(scene)
+    force = scene["loads"][key].vector()
     f = np.array([force(t) for t in col.t])
     k = int(np.argmax(np.linalg.norm(f, axis=1)))
     e = f[k] / max(np.linalg.norm(f[k]), 1e-300)
-    tip = np.stack([col(f"tip_position_{c}") for c in "xyz"], axis=1)
-    ax.plot((tip - tip[0]) @ e, f @ e)
-    ax.set_xlabel(axis_label("extension along the force", "length", units))
-    return "force-extension (end force against tip displacement)", \
-        axis_label("end force", "force", units)
+    x = np.stack([col(f"{point}_position_{c}") for c in "xyz"], axis=1)
+    ax.plot((x - x[0]) @ e, f @ e)
+    where = "tip" if point == "tip" else f"point s = {scene['loads'][key].s:g}"
+    ax.set_xlabel(axis_label(f"displacement of the {where} along the force", "length", units))
+    return f"force-displacement ({key.replace('_', ' ')} against its point's motion)", \
+        axis_label(key.replace("_", " "), "force", units)
 
 
 def unloaded(reactions: dict, energy: float, length: float) -> bool:
@@ -270,7 +295,11 @@ def _column(name: str):
     """A panel of one CSV column against time (``dolfin-rod plot RUN column``)."""
     def draw(ax, col, units, scene):
         kind = column_kind(name)
-        ax.plot(col.t, col(name))
+        values = col(name)
+        ax.plot(col.t, values)
+        if np.all(values == np.round(values)):      # a count (negative_eigenvalues, ...)
+            from matplotlib.ticker import MaxNLocator
+            ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         return name, axis_label(name, kind, units) if kind else name
     return draw
 
@@ -299,7 +328,7 @@ def plot_histories(rows: list[dict], path: Path, scene, title: str = "",
         ax.set_title(heading, fontsize=10)
         ax.set_ylabel(ylabel)
         if not ax.get_xlabel():
-            ax.set_xlabel(axis_label("t", "time", units))
+            ax.set_xlabel(time_label(scene, units))
     for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
     fig.suptitle(title)
