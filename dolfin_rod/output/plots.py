@@ -15,6 +15,8 @@ from the scene's supports and loads):
                      a force that varies: ramp, smooth step, table); without an end
                      force, a point force against its point's displacement
     reactions        force and couple of the support at s = 0 (reaction_*_left_*)
+    stability        the count of negative eigenvalues of the stiffness (the column
+                     negative_eigenvalues of runs that check stability): 0 is stable
     contact          the total contact force (obstacles: |sum of the force|; segment
                      pairs: the sum of the pair forces' magnitudes) and the smallest gap
                      (scenes with obstacles or contact between segments)
@@ -256,6 +258,13 @@ def _contact(ax, col, units, scene):
     return "contact: total force and smallest gap", axis_label("force (solid)", "force", units)
 
 
+def _stability(ax, col, units, scene):
+    from matplotlib.ticker import MaxNLocator
+    ax.plot(col.t, col("negative_eigenvalues"), drawstyle="steps-post")
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    return "stability: negative eigenvalues of the stiffness (0: stable)", "count"
+
+
 def _twist(ax, col, units, scene):
     if "end_rotation" not in col.rows[0]:   # a rod's "twist" column (self-contact runs)
         return _column("twist")(ax, col, units, scene)
@@ -295,18 +304,15 @@ def _column(name: str):
     """A panel of one CSV column against time (``dolfin-rod plot RUN column``)."""
     def draw(ax, col, units, scene):
         kind = column_kind(name)
-        values = col(name)
-        ax.plot(col.t, values)
-        if np.all(values == np.round(values)):      # a count (negative_eigenvalues, ...)
-            from matplotlib.ticker import MaxNLocator
-            ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.plot(col.t, col(name))
         return name, axis_label(name, kind, units) if kind else name
     return draw
 
 
 DRAW = {"tip_deflection": _tip_deflection, "tip_rotation": _tip_rotation,
         "end_torque": _end_torque, "force_extension": _force_extension,
-        "reactions": _reactions, "contact": _contact, "twist": _twist, "energy": _energy,
+        "reactions": _reactions, "contact": _contact, "stability": _stability,
+        "twist": _twist, "energy": _energy,
         "power_residual": _power_residual}
 
 
