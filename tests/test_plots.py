@@ -50,6 +50,13 @@ def test_contact_scenes_show_the_contact_panel(name, columns):
                                           ROD_COLUMNS)
 
 
+def test_a_plectoneme_shows_torque_link_and_contact():
+    """A rod twisted in self-contact: the end torque, Lk = Tw + Wr, the contact."""
+    columns = ROD_COLUMNS + ["twist", "writhe", "pair_contact_force", "min_pair_gap"]
+    panels = choose_panels(load_scene(SCENES / "plectoneme.toml"), columns)
+    assert panels[:3] == ["end_torque", "twist", "contact"]
+
+
 def test_a_point_force_path_is_drawn_against_its_point():
     """The deep arch pushed at its crown (a point force in a table, arc length): by
     default its force against the crown's motion (the limit point shows there)."""

@@ -20,7 +20,8 @@ from the scene's supports and loads):
     contact          the total contact force (obstacles: |sum of the force|; segment
                      pairs: the sum of the pair forces' magnitudes) and the smallest gap
                      (scenes with obstacles or contact between segments)
-    twist            torsion models: end rotation phi(1, t) and mean natural twist
+    twist            torsion models: end rotation phi(1, t) and mean natural twist; a
+                     clamped rod in self-contact: Lk (end turns) = Tw + Wr
     energy           K + Psi and the dissipated energy int D dt
     power_residual   |d/dt(K + Psi + E_c) + D - P| / power scale (relative_power_residual)
 
@@ -74,7 +75,7 @@ def choose_panels(scene, columns) -> list[str]:
             and f"{force[1]}_position_x" in cols:
         panels.append("force_extension")
     if boundary.get("end_rotation") is not None and "reaction_couple_right_z" in cols:
-        panels += ["end_torque", "tip_rotation"]
+        panels += ["end_torque", "twist" if "writhe" in cols else "tip_rotation"]
     if not panels and "tip_quaternion_0" in cols and (
             loads.get("end_couple") is not None or loads.get("distributed_couple") is not None):
         panels.append("tip_rotation")       # a rod turned by couples (spin_up)
@@ -265,8 +266,24 @@ def _stability(ax, col, units, scene):
     return "stability: negative eigenvalues of the stiffness (0: stable)", "count"
 
 
+def _link(ax, col, units, scene):
+    """Self-contact runs of a clamped rod: twist Tw, writhe Wr, their sum and the link
+    Lk = the end's turns (Calugareanu-White: Lk = Tw + Wr)."""
+    q = np.stack([col(f"tip_quaternion_{i}") for i in range(4)], axis=1)
+    tw, wr = col("twist"), col("writhe")
+    ax.plot(col.t, unwrapped_angle(q)[0] / (2 * np.pi), "k", lw=3, alpha=0.3,
+            label="Lk: end turns")
+    ax.plot(col.t, tw + wr, "k--", label="Tw + Wr")
+    ax.plot(col.t, tw, label="twist Tw")
+    ax.plot(col.t, wr, label="writhe Wr")
+    ax.legend(fontsize="small")
+    return "link = twist + writhe (Calugareanu-White)", "turns [1]"
+
+
 def _twist(ax, col, units, scene):
-    if "end_rotation" not in col.rows[0]:   # a rod's "twist" column (self-contact runs)
+    if "writhe" in col.rows[0] and "tip_quaternion_0" in col.rows[0]:
+        return _link(ax, col, units, scene)
+    if "end_rotation" not in col.rows[0]:   # a rod's "twist" column
         return _column("twist")(ax, col, units, scene)
     ax.plot(col.t, col("end_rotation"), label="end rotation phi(1)")
     ax.plot(col.t, col("mean_natural_twist"), label="mean natural twist")
