@@ -244,18 +244,16 @@ def _contact(ax, col, units, scene):
         for rod in col.prefixes("contact_force_x")}
     forces.update({f"{rod}segment pairs": col(f"{rod}pair_contact_force")
                    for rod in col.prefixes("pair_contact_force")})
-    for label, f in forces.items():
-        ax.plot(col.t, f, label=f"{label}: force")
-    ax.legend(fontsize="small", loc="upper left")
+    lines = [ax.plot(col.t, f, label=f"{label}: force")[0] for label, f in forces.items()]
     gaps = {f"{rod}obstacles": col(f"{rod}min_gap") for rod in col.prefixes("min_gap")}
     gaps.update({f"{rod}segment pairs": col(f"{rod}min_pair_gap")
                  for rod in col.prefixes("min_pair_gap")})
     if gaps:
         twin = ax.twinx()
-        for label, g in gaps.items():
-            twin.plot(col.t, g, "--", label=f"{label}: smallest gap")
+        lines += [twin.plot(col.t, g, "--", label=f"{label}: smallest gap")[0]
+                  for label, g in gaps.items()]
         twin.set_ylabel(axis_label("smallest gap (dashed)", "length", units))
-        twin.legend(fontsize="small", loc="upper right")
+    ax.legend(handles=lines, fontsize="small", loc="best")   # one legend: no overlap
     return "contact: total force and smallest gap", axis_label("force (solid)", "force", units)
 
 
