@@ -59,7 +59,7 @@ OBSTACLE_SHAPES = ("plane", "sphere", "cylinder")
 # histories.png (output/plots.py) and the unit systems of a scene's axes
 COLOURS = ("auto", "u", "v", "u_d", "v_d", "n", "m", "xi")
 PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "reactions",
-          "twist", "energy", "power_residual")
+          "contact", "stability", "twist", "energy", "power_residual")
 
 # quantity kind -> unit per unit system
 UNITS = {
