@@ -52,3 +52,21 @@ def test_buckle_writes_a_picture_of_its_modes(tmp_path):
         assert ax.get_title() == f"{rows[len(planes)]['load_factor']:.6g}"
         planes.append(view_plane(centre, step["points"] - centre)[1])
     assert abs(planes[0] @ planes[1]) < 1e-6          # the two planes, perpendicular
+
+
+def test_a_systems_rods_are_drawn_apart():
+    """Two rods of a system (3 and 4 nodes, parallel, 0.5 apart; the sample's cells skip
+    from the first rod's last node to the second's first): each is its own drawn line,
+    for the centre line and for the displaced one, and their points are the rods'."""
+    from dolfin_rod.output.mode_picture import runs
+    s = np.array([0.0, 0.5, 1.0, 0.0, 1 / 3, 2 / 3, 1.0])
+    centre = np.column_stack([np.r_[np.zeros(3), np.full(4, 0.5)], np.zeros(7), s])
+    segments = np.array([[0, 1], [1, 2], [3, 4], [4, 5], [5, 6]])
+    assert [list(r) for r in runs(segments, 7)] == [[0, 1, 2], [3, 4, 5, 6]]
+    mode = centre + np.column_stack([np.zeros(7), 0.1 * s, np.zeros(7)])
+    ax = mode_figure(centre, [mode], ["mode 1"], segments=segments).axes[0]
+    assert [len(line.get_xydata()) for line in ax.lines] == [3, 4, 3, 4]
+    plane = view_plane(centre, mode - centre)
+    for line, points, rod in zip(ax.lines, [centre, centre, mode, mode], runs(segments, 7) * 2):
+        along, across = ((points[rod] - centre.mean(axis=0)) @ plane.T).T
+        assert line.get_xydata() == pytest.approx(np.column_stack([across, along]), abs=1e-12)

@@ -2,7 +2,9 @@
 modes.png beside the .bp file, output/modes.py): one panel per mode, the rod's centre
 line (grey) and the centre line displaced by the mode (scaled as in the .bp file),
 each projected on the plane of the centre line's axis and the mode's main direction
-(view_plane), titled with the mode's load factor or frequency."""
+(view_plane), titled with the mode's load factor or frequency.  A rod system's lines are
+drawn rod by rod (``segments``: the cells' nodes; a rod's nodes are a run of them), not
+joined from one rod's end to the next one's start."""
 
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["view_plane", "mode_figure", "draw_modes"]
+__all__ = ["view_plane", "mode_figure", "draw_modes", "runs"]
 
 
 def view_plane(centre: np.ndarray, displacement: np.ndarray) -> np.ndarray:
@@ -35,11 +37,20 @@ def _principal(points: np.ndarray, fallback: np.ndarray) -> np.ndarray:
     return np.linalg.svd(points, full_matrices=False)[2][0]
 
 
+def runs(segments: np.ndarray | None, count: int) -> list[np.ndarray]:
+    """The nodes of each rod of ``count`` nodes joined by the cells ``segments`` ((N, 2),
+    in the order of s; None: one rod), each run a range of node numbers."""
+    if segments is None or len(segments) == 0:
+        return [np.arange(count)]
+    breaks = np.flatnonzero(segments[1:, 0] != segments[:-1, 1]) + 1
+    return [np.arange(part[0, 0], part[-1, 1] + 1) for part in np.split(segments, breaks)]
+
+
 def mode_figure(centre: np.ndarray, displaced: list[np.ndarray], titles: list[str],
-                heading: str = ""):
+                heading: str = "", segments: np.ndarray | None = None):
     """The figure: a panel per mode (the centre line, the line ``displaced``, both
-    projected by view_plane; the axes' first line is the centre line, the second the
-    displaced one)."""
+    projected by view_plane; the axes' lines: the centre line's rods, then the displaced
+    line's, one line per rod of ``segments`` (runs))."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -47,12 +58,14 @@ def mode_figure(centre: np.ndarray, displaced: list[np.ndarray], titles: list[st
     nrows = -(-len(displaced) // ncols)
     fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 3.6 * nrows),
                              squeeze=False)
+    rods = runs(segments, len(centre))
     for ax, points, title in zip(axes.flat, displaced, titles):
         plane = view_plane(centre, points - centre)
         for line, style in ((centre, dict(color="0.6", lw=1.5)),
                             (points, dict(color="C0", lw=2.0, marker=".", ms=4))):
             along, across = ((line - centre.mean(axis=0)) @ plane.T).T
-            ax.plot(across, along, **style)
+            for rod in rods:
+                ax.plot(across[rod], along[rod], **style)
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_title(title, fontsize=10)
         ax.set_xlabel("across (the mode's direction)")
@@ -65,9 +78,10 @@ def mode_figure(centre: np.ndarray, displaced: list[np.ndarray], titles: list[st
 
 
 def draw_modes(path: Path, centre: np.ndarray, displaced: list[np.ndarray],
-               titles: list[str], heading: str = "") -> None:
+               titles: list[str], heading: str = "",
+               segments: np.ndarray | None = None) -> None:
     """mode_figure saved as ``path`` (PNG)."""
     import matplotlib.pyplot as plt
-    fig = mode_figure(centre, displaced, titles, heading)
+    fig = mode_figure(centre, displaced, titles, heading, segments)
     fig.savefig(path, dpi=100)
     plt.close(fig)

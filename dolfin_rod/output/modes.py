@@ -1,8 +1,9 @@
 """The modes of an analysis of a run's end state (``dolfin-rod buckle``, ``modes``):
 ``<kind>.json`` (the table: one row per mode), ``<kind>.bp`` (ParaView, the
 ADIOS2VTXReader: one step per mode, "time" = the mode's number, the centre line
-displaced by the mode scaled to a largest displacement of 0.1 L, with the point data
-``mode_displacement`` and ``mode_rotation`` of the mode scaled to 1), ``<kind>.png``
+displaced by the mode scaled to a largest displacement of 0.1 L (a system: L its longest
+rod), with the point data ``mode_displacement`` and ``mode_rotation`` of the mode scaled
+to 1), ``<kind>.png``
 (output/mode_picture.py: the same displaced centre lines, one panel per mode) and the
 table as text.  The mode shapes are gathered on rank 0 in the order of s (line_fields.py);
 rank 0 writes.
@@ -50,7 +51,7 @@ def write_modes(folder: Path, model, kind: str, rows: list[dict], shapes: list[d
         vtx.close()
         if samples:
             draw_modes(folder / names[2], samples[0].point["centre_line"], displaced,
-                       [_title(row) for row in rows], HEADINGS[kind])
+                       [_title(row) for row in rows], HEADINGS[kind], samples[0].segments())
     on_root(comm, write, f"cannot write the {kind} modes in {folder}")
     return names
 

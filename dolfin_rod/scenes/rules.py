@@ -128,9 +128,21 @@ def _check_continuation(scene: Scene) -> None:
     if scene["time"]["integrator"] != "stepper":
         raise scene.error("continuation.method", "arc_length replaces the time steps: "
                                                  "time.integrator = \"stepper\"")
-    loads = [f"loads.{k}" for k in sorted(scene.given["loads"])] + \
+    if not scene.in_system:         # a system's: scenes/systems.py, over all its rods
+        check_continuation_parameter(scene, continuation_loads(scene))
+
+
+def continuation_loads(scene: Scene) -> list[str]:
+    """What a continuation parameter may name in a scene (of one rod): its loads and
+    end motions."""
+    return [f"loads.{k}" for k in sorted(scene.given["loads"])] + \
         [f"boundary.{k}" for k in END_MOTIONS if k in scene.given["boundary"]]
-    if con["parameter"] not in loads:
+
+
+def check_continuation_parameter(scene: Scene, loads: list[str]) -> None:
+    """Arc-length continuation's parameter names one of ``loads``."""
+    con = scene["continuation"]
+    if con["method"] == "arc_length" and con["parameter"] not in loads:
         raise scene.error("continuation.parameter", (
             f"{con['parameter']!r} is not a load of this scene: " if con["parameter"]
             else "arc_length needs the load its parameter scales: ") + (

@@ -37,6 +37,7 @@ class Scene:
     rods: list = field(default_factory=list)     # [[rods]]: systems.RodEntry (none: one rod)
     joints: list = field(default_factory=list)   # [[joints]]: systems.JointEntry
     joined: bool = False      # a rod of [[rods]] held by a joint (its supports may be free)
+    in_system: bool = False   # a rod of [[rods]]: the continuation parameter is the system's
 
     def __getitem__(self, table: str) -> dict[str, Any]:
         return self.data[table]

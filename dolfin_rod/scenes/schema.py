@@ -572,8 +572,9 @@ def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> S
 
 
 def _validate_tables(raw: dict, source: str, default_name: str,
-                     joined: bool = False) -> Scene:
-    """The tables of one scene (of one rod; ``joined``: a rod of [[rods]] with a joint)."""
+                     joined: bool | None = None) -> Scene:
+    """The tables of one scene (of one rod; ``joined``: of a rod of [[rods]], None for
+    a scene of one rod, whether a joint holds it)."""
     for table in raw:
         if table not in SCHEMA:
             raise SceneError(source, str(table),
@@ -599,7 +600,8 @@ def _validate_tables(raw: dict, source: str, default_name: str,
         data[table] = _table(section, keys, table, source)
     if data["scene"]["name"] is None:
         data["scene"]["name"] = safe_name(default_name)
-    scene = Scene(data, source, given=given, joined=joined)
+    scene = Scene(data, source, given=given, joined=bool(joined),
+                  in_system=joined is not None)
     check_combinations(scene)
     return scene
 

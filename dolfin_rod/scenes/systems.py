@@ -83,8 +83,17 @@ def validate_system(raw: dict, source: str, default_name: str,
             for k, entry in enumerate(entries)]
     scene = copy.copy(rods[0].scene)
     scene.rods, scene.joints = rods, joint_entries
+    _check_continuation(scene)
     _check_joint_points(scene)
     return scene
+
+
+def _check_continuation(scene: Scene) -> None:
+    """The continuation parameter names a load or end motion of any rod (the rods'
+    own checks leave it to the system: Lee's frame loads its beam only)."""
+    from .rules import check_continuation_parameter, continuation_loads
+    loads = sorted({load for rod in scene.rods for load in continuation_loads(rod.scene)})
+    check_continuation_parameter(scene, loads)
 
 
 def _rod(raw: dict, entry: dict, k: int, source: str, default_name: str,
