@@ -19,7 +19,7 @@
 #   - no interpenetration: the smallest pair gap > 0 at every step;
 #   - before the lowering (t <= 2 s) the rod is straight and uniformly twisted, so it is
 #     the torsion problem of Section 5: the end torque equals eq. apptorsion (with the
-#     discrete rod's twist and reaction factor, closed_forms.p1_twist; to 6e-3: the
+#     discrete rod's twist and reaction factor, closed_forms.p1_twist; to 1e-2: the
 #     closed form has no rotational inertia)
 #         m(t) = mu du/dt + alpha u - alpha^2 / mu_d int_0^t exp(-k (t - s)) u(s) ds,
 #     alpha = A_33, alpha_d = A_d,33, mu_d = M_d,33, mu = M_33 (the small Kelvin-Voigt
@@ -27,11 +27,11 @@
 #   - at held twist (6-14 s) the end torque relaxes as M_inf + c exp(-(t - 6) / tau_fit)
 #     (least squares): at a frozen shape every stress relaxes exactly on tau (the law
 #     above at fixed u), the plectoneme's slow creep changes it a little: |tau_fit / tau - 1|
-#     < 0.03 (measured 2.5e-3);
+#     < 0.03 (measured 2.5e-3 at 28 cells, 2.8e-3 at 40);
 #   - the set: 6 s after the unwinding the elastic rod is open (|Wr| < 0.02) and the
 #     viscoelastic one still coiled (|Wr| > 0.5, its strands still in contact).
 #
-# Run: `./rodenv python3 demos/plectoneme_setting.py` (40 cells, dt = 0.01 s: ~15 min on a
+# Run: `./rodenv python3 demos/plectoneme_setting.py` (40 cells, dt = 0.01 s: ~10 min on the
 # loaded machine), also under `mpirun -n 2`; `--small` (28 cells, dt = 0.025 s) is the
 # test's resolution; `--replot` redraws and re-checks the last run.  Output:
 # results/plectoneme_setting/ (--small: its folder small/): the two run folders
@@ -129,10 +129,12 @@ def main() -> None:
     print(report)
     # quasi-static closed form vs the rod with rotational inertia rho J: the table's kinks
     # (every 0.1 s, the rate jumps by up to 0.84 rad/s) send torsional waves of amplitude
-    # up to rho J c 0.84 rad/s = 9.4e-3 N m = 4e-3 of the largest torque (c = sqrt(G / rho))
-    # plus rho J L Phi'' / 3 <= 1.7e-3 N m: measured 3.9e-3 (28 cells), 1.7e-4 when the
-    # same run is made 1000 times lighter (density 1 kg/m^3)
-    assert torsion_error < 6e-3, torsion_error
+    # up to rho J c 0.84 rad/s = 9.4e-3 N m = 4e-3 of the largest torque (c = sqrt(G / rho)),
+    # two overlapping at most (M damps them within ~0.06 s), plus rho J L Phi'' / 3 <=
+    # 1.7e-3 N m (7e-4): 1e-2.  Measured 3.9e-3 (28 cells), 5.9e-3 (40 cells, dt = 0.01 s),
+    # 1.7e-4 when the 28-cell run is made 1000 times lighter (density 1 kg/m^3); the
+    # relaxation itself lowers the torque by ~10 % by t = 2 s
+    assert torsion_error < 1e-2, torsion_error
     # exact at a frozen shape; the plectoneme creeps during the hold (Wr by 2.6 %), which
     # sets the scale of the deviation: 3 % (measured 2.5e-3 at 28 cells)
     assert abs(tau_fit / tau - 1.0) < 0.03, tau_fit

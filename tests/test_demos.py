@@ -175,7 +175,7 @@ def test_plectoneme_setting_demo_small(ranks):
     """The viscoelastic plectoneme at the test's resolution (--small: 28 cells, dt =
     0.025 s, two runs of 26 s: ~6 min serially on the loaded machine).  The demo asserts
     Lk = Tw + Wr to 1e-3 for both rods, every pair's gap > 0 at every step, the end torque
-    of the straight twisted rod against eq. apptorsion to 6e-3, the relaxation time of the
+    of the straight twisted rod against eq. apptorsion to 1e-2, the relaxation time of the
     torque at held twist within 3 % of tau and the set (elastic |Wr| < 0.02, viscoelastic
     |Wr| > 0.5 after the unwinding); here the time series are read back: the clamp's 8
     turns reached and undone, the elastic torque held, the viscoelastic one relaxing."""
