@@ -292,6 +292,12 @@ class EndSupports:
             return x0 + d, np_qmul(qr, q0)
         return x0 + d, q0
 
+    def largest_turn(self, t: float) -> float:
+        """The largest angle |end_rotation(t)| of this rod's prescribed end rotations (0
+        without any)."""
+        return max((float(np.linalg.norm(np.asarray(rotation(t), float)))
+                    for rotation in self.rotation.values()), default=0.0)
+
     def scale(self, fraction: float) -> None:
         """The prescribed motions' displacements and rotation vectors scaled by
         ``fraction`` from now on (the consistent start's path, integrators/lie_alpha.py:

@@ -372,12 +372,18 @@ class RodModel(FEModel):
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links, terms=terms, scale_motions=self.scale_motions, where_failed=where)
+            links=links, terms=terms, scale_motions=self.scale_motions,
+            motion_turn=self.motion_turn, where_failed=where)
 
     def scale_motions(self, fraction: float) -> None:
         """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""
         for supports in self.end_supports:
             supports.scale(fraction)
+
+    def motion_turn(self, t: float) -> float:
+        """The largest angle by which a prescribed end rotation of any rod turns its end
+        at time t (EndSupports.largest_turn)."""
+        return max(supports.largest_turn(t) for supports in self.end_supports)
 
     def commit_rotations(self) -> None:
         """After an accepted step: rotation vectors q_n <- q_n c(theta), theta <- 0; the
