@@ -42,6 +42,7 @@ from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
 from .joints import JointReactions, joint_nodes, node_links
+from .kinks import Split, split_at_kinks
 from .layout import RodLayout
 from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
@@ -110,13 +111,17 @@ class RodModel(FEModel):
                   end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn,
                   end=end, point_loads=point_loads)
         self._build([rod], model, variant, constraints, rotations, comm, obstacles=obstacles,
-                    contact=contact)
+                    contact=contact, split_kinks=True)
 
     def _build(self, rods: list[Rod], model: str, variant: str, constraint: str | None,
                rotations: str, comm, joints: Sequence[Joint] = (),
-               obstacles: Sequence[Obstacle] = (), contact: ContactLaw | None = None) -> None:
-        """The model of one or several rods and their joints (see system.RodSystem)."""
-        self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
+               obstacles: Sequence[Obstacle] = (), contact: ContactLaw | None = None,
+               split_kinks: bool = False) -> None:
+        """The model of one or several rods and their joints (see system.RodSystem); a
+        single rod (``split_kinks``) as the pieces between the corners of its stress-free
+        polyline, joined rigidly (kinks.py)."""
+        joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm,
+                                         split_kinks)
         self.rotations = self._rotation_unknowns(rotations, joints)
         disc = discretise(comm, self.layout, self.rotations)
         super().__init__(disc.mesh)
@@ -144,13 +149,19 @@ class RodModel(FEModel):
         self._diagnostics(resp, disc, natural_pairs, power, dissipation, springs)
 
     def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
-                           constraint: str | None, joints: Sequence[Joint], comm) -> None:
-        """Refuse bad input before any mesh; the rods' data and their layout on one mesh."""
+                           constraint: str | None, joints: Sequence[Joint], comm,
+                           split_kinks: bool = False) -> list[Joint]:
+        """Refuse bad input before any mesh; the rods' data (a rod split at its kinks:
+        its pieces) and their layout on one mesh; the joints (with the kinks')."""
         check_model(model, rods[0].params)
         check_variant(variant)
         constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.density))
         check_rods(rods, model, variant)
         check_joints(list(joints), rods)
+        split = split_at_kinks(rods[0]) if split_kinks else Split(rods, [], ())
+        self.kinked = len(split.rods) > len(rods)
+        length = float(rods[0].params.length)
+        rods, joints = split.rods, list(joints) + split.joints
         check_n_cells(sum(rod.n_cells for rod in rods), comm.size)   # cells per rank
         self.rods = rods
         self.params, self.model, self.variant, self.constraint = (rods[0].params, model,
@@ -160,10 +171,12 @@ class RodModel(FEModel):
         self.point_loads = [load for rod in rods for load in rod.point_loads]
         self.layout = layout = RodLayout(tuple(rod.name for rod in rods),
                                          tuple(float(rod.params.length) for rod in rods),
-                                         tuple(rod.n_cells for rod in rods))
-        self.length = max(layout.lengths)
+                                         tuple(rod.n_cells for rod in rods),
+                                         split.offsets if self.kinked else ())
+        self.length = length if self.kinked else max(layout.lengths)
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(rods[0].params.density)
+        return joints
 
     def _rotation_unknowns(self, rotations: str, joints: Sequence[Joint]) -> str:
         """The rotation unknowns ("quaternion" or "rotation_vector") the rods can have
@@ -475,7 +488,11 @@ class RodModel(FEModel):
             initial_state.check_natural(name, given, [rod.name for rod in self.rods])
         held = any("clamped" in supports.ends or bool(supports.rotation)
                    for supports in self.end_supports)
-        if self.layout.single:
+        if self.kinked and start is not None:
+            raise ValueError("start: a rod whose stress-free polyline is split at its kinks "
+                             "(rod/kinks.py) takes no starting state yet; give its pieces "
+                             "as rods of a RodSystem with rigid joints and start those")
+        if self.layout.single or self.kinked:
             check_start(start, self.length, self.dynamic, rotation_held=held)
         elif start is not None:
             check_rod_starts(start, self.rods, self.dynamic, rotation_held=held)
@@ -501,9 +518,14 @@ class RodModel(FEModel):
         prescribed motion (load_power; the latter also alone as reaction_power),
         reactions at supported ends."""
         d = self.assembled_diagnostics(t)
-        d.update(self.tips[0]())
+        d.update(self.tips[-1]())        # a rod split at its kinks: of its last piece
         d.update(self.point_positions())
         d.update(self.supports.reactions(self.residual, t, self.problem.structure))
+        if self.kinked:                  # the right end's reactions, of its last piece
+            right = self.end_supports[-1].reactions(self.residual, t, self.problem.structure)
+            d["reaction_power"] = d.get("reaction_power", 0.0) + right.pop(
+                "reaction_power", 0.0)
+            d.update(right)
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         self.pass_through(t)
