@@ -13,7 +13,7 @@ from rod_systems import (FRAME, PENDULUM, ROUND_OFF, double_pendulum, pendulum_a
                          rigid_double_pendulum)
 from serial_reference import serial
 
-from dolfin_rod import Rod, RodParameters, RodSystem, StartingState, TimeStepper
+from dolfin_rod import EndLoad, Rod, RodParameters, RodSystem, StartingState, TimeStepper
 from dolfin_rod.rod.joints import Joint
 from dolfin_rod.rod.start import Polyline
 from dolfin_rod.theory.rotations import np_quaternion_from_rotation_vector, np_rotation_matrix
@@ -183,3 +183,42 @@ def test_split_shaft_twisted_at_the_start_through_its_joint(kind):
         q = [d[f"a.tip_quaternion_{i}"] for i in range(4)]
         assert q == pytest.approx([np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)], abs=1e-9)
 
+
+
+@pytest.mark.mpi
+def test_jointed_frame_started_in_equilibrium_is_the_closed_form_at_rest():
+    """A dynamic L-frame (the welded frame of tests/rod_systems.l_frame with density 1,
+    section inertia 0.01, 4 cells a rod) under a constant tip force P e_3 down, P =
+    1e-6, started in equilibrium (StartingState(equilibrium=True) for one rod settles
+    the whole system, the knee held): the beam tip at t = 0 is the closed form of
+    tests/test_joints.py (measured 1.9e-7 relative: the rotations' second-order terms;
+    tolerance 2e-6) and the frame stays at rest (kinetic energy measured 1.9e-28 over
+    0.1 s, asserted < 1e-22; released straight it swings: 1.9e-14, asserted > 1e-15)."""
+    f, P, N = FRAME, 1e-6, 4
+
+    def frame(equilibrium: bool):
+        params = [RodParameters(length=length, A=(f["EI"], f["EI"], 1.5),
+                                B=(f["GA"], f["GA"], f["EA"]), density=1.0,
+                                section_inertia=0.01) for length in (f["L1"], f["L2"])]
+        top = (0.0, 0.0, f["L1"])
+        model = RodSystem([Rod(params[0], N, name="column"),
+                           Rod(params[1], N, "free", end="free", name="beam", position=top,
+                               orientation=(0.0, np.pi / 2, 0.0),
+                               end_loads=[EndLoad("force", (0.0, 0.0, -P))])],
+                          joints=[Joint("rigid", ("column", "beam"), top)],
+                          model="hyperelastic")
+        start = {"column": StartingState(equilibrium=True)} if equilibrium else None
+        model.set_initial_state(start=start)
+        rows = []
+        TimeStepper(model.problem, solver_options=ROUND_OFF).run(
+            0.0, 0.1, 0.02, observer=lambda t, _: rows.append(model.diagnostics(t)))
+        return rows
+
+    rows = frame(True)
+    tip = np.array([rows[0][f"beam.tip_position_{c}"] for c in "xyz"]) - [f["L2"], 0.0, f["L1"]]
+    w = -(P * f["L2"] ** 3 / (3 * f["EI"]) * (1 - 1 / (4 * N ** 2))
+          + P * f["L2"] ** 2 * f["L1"] / f["EI"] + P * f["L1"] / f["EA"] + P * f["L2"] / f["GA"])
+    u = P * f["L2"] * f["L1"] ** 2 / (2 * f["EI"])
+    assert tip == pytest.approx([u, 0.0, w], rel=2e-6, abs=1e-18)
+    assert max(r["kinetic_energy"] for r in rows) < 1e-22
+    assert max(r["kinetic_energy"] for r in frame(False)) > 1e-15
