@@ -200,6 +200,9 @@ class EndSupports:
         self.ends = tuple(ends)
         self.turn = {end: np.asarray(a, float) for end, a in (end_turn or {}).items()}
         self.linked = linked_axes(end_slide, end_turn, end_frames or {})
+        if "velocity" in model.unknowns.spaces:      # quaternions: V = x_t on the line too
+            self.linked.update({("velocity", end): axis for (block, end), axis
+                                in list(self.linked.items()) if block == "displacement"})
         self.turn_material = {end: self.linked.get(("rotation_increment", end), a)
                               for end, a in self.turn.items()}  # R_0^T axis at the start
         self.springs = dict(end_springs or {})

@@ -193,13 +193,17 @@ class RodModel(FEModel):
                               or any(np.all(spring.stiffness("rotational"))
                                      for spring in (rod.end_springs or {}).values())
                               for rod in rods))
-        linked = [f"{name}[{end!r}]" for rod in rods for name, end in oblique_supports(rod)]
+        # an oblique slide is a line of the position (and velocity) with any unknowns; an
+        # oblique turn a line of the rotation increment: rotation vectors only (with
+        # quaternions it holds q in a plane, span(q_0, q_0 (0, a)), not a line)
+        linked = [f"{name}[{end!r}]" for rod in rods for name, end in oblique_supports(rod)
+                  if name == "end_turn"]
         if joints and obstacle:
             raise ValueError(f"joints need rotation-vector unknowns, which this system "
                              f"cannot have: {obstacle}")
         if linked and obstacle:
-            raise ValueError(f"{linked[0]}: an axis off the coordinate axes needs "
-                             f"rotation-vector unknowns, which this rod cannot have: "
+            raise ValueError(f"{linked[0]}: a turn about an axis off the coordinate axes "
+                             f"needs rotation-vector unknowns, which this rod cannot have: "
                              f"{obstacle}")
         # a dynamic rod's end rotation jumps at most at t = 0 (later: refused): the
         # consistent start turns it there (integrators/lie_alpha.py)
@@ -210,8 +214,8 @@ class RodModel(FEModel):
             raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
         if linked and chosen != "rotation_vector":
-            raise ValueError(f"{linked[0]}: an axis off the coordinate axes needs "
-                             "rotation-vector unknowns (rotations 'auto' or "
+            raise ValueError(f"{linked[0]}: a turn about an axis off the coordinate axes "
+                             "needs rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
         for name in ("end_displacement", "end_rotation"):
             if self.dynamic and chosen == "quaternion" and any(
@@ -374,10 +378,10 @@ class RodModel(FEModel):
                   list(self.residual.values()), self.loads, self.bcs, self.set_supports)
         terms = [self.segment_contact] if self.segment_contact else []
         where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
-        if unk.chart is None:
+        if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step, terms=terms,
-                                       where_failed=where)
+                                       where_failed=where, links=links)
         rates_used = {c for F in self.residual.values() for c in F.coefficients()}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
