@@ -265,6 +265,28 @@ def test_inclined_clamp_scene_serially_and_on_two_ranks(tmp_path):
         assert_serial_run_equal(INCLINED, folder, 4, **QUIET)
 
 
+@pytest.mark.parametrize("integrator, key, message", [
+    ("stepper", "rods[0].boundary.start_turn", "needs rotation-vector unknowns"),
+    ("ts", "rods[0].boundary.start_slide", "PETSc TS does not hold"),
+])
+def test_inclined_clamp_scene_on_quaternions_names_what_it_cannot(tmp_path, integrator, key,
+                                                                  message):
+    """scenes/inclined_clamp.toml with quaternion unknowns: its slide is allowed, its
+    oblique turn refused naming the key; without the turn, with PETSc TS, the slide is
+    refused naming it (exit 2, before any work)."""
+    text = INCLINED.read_text().replace('n_cells = 8', 'n_cells = 8\nrotations = "quaternion"')
+    if integrator == "ts":
+        text = text.replace(", start_turn = [0.5773502691896258, 0.5773502691896258, "
+                            "0.5773502691896258]", "").replace(
+            "dt = 0.25", 'dt = 0.25\nintegrator = "ts"')
+    scene = tmp_path / "quaternion.toml"
+    scene.write_text(text)
+    out = subprocess.run([sys.executable, "-m", "dolfin_rod", "check", str(scene)],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert key in out.stderr and message in out.stderr, out.stderr
+
+
 @pytest.mark.parametrize("axis", [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
 def test_inclined_clamp_scene_with_a_bad_axis_exits_2_naming_the_key(tmp_path, axis):
     text = INCLINED.read_text().replace(
