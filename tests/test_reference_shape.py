@@ -139,7 +139,7 @@ def test_bad_reference_shapes_are_named(params, message):
         RodModel(RodParameters(**params), 4)
 
 
-def test_bent_frame_scene_is_the_frame_scene_to_first_order(tmp_path):
+def test_bent_frame_scene_is_the_frame_scene(tmp_path):
     """scenes/bent_frame.toml (one rod, a corner in its stress-free polyline) against
     scenes/frame.toml (two rods welded), the same steel frame and load, 16 + 12 cells:
     the tips after the load ramp agree to 1e-9 of the 1.3 m deflection (measured 4.7
