@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from cosseratbench import registry
-from cosseratbench.experiment import COMPLETED, run
+from cosseratbench.experiment import COMPLETED, max_penetration, run
 
 from dolfin_rod.adapters.cosseratbench import (DolfinRodSolver, rod_model, system_model,
                                                 touching, unsupported)
@@ -49,39 +49,53 @@ def test_validation_experiment_within_its_reference(name, cells, bounds):
 
 def _slide(friction: float, overhang: float) -> tuple[float, float, float]:
     """(slide, max_penetration, rope length) of cosseratbench's capstan at ``friction``
-    and ``overhang`` (a fraction of h2*), 100 elements (its default), 21 frames."""
+    and ``overhang`` (a fraction of h2*), 100 elements (its default), 21 frames: the
+    adapter's run and cosseratbench's metric and observation (without its warm-up)."""
     experiment = registry.load_experiment("capstan")
-    values = {"friction": friction, "overhang": overhang}
-    result = run(experiment, DolfinRodSolver(), values=values, n_elements=100, n_frames=21)
-    assert result.outcome == COMPLETED, result.failure or result.missing
-    length = experiment.scenario_for(**values).rods[0].length
-    return result.metrics["slide"], result.observations["max_penetration"], length
+    scenario = experiment.scenario_for(friction=friction, overhang=overhang)
+    trajectory = DolfinRodSolver().run(scenario, n_elements=100, n_frames=21)
+    return (experiment.metrics["slide"](scenario, trajectory),
+            max_penetration(scenario, trajectory), scenario.rods[0].length)
 
 
-@pytest.mark.parametrize("mu", [0.1, 0.3, 0.6])
-def test_capstan_holds_below_the_overhang_and_slides_above(mu):
-    """cosseratbench's capstan (a rope over a cylinder, h2* = e^{mu pi} h1 + R (2 mu /
-    (1 + mu^2)) (e^{mu pi} + 1)) through its own run and metric ``slide`` (how far the
-    light end rose over the 2 s).  At 0.95 h2* the rope holds: friction's slip tolerance
-    eps = 1e-3 L / duration bounds the creep over the run by 1e-3 L, plus the start
-    settling into the barrier (about 4e-4 m): asserted < 2e-3 L (measured 3.7e-4,
-    6.4e-4, 1.7e-3 m for mu = 0.1, 0.3, 0.6, L = 0.63-1.57 m).  At 1.05 h2* it slides off
-    the cylinder (the light side, 0.15 m, pulled over it): > 0.1 m (measured 0.19-0.21 m).
-    No node ever sinks past the cylinder's surface by more than half the barrier's gap
-    (the obstacle's offset, 0.05 radii; cosseratbench's max_penetration, measured 0)."""
-    held, penetration, length = _slide(mu, 0.95)
+def _holds(mu: float, overhang: float) -> None:
+    """The rope holds: friction's slip tolerance eps = 1e-3 L / duration bounds the creep
+    over the run by 1e-3 L, plus the start settling into the barrier (about 4e-4 m):
+    slide < 2e-3 L; no node sinks past the cylinder's surface by more than half the
+    barrier's gap (the obstacle's offset, 0.05 radii; cosseratbench's
+    max_penetration)."""
+    held, penetration, length = _slide(mu, overhang)
     assert 0.0 <= held < 2e-3 * length and penetration <= 0.05, (held, penetration)
-    slid, penetration, _ = _slide(mu, 1.05)
+
+
+def _slides(mu: float, overhang: float) -> None:
+    """The rope slides off: its light end (0.15 m) pulled over the cylinder in the 2 s,
+    slide > 0.1 m (50 times the held rope's bound)."""
+    slid, penetration, _ = _slide(mu, overhang)
     assert slid > 0.1 and penetration <= 0.05, (slid, penetration)
 
 
 @pytest.mark.mpi
-def test_capstan_holds_on_two_ranks():
-    """The held capstan (mu = 0.3, 0.95 h2*) with the bounds above, also under mpirun -n 2
-    (measured: slide 6.434697853e-4 m serially and on 2 ranks, the same to 11 digits;
-    MUMPS there)."""
-    held, penetration, length = _slide(0.3, 0.95)
-    assert 0.0 <= held < 2e-3 * length and penetration <= 0.05, (held, penetration)
+@pytest.mark.parametrize("overhang", [0.5, 1.05])
+def test_capstan_holds_far_below_the_overhang_and_slides_above(overhang):
+    """cosseratbench's capstan (a rope over a cylinder, h2* = e^{mu pi} h1 + R (2 mu /
+    (1 + mu^2)) (e^{mu pi} + 1)) at mu = 0.6 through the adapter and cosseratbench's
+    metric ``slide`` (how far the light end rose over the 2 s), serially and on 2 ranks.
+    At 0.5 h2* the rope holds (measured slide 3.8e-4 m, L = 0.97 m: the first step used
+    to fail, Newton's limit of 25 iterations, docs/contact.md); at 1.05 h2* it slides
+    (measured 0.21 m)."""
+    (_holds if overhang < 1 else _slides)(0.6, overhang)
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+@pytest.mark.parametrize("mu", [0.1, 0.3, 0.6])
+def test_capstan_threshold_within_two_percent(mu):
+    """The holding overhang h2* located within +-2 % (was +-5 %): at 0.98 h2* the rope
+    holds (measured slide 4.7e-4, 8.2e-4, 2.7e-3 m for mu = 0.1, 0.3, 0.6; L = 0.53,
+    0.89, 1.6 m), at 1.02 h2* it slides off (measured 0.206, 0.201, 0.189 m)."""
+    _holds(mu, 0.98)
+    _slides(mu, 1.02)
 
 
 def _crossing(cells: int, frames: int = 11):

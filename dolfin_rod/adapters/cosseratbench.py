@@ -60,6 +60,7 @@ from .. import __version__
 STEPS_PER_PERIOD = 100      # time steps per period of the slowest mode (at least)
 FRICTION_STEPS = 4          # times more with friction on an obstacle (the capstan's rope at
                             # mu = 0.6 failed its first step at 100 per period, not at 400)
+FRICTION_NEWTON_ITERATIONS = 100   # Newton's limit with friction (solver_options)
 OFFSET = 0.5                # obstacles' surfaces moved back by OFFSET barrier gaps
 ENDS = {End.START: "left", End.END: "right"}
 
@@ -322,7 +323,10 @@ def solver_options(scenario: Scenario) -> dict:
     if MPI.COMM_WORLD.size > 1:
         options.update(ksp_type="preonly", pc_type="lu", pc_factor_mat_solver_type="mumps")
     if with_friction(scenario):
-        options["snes_linesearch_type"] = "bt"
+        # bt's steps stay >= 0.1 of the last: where Newton crosses from the sliding to
+        # the sticking branch of the friction law the residual falls by ~0.9 per
+        # iteration (the capstan at mu = 0.6, 0.5 h2*: from 5e7 to 4 in 25; docs/contact.md)
+        options.update(snes_linesearch_type="bt", snes_max_it=FRICTION_NEWTON_ITERATIONS)
     return options
 
 
