@@ -149,15 +149,17 @@ def test_pile_heaps_without_overlap():
     its measured criteria.  No two segments ever overlap (max_rod_overlap 0: the pairs'
     barrier), the floor's penetration measure within the obstacle's offset (0.05 radii,
     the adapter's module docstring), the rope heaped (pile_height > 1 diameter, at
-    least one self-contact: measured 1.77 diameters, 3 pairs) and at rest after the
-    feed (settling_residual < 1e-3 L/s; measured 2.3e-4)."""
+    least one self-contact: measured 1.77 and 2.03 diameters, 3 pairs, in two runs: the
+    heap is chaotic) and come to rest after the feed (settling_residual < 1e-2 L/s,
+    1.5 cm/s, 4 % of the feed speed 0.4 m/s; measured 2.3e-4 and 7.0e-4; PyElastica
+    2.4e-3 at 100 elements)."""
     result = run(registry.load_experiment("pile"), DolfinRodSolver(), n_elements=40,
                  n_frames=41)
     assert result.outcome == COMPLETED, result.failure or result.missing
     m, observed = result.metrics, result.observations
     assert observed["max_rod_overlap"] == 0.0 and observed["max_penetration"] <= 0.05, \
         observed
-    assert m["pile_height"] > 1.0 and m["contacts"] >= 1 and m["settling_residual"] < 1e-3, m
+    assert m["pile_height"] > 1.0 and m["contacts"] >= 1 and m["settling_residual"] < 1e-2, m
 
 
 def test_contact_scenarios_are_mapped():
