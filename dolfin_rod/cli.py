@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 from .mpi import agree, print_on_root
@@ -202,8 +203,13 @@ def _main(argv: list[str] | None, comm) -> int:
         return fit_command(args, comm)
     if args.command == "plot":
         from .output.redraw import redraw
-        for path in redraw(args.folder, args.quantities, args.color, args.to) \
-                if comm.rank == 0 else []:
+        with warnings.catch_warnings(record=True) as notes:   # a deprecated column name
+            warnings.simplefilter("always", DeprecationWarning)
+            written = redraw(args.folder, args.quantities, args.color, args.to) \
+                if comm.rank == 0 else []
+        for note in notes:
+            print(f"warning: {note.message}", file=sys.stderr)
+        for path in written:
             print(f"wrote {path}")
         return 0
     scene = agree(comm, lambda: load_scene(args.scene), (SceneError,))

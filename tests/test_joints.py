@@ -70,7 +70,7 @@ def test_l_frame_small_load_closed_form(n_cells):
     assert vector(d, "joint_knee_couple") == pytest.approx([0, -P * f["L2"], 0], rel=2e-6,
                                                            abs=2e-12)
     # the clamp carries the same: force P e_3, couple -P L2 e_2
-    assert vector(d, "column.reaction_force_left") == pytest.approx([0, 0, P], rel=2e-6,
+    assert vector(d, "column.reaction_force_start") == pytest.approx([0, 0, P], rel=2e-6,
                                                                    abs=2e-12)
 
 

@@ -41,9 +41,9 @@ def inclined_rod(dynamic: bool = False) -> RodSystem:
                    rotational_drag=(0.05, 0.05, 0.05)) if dynamic else {}
     rod = Rod(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(20.0, 20.0, EA), **inertia),
               n_cells=N, start="clamped", end="clamped", orientation=tuple(along_the_axis()),
-              end_slide={"left": tuple(AXIS)}, end_turn={"left": tuple(AXIS)},
-              end_loads=[EndLoad("force", (0.0, 0.0, -W), ramp, end="left"),
-                         EndLoad("couple", tuple(C * AXIS), ramp, end="left")])
+              end_slide={"start": tuple(AXIS)}, end_turn={"start": tuple(AXIS)},
+              end_loads=[EndLoad("force", (0.0, 0.0, -W), ramp, end="start"),
+                         EndLoad("couple", tuple(C * AXIS), ramp, end="start")])
     return RodSystem([rod], model="hyperelastic")
 
 
@@ -101,11 +101,11 @@ def test_weight_on_an_inclined_sliding_turning_clamp():
     def vector(key):
         return np.array([d[f"rod.{key}_{c}"] for c in "xyz"])
 
-    assert np.allclose(vector("reaction_force_right"), tension * AXIS, rtol=0, atol=1e-10)
-    assert np.allclose(vector("reaction_force_left"), W * E3 - tension * AXIS, rtol=0,
+    assert np.allclose(vector("reaction_force_end"), tension * AXIS, rtol=0, atol=1e-10)
+    assert np.allclose(vector("reaction_force_start"), W * E3 - tension * AXIS, rtol=0,
                        atol=1e-10)
-    assert np.allclose(vector("reaction_couple_right"), -C * AXIS, rtol=0, atol=1e-10)
-    assert np.linalg.norm(vector("reaction_couple_left")) < 1e-10
+    assert np.allclose(vector("reaction_couple_end"), -C * AXIS, rtol=0, atol=1e-10)
+    assert np.linalg.norm(vector("reaction_couple_start")) < 1e-10
     assert np.allclose(vector("tip_position"), L * AXIS, rtol=0, atol=1e-14)
 
 
@@ -124,7 +124,7 @@ def test_dynamic_rod_on_an_inclined_sliding_clamp_settles_and_stays_on_the_axis(
     assert max(across) < 1e-14
     stretch = W * AXIS[2] * L / EA
     assert bottom(model)[0] @ AXIS == pytest.approx(-stretch, rel=3e-5)      # 4.2e-6
-    assert rows[-1]["rod.reaction_force_right_x"] == pytest.approx(W * AXIS[2] ** 2,
+    assert rows[-1]["rod.reaction_force_end_x"] == pytest.approx(W * AXIS[2] ** 2,
                                                                  rel=1e-5)  # 6.3e-7
 
 
@@ -133,20 +133,20 @@ def test_dynamic_rod_on_an_inclined_sliding_clamp_settles_and_stays_on_the_axis(
     ((0.6, 0.6, 0.6), "must be a unit vector"),
 ])
 def test_a_slide_axis_that_is_not_unit_is_refused_naming_it(axis, match):
-    with pytest.raises(ValueError, match=r"end_slide\['right'\] " + match):
+    with pytest.raises(ValueError, match=r"end_slide\['end'\] " + match):
         RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
-                 end_slide={"right": axis})
+                 end_slide={"end": axis})
 
 
 def test_inclined_supports_need_rotation_vectors_and_no_motion_across():
-    with pytest.raises(ValueError, match=r"end_slide\['right'\]: an axis off the coordinate "
+    with pytest.raises(ValueError, match=r"end_slide\['end'\]: an axis off the coordinate "
                                          "axes needs rotation-vector unknowns"):
         RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
-                 rotations="quaternion", end_slide={"right": (0.6, 0.0, 0.8)})
-    with pytest.raises(ValueError, match=r"end_displacement\['right'\]: the end slides"):
+                 rotations="quaternion", end_slide={"end": (0.6, 0.0, 0.8)})
+    with pytest.raises(ValueError, match=r"end_displacement\['end'\]: the end slides"):
         RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
-                 end_slide={"right": (0.6, 0.0, 0.8)},
-                 end_displacement={"right": lambda t: (0.0, t, 0.0)})
+                 end_slide={"end": (0.6, 0.0, 0.8)},
+                 end_displacement={"end": lambda t: (0.0, t, 0.0)})
 
 
 INCLINED = ROOT / "scenes/inclined_clamp.toml"
@@ -164,10 +164,10 @@ def test_inclined_clamp_scene_serially_and_on_two_ranks(tmp_path):
     final = run_scene(quick_scene(INCLINED, 4, **QUIET), folder / "run", quiet=True)["final"]
     weight = 0.5
     for c in "xyz":
-        assert final[f"rod.reaction_force_right_{c}"] == pytest.approx(weight / 3, rel=1e-8)
-        assert final[f"rod.reaction_force_left_{c}"] == pytest.approx(
+        assert final[f"rod.reaction_force_end_{c}"] == pytest.approx(weight / 3, rel=1e-8)
+        assert final[f"rod.reaction_force_start_{c}"] == pytest.approx(
             (weight if c == "z" else 0.0) - weight / 3, rel=1e-8)
-        assert abs(final[f"rod.reaction_couple_left_{c}"]) < 1e-10
+        assert abs(final[f"rod.reaction_couple_start_{c}"]) < 1e-10
     if comm.size > 1 and comm.rank == 0:
         assert_serial_run_equal(INCLINED, folder, 4, **QUIET)
 

@@ -40,7 +40,7 @@ def test_unjoined_rods_move_as_each_alone(placed):
     assert np.allclose(vector(system, "b.tip_position"),
                        POSITION_B + turn @ vector(b, "tip_position"), rtol=0, atol=tol)
     for rod, turned, own in (("a", np.eye(3), a), ("b", turn, b)):
-        for key in ("reaction_force_left",) + (("reaction_couple_left",) if rod == "a" else ()):
+        for key in ("reaction_force_start",) + (("reaction_couple_start",) if rod == "a" else ()):
             assert np.allclose(vector(system, f"{rod}.{key}"), turned @ vector(own, key),
                                rtol=0, atol=tol)
     for key in ("free_energy", "kinetic_energy", "dissipation_rate", "load_power"):

@@ -56,7 +56,7 @@ STEPS_PER_PERIOD = 100      # time steps per period of the slowest mode (at leas
 FRICTION_STEPS = 4          # times more with friction on an obstacle (the capstan's rope at
                             # mu = 0.6 failed its first step at 100 per period, not at 400)
 OFFSET = 0.5                # obstacles' surfaces moved back by OFFSET barrier gaps
-ENDS = {End.START: "left", End.END: "right"}
+ENDS = {End.START: "start", End.END: "end"}
 
 
 class DolfinRodSolver:

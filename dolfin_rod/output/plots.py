@@ -8,12 +8,12 @@ from the scene's supports and loads):
     tip_rotation     rotation of the tip about its main axis, unwrapped (cumulative):
                      a 2.5-turn twist reads 5 pi, not 5 pi mod 2 pi (held end
                      rotations; rods turned by an end or distributed couple)
-    end_torque       the couple the support at s = L exerts (reaction_couple_right_*);
+    end_torque       the couple the support at s = L exerts (reaction_couple_end_*);
                      torsion models: the end torsion m(1, t)
     force_extension  the applied end force along its direction against the tip
                      displacement along it (a hysteresis loop when the rod is viscous;
                      a force that varies: ramp, smooth step, table)
-    reactions        force and couple of the support at s = 0 (reaction_*_left_*)
+    reactions        force and couple of the support at s = 0 (reaction_*_start_*)
     twist            torsion models: end rotation phi(1, t) and mean natural twist
     energy           K + Psi and the dissipated energy int D dt
     power_residual   |d/dt(K + Psi + E_c) + D - P| / power scale (relative_power_residual)
@@ -58,7 +58,7 @@ def choose_panels(scene, columns) -> list[str]:
     if force is not None and force.type not in ("constant", "step") \
             and boundary["end"] == "free" and "tip_position_x" in cols:
         panels.append("force_extension")
-    if boundary.get("end_rotation") is not None and "reaction_couple_right_z" in cols:
+    if boundary.get("end_rotation") is not None and "reaction_couple_end_z" in cols:
         panels += ["end_torque", "tip_rotation"]
     if not panels and "tip_quaternion_0" in cols and (
             loads.get("end_couple") is not None or loads.get("distributed_couple") is not None):
@@ -67,7 +67,7 @@ def choose_panels(scene, columns) -> list[str]:
         or boundary.get("end_slide") is not None
     if not panels and tip_moves and any(c.endswith("tip_position_x") for c in cols):
         panels.append("tip_deflection")
-    if any(c.endswith("reaction_force_left_x") for c in cols) and len(panels) < 2:
+    if any(c.endswith("reaction_force_start_x") for c in cols) and len(panels) < 2:
         panels.append("reactions")
     return panels + ["energy", "power_residual"]
 
@@ -146,7 +146,7 @@ def _end_torque(ax, col, units, scene):
     if "end_torsion" in col.rows[0]:
         ax.plot(col.t, col("end_torsion"))
         return "end torsion m(1, t)", axis_label("m(1, t)", "moment", units)
-    for c, m in _shown({c: col(f"reaction_couple_right_{c}") for c in "xyz"}).items():
+    for c, m in _shown({c: col(f"reaction_couple_end_{c}") for c in "xyz"}).items():
         ax.plot(col.t, m, label=f"M_{c}")
     ax.legend(fontsize="small")
     return "end torque: couple of the support at s = L", axis_label("couple", "moment", units)
@@ -165,10 +165,10 @@ def _force_extension(ax, col, units, scene):
 
 
 def _reactions(ax, col, units, scene):
-    series = _shown({f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_left_{c}")
-                     for rod in col.prefixes("reaction_force_left_x")
+    series = _shown({f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_start_{c}")
+                     for rod in col.prefixes("reaction_force_start_x")
                      for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
-                     if f"{rod}reaction_{name}_left_{c}" in col.rows[0]})
+                     if f"{rod}reaction_{name}_start_{c}" in col.rows[0]})
     is_force = {label: label.split(".")[-1][0] == "F" for label in series}
     if not any(is_force.values()):      # forces all round-off: the couples on the axis
         for label, x in series.items():

@@ -26,8 +26,8 @@ from mpi4py import MPI
 from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
-from ..checks import (MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
-                      check_n_cells, old_keywords)
+from ..checks import (ENDS, MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
+                      check_n_cells, end_keyed, old_keywords)
 from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..integrators.step_control import IntegrationError
@@ -58,7 +58,7 @@ _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
 def end_frames(rod: Rod) -> dict:
     """{end: the stress-free, placed rotation (quaternion) of the rod's end}."""
     q = placed_shape(rod, np.array([0.0, float(rod.params.length)]))[1]
-    return dict(zip(("left", "right"), q))
+    return dict(zip(ENDS, q))
 
 
 def oblique_supports(rod: Rod) -> list[tuple[str, str]]:
@@ -106,9 +106,11 @@ class RodModel(FEModel):
                  end_turn: dict | None = None, end: str = "free",
                  point_loads: Sequence[PointLoad] = ()):
         start, end = positional_ends("RodModel", start, end, stacklevel=5)
-        rod = Rod(params, n_cells, start, end_loads, distributed_loads, end_displacement,
-                  end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn,
-                  end=end, point_loads=point_loads)
+        keyed = end_keyed("RodModel", dict(    # "left", "right": deprecated (the caller's line)
+            end_displacement=end_displacement, end_rotation=end_rotation, end_slide=end_slide,
+            end_springs=end_springs, end_turn=end_turn), stacklevel=3)
+        rod = Rod(params, n_cells, start, end_loads, distributed_loads, point_loads=point_loads,
+                  end=end, **keyed)
         self._build([rod], model, variant, constraints, rotations, comm, obstacles=obstacles,
                     contact=contact)
 
