@@ -145,7 +145,7 @@ def test_double_pendulum_against_rigid_ode():
     (Joint("rigid", ("a", "b"), (0.0, 0.0, 0.5)), "joints[0].point [0.0, 0.0, 0.5] is not on rod 'b'"),
     (Joint("glue", ("a", "b"), (0.0, 0.0, 1.0)), "joints[0].kind must be one of"),
     (Joint("ball", ("a", "c"), (0.0, 0.0, 1.0)), "joints[0].rods must name two different"),
-    (Joint("ball", ("a", "b"), (1.0, 0.0, 1.0)), "joints[0]: rod 'b' is supported at its left"),
+    (Joint("ball", ("a", "b"), (1.0, 0.0, 1.0)), "joints[0]: rod 'b' is supported at its start"),
 ])
 def test_bad_joints_are_named(joint, message):
     p = RodParameters(density=1.0, section_inertia=0.01)

@@ -69,7 +69,7 @@ def test_rod_system_serial_equals_two_ranks():
     (dict(name="a"), "rods[1].name 'a' is used twice"),
     (dict(params=RodParameters(length=0.5)), "rods[1].params.density"),
     (dict(position=(1.0, 2.0)), "rods[1] 'b': position must be a finite 3-vector"),
-    (dict(end_loads=[EndLoad("force", (1, 0, 0), end="middle")]), "rods[1] 'b': load end"),
+    (dict(end_loads=[EndLoad("force", (1, 0, 0), end="middle")]), "rods[1] 'b': EndLoad end must be 'start'"),
 ])
 def test_bad_rods_are_named(change, message):
     rods = [Rod(RodParameters(density=1.0), 4, name="a"),

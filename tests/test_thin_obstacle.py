@@ -19,9 +19,9 @@ from dolfin_rod.rod import contact
 from dolfin_rod.rod.contact import (NP_OPS, ContactLaw, Obstacle, Pose, default_stiffness,
                                     path_entry, signed_distance)
 
-THIN = Obstacle("cylinder", point=(-0.05, 0.0, 0.1), axis=(0.0, 1.0, 0.0), radius=0.003,
+THIN = Obstacle("cylinder", centre=(-0.05, 0.0, 0.1), axis=(0.0, 1.0, 0.0), radius=0.003,
                 length=0.05)
-BALL = Obstacle("sphere", point=(0.3, -0.2, 0.1), radius=0.01)
+BALL = Obstacle("sphere", centre=(0.3, -0.2, 0.1), radius=0.01)
 RADIUS = 0.002
 
 

@@ -15,11 +15,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from dolfin_rod import (EndLoad, EndSpring, Rod, RodModel, RodParameters, RodSystem,
-                        TimeStepper, choose_integrator, loads, run, sections)
+from dolfin_rod import (ContactLaw, EndLoad, EndSpring, Obstacle, Rod, RodModel,
+                        RodParameters, RodSystem, TimeStepper, choose_integrator, loads, run,
+                        sections)
 from dolfin_rod.checks import END_KEYED, ENDS
 from dolfin_rod.cli import main
 from dolfin_rod.output.redraw import read_rows
+from dolfin_rod.rod.contact import NP_OPS, Pose, signed_distance
 from dolfin_rod.scenes.schema import SCHEMA
 from quick_scenes import ROOT, quick_scene
 
@@ -210,6 +212,43 @@ def test_old_end_names_give_the_same_runs_to_the_bit():
         RodModel(RodParameters(), 4, end_loads=[EndLoad("force", (1.0, 0.0, 0.0), end="top")])
     with pytest.raises(ValueError, match="end_slide: unknown end 'top'"):
         RodModel(RodParameters(), 4, end="clamped", end_slide={"top": (0.0, 0.0, 1.0)})
+
+
+# --- contact: [[obstacles]] and [contact] keys are Obstacle's and ContactLaw's fields -----
+
+
+def test_obstacle_and_contact_law_take_the_scene_keys():
+    """Fails if a key of [[obstacles]] or [contact] is not the field of the same name;
+    a plane's normal and a sphere's or cylinder's centre were ``axis`` and ``point``
+    (deprecated, with a warning naming the new key): the same signed distances (the
+    closed forms of tests/test_contact.py) to the bit; ContactLaw's self_contact is
+    self."""
+    for table, api in (("obstacles", Obstacle), ("contact", ContactLaw)):
+        fields = {f.name for f in dataclasses.fields(api)}
+        assert set(SCHEMA[table]) <= fields, (table, set(SCHEMA[table]) - fields)
+    p = np.array([[0.0, 0.0, 2.0], [3.0, 0.0, 0.0], [0.0, 0.5, 0.0], [3.0, 0.0, 4.0]])
+    pairs = [(lambda: Obstacle("plane", point=(0.0, 0.0, 1.0), axis=(0.0, 0.0, 2.0)),
+              lambda: Obstacle("plane", point=(0.0, 0.0, 1.0), normal=(0.0, 0.0, 2.0)),
+              "normal", [1.0, -1.0, -1.0, 3.0]),
+             (lambda: Obstacle("sphere", point=(0.0, 0.0, 0.0), radius=1.0),
+              lambda: Obstacle("sphere", centre=(0.0, 0.0, 0.0), radius=1.0),
+              "centre", [1.0, 2.0, -0.5, 4.0]),
+             (lambda: Obstacle("cylinder", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 1.0, 2.0),
+              lambda: Obstacle("cylinder", centre=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0),
+                               radius=1.0, length=2.0),
+              "centre", [1.0, 2.0, -0.5, np.sqrt(13.0)])]    # by position: the old order
+    for old, new, name, distances in pairs:
+        old, new = _old(old, name), _new(new)
+        assert old == new
+        assert np.array_equal(signed_distance(Pose(old), p, NP_OPS),
+                              signed_distance(Pose(new), p, NP_OPS))
+        assert signed_distance(Pose(new), p, NP_OPS) == pytest.approx(distances, abs=1e-15)
+    with pytest.raises(TypeError, match="give centre or the deprecated point"):
+        Obstacle("sphere", point=(0.0, 0.0, 0.0), centre=(0.0, 0.0, 0.0), radius=1.0)
+    assert _old(lambda: ContactLaw(0.1, 0.01, 1.0, self_contact=True), "use self") == \
+        _new(lambda: ContactLaw(0.1, 0.01, 1.0, self=True))
+    with pytest.raises(TypeError, match="give self or the deprecated self_contact"):
+        ContactLaw(0.1, 0.01, 1.0, self=True, self_contact=True)
 
 
 # --- the reaction columns: written as reaction_*_start/end_*; old run folders read -------

@@ -248,11 +248,11 @@ def obstacles(scenario: Scenario, gap: float) -> list:
     """contact.py's obstacles of the scenario's, their surfaces moved back by OFFSET gap."""
     from ..rod.contact import Obstacle
     back = OFFSET * gap
-    return [Obstacle("cylinder", point=tuple(ob.center), axis=tuple(ob.unit_axis),
+    return [Obstacle("cylinder", centre=tuple(ob.center), axis=tuple(ob.unit_axis),
                      radius=ob.radius - back, length=ob.length, friction=ob.friction)
             if ob.kind == "cylinder" else
             Obstacle("plane", point=tuple(np.asarray(ob.point) - back * ob.unit_normal),
-                     axis=tuple(ob.unit_normal), friction=ob.friction)
+                     normal=tuple(ob.unit_normal), friction=ob.friction)
             for ob in scenario.obstacles]
 
 

@@ -88,7 +88,8 @@ def final_values(rows: list[dict], scene) -> list[str]:
 
 def _reaction(last: dict, rod: str, name: str, u) -> str:
     """The reaction line of one rod's support at s = 0 (force, and couple if held)."""
-    text = f"{name}reaction at s = 0: force {_text(_vector(last, f'{rod}reaction_force_start'))}"
+    force = _vector(last, f"{rod}reaction_force_start")
+    text = f"{name}reaction at s = 0: force {_text(force)}"
     if f"{rod}reaction_couple_start_x" not in last:
         return text + u("force")
     return (f"{text}{u('force')}, couple "

@@ -1,6 +1,7 @@
 """Supports and prescribed motions of the rod's ends, and the reactions there.
 
-ends: (start, end) at s = 0 and s = L, each "clamped" (x and q fixed), "pinned" (x fixed) or "free".
+ends: (start, end) at s = 0 and s = L, each "clamped" (x and q fixed), "pinned" (x
+fixed) or "free".
 end_displacement, end_rotation: {end: history t -> 3-vector}: a prescribed motion of an
 end (displacement from its initial position; rotation vector superposed on its initial
 rotation); the end's velocities (dynamic rods) follow from loads.rate (the history's own

@@ -302,11 +302,11 @@ class RodModel(FEModel):
     def _segment_contact(self, law, layout, joint_nodes) -> SegmentContact | None:
         """The segment pairs' contact (pair_contact.py) if the law asks for it; the
         joints' nodes (s of both rods) join their segments as neighbours."""
-        if law is None or not (law.self_contact or law.between_rods):
+        if law is None or not (law.self or law.between_rods):
             return None
         h = max(length / n for length, n in zip(layout.lengths, layout.n_cells))
         reach = exclusion(law.radius, law.gap, h)
-        if law.self_contact and reach >= min(layout.lengths):
+        if law.self and reach >= min(layout.lengths):
             raise ValueError(f"contact.radius = {law.radius:g}: self-contact excludes "
                              f"neighbours closer along the rod than pi (r + delta) + h = "
                              f"{reach:.4g}, which is not shorter than the rod "
@@ -314,7 +314,7 @@ class RodModel(FEModel):
         check_contact([], law)
         self._check_pair_friction(law)
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
-                                 law.self_contact, law.between_rods, joint_nodes,
+                                 law.self, law.between_rods, joint_nodes,
                                  velocity=self.unknowns.V if self.dynamic else None)
         contact.block = list(self.names).index("displacement")
         contact.rod_names, contact.rod_starts = layout.names, layout.starts
