@@ -33,7 +33,7 @@ def test_path_entry_against_dense_sampling():
     rng = np.random.default_rng(5)
     for obstacle in (THIN, BALL):
         pose = Pose(obstacle)
-        centre = np.asarray(obstacle.point)
+        centre = np.asarray(obstacle.centre)
         P0 = centre + rng.uniform(-0.2, 0.2, (400, 3))
         P1 = P0 + rng.uniform(-0.2, 0.2, (400, 3))
         tau = np.linspace(0.0, 1.0, 20001)[:, None]
