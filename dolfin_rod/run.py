@@ -199,6 +199,13 @@ def stability_warning(scene: Scene, comm) -> None:
         print_on_root(comm, f"warning: {warning}", file=sys.stderr)
 
 
+def draws_alone(scene: Scene, comm) -> bool:
+    """Whether a run draws pictures in one process of one rank (a drawing.Painter may
+    draw them: no MPI peer shares the process's memory)."""
+    outputs = scene["outputs"]
+    return comm.size == 1 and bool(outputs["plots"] or outputs["animation"])
+
+
 def import_finite_elements() -> None:
     """Import DOLFINx and its stack with Ctrl-C and SIGTERM recorded, not raised, until
     the imports are complete: an interrupt raised inside an import leaves a package half
@@ -246,40 +253,43 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
     if not quiet:
         print_on_root(comm, f"model: {choice.model} ({choice.reason})")
     stability_warning(scene, comm)
-    try:
-        import_finite_elements()
-        sim = build(scene, choice.model, comm)
-        impulse = sim.start()
-    except BaseException:
-        if made and comm.rank == 0:              # nothing half-written: no empty folder
-            _remove_if_empty(folder)
-        raise
-    clock["setup"] = time.perf_counter() - clock["start"]
-    writer = RunWriter(folder, scene, choice, sim, comm, resume=resume)
-    if meta is not None:
-        writer.restore_checkpoint(meta)
-        writer.open(keep_until_step=meta["step"])
-        if not quiet:
-            print_on_root(comm, f"resumed at step {meta['step']}, t = {meta['time']:g}")
-    else:
-        writer.open()
-    t_run = time.perf_counter()
-    def provisional(t: float) -> None:     # at a signal: mpirun may end the ranks soon
-        writer.provisional_summary(_summary(
-            scene, choice, sim, writer, comm, "interrupted", f"interrupted at t = {t:g} "
-            "(a signal; this summary was written at once, as mpirun ends its ranks within "
-            "half a second of a Ctrl-C or SIGTERM sent to it)", t, impulse))
-    status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
-                                    meta["step"], stop_after, quiet, provisional)
-    status, message = _unstable_end(scene, sim, status, message)
-    clock["integration"] = time.perf_counter() - t_run
-    summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
-    if analysis is not None and status.startswith("completed"):
-        t_analysis = time.perf_counter()
-        summary.update(analysis(sim, t, folder))
-        clock["analysis"] = time.perf_counter() - t_analysis
-    clock["total"] = time.perf_counter() - clock["start"]
-    writer.finish(summary, {k: v for k, v in clock.items() if k != "start"})
+    from .output.drawing import painting
+    with painting(draws_alone(scene, comm)) as painter:   # matplotlib imported meanwhile
+        try:
+            import_finite_elements()
+            sim = build(scene, choice.model, comm)
+            impulse = sim.start()
+        except BaseException:
+            if made and comm.rank == 0:          # nothing half-written: no empty folder
+                _remove_if_empty(folder)
+            raise
+        clock["setup"] = time.perf_counter() - clock["start"]
+        writer = RunWriter(folder, scene, choice, sim, comm, resume=resume)
+        writer.painter = painter
+        if meta is not None:
+            writer.restore_checkpoint(meta)
+            writer.open(keep_until_step=meta["step"])
+            if not quiet:
+                print_on_root(comm, f"resumed at step {meta['step']}, t = {meta['time']:g}")
+        else:
+            writer.open()
+        t_run = time.perf_counter()
+        def provisional(t: float) -> None:     # at a signal: mpirun may end the ranks soon
+            writer.provisional_summary(_summary(
+                scene, choice, sim, writer, comm, "interrupted", f"interrupted at t = {t:g} "
+                "(a signal; this summary was written at once, as mpirun ends its ranks "
+                "within half a second of a Ctrl-C or SIGTERM sent to it)", t, impulse))
+        status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
+                                        meta["step"], stop_after, quiet, provisional)
+        status, message = _unstable_end(scene, sim, status, message)
+        clock["integration"] = time.perf_counter() - t_run
+        summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
+        if analysis is not None and status.startswith("completed"):
+            t_analysis = time.perf_counter()
+            summary.update(analysis(sim, t, folder))
+            clock["analysis"] = time.perf_counter() - t_analysis
+        clock["total"] = time.perf_counter() - clock["start"]
+        writer.finish(summary, {k: v for k, v in clock.items() if k != "start"})
     summary["pictures"] = comm.bcast(summary.get("pictures"), root=0)
     summary["folder"] = str(folder)
     _report(summary, status, message, t, folder, comm, quiet)

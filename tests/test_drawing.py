@@ -8,10 +8,17 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
+from functools import partial
+from pathlib import Path
 
 import pytest
 
-from dolfin_rod.output.drawing import draw_pictures
+from dolfin_rod.output.drawing import draw_pictures, painting
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "scenes" / "gravity_cantilever.toml"
 
 
 def writes_pid(path):
@@ -102,3 +109,67 @@ def test_a_second_ctrl_c_ends_the_child(tmp_path):
                                tmp_path, side_by_side=True)
     assert missing == ["a.gif", "h.png"] and not (tmp_path / "h.png").exists()
     assert time.perf_counter() - t0 < 10       # the child was ended, not waited for
+
+
+# -- the Painter: a process started before the run's imports draws every picture ----------
+
+def write_pid(path):
+    path.write_text(str(os.getpid()))
+
+
+def painted(pictures, folder):
+    """draw_pictures with a Painter started (and ended) around it."""
+    with painting(True) as painter:
+        return draw_pictures(pictures, folder, side_by_side=True, painter=painter)
+
+
+def test_a_painter_draws_every_picture_in_other_processes(tmp_path):
+    """The pictures (module functions with their data: they pickle) are drawn by the
+    painter, side by side: none by this process."""
+    names = ["histories.png", "animation.gif", "snapshots.png"]
+    seconds, missing = painted([(n, partial(write_pid, tmp_path / n)) for n in names],
+                               tmp_path)
+    assert missing == [] and sorted(seconds) == sorted(names)
+    pids = [drawn_by(tmp_path / n) for n in names]
+    assert os.getpid() not in pids
+    assert pids[0] != pids[1] == pids[2]        # histories.png in the painter's child
+
+
+def test_pictures_that_do_not_pickle_are_drawn_here(tmp_path):
+    names = ["h.png", "a.gif"]
+    _, missing = painted([(n, writes_pid(tmp_path / n)) for n in names], tmp_path)
+    assert missing == [] and drawn_by(tmp_path / "a.gif") == os.getpid()
+
+
+def test_a_failure_in_the_painter_is_raised(tmp_path, capfd):
+    with pytest.raises(RuntimeError, match="drawing histories.png failed"):
+        painted([("histories.png", fails), ("a.gif", partial(write_pid, tmp_path / "a.gif"))],
+                tmp_path)
+    assert drawn_by(tmp_path / "a.gif") != os.getpid()
+    assert "no such panel" in capfd.readouterr().err
+
+
+def test_ctrl_c_in_the_painter_leaves_its_pictures_missing(tmp_path):
+    seconds, missing = painted([("h.png", partial(write_pid, tmp_path / "h.png")),
+                                ("a.gif", interrupted)], tmp_path)
+    assert missing == ["a.gif"] and list(seconds) == ["h.png"]
+
+
+def test_a_painter_given_no_pictures_ends():
+    with painting(True) as painter:
+        pid = painter.pid
+    assert painter.code == 0
+    with pytest.raises(ChildProcessError):      # waited for: no zombie left
+        os.waitpid(pid, 0)
+
+
+def test_a_run_does_not_import_matplotlib(tmp_path):
+    """`dolfin-rod run` draws its pictures in the painter: matplotlib (0.4 s) is imported
+    there, while the run imports DOLFINx; the pictures are complete."""
+    script = ("import sys; from dolfin_rod import run; "
+              f"r = run({str(SCENE)!r}, out={str(tmp_path / 'run')!r}, quiet=True); "
+              "print(r.summary['pictures'], 'matplotlib' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         check=True, cwd=ROOT)
+    assert out.stdout.split()[-2:] == ["complete", "False"], out.stdout
+    assert {"histories.png", "snapshots.png"} <= {p.name for p in (tmp_path / "run").iterdir()}

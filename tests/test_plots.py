@@ -10,7 +10,8 @@ import pytest
 
 from dolfin_rod import run_scene
 from dolfin_rod.output.closing import closing_lines, final_values
-from dolfin_rod.output.plots import choose_panels, relative_power_residual, unwrapped_angle
+from dolfin_rod.output.plots import (choose_panels, relative_power_residual, unloaded,
+                                     unwrapped_angle)
 from dolfin_rod.output.writer import PowerBalance
 from dolfin_rod.scenes import SceneError, load_scene
 from quick_scenes import ROOT, quick_scene
@@ -35,6 +36,42 @@ def test_panels_follow_the_scene(name, first):
     panels = choose_panels(load_scene(SCENES / f"{name}.toml"), columns)
     assert panels[:len(first)] == first
     assert panels[-2:] == ["energy", "power_residual"]
+
+
+@pytest.mark.parametrize("name, columns", [
+    ("rope_on_floor", ["contact_force_x", "contact_force_y", "contact_force_z", "min_gap"]),
+    ("crossing_rods", ["pair_contact_force", "min_pair_gap", "contact_pairs"]),
+])
+def test_contact_scenes_show_the_contact_panel(name, columns):
+    """A scene with obstacles or segment contact shows the contact force and gap."""
+    panels = choose_panels(load_scene(SCENES / f"{name}.toml"), ROD_COLUMNS[:-1] + columns)
+    assert "contact" in panels and panels[-2:] == ["energy", "power_residual"]
+    assert "contact" not in choose_panels(load_scene(SCENES / "gravity_cantilever.toml"),
+                                          ROD_COLUMNS)
+
+
+def test_a_plectoneme_shows_torque_link_and_contact():
+    """A rod twisted in self-contact: the end torque, Lk = Tw + Wr, the contact."""
+    columns = ROD_COLUMNS + ["twist", "writhe", "pair_contact_force", "min_pair_gap"]
+    panels = choose_panels(load_scene(SCENES / "plectoneme.toml"), columns)
+    assert panels[:3] == ["end_torque", "twist", "contact"]
+
+
+def test_a_point_force_path_is_drawn_against_its_point():
+    """The deep arch pushed at its crown (a point force in a table, arc length): by
+    default its force against the crown's motion (the limit point shows there)."""
+    arch = load_scene(SCENES / "deep_arch.toml", {"outputs.plots": True})
+    assert choose_panels(arch, ROD_COLUMNS[:-1] + ["point0_position_x"])[0] == "force_extension"
+
+
+def test_an_unloaded_support_is_told_not_plotted():
+    """curling_pair's supports carry nothing: its reactions were 1e-12 (forces) and 1e-10
+    (couples) beside an energy of 0.9 on a rod of length 1, drawn as noise.  The bound is
+    1e-9 of energy / L (forces) and of the energy (couples)."""
+    noise = {"a.F_x": np.array([0.0, -1.8e-12]), "a.M_y": np.array([0.0, 1.1e-10])}
+    assert unloaded(noise, energy=0.9, length=1.0)
+    assert not unloaded({**noise, "b.F_z": np.array([0.0, 1e-6])}, energy=0.9, length=1.0)
+    assert not unloaded(noise, energy=0.9, length=1e3)   # E / L = 9e-4: 1e-12 > 9e-13
 
 
 def test_torsion_panels_and_the_override():

@@ -52,13 +52,15 @@ def test_closest_points_of_random_segments():
     assert np.all(d <= np.array(brute) + 1e-12)      # the exact minimum is below the grid's
 
 
-def test_broad_phase_finds_every_near_pair():
-    """A random walk of 400 segments: the tree's pairs are those of the O(N^2) search."""
+@pytest.mark.parametrize("tree", [True, False])
+def test_broad_phase_finds_every_near_pair(tree):
+    """A random walk of 400 segments: the pairs found with the tree, or by comparing the
+    midpoints of every pair, are those of the O(N^2) search of closest points."""
     rng = np.random.default_rng(7)
     nodes = np.cumsum(0.1 * rng.standard_normal((401, 3)), axis=0)
     p0, p1 = nodes[:-1], nodes[1:]
     s = np.arange(400) + 0.5
-    found = {tuple(p) for p in near_pairs(p0, p1, s, 0.05, 3.0)}
+    found = {tuple(p) for p in near_pairs(p0, p1, s, 0.05, 3.0, tree=tree)}
     i, j = np.triu_indices(400, 1)
     keep = np.abs(s[i] - s[j]) >= 3.0
     i, j = i[keep], j[keep]

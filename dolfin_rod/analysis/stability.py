@@ -25,6 +25,7 @@ import ufl
 from petsc4py import PETSc
 
 from ..fem import form_cache
+from .definiteness import BandedCholesky
 from .eigen import eigenpairs
 from ..fem.assembly import block_system, monolithic_layout
 from ..fem.multipoint import ConstrainedSystem
@@ -78,14 +79,15 @@ class TangentStiffness:
     """K of a RodModel at its current state and loads (``inertia(t)``); a model with
     segment contact (``problem.terms``) adds its pairs' energy Hessians (the pairs
     within the barrier's reach at the state), the joints' constraints (``links``) make it
-    P^T K P on the free dofs."""
+    P^T K P on the free dofs.  ``banded``: the banded Cholesky test of ``inertia``
+    first where it applies (False: MUMPS's count at every check)."""
 
-    def __init__(self, model):
+    def __init__(self, model, banded: bool = True):
         names = [n for n in model.names if n in MECHANICAL + MULTIPLIERS]
         at_rest = at_rest_map(model)
         residuals = [model.residual[n] for n in names]
         bcs = [bc for n in names for bc in model.bcs_of(n)]
-        self.model, self.names = model, names
+        self.model, self.names, self.banded = model, names, banded
         fields = [model.f[n] for n in names]
         # compiled once per structure (form_cache): a second model of the same structure
         # (a fit's trial) binds the kernels without building the forms (issue 30)
@@ -108,6 +110,7 @@ class TangentStiffness:
         self._ksp = None        # at the first check: its options are then read at once
         self._symmetric = None  # K as SBAIJ, the factorisation's input
         self._entries = 0       # K's stored entries when _symmetric was made
+        self._banded: BandedCholesky | bool | None = None     # at the first check
 
     @staticmethod
     def _free_dofs(model, names) -> int:
@@ -164,6 +167,14 @@ class TangentStiffness:
         """The symmetric part of K at time t's loads (``symmetric`` False: K itself,
         non-symmetric with non-conservative loads), a new matrix, Dirichlet rows and
         columns identity."""
+        A = self._assemble(t)
+        if not symmetric:
+            A.zeroRowsColumns(self.fixed, diag=1.0)
+            return A.copy()
+        return symmetric_part(A, self.fixed, 1.0)
+
+    def _assemble(self, t: float) -> PETSc.Mat:
+        """K at the current state and time t's loads, in the system's own matrix."""
         self.model.problem.set_loads(t)
         system = self.system
         system.get(0, system.x)
@@ -171,20 +182,22 @@ class TangentStiffness:
         if system.terms:        # the pairs' Hessians are those of the last residual's state
             system.residual(system.x, system.b)
         system.jacobian(system.A)
-        if not symmetric:
-            system.A.zeroRowsColumns(self.fixed, diag=1.0)
-            return system.A.copy()
-        return symmetric_part(system.A, self.fixed, 1.0)
+        return system.A
 
     def inertia(self, t: float, metric: PETSc.Mat | None = None) -> Inertia:
         """The inertia of K at the current state and time t's loads; with a ``metric``
         G, the negative count is that of the eigenvalues of K v = lambda G v below
-        -ZERO max K_ii / max G_ii (of K + that shift times G).  MUMPS's LDL^T reads
-        SBAIJ: one copy, kept, its values replaced at each check (K's pattern is fixed
-        unless new segment-contact pairs grow it: then a new copy; G's is a part of it),
-        so that MUMPS keeps its analysis (ordering, symbolic factorisation) and only
-        refactorises."""
-        K = self.matrix(t)
+        -ZERO max K_ii / max G_ii (of K + that shift times G).  On one rank without
+        multipliers a banded Cholesky first (analysis/definiteness.py, ``banded``):
+        if it succeeds, K is positive definite, the count 0; otherwise, and on several
+        ranks, MUMPS's LDL^T reads SBAIJ: one copy, kept, its values replaced at each
+        check (K's pattern is fixed unless new segment-contact pairs grow it: then a
+        new copy; G's is a part of it), so that MUMPS keeps its analysis (ordering,
+        symbolic factorisation) and only refactorises."""
+        A = self._assemble(t)
+        if self._fast_test(A) and self._banded.positive_definite(A, metric, ZERO):
+            return Inertia(0, 0)
+        K = symmetric_part(A, self.fixed, 1.0)
         if metric is not None:
             shift = ZERO * _largest_diagonal(K) / _largest_diagonal(metric)
             K.axpy(shift, metric, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
@@ -206,6 +219,16 @@ class TangentStiffness:
         pc.setUp()
         negative, zero, _ = pc.getFactorMatrix().getInertia()  # after setUp: this K's
         return Inertia(negative - self.multipliers, zero)
+
+    def _fast_test(self, A: PETSc.Mat) -> bool:
+        """Whether the banded Cholesky applies (made at the first check): one rank,
+        no multipliers (they make K indefinite), an AIJ matrix, ``banded`` on."""
+        if self._banded is None:
+            applies = (A.getComm().getSize() == 1
+                       and self.multipliers == 0 and A.getType() == "seqaij")
+            self._banded = BandedCholesky(A.getSize()[0], self.system.bc_rows) \
+                if applies else False
+        return self.banded and bool(self._banded)
 
     def _factorisation(self, comm) -> PETSc.KSP:
         """MUMPS LDL^T; every pivot counted (no ScaLAPACK root, ICNTL(13)), null pivots
@@ -307,11 +330,12 @@ class LowestEigenvalues:
 
 class StabilityMonitor:
     """The inertia after every step of a quasi-static run (``check(t)``): the count of
-    negative eigenvalues, if asked the lowest eigenvalue (``lowest``; LowestEigenvalues), the times the count changed (``changes``: (t, before, after)), and the
-    cost (``seconds`` over ``checks``)."""
+    negative eigenvalues, if asked the lowest eigenvalue (``lowest``; LowestEigenvalues),
+    the times the count changed (``changes``: (t, before, after)), and the cost
+    (``seconds`` over ``checks``); ``banded``: TangentStiffness's."""
 
-    def __init__(self, model, lowest: bool = False):
-        self.tangent = TangentStiffness(model)
+    def __init__(self, model, lowest: bool = False, banded: bool = True):
+        self.tangent = TangentStiffness(model, banded)
         self.eigenvalues = LowestEigenvalues(self.tangent) if lowest else None
         self.metric = self._metric()     # LowestEigenvalues (its G) or None
         self.negative: int | None = None

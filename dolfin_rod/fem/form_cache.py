@@ -36,6 +36,9 @@ import importlib.util
 import json
 import os
 import platform
+import signal
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -81,13 +84,42 @@ def kernel_flags() -> list[str]:
 KERNEL_FLAGS = [*kernel_flags(), f"-DDOLFIN_ROD_HOST_CPU={_host_cpu()}"]
 
 
+# Another process compiling the same kernel is waited for this long (FFCx: 10 s): a
+# cold compile of the rod's kernels takes 6 s on an idle core and several times that
+# on a loaded machine, where runs started together (a sweep) timed out at 10 s.
+JIT_WAIT = 300     # s
+
+
+@contextmanager
+def interrupts_held():
+    """SIGINT and SIGTERM are held while FFCx compiles and delivered after: FFCx keeps
+    the half-made module of a KeyboardInterrupt (it cleans up after an Exception only),
+    and every later run on this machine would wait for it and fail (TimeoutError)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {sig: signal.signal(sig, lambda signum, _: caught.append(signum))
+                for sig in held}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if caught:
+            signal.raise_signal(caught[0])     # to the handler the caller had
+
+
 def compile_forms(forms):
     """fem.form of a form or (nested) list of forms, with the step kernels' flags; flags a
     user gave (DOLFIN_ROD_KERNEL_FLAGS) that do not compile are named in the error.  A
-    long compile (a cold FFCx cache) is announced (compile_notice.py)."""
+    long compile (a cold FFCx cache) is announced (compile_notice.py); Ctrl-C waits for
+    its end (interrupts_held)."""
     try:
-        with compile_notice.watching(_FOLDER):
-            return fem.form(forms, jit_options={"cffi_extra_compile_args": KERNEL_FLAGS})
+        with compile_notice.watching(_FOLDER), interrupts_held():
+            return fem.form(forms, jit_options={"cffi_extra_compile_args": KERNEL_FLAGS,
+                                                "timeout": JIT_WAIT})
     except Exception as err:
         if "DOLFIN_ROD_KERNEL_FLAGS" not in os.environ:
             raise

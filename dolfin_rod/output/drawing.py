@@ -4,28 +4,39 @@ cost about the largest one instead of their sum (matplotlib is imported and its 
 loaded once, before the fork).  The run waits for the child: a failure
 in it is raised here (RuntimeError naming the picture, its traceback printed by the
 child), and Ctrl-C stops both, the half-drawn files removed.  Without os.fork, or for
-one picture, they are drawn one after the other here."""
+one picture, they are drawn one after the other here.
+
+A ``Painter`` (issue 30, target 3) is a process forked at a run's start: it imports
+matplotlib (0.4 s) while the run imports DOLFINx and integrates, then waits; at the end
+the run sends it the pictures (pickled: module functions and their data) and it draws
+them as above, side by side.  The run never imports matplotlib then.  Pictures that do
+not pickle (a function made in a test) are drawn in the run's process as before."""
 
 from __future__ import annotations
 
 import os
+import pickle
 import signal
 import sys
 import time
 import traceback
 import warnings
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
 
 Picture = tuple[str, Callable[[], None]]
 
 
-def draw_pictures(pictures: list[Picture], folder: Path,
-                  side_by_side: bool) -> tuple[dict[str, float], list[str]]:
+def draw_pictures(pictures: list[Picture], folder: Path, side_by_side: bool,
+                  painter: Painter | None = None) -> tuple[dict[str, float], list[str]]:
     """Draw each (file name, draw) into ``folder``: the seconds each took and the names
     of those not drawn (Ctrl-C).  ``side_by_side``: the first in a child process (only
     where no MPI peer shares the process's memory: one rank).  Ctrl-C here stops this
-    process's drawing and waits for the child's picture (a second Ctrl-C ends it)."""
+    process's drawing and waits for the child's picture (a second Ctrl-C ends it).
+    ``painter``: a Painter started before, which draws them all if they pickle."""
+    if painter is not None and painter.send(pictures, folder):
+        return painter.collect([name for name, _ in pictures])
     child = None
     if side_by_side and len(pictures) > 1 and hasattr(os, "fork"):
         _warm_matplotlib()
@@ -141,6 +152,132 @@ def _draw_and_exit(draw: Callable[[], None], path: Path, pipe: int) -> None:
         status = 130
     except BaseException:
         traceback.print_exc()
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
+
+
+@contextmanager
+def painting(wanted: bool):
+    """A Painter while the block runs (None if not ``wanted`` or without os.fork); it is
+    ended and waited for at the block's end, whatever happened."""
+    painter = Painter() if wanted and hasattr(os, "fork") else None
+    try:
+        yield painter
+    finally:
+        if painter is not None:
+            painter.close()
+
+
+class Painter:
+    """A process forked before the run's imports that warms matplotlib and then draws
+    the run's pictures (``send``, ``collect``), or ends without drawing (``close``, or
+    the run's process ending: the end of its pipe).  One rank only (no MPI call in it).
+    Ctrl-C during the run does not reach its waiting; while it draws, Ctrl-C (to the
+    terminal's process group, or to the run, which passes it on) stops its drawing as
+    in draw_pictures."""
+
+    def __init__(self):
+        job_read, self._job = os.pipe()
+        self._result, result_write = os.pipe()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        with warnings.catch_warnings():       # as _Child: the child takes no lock of
+            warnings.simplefilter("ignore", DeprecationWarning)    # another thread
+            self.pid = os.fork()
+        if self.pid == 0:
+            os.close(self._job)
+            os.close(self._result)
+            _paint_and_exit(job_read, result_write)
+        os.close(job_read)
+        os.close(result_write)
+        self.text, self.code = b"", None
+
+    def send(self, pictures: list[Picture], folder: Path) -> bool:
+        """Hand the pictures to the painter; False (the painter ended) if they do not
+        pickle."""
+        try:
+            job = pickle.dumps((pictures, folder))
+        except (pickle.PicklingError, AttributeError, TypeError):
+            self.close()
+            return False
+        try:
+            _write_all(self._job, job)
+        except BrokenPipeError:        # it ended (its error printed): collect says so
+            pass
+        finally:
+            os.close(self._job)
+            self._job = None
+        return True
+
+    def collect(self, names: list[str]) -> tuple[dict[str, float], list[str]]:
+        """Wait for the painter: the seconds of each picture and those not drawn
+        (Ctrl-C: all of ``names`` if the painter was interrupted before it answered);
+        RuntimeError if it failed.  Ctrl-C here is passed on to it."""
+        while self.code is None:
+            try:
+                while chunk := os.read(self._result, 65536):
+                    self.text += chunk
+                self.code = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
+            except KeyboardInterrupt:
+                _signal(self.pid, signal.SIGINT)
+        os.close(self._result)
+        answer = pickle.loads(self.text) if self.text else None
+        if self.code == 0 and answer is not None:
+            return answer
+        if self.code in (130, -signal.SIGINT, -signal.SIGTERM):
+            return {}, names
+        raise RuntimeError(f"drawing the pictures failed in their process (exit status "
+                           f"{self.code}: {answer or 'its error is printed above'})")
+
+    def close(self) -> None:
+        """End the painter without pictures (if none were sent) and wait for it."""
+        if self._job is not None:
+            os.close(self._job)
+            self._job = None
+        if self.code is None:
+            self.code = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
+            os.close(self._result)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]
+
+
+def _signal(pid: int, signum: int) -> None:
+    try:
+        os.kill(pid, signum)
+    except ProcessLookupError:
+        pass
+
+
+def _paint_and_exit(job: int, result: int) -> None:
+    """In the painter: warm matplotlib, read the job to its end, draw it side by side,
+    send the result; exit 0 (also with no job), 130 interrupted, 1 failed (traceback on
+    stderr), without the run's exit handlers."""
+    status = 1
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)       # the run's Ctrl-C is the run's
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        _warm_matplotlib()
+        data = b""
+        while chunk := os.read(job, 65536):
+            data += chunk
+        if data:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            pictures, folder = pickle.loads(data)
+            drawn = draw_pictures(pictures, folder, True)
+            signal.signal(signal.SIGINT, signal.SIG_IGN)    # drawn: a late Ctrl-C passed
+            _write_all(result, pickle.dumps(drawn))         # on by the run changes nothing
+        status = 0
+    except KeyboardInterrupt:
+        status = 130
+    except BaseException as err:
+        traceback.print_exc()
+        _write_all(result, pickle.dumps(f"{type(err).__name__}: {err}"))
     finally:
         sys.stdout.flush()
         sys.stderr.flush()

@@ -5,6 +5,7 @@ vtk_xml.py) and the frames of the animation and pictures (animation.py)."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -92,14 +93,14 @@ class FieldOutputs:
         if self.comm.rank != 0 or not (self.outputs["animation"] and len(frames) > 1):
             return []
         path = self.folder.joinpath
-        if "centre_line" in frames[0][1].point:
+        if "centre_line" in frames[0][1].point:       # (partials pickle: drawing.Painter)
             video = animation.animation_name()         # MP4 with ffmpeg, else GIF
-            return [(video, lambda: animation.rod_animation(
-                        frames, path(video), title, look)),
-                    ("snapshots.png", lambda: animation.rod_snapshots(
-                        frames, path("snapshots.png"), title, look=look))]
-        return [("spacetime.png", lambda: animation.torsion_spacetime(
-            frames, path("spacetime.png"), title))]
+            return [(video, partial(animation.rod_animation, frames, path(video), title,
+                                    look)),
+                    ("snapshots.png", partial(animation.rod_snapshots, frames,
+                                              path("snapshots.png"), title, look=look))]
+        return [("spacetime.png", partial(animation.torsion_spacetime, frames,
+                                          path("spacetime.png"), title))]
 
 
 def _geometry(sample) -> np.ndarray:

@@ -12,9 +12,16 @@ from the scene's supports and loads):
                      torsion models: the end torsion m(1, t)
     force_extension  the applied end force along its direction against the tip
                      displacement along it (a hysteresis loop when the rod is viscous;
-                     a force that varies: ramp, smooth step, table)
+                     a force that varies: ramp, smooth step, table); without an end
+                     force, a point force against its point's displacement
     reactions        force and couple of the support at s = 0 (reaction_*_start_*)
-    twist            torsion models: end rotation phi(1, t) and mean natural twist
+    stability        the count of negative eigenvalues of the stiffness (the column
+                     negative_eigenvalues of runs that check stability): 0 is stable
+    contact          the total contact force (obstacles: |sum of the force|; segment
+                     pairs: the sum of the pair forces' magnitudes) and the smallest gap
+                     (scenes with obstacles or contact between segments)
+    twist            torsion models: end rotation phi(1, t) and mean natural twist; a
+                     clamped rod in self-contact: Lk (end turns) = Tw + Wr
     energy           K + Psi and the dissipated energy int D dt
     power_residual   |d/dt(K + Psi + E_c) + D - P| / power scale (relative_power_residual)
 
@@ -43,6 +50,14 @@ def axis_label(name: str, kind: str, units: str | None) -> str:
     return f"{name} [{unit(kind, units)}]"
 
 
+def time_label(scene, units: str | None) -> str:
+    """The time axis' label: the load factor under arc-length continuation (the loads
+    linear in it; it turns back at limit points), else 't [time unit]'."""
+    if scene["continuation"]["method"] == "arc_length":
+        return "load factor t [1] (arc-length continuation)"
+    return axis_label("t", "time", units)
+
+
 def choose_panels(scene, columns) -> list[str]:
     """The panels for the scene: its ``outputs.plots`` if given, else from its supports
     and loads (see module docstring); always ending with energy and power residual."""
@@ -54,12 +69,13 @@ def choose_panels(scene, columns) -> list[str]:
         return ["end_torque", "twist", "energy", "power_residual"]
     boundary, loads = scene["boundary"], scene["loads"]
     panels = []
-    force = loads.get("end_force")
-    if force is not None and force.type not in ("constant", "step") \
-            and boundary["end"] == "free" and "tip_position_x" in cols:
+    force = loaded_point(scene)
+    if force is not None and loads[force[0]].type not in ("constant", "step") \
+            and (force[0] == "point_force" or boundary["end"] == "free") \
+            and f"{force[1]}_position_x" in cols:
         panels.append("force_extension")
     if boundary.get("end_rotation") is not None and "reaction_couple_end_z" in cols:
-        panels += ["end_torque", "tip_rotation"]
+        panels += ["end_torque", "twist" if "writhe" in cols else "tip_rotation"]
     if not panels and "tip_quaternion_0" in cols and (
             loads.get("end_couple") is not None or loads.get("distributed_couple") is not None):
         panels.append("tip_rotation")       # a rod turned by couples (spin_up)
@@ -67,6 +83,8 @@ def choose_panels(scene, columns) -> list[str]:
         or boundary.get("end_slide") is not None
     if not panels and tip_moves and any(c.endswith("tip_position_x") for c in cols):
         panels.append("tip_deflection")
+    if any(c.endswith(("contact_force_x", "pair_contact_force")) for c in cols):
+        panels.append("contact")
     if any(c.endswith("reaction_force_start_x") for c in cols) and len(panels) < 2:
         panels.append("reactions")
     return panels + ["energy", "power_residual"]
@@ -152,23 +170,57 @@ def _end_torque(ax, col, units, scene):
     return "end torque: couple of the support at s = L", axis_label("couple", "moment", units)
 
 
+def loaded_point(scene) -> tuple[str, str] | None:
+    """The force of force_extension and the columns of its point: ("end_force", "tip")
+    for a free end's force, else ("point_force", "point0") for a point force (point0 is
+    the first point of the point loads: the force's where no couple is elsewhere)."""
+    loads = scene["loads"]
+    if loads.get("end_force") is not None:
+        return "end_force", "tip"
+    force, couple = loads.get("point_force"), loads.get("point_couple")
+    if force is not None and (couple is None or couple.s == force.s):
+        return "point_force", "point0"
+    return None
+
+
 def _force_extension(ax, col, units, scene):
-    force = scene["loads"]["end_force"].vector()
+    key, point = loaded_point(scene)
+    force = scene["loads"][key].vector()
     f = np.array([force(t) for t in col.t])
     k = int(np.argmax(np.linalg.norm(f, axis=1)))
     e = f[k] / max(np.linalg.norm(f[k]), 1e-300)
-    tip = np.stack([col(f"tip_position_{c}") for c in "xyz"], axis=1)
-    ax.plot((tip - tip[0]) @ e, f @ e)
-    ax.set_xlabel(axis_label("extension along the force", "length", units))
-    return "force-extension (end force against tip displacement)", \
-        axis_label("end force", "force", units)
+    x = np.stack([col(f"{point}_position_{c}") for c in "xyz"], axis=1)
+    ax.plot((x - x[0]) @ e, f @ e)
+    where = "tip" if point == "tip" else f"point s = {scene['loads'][key].s:g}"
+    ax.set_xlabel(axis_label(f"displacement of the {where} along the force", "length", units))
+    return f"force-displacement ({key.replace('_', ' ')} against its point's motion)", \
+        axis_label(key.replace("_", " "), "force", units)
+
+
+def unloaded(reactions: dict, energy: float, length: float) -> bool:
+    """Every reaction (label '[rod.]F_c' or '[rod.]M_c' -> series) below 1e-9 of the
+    run's scale: energy / length for the forces, energy for the couples, energy the
+    largest of K + Psi and int D dt over the run."""
+    scale = {"F": energy / length, "M": energy}
+    return all(np.max(np.abs(x)) <= 1e-9 * scale[label.split(".")[-1][0]]
+               for label, x in reactions.items())
 
 
 def _reactions(ax, col, units, scene):
-    series = _shown({f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_start_{c}")
-                     for rod in col.prefixes("reaction_force_start_x")
-                     for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
-                     if f"{rod}reaction_{name}_start_{c}" in col.rows[0]})
+    raw = {f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_start_{c}")
+           for rod in col.prefixes("reaction_force_start_x")
+           for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
+           if f"{rod}reaction_{name}_start_{c}" in col.rows[0]}
+    energy = max(np.max(np.abs(col("free_energy") + col("kinetic_energy"))),
+                 np.max(np.abs(col("total_dissipation"))))
+    if unloaded(raw, energy, scene["geometry"]["length"]):
+        ax.text(0.5, 0.5, "the support carries no load:\nevery reaction is round-off\n"
+                "(below 1e-9 of the run's energy / L)", ha="center", va="center",
+                transform=ax.transAxes)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        return "reactions of the support at s = 0", ""
+    series = _shown(raw)
     is_force = {label: label.split(".")[-1][0] == "F" for label in series}
     if not any(is_force.values()):      # forces all round-off: the couples on the axis
         for label, x in series.items():
@@ -186,8 +238,50 @@ def _reactions(ax, col, units, scene):
     return "reactions of the support at s = 0", axis_label("force (solid)", "force", units)
 
 
+def _contact(ax, col, units, scene):
+    forces = {f"{rod}obstacles": np.linalg.norm(
+        np.stack([col(f"{rod}contact_force_{c}") for c in "xyz"], axis=1), axis=1)
+        for rod in col.prefixes("contact_force_x")}
+    forces.update({f"{rod}segment pairs": col(f"{rod}pair_contact_force")
+                   for rod in col.prefixes("pair_contact_force")})
+    lines = [ax.plot(col.t, f, label=f"{label}: force")[0] for label, f in forces.items()]
+    gaps = {f"{rod}obstacles": col(f"{rod}min_gap") for rod in col.prefixes("min_gap")}
+    gaps.update({f"{rod}segment pairs": col(f"{rod}min_pair_gap")
+                 for rod in col.prefixes("min_pair_gap")})
+    if gaps:
+        twin = ax.twinx()
+        lines += [twin.plot(col.t, g, "--", label=f"{label}: smallest gap")[0]
+                  for label, g in gaps.items()]
+        twin.set_ylabel(axis_label("smallest gap (dashed)", "length", units))
+    ax.legend(handles=lines, fontsize="small", loc="best")   # one legend: no overlap
+    return "contact: total force and smallest gap", axis_label("force (solid)", "force", units)
+
+
+def _stability(ax, col, units, scene):
+    from matplotlib.ticker import MaxNLocator
+    ax.plot(col.t, col("negative_eigenvalues"), drawstyle="steps-post")
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    return "stability: negative eigenvalues of the stiffness (0: stable)", "count"
+
+
+def _link(ax, col, units, scene):
+    """Self-contact runs of a clamped rod: twist Tw, writhe Wr, their sum and the link
+    Lk = the end's turns (Calugareanu-White: Lk = Tw + Wr)."""
+    q = np.stack([col(f"tip_quaternion_{i}") for i in range(4)], axis=1)
+    tw, wr = col("twist"), col("writhe")
+    ax.plot(col.t, unwrapped_angle(q)[0] / (2 * np.pi), "k", lw=3, alpha=0.3,
+            label="Lk: end turns")
+    ax.plot(col.t, tw + wr, "k--", label="Tw + Wr")
+    ax.plot(col.t, tw, label="twist Tw")
+    ax.plot(col.t, wr, label="writhe Wr")
+    ax.legend(fontsize="small")
+    return "link = twist + writhe (Calugareanu-White)", "turns [1]"
+
+
 def _twist(ax, col, units, scene):
-    if "end_rotation" not in col.rows[0]:   # a rod's "twist" column (self-contact runs)
+    if "writhe" in col.rows[0] and "tip_quaternion_0" in col.rows[0]:
+        return _link(ax, col, units, scene)
+    if "end_rotation" not in col.rows[0]:   # a rod's "twist" column
         return _column("twist")(ax, col, units, scene)
     ax.plot(col.t, col("end_rotation"), label="end rotation phi(1)")
     ax.plot(col.t, col("mean_natural_twist"), label="mean natural twist")
@@ -232,7 +326,8 @@ def _column(name: str):
 
 DRAW = {"tip_deflection": _tip_deflection, "tip_rotation": _tip_rotation,
         "end_torque": _end_torque, "force_extension": _force_extension,
-        "reactions": _reactions, "twist": _twist, "energy": _energy,
+        "reactions": _reactions, "contact": _contact, "stability": _stability,
+        "twist": _twist, "energy": _energy,
         "power_residual": _power_residual}
 
 
@@ -254,7 +349,7 @@ def plot_histories(rows: list[dict], path: Path, scene, title: str = "",
         ax.set_title(heading, fontsize=10)
         ax.set_ylabel(ylabel)
         if not ax.get_xlabel():
-            ax.set_xlabel(axis_label("t", "time", units))
+            ax.set_xlabel(time_label(scene, units))
     for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
     fig.suptitle(title)

@@ -44,6 +44,7 @@ import json
 import os
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -127,6 +128,7 @@ class RunWriter:
                                   self.outputs["fields"], self.outputs["animation"]) \
             if self.outputs["fields"] or self.outputs["animation"] else None
         self.resume = resume
+        self.painter = None         # a drawing.Painter started by the run, if any
         self.checkpoints = Checkpoints(self.folder, scene, sim, comm)
 
     # -- time series ------------------------------------------------------------------
@@ -312,13 +314,12 @@ class RunWriter:
         """Rank 0: draw the pictures; the names of those not drawn (Ctrl-C)."""
         pictures = []
         if self.outputs["plots"] and len(self.rows) > 1:
-            pictures.append(("histories.png",
-                             lambda: plot_histories(self.rows, self.folder / "histories.png",
-                                                    self.scene, title)))
+            pictures.append(("histories.png", partial(
+                plot_histories, self.rows, self.folder / "histories.png", self.scene, title)))
         if self.lines is not None:
             pictures += self.lines.pictures(title, Look.of(self.scene))
         self.timings["picture_files"], missing = draw_pictures(
-            pictures, self.folder, side_by_side=self.comm.size == 1)
+            pictures, self.folder, side_by_side=self.comm.size == 1, painter=self.painter)
         return missing
 
 

@@ -149,7 +149,8 @@ class FESimulation:
         if scene.is_rod_material and not model.dynamic and scene["stability"]["check"] \
                 and not getattr(model, "joints", None):
             from ..analysis.stability import StabilityMonitor
-            return StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"])
+            return StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"],
+                                    scene["stability"]["factorisation"] == "banded")
         return None
 
     def _ts_type(self) -> str:

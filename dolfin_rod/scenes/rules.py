@@ -46,7 +46,7 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
                              "between_rods", "self_friction", "between_rods_friction")} | {
     ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue",
-                               "at_bifurcation")} | {
+                               "at_bifurcation", "factorisation")} | {
     ("continuation", k) for k in ("method", "parameter", "arc_length", "load_scale",
                                   "max_steps")}
 # what a continuation parameter may name: a load, or a prescribed end motion

@@ -59,7 +59,7 @@ OBSTACLE_SHAPES = ("plane", "sphere", "cylinder")
 # histories.png (output/plots.py) and the unit systems of a scene's axes
 COLOURS = ("auto", "u", "v", "u_d", "v_d", "n", "m", "xi")
 PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "reactions",
-          "twist", "energy", "power_residual")
+          "contact", "stability", "twist", "energy", "power_residual")
 
 # quantity kind -> unit per unit system
 UNITS = {
@@ -420,6 +420,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                               "constraints: also the lowest eigenvalue of "
                                               "K v = lambda G v (G: the lumped L2 metric; column "
                                               "lowest_eigenvalue; SLEPc, ~10-30 ms a step)"),
+        "factorisation": Key(choice("banded", "mumps"), "banded", R + "quasi-static: the "
+                             "check's factorisation: banded (on one rank without "
+                             "multipliers a banded Cholesky first, MUMPS's LDL^T count "
+                             "only where K is not positive definite) | mumps (MUMPS's "
+                             "LDL^T at every check; docs/stability.md)"),
         "at_bifurcation": Key(choice("switch", "stay"), "switch", R + "quasi-static, rotation "
                               "vectors: when a step makes the equilibrium unstable (the "
                               "count rises), switch to a stable equilibrium at the same "
