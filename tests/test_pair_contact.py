@@ -290,6 +290,31 @@ def test_candidate_list_finds_every_pair_within_reach():
 
 
 @pytest.mark.mpi
+def test_pair_terms_reuse_the_searchs_closest_points_bit_for_bit():
+    """The pairs' terms take the closest points the pair search computed (``near``)
+    instead of computing them again: the same bits as pair_energy computing its own
+    (elementwise arithmetic on a superset then filtered), on the coiled rod (3 pairs
+    per segment) at its state and after a random move."""
+    contact = _coiled_rod().segment_contact
+    line = contact.line
+    P0 = line.positions(contact.owned_displacement())
+    for P in (P0, P0 + 0.3 * contact.skin * np.random.default_rng(2).uniform(-1, 1, P0.shape)):
+        pairs, closest = contact.near(P)
+        X = P[line.ends[pairs].reshape(-1, 4)]
+        weights = 0.5 * line.lengths[pairs].sum(axis=1)
+        law = contact.law
+        mine = pair_energy(X, law.radius, law.gap, law.stiffness, weights, closest=closest)
+        own = pair_energy(X, law.radius, law.gap, law.stiffness, weights)
+        assert len(pairs) > len(line.ends)
+        assert all(np.array_equal(a, b) for a, b in zip(mine, own))
+    terms = contact.evaluate(contact.owned_displacement())      # the path a solve takes
+    X = P0[line.ends[terms.pairs].reshape(-1, 4)]
+    own = pair_energy(X, law.radius, law.gap, law.stiffness,
+                      0.5 * line.lengths[terms.pairs].sum(axis=1))
+    assert all(np.array_equal(a, b) for a, b in zip(terms[2:], own))
+
+
+@pytest.mark.mpi
 def test_jacobian_pattern_grows_once_and_keeps_the_forms_entries():
     """The coiled rod's step Jacobian: the first assembly adds the pairs' entries to the
     matrix pattern (fem/assembly.grow_pattern, which copies the forms' assembled values

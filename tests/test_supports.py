@@ -263,19 +263,21 @@ def test_dynamic_rod_with_an_end_moved_at_the_start_starts_at_rest_in_equilibriu
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("case", ["rigid", "twist"])
-def test_a_dynamic_rod_turned_at_the_start_beyond_a_quarter_turn_starts_at_rest(case):
+@pytest.mark.parametrize("case, angle", [("rigid", 2.5), ("twist", 3.0), ("rigid", 9.0),
+                                         ("twist", 8.0)])
+def test_a_dynamic_rod_turned_at_the_start_beyond_a_quarter_turn_starts_at_rest(case, angle):
     """An end turned at t = 0 by more than a quarter turn (issue 25 item 4; refused
     before: one rotation increment is bounded by a quarter turn), reached in committed
-    parts (lie_alpha's start, 4 parts).  "rigid": a dynamic rod clamped at s = 0 turned
-    by 2.5 rad about e_2, its other end free: the equilibrium is the rigid rotation, tip
-    at L (sin 2.5, 0, cos 2.5), no energy, at rest (kinetic energy < 1e-16 over the
-    run).  "twist": both ends clamped, s = 0 turned by 3 rad about the axis e_3: a
-    uniform twist, the clamp's couple the discrete twist's GJ u_h sec^2(dphi/4)
-    (closed_forms.p1_twist), the rod at rest.  Tolerances: Newton's (rtol 1e-11; the
-    rigid tip measured 1.4e-12 off)."""
+    parts (lie_alpha's start: 4 parts, one per half radian beyond 2 rad, so 18 parts
+    for 9 rad: more than 2 pi, which 4 parts could not reach).  "rigid": a dynamic rod
+    clamped at s = 0 turned by the angle about e_2, its other end free: the equilibrium
+    is the rigid rotation, tip at L (sin a, 0, cos a), no energy, at rest (kinetic
+    energy < 1e-16 over the run).  "twist": both ends clamped, s = 0 turned about the
+    axis e_3: a uniform twist (8 rad: 1 rad per cell, the twist wound past 2 pi, not
+    the 8 - 2 pi that the end's frame alone shows), the clamp's couple the discrete
+    twist's GJ u_h sec^2(dphi/4) (closed_forms.p1_twist), the rod at rest.
+    Tolerances: Newton's (rtol 1e-11; the rigid tip measured 1.4e-12 off)."""
     L, GJ, N = 1.0, 1.0, 8
-    angle = 2.5 if case == "rigid" else 3.0
     axis = np.array([0.0, 1.0, 0.0] if case == "rigid" else [0.0, 0.0, 1.0])
     model = RodModel(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(40.0, 40.0, 60.0),
                                    density=2.0, section_inertia=0.01), n_cells=N,
@@ -293,18 +295,21 @@ def test_a_dynamic_rod_turned_at_the_start_beyond_a_quarter_turn_starts_at_rest(
         u_h, factor = p1_twist(angle / L, L, N)
         assert d["reaction_couple_start_z"] == pytest.approx(GJ * u_h * factor, rel=1e-9)
         assert d["reaction_couple_end_z"] == pytest.approx(-GJ * u_h * factor, rel=1e-9)
+        assert d["free_energy"] == pytest.approx(0.5 * GJ * u_h ** 2 * L, rel=1e-9)
 
 
-def test_a_dynamic_rod_turned_at_the_start_by_more_than_its_parts_reach_is_refused():
-    """The start's 4 committed parts turn a node by at most a quarter turn each: 7 rad
-    (1.75 rad a part) is refused before any step, naming the start and what to do."""
+def test_a_dynamic_rod_twisted_at_the_start_beyond_its_cells_is_refused():
+    """The start's parts reach any turn, but the cells must represent it: 20 rad of
+    twist on 8 cells (2.5 rad a cell, above checks.MAX_CELL_TURN = 2) is refused in
+    the start's path, at the first part whose cells turn beyond it (33 of 40 parts:
+    2.06 rad a cell), naming n_cells and how many that turn takes."""
     from dolfin_rod import TimeStepper
     from dolfin_rod.integrators.step_control import IntegrationError
-    model = RodModel(RodParameters(density=1.0, section_inertia=0.01), n_cells=4,
-                     start="clamped", end="free", model="hyperelastic",
-                     end_rotation={"start": lambda t: (0.0, 7.0, 0.0)})
+    model = RodModel(RodParameters(density=1.0, section_inertia=0.01), n_cells=8,
+                     start="clamped", end="clamped", model="hyperelastic",
+                     end_rotation={"start": lambda t: (0.0, 0.0, 20.0)})
     model.set_initial_state()
-    with pytest.raises(IntegrationError, match="the start at t = 0 .* ramp or smooth_step"):
+    with pytest.raises(IntegrationError, match="turned by .* take n_cells >= 9 for the turn so far"):
         TimeStepper(model.problem).run(0.0, 0.01, 0.01)
 
 

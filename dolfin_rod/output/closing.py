@@ -27,6 +27,8 @@ FILES = {
     "buckle.bp": "ParaView (ADIOS2VTXReader): the buckling modes, one step per mode",
     "modes.json": "dolfin-rod modes: natural frequencies about the end state",
     "modes.bp": "ParaView (ADIOS2VTXReader): the vibration modes, one step per mode",
+    "buckle.png": "the buckling modes' shapes and their critical load factors",
+    "modes.png": "the vibration modes' shapes and their frequencies",
 }
 
 

@@ -140,6 +140,15 @@ def _shown(series: dict) -> dict:
     return kept or series
 
 
+def _largest(series: dict, n: int) -> dict:
+    """Of many reactions (a tripod's 18 were unreadable) the n forces and the n couples
+    of the largest max |x|."""
+    def top(kind):
+        of_kind = [kx for kx in series.items() if kx[0].split(".")[-1][0] == kind]
+        return sorted(of_kind, key=lambda kx: -np.max(np.abs(kx[1])))[:n]
+    return dict(top("F") + top("M"))
+
+
 def _tip_deflection(ax, col, units, scene):
     for rod in col.prefixes("tip_position_x"):
         moved = {c: col(f"{rod}tip_position_{c}") for c in "xyz"}
@@ -220,7 +229,7 @@ def _reactions(ax, col, units, scene):
         ax.set_xticks([])
         ax.set_yticks([])
         return "reactions of the support at s = 0", ""
-    series = _shown(raw)
+    series = _largest(_shown(raw), 3)
     is_force = {label: label.split(".")[-1][0] == "F" for label in series}
     if not any(is_force.values()):      # forces all round-off: the couples on the axis
         for label, x in series.items():
@@ -235,7 +244,8 @@ def _reactions(ax, col, units, scene):
     if twin is not None:
         twin.set_ylabel(axis_label("couple (dashed)", "moment", units))
         twin.legend(fontsize="small", loc="upper right")
-    return "reactions of the support at s = 0", axis_label("force (solid)", "force", units)
+    more = f" (the largest {len(series)} of {len(raw)})" if len(series) < len(_shown(raw)) else ""
+    return "reactions of the support at s = 0" + more, axis_label("force (solid)", "force", units)
 
 
 def _contact(ax, col, units, scene):
@@ -297,7 +307,14 @@ def _energy(ax, col, units, scene):
 
 
 def _power_residual(ax, col, units, scene):
-    ax.semilogy(col.t[1:], relative_power_residual(col.rows) + 1e-300)
+    residual = relative_power_residual(col.rows)
+    if residual.size and np.max(residual) <= 1e-14:     # (a log axis of zeros: 1e-300)
+        ax.text(0.5, 0.5, "balanced to round-off:\nevery relative residual <= 1e-14",
+                ha="center", va="center", transform=ax.transAxes)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    else:
+        ax.semilogy(col.t[1:], residual + 1e-300)
     return ("power balance: |d/dt(K+Psi) + D - P| / max(|dE/dt|, D, |P|)",
             "relative residual [1]")
 

@@ -201,6 +201,9 @@ class EndSupports:
         self.ends = tuple(ends)
         self.turn = {end: np.asarray(a, float) for end, a in (end_turn or {}).items()}
         self.linked = linked_axes(end_slide, end_turn, end_frames or {})
+        if "velocity" in model.unknowns.spaces:      # quaternions: V = x_t on the line too
+            self.linked.update({("velocity", end): axis for (block, end), axis
+                                in list(self.linked.items()) if block == "displacement"})
         self.turn_material = {end: self.linked.get(("rotation_increment", end), a)
                               for end, a in self.turn.items()}  # R_0^T axis at the start
         self.springs = dict(end_springs or {})
@@ -292,6 +295,12 @@ class EndSupports:
                 f * np.asarray(self.rotation[end](t), float))
             return x0 + d, np_qmul(qr, q0)
         return x0 + d, q0
+
+    def largest_turn(self, t: float) -> float:
+        """The largest angle |end_rotation(t)| of this rod's prescribed end rotations (0
+        without any)."""
+        return max((float(np.linalg.norm(np.asarray(rotation(t), float)))
+                    for rotation in self.rotation.values()), default=0.0)
 
     def scale(self, fraction: float) -> None:
         """The prescribed motions' displacements and rotation vectors scaled by

@@ -98,7 +98,8 @@ def point_weight(load: PointLoad, rod: int, disc: Discretisation):
     layout = disc.pieces.layout
     # Constants, not numbers: the compiled kernels are shared by models of other s, h
     h = fem.Constant(disc.mesh, layout.lengths[rod] / layout.n_cells[rod])
-    distance = abs(disc.pieces.local_s(rod) - fem.Constant(disc.mesh, float(load.s)))
+    distance = abs(disc.pieces.local_s(rod, offset=False)
+                   - fem.Constant(disc.mesh, float(load.s)))
     return ufl.max_value(0.0, 1.0 - distance / h) / h, h
 
 

@@ -51,13 +51,16 @@ def exclusion(radius: float, gap: float, h: float) -> float:
     return math.pi * (radius + gap) + h
 
 
-def pair_energy(X, radius: float, gap: float, stiffness, weights, order: int = 2):
+def pair_energy(X, radius: float, gap: float, stiffness, weights, order: int = 2,
+                closest=None):
     """Energy (m,), gradient (m, 12) and (order 2) Hessian (m, 12, 12) of segment pairs
     X (m, 4, 3) = (p0, p1, q0, q1) with weights w_ij (m,): E = kappa w b(d - 2 r), d the
     centre-line distance.  With D = p(s) - q(t) = sum_k w_k X_k at the closest points,
-    w = (1 - s, s, t - 1, -t), the gradient of d is w (x) D / d (envelope theorem)."""
+    w = (1 - s, s, t - 1, -t), the gradient of d is w (x) D / d (envelope theorem).
+    ``closest``: the pairs' (s, t, d) if known (segments.closest_points of X: the pair
+    search's, SegmentContact.near)."""
     p0, p1, q0, q1 = (X[:, k] for k in range(4))
-    s, t, d = closest_points(p0, p1, q0, q1)
+    s, t, d = closest_points(p0, p1, q0, q1) if closest is None else closest
     d1, d2 = p1 - p0, q1 - q0
     D = p0 + s[:, None] * d1 - q0 - t[:, None] * d2
     w = np.stack([1 - s, s, t - 1, -t], axis=1)
@@ -187,10 +190,17 @@ class SegmentContact:
         ``distance`` (default the barrier's reach), filtered by self/between rods, in
         lexicographic order: the pairs of the candidate list (``candidates``) that are
         that near."""
+        return self.near(P, distance)[0]
+
+    def near(self, P: np.ndarray, distance: float | None = None):
+        """:meth:`pairs` and their closest points (s, t, d) (segments.closest_points),
+        computed once for the search and the pairs' terms (elementwise: the same bits)."""
         distance = self.reach if distance is None else distance
         candidates = self.candidates(P, distance)
         X = P[self.line.ends[candidates].reshape(-1, 4)]
-        return candidates[closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])[2] < distance]
+        s, t, d = closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])
+        keep = d < distance
+        return candidates[keep], (s[keep], t[keep], d[keep])
 
     def candidates(self, P: np.ndarray, distance: float) -> np.ndarray:
         """A superset of the pairs nearer than ``distance`` at P (a Verlet list): the
@@ -238,11 +248,12 @@ class SegmentContact:
         key, value = self._cache
         if key is not None and np.array_equal(key, P):
             return value
-        pairs = self.pairs(P)
+        pairs, closest = self.near(P)
         nodes = self.line.ends[pairs].reshape(-1, 4)
         weights = 0.5 * self.line.lengths[pairs].sum(axis=1)
         value = PairTerms(pairs, nodes, *pair_energy(
-            P[nodes], self.law.radius, self.law.gap, self.law.stiffness, weights))
+            P[nodes], self.law.radius, self.law.gap, self.law.stiffness, weights,
+            closest=closest))
         self._cache = (P, value)
         return value
 
