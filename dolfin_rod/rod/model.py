@@ -42,7 +42,7 @@ from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
 from .joints import JointReactions, joint_nodes, node_links
-from .kinks import Split, split_at_kinks
+from .kinks import Split, piece_starts, split_at_kinks
 from .layout import RodLayout
 from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
@@ -162,6 +162,7 @@ class RodModel(FEModel):
         check_joints(list(joints), rods)
         split = split_at_kinks(rods[0]) if split_kinks else Split(rods, [], ())
         self.kinked = len(split.rods) > len(rods)
+        self.split = split
         length = float(rods[0].params.length)
         rods, joints = split.rods, list(joints) + split.joints
         check_n_cells(sum(rod.n_cells for rod in rods), comm.size)   # cells per rank
@@ -494,13 +495,11 @@ class RodModel(FEModel):
             initial_state.check_natural(name, given, [rod.name for rod in self.rods])
         held = any("clamped" in supports.ends or bool(supports.rotation)
                    for supports in self.end_supports)
-        if self.kinked and start is not None:
-            raise ValueError("start: a rod whose stress-free polyline is split at its kinks "
-                             "(rod/kinks.py) takes no starting state yet; give its pieces "
-                             "as rods of a RodSystem with rigid joints and start those")
         if self.layout.single or self.kinked:
             check_start(start, self.length, self.dynamic, rotation_held=held)
-        elif start is not None:
+        if self.kinked and start is not None:       # the rod's start as its pieces'
+            start = RodStarts(piece_starts(start, self.split), self.rods, self.layout)
+        elif start is not None and not self.layout.single:
             check_rod_starts(start, self.rods, self.dynamic, rotation_held=held)
             check_joints_at_start(self.rods, self.joints, start)
             start = RodStarts(start, self.rods, self.layout)
