@@ -265,6 +265,32 @@ def _coiled_rod(n_cells=120):
 
 
 @pytest.mark.mpi
+def test_update_check_keeps_a_margin_below_the_barriers_taylor_range():
+    """Newton's update check (``step_fraction``: the largest 2^-k of an update along
+    which no pair's gap g falls below 0.1 g0, or by more than 0.9 g_min where g0 < g_min
+    = 1e-4 delta).  Rods A and B crossing inside a segment of each at g0 = 1e-3 g_min:
+    B moved 2 g_min towards A is cut to 0.25 (0.25 x 2 g_min <= 0.9 g_min < 0.5 x 2
+    g_min; with the floor 0.1 g0 alone 2^-12, found by ~2^20 bisections of the path per
+    pair, docs/contact.md "Cost of the crossing"); B sliding 1e-4 m along itself keeps
+    the gap (crossing lines) and is not cut; at g0 = 0.5 delta the floor is 0.1 g0: an
+    approach by g0 is cut to 0.5 (0.9 g0 / g0 = 0.9)."""
+    contact = _propped(0.8125, -0.3125).segment_contact     # crossing inside segments
+    line = contact.line
+    P = line.positions(contact.owned_displacement())
+    b = np.unique(line.ends[line.rod == 1])
+    g_min = 1e-4 * DELTA
+    for g0, approach, expected in ((1e-3 * g_min, 2 * g_min, 0.25), (0.5 * DELTA, 0.5 * DELTA,
+                                                                       0.5)):
+        P0 = P.copy()
+        P0[b, 2] += 1.5 * DELTA - g0                         # B's gap to A: g0
+        up, slide = P0.copy(), P0.copy()
+        up[b, 2] += approach
+        slide[b, 1] += 1e-4
+        assert contact.step_fraction(P0, up) == expected
+        assert contact.step_fraction(P0, slide) == 1.0
+
+
+@pytest.mark.mpi
 def test_candidate_list_finds_every_pair_within_reach():
     """The pairs of the candidate list (kept while the nodes move less than half the
     skin, else searched anew) are the pairs a search over all segment pairs finds
