@@ -298,7 +298,7 @@ def contact_law(scenario: Scenario, rods, params, n_elements: int, dt: float):
     pairs = len(rods) > 1
     return ContactLaw(radius, gap, stiffness,
                       slip_tolerance=1e-3 * min(rod.length for rod in rods) / scenario.duration,
-                      self_contact=scenario.self_contact, between_rods=pairs,
+                      self=scenario.self_contact, between_rods=pairs,
                       self_friction=mu if scenario.self_contact else 0.0,
                       between_rods_friction=mu if pairs else 0.0)
 
