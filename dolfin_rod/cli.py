@@ -234,10 +234,12 @@ def _main(argv: list[str] | None, comm) -> int:
         from .output.redraw import redraw
         with warnings.catch_warnings(record=True) as notes:   # a deprecated column name
             warnings.simplefilter("always", DeprecationWarning)
-            written = redraw(args.folder, args.quantities, args.color, args.to) \
-                if comm.rank == 0 else []
-        for note in notes:
-            print(f"warning: {note.message}", file=sys.stderr)
+            try:
+                written = redraw(args.folder, args.quantities, args.color, args.to) \
+                    if comm.rank == 0 else []
+            finally:                  # also before an error that names the new name
+                for note in notes:
+                    print(f"warning: {note.message}", file=sys.stderr)
         for path in written:
             print(f"wrote {path}")
         return 0
