@@ -292,7 +292,7 @@ def test_an_old_run_folder_is_redrawn_under_the_new_names(cantilever, capsys):
     """`dolfin-rod plot OLD` reads reaction_force_left_* as reaction_force_start_*: the
     same rows as the new folder's and the same histories.png to the pixel; an old column
     named on the command line is drawn (the same picture as the new name's) with a
-    warning naming the new one."""
+    warning naming the new one, also when the new one is then refused (no such column)."""
     new, old = cantilever
     _same_rows(read_rows(old), read_rows(new))
     for folder in (new, old):
@@ -305,6 +305,9 @@ def test_an_old_run_folder_is_redrawn_under_the_new_names(cantilever, capsys):
     assert "use 'reaction_force_start_z'" in err
     assert main(["plot", str(new), "reaction_force_start_z", "--to", str(new / "z.png")]) == 0
     assert np.array_equal(_pixels(new / "z.png"), _pixels(old / "z.png"))
+    assert main(["plot", str(old), "reaction_couple_right_y"]) == 2   # a free end: none
+    err = capsys.readouterr().err              # the warning too, before the error naming
+    assert "use 'reaction_couple_end_y'" in err and "reaction_couple_end_y is neither" in err
 
 
 def test_an_old_run_folder_resumes_under_the_new_names(cantilever, tmp_path):
