@@ -118,11 +118,11 @@ def _ropes(n_cells):
                           - down * _smooth(t, 1.0) * np.eye(3)[2])
 
     lower = Rod(PARAMS, n_cells, "pinned", end="pinned", distributed_loads=gravity,
-                end_displacement={"left": pins(0, 1, 0.0), "right": pins(0, -1, 0.0)},
+                end_displacement={"start": pins(0, 1, 0.0), "end": pins(0, -1, 0.0)},
                 position=(-L / 2, 0, 0), orientation=(0, np.pi / 2, 0), name="lower")
     upper = Rod(PARAMS, n_cells, "pinned", end="pinned", distributed_loads=gravity,
-                end_displacement={"left": pins(1, 1, DROP + START),
-                                  "right": pins(1, -1, DROP + START)},
+                end_displacement={"start": pins(1, 1, DROP + START),
+                                  "end": pins(1, -1, DROP + START)},
                 position=(0, -L / 2, START), orientation=(-np.pi / 2, 0, 0), name="upper")
     system = RodSystem([lower, upper], model="hyperelastic",
                        contact=ContactLaw(R, DELTA, KAPPA, between_rods=True))

@@ -202,7 +202,7 @@ def test_neighbour_exclusion_and_bad_radius():
     assert exclusion(0.01, 0.001, 0.1) == pytest.approx(np.pi * 0.011 + 0.1)
     with pytest.raises(ValueError, match="contact.radius"):
         RodModel(BEAM, N, model="hyperelastic",
-                 contact=ContactLaw(0.3, 0.03, 1.0, self_contact=True))
+                 contact=ContactLaw(0.3, 0.03, 1.0, self=True))
 
 
 def _ring_drift(dt, t_end=0.5):
@@ -216,7 +216,7 @@ def _ring_drift(dt, t_end=0.5):
     params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, density=0.1,
                            section_inertia=1e-6, reference_curvature=(kappa, 0, 0))
     rod = RodModel(params, 40, model="hyperelastic", start="free", end="free",
-                   contact=ContactLaw(0.01, 0.002, 1e3, self_contact=True))
+                   contact=ContactLaw(0.01, 0.002, 1e3, self=True))
     ends, _ = rod.stress_free(np.array([0.0, 1.0]))
     chord = (ends[0] - ends[1]) / np.linalg.norm(ends[0] - ends[1])
     rod.set_initial_state(start=StartingState(
@@ -253,7 +253,7 @@ def _coiled_rod(n_cells=120):
     params = RodParameters(length=n_cells * R, A=(1.0,) * 3, B=(1e3,) * 3, density=1.0,
                            section_inertia=1e-4)
     model = RodModel(params, n_cells, model="hyperelastic", start="free", end="free",
-                     contact=ContactLaw(R, DELTA, 1e3, self_contact=True))
+                     contact=ContactLaw(R, DELTA, 1e3, self=True))
     model.set_initial_state()
     x = model.unknowns.f["displacement"]
     s = x.function_space.tabulate_dof_coordinates()[:, 0]

@@ -62,7 +62,7 @@ FRICTION_STEPS = 4          # times more with friction on an obstacle (the capst
                             # mu = 0.6 failed its first step at 100 per period, not at 400)
 FRICTION_NEWTON_ITERATIONS = 100   # Newton's limit with friction (solver_options)
 OFFSET = 0.5                # obstacles' surfaces moved back by OFFSET barrier gaps
-ENDS = {End.START: "left", End.END: "right"}
+ENDS = {End.START: "start", End.END: "end"}
 
 
 class DolfinRodSolver:
@@ -276,11 +276,11 @@ def obstacles(scenario: Scenario, gap: float) -> list:
     """contact.py's obstacles of the scenario's, their surfaces moved back by OFFSET gap."""
     from ..rod.contact import Obstacle
     back = OFFSET * gap
-    return [Obstacle("cylinder", point=tuple(ob.center), axis=tuple(ob.unit_axis),
+    return [Obstacle("cylinder", centre=tuple(ob.center), axis=tuple(ob.unit_axis),
                      radius=ob.radius - back, length=ob.length, friction=ob.friction)
             if ob.kind == "cylinder" else
             Obstacle("plane", point=tuple(np.asarray(ob.point) - back * ob.unit_normal),
-                     axis=tuple(ob.unit_normal), friction=ob.friction)
+                     normal=tuple(ob.unit_normal), friction=ob.friction)
             for ob in scenario.obstacles]
 
 
@@ -298,7 +298,7 @@ def contact_law(scenario: Scenario, rods, params, n_elements: int, dt: float):
     pairs = len(rods) > 1
     return ContactLaw(radius, gap, stiffness,
                       slip_tolerance=1e-3 * min(rod.length for rod in rods) / scenario.duration,
-                      self_contact=scenario.self_contact, between_rods=pairs,
+                      self=scenario.self_contact, between_rods=pairs,
                       self_friction=mu if scenario.self_contact else 0.0,
                       between_rods_friction=mu if pairs else 0.0)
 

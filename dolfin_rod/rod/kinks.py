@@ -14,7 +14,7 @@ coefficients are the rod's at s_k + its own arc length, layout.Pieces.local_s), 
 at the polyline's point there with the frame of the segment after it (d3 along the
 segment, d1 carried along the segments by parallel transport from ``normal``, as the
 polyline's own frames), placed as the rod is.  The first piece takes the rod's name, its
-support at s = 0, the left end's loads and motions; the last one the right end's; the
+support at s = 0, the start's loads and motions; the last one the end's (s = L); the
 ends between pieces are free (the joints hold them).
 """
 
@@ -133,7 +133,7 @@ def _at_offset(field, offset: float):
 
 def _ends(rod: Rod, first: bool, last: bool) -> dict:
     """A piece's supports, end loads and end motions: the rod's at the ends it has."""
-    keep = {"left": first, "right": last}
+    keep = {"start": first, "end": last}
     own = {name: {end: v for end, v in (getattr(rod, name) or {}).items() if keep[end]}
            or None for name in ("end_displacement", "end_rotation", "end_slide",
                                 "end_springs", "end_turn")}
