@@ -115,7 +115,7 @@ def main() -> None:
         assert link < 1e-3, link
         assert np.all(rows["min_pair_gap"] > 0.0), "two segments touched through the barrier"
     straight = (s["time"] > 0.0) & (s["time"] <= T_LOWER)
-    m = s["reaction_couple_right_z"]
+    m = s["reaction_couple_end_z"]
     exact = torsion_closed_form(scene, s["time"][straight])
     torsion_error = np.abs(m[straight] - exact).max() / np.abs(exact).max()
     held = (s["time"] >= T_HOLD[0]) & (s["time"] <= T_HOLD[1])
@@ -164,8 +164,8 @@ def plot(s, e, lk, exact, straight, held, fit) -> None:
     ax[0].legend(fontsize=8)
     tau, m_inf, c = fit
     t = s["time"][held]
-    ax[1].plot(s["time"], s["reaction_couple_right_z"], "C0", label="viscoelastic")
-    ax[1].plot(e["time"], e["reaction_couple_right_z"], "C3--", label="elastic")
+    ax[1].plot(s["time"], s["reaction_couple_end_z"], "C0", label="viscoelastic")
+    ax[1].plot(e["time"], e["reaction_couple_end_z"], "C3--", label="elastic")
     ax[1].plot(s["time"][straight], exact, "k:", lw=2, label="eq. apptorsion (straight rod)")
     ax[1].plot(t, m_inf + c * np.exp(-(t - t[0]) / tau), "k--", lw=1,
                label=f"M_inf + c exp(-t / {tau:.2f} s)")

@@ -188,7 +188,7 @@ def test_plectoneme_setting_demo_small(ranks):
     hold = (s["time"] >= 6.0) & (s["time"] <= 14.0)
     assert s["twist"][hold][0] + s["writhe"][hold][0] == pytest.approx(8.0, abs=1e-3)
     assert s["twist"][-1] + s["writhe"][-1] == pytest.approx(0.0, abs=1e-3)
-    m, m_e = s["reaction_couple_right_z"][hold], e["reaction_couple_right_z"][hold]
+    m, m_e = s["reaction_couple_end_z"][hold], e["reaction_couple_end_z"][hold]
     # the elastic rod's torque at held twist stays (measured within 0.2 %); the
     # viscoelastic one falls at every step and after 2 tau is below (r + e^-2)/(1 + r)
     # = 0.31 of the elastic one (the law at a frozen shape from u_d = 0 at the hold's

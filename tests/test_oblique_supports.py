@@ -41,9 +41,9 @@ def inclined_rod(dynamic: bool = False) -> RodSystem:
                    rotational_drag=(0.05, 0.05, 0.05)) if dynamic else {}
     rod = Rod(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(20.0, 20.0, EA), **inertia),
               n_cells=N, start="clamped", end="clamped", orientation=tuple(along_the_axis()),
-              end_slide={"left": tuple(AXIS)}, end_turn={"left": tuple(AXIS)},
-              end_loads=[EndLoad("force", (0.0, 0.0, -W), ramp, end="left"),
-                         EndLoad("couple", tuple(C * AXIS), ramp, end="left")])
+              end_slide={"start": tuple(AXIS)}, end_turn={"start": tuple(AXIS)},
+              end_loads=[EndLoad("force", (0.0, 0.0, -W), ramp, end="start"),
+                         EndLoad("couple", tuple(C * AXIS), ramp, end="start")])
     return RodSystem([rod], model="hyperelastic")
 
 
@@ -101,11 +101,11 @@ def test_weight_on_an_inclined_sliding_turning_clamp():
     def vector(key):
         return np.array([d[f"rod.{key}_{c}"] for c in "xyz"])
 
-    assert np.allclose(vector("reaction_force_right"), tension * AXIS, rtol=0, atol=1e-10)
-    assert np.allclose(vector("reaction_force_left"), W * E3 - tension * AXIS, rtol=0,
+    assert np.allclose(vector("reaction_force_end"), tension * AXIS, rtol=0, atol=1e-10)
+    assert np.allclose(vector("reaction_force_start"), W * E3 - tension * AXIS, rtol=0,
                        atol=1e-10)
-    assert np.allclose(vector("reaction_couple_right"), -C * AXIS, rtol=0, atol=1e-10)
-    assert np.linalg.norm(vector("reaction_couple_left")) < 1e-10
+    assert np.allclose(vector("reaction_couple_end"), -C * AXIS, rtol=0, atol=1e-10)
+    assert np.linalg.norm(vector("reaction_couple_start")) < 1e-10
     assert np.allclose(vector("tip_position"), L * AXIS, rtol=0, atol=1e-14)
 
 
@@ -124,7 +124,7 @@ def test_dynamic_rod_on_an_inclined_sliding_clamp_settles_and_stays_on_the_axis(
     assert max(across) < 1e-14
     stretch = W * AXIS[2] * L / EA
     assert bottom(model)[0] @ AXIS == pytest.approx(-stretch, rel=3e-5)      # 4.2e-6
-    assert rows[-1]["rod.reaction_force_right_x"] == pytest.approx(W * AXIS[2] ** 2,
+    assert rows[-1]["rod.reaction_force_end_x"] == pytest.approx(W * AXIS[2] ** 2,
                                                                  rel=1e-5)  # 6.3e-7
 
 
@@ -133,23 +133,23 @@ def test_dynamic_rod_on_an_inclined_sliding_clamp_settles_and_stays_on_the_axis(
     ((0.6, 0.6, 0.6), "must be a unit vector"),
 ])
 def test_a_slide_axis_that_is_not_unit_is_refused_naming_it(axis, match):
-    with pytest.raises(ValueError, match=r"end_slide\['right'\] " + match):
+    with pytest.raises(ValueError, match=r"end_slide\['end'\] " + match):
         RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
-                 end_slide={"right": axis})
+                 end_slide={"end": axis})
 
 
 def test_inclined_turns_need_rotation_vectors_and_slides_no_motion_across():
     """An oblique turn holds a quaternion in a plane (span(q_0, q_0 (0, a))), not on a
     line: refused with quaternion unknowns, naming it; an oblique slide's motion across
     its axis cannot be prescribed."""
-    with pytest.raises(ValueError, match=r"end_turn\['right'\]: a turn about an axis off "
+    with pytest.raises(ValueError, match=r"end_turn\['end'\]: a turn about an axis off "
                                          "the coordinate axes needs rotation-vector unknowns"):
         RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
-                 rotations="quaternion", end_turn={"right": (0.6, 0.0, 0.8)})
-    with pytest.raises(ValueError, match=r"end_displacement\['right'\]: the end slides"):
+                 rotations="quaternion", end_turn={"end": (0.6, 0.0, 0.8)})
+    with pytest.raises(ValueError, match=r"end_displacement\['end'\]: the end slides"):
         RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
-                 end_slide={"right": (0.6, 0.0, 0.8)},
-                 end_displacement={"right": lambda t: (0.0, t, 0.0)})
+                 end_slide={"end": (0.6, 0.0, 0.8)},
+                 end_displacement={"end": lambda t: (0.0, t, 0.0)})
 
 
 GUIDED = dict(L=1.2, EI=2.0, GJ=1.5, kGA=300.0, EA=900.0, W=1e-6, N=6)
@@ -173,7 +173,7 @@ def test_guided_end_on_an_inclined_slide_closed_form(rotations):
     model = RodModel(RodParameters(length=g["L"], A=(g["EI"], g["EI"], g["GJ"]),
                                    B=(g["kGA"], g["kGA"], g["EA"])), n_cells=g["N"],
                      model="hyperelastic", rotations=rotations, start="clamped",
-                     end="clamped", end_slide={"right": tuple(AXIS)},
+                     end="clamped", end_slide={"end": tuple(AXIS)},
                      end_loads=[EndLoad("force", (0.0, 0.0, -g["W"]))])
     assert model.rotations == rotations
     d = run(model, 1.0, 1.0, scheme="backward_euler")[-1]
@@ -183,7 +183,7 @@ def test_guided_end_on_an_inclined_slide_closed_form(rotations):
     assert end @ AXIS == pytest.approx(delta, rel=1e-6)
     # across: the round-off of positions ~ L (tip - L e_3 measured 1.6e-17)
     assert np.linalg.norm(end - (end @ AXIS) * AXIS) < 1e-15
-    reaction = np.array([d[f"reaction_force_right_{c}"] for c in "xyz"])
+    reaction = np.array([d[f"reaction_force_end_{c}"] for c in "xyz"])
     # the slide pushes across only: along AXIS the free dof's residual, below Newton's
     # atol 1e-12 (measured 8e-15 of a reaction ~4e-8)
     assert abs(reaction @ AXIS) < 1e-12
@@ -210,7 +210,7 @@ def test_quaternion_rod_slides_down_an_inclined_rail_at_g_sin_alpha():
                                          B=(2e3, 2e3, 5e3), density=rho_A,
                                          section_inertia=1e-3),
                            n_cells=8, start="clamped", end="free",
-                           orientation=tuple(orientation), end_slide={"left": tuple(a)},
+                           orientation=tuple(orientation), end_slide={"start": tuple(a)},
                            distributed_loads=[DistributedLoad("force", (0.0, 0.0, -rho_A * g))])],
                       model="hyperelastic", rotations="quaternion")
     x = model.unknowns.f["displacement"]
@@ -237,7 +237,7 @@ def test_petsc_ts_refuses_an_inclined_slide():
     from dolfin_rod import TSIntegrator
     model = RodModel(RodParameters(density=1.0, section_inertia=0.01), n_cells=2,
                      rotations="quaternion", start="clamped", end="clamped",
-                     end_slide={"right": tuple(AXIS)})
+                     end_slide={"end": tuple(AXIS)})
     with pytest.raises(ValueError, match="PETSc TS does not hold the one-node links"):
         TSIntegrator(model.problem)
 
@@ -257,10 +257,10 @@ def test_inclined_clamp_scene_serially_and_on_two_ranks(tmp_path):
     final = run_scene(quick_scene(INCLINED, 4, **QUIET), folder / "run", quiet=True)["final"]
     weight = 0.5
     for c in "xyz":
-        assert final[f"rod.reaction_force_right_{c}"] == pytest.approx(weight / 3, rel=1e-8)
-        assert final[f"rod.reaction_force_left_{c}"] == pytest.approx(
+        assert final[f"rod.reaction_force_end_{c}"] == pytest.approx(weight / 3, rel=1e-8)
+        assert final[f"rod.reaction_force_start_{c}"] == pytest.approx(
             (weight if c == "z" else 0.0) - weight / 3, rel=1e-8)
-        assert abs(final[f"rod.reaction_couple_left_{c}"]) < 1e-10
+        assert abs(final[f"rod.reaction_couple_start_{c}"]) < 1e-10
     if comm.size > 1 and comm.rank == 0:
         assert_serial_run_equal(INCLINED, folder, 4, **QUIET)
 
@@ -313,7 +313,7 @@ def column(axis_of_rod: np.ndarray, dynamic: bool):
     return RodSystem([Rod(RodParameters(length=1.0, A=(1.0, 1.0, 0.8), B=(400.0, 400.0, 900.0),
                                         **inertia),
                           n_cells=12, start="clamped", end="clamped", orientation=tuple(turn),
-                          end_slide={"right": tuple(axis_of_rod)}, end_loads=load)],
+                          end_slide={"end": tuple(axis_of_rod)}, end_loads=load)],
                      model="hyperelastic")
 
 

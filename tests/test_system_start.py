@@ -112,7 +112,7 @@ def frame_turned(angle: float, comm=MPI.COMM_WORLD) -> RodSystem:
               for length in (f["L1"], f["L2"])]
     top = (0.0, 0.0, f["L1"])
     rods = [Rod(params[0], 6, name="column",
-                end_rotation={"left": lambda t: (0.0, angle, 0.0)}),
+                end_rotation={"start": lambda t: (0.0, angle, 0.0)}),
             Rod(params[1], 6, "free", end="free", name="beam", position=top,
                 orientation=(0.0, np.pi / 2, 0.0))]
     return RodSystem(rods, joints=[Joint("rigid", ("column", "beam"), top)],
@@ -126,7 +126,7 @@ def split_shaft(kind: str, angle: float, comm=MPI.COMM_WORLD) -> RodSystem:
     params = RodParameters(length=0.5, A=(1.0, 1.0, 1.0), B=(40.0, 40.0, 60.0), density=2.0,
                            section_inertia=0.01)
     middle = (0.0, 0.0, 0.5)
-    rods = [Rod(params, 4, name="a", end_rotation={"left": lambda t: (0.0, 0.0, angle)}),
+    rods = [Rod(params, 4, name="a", end_rotation={"start": lambda t: (0.0, 0.0, angle)}),
             Rod(params, 4, "free", end="clamped", name="b", position=middle)]
     axis = {"axis": (0.0, 0.0, 1.0)} if kind == "hinge" else {}
     return RodSystem(rods, joints=[Joint(kind, ("a", "b"), middle, **axis)],
@@ -174,11 +174,11 @@ def test_split_shaft_twisted_at_the_start_through_its_joint(kind):
     assert max(r["kinetic_energy"] for r in rows) < 1e-16
     if kind == "rigid":
         u_h, factor = p1_twist(angle / L, L, N)
-        assert d["a.reaction_couple_left_z"] == pytest.approx(GJ * u_h * factor, rel=1e-9)
-        assert d["b.reaction_couple_right_z"] == pytest.approx(-GJ * u_h * factor, rel=1e-9)
+        assert d["a.reaction_couple_start_z"] == pytest.approx(GJ * u_h * factor, rel=1e-9)
+        assert d["b.reaction_couple_end_z"] == pytest.approx(-GJ * u_h * factor, rel=1e-9)
         assert d["free_energy"] == pytest.approx(0.5 * GJ * u_h ** 2 * L, rel=1e-9)
     else:
-        assert abs(d["a.reaction_couple_left_z"]) < 1e-9
+        assert abs(d["a.reaction_couple_start_z"]) < 1e-9
         assert d["free_energy"] < 1e-18
         q = [d[f"a.tip_quaternion_{i}"] for i in range(4)]
         assert q == pytest.approx([np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)], abs=1e-9)

@@ -151,7 +151,7 @@ def test_pre_twisted_clamped_rod():
     errors = []
     for n in (8, 16):
         rod = RodModel(SLENDER, n_cells=n, model="hyperelastic", start="clamped", end="clamped",
-                       end_turn={"right": (0.0, 0.0, 1.0)},
+                       end_turn={"end": (0.0, 0.0, 1.0)},
                        end_loads=[EndLoad("couple", (0.0, 0.0, moment))])
         rod.set_initial_state(start=StartingState(equilibrium=True))
         omega = vibration_modes(rod, 0.0, 2).omega

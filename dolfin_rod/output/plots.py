@@ -8,13 +8,13 @@ from the scene's supports and loads):
     tip_rotation     rotation of the tip about its main axis, unwrapped (cumulative):
                      a 2.5-turn twist reads 5 pi, not 5 pi mod 2 pi (held end
                      rotations; rods turned by an end or distributed couple)
-    end_torque       the couple the support at s = L exerts (reaction_couple_right_*);
+    end_torque       the couple the support at s = L exerts (reaction_couple_end_*);
                      torsion models: the end torsion m(1, t)
     force_extension  the applied end force along its direction against the tip
                      displacement along it (a hysteresis loop when the rod is viscous;
                      a force that varies: ramp, smooth step, table); without an end
                      force, a point force against its point's displacement
-    reactions        force and couple of the support at s = 0 (reaction_*_left_*)
+    reactions        force and couple of the support at s = 0 (reaction_*_start_*)
     stability        the count of negative eigenvalues of the stiffness (the column
                      negative_eigenvalues of runs that check stability): 0 is stable
     contact          the total contact force (obstacles: |sum of the force|; segment
@@ -74,7 +74,7 @@ def choose_panels(scene, columns) -> list[str]:
             and (force[0] == "point_force" or boundary["end"] == "free") \
             and f"{force[1]}_position_x" in cols:
         panels.append("force_extension")
-    if boundary.get("end_rotation") is not None and "reaction_couple_right_z" in cols:
+    if boundary.get("end_rotation") is not None and "reaction_couple_end_z" in cols:
         panels += ["end_torque", "twist" if "writhe" in cols else "tip_rotation"]
     if not panels and "tip_quaternion_0" in cols and (
             loads.get("end_couple") is not None or loads.get("distributed_couple") is not None):
@@ -85,7 +85,7 @@ def choose_panels(scene, columns) -> list[str]:
         panels.append("tip_deflection")
     if any(c.endswith(("contact_force_x", "pair_contact_force")) for c in cols):
         panels.append("contact")
-    if any(c.endswith("reaction_force_left_x") for c in cols) and len(panels) < 2:
+    if any(c.endswith("reaction_force_start_x") for c in cols) and len(panels) < 2:
         panels.append("reactions")
     return panels + ["energy", "power_residual"]
 
@@ -173,7 +173,7 @@ def _end_torque(ax, col, units, scene):
     if "end_torsion" in col.rows[0]:
         ax.plot(col.t, col("end_torsion"))
         return "end torsion m(1, t)", axis_label("m(1, t)", "moment", units)
-    for c, m in _shown({c: col(f"reaction_couple_right_{c}") for c in "xyz"}).items():
+    for c, m in _shown({c: col(f"reaction_couple_end_{c}") for c in "xyz"}).items():
         ax.plot(col.t, m, label=f"M_{c}")
     ax.legend(fontsize="small")
     return "end torque: couple of the support at s = L", axis_label("couple", "moment", units)
@@ -216,10 +216,10 @@ def unloaded(reactions: dict, energy: float, length: float) -> bool:
 
 
 def _reactions(ax, col, units, scene):
-    raw = {f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_left_{c}")
-           for rod in col.prefixes("reaction_force_left_x")
+    raw = {f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_start_{c}")
+           for rod in col.prefixes("reaction_force_start_x")
            for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
-           if f"{rod}reaction_{name}_left_{c}" in col.rows[0]}
+           if f"{rod}reaction_{name}_start_{c}" in col.rows[0]}
     energy = max(np.max(np.abs(col("free_energy") + col("kinetic_energy"))),
                  np.max(np.abs(col("total_dissipation"))))
     if unloaded(raw, energy, scene["geometry"]["length"]):

@@ -1,6 +1,7 @@
 """Supports and prescribed motions of the rod's ends, and the reactions there.
 
-ends: (left, right), each "clamped" (x and q fixed), "pinned" (x fixed) or "free".
+ends: (start, end) at s = 0 and s = L, each "clamped" (x and q fixed), "pinned" (x
+fixed) or "free".
 end_displacement, end_rotation: {end: history t -> 3-vector}: a prescribed motion of an
 end (displacement from its initial position; rotation vector superposed on its initial
 rotation); the end's velocities (dynamic rods) follow from loads.rate (the history's own
@@ -128,7 +129,7 @@ def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False,
 
 def _check_spring(end, spring, kind, slide: dict, moving) -> None:
     if end not in ENDS or not isinstance(spring, EndSpring):
-        raise ValueError(f"end_springs: {{end: EndSpring}} with end 'left' or 'right', got "
+        raise ValueError(f"end_springs: {{end: EndSpring}} with end 'start' or 'end', got "
                          f"{end!r}: {spring!r}")
     for part, held in (("translational", kind in ("clamped", "pinned") and end not in slide),
                        ("rotational", kind == "clamped")):
@@ -246,7 +247,7 @@ class EndSupports:
                 model.dirichlet_at(block, spaces[block], self.s_ends[end], const)
         if "rotation_increment" in spaces and not model.dynamic and spin_free(
                 ends, self.rotation, self.turn, self.springs):   # quasi-static: a null mode
-            model.dirichlet_at(self.block, spaces[self.block], self.s_ends["left"],
+            model.dirichlet_at(self.block, spaces[self.block], self.s_ends["start"],
                                fem.Constant(mesh, 0.0), component=2)
         unk = model.unknowns     # a turning end's rotation (reactions): nodal values
         self._rotations = unk.f["quaternion"] if unk.chart is None else unk.chart.q_n

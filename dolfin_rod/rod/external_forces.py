@@ -16,6 +16,7 @@ import ufl
 
 from ..theory import balance
 from ..theory.rotations import rotation_matrix
+from ..checks import end_name
 from ..fem.fe_model import ENDS
 from ..fem.problem import TimeDependentValue
 from .discretisation import Discretisation, Unknowns
@@ -30,8 +31,11 @@ class EndLoad:
     kind: str                        # "force" or "couple"
     value: Sequence[float]
     history: Callable = field(default=lambda t: 1.0)
-    end: str = "right"
-    follower: bool = False
+    end: str = "end"                 # "start" (s = 0) or "end" (s = L), as the scene's
+    follower: bool = False           # loads.start_force, end_couple, ...
+
+    def __post_init__(self):
+        self.end = end_name("EndLoad", self.end, stacklevel=3)    # the caller's line
 
 
 @dataclass
@@ -75,7 +79,8 @@ def check_loads(end_loads, distributed_loads, point_loads=(), length: float = np
                              f"{load.history(0.0)!r} at t = 0")
     for load in end_loads:
         if load.end not in ENDS:
-            raise ValueError(f"load end must be 'left' or 'right', got {load.end!r}")
+            raise ValueError(f"EndLoad end must be 'start' (s = 0) or 'end' (s = L), got "
+                             f"{load.end!r}")
 
 
 def _load_value(load, rod: int, disc: Discretisation):

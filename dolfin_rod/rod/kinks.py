@@ -14,7 +14,7 @@ coefficients are the rod's at s_k + its own arc length, layout.Pieces.local_s), 
 at the polyline's point there with the frame of the segment after it (d3 along the
 segment, d1 carried along the segments by parallel transport from ``normal``, as the
 polyline's own frames), placed as the rod is.  The first piece takes the rod's name, its
-support at s = 0, the left end's loads and motions; the last one the right end's; the
+support at s = 0, the start's loads and motions; the last one the end's (s = L); the
 ends between pieces are free (the joints hold them).
 """
 
@@ -24,12 +24,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..theory.quaternions import (np_qmul, np_quaternion_from_matrix,
+from ..theory.quaternions import (CONJ, np_qmul, np_quaternion_from_matrix,
                                   np_quaternion_from_rotation_vector, np_rotation_matrix,
                                   np_rotation_vector)
 from .joint_points import Joint
 from .rods import Rod
-from .start import Polyline, parallel_transport
+from .start import Polyline, StartingState, parallel_transport
 
 KINK = 1e-9          # rad: a polyline point turning by more is a corner
 AT_NODE = 1e-9       # a point within AT_NODE h of a node is at the node
@@ -101,9 +101,39 @@ def split_at_kinks(rod: Rod) -> Split:
     return Split(pieces, joints, tuple(i * h for i in bounds[:-1]))
 
 
+def piece_starts(start: StartingState, split: Split) -> dict:
+    """{piece name: StartingState}: the rod's starting state (its stress-free shape
+    placed at ``position`` with ``orientation``, velocities) as its pieces' (rod/start.
+    RodStarts: each in its piece's placed frame p_k, R_k): the rod's r = p + Q r_rod is
+    p_k + R_k (p'' + Q'' r_piece) with Q'' = R_k^T Q R_k, p'' = R_k^T (p + Q p_k - p_k);
+    velocity fields of the rod's s taken at the piece's s + offset.  A starting curve
+    (``shape``) is a ValueError naming ``start.shape`` (not split yet)."""
+    if start.shape is not None:
+        raise ValueError("start.shape: a rod whose stress-free polyline is split at its "
+                         "kinks (rod/kinks.py) starts in its stress-free shape (placed, "
+                         "with velocities), not on a curve yet")
+    q = np_quaternion_from_rotation_vector(np.asarray(start.orientation, float))
+    Q, p = np_rotation_matrix(q), np.asarray(start.position, float)
+    starts = {}
+    for piece, offset in zip(split.rods, split.offsets):
+        q_k = np_quaternion_from_rotation_vector(np.asarray(piece.orientation, float))
+        R_k, p_k = np_rotation_matrix(q_k), np.asarray(piece.position, float)
+        starts[piece.name] = replace(
+            start, position=tuple(R_k.T @ (p + Q @ p_k - p_k)),
+            orientation=tuple(np_rotation_vector(np_qmul(np_qmul(q_k * CONJ, q), q_k))),
+            velocity=_at_offset(start.velocity, offset),
+            angular_velocity=_at_offset(start.angular_velocity, offset))
+    return starts
+
+
+def _at_offset(field, offset: float):
+    """A velocity field of the rod's s as one of a piece's own s (a constant as is)."""
+    return (lambda s: field(np.asarray(s, float) + offset)) if callable(field) else field
+
+
 def _ends(rod: Rod, first: bool, last: bool) -> dict:
     """A piece's supports, end loads and end motions: the rod's at the ends it has."""
-    keep = {"left": first, "right": last}
+    keep = {"start": first, "end": last}
     own = {name: {end: v for end, v in (getattr(rod, name) or {}).items() if keep[end]}
            or None for name in ("end_displacement", "end_rotation", "end_slide",
                                 "end_springs", "end_turn")}

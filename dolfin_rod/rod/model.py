@@ -26,8 +26,8 @@ from mpi4py import MPI
 from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
-from ..checks import (MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
-                      check_n_cells, old_keywords)
+from ..checks import (ENDS, MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
+                      check_n_cells, end_keyed, old_keywords)
 from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..integrators.step_control import IntegrationError
@@ -42,7 +42,7 @@ from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
 from .joints import JointReactions, joint_nodes, node_links
-from .kinks import Split, split_at_kinks
+from .kinks import Split, piece_starts, split_at_kinks
 from .layout import RodLayout
 from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
@@ -59,7 +59,7 @@ _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
 def end_frames(rod: Rod) -> dict:
     """{end: the stress-free, placed rotation (quaternion) of the rod's end}."""
     q = placed_shape(rod, np.array([0.0, float(rod.params.length)]))[1]
-    return dict(zip(("left", "right"), q))
+    return dict(zip(ENDS, q))
 
 
 def oblique_supports(rod: Rod) -> list[tuple[str, str]]:
@@ -107,9 +107,11 @@ class RodModel(FEModel):
                  end_turn: dict | None = None, end: str = "free",
                  point_loads: Sequence[PointLoad] = ()):
         start, end = positional_ends("RodModel", start, end, stacklevel=5)
-        rod = Rod(params, n_cells, start, end_loads, distributed_loads, end_displacement,
-                  end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn,
-                  end=end, point_loads=point_loads)
+        keyed = end_keyed("RodModel", dict(    # "left", "right": deprecated (the caller's line)
+            end_displacement=end_displacement, end_rotation=end_rotation, end_slide=end_slide,
+            end_springs=end_springs, end_turn=end_turn), stacklevel=3)
+        rod = Rod(params, n_cells, start, end_loads, distributed_loads, point_loads=point_loads,
+                  end=end, **keyed)
         self._build([rod], model, variant, constraints, rotations, comm, obstacles=obstacles,
                     contact=contact, split_kinks=True)
 
@@ -160,6 +162,7 @@ class RodModel(FEModel):
         check_joints(list(joints), rods)
         split = split_at_kinks(rods[0]) if split_kinks else Split(rods, [], ())
         self.kinked = len(split.rods) > len(rods)
+        self.split = split
         length = float(rods[0].params.length)
         rods, joints = split.rods, list(joints) + split.joints
         check_n_cells(sum(rod.n_cells for rod in rods), comm.size)   # cells per rank
@@ -317,11 +320,11 @@ class RodModel(FEModel):
     def _segment_contact(self, law, layout, joint_nodes) -> SegmentContact | None:
         """The segment pairs' contact (pair_contact.py) if the law asks for it; the
         joints' nodes (s of both rods) join their segments as neighbours."""
-        if law is None or not (law.self_contact or law.between_rods):
+        if law is None or not (law.self or law.between_rods):
             return None
         h = max(length / n for length, n in zip(layout.lengths, layout.n_cells))
         reach = exclusion(law.radius, law.gap, h)
-        if law.self_contact and reach >= min(layout.lengths):
+        if law.self and reach >= min(layout.lengths):
             raise ValueError(f"contact.radius = {law.radius:g}: self-contact excludes "
                              f"neighbours closer along the rod than pi (r + delta) + h = "
                              f"{reach:.4g}, which is not shorter than the rod "
@@ -329,7 +332,7 @@ class RodModel(FEModel):
         check_contact([], law)
         self._check_pair_friction(law)
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
-                                 law.self_contact, law.between_rods, joint_nodes,
+                                 law.self, law.between_rods, joint_nodes,
                                  velocity=self.unknowns.V if self.dynamic else None)
         contact.block = list(self.names).index("displacement")
         contact.rod_names, contact.rod_starts = layout.names, layout.starts
@@ -492,13 +495,11 @@ class RodModel(FEModel):
             initial_state.check_natural(name, given, [rod.name for rod in self.rods])
         held = any("clamped" in supports.ends or bool(supports.rotation)
                    for supports in self.end_supports)
-        if self.kinked and start is not None:
-            raise ValueError("start: a rod whose stress-free polyline is split at its kinks "
-                             "(rod/kinks.py) takes no starting state yet; give its pieces "
-                             "as rods of a RodSystem with rigid joints and start those")
         if self.layout.single or self.kinked:
             check_start(start, self.length, self.dynamic, rotation_held=held)
-        elif start is not None:
+        if self.kinked and start is not None:       # the rod's start as its pieces'
+            start = RodStarts(piece_starts(start, self.split), self.rods, self.layout)
+        elif start is not None and not self.layout.single:
             check_rod_starts(start, self.rods, self.dynamic, rotation_held=held)
             check_joints_at_start(self.rods, self.joints, start)
             start = RodStarts(start, self.rods, self.layout)

@@ -38,7 +38,7 @@ from typing import NamedTuple
 import numpy as np
 from petsc4py import PETSc
 
-from .contact import barrier_derivatives
+from .contact import XI_MIN, barrier_derivatives
 from .pair_friction import PairFriction
 from .segments import closest_points, near_pairs
 
@@ -442,12 +442,17 @@ class SegmentContact:
 
     def step_fraction(self, P0: np.ndarray, P1: np.ndarray) -> float:
         """The largest 2^-k (k <= CROSSING_DEPTH) such that on the straight path from P0
-        towards P1 up to it no pair's gap falls below STEP_FLOOR of its gap at P0 (a pair
-        already closer than 2 r: below half its distance)."""
+        towards P1 up to it no pair's gap g falls below STEP_FLOOR of its gap g0 at P0, or
+        by more than (1 - STEP_FLOOR) g_min where g0 < g_min (the barrier's Taylor range,
+        contact.XI_MIN: the bisection's work grows like the update's length over the
+        margin g0 - floor, which must not vanish with g0; docs/contact.md); a pair
+        already closer than 2 r: below half its distance."""
         r2 = 2 * self.law.radius
+        margin = (1 - STEP_FLOOR) * XI_MIN * self.law.gap
 
         def floor(d0):
-            return np.where(d0 > r2, r2 + STEP_FLOOR * (d0 - r2), 0.5 * d0)
+            g0 = d0 - r2
+            return np.where(d0 > r2, r2 + np.minimum(STEP_FLOOR * g0, g0 - margin), 0.5 * d0)
 
         alpha = 1.0
         for _ in range(CROSSING_DEPTH):
