@@ -173,8 +173,8 @@ def test_plectoneme_demo_small(ranks):
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_plectoneme_setting_demo_small(ranks):
     """The viscoelastic plectoneme at the test's resolution (--small: 28 cells, dt =
-    0.025 s, two runs of 26 s: 3.5-11 min serially on the shared machine, more than 15 min
-    under mpirun -n 2 at load 10).  The demo asserts
+    0.025 s, two runs of 26 s: ~40 s serially and ~50 s under mpirun -n 2 on an idle
+    machine, 10-15 min at load 10-15).  The demo asserts
     Lk = Tw + Wr to 1e-3 for both rods, every pair's gap > 0 at every step, the end torque
     of the straight twisted rod against eq. apptorsion to 1e-2, the relaxation time of the
     torque at held twist within 3 % of tau and the set (elastic |Wr| < 0.02, viscoelastic
