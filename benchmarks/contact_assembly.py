@@ -76,7 +76,7 @@ def measure(n_cells: int, comm) -> dict:
     params = RodParameters(length=length, A=(1.0, 1.0, 1.0), B=(1e3, 1e3, 1e3), density=1.0,
                            section_inertia=1e-4)
     model = RodModel(params, n_cells, model="hyperelastic", start="free", end="free",
-                     contact=ContactLaw(R, DELTA, 1e3, self_contact=True), comm=comm)
+                     contact=ContactLaw(R, DELTA, 1e3, self=True), comm=comm)
     model.set_initial_state()
     helix_state(model, n_cells)
     stepper = TimeStepper(model.problem)

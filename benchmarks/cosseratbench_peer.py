@@ -1,20 +1,20 @@
 """dolfin_rod against PyElastica on cosseratbench's four validation experiments (issue 25
-item 7) and its contact experiments (issue 26 item 9; crossing and pile are reported
-unsupported by dolfin_rod's adapter): each solver through cosseratbench's own ``experiment.run`` (a warm-up run first,
+item 7) and its contact experiments crossing, capstan and pile (issue 26 item 9): each solver through cosseratbench's own ``experiment.run`` (a warm-up run first,
 then the timed run; its metrics), the same elements per rod for both, every default of
 both adapters.  Prints a markdown table of the metrics and the wall-time ratio
 PyElastica / dolfin_rod, saves results/bench/<--out>.json.
 
     ./rodenv python3 benchmarks/cosseratbench_peer.py            # 20 elements per rod
     ./rodenv python3 benchmarks/cosseratbench_peer.py --n 50     # cosseratbench's default
-    ./rodenv python3 benchmarks/cosseratbench_peer.py --n 100 --experiments capstan \
-        --out cosseratbench_capstan      # the capstan at its default resolution
+    ./rodenv python3 benchmarks/cosseratbench_peer.py --n 0 --experiments crossing capstan \
+        pile --out cosseratbench_contact  # each at cosseratbench's own resolution
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 from pathlib import Path
 
 from cosseratbench import registry
@@ -39,17 +39,18 @@ def measure(n: int, experiments) -> list[dict]:
     rows = []
     for name in experiments:
         experiment = registry.load_experiment(name)
+        cells = n or experiment.n_elements
         for solver in SOLVERS:
-            result = run(experiment, load(solver), n_elements=n)
-            rows.append({"experiment": name, "solver": solver, "n_elements": n,
-                         "outcome": result.outcome, "failure": result.failure,
+            result = run(experiment, load(solver), n_elements=cells)
+            rows.append({"experiment": name, "solver": solver, "n_elements": cells,
+                         "load": os.getloadavg()[0], "outcome": result.outcome, "failure": result.failure,
                          "missing": list(result.missing), "wall_time": result.wall_time,
                          "metrics": dict(result.metrics),
                          "observations": dict(result.observations),
                          "settings": {k: v for k, v in result.settings.items()
                                       if isinstance(v, (int, float, str))}})
             print(f"{name:10s} {solver:10s} {result.outcome:9s} wall {result.wall_time or 0:8.3f} s"
-                  f"  {dict(result.metrics)}", flush=True)
+                  f" (load {os.getloadavg()[0]:.1f})  {dict(result.metrics)}", flush=True)
     return rows
 
 
@@ -78,7 +79,8 @@ def table(rows: list[dict], experiments) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=20, help="elements per rod")
+    parser.add_argument("--n", type=int, default=20,
+                        help="elements per rod (0: each experiment's own default)")
     parser.add_argument("--out", default="cosseratbench_peer")
     parser.add_argument("--experiments", nargs="+", default=EXPERIMENTS,
                         choices=EXPERIMENTS + CONTACT)

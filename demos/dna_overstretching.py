@@ -89,7 +89,7 @@ def loop(rate: float, folder: pathlib.Path, steps_per_ramp: int = STEPS_PER_RAMP
     t = np.array(rows["time"])
     force = scn["loads"]["end_force"].build(2)(t)
     X = np.array(rows["tip_position_z"])
-    return {"t": t, "F": force, "reaction": -np.array(rows["reaction_force_left_z"]),
+    return {"t": t, "F": force, "reaction": -np.array(rows["reaction_force_start_z"]),
             "x": X / L, "area": float(np.trapezoid(force, X)),
             "dissipated": float(rows["total_dissipation"][-1]),
             "psi_change": float(rows["free_energy"][-1] - rows["free_energy"][0])}
@@ -115,7 +115,7 @@ def twist_relaxation(folder: pathlib.Path) -> dict | None:
     u0 = scn["boundary"]["end_rotation"].value[2] / L
     u0_h, factor = closed_forms.p1_twist(u0, L, n)     # the end node's reaction
     t = np.array(rows["time"][1:])                      # t >= dt (the step at t = 0)
-    return {"t": t, "m": np.array(rows["reaction_couple_right_z"][1:]),
+    return {"t": t, "m": np.array(rows["reaction_couple_end_z"][1:]),
             "m_closed_form": closed_forms.relaxation(t, u0, alpha, alpha_d, mu_d)[1],
             "m_discrete": factor * closed_forms.relaxation(t, u0_h, alpha, alpha_d, mu_d)[1],
             "m0": alpha * u0}

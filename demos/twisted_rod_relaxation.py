@@ -2,7 +2,7 @@
 #
 # A straight rubber-like rod of length L, clamped at s = 0, is twisted at t = 0 by a
 # quarter turn Phi0 of its end s = L about its own axis e_3 and held there.  The end
-# section may slide along the axis (the right end's rotation is prescribed, its position
+# section may slide along the axis (the end's rotation is prescribed, its position
 # is free), so no axial force builds up.  The rod is the paper's (Sections 2-4) with the
 # quadratic free energy (eq. quadenergy)
 #
@@ -100,7 +100,7 @@ def relax(variant):
         return None
     rows = result.series
     u_d = [np.mean(step["cell"]["u_d"][:, 2]) for step in read_vtx(OUT / variant / "rod.bp")]
-    return {"t": np.array(rows["time"][1:]), "m": np.array(rows["reaction_couple_right_z"][1:]),
+    return {"t": np.array(rows["time"][1:]), "m": np.array(rows["reaction_couple_end_z"][1:]),
             "u_d": np.array(u_d[1:]), "psi": np.array(rows["free_energy"][1:]),
             "xi": np.array(rows["dissipation_rate"][1:])}
 

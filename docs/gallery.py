@@ -37,10 +37,10 @@ def hanging_twist(ax) -> None:
     scene = load_scene(ROOT / "scenes" / "hanging_twist.toml")
     derived = scene["material"]["derived"]
     weight = 0.5 + derived["density"] * 9.81 * 1.0
-    ax.plot(s["time"], s["reaction_force_right_z"], label="top clamp: vertical force (N)")
+    ax.plot(s["time"], s["reaction_force_end_z"], label="top clamp: vertical force (N)")
     ax.axhline(weight, color="k", ls=":", label="W + rho A g L")
     twist = 6.0 * np.clip(s["time"] / 2.0, 0, 1) ** 2 * (3 - 2 * np.clip(s["time"] / 2.0, 0, 1))
-    ax.plot(s["time"], -100 * s["reaction_couple_right_z"], label="top clamp: torque x 100 (N m)")
+    ax.plot(s["time"], -100 * s["reaction_couple_end_z"], label="top clamp: torque x 100 (N m)")
     ax.plot(s["time"], 100 * derived["A"][2] * twist, "k--", lw=0.8,
             label="GJ phi(t)/L x 100")
     ax.set(xlabel="t (s)", title="hanging weight on a sliding, turning clamp")
@@ -52,7 +52,7 @@ def inclined_clamp(ax) -> None:
     t = np.linspace(0, 1, 50)
     weight = 0.5 * t                                     # the ramped weight W(t)
     top, carriage = (np.sqrt(sum(s[f"rod.reaction_force_{end}_{c}"] ** 2 for c in "xyz"))
-                     for end in ("right", "left"))
+                     for end in ("end", "start"))
     ax.plot(s["time"], top, "o", label="top clamp: |force| (N)")
     ax.plot(t, weight / np.sqrt(3), "k--", lw=0.8, label="W/sqrt 3: the weight along the rail")
     ax.plot(s["time"], carriage, "s", label="carriage: |force| (N)")

@@ -92,7 +92,7 @@ def tripod(ax) -> None:
         points = start["points"] + factor * (step["points"] - start["points"])
         for a, b in step["cells"]:
             ax.plot(*points[[a, b]].T, color=colour, lw=2)
-    total = sum(np.array([s[f"leg{i}.reaction_force_left_{c}"][-1] for c in "xyz"])
+    total = sum(np.array([s[f"leg{i}.reaction_force_start_{c}"][-1] for c in "xyz"])
                 for i in (1, 2, 3))
     ax.view_init(elev=15, azim=-20)
     ax.set_box_aspect((0.75, 0.86, 1.0))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 import math
 import numbers
+import re
 import warnings
 
 import numpy as np
@@ -37,7 +38,44 @@ def nonnegative(name: str, value: float) -> float:
     return x
 
 
-ENDS = ("left", "right")     # a rod's ends: s = 0 and s = L
+ENDS = ("start", "end")      # a rod's ends: s = 0 and s = L (the scene's boundary.start/end)
+OLD_END_NAMES = {"left": "start", "right": "end"}    # their names before (deprecated)
+END_KEYED = ("end_displacement", "end_rotation", "end_slide", "end_springs", "end_turn")
+
+
+def end_name(owner: str, name, stacklevel: int):
+    """The end ``name`` ("start" or "end"); the deprecated "left" and "right" as those,
+    with a DeprecationWarning naming the new one at the caller ``stacklevel`` frames up
+    (from the function that calls this one); anything else as it is (for the checks)."""
+    if isinstance(name, str) and name in OLD_END_NAMES:
+        warnings.warn(f"{owner}: the end {name!r} is deprecated and goes in the next "
+                      f"release: use {OLD_END_NAMES[name]!r} (the scene's name: s = "
+                      f"{'0' if name == 'left' else 'L'})", DeprecationWarning,
+                      stacklevel=stacklevel + 1)
+        return OLD_END_NAMES[name]
+    return name
+
+
+# a time-series column of an end before the ends took the scene's names (runs before
+# this release, users' lists of columns): reaction_force_left_x is reaction_force_start_x
+_OLD_END_COLUMN = re.compile(r"(reaction_(?:force|couple))_(left|right)_([xyz])$")
+
+
+def new_column(name: str) -> str:
+    """The time-series column ``name`` as named now (an old end column renamed)."""
+    return _OLD_END_COLUMN.sub(lambda m: f"{m[1]}_{OLD_END_NAMES[m[2]]}_{m[3]}", name)
+
+
+def end_keyed(owner: str, given: dict, stacklevel: int) -> dict:
+    """``given`` {keyword: value} with the END_KEYED dicts' keys as end_name gives them
+    (loops, not comprehensions: the frames of the warning's line)."""
+    out = dict(given)
+    for key in END_KEYED:
+        if isinstance(given.get(key), dict):
+            out[key] = {}
+            for end, value in given[key].items():
+                out[key][end_name(f"{owner} {key}", end, stacklevel + 1)] = value
+    return out
 
 
 def deprecated_names(owner: str, given: dict, renamed: dict[str, str],

@@ -6,6 +6,7 @@ exit statuses; a run is run.py's.
     dolfin-rod run scenes/torsion_creep.toml --out DIR    run, results in DIR
     dolfin-rod run SCENE --out DIR --resume               continue from DIR/checkpoint
     dolfin-rod run SCENE --out DIR --overwrite            replace the run folder DIR
+    dolfin-rod run SCENE --set outputs.every=5            a key changed for this run
     dolfin-rod buckle SCENE --count 4                     run, then the buckling modes
     dolfin-rod modes SCENE --count 6                      run, then the vibration modes
     dolfin-rod plot DIR [quantities] [--color u_d]        draw DIR's pictures again
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 from .mpi import agree, print_on_root
@@ -46,8 +48,10 @@ def _parser() -> argparse.ArgumentParser:
     check.add_argument("scene", type=Path)
     check.add_argument("--out", type=Path, default=None, help="check this results folder "
                        "too (default: outputs.directory)")
+    _add_set(check)
     run_cmd = sub.add_parser("run", help="run a scene")
     run_cmd.add_argument("scene", type=Path)
+    _add_set(run_cmd)
     run_cmd.add_argument("--out", type=Path, default=None, help="results folder (default: a "
                          "new <outputs.directory>/<name>-<time>)")
     mode = run_cmd.add_mutually_exclusive_group()
@@ -71,6 +75,31 @@ def _parser() -> argparse.ArgumentParser:
     _add_fit_parser(sub)
     _add_analysis_parsers(sub)
     return p
+
+
+def _add_set(command) -> None:
+    command.add_argument("--set", action="append", default=[], metavar="TABLE.KEY=VALUE",
+                         help="change a scene key for this run (repeatable), VALUE in TOML "
+                              "(a bare word is a string): --set outputs.every=5 --set "
+                              "boundary.start_spring='{rotational = 400}'")
+
+
+def overrides(scene: Path, given: list[str]) -> dict:
+    """{"table.key": value} of the --set options (run.run's overrides); a SceneError
+    naming the option if one is not TABLE.KEY=VALUE."""
+    import tomllib
+    out = {}
+    for item in given:
+        name, equals, text = item.partition("=")
+        name = name.strip()
+        if not equals or "." not in name:
+            raise SceneError(str(scene), name, f"--set {item!r}: give TABLE.KEY=VALUE, e.g. "
+                                               "--set outputs.every=5")
+        try:
+            out[name] = tomllib.loads(f"value = {text}")["value"]
+        except tomllib.TOMLDecodeError:
+            out[name] = text.strip()          # a bare word: the string
+    return out
 
 
 def _add_fit_parser(sub) -> None:
@@ -103,6 +132,7 @@ def _add_analysis_parsers(sub) -> None:
         cmd.add_argument("--overwrite", action="store_true",
                          help="replace the run folder --out if it is not empty")
         cmd.add_argument("--quiet", action="store_true", help="no progress output")
+        _add_set(cmd)
 
 
 def schema_markdown() -> str:
@@ -202,11 +232,19 @@ def _main(argv: list[str] | None, comm) -> int:
         return fit_command(args, comm)
     if args.command == "plot":
         from .output.redraw import redraw
-        for path in redraw(args.folder, args.quantities, args.color, args.to) \
-                if comm.rank == 0 else []:
+        with warnings.catch_warnings(record=True) as notes:   # a deprecated column name
+            warnings.simplefilter("always", DeprecationWarning)
+            try:
+                written = redraw(args.folder, args.quantities, args.color, args.to) \
+                    if comm.rank == 0 else []
+            finally:                  # also before an error that names the new name
+                for note in notes:
+                    print(f"warning: {note.message}", file=sys.stderr)
+        for path in written:
             print(f"wrote {path}")
         return 0
-    scene = agree(comm, lambda: load_scene(args.scene), (SceneError,))
+    scene = agree(comm, lambda: load_scene(args.scene, overrides(args.scene, args.set)),
+                  (SceneError,))
     if args.command == "check":
         _check(scene, args.out, comm)
         return 0

@@ -121,8 +121,8 @@ def test_twisted_rod_ends_buckled_not_straight(tmp_path, capfd):
     assert straight.series["negative_eigenvalues"][-1] == 4
     assert buckled.series["negative_eigenvalues"][-1] == 0
     assert buckled.series["free_energy"][-1] < straight.series["free_energy"][-1]
-    lateral = [math.hypot(run.series["reaction_couple_left_x"][-1],
-                          run.series["reaction_couple_left_y"][-1])
+    lateral = [math.hypot(run.series["reaction_couple_start_x"][-1],
+                          run.series["reaction_couple_start_y"][-1])
                for run in (straight, buckled)]
     assert lateral[0] < 1e-8 and lateral[1] > 1e-2, lateral
 
@@ -177,6 +177,6 @@ def test_quaternion_form_twisted_rod_ends_buckled_as_rotation_vectors(tmp_path, 
     series = result.series
     assert series["negative_eigenvalues"][-1] == 0
     assert series["free_energy"][-1] == pytest.approx(128.484832, abs=1e-5)
-    couple = math.hypot(series["reaction_couple_left_x"][-1],
-                        series["reaction_couple_left_y"][-1])
+    couple = math.hypot(series["reaction_couple_start_x"][-1],
+                        series["reaction_couple_start_y"][-1])
     assert couple == pytest.approx(0.188531, abs=1e-5)

@@ -44,9 +44,9 @@ STIFF = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5))
 TAN_X = brentq(lambda x: math.tan(x) - x, 4.4, 4.5, xtol=1e-14)      # tan x = x
 COLUMNS = {
     "clamped-free": (("clamped", "free"), None, math.pi ** 2 / 4),
-    "pinned-pinned": (("pinned", "pinned"), {"right": (0.0, 0.0, 1.0)}, math.pi ** 2),
-    "clamped-pinned": (("clamped", "pinned"), {"right": (0.0, 0.0, 1.0)}, TAN_X ** 2),
-    "clamped-clamped": (("clamped", "clamped"), {"right": (0.0, 0.0, 1.0)}, 4 * math.pi ** 2),
+    "pinned-pinned": (("pinned", "pinned"), {"end": (0.0, 0.0, 1.0)}, math.pi ** 2),
+    "clamped-pinned": (("clamped", "pinned"), {"end": (0.0, 0.0, 1.0)}, TAN_X ** 2),
+    "clamped-clamped": (("clamped", "clamped"), {"end": (0.0, 0.0, 1.0)}, 4 * math.pi ** 2),
 }
 
 
@@ -91,9 +91,9 @@ def twisted_rod(n_cells: int, phi: float, stretch: float = 0.0) -> RodModel:
     given) and turned about the axis at the rate phi (from t = 1/2 if stretched)."""
     start = 0.5 if stretch else 0.0
     return RodModel(STIFF, n_cells=n_cells, model="hyperelastic", start="clamped", end="clamped",
-                    end_displacement={"right": lambda t: np.array(
+                    end_displacement={"end": lambda t: np.array(
                         [0.0, 0.0, stretch * min(t / 0.5, 1.0)])} if stretch else None,
-                    end_rotation={"right": lambda t: np.array(
+                    end_rotation={"end": lambda t: np.array(
                         [0.0, 0.0, phi * max(t - start, 0.0)])})
 
 
@@ -385,7 +385,7 @@ def column_and_twist(rotations: str) -> tuple[np.ndarray, np.ndarray]:
     m_cr = 2 * TAN_X
     twisted = preloaded(RodModel(STIFF, n_cells=8, model="hyperelastic",
                                  start="clamped", end="clamped", rotations=rotations,
-                                 end_rotation={"right": lambda t: np.array(
+                                 end_rotation={"end": lambda t: np.array(
                                      [0.0, 0.0, 0.5 * m_cr * t])}), dt=0.5)
     found = [buckling_modes(rod, 1.0, count) for rod, count in ((column, 4), (twisted, 2))]
     assert all(max(modes.residuals) < 1e-8 for modes in found)

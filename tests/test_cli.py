@@ -147,6 +147,33 @@ def test_run_cantilever_rod(tmp_path):
     assert (tmp_path / "run-0.025" / "rod.bp").is_dir()
 
 
+def test_set_changes_keys_and_outputs_every_the_frames_written(tmp_path):
+    """`run SCENE --set table.key=value` (TOML values, a bare word a string): the gravity
+    cantilever for 5 steps of dt = 0.01, 8 cells, fields every 3 steps: rod.pvd holds the
+    steps 0, 3 and the last, 5 (the scene's every = 2 would give 0, 2, 4, 5), and the run
+    folder's scene.toml is the scene as run.  The Python API's override of a Scene
+    object, outputs.every = 1: all 6.  A malformed --set or a bad value: exit 2 naming
+    it, nothing run."""
+    from dolfin_rod import read_pvd, run
+    from dolfin_rod.scenes import load_scene
+    out = cli("run", "scenes/gravity_cantilever.toml", "--out", tmp_path / "cli", "--quiet",
+              "--set", "time.t_end=0.05", "--set", "geometry.n_cells=8",
+              "--set", "outputs.every=3", "--set", "outputs.color=v_d")
+    assert out.returncode == 0, out.stderr
+    times = [step["time"] for step in read_pvd(tmp_path / "cli" / "rod.pvd")]
+    assert times == pytest.approx([0.0, 0.03, 0.05], abs=1e-12)
+    as_run = load_scene(tmp_path / "cli" / "scene.toml")
+    assert (as_run["outputs"]["every"], as_run["outputs"]["color"]) == (3, "v_d")
+    result = run(as_run, {"outputs.every": 1, "outputs.animation": False},
+                 out=tmp_path / "api", quiet=True)
+    assert len(read_pvd(result.folder / "rod.pvd")) == 6
+    for bad, says in ((["--set", "outputs.every"], "give TABLE.KEY=VALUE"),
+                      (["--set", "outputs.every=0"], "outputs.every")):
+        out = cli("run", "scenes/gravity_cantilever.toml", "--out", tmp_path / "bad", *bad)
+        assert out.returncode == 2 and says in out.stderr, out.stderr
+        assert "Traceback" not in out.stderr and not (tmp_path / "bad").exists()
+
+
 def test_interrupted_run_keeps_what_it_computed(tmp_path):
     """SIGINT mid-run: exit 130, the CSV holds every step up to the interruption and the
     JSON files are written with status 'interrupted'."""

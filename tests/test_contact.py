@@ -34,7 +34,7 @@ def _lying_rod(dt, gravity, friction=0.0, n_cells=8, drag=0.0, gap0=1.5 * DELTA,
     params = RodParameters(**{**ROD.__dict__, "drag": drag})
     law = ContactLaw(R, DELTA, default_stiffness(params.density, params.A, 1.0, n_cells, dt),
                      slip_tolerance=eps)
-    plane = Obstacle("plane", point=(-(R + gap0), 0.0, 0.0), axis=(1.0, 0.0, 0.0),
+    plane = Obstacle("plane", point=(-(R + gap0), 0.0, 0.0), normal=(1.0, 0.0, 0.0),
                      friction=friction)
     rod = RodModel(params, n_cells=n_cells, model="hyperelastic", start="free", end="free",
                    distributed_loads=[DistributedLoad("force", tuple(gravity))],
@@ -121,7 +121,7 @@ def test_propped_cantilever_on_a_sphere_and_a_cylinder(shape):
     params = RodParameters(length=1.0, A=(EI, EI, EI), B=(1e3, 1e3, 1e3))
     R_obstacle, gap0 = 0.05, 0.5 * DELTA
     centre = (-(R + gap0 + R_obstacle), 0.0, 1.0)
-    obstacle = Obstacle(shape, point=centre, axis=(0.0, 1.0, 0.0), radius=R_obstacle,
+    obstacle = Obstacle(shape, centre=centre, axis=(0.0, 1.0, 0.0), radius=R_obstacle,
                         length=0.2)
     rod = RodModel(params, n_cells=n, model="hyperelastic",
                    distributed_loads=[DistributedLoad("force", (-w, 0.0, 0.0),
@@ -143,9 +143,9 @@ def test_propped_cantilever_on_a_sphere_and_a_cylinder(shape):
 def test_signed_distances():
     """The three shapes' signed distances at points with known distances."""
     p = np.array([[0.0, 0.0, 2.0], [3.0, 0.0, 0.0], [0.0, 0.5, 0.0], [3.0, 0.0, 4.0]])
-    plane = Obstacle("plane", point=(0.0, 0.0, 1.0), axis=(0.0, 0.0, 2.0))
-    sphere = Obstacle("sphere", point=(0.0, 0.0, 0.0), radius=1.0)
-    cylinder = Obstacle("cylinder", point=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0),
+    plane = Obstacle("plane", point=(0.0, 0.0, 1.0), normal=(0.0, 0.0, 2.0))
+    sphere = Obstacle("sphere", centre=(0.0, 0.0, 0.0), radius=1.0)
+    cylinder = Obstacle("cylinder", centre=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0),
                         radius=1.0, length=2.0)
     assert signed_distance(Pose(plane), p, NP_OPS) == pytest.approx([1.0, -1.0, -1.0, 3.0])
     assert signed_distance(Pose(sphere), p, NP_OPS) == pytest.approx([1.0, 2.0, -0.5, 4.0])
@@ -240,7 +240,7 @@ def test_contact_jacobian_is_the_residuals_derivative(shape):
     import ufl
     rod = _lying_rod(1e-2, (-G, 0.0, 0.0), n_cells=4, gap0=0.5 * DELTA)
     if shape != "plane":        # a sphere / cylinder under the rod's middle
-        ob = Obstacle(shape, point=(-(R + 0.5 * DELTA + 0.05), 0.0, 0.5),
+        ob = Obstacle(shape, centre=(-(R + 0.5 * DELTA + 0.05), 0.0, 0.5),
                       axis=(0.0, 1.0, 0.0), radius=0.05, length=0.1)
         rod = RodModel(ROD, n_cells=4, model="hyperelastic", start="free", end="free",
                        obstacles=[ob], contact=ContactLaw(R, DELTA, 1e3))
@@ -313,7 +313,7 @@ def _capstan(mu: float, ratio: float, n_cells: int = 64, dt: float = 2e-3):
                            section_inertia=1e-7)
     law = ContactLaw(r, delta, default_stiffness(params.density, params.A, L, n_cells, dt),
                      slip_tolerance=1e-3)
-    cylinder = Obstacle("cylinder", point=(0, 0, 0), axis=(0, 1, 0), radius=Rc, length=0.2,
+    cylinder = Obstacle("cylinder", centre=(0, 0, 0), axis=(0, 1, 0), radius=Rc, length=0.2,
                         friction=mu)
     rod = RodModel(params, n_cells=n_cells, model="hyperelastic", start="free", end="free",
                    distributed_loads=[DistributedLoad("force", (-G * params.density, 0, 0),

@@ -64,13 +64,13 @@ def first_maximum(lam) -> tuple[float, int]:
 def displacement_controlled(steps: int = 200, d_max: float = 0.1):
     """(d, F) of the half-arch with the crown's deflection prescribed."""
     rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", start="clamped", end="pinned",
-                   end_displacement={"left": lambda t: d_max * t * DOWN})
+                   end_displacement={"start": lambda t: d_max * t * DOWN})
     rod.set_initial_state()
     out = []
 
     def record(t, _):
         d = rod.diagnostics(t)
-        out.append((d_max * t, np.array([d[f"reaction_force_left_{c}"] for c in "xyz"]) @ DOWN))
+        out.append((d_max * t, np.array([d[f"reaction_force_start_{c}"] for c in "xyz"]) @ DOWN))
 
     TimeStepper(rod.problem).run(0.0, 1.0, 1.0 / steps, record)
     return np.array(out).T
@@ -79,8 +79,8 @@ def displacement_controlled(steps: int = 200, d_max: float = 0.1):
 def arc_length(ds: float = 0.01):
     """(lambda, d) of the arc-length path of the half-arch, F = lambda x 1."""
     rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", start="clamped", end="pinned",
-                   end_slide={"left": (0.0, 1.0, 0.0)},
-                   end_loads=[EndLoad("force", tuple(DOWN), lambda t: t, end="left")])
+                   end_slide={"start": (0.0, 1.0, 0.0)},
+                   end_loads=[EndLoad("force", tuple(DOWN), lambda t: t, end="start")])
     rod.set_initial_state()
     deflection = crown_deflection(rod)
     path = ArcLength(rod, ds=ds, observe=lambda lam: deflection())
@@ -231,7 +231,7 @@ def lee_frame_limit_load(n_cells: int) -> float:
     from dolfin_rod.rod.external_forces import PointLoad
     from dolfin_rod.rod.joints import Joint
     params = RodParameters(length=1.0, A=(100.0, 1.0, 100.0), B=(16615.0, 16615.0, 43200.0))
-    in_plane = {"left": (0.0, 1.0, 0.0)}, {"right": (0.0, 1.0, 0.0)}
+    in_plane = {"start": (0.0, 1.0, 0.0)}, {"end": (0.0, 1.0, 0.0)}
     rods = [Rod(params, n_cells, start="clamped", end="free", end_turn=in_plane[0],
                 name="column"),
             Rod(params, n_cells, start="free", end="clamped", end_turn=in_plane[1],

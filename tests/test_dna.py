@@ -254,7 +254,7 @@ def test_twist_fit_example_starts_at_its_resolution(tmp_path):
     if MPI.COMM_WORLD.rank != 0:
         return
     rows = json.loads((folder / "timeseries.json").read_text())
-    t, m = np.array(rows["time"][1:]), np.array(rows["reaction_couple_right_z"][1:])
+    t, m = np.array(rows["time"][1:]), np.array(rows["reaction_couple_end_z"][1:])
     m0, factor, exact_h, _ = _twist_relaxation(scene, t)
     assert np.abs(m - factor * exact_h).max() < 1e-3 * m0     # measured 3.2e-4
 
@@ -268,7 +268,7 @@ def test_twist_relaxation_is_the_torsion_closed_form(tmp_path):
     if MPI.COMM_WORLD.rank != 0:
         return
     rows = json.loads((folder / "timeseries.json").read_text())
-    t, m = np.array(rows["time"][1:]), np.array(rows["reaction_couple_right_z"][1:])
+    t, m = np.array(rows["time"][1:]), np.array(rows["reaction_couple_end_z"][1:])
     m0, factor, exact_h, exact = _twist_relaxation(scene, t)
     # BDF2 with k dt = 0.025 after a backward-Euler start, ~(k dt)^2 = 6e-4 of m(0+)
     # (measured 2.7e-4); the linearised coupling e = -g w/S errs by (e/lam)^2 g^2/(S C)

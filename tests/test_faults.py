@@ -817,9 +817,9 @@ def _power_defect_with_moving_end(kind: str, dynamic: bool, scheme: str, dt: flo
     p = RodParameters(A=(1.0, 1.0, 1.0), B=(10.0, 10.0, 10.0), M=(0.2, 0.2, 0.2),
                       N=(1.0, 1.0, 1.0), M_d=(0.5,) * 3, N_d=(5.0,) * 3, **extra)
     s = loads.smooth_step(1.0, 1.0)
-    motion = ({"end_displacement": {"right": lambda t: np.array([0.1, 0.05, 0.05]) * s(t)}}
+    motion = ({"end_displacement": {"end": lambda t: np.array([0.1, 0.05, 0.05]) * s(t)}}
               if kind == "move" else
-              {"end_rotation": {"right": lambda t: np.array([0.3, 0.0, 0.2]) * s(t)}})
+              {"end_rotation": {"end": lambda t: np.array([0.3, 0.0, 0.2]) * s(t)}})
     rotations = "auto" if scheme.startswith("generalized_alpha") else "quaternion"
     model = RodModel(p, n_cells=6, start="clamped", end="free", rotations=rotations, **motion)
     model.set_initial_state()
@@ -865,8 +865,8 @@ def test_dynamic_rod_refuses_a_jump_of_a_prescribed_end(motion):
     p = RodParameters(density=1.0, section_inertia=0.01)
     for history in (loads.step(0.1, 0.3),):
         with pytest.raises(ValueError, match=f"end_{motion}.*cannot follow a jump"):
-            RodModel(p, n_cells=2, **{f"end_{motion}": {"right": history}})
-    RodModel(RodParameters(), n_cells=2, **{f"end_{motion}": {"right": loads.step(0.1, 0.3)}})
+            RodModel(p, n_cells=2, **{f"end_{motion}": {"end": history}})
+    RodModel(RodParameters(), n_cells=2, **{f"end_{motion}": {"end": loads.step(0.1, 0.3)}})
 
 
 @pytest.mark.parametrize("history, t, slope", [

@@ -310,7 +310,7 @@ def test_api_turn_beyond_what_the_cells_represent_stops_the_integrator(integrato
     turn = loads.VectorHistory((loads.constant(0.0), loads.constant(0.0), loads.ramp(19.0, 1.0)))
     ts = integrator == "TSIntegrator"
     rod = RodModel(params, n_cells=4, model="hyperelastic", start="clamped", end="clamped",
-                   end_rotation={"right": turn}, rotations="quaternion" if ts else "auto")
+                   end_rotation={"end": turn}, rotations="quaternion" if ts else "auto")
     rod.set_initial_state()
     stepper = TSIntegrator(rod.problem, "bdf") if ts else TimeStepper(rod.problem)
     with pytest.raises(IntegrationError, match=r"at t = 0.45 a cell's end node turned by "
@@ -519,13 +519,13 @@ TOO_FAST = {
         "torsion", lambda L: L.smooth_step(0.5, 1e-3, t0=0.02),
         r"end_rotation changes within 0.001, faster than the time step dt = 0.01 resolves"),
     "callable step at 0.05": (
-        "rod", lambda L: {"end_displacement": {"right": lambda t: np.array(
+        "rod", lambda L: {"end_displacement": {"end": lambda t: np.array(
             [0.0, 0.0, 0.1 * (t >= 0.05)])}},
-        r"end_displacement\['right'\] jumps near t = 0.05[0-9]*: a body with inertia"),
+        r"end_displacement\['end'\] jumps near t = 0.05[0-9]*: a body with inertia"),
     "callable ramp of dt / 4": (
-        "rod", lambda L: {"end_rotation": {"right": lambda t: np.array(
+        "rod", lambda L: {"end_rotation": {"end": lambda t: np.array(
             [0.0, 0.0, float(L.ramp(0.3, 0.0025, 0.023)(t))])}},
-        r"end_rotation\['right'\] changes near t = 0.02[0-9]* within 0.002[0-9]*, faster than "
+        r"end_rotation\['end'\] changes near t = 0.02[0-9]* within 0.002[0-9]*, faster than "
         r"the time step dt = 0.01"),
 }
 

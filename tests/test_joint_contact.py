@@ -79,8 +79,8 @@ def test_jointed_cantilever_resting_on_a_rod():
     assert 0 < dj["min_pair_gap"] < DELTA
     assert dj["pair_contact_force"] == pytest.approx(ds["pair_contact_force"], rel=1e-8)
     assert dj["A2.tip_position_z"] == pytest.approx(ds["A.tip_position_z"], rel=1e-8)
-    vertical = dj["A1.reaction_force_left_z"] + dj["B.reaction_force_left_z"] + \
-        dj["B.reaction_force_right_z"]
+    vertical = dj["A1.reaction_force_start_z"] + dj["B.reaction_force_start_z"] + \
+        dj["B.reaction_force_end_z"]
     assert vertical == pytest.approx(P, rel=1e-8)
 
 

@@ -70,7 +70,7 @@ def test_l_frame_small_load_closed_form(n_cells):
     assert vector(d, "joint_knee_couple") == pytest.approx([0, -P * f["L2"], 0], rel=2e-6,
                                                            abs=2e-12)
     # the clamp carries the same: force P e_3, couple -P L2 e_2
-    assert vector(d, "column.reaction_force_left") == pytest.approx([0, 0, P], rel=2e-6,
+    assert vector(d, "column.reaction_force_start") == pytest.approx([0, 0, P], rel=2e-6,
                                                                    abs=2e-12)
 
 
@@ -145,7 +145,7 @@ def test_double_pendulum_against_rigid_ode():
     (Joint("rigid", ("a", "b"), (0.0, 0.0, 0.5)), "joints[0].point [0.0, 0.0, 0.5] is not on rod 'b'"),
     (Joint("glue", ("a", "b"), (0.0, 0.0, 1.0)), "joints[0].kind must be one of"),
     (Joint("ball", ("a", "c"), (0.0, 0.0, 1.0)), "joints[0].rods must name two different"),
-    (Joint("ball", ("a", "b"), (1.0, 0.0, 1.0)), "joints[0]: rod 'b' is supported at its left"),
+    (Joint("ball", ("a", "b"), (1.0, 0.0, 1.0)), "joints[0]: rod 'b' is supported at its start"),
 ])
 def test_bad_joints_are_named(joint, message):
     p = RodParameters(density=1.0, section_inertia=0.01)

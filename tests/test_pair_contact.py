@@ -202,7 +202,7 @@ def test_neighbour_exclusion_and_bad_radius():
     assert exclusion(0.01, 0.001, 0.1) == pytest.approx(np.pi * 0.011 + 0.1)
     with pytest.raises(ValueError, match="contact.radius"):
         RodModel(BEAM, N, model="hyperelastic",
-                 contact=ContactLaw(0.3, 0.03, 1.0, self_contact=True))
+                 contact=ContactLaw(0.3, 0.03, 1.0, self=True))
 
 
 def _ring_drift(dt, t_end=0.5):
@@ -216,7 +216,7 @@ def _ring_drift(dt, t_end=0.5):
     params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, density=0.1,
                            section_inertia=1e-6, reference_curvature=(kappa, 0, 0))
     rod = RodModel(params, 40, model="hyperelastic", start="free", end="free",
-                   contact=ContactLaw(0.01, 0.002, 1e3, self_contact=True))
+                   contact=ContactLaw(0.01, 0.002, 1e3, self=True))
     ends, _ = rod.stress_free(np.array([0.0, 1.0]))
     chord = (ends[0] - ends[1]) / np.linalg.norm(ends[0] - ends[1])
     rod.set_initial_state(start=StartingState(
@@ -253,7 +253,7 @@ def _coiled_rod(n_cells=120):
     params = RodParameters(length=n_cells * R, A=(1.0,) * 3, B=(1e3,) * 3, density=1.0,
                            section_inertia=1e-4)
     model = RodModel(params, n_cells, model="hyperelastic", start="free", end="free",
-                     contact=ContactLaw(R, DELTA, 1e3, self_contact=True))
+                     contact=ContactLaw(R, DELTA, 1e3, self=True))
     model.set_initial_state()
     x = model.unknowns.f["displacement"]
     s = x.function_space.tabulate_dof_coordinates()[:, 0]
@@ -262,6 +262,32 @@ def _coiled_rod(n_cells=120):
     helix = np.stack([radius * np.cos(phi), radius * np.sin(phi), pitch * phi / (2 * np.pi)])
     x.x.array[:] = (helix.T - np.outer(s, (0, 0, 1))).ravel()
     return model
+
+
+@pytest.mark.mpi
+def test_update_check_keeps_a_margin_below_the_barriers_taylor_range():
+    """Newton's update check (``step_fraction``: the largest 2^-k of an update along
+    which no pair's gap g falls below 0.1 g0, or by more than 0.9 g_min where g0 < g_min
+    = 1e-4 delta).  Rods A and B crossing inside a segment of each at g0 = 1e-3 g_min:
+    B moved 2 g_min towards A is cut to 0.25 (0.25 x 2 g_min <= 0.9 g_min < 0.5 x 2
+    g_min; with the floor 0.1 g0 alone 2^-12, found by ~2^20 bisections of the path per
+    pair, docs/contact.md "Cost of the crossing"); B sliding 1e-4 m along itself keeps
+    the gap (crossing lines) and is not cut; at g0 = 0.5 delta the floor is 0.1 g0: an
+    approach by g0 is cut to 0.5 (0.9 g0 / g0 = 0.9)."""
+    contact = _propped(0.8125, -0.3125).segment_contact     # crossing inside segments
+    line = contact.line
+    P = line.positions(contact.owned_displacement())
+    b = np.unique(line.ends[line.rod == 1])
+    g_min = 1e-4 * DELTA
+    for g0, approach, expected in ((1e-3 * g_min, 2 * g_min, 0.25), (0.5 * DELTA, 0.5 * DELTA,
+                                                                       0.5)):
+        P0 = P.copy()
+        P0[b, 2] += 1.5 * DELTA - g0                         # B's gap to A: g0
+        up, slide = P0.copy(), P0.copy()
+        up[b, 2] += approach
+        slide[b, 1] += 1e-4
+        assert contact.step_fraction(P0, up) == expected
+        assert contact.step_fraction(P0, slide) == 1.0
 
 
 @pytest.mark.mpi
@@ -287,6 +313,31 @@ def test_candidate_list_finds_every_pair_within_reach():
         found = contact.pairs(P)
         assert len(found) > len(line.ends)          # the coils touch all along
         assert np.array_equal(found, np.stack([i[near], j[near]], 1))
+
+
+@pytest.mark.mpi
+def test_pair_terms_reuse_the_searchs_closest_points_bit_for_bit():
+    """The pairs' terms take the closest points the pair search computed (``near``)
+    instead of computing them again: the same bits as pair_energy computing its own
+    (elementwise arithmetic on a superset then filtered), on the coiled rod (3 pairs
+    per segment) at its state and after a random move."""
+    contact = _coiled_rod().segment_contact
+    line = contact.line
+    P0 = line.positions(contact.owned_displacement())
+    for P in (P0, P0 + 0.3 * contact.skin * np.random.default_rng(2).uniform(-1, 1, P0.shape)):
+        pairs, closest = contact.near(P)
+        X = P[line.ends[pairs].reshape(-1, 4)]
+        weights = 0.5 * line.lengths[pairs].sum(axis=1)
+        law = contact.law
+        mine = pair_energy(X, law.radius, law.gap, law.stiffness, weights, closest=closest)
+        own = pair_energy(X, law.radius, law.gap, law.stiffness, weights)
+        assert len(pairs) > len(line.ends)
+        assert all(np.array_equal(a, b) for a, b in zip(mine, own))
+    terms = contact.evaluate(contact.owned_displacement())      # the path a solve takes
+    X = P0[line.ends[terms.pairs].reshape(-1, 4)]
+    own = pair_energy(X, law.radius, law.gap, law.stiffness,
+                      0.5 * line.lengths[terms.pairs].sum(axis=1))
+    assert all(np.array_equal(a, b) for a, b in zip(terms[2:], own))
 
 
 @pytest.mark.mpi

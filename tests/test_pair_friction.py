@@ -147,7 +147,7 @@ def _ring(dt: float, t_end: float = 0.5):
                            section_inertia=(1e-6, 1e-6),
                            reference_curvature=(2 * np.pi * 0.95, 0, 0))
     rod = RodModel(params, 40, model="hyperelastic", start="free", end="free",
-                   contact=ContactLaw(0.01, 0.002, 1e3, EPS, self_contact=True,
+                   contact=ContactLaw(0.01, 0.002, 1e3, EPS, self=True,
                                       self_friction=0.5))
     ends, _ = rod.stress_free(np.array([0.0, 1.0]))
     chord = (ends[0] - ends[1]) / np.linalg.norm(ends[0] - ends[1])
@@ -223,7 +223,7 @@ def test_friction_needs_generalized_alpha_velocities():
     quasi-static rod are refused, naming the key."""
     params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3, density=0.1,
                            section_inertia=(1e-6, 1e-6))
-    law = ContactLaw(0.01, 0.002, 1e3, EPS, self_contact=True, self_friction=0.5)
+    law = ContactLaw(0.01, 0.002, 1e3, EPS, self=True, self_friction=0.5)
     with pytest.raises(ValueError, match="contact.self_friction needs rotation-vector"):
         RodModel(params, 40, model="hyperelastic", rotations="quaternion", contact=law)
     still = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3)

@@ -18,8 +18,8 @@ from quick_scenes import ROOT, quick_scene
 
 SCENES = ROOT / "scenes"
 # the columns a 3-D rod with a clamped start and a held end rotation writes
-ROD_COLUMNS = ["time", "tip_position_x", "tip_quaternion_0", "reaction_force_left_x",
-               "reaction_couple_left_x", "reaction_couple_right_z"]
+ROD_COLUMNS = ["time", "tip_position_x", "tip_quaternion_0", "reaction_force_start_x",
+               "reaction_couple_start_x", "reaction_couple_end_z"]
 
 
 @pytest.mark.parametrize("name, first", [
@@ -140,14 +140,14 @@ def test_closing_summary_states_the_end_values_and_files():
     line per file."""
     scene = load_scene(SCENES / "gravity_cantilever.toml")
     zero = dict.fromkeys(ROD_COLUMNS[:-1] + ["tip_position_y", "tip_position_z",
-                                             "reaction_force_left_y", "reaction_force_left_z",
-                                             "reaction_couple_left_y", "reaction_couple_left_z",
+                                             "reaction_force_start_y", "reaction_force_start_z",
+                                             "reaction_couple_start_y", "reaction_couple_start_z",
                                              "free_energy", "kinetic_energy",
                                              "total_dissipation", "dissipation_rate",
                                              "load_power", "power_residual"], 0.0)
     rows = [{**zero, "tip_position_z": 1.0},
             {**zero, "time": 1.0, "tip_position_x": 0.1, "tip_position_z": 0.9,
-             "reaction_force_left_x": 2.0, "free_energy": 3.0, "total_dissipation": 0.5}]
+             "reaction_force_start_x": 2.0, "free_energy": 3.0, "total_dissipation": 0.5}]
     lines = closing_lines({"steps": 1, "newton_iterations": 4}, rows, scene, 1.234,
                           ["histories.png", "timeseries.csv"])
     assert lines[0] == "  tip displacement [0.1, 0, -0.1] m"
@@ -170,8 +170,8 @@ def test_supports_without_couples_and_rod_systems_draw(tmp_path, name, prefix, c
     keys = ["free_energy", "kinetic_energy", "total_dissipation", "dissipation_rate",
             "load_power", "power_residual"]
     keys += [f"{prefix}tip_position_{c}" for c in "xyz"]
-    keys += [f"{prefix}reaction_force_left_{c}" for c in "xyz"]
-    keys += [f"{prefix}reaction_couple_left_{c}" for c in "xyz"] if couples else []
+    keys += [f"{prefix}reaction_force_start_{c}" for c in "xyz"]
+    keys += [f"{prefix}reaction_couple_start_{c}" for c in "xyz"] if couples else []
     rows = [{"time": t, **dict.fromkeys(keys, t * t)} for t in (0.0, 0.5, 1.0)]
     panels = plot_histories(rows, tmp_path / "h.png", scene)
     assert "reactions" in panels and (tmp_path / "h.png").stat().st_size > 10_000

@@ -70,7 +70,7 @@ def test_couple_between_nodes_of_a_cantilever(rotations):
                    point_loads=[PointLoad("couple", (0.0, C, 0.0), s0)])
     d = solve(rod)
     assert tip_rotation_angle(d) == pytest.approx(C * s0 / EI, rel=1e-5)
-    assert d["reaction_couple_left_y"] == pytest.approx(-C, rel=1e-5)
+    assert d["reaction_couple_start_y"] == pytest.approx(-C, rel=1e-5)
 
 
 @pytest.mark.parametrize("rotations", ["rotation_vector", "quaternion"])
@@ -141,12 +141,12 @@ def test_central_force_from_a_scene(tmp_path):
     result = dolfin_rod.run(scene, out=MPI.COMM_WORLD.bcast(str(tmp_path / "out")),
                             quiet=True)
     assert result.status == "completed"
-    for end in ("left", "right"):
+    for end in ("start", "end"):
         assert result.series[f"reaction_force_{end}_x"][-1] == pytest.approx(-P / 2, rel=1e-6)
     # the column at the load's point: the API's deflection (same model and kernels)
     assert result.series["point0_position_x"][-1] == pytest.approx(midspan_deflection(16),
                                                                      rel=1e-9)
-    for end, sign in (("left", -1), ("right", 1)):      # measured 1.2435e-5: O(h^2)
+    for end, sign in (("start", -1), ("end", 1)):      # measured 1.2435e-5: O(h^2)
         assert sign * result.series[f"reaction_couple_{end}_y"][-1] == pytest.approx(
             P / 8, rel=1e-2)
 

@@ -149,7 +149,7 @@ def test_a_start_that_turns_a_node_by_more_than_a_quarter_turn_is_refused():
     ({}, "rotation_vector"),
     ({"M": (0.1, 0.1, 0.1)}, "quaternion"),          # Kelvin-Voigt: rates enter
     ({"drag": 0.5}, "quaternion"),
-    ({"end_rotation": {"right": loads.step(1.0)}}, "quaternion"),   # a jumping end
+    ({"end_rotation": {"end": loads.step(1.0)}}, "quaternion"),   # a jumping end
     ({"variant": "uniform"}, "quaternion"),
     ({"start": "pinned", "end": "pinned"}, "rotation_vector"),  # spin held at s = 0
     ({"start": "pinned", "end": "free"}, "quaternion"),    # no end holds a rotation
@@ -161,8 +161,8 @@ def test_auto_takes_rotation_vectors_where_they_apply(change, expected):
     kwargs = {k: change.pop(k) for k in ("end_rotation", "variant", "start", "end")
               if k in change}
     if "end_rotation" in kwargs:
-        motion = kwargs["end_rotation"]["right"]
-        kwargs["end_rotation"] = {"right": lambda t: np.array([0.0, 0.0, motion(t)])}
+        motion = kwargs["end_rotation"]["end"]
+        kwargs["end_rotation"] = {"end": lambda t: np.array([0.0, 0.0, motion(t)])}
         kwargs.update(start="clamped", end="free")
     params = RodParameters(**{**PARAMS.__dict__, **change})
     assert RodModel(params, n_cells=2, **kwargs).rotations == expected

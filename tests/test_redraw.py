@@ -102,12 +102,12 @@ def test_a_vtu_round_trip_and_a_resumed_collection(tmp_path):
 
 
 def test_plot_redraws_chosen_quantities(cantilever, capsys):
-    """`dolfin-rod plot RUN tip_deflection reaction_force_left_z`: one row of two panels
+    """`dolfin-rod plot RUN tip_deflection reaction_force_start_z`: one row of two panels
     (a panel and a CSV column), and the 3-D pictures again from rod.pvd; the default
     panels of this scene are four (tip deflection, reactions, energy, residual): two rows."""
     folder = cantilever.folder
     (folder / "snapshots.png").unlink()
-    assert main(["plot", str(folder), "tip_deflection", "reaction_force_left_z",
+    assert main(["plot", str(folder), "tip_deflection", "reaction_force_start_z",
                  "--to", str(folder / "two.png")]) == 0
     assert Image.open(folder / "two.png").size == (1100, HEIGHT)
     assert (folder / "snapshots.png").stat().st_size > 10_000

@@ -214,7 +214,7 @@ def torsion_pair(variant, n_cells, driver, t_end=1.0, dt=0.05):
     else:
         tm = TorsionModel(tp, n_cells=n_cells, variant=variant,
                           end_rotation=loads.ramp(0.3, 0.2))
-        kw = {"end_rotation": {"right": lambda t: (0, 0, float(loads.ramp(0.3, 0.2)(t)))}}
+        kw = {"end_rotation": {"end": lambda t: (0, 0, float(loads.ramp(0.3, 0.2)(t)))}}
     tm.set_initial_state()
     th: list[dict] = []
     TimeStepper(tm.problem, "backward_euler", solver_options=TIGHT).run(
@@ -241,7 +241,7 @@ def test_isolated_torsion_reproduces_torsion_model(variant, driver):
     """
     diffs = []
     key_t, key_r = (("end_rotation", "tip_rotation_angle") if driver == "torsion"
-                    else ("end_torsion", "reaction_couple_right_z"))
+                    else ("end_torsion", "reaction_couple_end_z"))
     for n_cells in (8, 16):
         th, rh = torsion_pair(variant, n_cells, driver)
         a, b = series(th, key_t), series(rh, key_r)
@@ -549,15 +549,15 @@ def test_prescribed_end_displacement_and_reaction_of_a_viscous_bar():
     d = loads.ramp(0.4, 0.5)
     p = RodParameters(length=L, A=(1.0, 1.0, 1.0), B=(20.0, 20.0, EA), N=(0.0, 0.0, N33))
     model = RodModel(p, n_cells=4, model="kelvin_voigt", start="clamped", end="free",
-                     end_displacement={"right": lambda t: (0.0, 0.0, float(d(t)))})
+                     end_displacement={"end": lambda t: (0.0, 0.0, float(d(t)))})
     h = run(model, 1.0, dt)
     t = series(h, "time")
     expected = EA * d(t) / L + N33 * (d(t) - d(np.maximum(t - dt, 0.0))) / (dt * L)
     expected[0] = 0.0  # the initial state: at rest, no rate
-    assert series(h, "reaction_force_right_z") == pytest.approx(expected, abs=1e-9)
+    assert series(h, "reaction_force_end_z") == pytest.approx(expected, abs=1e-9)
     assert series(h, "tip_position_z") == pytest.approx(L + d(t), abs=1e-12)
     # the clamp carries the opposite force
-    assert series(h, "reaction_force_left_z")[1:] == pytest.approx(-expected[1:], abs=1e-9)
+    assert series(h, "reaction_force_start_z")[1:] == pytest.approx(-expected[1:], abs=1e-9)
 
 
 

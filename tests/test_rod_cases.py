@@ -54,7 +54,7 @@ def test_simply_supported_beam_with_pinned_ends():
     n_unit = np.where(s_mid < L / 2, 0.5, -0.5)
     expected = np.sum(h * (m * m_unit / EI + n * n_unit / GA))
     assert _node_value(model.f["displacement"], L / 2, 0) == pytest.approx(expected, rel=1e-8)
-    for end in ("left", "right"):
+    for end in ("start", "end"):
         assert d[f"reaction_force_{end}_x"] == pytest.approx(-R, rel=1e-8)
         assert f"reaction_couple_{end}_x" not in d          # pinned: no couple
 

@@ -40,7 +40,7 @@ def test_unjoined_rods_move_as_each_alone(placed):
     assert np.allclose(vector(system, "b.tip_position"),
                        POSITION_B + turn @ vector(b, "tip_position"), rtol=0, atol=tol)
     for rod, turned, own in (("a", np.eye(3), a), ("b", turn, b)):
-        for key in ("reaction_force_left",) + (("reaction_couple_left",) if rod == "a" else ()):
+        for key in ("reaction_force_start",) + (("reaction_couple_start",) if rod == "a" else ()):
             assert np.allclose(vector(system, f"{rod}.{key}"), turned @ vector(own, key),
                                rtol=0, atol=tol)
     for key in ("free_energy", "kinetic_energy", "dissipation_rate", "load_power"):
@@ -69,7 +69,7 @@ def test_rod_system_serial_equals_two_ranks():
     (dict(name="a"), "rods[1].name 'a' is used twice"),
     (dict(params=RodParameters(length=0.5)), "rods[1].params.density"),
     (dict(position=(1.0, 2.0)), "rods[1] 'b': position must be a finite 3-vector"),
-    (dict(end_loads=[EndLoad("force", (1, 0, 0), end="middle")]), "rods[1] 'b': load end"),
+    (dict(end_loads=[EndLoad("force", (1, 0, 0), end="middle")]), "rods[1] 'b': EndLoad end must be 'start'"),
 ])
 def test_bad_rods_are_named(change, message):
     rods = [Rod(RodParameters(density=1.0), 4, name="a"),

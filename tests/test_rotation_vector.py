@@ -371,7 +371,7 @@ LOADED = dict(end_loads=[EndLoad("force", (0.4, 0.0, 0.1), loads.smooth_step(1.0
                                  DistributedLoad("couple", (0.1, 0.0, 0.05),
                                                  loads.smooth_step(1.0, 0.3), follower=True)])
 TWISTED = dict(start="clamped", end="pinned",
-               end_rotation={"left": lambda t: np.array([0.3, 0.0, 1.0]) * 3 * t**2},
+               end_rotation={"start": lambda t: np.array([0.3, 0.0, 1.0]) * 3 * t**2},
                distributed_loads=[DistributedLoad("force", (0.0, -0.3, 0.0))])
 
 
@@ -401,7 +401,7 @@ def test_prescribed_end_rotation_is_followed_exactly():
     axis = np.array([0.6, 0.0, 0.8])
     turn = loads.smooth_step(8.0, 1.0)                     # 8 rad: past 2 pi
     rod = _rod(start="clamped", end="clamped",
-               end_rotation={"right": lambda t: axis * float(turn(t))})
+               end_rotation={"end": lambda t: axis * float(turn(t))})
     h = _history(rod, 1.0, 0.05)
     for d in h:
         q = np_quaternion_from_rotation_vector(axis * float(turn(d["time"])))

@@ -85,7 +85,7 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "column_buckling_modes.toml": "rod", "string_modes.toml": "rod",
                   "buckled_column.toml": "rod", "snap_through_arch.toml": "rod",
                   "beck_column.toml": "rod", "deep_arch.toml": "rod",
-                  "lee_frame.toml": "rod"}
+                  "lee_frame.toml": "rod", "plectoneme_setting.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
@@ -636,7 +636,7 @@ def test_rod_keys_reach_the_model():
     assert kinds == [("couple", True), ("force", False)]             # couple, then gravity
     assert np.allclose(np.asarray(model.distributed_loads[1].value(0.5), float),
                        [0.0, -9.81 * 1.5, 0.0])                       # rho_A(s) g
-    assert set(model.supports.rotation) == {"left"}
+    assert set(model.supports.rotation) == {"start"}
     assert sim.stepper.options["snes_lag_jacobian"] == 10 and \
         sim.stepper.options["snes_max_it"] == 40
     sim.start()

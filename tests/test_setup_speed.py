@@ -126,7 +126,7 @@ def test_a_term_more_is_another_structure(change):
             DistributedLoad("force", (1.0, 0.0, 0.0))])),
         "end slide": lambda: make(case, loads=dict(
             distributed_loads=[DistributedLoad("force", (1.0, 0.0, 0.0))],
-            start="clamped", end="pinned", end_slide={"right": (0.0, 0.0, 1.0)})),
+            start="clamped", end="pinned", end_slide={"end": (0.0, 0.0, 1.0)})),
     }[change]()
     base = make(case)
     assert changed.problem.structure not in (None, base.problem.structure)
@@ -230,10 +230,10 @@ def test_a_second_models_diagnostics_and_reactions_are_its_own(case, monkeypatch
     assert len(binds) >= 3          # the step kernels, the diagnostics, a reaction block
     monkeypatch.setattr(form_cache, "lookup", lambda key: None)
     fresh = diagnostics(VALUES[1], 6)
-    assert bound.keys() == fresh.keys() and "reaction_force_left_x" in fresh
+    assert bound.keys() == fresh.keys() and "reaction_force_start_x" in fresh
     size = max(abs(v) for v in fresh.values())
     assert max(abs(bound[k] - fresh[k]) for k in fresh) <= 1e-13 * size
-    assert abs(fresh["reaction_force_left_x"]) > 1e-3 * size     # a load reacted
+    assert abs(fresh["reaction_force_start_x"]) > 1e-3 * size     # a load reacted
 
 
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="signals one process")

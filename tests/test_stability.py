@@ -41,9 +41,9 @@ STIFF = RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e5, 1e5, 1e5))
 # (ends, sliding end or None, P_cr L^2 / EI)
 COLUMNS = {
     "clamped-free": (("clamped", "free"), None, math.pi ** 2 / 4),
-    "pinned-pinned": (("pinned", "pinned"), {"right": (0.0, 0.0, 1.0)}, math.pi ** 2),
-    "clamped-pinned": (("clamped", "pinned"), {"right": (0.0, 0.0, 1.0)}, 4.493409457909064 ** 2),
-    "clamped-clamped": (("clamped", "clamped"), {"right": (0.0, 0.0, 1.0)}, 4 * math.pi ** 2),
+    "pinned-pinned": (("pinned", "pinned"), {"end": (0.0, 0.0, 1.0)}, math.pi ** 2),
+    "clamped-pinned": (("clamped", "pinned"), {"end": (0.0, 0.0, 1.0)}, 4.493409457909064 ** 2),
+    "clamped-clamped": (("clamped", "clamped"), {"end": (0.0, 0.0, 1.0)}, 4 * math.pi ** 2),
 }
 
 
@@ -88,7 +88,7 @@ def test_greenhill_twisted_rod_becomes_unstable_at_the_critical_twist():
     phi_cr = 2.861 * math.pi            # M L / B with M = GJ Phi / L, GJ = B = 1
     n_steps = 120                       # Phi in steps of 1 % of Phi_cr
     rod = RodModel(STIFF, n_cells=16, model="hyperelastic", start="clamped", end="clamped",
-                   end_rotation={"right": lambda t: np.array([0.0, 0.0, 1.2 * phi_cr * t])})
+                   end_rotation={"end": lambda t: np.array([0.0, 0.0, 1.2 * phi_cr * t])})
     rod.set_initial_state()
     tangent = TangentStiffness(rod)
     counts = []
@@ -209,7 +209,7 @@ def test_pinned_pinned_catenary_solves_at_any_orientation():
         g = np.array(direction) / np.linalg.norm(direction)
         rod = RodModel(RodParameters(length=1.0, A=(1e-2,) * 3, B=(1e3,) * 3), n_cells=16,
                        model="hyperelastic", start="pinned", end="pinned",
-                       end_displacement={"right": lambda t: np.array([0, 0, -0.3 * min(t, 1)])},
+                       end_displacement={"end": lambda t: np.array([0, 0, -0.3 * min(t, 1)])},
                        distributed_loads=[DistributedLoad("force", tuple(g),
                                                           loads.ramp(1.0, 1.0))])
         rod.set_initial_state()

@@ -40,9 +40,9 @@ def hanging_rod(n_cells=8, turns=1.0, slide=True, **kw):
     phi = loads.ramp(turns, 1.0)
     model = RodModel(params, n_cells=n_cells, model="hyperelastic",
                      start="clamped", end="clamped",
-                     end_rotation={"right": lambda t: (0.0, 0.0, float(phi(t)))},
-                     end_slide={"right": (0.0, 0.0, 1.0)} if slide else None,
-                     end_loads=[EndLoad("force", (0.0, 0.0, W), end="right")] if slide else (),
+                     end_rotation={"end": lambda t: (0.0, 0.0, float(phi(t)))},
+                     end_slide={"end": (0.0, 0.0, 1.0)} if slide else None,
+                     end_loads=[EndLoad("force", (0.0, 0.0, W), end="end")] if slide else (),
                      distributed_loads=[DistributedLoad("force", (0.0, 0.0, p))])
     return model, dict(L=L, EA=EA, GJ=GJ, W=W, p=p, phi=phi)
 
@@ -60,14 +60,14 @@ def test_sliding_turning_clamp_keeps_the_tension_equal_to_the_weight():
     h = run(model, 1.0, 0.25)
     d = h[-1]
     tension = c["W"] + c["p"] * c["L"]
-    assert d["reaction_force_left_z"] == pytest.approx(-tension, rel=1e-9)
+    assert d["reaction_force_start_z"] == pytest.approx(-tension, rel=1e-9)
     assert d["tip_position_z"] == pytest.approx(
         c["L"] + (c["W"] * c["L"] + c["p"] * c["L"] ** 2 / 2) / c["EA"], rel=1e-10)
-    for k in ("reaction_force_right_z", "tip_position_x", "tip_position_y",
-              "reaction_force_left_x", "reaction_force_right_x"):
+    for k in ("reaction_force_end_z", "tip_position_x", "tip_position_y",
+              "reaction_force_start_x", "reaction_force_end_x"):
         assert abs(d[k]) < 1e-9, k
     u_h, factor = p1_twist(float(c["phi"](1.0)) / c["L"], c["L"], 8)
-    assert d["reaction_couple_left_z"] == pytest.approx(-c["GJ"] * u_h * factor, rel=1e-8)
+    assert d["reaction_couple_start_z"] == pytest.approx(-c["GJ"] * u_h * factor, rel=1e-8)
     assert d["tip_rotation_angle"] == pytest.approx(1.0, abs=1e-10)
 
 
@@ -83,10 +83,10 @@ def test_dynamic_hanging_rod_on_a_sliding_clamp_settles_to_the_static_stretch():
     h = run(model, 4.0, 0.02)
     static = c["L"] + (c["W"] * c["L"] + c["p"] * c["L"] ** 2 / 2) / c["EA"]
     assert h[-1]["tip_position_z"] == pytest.approx(static, abs=1e-6)
-    assert h[-1]["reaction_force_left_z"] == pytest.approx(-(c["W"] + c["p"] * c["L"]),
+    assert h[-1]["reaction_force_start_z"] == pytest.approx(-(c["W"] + c["p"] * c["L"]),
                                                            rel=1e-5)
     assert max(abs(d["tip_position_x"]) + abs(d["tip_position_y"]) for d in h) < 1e-12
-    assert max(abs(d["reaction_force_right_z"]) for d in h) < 1e-8
+    assert max(abs(d["reaction_force_end_z"]) for d in h) < 1e-8
 
 
 @pytest.mark.parametrize("slide, match", [
@@ -95,14 +95,14 @@ def test_dynamic_hanging_rod_on_a_sliding_clamp_settles_to_the_static_stretch():
     ((0.0, np.nan, 1.0), "must be a finite"),
 ])
 def test_bad_slide_axis_is_refused_naming_it(slide, match):
-    with pytest.raises(ValueError, match=r"end_slide\['right'\] " + match):
+    with pytest.raises(ValueError, match=r"end_slide\['end'\] " + match):
         RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
-                 end_slide={"right": slide})
+                 end_slide={"end": slide})
 
 
 def test_a_free_end_cannot_slide():
     with pytest.raises(ValueError, match="free end has no support"):
-        RodModel(RodParameters(), n_cells=2, end_slide={"right": (0.0, 0.0, 1.0)})
+        RodModel(RodParameters(), n_cells=2, end_slide={"end": (0.0, 0.0, 1.0)})
 
 
 HANGING = ROOT / "scenes/hanging_twist.toml"
@@ -121,8 +121,8 @@ def test_hanging_twist_scene_carries_the_weight_serially_and_on_two_ranks(tmp_pa
     folder = Path(comm.bcast(str(tmp_path), root=0))
     summary = run_scene(quick_scene(HANGING, 300, **QUIET), folder / "run", quiet=True)
     weight = 0.5 + 0.31415926535897937 * 9.81
-    assert summary["final"]["reaction_force_right_z"] == pytest.approx(weight, rel=2e-4)
-    assert abs(summary["final"]["reaction_force_left_z"]) < 1e-8
+    assert summary["final"]["reaction_force_end_z"] == pytest.approx(weight, rel=2e-4)
+    assert abs(summary["final"]["reaction_force_start_z"]) < 1e-8
     if comm.size > 1 and comm.rank == 0:
         assert_serial_run_equal(HANGING, folder, 300, **QUIET)
 
@@ -160,7 +160,7 @@ def test_cantilever_on_springs_against_the_closed_form(rotations):
     spring = EndSpring(translational=(k_t, k_t, 2 * k_t), rotational=k_r)
     model = RodModel(RodParameters(length=L, A=(EI, EI, GJ), B=(GA, GA, EA)), n_cells=N,
                      model="hyperelastic", start="free", end="free", rotations=rotations,
-                     end_loads=[EndLoad("force", (P, 0.0, 0.0))], end_springs={"left": spring})
+                     end_loads=[EndLoad("force", (P, 0.0, 0.0))], end_springs={"start": spring})
     d = run(model, 1.0, 1.0, scheme="backward_euler",
             options={"snes_rtol": 1e-12, "snes_atol": 1e-20, "snes_stol": 1e-16})[-1]
     beam = P * L**3 / (3 * EI) * (1 - 1 / (4 * N**2)) + P * L / GA
@@ -181,7 +181,7 @@ def test_pinned_end_on_a_torsional_spring():
     model = RodModel(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(20.0, 20.0, 30.0)),
                      n_cells=N, model="hyperelastic", start="pinned", end="free",
                      end_loads=[EndLoad("couple", (0.0, 0.0, C))],
-                     end_springs={"left": EndSpring(rotational=(0.0, 0.0, k_r))})
+                     end_springs={"start": EndSpring(rotational=(0.0, 0.0, k_r))})
     d = run(model, 1.0, 1.0, scheme="backward_euler")[-1]
     h = L / N
     x = brentq(lambda x: GJ * 4 * np.tan(x) / h / np.cos(x) ** 2 - C, 0.0, 0.5)
@@ -197,9 +197,9 @@ def test_pinned_end_on_a_torsional_spring():
     (("free", "free"), EndSpring(rotational=-1.0), "numbers >= 0"),
 ])
 def test_bad_springs_are_refused_naming_them(ends, spring, match):
-    with pytest.raises(ValueError, match=r"end_springs\['left'\]" + ".*" + match):
+    with pytest.raises(ValueError, match=r"end_springs\['start'\]" + ".*" + match):
         RodModel(RodParameters(), n_cells=2, start=ends[0], end=ends[1],
-                 end_springs={"left": spring})
+                 end_springs={"start": spring})
 
 
 SPRUNG = ROOT / "scenes/sprung_cantilever.toml"
@@ -239,8 +239,8 @@ def test_dynamic_rod_with_an_end_moved_at_the_start_starts_at_rest_in_equilibriu
     of the quasi-static rod (rho A = 0, its own start in equilibrium) to 1e-8."""
     d = np.array([0.2, 0.0, 0.1])
     turn = np.array([0.0, 0.6, 0.0])
-    moved = {"end_displacement": {"right": lambda t: d}} if motion == "displacement" \
-        else {"end_rotation": {"right": lambda t: turn}}
+    moved = {"end_displacement": {"end": lambda t: d}} if motion == "displacement" \
+        else {"end_rotation": {"end": lambda t: turn}}
     stiff = dict(length=1.0, A=(1.0, 1.0, 1.0), B=(40.0, 40.0, 60.0))
     models = [RodModel(RodParameters(**stiff, **inertia), n_cells=6, model="hyperelastic",
                        start="clamped", end="clamped", **moved)
@@ -254,7 +254,7 @@ def test_dynamic_rod_with_an_end_moved_at_the_start_starts_at_rest_in_equilibriu
             [0.2, 0.0, 1.1], abs=1e-12)
     else:
         assert dynamic[-1]["tip_rotation_angle"] == pytest.approx(0.6, abs=1e-12)
-    for end in ("left", "right"):
+    for end in ("start", "end"):
         for kind in ("force", "couple"):
             for c in "xyz":
                 key = f"reaction_{kind}_{end}_{c}"
@@ -263,25 +263,27 @@ def test_dynamic_rod_with_an_end_moved_at_the_start_starts_at_rest_in_equilibriu
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("case", ["rigid", "twist"])
-def test_a_dynamic_rod_turned_at_the_start_beyond_a_quarter_turn_starts_at_rest(case):
+@pytest.mark.parametrize("case, angle", [("rigid", 2.5), ("twist", 3.0), ("rigid", 9.0),
+                                         ("twist", 8.0)])
+def test_a_dynamic_rod_turned_at_the_start_beyond_a_quarter_turn_starts_at_rest(case, angle):
     """An end turned at t = 0 by more than a quarter turn (issue 25 item 4; refused
     before: one rotation increment is bounded by a quarter turn), reached in committed
-    parts (lie_alpha's start, 4 parts).  "rigid": a dynamic rod clamped at s = 0 turned
-    by 2.5 rad about e_2, its other end free: the equilibrium is the rigid rotation, tip
-    at L (sin 2.5, 0, cos 2.5), no energy, at rest (kinetic energy < 1e-16 over the
-    run).  "twist": both ends clamped, s = 0 turned by 3 rad about the axis e_3: a
-    uniform twist, the clamp's couple the discrete twist's GJ u_h sec^2(dphi/4)
-    (closed_forms.p1_twist), the rod at rest.  Tolerances: Newton's (rtol 1e-11; the
-    rigid tip measured 1.4e-12 off)."""
+    parts (lie_alpha's start: 4 parts, one per half radian beyond 2 rad, so 18 parts
+    for 9 rad: more than 2 pi, which 4 parts could not reach).  "rigid": a dynamic rod
+    clamped at s = 0 turned by the angle about e_2, its other end free: the equilibrium
+    is the rigid rotation, tip at L (sin a, 0, cos a), no energy, at rest (kinetic
+    energy < 1e-16 over the run).  "twist": both ends clamped, s = 0 turned about the
+    axis e_3: a uniform twist (8 rad: 1 rad per cell, the twist wound past 2 pi, not
+    the 8 - 2 pi that the end's frame alone shows), the clamp's couple the discrete
+    twist's GJ u_h sec^2(dphi/4) (closed_forms.p1_twist), the rod at rest.
+    Tolerances: Newton's (rtol 1e-11; the rigid tip measured 1.4e-12 off)."""
     L, GJ, N = 1.0, 1.0, 8
-    angle = 2.5 if case == "rigid" else 3.0
     axis = np.array([0.0, 1.0, 0.0] if case == "rigid" else [0.0, 0.0, 1.0])
     model = RodModel(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(40.0, 40.0, 60.0),
                                    density=2.0, section_inertia=0.01), n_cells=N,
                      model="hyperelastic",
                      start="clamped", end="free" if case == "rigid" else "clamped",
-                     end_rotation={"left": lambda t: angle * axis})
+                     end_rotation={"start": lambda t: angle * axis})
     rows = run(model, 0.2, 0.05)
     assert max(r["kinetic_energy"] for r in rows[1:]) < 1e-16
     d = rows[-1]
@@ -291,20 +293,23 @@ def test_a_dynamic_rod_turned_at_the_start_beyond_a_quarter_turn_starts_at_rest(
         assert d["free_energy"] < 1e-20
     else:
         u_h, factor = p1_twist(angle / L, L, N)
-        assert d["reaction_couple_left_z"] == pytest.approx(GJ * u_h * factor, rel=1e-9)
-        assert d["reaction_couple_right_z"] == pytest.approx(-GJ * u_h * factor, rel=1e-9)
+        assert d["reaction_couple_start_z"] == pytest.approx(GJ * u_h * factor, rel=1e-9)
+        assert d["reaction_couple_end_z"] == pytest.approx(-GJ * u_h * factor, rel=1e-9)
+        assert d["free_energy"] == pytest.approx(0.5 * GJ * u_h ** 2 * L, rel=1e-9)
 
 
-def test_a_dynamic_rod_turned_at_the_start_by_more_than_its_parts_reach_is_refused():
-    """The start's 4 committed parts turn a node by at most a quarter turn each: 7 rad
-    (1.75 rad a part) is refused before any step, naming the start and what to do."""
+def test_a_dynamic_rod_twisted_at_the_start_beyond_its_cells_is_refused():
+    """The start's parts reach any turn, but the cells must represent it: 20 rad of
+    twist on 8 cells (2.5 rad a cell, above checks.MAX_CELL_TURN = 2) is refused in
+    the start's path, at the first part whose cells turn beyond it (33 of 40 parts:
+    2.06 rad a cell), naming n_cells and how many that turn takes."""
     from dolfin_rod import TimeStepper
     from dolfin_rod.integrators.step_control import IntegrationError
-    model = RodModel(RodParameters(density=1.0, section_inertia=0.01), n_cells=4,
-                     start="clamped", end="free", model="hyperelastic",
-                     end_rotation={"left": lambda t: (0.0, 7.0, 0.0)})
+    model = RodModel(RodParameters(density=1.0, section_inertia=0.01), n_cells=8,
+                     start="clamped", end="clamped", model="hyperelastic",
+                     end_rotation={"start": lambda t: (0.0, 0.0, 20.0)})
     model.set_initial_state()
-    with pytest.raises(IntegrationError, match="the start at t = 0 .* ramp or smooth_step"):
+    with pytest.raises(IntegrationError, match="turned by .* take n_cells >= 9 for the turn so far"):
         TimeStepper(model.problem).run(0.0, 0.01, 0.01)
 
 
@@ -314,7 +319,7 @@ def test_a_dynamic_rod_on_quaternions_refuses_a_displaced_start(motion):
                                          "rotation-vector unknowns"):
         RodModel(RodParameters(density=1.0, section_inertia=0.01), n_cells=2,
                  rotations="quaternion", start="clamped", end="clamped",
-                 **{motion: {"right": lambda t: (0.1, 0.0, 0.0)}})
+                 **{motion: {"end": lambda t: (0.1, 0.0, 0.0)}})
 
 
 @pytest.mark.mpi
@@ -330,8 +335,8 @@ def test_clamp_turning_freely_about_its_axis_under_a_couple(rotations):
     GJ, EA, L, N, C, F = 2.0, 30.0, 1.5, 4, 0.3, 0.6
     model = RodModel(RodParameters(length=L, A=(1.0, 1.0, GJ), B=(20.0, 20.0, EA)),
                      n_cells=N, model="hyperelastic", start="clamped", end="clamped",
-                     rotations=rotations, end_slide={"right": (0.0, 0.0, 1.0)},
-                     end_turn={"right": (0.0, 0.0, 1.0)},
+                     rotations=rotations, end_slide={"end": (0.0, 0.0, 1.0)},
+                     end_turn={"end": (0.0, 0.0, 1.0)},
                      end_loads=[EndLoad("couple", (0.0, 0.0, C), loads.ramp(1.0, 1.0)),
                                 EndLoad("force", (0.0, 0.0, F), loads.ramp(1.0, 1.0))])
     d = run(model, 1.0, 0.5, scheme="backward_euler")[-1]
@@ -340,20 +345,20 @@ def test_clamp_turning_freely_about_its_axis_under_a_couple(rotations):
     assert d["tip_rotation_angle"] == pytest.approx(4 * N * x, rel=1e-9)
     assert d["tip_position_z"] == pytest.approx(L + F * L / EA, rel=1e-10)
     assert abs(d["tip_quaternion_1"]) + abs(d["tip_quaternion_2"]) < 1e-12
-    assert d["reaction_couple_left_z"] == pytest.approx(-C, rel=1e-9)
-    for key in ("reaction_couple_right_z", "reaction_force_right_z"):
+    assert d["reaction_couple_start_z"] == pytest.approx(-C, rel=1e-9)
+    for key in ("reaction_couple_end_z", "reaction_force_end_z"):
         assert abs(d[key]) < 1e-9, key
 
 
 def test_a_turning_end_must_be_clamped_and_keep_its_axis():
-    with pytest.raises(ValueError, match=r"end_turn\['right'\]: only a clamped end"):
+    with pytest.raises(ValueError, match=r"end_turn\['end'\]: only a clamped end"):
         RodModel(RodParameters(), n_cells=2, start="clamped", end="pinned",
-                 end_turn={"right": (0.0, 0.0, 1.0)})
-    with pytest.raises(ValueError, match=r"end_turn\['right'\] must equal end_slide's axis"):
+                 end_turn={"end": (0.0, 0.0, 1.0)})
+    with pytest.raises(ValueError, match=r"end_turn\['end'\] must equal end_slide's axis"):
         RodModel(RodParameters(), n_cells=2, start="clamped", end="clamped",
-                 end_slide={"right": (0.0, 0.0, 1.0)}, end_turn={"right": (1.0, 0.0, 0.0)})
+                 end_slide={"end": (0.0, 0.0, 1.0)}, end_turn={"end": (1.0, 0.0, 0.0)})
     helix = RodModel(RodParameters(reference_curvature=(1.0, 0.0, 0.0)), n_cells=2,
-                     start="clamped", end="clamped", end_turn={"right": (0.0, 0.0, 1.0)})
+                     start="clamped", end="clamped", end_turn={"end": (0.0, 0.0, 1.0)})
     helix.set_initial_state()      # its end's frame turns e_3 away: a one-node link holds it
     with pytest.raises(ValueError, match="initial frame must keep its axis"):
         helix.set_initial_state(start=StartingState(orientation=(0.3, 0.0, 0.0)))
@@ -375,7 +380,7 @@ def test_turning_clamp_in_a_scene(change, key, match):
     from dolfin_rod.scenes import SceneError, build, load_scene
     if key is None:
         sim = build(load_scene(HANGING, {**change, "geometry.n_cells": 2}), "rod")
-        assert sim.model.supports.turn["left"].tolist() == [0.0, 0.0, 1.0]
+        assert sim.model.supports.turn["start"].tolist() == [0.0, 0.0, 1.0]
         return
     with pytest.raises(SceneError, match=rf"\[{key}\]: .*{match}"):
         load_scene(HANGING, change)

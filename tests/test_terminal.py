@@ -52,11 +52,11 @@ def test_closing_summary_gives_each_rods_tip_and_reaction():
             "load_power", "power_residual"]
     for rod in ("column.", "beam."):
         keys += [f"{rod}tip_position_{c}" for c in "xyz"]
-    keys += [f"column.reaction_{kind}_left_{c}" for kind in ("force", "couple") for c in "xyz"]
+    keys += [f"column.reaction_{kind}_start_{c}" for kind in ("force", "couple") for c in "xyz"]
     first = {"time": 0.0, **dict.fromkeys(keys, 0.0)}
     last = {**first, "time": 1.0, "column.tip_position_z": -0.01,
             "beam.tip_position_x": 0.5, "beam.tip_position_z": -1.25,
-            "column.reaction_force_left_z": 3.0}
+            "column.reaction_force_start_z": 3.0}
     lines = final_values([first, last], scene)
     assert "column: tip displacement [0, 0, -0.01] m" in lines
     assert "beam: tip displacement [0.5, 0, -1.25] m" in lines

@@ -19,9 +19,9 @@ from dolfin_rod.rod import contact
 from dolfin_rod.rod.contact import (NP_OPS, ContactLaw, Obstacle, Pose, default_stiffness,
                                     path_entry, signed_distance)
 
-THIN = Obstacle("cylinder", point=(-0.05, 0.0, 0.1), axis=(0.0, 1.0, 0.0), radius=0.003,
+THIN = Obstacle("cylinder", centre=(-0.05, 0.0, 0.1), axis=(0.0, 1.0, 0.0), radius=0.003,
                 length=0.05)
-BALL = Obstacle("sphere", point=(0.3, -0.2, 0.1), radius=0.01)
+BALL = Obstacle("sphere", centre=(0.3, -0.2, 0.1), radius=0.01)
 RADIUS = 0.002
 
 
@@ -33,7 +33,7 @@ def test_path_entry_against_dense_sampling():
     rng = np.random.default_rng(5)
     for obstacle in (THIN, BALL):
         pose = Pose(obstacle)
-        centre = np.asarray(obstacle.point)
+        centre = np.asarray(obstacle.centre)
         P0 = centre + rng.uniform(-0.2, 0.2, (400, 3))
         P1 = P0 + rng.uniform(-0.2, 0.2, (400, 3))
         tau = np.linspace(0.0, 1.0, 20001)[:, None]

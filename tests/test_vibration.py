@@ -151,7 +151,7 @@ def test_pre_twisted_clamped_rod():
     errors = []
     for n in (8, 16):
         rod = RodModel(SLENDER, n_cells=n, model="hyperelastic", start="clamped", end="clamped",
-                       end_turn={"right": (0.0, 0.0, 1.0)},
+                       end_turn={"end": (0.0, 0.0, 1.0)},
                        end_loads=[EndLoad("couple", (0.0, 0.0, moment))])
         rod.set_initial_state(start=StartingState(equilibrium=True))
         omega = vibration_modes(rod, 0.0, 2).omega
@@ -195,7 +195,16 @@ def test_modes_command(tmp_path):
     assert np.array(omega[1:]) / exact - 1 == pytest.approx([6.44e-3] * 2, abs=1e-5)
     assert table[1]["frequency"] == pytest.approx(omega[1] / (2 * math.pi))
     assert json.loads((Path(out) / "summary.json").read_text())["modes"]["modes"] == table
-    assert [s["time"] for s in read_vtx(Path(out) / "modes.bp")] == [1.0, 2.0, 3.0]
+    steps = read_vtx(Path(out) / "modes.bp")
+    assert [s["time"] for s in steps] == [1.0, 2.0, 3.0]
+    # the spin is a turn alone: no displacement (its round-off was drawn as a bending
+    # shape), its rotation about the string's axis e_3 scaled to 1
+    spin = steps[0]["point"]
+    assert np.max(np.abs(spin["mode_displacement"])) == 0.0
+    turn = spin["mode_rotation"].reshape(-1, 3)
+    assert np.max(np.linalg.norm(turn, axis=1)) == pytest.approx(1.0)
+    assert np.max(np.abs(turn[:, :2])) < 1e-8
+    assert np.max(np.abs(steps[1]["point"]["mode_displacement"])) > 0.01
 
 
 def modes_of(rotations: str, ends) -> object:

@@ -3,7 +3,8 @@
 
 Registered through the entry point group ``cosseratbench.solvers`` (pyproject.toml), so
 
-    cosseratbench run cantilever catenary pendulum twist --solver dolfin_rod
+    cosseratbench run cantilever catenary pendulum twist crossing capstan pile \
+        --solver dolfin_rod
 
 scores dolfin_rod next to PyElastica and MuJoCo.  How a scenario is mapped:
 
@@ -23,10 +24,14 @@ scores dolfin_rod next to PyElastica and MuJoCo.  How a scenario is mapped:
   the rod and time step's (``default_stiffness``) and the one whose force at delta / 2
   carries the obstacle's pressure (``pressure``), friction with a slip tolerance of
   1e-3 L per duration (a rope held by friction creeps less than that);
-- rods run alone (the twist experiment's six rods 0.25 m apart: independent rods of
-  one system give the same numbers); the twist experiment's ``self_contact`` is not
-  mapped (its rods are held straight while it measures: its docstring);
-- with obstacles: generalized-alpha with rho_inf = 0 (a barrier's impacts damped,
+- contact between rods and self-contact (pair_contact.py, pair_friction.py): rods that
+  start within reach of each other (``in_reach``: the crossing ropes) run as one
+  RodSystem with ``between_rods`` contact, other rods alone (the twist experiment's
+  six rods 0.25 m apart: independent rods of one system give the same numbers); the
+  scenario's ``self_contact`` as the law's (the pile's rope, the twist's rods); the
+  rods' ``friction`` as the pairs' Coulomb coefficient; the same barrier gap radius /
+  10 and stiffness rule as for obstacles (a rod's weight per length as the pressure);
+- with any contact: generalized-alpha with rho_inf = 0 (a barrier's impacts damped,
   docs/contact.md), Newton to rtol 1e-8, with friction a backtracking line search
   (scenes/contact.py's choices) and FRICTION_STEPS times more steps;
 - dynamics: generalized-alpha on the rotation group (dolfin_rod's default), at most
@@ -37,8 +42,8 @@ scores dolfin_rod next to PyElastica and MuJoCo.  How a scenario is mapped:
   the twist experiment's growth law s^2 + c s = a (twist - critical) holds.
 
 What the adapter does not map raises ``NotImplementedError`` naming it (``unsupported``):
-rods within reach of each other (contact between rods: the crossing experiment) and
-self-contact together with obstacles (the pile).
+rods of different radii or friction coefficients within reach of each other (one
+contact law per model).
 """
 
 from __future__ import annotations
@@ -55,8 +60,9 @@ from .. import __version__
 STEPS_PER_PERIOD = 100      # time steps per period of the slowest mode (at least)
 FRICTION_STEPS = 4          # times more with friction on an obstacle (the capstan's rope at
                             # mu = 0.6 failed its first step at 100 per period, not at 400)
+FRICTION_NEWTON_ITERATIONS = 100   # Newton's limit with friction (solver_options)
 OFFSET = 0.5                # obstacles' surfaces moved back by OFFSET barrier gaps
-ENDS = {End.START: "left", End.END: "right"}
+ENDS = {End.START: "start", End.END: "end"}
 
 
 class DolfinRodSolver:
@@ -64,8 +70,9 @@ class DolfinRodSolver:
 
     name = "dolfin_rod"
     backend_version = __version__
-    capabilities = frozenset({Capability.STRETCH, Capability.SHEAR,
-                              Capability.CYLINDER_CONTACT, Capability.PLANE_CONTACT})
+    capabilities = frozenset({Capability.STRETCH, Capability.SHEAR, Capability.ROD_CONTACT,
+                              Capability.ROD_FRICTION, Capability.CYLINDER_CONTACT,
+                              Capability.PLANE_CONTACT})
 
     def __init__(self, time_step_scale: float = 1.0) -> None:
         self.time_step_scale = float(time_step_scale)
@@ -73,11 +80,11 @@ class DolfinRodSolver:
     def settings(self, scenario: Scenario, *, n_elements: int, n_frames: int) -> dict:
         """The numerical choices of a run (recorded by cosseratbench with its result)."""
         dt, _ = self.time_step(scenario, n_frames)
-        rho_inf = 0.0 if scenario.obstacles else 0.8
+        rho_inf = 0.0 if in_contact(scenario) else 0.8
         chosen = {"integrator": f"generalized-alpha on the rotation group (rho_inf = {rho_inf})",
                   "time_step": dt, "damping_rate": damping_rate(scenario),
                   "unknowns": "rotation vectors, 6 per node"}
-        if scenario.obstacles:
+        if in_contact(scenario):
             radius = min(rod.radius for rod in scenario.rods)
             chosen.update({"barrier_gap": radius / 10, "obstacle_offset": OFFSET * radius / 10})
         return chosen
@@ -87,8 +94,7 @@ class DolfinRodSolver:
         FRICTION_STEPS with friction on an obstacle), times ``time_step_scale``, at least
         one step per frame."""
         frame = scenario.duration / (n_frames - 1)
-        steps = STEPS_PER_PERIOD * (FRICTION_STEPS if any(ob.friction > 0 for ob in
-                                                          scenario.obstacles) else 1)
+        steps = STEPS_PER_PERIOD * (FRICTION_STEPS if with_friction(scenario) else 1)
         limit = self.time_step_scale * 2 * math.pi / (steps * scenario.slowest_frequency())
         steps = max(1, math.ceil(frame / limit))
         return frame / steps, steps
@@ -99,20 +105,42 @@ class DolfinRodSolver:
             raise NotImplementedError(reason)
         times = np.linspace(0.0, scenario.duration, n_frames)
         dt, _ = self.time_step(scenario, n_frames)
-        runs = [run_rod(scenario, rod, n_elements, times, dt) for rod in scenario.rods]
+        if touching(scenario):
+            runs = run_model(scenario, system_model(scenario, n_elements, dt), times, dt)
+        else:
+            runs = [run_model(scenario, rod_model(scenario, rod, n_elements, dt), times,
+                              dt)[0] for rod in scenario.rods]
         return Trajectory(times, tuple(p for p, _ in runs), tuple(d for _, d in runs))
 
 
 def unsupported(scenario: Scenario) -> str | None:
-    """What of ``scenario`` the adapter cannot map, or None."""
-    rods = scenario.rods
-    if any(in_reach(a, b) for k, a in enumerate(rods) for b in rods[k + 1:]):
-        return ("rods within reach of each other: contact between rods is not mapped by "
-                "the dolfin_rod adapter")
-    if scenario.self_contact and scenario.obstacles:
-        return ("self-contact together with obstacles: not mapped by the dolfin_rod "
-                "adapter")
+    """What of ``scenario`` the adapter cannot map, or None: rods of different radii or
+    friction coefficients touching each other (one ContactLaw per model)."""
+    rods = scenario.rods if touching(scenario) else ()
+    for key in ("radius", "friction"):
+        if len({getattr(rod, key) for rod in rods}) > 1:
+            return (f"rods of different {key} within reach of each other: not mapped by "
+                    "the dolfin_rod adapter (one contact law per model)")
     return None
+
+
+def touching(scenario: Scenario) -> bool:
+    """Whether two rods start within reach of each other (``in_reach``): then all rods
+    run as one RodSystem with contact between them."""
+    rods = scenario.rods
+    return any(in_reach(a, b) for k, a in enumerate(rods) for b in rods[k + 1:])
+
+
+def in_contact(scenario: Scenario) -> bool:
+    """Whether anything of ``scenario`` touches: obstacles, rods, a rod itself."""
+    return bool(scenario.obstacles) or scenario.self_contact or touching(scenario)
+
+
+def with_friction(scenario: Scenario) -> bool:
+    """Whether friction acts: on an obstacle, or between segments in contact."""
+    return (any(ob.friction > 0 for ob in scenario.obstacles)
+            or ((scenario.self_contact or touching(scenario))
+                and any(rod.friction > 0 for rod in scenario.rods)))
 
 
 def in_reach(a: Rod, b: Rod) -> bool:
@@ -146,7 +174,7 @@ def section(rod: Rod, scenario: Scenario) -> dict:
     return {"length": rod.length, **constants, **damping}
 
 
-def rod_data(scenario: Scenario, rod: Rod, n_elements: int):
+def rod_data(scenario: Scenario, rod: Rod, n_elements: int, name: str = "rod"):
     """rods.Rod of ``rod``: parameters, cells, ends, motions, loads."""
     from ..rod import DistributedLoad, EndLoad, RodParameters
     from ..rod.rods import Rod as RodData
@@ -166,7 +194,7 @@ def rod_data(scenario: Scenario, rod: Rod, n_elements: int):
                    end=rod.condition(End.END).value,
                    end_loads=[EndLoad("force", tuple(load.force), end=ENDS[load.at])
                               for load in rod.loads],
-                   distributed_loads=loads,
+                   distributed_loads=loads, name=name,
                    **{key: value or None for key, value in motions.items()})
     return data
 
@@ -248,65 +276,96 @@ def obstacles(scenario: Scenario, gap: float) -> list:
     """contact.py's obstacles of the scenario's, their surfaces moved back by OFFSET gap."""
     from ..rod.contact import Obstacle
     back = OFFSET * gap
-    return [Obstacle("cylinder", point=tuple(ob.center), axis=tuple(ob.unit_axis),
+    return [Obstacle("cylinder", centre=tuple(ob.center), axis=tuple(ob.unit_axis),
                      radius=ob.radius - back, length=ob.length, friction=ob.friction)
             if ob.kind == "cylinder" else
             Obstacle("plane", point=tuple(np.asarray(ob.point) - back * ob.unit_normal),
-                     axis=tuple(ob.unit_normal), friction=ob.friction)
+                     normal=tuple(ob.unit_normal), friction=ob.friction)
             for ob in scenario.obstacles]
 
 
-def contact_law(scenario: Scenario, rod: Rod, params, n_elements: int, dt: float):
-    """The ContactLaw of a rod touching the scenario's obstacles (module docstring)."""
+def contact_law(scenario: Scenario, rods, params, n_elements: int, dt: float):
+    """The ContactLaw of ``rods`` (one, or the rods of a system; their parameters
+    ``params``) touching the scenario's obstacles, themselves if it asks for
+    self-contact, each other if they are several (module docstring)."""
     from ..rod.contact import ContactLaw, barrier_derivatives, default_stiffness
-    gap = rod.radius / 10
-    stiffness = max(default_stiffness(params.density, params.A, rod.length, n_elements, dt),
-                    pressure(scenario, rod, params)
-                    / -barrier_derivatives(OFFSET * gap, gap)[1])
-    return ContactLaw(rod.radius, gap, stiffness,
-                      slip_tolerance=1e-3 * rod.length / scenario.duration)
+    radius, mu = rods[0].radius, rods[0].friction
+    gap = radius / 10
+    stiffness = max(max(default_stiffness(p.density, p.A, rod.length, n_elements, dt),
+                        pressure(scenario, rod, p)
+                        / -barrier_derivatives(OFFSET * gap, gap)[1])
+                    for rod, p in zip(rods, params))
+    pairs = len(rods) > 1
+    return ContactLaw(radius, gap, stiffness,
+                      slip_tolerance=1e-3 * min(rod.length for rod in rods) / scenario.duration,
+                      self=scenario.self_contact, between_rods=pairs,
+                      self_friction=mu if scenario.self_contact else 0.0,
+                      between_rods_friction=mu if pairs else 0.0)
 
 
 def pressure(scenario: Scenario, rod: Rod, params) -> float:
     """The force per length the obstacles carry, at most: the rod's weight rho A g on a
-    floor, its whole weight's tension rho A g L over the radius R of a cylinder it hangs
-    over (the capstan's rope)."""
+    floor (or on another rod), its whole weight's tension rho A g L over the radius R
+    of a cylinder it hangs over (the capstan's rope)."""
     radii = [ob.radius for ob in scenario.obstacles if ob.kind == "cylinder"]
     weight = params.density * float(np.linalg.norm(scenario.gravity))
     return weight * max(1.0, rod.length / min(radii)) if radii else weight
 
 
 def solver_options(scenario: Scenario) -> dict:
-    """Newton's options with obstacles (scenes/contact.contact_solver_options' choices);
+    """Newton's options with contact (scenes/contact.contact_solver_options' choices);
     on several ranks MUMPS (block Jacobi's GMRES failed the capstan's first step:
     DIVERGED_LINEAR_SOLVE)."""
     from mpi4py import MPI
-    if not scenario.obstacles:
+    if not in_contact(scenario):
         return {}
     options = {"snes_rtol": 1e-8}
     if MPI.COMM_WORLD.size > 1:
         options.update(ksp_type="preonly", pc_type="lu", pc_factor_mat_solver_type="mumps")
-    if any(ob.friction > 0 for ob in scenario.obstacles):
-        options["snes_linesearch_type"] = "bt"
+    if with_friction(scenario):
+        # bt's steps stay >= 0.1 of the last: where Newton crosses from the sliding to
+        # the sticking branch of the friction law the residual falls by ~0.9 per
+        # iteration (the capstan at mu = 0.6, 0.5 h2*: from 5e7 to 4 in 25; docs/contact.md)
+        options.update(snes_linesearch_type="bt", snes_max_it=FRICTION_NEWTON_ITERATIONS)
     return options
 
 
 def rod_model(scenario: Scenario, rod: Rod, n_elements: int, dt: float):
-    """The RodModel of one rod of ``scenario`` (module docstring) and its StartingState."""
+    """(the RodModel of one rod of ``scenario``, its StartingState; module docstring)."""
     from ..rod import RodModel
     data = rod_data(scenario, rod, n_elements)
-    touching, pressed = {}, None
-    if scenario.obstacles:
-        law = contact_law(scenario, rod, data.params, n_elements, dt)
-        touching = {"obstacles": obstacles(scenario, law.gap), "contact": law}
-        pressed = barrier_start(scenario, touching["obstacles"], law)
+    touches, pressed = contact(scenario, [rod], [data.params], n_elements, dt)
     model = RodModel(data.params, n_cells=n_elements, model="hyperelastic",
                      start=data.start, end=data.end, end_loads=data.end_loads,
                      distributed_loads=data.distributed_loads,
                      end_displacement=data.end_displacement or {},
                      end_rotation=data.end_rotation or {},
-                     end_slide=data.end_slide or {}, **touching)
+                     end_slide=data.end_slide or {}, **touches)
     return model, starting_state(rod, n_elements, data.params, pressed)
+
+
+def system_model(scenario: Scenario, n_elements: int, dt: float):
+    """(the RodSystem of all rods of ``scenario`` with contact between them, their
+    StartingStates by name)."""
+    from ..rod.system import RodSystem
+    data = [rod_data(scenario, rod, n_elements, f"rod{k}")
+            for k, rod in enumerate(scenario.rods)]
+    params = [d.params for d in data]
+    touches, pressed = contact(scenario, scenario.rods, params, n_elements, dt)
+    model = RodSystem(data, model="hyperelastic", **touches)
+    return model, {d.name: starting_state(rod, n_elements, d.params, pressed)
+                   for d, rod in zip(data, scenario.rods)}
+
+
+def contact(scenario: Scenario, rods, params, n_elements: int, dt: float):
+    """({"obstacles", "contact"} keywords of the model, the starting nodes' ``pressed``
+    or None) of ``rods``: nothing if nothing touches."""
+    if not (scenario.obstacles or scenario.self_contact or len(rods) > 1):
+        return {}, None
+    law = contact_law(scenario, rods, params, n_elements, dt)
+    found = obstacles(scenario, law.gap)
+    return ({"obstacles": found, "contact": law},
+            barrier_start(scenario, found, law) if found else None)
 
 
 def rotation_vector(motion: Motion, t: float) -> np.ndarray:
@@ -325,13 +384,14 @@ def _segment(times, t: float) -> tuple[int, float]:
     return i, (t - times[i]) / (times[i + 1] - times[i])
 
 
-def run_rod(scenario: Scenario, rod: Rod, n_elements: int, times: np.ndarray, dt: float):
-    """(positions [T, n + 1, 3], directors [T, n, 3]) of one rod at ``times``."""
+def run_model(scenario: Scenario, built, times: np.ndarray, dt: float) -> list:
+    """[(positions [T, n + 1, 3], directors [T, n, 3]) of each rod] of ``built`` (a
+    model and its starting state) at ``times``."""
     from ..integrators.step_control import IntegrationError
     from ..integrators.choice import TimeStepper
-    model, start = rod_model(scenario, rod, n_elements, dt)
+    model, start = built
     model.set_initial_state(start=start)
-    scheme = "generalized_alpha:0.0" if scenario.obstacles else None
+    scheme = "generalized_alpha:0.0" if in_contact(scenario) else None
     stepper = TimeStepper(model.problem, scheme, solver_options(scenario))
     frames = [frame(model)]
     try:
@@ -340,13 +400,13 @@ def run_rod(scenario: Scenario, rod: Rod, n_elements: int, times: np.ndarray, dt
             frames.append(frame(model))
     except IntegrationError as err:
         raise Diverged(f"dolfin_rod: {err}", time=getattr(err, "t", None)) from err
-    return np.stack([p for p, _ in frames]), np.stack([d for _, d in frames])
+    return [(np.stack([f[k][0] for f in frames]), np.stack([f[k][1] for f in frames]))
+            for k in range(len(frames[0]))]
 
 
-def frame(model) -> tuple[np.ndarray, np.ndarray]:
-    """Nodal positions in order of s and d1 of each element (R e1 of the normalised mean
-    of its end nodes' quaternions), gathered from every rank."""
-    from ..theory.rotations import np_rotation_matrix
+def frame(model) -> list[tuple[np.ndarray, np.ndarray]]:
+    """[(nodal positions in order of s, d1 of each element: R e1 of the normalised mean
+    of its end nodes' quaternions) of each rod], gathered from every rank."""
     x = model.f["displacement"]
     s = x.function_space.tabulate_dof_coordinates()[:, 0]
     r = x.x.array.reshape(-1, 3) + np.outer(s, [0.0, 0.0, 1.0])
@@ -355,7 +415,14 @@ def frame(model) -> tuple[np.ndarray, np.ndarray]:
     s, r, q = (np.concatenate([g[i] for g in gathered]) for i in range(3))
     s, index = np.unique(s, return_index=True)
     r, q = r[index], q[index]
+    spans = [model.layout.span(k) for k in range(len(model.layout.lengths))]
+    return [rod_frame(r[mine], q[mine])
+            for mine in ((s >= a - 1e-12) & (s <= b + 1e-12) for a, b in spans)]
+
+
+def rod_frame(r: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(r, d1 of each element) of one rod's nodes r and quaternions q."""
+    from ..theory.rotations import np_rotation_matrix
     a, b = q[:-1], q[1:] * np.sign(np.einsum("ij,ij->i", q[:-1], q[1:]))[:, None]
     mid = (a + b) / np.linalg.norm(a + b, axis=1)[:, None]
-    d1 = np.array([np_rotation_matrix(m)[:, 0] for m in mid])
-    return r, d1
+    return r, np.array([np_rotation_matrix(m)[:, 0] for m in mid])

@@ -127,8 +127,10 @@ class TangentStiffness:
     def mode_shapes(self, vectors) -> list[dict[str, np.ndarray]]:
         """Vectors of K's layout as nodal values {"displacement", "rotation"}, the
         rotation the material rotation vector (quaternions: 2 vec(conj(q) dq)/|q|^2 of
-        the state's q), each scaled to a largest displacement of 1 (if it has one); the
-        state in the fields is kept."""
+        the state's q), each scaled to a largest displacement of 1 (if it has one; a mode
+        whose displacement is round-off beside its rotation, 1e-8 L, is a turn alone: its
+        displacement is set to 0 and its rotation scaled to 1); the state in the fields is
+        kept."""
         from ..mpi import largest_on_ranks
         system, model = self.system, self.model
         state = system.x.copy()
@@ -145,9 +147,12 @@ class TangentStiffness:
                          if n in label}
                 if q is not None:
                     shape["rotation"] = material_rotation(q, shape["rotation"])
-                x = shape["displacement"].reshape(-1, 3)
-                size = largest_on_ranks(model.mesh.comm, float(
-                    np.max(np.linalg.norm(x, axis=1), initial=0.0)))
+                size, turn = (largest_on_ranks(model.mesh.comm, float(np.max(
+                    np.linalg.norm(shape[n].reshape(-1, 3), axis=1), initial=0.0)))
+                    for n in ("displacement", "rotation"))
+                if size <= 1e-8 * model.length * turn:   # a turn alone (a string's spin):
+                    shape["displacement"][:] = 0.0       # its round-off is no shape
+                    size = turn
                 shapes.append({n: v / size for n, v in shape.items()} if size > 0 else shape)
         finally:
             system.set(0, state)

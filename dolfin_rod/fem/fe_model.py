@@ -17,12 +17,12 @@ from mpi4py import MPI
 from ..checks import ENDS
 from . import form_cache
 
-_TAGS = {"left": 1, "right": 2}
+_TAGS = {"start": 1, "end": 2}
 
 
 def end_coordinate(end: str, length: float) -> float:
-    """s of an end: 0 (left) or the length (right)."""
-    return 0.0 if end == "left" else float(length)
+    """s of an end: 0 (start) or the length (end)."""
+    return 0.0 if end == "start" else float(length)
 
 
 def at_node(mesh, s_node: float):

@@ -116,6 +116,8 @@ class SecondOrderProblem(SemiDiscreteProblem):
                    follows in committed parts (integrators/lie_alpha.py: a rod's end
                    turned beyond a quarter turn at t0); None: sub-solves of the
                    Dirichlet values.
+    motion_turn:   t -> the largest angle (rad) by which the prescribed motions turn an
+                   end at t (the number of the consistent start's parts grows with it).
     """
 
     accelerations: list[fem.Function] = field(default_factory=list)
@@ -123,6 +125,7 @@ class SecondOrderProblem(SemiDiscreteProblem):
     lie_group: bool = False
     error_scales: list[float] = field(default_factory=list)
     scale_motions: Callable[[float], None] | None = None
+    motion_turn: Callable[[float], float] | None = None
 
     def __post_init__(self):
         super().__post_init__()

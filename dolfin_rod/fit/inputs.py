@@ -288,10 +288,10 @@ ROD_EXPERIMENTS = {
     "loads.end_force": ("tip_displacement", "tip_position_",
                         "load: end force along its direction e; response: tip displacement "
                         "along e"),
-    "boundary.end_displacement": ("reaction_force", "reaction_force_right_",
+    "boundary.end_displacement": ("reaction_force", "reaction_force_end_",
                                   "load: end displacement along its direction e; response: "
                                   "reaction force at s = L along e"),
-    "boundary.end_rotation": ("reaction_couple", "reaction_couple_right_",
+    "boundary.end_rotation": ("reaction_couple", "reaction_couple_end_",
                               "load: end rotation angle about its axis e; response: "
                               "reaction couple at s = L about e"),
 }

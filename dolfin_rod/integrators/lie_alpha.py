@@ -27,6 +27,8 @@ is estimated per step (LocalError) and the step sizes follow it (stepping.StepCo
 
 from __future__ import annotations
 
+import math
+
 import dolfinx.fem as fem
 import numpy as np
 import ufl
@@ -174,7 +176,17 @@ def _copy(f, tag):
     return g
 
 
-EQUILIBRIUM_SUB_SOLVES = 4     # the consistent start's path to displaced ends
+EQUILIBRIUM_SUB_SOLVES = 4     # the consistent start's path to displaced ends: at least
+START_PART_TURN = 0.5          # ... so many parts, and one per half radian of the largest turn
+
+
+def start_parts(turn: float) -> int:
+    """The parts of the consistent start's path to ends turned by ``turn`` (rad) at t0:
+    EQUILIBRIUM_SUB_SOLVES, or one per START_PART_TURN radian if more, so that each part
+    turns a node by well under the quarter turn that bounds one rotation increment
+    (rotation_vector.check_increment) at any angle (a clamp turned by 20 rad: 40 parts;
+    1 rad parts failed to converge for a frame of two jointed rods turned rigidly)."""
+    return max(EQUILIBRIUM_SUB_SOLVES, math.ceil(turn / START_PART_TURN))
 
 
 class LieGeneralizedAlpha:
@@ -333,7 +345,8 @@ class LieGeneralizedAlpha:
         p.set_loads(t0)
         p.set_bcs(t0)
         self.compile()
-        if 2 in self.order and not p.links and self._displaced():
+        if 2 in self.order and (not p.links or p.scale_motions is not None) and \
+                self._displaced():
             self._equilibrium_start(t0)
         rates = [f.function_space for f, k in zip(p.fields, self.order) if k]
         zeroed = [bc for bc in p.bcs if any(compat.contains(V, bc) for V in rates)]
@@ -363,9 +376,9 @@ class LieGeneralizedAlpha:
         """Whether a Dirichlet value of a second-order block at the time set differs from
         the state (an end of a dynamic rod displaced at t0), on any rank, by more than
         round-off (a curved start's end rotation: theta_end = c^-1(conj(q) q) ~ 1e-17).
-        (A problem with multipoint constraints, rods joined, is not checked: its
-        constrained assembly has no path of Dirichlet values, BlockSNES.solve's
-        sub-solves.)"""
+        (A problem with multipoint constraints, rods joined or an oblique support, is
+        checked only if it scales its motions: its constrained assembly has no path of
+        Dirichlet values, BlockSNES.solve's sub-solves.)"""
         p, local = self.problem, False
         for f, k in zip(p.fields, self.order):
             for bc in p.bcs if k == 2 else ():
@@ -379,8 +392,8 @@ class LieGeneralizedAlpha:
         """The consistent start of a dynamic problem whose prescribed values at t0 differ
         from its state: its second-order blocks (positions, rotations) solved at rest (zero
         velocities and accelerations) in equilibrium with them, approached in
-        EQUILIBRIUM_SUB_SOLVES parts (problem.scale_motions: each committed, so that an
-        end may turn by up to that many quarter turns; without it, sub-solves of the
+        parts (start_parts of problem.motion_turn, problem.scale_motions: each
+        committed, so that an end may turn by any angle; without them, sub-solves of the
         Dirichlet values, BlockSNES.solve), the first-order blocks' rates with them;
         checked and committed.  The first step then starts from equilibrium instead of a
         jump.  (A refused start leaves the fields as given, a rod's stored rotations as
@@ -419,11 +432,12 @@ class LieGeneralizedAlpha:
             raise SolverError(reason, 0)
 
     def _committed_path(self, solver, t0: float) -> None:
-        """The motions' values at t0 reached in EQUILIBRIUM_SUB_SOLVES parts (scaled by
-        k/n: problem.scale_motions), each solved, checked and committed (after_step): a
-        part turns a node by its own rotation increment, so the ends may turn by up to
-        n quarter turns (the chart bounds one increment, rotation_vector.py)."""
-        p, n = self.problem, EQUILIBRIUM_SUB_SOLVES
+        """The motions' values at t0 reached in n = start_parts parts (scaled by k/n:
+        problem.scale_motions), each solved, checked and committed (after_step): a part
+        turns a node by its own rotation increment, which the chart bounds by a quarter
+        turn (rotation_vector.py), so the parts grow with the ends' largest turn."""
+        p = self.problem
+        n = start_parts(p.motion_turn(t0) if p.motion_turn is not None else 0.0)
         for k in range(1, n + 1):
             p.scale_motions(k / n)
             p.set_bcs(t0)

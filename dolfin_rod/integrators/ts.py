@@ -140,6 +140,10 @@ class TSIntegrator:
                              "dynamic rods) is advanced by TimeStepper (generalized-alpha "
                              "on the rotation group); for PETSc TS build RodModel(..., "
                              "rotations='quaternion')")
+        if problem.links:
+            raise ValueError("PETSc TS does not hold the one-node links of a support on an "
+                             "axis off the coordinate axes (end_slide): advance it with "
+                             "TimeStepper (a per-step scheme)")
         self.method = parse_ts_type(ts_type)
         for name, value in (("rtol", rtol), ("atol", atol)):
             if not (np.isfinite(value) and value > 0):

@@ -27,6 +27,8 @@ FILES = {
     "buckle.bp": "ParaView (ADIOS2VTXReader): the buckling modes, one step per mode",
     "modes.json": "dolfin-rod modes: natural frequencies about the end state",
     "modes.bp": "ParaView (ADIOS2VTXReader): the vibration modes, one step per mode",
+    "buckle.png": "the buckling modes' shapes and their critical load factors",
+    "modes.png": "the vibration modes' shapes and their frequencies",
 }
 
 
@@ -64,7 +66,7 @@ def final_values(rows: list[dict], scene) -> list[str]:
                          f"turns about {_text(axis)}")
         elif panel == "end_torque":
             value = last["end_torsion"] if "end_torsion" in last else \
-                _vector(last, "reaction_couple_right")
+                _vector(last, "reaction_couple_end")
             lines.append(f"end torque {_text(value)}{u('moment')}")
         elif panel == "force_extension":
             force = scene["loads"]["end_force"].vector()(last["time"])
@@ -72,7 +74,7 @@ def final_values(rows: list[dict], scene) -> list[str]:
                          f"{moved()}{u('length')}")
         elif panel == "reactions":
             lines += [_reaction(last, rod, name, u)
-                      for rod, name in _rods(last, "reaction_force_left_x")]
+                      for rod, name in _rods(last, "reaction_force_start_x")]
         elif panel == "twist":
             lines.append(f"end rotation phi(1) {last['end_rotation']:.4g}, mean natural twist "
                          f"{last['mean_natural_twist']:.4g}")
@@ -88,11 +90,12 @@ def final_values(rows: list[dict], scene) -> list[str]:
 
 def _reaction(last: dict, rod: str, name: str, u) -> str:
     """The reaction line of one rod's support at s = 0 (force, and couple if held)."""
-    text = f"{name}reaction at s = 0: force {_text(_vector(last, f'{rod}reaction_force_left'))}"
-    if f"{rod}reaction_couple_left_x" not in last:
+    force = _vector(last, f"{rod}reaction_force_start")
+    text = f"{name}reaction at s = 0: force {_text(force)}"
+    if f"{rod}reaction_couple_start_x" not in last:
         return text + u("force")
     return (f"{text}{u('force')}, couple "
-            f"{_text(_vector(last, f'{rod}reaction_couple_left'))}{u('moment')}")
+            f"{_text(_vector(last, f'{rod}reaction_couple_start'))}{u('moment')}")
 
 
 def closing_lines(summary: dict, rows: list[dict], scene, wall: float,

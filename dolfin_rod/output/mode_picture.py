@@ -66,6 +66,9 @@ def mode_figure(centre: np.ndarray, displaced: list[np.ndarray], titles: list[st
             along, across = ((line - centre.mean(axis=0)) @ plane.T).T
             for rod in rods:
                 ax.plot(across[rod], along[rod], **style)
+        if np.array_equal(points, centre):     # (analysis.stability.mode_shapes)
+            ax.text(0.5, 0.1, "a turn alone: no displacement", ha="center",
+                    transform=ax.transAxes)
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_title(title, fontsize=10)
         ax.set_xlabel("across (the mode's direction)")

@@ -8,13 +8,13 @@ from the scene's supports and loads):
     tip_rotation     rotation of the tip about its main axis, unwrapped (cumulative):
                      a 2.5-turn twist reads 5 pi, not 5 pi mod 2 pi (held end
                      rotations; rods turned by an end or distributed couple)
-    end_torque       the couple the support at s = L exerts (reaction_couple_right_*);
+    end_torque       the couple the support at s = L exerts (reaction_couple_end_*);
                      torsion models: the end torsion m(1, t)
     force_extension  the applied end force along its direction against the tip
                      displacement along it (a hysteresis loop when the rod is viscous;
                      a force that varies: ramp, smooth step, table); without an end
                      force, a point force against its point's displacement
-    reactions        force and couple of the support at s = 0 (reaction_*_left_*)
+    reactions        force and couple of the support at s = 0 (reaction_*_start_*)
     stability        the count of negative eigenvalues of the stiffness (the column
                      negative_eigenvalues of runs that check stability): 0 is stable
     contact          the total contact force (obstacles: |sum of the force|; segment
@@ -74,7 +74,7 @@ def choose_panels(scene, columns) -> list[str]:
             and (force[0] == "point_force" or boundary["end"] == "free") \
             and f"{force[1]}_position_x" in cols:
         panels.append("force_extension")
-    if boundary.get("end_rotation") is not None and "reaction_couple_right_z" in cols:
+    if boundary.get("end_rotation") is not None and "reaction_couple_end_z" in cols:
         panels += ["end_torque", "twist" if "writhe" in cols else "tip_rotation"]
     if not panels and "tip_quaternion_0" in cols and (
             loads.get("end_couple") is not None or loads.get("distributed_couple") is not None):
@@ -85,7 +85,7 @@ def choose_panels(scene, columns) -> list[str]:
         panels.append("tip_deflection")
     if any(c.endswith(("contact_force_x", "pair_contact_force")) for c in cols):
         panels.append("contact")
-    if any(c.endswith("reaction_force_left_x") for c in cols) and len(panels) < 2:
+    if any(c.endswith("reaction_force_start_x") for c in cols) and len(panels) < 2:
         panels.append("reactions")
     return panels + ["energy", "power_residual"]
 
@@ -140,6 +140,15 @@ def _shown(series: dict) -> dict:
     return kept or series
 
 
+def _largest(series: dict, n: int) -> dict:
+    """Of many reactions (a tripod's 18 were unreadable) the n forces and the n couples
+    of the largest max |x|."""
+    def top(kind):
+        of_kind = [kx for kx in series.items() if kx[0].split(".")[-1][0] == kind]
+        return sorted(of_kind, key=lambda kx: -np.max(np.abs(kx[1])))[:n]
+    return dict(top("F") + top("M"))
+
+
 def _tip_deflection(ax, col, units, scene):
     for rod in col.prefixes("tip_position_x"):
         moved = {c: col(f"{rod}tip_position_{c}") for c in "xyz"}
@@ -164,7 +173,7 @@ def _end_torque(ax, col, units, scene):
     if "end_torsion" in col.rows[0]:
         ax.plot(col.t, col("end_torsion"))
         return "end torsion m(1, t)", axis_label("m(1, t)", "moment", units)
-    for c, m in _shown({c: col(f"reaction_couple_right_{c}") for c in "xyz"}).items():
+    for c, m in _shown({c: col(f"reaction_couple_end_{c}") for c in "xyz"}).items():
         ax.plot(col.t, m, label=f"M_{c}")
     ax.legend(fontsize="small")
     return "end torque: couple of the support at s = L", axis_label("couple", "moment", units)
@@ -207,10 +216,10 @@ def unloaded(reactions: dict, energy: float, length: float) -> bool:
 
 
 def _reactions(ax, col, units, scene):
-    raw = {f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_left_{c}")
-           for rod in col.prefixes("reaction_force_left_x")
+    raw = {f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_start_{c}")
+           for rod in col.prefixes("reaction_force_start_x")
            for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
-           if f"{rod}reaction_{name}_left_{c}" in col.rows[0]}
+           if f"{rod}reaction_{name}_start_{c}" in col.rows[0]}
     energy = max(np.max(np.abs(col("free_energy") + col("kinetic_energy"))),
                  np.max(np.abs(col("total_dissipation"))))
     if unloaded(raw, energy, scene["geometry"]["length"]):
@@ -220,7 +229,7 @@ def _reactions(ax, col, units, scene):
         ax.set_xticks([])
         ax.set_yticks([])
         return "reactions of the support at s = 0", ""
-    series = _shown(raw)
+    series = _largest(_shown(raw), 3)
     is_force = {label: label.split(".")[-1][0] == "F" for label in series}
     if not any(is_force.values()):      # forces all round-off: the couples on the axis
         for label, x in series.items():
@@ -235,7 +244,8 @@ def _reactions(ax, col, units, scene):
     if twin is not None:
         twin.set_ylabel(axis_label("couple (dashed)", "moment", units))
         twin.legend(fontsize="small", loc="upper right")
-    return "reactions of the support at s = 0", axis_label("force (solid)", "force", units)
+    more = f" (the largest {len(series)} of {len(raw)})" if len(series) < len(_shown(raw)) else ""
+    return "reactions of the support at s = 0" + more, axis_label("force (solid)", "force", units)
 
 
 def _contact(ax, col, units, scene):
@@ -297,7 +307,14 @@ def _energy(ax, col, units, scene):
 
 
 def _power_residual(ax, col, units, scene):
-    ax.semilogy(col.t[1:], relative_power_residual(col.rows) + 1e-300)
+    residual = relative_power_residual(col.rows)
+    if residual.size and np.max(residual) <= 1e-14:     # (a log axis of zeros: 1e-300)
+        ax.text(0.5, 0.5, "balanced to round-off:\nevery relative residual <= 1e-14",
+                ha="center", va="center", transform=ax.transAxes)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    else:
+        ax.semilogy(col.t[1:], residual + 1e-300)
     return ("power balance: |d/dt(K+Psi) + D - P| / max(|dE/dt|, D, |P|)",
             "relative residual [1]")
 

@@ -3,12 +3,12 @@
 
     histories.png   from timeseries.csv and scene.toml: the scene's panels (plots.py), or
                     the ``quantities`` named: panels (tip_deflection, end_torque, ...) or
-                    columns of the CSV (reaction_couple_right_z, ...) against time
+                    columns of the CSV (reaction_couple_end_z, ...) against time
     snapshots.png, animation.gif (animation.mp4 where ffmpeg exists)   3-D rod;
     spacetime.png   torsion: from rod.pvd (or rod.bp) when the run wrote its fields,
                     coloured by ``colour``
 
-    redraw("results/gravity_cantilever-...", ["tip_deflection", "reaction_force_left_z"])
+    redraw("results/gravity_cantilever-...", ["tip_deflection", "reaction_force_start_z"])
 
 A quantity that is neither a panel nor a column, a folder that is not a finished run:
 RedrawError naming it (the CLI's exit status 2), before anything is drawn.
@@ -18,8 +18,10 @@ from __future__ import annotations
 
 import csv
 import json
+import warnings
 from pathlib import Path
 
+from ..checks import new_column
 from ..scenes.schema import COLOURS, PANELS
 from .run_folders import OutputError
 
@@ -31,19 +33,34 @@ class RedrawError(OutputError):
 
 
 def read_rows(folder: Path) -> list[dict]:
-    """The rows of timeseries.csv as floats (an empty field, NaN)."""
+    """The rows of timeseries.csv as floats (an empty field, NaN); the end columns of a
+    run before the ends took the scene's names (reaction_force_left_x) as named now
+    (reaction_force_start_x)."""
     path = Path(folder) / "timeseries.csv"
     if not path.is_file():
         raise RedrawError(f"{folder}: no timeseries.csv (not a run folder of dolfin-rod?)")
     try:
         with path.open() as f:
-            rows = [{k: float(v) if v != "" else float("nan") for k, v in r.items()}
-                    for r in csv.DictReader(f)]
+            rows = [{new_column(k): float(v) if v != "" else float("nan")
+                     for k, v in r.items()} for r in csv.DictReader(f)]
     except (ValueError, TypeError, csv.Error) as err:     # binary, cut or extra fields
         raise RedrawError(f"{path}: not a time series of numbers ({err})") from None
     if len(rows) < 2:
         raise RedrawError(f"{path}: fewer than two rows, nothing to draw")
     return rows
+
+
+def _named_now(quantities: list[str]) -> list[str]:
+    """The quantities with an old end column (reaction_couple_right_z) as named now
+    (reaction_couple_end_z), each with a DeprecationWarning naming the new name."""
+    named = []
+    for q in quantities:
+        named.append(new_column(q))
+        if named[-1] != q:
+            warnings.warn(f"quantity {q!r} is deprecated and goes in the next release: use "
+                          f"{named[-1]!r} (the ends are named start and end, as in the "
+                          "scene)", DeprecationWarning, stacklevel=3)
+    return named
 
 
 def _check_quantities(quantities: list[str], columns) -> None:
@@ -95,7 +112,8 @@ def redraw(folder: Path | str, quantities: list[str] | None = None, colour: str 
     from .plots import plot_histories
     folder = Path(folder)
     rows = read_rows(folder)
-    _check_quantities(list(quantities or []), rows[0])
+    quantities = _named_now(list(quantities or []))
+    _check_quantities(quantities, rows[0])
     if colour not in COLOURS:
         raise RedrawError(f"--color {colour!r}: one of {', '.join(COLOURS)}")
     try:

@@ -55,6 +55,7 @@ from .drawing import draw_pictures
 from .plots import plot_histories
 from .field_outputs import FieldOutputs
 from .animation import Look
+from ..checks import new_column
 from .run_folders import OutputError, files_in, on_root
 
 
@@ -157,8 +158,11 @@ class RunWriter:
             try:
                 with path.open() as f:
                     reader = csv.DictReader(f)
-                    self.columns = list(reader.fieldnames or [])
-                    self._kept = [r for r in reader if int(r["step"]) <= keep_until_step]
+                    # an older release's end columns under their names now (new_column)
+                    self.columns = [new_column(c) for c in reader.fieldnames or []]
+                    self._kept = [{new_column(k) if k is not None else k: v
+                                   for k, v in r.items()}
+                                  for r in reader if int(r["step"]) <= keep_until_step]
             except (csv.Error, KeyError, TypeError) as err:     # NUL bytes, no step column
                 raise OutputError(f"cannot resume: {path} is damaged ({err}); nothing was "
                                   "changed") from None

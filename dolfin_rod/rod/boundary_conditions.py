@@ -1,6 +1,7 @@
 """Supports and prescribed motions of the rod's ends, and the reactions there.
 
-ends: (left, right), each "clamped" (x and q fixed), "pinned" (x fixed) or "free".
+ends: (start, end) at s = 0 and s = L, each "clamped" (x and q fixed), "pinned" (x
+fixed) or "free".
 end_displacement, end_rotation: {end: history t -> 3-vector}: a prescribed motion of an
 end (displacement from its initial position; rotation vector superposed on its initial
 rotation); the end's velocities (dynamic rods) follow from loads.rate (the history's own
@@ -128,7 +129,7 @@ def check_supports(ends, end_displacement, end_rotation, dynamic: bool = False,
 
 def _check_spring(end, spring, kind, slide: dict, moving) -> None:
     if end not in ENDS or not isinstance(spring, EndSpring):
-        raise ValueError(f"end_springs: {{end: EndSpring}} with end 'left' or 'right', got "
+        raise ValueError(f"end_springs: {{end: EndSpring}} with end 'start' or 'end', got "
                          f"{end!r}: {spring!r}")
     for part, held in (("translational", kind in ("clamped", "pinned") and end not in slide),
                        ("rotational", kind == "clamped")):
@@ -200,6 +201,9 @@ class EndSupports:
         self.ends = tuple(ends)
         self.turn = {end: np.asarray(a, float) for end, a in (end_turn or {}).items()}
         self.linked = linked_axes(end_slide, end_turn, end_frames or {})
+        if "velocity" in model.unknowns.spaces:      # quaternions: V = x_t on the line too
+            self.linked.update({("velocity", end): axis for (block, end), axis
+                                in list(self.linked.items()) if block == "displacement"})
         self.turn_material = {end: self.linked.get(("rotation_increment", end), a)
                               for end, a in self.turn.items()}  # R_0^T axis at the start
         self.springs = dict(end_springs or {})
@@ -243,7 +247,7 @@ class EndSupports:
                 model.dirichlet_at(block, spaces[block], self.s_ends[end], const)
         if "rotation_increment" in spaces and not model.dynamic and spin_free(
                 ends, self.rotation, self.turn, self.springs):   # quasi-static: a null mode
-            model.dirichlet_at(self.block, spaces[self.block], self.s_ends["left"],
+            model.dirichlet_at(self.block, spaces[self.block], self.s_ends["start"],
                                fem.Constant(mesh, 0.0), component=2)
         unk = model.unknowns     # a turning end's rotation (reactions): nodal values
         self._rotations = unk.f["quaternion"] if unk.chart is None else unk.chart.q_n
@@ -291,6 +295,12 @@ class EndSupports:
                 f * np.asarray(self.rotation[end](t), float))
             return x0 + d, np_qmul(qr, q0)
         return x0 + d, q0
+
+    def largest_turn(self, t: float) -> float:
+        """The largest angle |end_rotation(t)| of this rod's prescribed end rotations (0
+        without any)."""
+        return max((float(np.linalg.norm(np.asarray(rotation(t), float)))
+                    for rotation in self.rotation.values()), default=0.0)
 
     def scale(self, fraction: float) -> None:
         """The prescribed motions' displacements and rotation vectors scaled by

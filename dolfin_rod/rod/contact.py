@@ -24,6 +24,7 @@ K + Psi in the power balance, the friction's power -f_t . v_t >= 0 the dissipati
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -50,35 +51,75 @@ class InitialOverlap(ValueError):
 
 @dataclass
 class Obstacle:
-    """A rigid obstacle: ``shape`` "plane" (the half-space behind ``point`` against the
-    unit ``axis`` = outward normal), "sphere" (``radius`` around ``point``) or
-    "cylinder" (``radius``, ``length`` along the unit ``axis`` through its centre
-    ``point``); ``friction`` the Coulomb coefficient mu >= 0."""
+    """A rigid obstacle, in the keys of a scene's [[obstacles]]: ``shape`` "plane" (the
+    half-space behind ``point`` against the outward ``normal``), "sphere" (``radius``
+    around ``centre``) or "cylinder" (``radius``, ``length`` along ``axis`` through its
+    ``centre``); ``friction`` the Coulomb coefficient mu >= 0.  Deprecated (this
+    release only): a sphere's or cylinder's centre as ``point``, a plane's normal as
+    ``axis`` (the meaning they had), with a DeprecationWarning."""
 
     shape: str
-    point: Sequence[float] = (0.0, 0.0, 0.0)
-    axis: Sequence[float] = (0.0, 0.0, 1.0)
+    point: Sequence[float] | None = None       # plane: a point of its surface
+    axis: Sequence[float] | None = None        # cylinder: the axis direction
     radius: float = 0.0
     length: float = 0.0
     friction: float = 0.0
+    normal: Sequence[float] | None = None      # plane: the outward normal
+    centre: Sequence[float] | None = None      # sphere, cylinder: the centre
+
+    def __post_init__(self):
+        old, new = ("axis", "normal") if self.shape == "plane" else ("point", "centre")
+        if getattr(self, old) is not None:
+            if getattr(self, new) is not None:
+                raise TypeError(f"Obstacle: give {new} or the deprecated {old}, not both")
+            warnings.warn(f"Obstacle: a {self.shape}'s {old!r} is deprecated and goes in "
+                          f"the next release: use {new} (the scene's key)",
+                          DeprecationWarning, stacklevel=3)
+            setattr(self, new, getattr(self, old))
+            setattr(self, old, None)
+
+    @property
+    def where(self) -> Sequence[float]:
+        """The plane's point or the centre (the origin if not given)."""
+        where = self.point if self.shape == "plane" else self.centre
+        return (0.0, 0.0, 0.0) if where is None else where
+
+    @property
+    def direction(self) -> Sequence[float]:
+        """The plane's normal or the cylinder's axis (e_3 if not given)."""
+        direction = self.normal if self.shape == "plane" else self.axis
+        return (0.0, 0.0, 1.0) if direction is None else direction
 
 
 @dataclass
 class ContactLaw:
     """The rod's radius r, the barrier's gap delta (0 < delta < r), its stiffness kappa
     (``default_stiffness``), the friction's slip tolerance eps (a velocity) and whether
-    segments touch each other: of one rod (``self_contact``), of different rods
+    segments touch each other: of one rod (``self``), of different rods
     (``between_rods``; pair_contact.py), with Coulomb friction of coefficients
-    ``self_friction`` and ``between_rods_friction`` (pair_friction.py)."""
+    ``self_friction`` and ``between_rods_friction`` (pair_friction.py): the keys of a
+    scene's [contact].  ``self_contact`` is the deprecated name of ``self`` (this release
+    only, with a DeprecationWarning)."""
 
     radius: float
     gap: float
     stiffness: float
     slip_tolerance: float = 1e-4
-    self_contact: bool = False      # pairs of the rod's own segments (pair_contact.py)
+    self: bool = False              # pairs of the rod's own segments (pair_contact.py)
     between_rods: bool = False      # pairs of segments of different rods of a system
     self_friction: float = 0.0      # Coulomb's mu of self-contact (pair_friction.py)
     between_rods_friction: float = 0.0      # ... of contact between rods
+    self_contact: bool | None = None        # deprecated: self
+
+    def __post_init__(self):
+        if self.self_contact is not None:
+            if self.self:
+                raise TypeError("ContactLaw: give self or the deprecated self_contact, "
+                                "not both")
+            warnings.warn("ContactLaw: 'self_contact' is deprecated and goes in the next "
+                          "release: use self (the scene's contact.self)", DeprecationWarning,
+                          stacklevel=3)
+            self.self, self.self_contact = bool(self.self_contact), None
 
 
 def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
@@ -98,9 +139,10 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
             raise ValueError(f"{name}.shape must be one of {', '.join(SHAPES)}, got "
                              f"{ob.shape!r}")
         nonnegative(f"{name}.friction", ob.friction)
-        if np.shape(ob.point) != (3,) or np.shape(ob.axis) != (3,):
-            raise ValueError(f"{name}: point and axis must be 3-vectors")
-        if ob.shape != "sphere" and not np.linalg.norm(ob.axis) > 0:
+        keys = ("point", "normal") if ob.shape == "plane" else ("centre", "axis")
+        if np.shape(ob.where) != (3,) or np.shape(ob.direction) != (3,):
+            raise ValueError(f"{name}: {' and '.join(keys)} must be 3-vectors")
+        if ob.shape != "sphere" and not np.linalg.norm(ob.direction) > 0:
             raise ValueError(f"{name}.{'normal' if ob.shape == 'plane' else 'axis'} must "
                              "not be zero")
         if ob.shape != "plane":
@@ -151,8 +193,8 @@ class Pose:
     ``mesh`` (forms of the same shapes then share their kernels: form_cache)."""
 
     def __init__(self, ob: Obstacle, mesh=None):
-        values = {"point": np.asarray(ob.point, float), "axis": unit(ob.axis)
-                  if np.linalg.norm(ob.axis) > 0 else np.array([0.0, 0.0, 1.0]),
+        values = {"point": np.asarray(ob.where, float), "axis": unit(ob.direction)
+                  if np.linalg.norm(ob.direction) > 0 else np.array([0.0, 0.0, 1.0]),
                   "radius": float(ob.radius), "length": float(ob.length),
                   "friction": float(ob.friction)}
         self.shape = ob.shape

@@ -62,7 +62,7 @@ def discretise(comm, layout: RodLayout, rotations: str) -> Discretisation:
     # the outward normal is -1 at s = 0 and +1 at s = L: untagged end points (a form with
     # tagged subdomains cannot be shared by the form cache) and no L in the forms
     normal = ufl.FacetNormal(mesh)[0]
-    end_weight = {"left": (1.0 - normal) / 2, "right": (1.0 + normal) / 2}
+    end_weight = {"start": (1.0 - normal) / 2, "end": (1.0 + normal) / 2}
     return Discretisation(
         mesh, max(layout.lengths), s, Pieces(layout, mesh, s), ufl.Measure("ds", domain=mesh),
         end_weight,

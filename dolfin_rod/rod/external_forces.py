@@ -16,6 +16,7 @@ import ufl
 
 from ..theory import balance
 from ..theory.rotations import rotation_matrix
+from ..checks import end_name
 from ..fem.fe_model import ENDS
 from ..fem.problem import TimeDependentValue
 from .discretisation import Discretisation, Unknowns
@@ -30,8 +31,11 @@ class EndLoad:
     kind: str                        # "force" or "couple"
     value: Sequence[float]
     history: Callable = field(default=lambda t: 1.0)
-    end: str = "right"
-    follower: bool = False
+    end: str = "end"                 # "start" (s = 0) or "end" (s = L), as the scene's
+    follower: bool = False           # loads.start_force, end_couple, ...
+
+    def __post_init__(self):
+        self.end = end_name("EndLoad", self.end, stacklevel=3)    # the caller's line
 
 
 @dataclass
@@ -75,7 +79,8 @@ def check_loads(end_loads, distributed_loads, point_loads=(), length: float = np
                              f"{load.history(0.0)!r} at t = 0")
     for load in end_loads:
         if load.end not in ENDS:
-            raise ValueError(f"load end must be 'left' or 'right', got {load.end!r}")
+            raise ValueError(f"EndLoad end must be 'start' (s = 0) or 'end' (s = L), got "
+                             f"{load.end!r}")
 
 
 def _load_value(load, rod: int, disc: Discretisation):
@@ -93,7 +98,8 @@ def point_weight(load: PointLoad, rod: int, disc: Discretisation):
     layout = disc.pieces.layout
     # Constants, not numbers: the compiled kernels are shared by models of other s, h
     h = fem.Constant(disc.mesh, layout.lengths[rod] / layout.n_cells[rod])
-    distance = abs(disc.pieces.local_s(rod) - fem.Constant(disc.mesh, float(load.s)))
+    distance = abs(disc.pieces.local_s(rod, offset=False)
+                   - fem.Constant(disc.mesh, float(load.s)))
     return ufl.max_value(0.0, 1.0 - distance / h) / h, h
 
 

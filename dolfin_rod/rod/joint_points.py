@@ -103,8 +103,8 @@ def locate(rods, joints: list[Joint]) -> list[tuple[int, int, int, int]]:
                     end in (rod.end_rotation or {})
                 if node == end_node and held:
                     raise ValueError(f"joints[{k}]: rod {name!r} is supported at its {end} "
-                                     "end, where the joint is; a joint joins free ends or "
-                                     "interior nodes")
+                                     f"(s = {'0' if end == 'start' else 'L'}), where the joint "
+                                     "is; a joint joins free ends or interior nodes")
             pair += [i, node]
         out.append(tuple(pair))
     _check_hinge_nodes(joints, out)

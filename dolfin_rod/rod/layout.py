@@ -29,11 +29,14 @@ from ..fem import compat
 
 @dataclass(frozen=True)
 class RodLayout:
-    """The parameter ranges of the rods of a system (names, lengths, cells per rod)."""
+    """The parameter ranges of the rods of a system (names, lengths, cells per rod;
+    ``offsets``: the arc length on its own rod at which each starts, for the pieces of
+    a rod split at its kinks, kinks.py; none: 0)."""
 
     names: tuple[str, ...]
     lengths: tuple[float, ...]
     n_cells: tuple[int, ...]
+    offsets: tuple[float, ...] = ()
 
     @property
     def single(self) -> bool:
@@ -90,9 +93,12 @@ class Pieces:
         self._rods = layout.rod_of_cells(mesh)
         self._indicators: dict[int, fem.Function] = {}
 
-    def local_s(self, k: int):
-        """Rod k's own arc length s - a_k (s itself for a single rod)."""
+    def local_s(self, k: int, offset: bool = True):
+        """Rod k's own arc length s - a_k (s itself for a single rod), for a piece of a
+        rod + the piece's offset on it (without ``offset``: on the piece)."""
         a = self.layout.starts[k]
+        if offset and self.layout.offsets:
+            a -= self.layout.offsets[k]
         return self.s if a == 0.0 else self.s - a
 
     def indicator(self, k: int):

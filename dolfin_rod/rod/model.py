@@ -26,8 +26,8 @@ from mpi4py import MPI
 from ..theory import constraints
 from .. import loads as load_histories
 from ..theory.evolution import check_variant
-from ..checks import (MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
-                      check_n_cells, old_keywords)
+from ..checks import (ENDS, MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
+                      check_n_cells, end_keyed, old_keywords)
 from ..fem.fe_model import FEModel
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..integrators.step_control import IntegrationError
@@ -42,6 +42,7 @@ from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
 from .joints import JointReactions, joint_nodes, node_links
+from .kinks import Split, piece_starts, split_at_kinks
 from .layout import RodLayout
 from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
@@ -58,7 +59,7 @@ _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
 def end_frames(rod: Rod) -> dict:
     """{end: the stress-free, placed rotation (quaternion) of the rod's end}."""
     q = placed_shape(rod, np.array([0.0, float(rod.params.length)]))[1]
-    return dict(zip(("left", "right"), q))
+    return dict(zip(ENDS, q))
 
 
 def oblique_supports(rod: Rod) -> list[tuple[str, str]]:
@@ -106,17 +107,23 @@ class RodModel(FEModel):
                  end_turn: dict | None = None, end: str = "free",
                  point_loads: Sequence[PointLoad] = ()):
         start, end = positional_ends("RodModel", start, end, stacklevel=5)
-        rod = Rod(params, n_cells, start, end_loads, distributed_loads, end_displacement,
-                  end_rotation, end_slide, end_springs=end_springs, end_turn=end_turn,
-                  end=end, point_loads=point_loads)
+        keyed = end_keyed("RodModel", dict(    # "left", "right": deprecated (the caller's line)
+            end_displacement=end_displacement, end_rotation=end_rotation, end_slide=end_slide,
+            end_springs=end_springs, end_turn=end_turn), stacklevel=3)
+        rod = Rod(params, n_cells, start, end_loads, distributed_loads, point_loads=point_loads,
+                  end=end, **keyed)
         self._build([rod], model, variant, constraints, rotations, comm, obstacles=obstacles,
-                    contact=contact)
+                    contact=contact, split_kinks=True)
 
     def _build(self, rods: list[Rod], model: str, variant: str, constraint: str | None,
                rotations: str, comm, joints: Sequence[Joint] = (),
-               obstacles: Sequence[Obstacle] = (), contact: ContactLaw | None = None) -> None:
-        """The model of one or several rods and their joints (see system.RodSystem)."""
-        self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
+               obstacles: Sequence[Obstacle] = (), contact: ContactLaw | None = None,
+               split_kinks: bool = False) -> None:
+        """The model of one or several rods and their joints (see system.RodSystem); a
+        single rod (``split_kinks``) as the pieces between the corners of its stress-free
+        polyline, joined rigidly (kinks.py)."""
+        joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm,
+                                         split_kinks)
         self.rotations = self._rotation_unknowns(rotations, joints)
         disc = discretise(comm, self.layout, self.rotations)
         super().__init__(disc.mesh)
@@ -144,13 +151,20 @@ class RodModel(FEModel):
         self._diagnostics(resp, disc, natural_pairs, power, dissipation, springs)
 
     def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
-                           constraint: str | None, joints: Sequence[Joint], comm) -> None:
-        """Refuse bad input before any mesh; the rods' data and their layout on one mesh."""
+                           constraint: str | None, joints: Sequence[Joint], comm,
+                           split_kinks: bool = False) -> list[Joint]:
+        """Refuse bad input before any mesh; the rods' data (a rod split at its kinks:
+        its pieces) and their layout on one mesh; the joints (with the kinks')."""
         check_model(model, rods[0].params)
         check_variant(variant)
         constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.density))
         check_rods(rods, model, variant)
         check_joints(list(joints), rods)
+        split = split_at_kinks(rods[0]) if split_kinks else Split(rods, [], ())
+        self.kinked = len(split.rods) > len(rods)
+        self.split = split
+        length = float(rods[0].params.length)
+        rods, joints = split.rods, list(joints) + split.joints
         check_n_cells(sum(rod.n_cells for rod in rods), comm.size)   # cells per rank
         self.rods = rods
         self.params, self.model, self.variant, self.constraint = (rods[0].params, model,
@@ -160,10 +174,12 @@ class RodModel(FEModel):
         self.point_loads = [load for rod in rods for load in rod.point_loads]
         self.layout = layout = RodLayout(tuple(rod.name for rod in rods),
                                          tuple(float(rod.params.length) for rod in rods),
-                                         tuple(rod.n_cells for rod in rods))
-        self.length = max(layout.lengths)
+                                         tuple(rod.n_cells for rod in rods),
+                                         split.offsets if self.kinked else ())
+        self.length = length if self.kinked else max(layout.lengths)
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(rods[0].params.density)
+        return joints
 
     def _rotation_unknowns(self, rotations: str, joints: Sequence[Joint]) -> str:
         """The rotation unknowns ("quaternion" or "rotation_vector") the rods can have
@@ -180,13 +196,17 @@ class RodModel(FEModel):
                               or any(np.all(spring.stiffness("rotational"))
                                      for spring in (rod.end_springs or {}).values())
                               for rod in rods))
-        linked = [f"{name}[{end!r}]" for rod in rods for name, end in oblique_supports(rod)]
+        # an oblique slide is a line of the position (and velocity) with any unknowns; an
+        # oblique turn a line of the rotation increment: rotation vectors only (with
+        # quaternions it holds q in a plane, span(q_0, q_0 (0, a)), not a line)
+        linked = [f"{name}[{end!r}]" for rod in rods for name, end in oblique_supports(rod)
+                  if name == "end_turn"]
         if joints and obstacle:
             raise ValueError(f"joints need rotation-vector unknowns, which this system "
                              f"cannot have: {obstacle}")
         if linked and obstacle:
-            raise ValueError(f"{linked[0]}: an axis off the coordinate axes needs "
-                             f"rotation-vector unknowns, which this rod cannot have: "
+            raise ValueError(f"{linked[0]}: a turn about an axis off the coordinate axes "
+                             f"needs rotation-vector unknowns, which this rod cannot have: "
                              f"{obstacle}")
         # a dynamic rod's end rotation jumps at most at t = 0 (later: refused): the
         # consistent start turns it there (integrators/lie_alpha.py)
@@ -197,8 +217,8 @@ class RodModel(FEModel):
             raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
         if linked and chosen != "rotation_vector":
-            raise ValueError(f"{linked[0]}: an axis off the coordinate axes needs "
-                             "rotation-vector unknowns (rotations 'auto' or "
+            raise ValueError(f"{linked[0]}: a turn about an axis off the coordinate axes "
+                             "needs rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
         for name in ("end_displacement", "end_rotation"):
             if self.dynamic and chosen == "quaternion" and any(
@@ -300,11 +320,11 @@ class RodModel(FEModel):
     def _segment_contact(self, law, layout, joint_nodes) -> SegmentContact | None:
         """The segment pairs' contact (pair_contact.py) if the law asks for it; the
         joints' nodes (s of both rods) join their segments as neighbours."""
-        if law is None or not (law.self_contact or law.between_rods):
+        if law is None or not (law.self or law.between_rods):
             return None
         h = max(length / n for length, n in zip(layout.lengths, layout.n_cells))
         reach = exclusion(law.radius, law.gap, h)
-        if law.self_contact and reach >= min(layout.lengths):
+        if law.self and reach >= min(layout.lengths):
             raise ValueError(f"contact.radius = {law.radius:g}: self-contact excludes "
                              f"neighbours closer along the rod than pi (r + delta) + h = "
                              f"{reach:.4g}, which is not shorter than the rod "
@@ -312,7 +332,7 @@ class RodModel(FEModel):
         check_contact([], law)
         self._check_pair_friction(law)
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
-                                 law.self_contact, law.between_rods, joint_nodes,
+                                 law.self, law.between_rods, joint_nodes,
                                  velocity=self.unknowns.V if self.dynamic else None)
         contact.block = list(self.names).index("displacement")
         contact.rod_names, contact.rod_starts = layout.names, layout.starts
@@ -361,10 +381,10 @@ class RodModel(FEModel):
                   list(self.residual.values()), self.loads, self.bcs, self.set_supports)
         terms = [self.segment_contact] if self.segment_contact else []
         where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
-        if unk.chart is None:
+        if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step, terms=terms,
-                                       where_failed=where)
+                                       where_failed=where, links=links)
         rates_used = {c for F in self.residual.values() for c in F.coefficients()}
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
@@ -372,12 +392,18 @@ class RodModel(FEModel):
             time_orders=[2 if n in unk.acc else 1 if unk.r[n] in rates_used else 0
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
-            links=links, terms=terms, scale_motions=self.scale_motions, where_failed=where)
+            links=links, terms=terms, scale_motions=self.scale_motions,
+            motion_turn=self.motion_turn, where_failed=where)
 
     def scale_motions(self, fraction: float) -> None:
         """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""
         for supports in self.end_supports:
             supports.scale(fraction)
+
+    def motion_turn(self, t: float) -> float:
+        """The largest angle by which a prescribed end rotation of any rod turns its end
+        at time t (EndSupports.largest_turn)."""
+        return max(supports.largest_turn(t) for supports in self.end_supports)
 
     def commit_rotations(self) -> None:
         """After an accepted step: rotation vectors q_n <- q_n c(theta), theta <- 0; the
@@ -469,9 +495,11 @@ class RodModel(FEModel):
             initial_state.check_natural(name, given, [rod.name for rod in self.rods])
         held = any("clamped" in supports.ends or bool(supports.rotation)
                    for supports in self.end_supports)
-        if self.layout.single:
+        if self.layout.single or self.kinked:
             check_start(start, self.length, self.dynamic, rotation_held=held)
-        elif start is not None:
+        if self.kinked and start is not None:       # the rod's start as its pieces'
+            start = RodStarts(piece_starts(start, self.split), self.rods, self.layout)
+        elif start is not None and not self.layout.single:
             check_rod_starts(start, self.rods, self.dynamic, rotation_held=held)
             check_joints_at_start(self.rods, self.joints, start)
             start = RodStarts(start, self.rods, self.layout)
@@ -495,9 +523,14 @@ class RodModel(FEModel):
         prescribed motion (load_power; the latter also alone as reaction_power),
         reactions at supported ends."""
         d = self.assembled_diagnostics(t)
-        d.update(self.tips[0]())
+        d.update(self.tips[-1]())        # a rod split at its kinks: of its last piece
         d.update(self.point_positions())
         d.update(self.supports.reactions(self.residual, t, self.problem.structure))
+        if self.kinked:                  # the right end's reactions, of its last piece
+            right = self.end_supports[-1].reactions(self.residual, t, self.problem.structure)
+            d["reaction_power"] = d.get("reaction_power", 0.0) + right.pop(
+                "reaction_power", 0.0)
+            d.update(right)
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         self.pass_through(t)

@@ -38,7 +38,7 @@ from typing import NamedTuple
 import numpy as np
 from petsc4py import PETSc
 
-from .contact import barrier_derivatives
+from .contact import XI_MIN, barrier_derivatives
 from .pair_friction import PairFriction
 from .segments import closest_points, near_pairs
 
@@ -51,13 +51,16 @@ def exclusion(radius: float, gap: float, h: float) -> float:
     return math.pi * (radius + gap) + h
 
 
-def pair_energy(X, radius: float, gap: float, stiffness, weights, order: int = 2):
+def pair_energy(X, radius: float, gap: float, stiffness, weights, order: int = 2,
+                closest=None):
     """Energy (m,), gradient (m, 12) and (order 2) Hessian (m, 12, 12) of segment pairs
     X (m, 4, 3) = (p0, p1, q0, q1) with weights w_ij (m,): E = kappa w b(d - 2 r), d the
     centre-line distance.  With D = p(s) - q(t) = sum_k w_k X_k at the closest points,
-    w = (1 - s, s, t - 1, -t), the gradient of d is w (x) D / d (envelope theorem)."""
+    w = (1 - s, s, t - 1, -t), the gradient of d is w (x) D / d (envelope theorem).
+    ``closest``: the pairs' (s, t, d) if known (segments.closest_points of X: the pair
+    search's, SegmentContact.near)."""
     p0, p1, q0, q1 = (X[:, k] for k in range(4))
-    s, t, d = closest_points(p0, p1, q0, q1)
+    s, t, d = closest_points(p0, p1, q0, q1) if closest is None else closest
     d1, d2 = p1 - p0, q1 - q0
     D = p0 + s[:, None] * d1 - q0 - t[:, None] * d2
     w = np.stack([1 - s, s, t - 1, -t], axis=1)
@@ -187,10 +190,17 @@ class SegmentContact:
         ``distance`` (default the barrier's reach), filtered by self/between rods, in
         lexicographic order: the pairs of the candidate list (``candidates``) that are
         that near."""
+        return self.near(P, distance)[0]
+
+    def near(self, P: np.ndarray, distance: float | None = None):
+        """:meth:`pairs` and their closest points (s, t, d) (segments.closest_points),
+        computed once for the search and the pairs' terms (elementwise: the same bits)."""
         distance = self.reach if distance is None else distance
         candidates = self.candidates(P, distance)
         X = P[self.line.ends[candidates].reshape(-1, 4)]
-        return candidates[closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])[2] < distance]
+        s, t, d = closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])
+        keep = d < distance
+        return candidates[keep], (s[keep], t[keep], d[keep])
 
     def candidates(self, P: np.ndarray, distance: float) -> np.ndarray:
         """A superset of the pairs nearer than ``distance`` at P (a Verlet list): the
@@ -238,11 +248,12 @@ class SegmentContact:
         key, value = self._cache
         if key is not None and np.array_equal(key, P):
             return value
-        pairs = self.pairs(P)
+        pairs, closest = self.near(P)
         nodes = self.line.ends[pairs].reshape(-1, 4)
         weights = 0.5 * self.line.lengths[pairs].sum(axis=1)
         value = PairTerms(pairs, nodes, *pair_energy(
-            P[nodes], self.law.radius, self.law.gap, self.law.stiffness, weights))
+            P[nodes], self.law.radius, self.law.gap, self.law.stiffness, weights,
+            closest=closest))
         self._cache = (P, value)
         return value
 
@@ -431,12 +442,17 @@ class SegmentContact:
 
     def step_fraction(self, P0: np.ndarray, P1: np.ndarray) -> float:
         """The largest 2^-k (k <= CROSSING_DEPTH) such that on the straight path from P0
-        towards P1 up to it no pair's gap falls below STEP_FLOOR of its gap at P0 (a pair
-        already closer than 2 r: below half its distance)."""
+        towards P1 up to it no pair's gap g falls below STEP_FLOOR of its gap g0 at P0, or
+        by more than (1 - STEP_FLOOR) g_min where g0 < g_min (the barrier's Taylor range,
+        contact.XI_MIN: the bisection's work grows like the update's length over the
+        margin g0 - floor, which must not vanish with g0; docs/contact.md); a pair
+        already closer than 2 r: below half its distance."""
         r2 = 2 * self.law.radius
+        margin = (1 - STEP_FLOOR) * XI_MIN * self.law.gap
 
         def floor(d0):
-            return np.where(d0 > r2, r2 + STEP_FLOOR * (d0 - r2), 0.5 * d0)
+            g0 = d0 - r2
+            return np.where(d0 > r2, r2 + np.minimum(STEP_FLOOR * g0, g0 - margin), 0.5 * d0)
 
         alpha = 1.0
         for _ in range(CROSSING_DEPTH):

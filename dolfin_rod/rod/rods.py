@@ -9,7 +9,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ..checks import N_CELLS, check_n_cells, deprecated_names, old_keywords
+from ..checks import (END_KEYED, N_CELLS, check_n_cells, deprecated_names, end_keyed,
+                      old_keywords)
 from .boundary_conditions import check_supports
 from .external_forces import DistributedLoad, EndLoad, PointLoad, check_loads
 from .material import RodParameters, check_parameters, is_zero
@@ -21,9 +22,9 @@ NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
 @dataclass
 class Rod:
     """A rod of a system: its parameters (length, material, reference strains), cells,
-    ends and their motions, loads (end loads at its own "left" end s = 0 and "right" end
-    s = L; distributed loads, point loads and coefficients as functions of its own arc
-    length), and where it starts: ``position`` of its left end and ``orientation``, the rotation
+    ends and their motions, loads (end loads at its own "start" s = 0 and "end" s = L;
+    distributed loads, point loads and coefficients as functions of its own arc
+    length), and where it starts: ``position`` of its start and ``orientation``, the rotation
     vector (axis times angle) that turns e_3 into its initial tangent and e_1, e_2 into
     its initial directors d_1, d_2 there."""
 
@@ -48,6 +49,9 @@ class Rod:
         self.end_loads, self.distributed_loads = list(self.end_loads), list(self.distributed_loads)
         self.point_loads = list(self.point_loads)
         self.start, self.end = positional_ends("Rod", self.start, self.end, stacklevel=6)
+        for key, value in end_keyed("Rod", {key: getattr(self, key) for key in END_KEYED},
+                                    stacklevel=4).items():    # "left", "right": deprecated
+            setattr(self, key, value)
 
     @property
     def ends(self) -> tuple[str, str]:

@@ -17,13 +17,13 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from ..checks import ENDS
 from .contact import (contact_law, contact_solver_options, obstacles, segment_pairs,
                       touching)
 from .rules import START_KEYS, adaptive_stepper, rod_rotations
 from .scene import Scene, SceneError
 from .values import Coefficient
 
-SIDES = {"start": "left", "end": "right"}    # [boundary]'s ends: the rod's ENDS
 CONTACT_SCHEME = "generalized_alpha:0.0"   # rho_inf = 0: a barrier's impacts (docs/contact.md)
 __all__ = ["Simulation", "MODELS", "register_model", "build", "FESimulation"]
 
@@ -359,26 +359,26 @@ def rod_arguments(scene: Scene) -> dict:
     """The arguments of one rod (RodModel, rod.Rod) besides its parameters: cells, ends,
     end motions, slides, turning clamps and springs, loads."""
     from ..rod import EndSpring
-    ends, boundary, motions = SIDES, scene["boundary"], end_motions(scene)
+    boundary, motions = scene["boundary"], end_motions(scene)
     end_loads, distributed_loads = rod_loads(scene)
     return dict(n_cells=scene["geometry"]["n_cells"], start=boundary["start"], end=boundary["end"],
                 end_loads=end_loads, distributed_loads=distributed_loads,
                 point_loads=rod_point_loads(scene),
                 end_displacement=motions["displacement"], end_rotation=motions["rotation"],
-                end_slide={side: axis for key, side in ends.items()
-                           if (axis := boundary[f"{key}_slide"]) is not None},
-                end_springs={side: EndSpring(**spring) for key, side in ends.items()
-                             if (spring := boundary[f"{key}_spring"])},
-                end_turn={side: axis for key, side in ends.items()
-                          if (axis := boundary[f"{key}_turn"]) is not None})
+                end_slide={end: axis for end in ENDS
+                           if (axis := boundary[f"{end}_slide"]) is not None},
+                end_springs={end: EndSpring(**spring) for end in ENDS
+                             if (spring := boundary[f"{end}_spring"])},
+                end_turn={end: axis for end in ENDS
+                          if (axis := boundary[f"{end}_turn"]) is not None})
 
 
 def end_motions(scene: Scene) -> dict:
     """{"displacement" | "rotation": {end: motion}} of the ends whose motion [boundary]
     prescribes (start_/end_displacement, start_/end_rotation)."""
     boundary = scene["boundary"]
-    return {m: {side: spec.vector() for key, side in SIDES.items()
-                if (spec := boundary[f"{key}_{m}"]) is not None}
+    return {m: {end: spec.vector() for end in ENDS
+                if (spec := boundary[f"{end}_{m}"]) is not None}
             for m in ("displacement", "rotation")}
 
 
@@ -445,11 +445,11 @@ def rod_loads(scene: Scene) -> tuple[list, list]:
     from ..rod import DistributedLoad, EndLoad
     lds, mat = scene["loads"], scene["material"]
     end_loads = []
-    for key, side in (("start", "left"), ("end", "right")):
+    for end in ENDS:
         for kind in ("force", "couple"):
-            spec = lds[f"{key}_{kind}"]
+            spec = lds[f"{end}_{kind}"]
             for value, history in _vector_parts(spec) if spec is not None else ():
-                end_loads.append(EndLoad(kind, value, history, end=side,
+                end_loads.append(EndLoad(kind, value, history, end=end,
                                          follower=spec.follower))
     distributed = []
     for kind in ("force", "couple"):

@@ -78,10 +78,10 @@ def obstacles(scene: Scene) -> list:
     from ..rod.contact import Obstacle
     out = []
     for ob in scene["obstacles"]:
-        centre = ob["point"] if ob["shape"] == "plane" else ob["centre"]
-        axis = ob["normal"] if ob["shape"] == "plane" else ob["axis"] or (0.0, 0.0, 1.0)
-        out.append(Obstacle(ob["shape"], tuple(centre), tuple(axis), ob["radius"] or 0.0,
-                            ob["length"] or 0.0, ob["friction"]))
+        given = {key: tuple(ob[key]) for key in ("point", "normal", "centre", "axis")
+                 if ob[key] is not None}       # the shape's keys only (checked above)
+        out.append(Obstacle(ob["shape"], radius=ob["radius"] or 0.0,
+                            length=ob["length"] or 0.0, friction=ob["friction"], **given))
     return out
 
 
@@ -96,7 +96,7 @@ def contact_law(scene: Scene, params):
                                                     geo["n_cells"], tim["dt"])
     return ContactLaw(c["radius"], c["gap"] or c["radius"] / 10, stiffness,
                       c["slip_tolerance"] or 1e-3 * geo["length"] / tim["t_end"],
-                      self_contact=c["self"], between_rods=c["between_rods"],
+                      self=c["self"], between_rods=c["between_rods"],
                       self_friction=c["self_friction"],
                       between_rods_friction=c["between_rods_friction"])
 

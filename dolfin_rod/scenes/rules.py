@@ -519,10 +519,9 @@ def _slide_axis(scene: Scene, end: str):
         raise scene.error(f"boundary.{end}_displacement", f"the end slides freely along "
                                                           f"{list(axis)} ({key}): prescribe "
                                                           "its motion across that axis only")
-    if not is_coordinate_axis(axis) and rod_rotations(scene) != "rotation_vector":
-        raise scene.error(key, "an axis off the coordinate axes needs rotation-vector "
-                               "unknowns (geometry.rotations), which this rod does not have: "
-                               + rod_rotations_reason(scene))
+    if not is_coordinate_axis(axis) and scene["time"]["integrator"] == "ts":
+        raise scene.error(key, "an axis off the coordinate axes is a one-node link that "
+                               "PETSc TS does not hold: take time.integrator = 'stepper'")
     return np.asarray(axis)
 
 
@@ -543,6 +542,11 @@ def _turn_axis(scene: Scene, end: str):
     if bnd[f"{end}_rotation"] is not None:
         raise scene.error(f"boundary.{end}_rotation", f"the end turns freely ({key}): its "
                                                       "rotation cannot also be prescribed")
+    if not is_coordinate_axis(axis) and rod_rotations(scene) != "rotation_vector":
+        raise scene.error(key, "a turn about an axis off the coordinate axes needs "
+                               "rotation-vector unknowns (geometry.rotations; with "
+                               "quaternions it holds q in a plane, not on a line), which "
+                               "this rod does not have: " + rod_rotations_reason(scene))
     return np.asarray(axis)
 
 

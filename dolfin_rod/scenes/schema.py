@@ -313,7 +313,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "keeps its rotation (or follows end_rotation, e.g. turning about "
                          "the axis); an end_force acts on it along the axis, the support "
                          "takes its part across (a weight on a sliding clamp); an axis off "
-                         "the coordinate axes needs rotation-vector unknowns"),
+                         "the coordinate axes is held by a one-node link (any rotation "
+                         "unknowns; not with time.integrator = 'ts')"),
         "start_slide": Key(vector3(), None, R + "as end_slide, at s = 0"),
         "end_turn": Key(vector3(), None, R + "unit axis [x, y, z] (spatial, any direction) "
                         "about which the clamped end s = L turns freely (a hinge; with "

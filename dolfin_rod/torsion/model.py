@@ -90,7 +90,7 @@ class TorsionModel(FEModel):
         self.coefficients = {n: scalar_coefficient(getattr(params, n), self.mesh, s)
                              for n in ("alpha", "alpha_d", "mu", "mu_d", "nu")}
         self._couple = None if params.couple is None else params.couple(s)
-        self.ds_end = end_measures(self.mesh, 1.0)["right"]   # the end s = 1
+        self.ds_end = end_measures(self.mesh, 1.0)["end"]   # the end s = 1
         self._fields()
         F, self.loads = self._residual(ufl.Measure("dx", domain=self.mesh))
         self._dirichlet_conditions()
@@ -165,10 +165,10 @@ class TorsionModel(FEModel):
         self._end_values = {}
         for name in ("twist_angle", "angular_velocity")[:1 + self.dynamic]:
             S = self.spaces[name]
-            self.dirichlet(name, S, "left", 1.0, fem.Constant(self.mesh, 0.0))
+            self.dirichlet(name, S, "start", 1.0, fem.Constant(self.mesh, 0.0))
             if self.end_rotation is not None:
                 self._end_values[name] = fem.Constant(self.mesh, 0.0)
-                self.dirichlet(name, S, "right", 1.0, self._end_values[name])
+                self.dirichlet(name, S, "end", 1.0, self._end_values[name])
 
     def second_order_problem(self) -> SecondOrderProblem:
         """The dynamic model as nu phi_tt + ... = 0 in (phi, u_d) for TSALPHA2.

@@ -57,7 +57,7 @@ print("natural curvature u_d per cell:", np.round(last["cell"]["u_d"][:, 1], 3))
 # `result.plot(...)` draws them again, here with the panels and columns you name.
 
 # %%
-files = result.plot(["tip_deflection", "reaction_force_left_z"])
+files = result.plot(["tip_deflection", "reaction_force_start_z"])
 print("drew", [f.name for f in files])
 try:                                   # in Jupyter: show the figure
     from IPython.display import Image, display
