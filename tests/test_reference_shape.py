@@ -1,8 +1,8 @@
 """A stress-free shape given as a curve (RodParameters.reference_shape, rod/start.py
 curves): an arc equals the reference curvature of its circle bit for bit; an L-frame as
-one rod with a corner in its stress-free shape is split there into pieces joined
-rigidly (rod/kinks.py): the frame of two rods and a rigid joint to round-off, second
-order in h; bad shapes named."""
+one rod with a corner in its stress-free shape, at a node or between nodes, is split
+there into straight pieces joined rigidly (rod/kinks.py): the frame of two rods and a
+rigid joint to round-off, second order in h; bad shapes named."""
 
 from __future__ import annotations
 
@@ -71,51 +71,92 @@ def test_kinked_rod_large_load_second_order():
     assert np.all((rates > 1.9) & (rates < 2.2)), (errors, rates)
 
 
+def test_corner_between_nodes_is_split_exactly():
+    """The L-frame (column 1, beam 0.8) as ONE rod of n = 10 k cells: its corner at
+    s = 1 falls between nodes (n/1.8 = 5.56 k).  The rod is split there anyway
+    (rod/kinks.py), its n cells shared in proportion to the pieces' lengths, largest
+    remainder first: 10 -> 5.56, 4.44 -> (6, 4); 20 -> (11, 9); 40 -> (22, 18); 80 ->
+    (44, 36); 320 -> 177.8, 142.2 -> (178, 142) (by hand).  So it is the welded frame of
+    those cells to round-off (measured: equal to the last digit), and it converges at
+    second order under the tip force 1.5: errors against 320 cells 2.31e-3, 6.32e-4,
+    1.56e-4, 3.72e-5 at n = 10, 20, 40, 80, rates 1.87 (the cells are not halved
+    from 10 to 20), 2.02, 2.07 (the last includes the reference's error, ~1/16 of it).
+    Asserted: rates from n = 20 on in [1.9, 2.2].  Before the split (the corner kept in
+    one rod, spread over its cell) the errors were 8.8e-3, 3.7e-3, 1.5e-3, 5.2e-4:
+    rates 1.26, 1.31, 1.51 (first order, against a first-order reference)."""
+    from dolfin_rod import EndLoad, loads
+    from dolfin_rod.rod.kinks import piece_cells
+    from rod_systems import FRAME
+    assert piece_cells([1.0, 0.8], 10) == [6, 4] and piece_cells([1.0, 0.8], 320) == [178, 142]
+    f = FRAME
+    shape = Polyline(((0.0, 0.0, 0.0), (0.0, 0.0, f["L1"]), (f["L2"], 0.0, f["L1"])))
+    params = RodParameters(length=f["L1"] + f["L2"], A=(f["EI"], f["EI"], 1.5),
+                           B=(f["GA"], f["GA"], f["EA"]), reference_shape=shape)
+    model = RodModel(params, 10, model="hyperelastic",
+                     end_loads=[EndLoad("force", (0.0, 0.0, -1.5), loads.ramp(1.0, 1.0))])
+    assert [rod.n_cells for rod in model.rods] == [6, 4]
+    for cells in ((6, 4), (11, 9)):
+        one, two = (kinked_frame(*cells, 1.5, 4, joined) for joined in (False, True))
+        moved = np.linalg.norm(tip(two) - np.array([f["L2"], 0.0, f["L1"]]))
+        assert np.linalg.norm(tip(one) - tip(two)) < 1e-12 * moved
+    cells = {20: (11, 9), 40: (22, 18), 80: (44, 36), 320: (178, 142)}
+    tips = {n: tip(kinked_frame(*c, 1.5, 4)) for n, c in cells.items()}
+    errors = np.array([np.linalg.norm(tips[n] - tips[320]) for n in (20, 40, 80)])
+    rates = np.log2(errors[:-1] / errors[1:])
+    assert np.all((rates > 1.9) & (rates < 2.2)), (errors, rates)
+
+
 def test_kinks_between_nodes_and_loads_along_the_pieces():
-    """A polyline cornering at a node (split there) and between nodes (kept in its
-    piece's own polyline), under a distributed load that varies along s and a point
-    load: the split rod equals the two rods it is made of, each carrying the rod's loads
-    at its own s + offset, joined rigidly at the node (the same equations: to
-    round-off, measured 0)."""
+    """A polyline cornering at a node (s = 1) and between nodes (s = 1.55, h = 0.1),
+    under a distributed load that varies along s and a point load: split at both
+    corners into three straight pieces of 10, 6, 4 cells (shares 10, 5.5, 4.5: the tie
+    to the earlier piece), it equals the three rods it is made of, each carrying the
+    rod's loads at its own s + offset, joined rigidly at the corners (the same
+    equations: to round-off, measured 0)."""
     from dolfin_rod import DistributedLoad, PointLoad, Rod, RodSystem
     from dolfin_rod.rod.joints import Joint
     from dolfin_rod.theory.quaternions import np_quaternion_from_matrix, np_rotation_vector
-    shape = Polyline(((0, 0, 0), (0, 0, 1.0), (0.6, 0, 1.0), (0.6, 0.45, 1.0)))  # L = 2.05
-    params = RodParameters(length=2.05, A=(2.0, 2.0, 1.5), B=(500.0, 500.0, 1e3),
-                           reference_shape=shape)
+    params = RodParameters(length=2.0, A=(2.0, 2.0, 1.5), B=(500.0, 500.0, 1e3),
+                           reference_shape=Polyline(((0, 0, 0), (0, 0, 1.0), (0.55, 0, 1.0),
+                                                     (0.55, 0.45, 1.0))))
     weight = DistributedLoad("force", lambda s: (0.0, 0.0, -0.3 * (1.0 + s)))
-    point = PointLoad("force", (0.0, 0.2, 0.0), s=1.5)
     one = RodModel(params, 20, model="hyperelastic", distributed_loads=[weight],
-                   point_loads=[point])        # h = 0.1025: corners at 1.0 (no), 1.6 (no)
-    assert not one.kinked
-    one = RodModel(replace(params, length=2.0, reference_shape=Polyline(
-        ((0, 0, 0), (0, 0, 1.0), (0.55, 0, 1.0), (0.55, 0.45, 1.0)))), 20, model="hyperelastic",
-        distributed_loads=[weight], point_loads=[point])   # h = 0.1: corners at 1.0 and 1.55
-    assert one.kinked and len(one.rods) == 2
+                   point_loads=[PointLoad("force", (0.0, 0.2, 0.0), s=1.5)])
+    assert [rod.n_cells for rod in one.rods] == [10, 6, 4]
     one.set_initial_state()
     TimeStepper(one.problem).run(0.0, 1.0, 1.0)
     d_one = one.diagnostics(1.0)
-    lower = RodParameters(length=1.0, A=(2.0, 2.0, 1.5), B=(500.0, 500.0, 1e3))
-    upper = replace(lower, reference_shape=Polyline(((0, 0, 0), (0, 0, 0.55), (0, 0.45, 0.55))))
-    turn = np_rotation_vector(np_quaternion_from_matrix(
-        np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])))
-    shifted = DistributedLoad("force", lambda s: (0.0, 0.0, -0.3 * (2.0 + s)))
-    top = (0.0, 0.0, 1.0)
-    two = RodSystem([Rod(lower, 10, name="a", distributed_loads=[weight]),
-                     Rod(upper, 10, "free", end="free", name="b", position=top,
-                         orientation=tuple(turn), distributed_loads=[shifted],
-                         point_loads=[PointLoad("force", (0.0, 0.2, 0.0), s=0.5)])],
-                    joints=[Joint("rigid", ("a", "b"), top)], model="hyperelastic")
-    two.set_initial_state()
-    TimeStepper(two.problem).run(0.0, 1.0, 1.0)
-    d_two = two.diagnostics(1.0)
-    tip_two = np.array([d_two[f"b.tip_position_{c}"] for c in "xyz"])
-    moved = tip_two - np.array([0.55, 0.45, 1.0])
+    straight = RodParameters(length=1.0, A=(2.0, 2.0, 1.5), B=(500.0, 500.0, 1e3))
+    # the pieces' frames (d1, d2, d3) as columns: d1 = e1 carried by parallel transport
+    along_x = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])   # (-e3, e2, e1)
+    along_y = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]])  # (-e3, -e1, e2)
+
+    def shifted(offset):
+        return DistributedLoad("force", lambda s: (0.0, 0.0, -0.3 * (1.0 + offset + s)))
+
+    knee, elbow = (0.0, 0.0, 1.0), (0.55, 0.0, 1.0)
+    three = RodSystem(
+        [Rod(straight, 10, name="a", distributed_loads=[weight]),
+         Rod(replace(straight, length=0.55), 6, "free", end="free", name="b", position=knee,
+             orientation=tuple(np_rotation_vector(np_quaternion_from_matrix(along_x))),
+             distributed_loads=[shifted(1.0)],
+             point_loads=[PointLoad("force", (0.0, 0.2, 0.0), s=0.5)]),
+         Rod(replace(straight, length=0.45), 4, "free", end="free", name="c",
+             position=elbow,
+             orientation=tuple(np_rotation_vector(np_quaternion_from_matrix(along_y))),
+             distributed_loads=[shifted(1.55)])],
+        joints=[Joint("rigid", ("a", "b"), knee), Joint("rigid", ("b", "c"), elbow)],
+        model="hyperelastic")
+    three.set_initial_state()
+    TimeStepper(three.problem).run(0.0, 1.0, 1.0)
+    d_three = three.diagnostics(1.0)
+    tip_three = np.array([d_three[f"c.tip_position_{c}"] for c in "xyz"])
+    moved = tip_three - np.array([0.55, 0.45, 1.0])
     assert np.linalg.norm(moved) > 1e-2
-    assert np.linalg.norm(tip(d_one) - tip_two) < 1e-12 * np.linalg.norm(moved), (
-        tip(d_one), tip_two)
-    assert d_one["reaction_couple_start_y"] == pytest.approx(d_two["a.reaction_couple_start_y"],
-                                                            rel=1e-12)
+    assert np.linalg.norm(tip(d_one) - tip_three) < 1e-12 * np.linalg.norm(moved), (
+        tip(d_one), tip_three)
+    assert d_one["reaction_couple_start_y"] == pytest.approx(
+        d_three["a.reaction_couple_start_y"], rel=1e-12)
 
 
 def test_a_kinked_rod_placed_and_spun_at_the_start():
@@ -169,8 +210,10 @@ def test_bent_frame_scene_is_the_frame_scene(tmp_path):
     """scenes/bent_frame.toml (one rod, a corner in its stress-free polyline) against
     scenes/frame.toml (two rods welded), the same steel frame and load, 16 + 12 cells:
     the tips after the load ramp agree to 1e-9 of the 1.3 m deflection (measured 4.7
-    mm before the split at the corner; now the same equations: to round-off).  A polyline of the wrong
-    length: `dolfin-rod check` exit 2 naming geometry.reference_shape.points."""
+    mm before the split at the corner; now the same equations: to round-off).
+    `dolfin-rod check` says how the rod is split (28 cells: 16 + 12, the corner at a
+    node; 27: 15 + 12, between nodes).  A polyline of the wrong length: exit 2 naming
+    geometry.reference_shape.points."""
     from dolfin_rod import run
     quiet = {"outputs.animation": False, "outputs.plots": False, "outputs.fields": False}
     bent = run(ROOT / "scenes" / "bent_frame.toml", quiet, out=tmp_path / "bent", quiet=True)
@@ -180,10 +223,17 @@ def test_bent_frame_scene_is_the_frame_scene(tmp_path):
     deflection = np.linalg.norm(two - [1.5, 0.0, 2.0])
     assert deflection > 1.0
     assert np.linalg.norm(one - two) < 1e-9 * deflection
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    for cells, pieces in ((28, "16, 12 cells"), (27, "15, 12 cells")):   # by hand: 27 * 2/3.5
+        said = subprocess.run([sys.executable, "-m", "dolfin_rod", "check",   # = 15.4, 11.6
+                               str(ROOT / "scenes" / "bent_frame.toml"), "--set",
+                               f"geometry.n_cells={cells}"], capture_output=True, text=True,
+                              timeout=120, cwd=ROOT, env=env)
+        assert f"kinks: the rod is split at its corners (s = 2) into 2 straight pieces joined " \
+            f"rigidly, of {pieces}" in said.stdout, said.stdout
     bad = tmp_path / "bad.toml"
     bad.write_text((ROOT / "scenes" / "bent_frame.toml").read_text().replace(
         "[1.5, 0.0, 2.0]", "[1.2, 0.0, 2.0]"))
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
     out = subprocess.run([sys.executable, "-m", "dolfin_rod", "check", str(bad)],
                          capture_output=True, text=True, timeout=120, cwd=ROOT, env=env)
     assert out.returncode == 2, out.stderr

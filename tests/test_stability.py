@@ -55,12 +55,19 @@ def critical_load(case: str, n_cells: int, halvings: int = 18) -> float:
     rod = RodModel(STIFF, n_cells=n_cells, model="hyperelastic", start=ends[0], end=ends[1],
                    end_slide=slide,
                    end_loads=[EndLoad("force", (0.0, 0.0, -p_cr), lambda t: scale[0])])
-    tangent = TangentStiffness(rod)
+    return first_unstable_factor(rod, scale, halvings) * p_cr
+
+
+def first_unstable_factor(model, scale: list, halvings: int = 18) -> float:
+    """The factor of a quasi-static model's loads (``scale[0]``, read by their
+    histories) in [0.5, 1.5] where its count of negative eigenvalues leaves 0, by
+    bisection: each factor one step from the initial state."""
+    tangent = TangentStiffness(model)
 
     def unstable(factor: float) -> bool:
         scale[0] = factor
-        rod.set_initial_state()
-        TimeStepper(rod.problem).run(0.0, 1.0, 1.0)
+        model.set_initial_state()
+        TimeStepper(model.problem).run(0.0, 1.0, 1.0)
         return tangent.inertia(1.0).negative > 0
 
     lo, hi = 0.5, 1.5
@@ -68,7 +75,7 @@ def critical_load(case: str, n_cells: int, halvings: int = 18) -> float:
     for _ in range(halvings):
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if unstable(mid) else (mid, hi)
-    return 0.5 * (lo + hi) * p_cr
+    return 0.5 * (lo + hi)
 
 
 @pytest.mark.mpi
@@ -79,6 +86,35 @@ def test_euler_columns_lose_stability_at_the_critical_load_at_second_order(case)
     order = math.log2(errors[0] / errors[1])
     assert abs(order - 2) < 0.15, (case, errors, order)
     assert errors[1] < 1e-2, errors            # measured <= 6.5e-3 at 32 cells
+
+
+@pytest.mark.mpi
+def test_jointed_column_loses_stability_as_one_column():
+    """The clamped-free column as two rods of half its length joined rigidly (the
+    joint's constraint map: the count is that of P^T K P, K on the free dofs), the upper
+    rod turned by pi/2 about the axis with its bending stiffnesses swapped (A = (2, 1) in
+    its frame is (1, 2) in the lower's): the same column, whose weak plane (EI = 1)
+    buckles first.  The count leaves 0 at the one 16-cell column's discrete load
+    (bisection to 4e-6, the same loads: equal to it to 2 bisection intervals), which
+    is Euler's pi^2/4 with the 16-cell error 1.61e-3 (above; asserted < 2e-3)."""
+    from dolfin_rod import Rod, RodSystem
+    from dolfin_rod.rod.joints import Joint
+    p_cr = math.pi ** 2 / 4
+    scale = [0.0]
+    load = EndLoad("force", (0.0, 0.0, -p_cr), lambda t: scale[0])
+    half = [RodParameters(length=0.5, A=(*a, 1.0), B=(1e5, 1e5, 1e5))
+            for a in ((1.0, 2.0), (2.0, 1.0))]
+    joined = RodSystem([Rod(half[0], 8, name="lower"),
+                        Rod(half[1], 8, "free", end="free", name="upper",
+                            position=(0.0, 0.0, 0.5), orientation=(0.0, 0.0, math.pi / 2),
+                            end_loads=[load])],
+                       joints=[Joint("rigid", ("lower", "upper"), (0.0, 0.0, 0.5))],
+                       model="hyperelastic")
+    one = RodModel(RodParameters(length=1.0, A=(1.0, 2.0, 1.0), B=(1e5, 1e5, 1e5)),
+                   n_cells=16, model="hyperelastic", end_loads=[load])
+    factors = [first_unstable_factor(model, scale) for model in (joined, one)]
+    assert factors[0] == pytest.approx(factors[1], abs=2 * 2.0 ** -18)
+    assert 0 < factors[0] - 1 < 2e-3, factors
 
 
 @pytest.mark.mpi

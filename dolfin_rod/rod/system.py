@@ -57,11 +57,14 @@ class RodSystem(RodModel):
         """MPI-reduced scalars at time t: free and kinetic energy, dissipation rate, load
         power (with the reactions' power at moving ends) of the whole system; per rod
         ``<name>.tip_position_{xyz}``, ``<name>.tip_quaternion_{0..3}``,
-        ``<name>.tip_rotation_angle`` and its reactions (RodModel.diagnostics)."""
+        ``<name>.tip_rotation_angle``, the positions at its point loads' points
+        ``<name>.point{j}_position_{xyz}`` and its reactions (RodModel.diagnostics)."""
         d = self.assembled_diagnostics(t)
         moving, reaction_power = False, 0.0
-        for rod, tip, supports in zip(self.rods, self.tips, self.end_supports):
+        for rod, tip, points, supports in zip(self.rods, self.tips, self.rod_point_positions,
+                                              self.end_supports):
             own = tip()
+            own.update(points())
             own.update(supports.reactions(self.residual, t, self.problem.structure))
             moving = moving or "reaction_power" in own
             reaction_power += own.pop("reaction_power", 0.0)
