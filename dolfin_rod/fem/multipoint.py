@@ -63,19 +63,25 @@ class NodeLink:
 
 
 @dataclass(frozen=True)
-class NodeLine:
-    """The values of block ``block`` at the node s move along the unit ``axis`` only (see
-    module)."""
+class _OneNode:
+    """A link among the values of block ``block`` at one node s (master and slave)."""
 
     block: int
     s: float
-    axis: tuple
 
     @property
     def master_s(self) -> float:
         return self.s
 
     slave_s = master_s
+
+
+@dataclass(frozen=True)
+class NodeLine(_OneNode):
+    """The values of block ``block`` at the node s move along the unit ``axis`` only (see
+    module)."""
+
+    axis: tuple
 
     def weights(self) -> dict[int, dict[int, float]]:
         """{slave component i: {master component j: axis_i/axis_j}}."""
@@ -85,19 +91,11 @@ class NodeLine:
 
 
 @dataclass(frozen=True)
-class NodePlane:
+class NodePlane(_OneNode):
     """The values of block ``block`` at the node s stay in the plane of ``normal`` (see
     module)."""
 
-    block: int
-    s: float
     normal: tuple
-
-    @property
-    def master_s(self) -> float:
-        return self.s
-
-    slave_s = master_s
 
     def weights(self) -> dict[int, dict[int, float]]:
         """{slave component j: {component i: -normal_i/normal_j}}."""
@@ -146,7 +144,7 @@ def node_rows(inner, fields: list, links: list) -> dict[tuple, int]:
 
 def _weights(link: NodeLink | NodeLine | NodePlane) -> dict[int, dict[int, float]]:
     """{slave component i: {master component j: weight}} of a linear link."""
-    if isinstance(link, (NodeLine, NodePlane)):
+    if isinstance(link, _OneNode):
         return link.weights()
     T = np.asarray(link.matrix, float)
     return {i: {j: T[i, j] for j in range(T.shape[1]) if T[i, j] != 0.0}
