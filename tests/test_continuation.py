@@ -293,6 +293,11 @@ def test_lee_frame_from_its_scene(tmp_path):
     assert 40.0 * limit == pytest.approx(18.5, rel=3e-2)
     count = np.array(result.series["negative_eigenvalues"])
     assert np.all(count[:top + 1] == 0) and np.all(count[top + 1:] == 1), count[top - 2:top + 3]
+    # the load's point on the beam (beam.point0_position_*: force_extension's curve)
+    # starts at the beam's s = 0.2 and stays in the frame's plane
+    point = np.array([result.series[f"beam.point0_position_{c}"] for c in "xyz"])
+    assert point[:, 0] == pytest.approx([0.2, 0.0, 1.0], abs=1e-12)
+    assert np.max(np.abs(point[1])) < 1e-12
 
 
 def test_a_systems_continuation_parameter_names_a_load_of_any_rod():

@@ -301,9 +301,16 @@ class RodModel(FEModel):
         drag_dissipation, friction_dissipation = dissipation
         self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
         self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(self.rods))]
-        self.point_positions = diagnostics.PointPositions(unk, dict.fromkeys(
-            (layout.starts[k], layout.lengths[k] / layout.n_cells[k], load.s)
-            for k, rod in enumerate(self.rods) for load in rod.point_loads))
+        points = [dict.fromkeys((layout.starts[k], layout.lengths[k] / layout.n_cells[k],
+                                 load.s) for load in rod.point_loads)
+                  for k, rod in enumerate(self.rods)]
+        self.point_positions = diagnostics.PointPositions(
+            unk, dict.fromkeys(p for own in points for p in own))
+        # a system's rods: each its own points ("<name>.point{j}_position_{xyz}"; a rod
+        # split at its corners: its pieces' in turn)
+        self.rod_point_positions = [diagnostics.PointPositions(unk, dict.fromkeys(
+            p for own, rod in zip(points, self.rod_names) if rod == name for p in own))
+            for name in dict.fromkeys(self.rod_names)]
         forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
                                          drag_dissipation + friction_dissipation, sum(springs, 0))
         if len(self.splits) > 1:    # each rod's own energies, "<name>.free_energy", ...

@@ -60,13 +60,15 @@ class RodSystem(RodModel):
         """MPI-reduced scalars at time t: free and kinetic energy, dissipation rate, load
         power (with the reactions' power at moving ends) of the whole system; per rod
         ``<name>.tip_position_{xyz}``, ``<name>.tip_quaternion_{0..3}``,
-        ``<name>.tip_rotation_angle`` and its reactions (RodModel.diagnostics)."""
+        ``<name>.tip_rotation_angle``, the positions at its point loads' points
+        ``<name>.point{j}_position_{xyz}`` and its reactions (RodModel.diagnostics)."""
         d = self.assembled_diagnostics(t)
         moving, reaction_power = False, 0.0
         first = 0
-        for split in self.splits:       # a rod split at its corners: its pieces together
-            last = first + len(split.rods) - 1
+        for split, points in zip(self.splits, self.rod_point_positions):
+            last = first + len(split.rods) - 1   # a rod split at its corners: its pieces
             own = self.tips[last]()
+            own.update(points())
             for supports in self.end_supports[first:last + 1]:   # (inner ends: free)
                 own.update(supports.reactions(self.residual, t, self.problem.structure))
                 moving = moving or "reaction_power" in own
