@@ -7,6 +7,8 @@ The rest of the package calls these functions and never checks a version.
     real spaces        0.9: scifem's ``create_real_functionspace`` (collective on
                        COMM_WORLD); 0.10+: basix's ``real_element`` (on the mesh's comm)
     element data       0.9: ``interpolation_points()`` a method; 0.10+: a property
+    geometry dofmap    0.9: ``geometry.dofmap``; 0.11: ``geometry.dofmaps[0]`` (the
+                       former deprecated, with a warning)
     LinearProblem      0.10+: needs ``petsc_options_prefix``
     create_mesh        0.9: (comm, cells, x, domain); 0.10+: (comm, cells, element, x);
                        0.10+'s partitioner takes the facet-to-cell link limit
@@ -105,6 +107,12 @@ def interpolation_points(V: fem.FunctionSpace):
     """The reference points at which V's element interpolates."""
     points = V.element.interpolation_points
     return points() if callable(points) else points
+
+
+def geometry_dofmap(mesh):
+    """The geometry's cell-to-node map of a mesh of one cell type."""
+    geometry = mesh.geometry
+    return geometry.dofmaps[0] if hasattr(geometry, "dofmaps") else geometry.dofmap
 
 
 def real_space(mesh, shape: tuple[int, ...] = ()) -> fem.FunctionSpace:

@@ -42,10 +42,11 @@ class Checkpoints:
         the values, dofmaps and mesh in memory + 16 KiB of ADIOS2 metadata (measured on
         a rod of 4, 32, 128 cells: 11.6, 38.8, 132 KB for estimates of 22, 58, 182 KB);
         later checkpoints take the last one's size if larger."""
+        from ..fem.compat import geometry_dofmap     # DOLFINx: not at a check's import
         mesh = self.sim.fields[0].function_space.mesh
         local = sum(f.x.array.nbytes + f.function_space.dofmap.list.nbytes
                     for f in named.values()) + mesh.geometry.x.nbytes \
-            + mesh.geometry.dofmap.nbytes
+            + geometry_dofmap(mesh).nbytes
         return 3 * self.comm.allreduce(local) + 16384
 
     def _named_functions(self) -> tuple[dict, dict]:
