@@ -179,6 +179,7 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
             label = f"rod {rod.name}: " if rod else ""
             lines += [f"derived: {label}{line}"
                       for line in describe(own["material"]["derived"] or {})]
+        lines += kink_lines(scene)
         lines += [f"joint: {j.kind} {j.rods[0]}-{j.rods[1]} at {list(j.point)}"
                   + (f" about {list(j.axis)}" if j.axis is not None else "")
                   for j in scene.joints]
@@ -186,6 +187,20 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
     if choice.model != "ode":                      # (the ODE prints its own solution)
         from .scenes.rules import time_stepping
         lines.append(f"time stepping: {time_stepping(scene)}")
+    return lines
+
+
+def kink_lines(scene: Scene) -> list[str]:
+    """``check``'s line for each rod whose stress-free polyline is split at its corners
+    into rigidly joined pieces (rod/kinks.py): where, and the pieces' cells."""
+    from .rod.kinks import describe
+    from .scenes.builders import curve
+    lines = []
+    for rod in scene.rods or [None]:
+        geo = (rod.scene if rod else scene)["geometry"]
+        said = describe(f"rod {rod.name!r}" if rod else "the rod",
+                        curve(geo["reference_shape"]), geo["length"], geo["n_cells"])
+        lines += [f"kinks: {said}"] if said else []
     return lines
 
 

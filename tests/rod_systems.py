@@ -209,9 +209,10 @@ def door_angle(t_end: float, p: dict = DOOR):
 def kinked_frame(n_column: int, n_beam: int, force: float, steps: int = 1,
                  joined: bool = False) -> dict:
     """The L-frame of ``l_frame`` with n_column, n_beam cells, tip force -force e_3
-    (ramped over ``steps`` steps if > 1), at t = 1: as ONE rod whose stress-free shape
-    is the polyline through the clamp, the knee and the tip (the corner at a node), or
-    ``joined`` as the two rods and the rigid knee.  Diagnostics at t = 1, the tip as
+    (ramped over ``steps`` steps if > 1), at t = 1: as ONE rod of n_column + n_beam
+    cells whose stress-free shape is the polyline through the clamp, the knee and the
+    tip (the corner at a node, or between nodes where n_column : n_beam is not L1 : L2),
+    or ``joined`` as the two rods and the rigid knee.  Diagnostics at t = 1, the tip as
     ``tip_position_*`` either way."""
     from dolfin_rod import loads
     from dolfin_rod.rod.joints import Joint

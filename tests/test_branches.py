@@ -180,3 +180,67 @@ def test_quaternion_form_twisted_rod_ends_buckled_as_rotation_vectors(tmp_path, 
     couple = math.hypot(series["reaction_couple_start_x"][-1],
                         series["reaction_couple_start_y"][-1])
     assert couple == pytest.approx(0.188531, abs=1e-5)
+
+
+JOINTED_COLUMN = """
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 1.0], B = [1e5, 1e5, 1e5] }
+[boundary]
+end = "free"
+[[rods]]
+name = "lower"
+geometry = { length = 0.5, n_cells = 8 }
+boundary = { start = "clamped" }
+[[rods]]
+name = "upper"
+position = [0.0, 0.0, 0.5]
+geometry = { length = 0.5, n_cells = 8 }
+boundary = { start = "free" }
+loads = { end_force = { type = "ramp", value = [0.0, 0.0, -3.7011016504085092], duration = 1.0 } }
+[[joints]]
+kind = "rigid"
+rods = ["lower", "upper"]
+point = [0.0, 0.0, 0.5]
+[time]
+t_end = 1.0
+dt = 0.05
+[outputs]
+fields = false
+animation = false
+plots = false
+progress = false
+"""
+
+
+@pytest.mark.mpi
+def test_jointed_column_ends_unstable_or_buckled(tmp_path, capfd):
+    """The column of test_post_buckled_elastica_by_branch_switching (1.5 P_cr in 20
+    steps, 16 cells, no imperfection) as two rods of 8 cells joined rigidly ([[rods]],
+    [[joints]]; the count and the descent on the joint's free dofs, P^T K P).  With
+    stability.at_bifurcation = "stay" it stays straight and ends "completed (unstable
+    equilibrium)", 2 negative eigenvalues from t = 0.7 (1.05 P_cr; 0.65 is 0.975);
+    switching, it switches at t = 0.7 and ends on the one 16-cell column's elastica:
+    tip deflection 0.787809, axial position 0.368179 (measured equal to 1e-9; asserted
+    1e-6, the descent's and Newton's tolerances), within the 16-cell error of the
+    elliptic integrals' 0.788576, 0.363588 (1e-2 L as there)."""
+    straight = run_scene(tmp_path, JOINTED_COLUMN, "straight",
+                         {"stability.at_bifurcation": "stay"})
+    assert straight.status == "completed (unstable equilibrium)"
+    assert list(straight.series["negative_eigenvalues"]) == [0] * 14 + [2] * 7
+    assert abs(straight.series["upper.tip_position_y"][-1]) < 1e-8
+    capfd.readouterr()
+    buckled = run_scene(tmp_path, JOINTED_COLUMN, "buckled")
+    assert buckled.status == "completed"
+    if rank() == 0:
+        err = capfd.readouterr().err
+        assert err.count("switched to a stable branch") == 1, err
+        assert "t = 0.7: a bifurcation" in err, err
+    series = buckled.series
+    assert series["negative_eigenvalues"][-1] == 0
+    lateral = math.hypot(series["upper.tip_position_x"][-1], series["upper.tip_position_y"][-1])
+    assert lateral == pytest.approx(0.787809, abs=1e-6)
+    assert series["upper.tip_position_z"][-1] == pytest.approx(0.368179, abs=1e-6)
+    deflection, axial = elastica(1.5 * math.pi ** 2 / 4)
+    assert lateral == pytest.approx(deflection, abs=1e-2)
+    assert series["upper.tip_position_z"][-1] == pytest.approx(axial, abs=1e-2)

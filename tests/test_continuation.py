@@ -271,6 +271,7 @@ def test_a_continuation_parameter_that_is_not_a_load_is_refused(tmp_path, capsys
            "name one of loads.start_force" in err, err
 
 
+@pytest.mark.mpi
 def test_lee_frame_from_its_scene(tmp_path):
     """scenes/lee_frame.toml (two [[rods]] and a rigid joint; the continuation parameter
     names the beam's point_force, a load of one rod: checked on the system, not per rod):
@@ -278,17 +279,25 @@ def test_lee_frame_from_its_scene(tmp_path):
     EI/L^2, the same discrete frame and arc length: to the parabola's 6 digits) and lies
     within its discretisation error of the published 18.5 (2.1 % from the 10/20/40-cell
     extrapolation 18.5465; asserted 3 %).  Cut at 230 steps (the limit: step ~207).
-    Not marked mpi: it passes on 2 ranks too, but took 218 s there (7 s serially, load
-    ~10 on the shared machine)."""
+    The stability count on the joint's free dofs (P^T K P) is 0 up to the limit point
+    and 1 past it (measured: it turns 1 at t = 0.473437, the first step after the
+    maximum 0.4734423 of t)."""
     import dolfin_rod
     from mpi4py import MPI
     result = dolfin_rod.run(ROOT / "scenes" / "lee_frame.toml", {
         "continuation.max_steps": 230, "outputs.fields": False, "outputs.animation": False,
         "outputs.plots": False}, out=MPI.COMM_WORLD.bcast(str(tmp_path / "lee")), quiet=True)
     assert result.status == "completed"
-    limit = 40.0 * first_maximum(result.series["time"])[0]
-    assert limit == pytest.approx(18.937692, rel=1e-6)
-    assert limit == pytest.approx(18.5, rel=3e-2)
+    limit, top = first_maximum(result.series["time"])
+    assert 40.0 * limit == pytest.approx(18.937692, rel=1e-6)
+    assert 40.0 * limit == pytest.approx(18.5, rel=3e-2)
+    count = np.array(result.series["negative_eigenvalues"])
+    assert np.all(count[:top + 1] == 0) and np.all(count[top + 1:] == 1), count[top - 2:top + 3]
+    # the load's point on the beam (beam.point0_position_*: force_extension's curve)
+    # starts at the beam's s = 0.2 and stays in the frame's plane
+    point = np.array([result.series[f"beam.point0_position_{c}"] for c in "xyz"])
+    assert point[:, 0] == pytest.approx([0.2, 0.0, 1.0], abs=1e-12)
+    assert np.max(np.abs(point[1])) < 1e-12
 
 
 def test_a_systems_continuation_parameter_names_a_load_of_any_rod():

@@ -64,6 +64,37 @@ def test_a_point_force_path_is_drawn_against_its_point():
     assert choose_panels(arch, ROD_COLUMNS[:-1] + ["point0_position_x"])[0] == "force_extension"
 
 
+def test_lee_frame_draws_its_load_path_with_the_limit_point():
+    """A rod system's point force (Lee's frame: a table F = 40 t downwards on the beam
+    at s = 0.2, arc length): the panel reads the beam's columns beam.point0_position_*.
+    On a path given in closed form, t = 2 u (1 - u) and the point's position (0.2 +
+    u / 10, 0, 1 - u / 2) for u in [0, 1]: the curve is the force 40 t against the
+    downward displacement u / 2, and the limit point is marked at its maximum, 20 at
+    u = 1/2 (the path's turning step); the closing line states the point's motion."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from dolfin_rod.output.plots import DRAW, _Series
+    lee = load_scene(SCENES / "lee_frame.toml", {"outputs.plots": True})
+    columns = ROD_COLUMNS[:-1] + ["beam.point0_position_x", "column.tip_position_x"]
+    assert choose_panels(lee, columns)[0] == "force_extension"
+    u = np.linspace(0.0, 1.0, 41)
+    rows = [{"time": 2.0 * v * (1.0 - v), "beam.point0_position_x": 0.2 + 0.1 * v,
+             "beam.point0_position_y": 0.0, "beam.point0_position_z": 1.0 - 0.5 * v}
+            for v in u]
+    figure, ax = plt.subplots()
+    DRAW["force_extension"](ax, _Series(rows), None, lee)
+    curve, marker = ax.lines
+    assert curve.get_xdata() == pytest.approx(0.5 * u, abs=1e-14)
+    assert curve.get_ydata() == pytest.approx(80.0 * u * (1.0 - u), abs=1e-12)
+    assert marker.get_xydata()[0] == pytest.approx([0.25, 20.0], abs=1e-12)
+    assert "beam's point s = 0.2" in ax.get_xlabel()
+    plt.close(figure)
+    line = final_values(rows, load_scene(SCENES / "lee_frame.toml"))[0]
+    assert line.startswith("point force [") and line.endswith(
+        "], beam's point s = 0.2 displacement [0.1, 0, -0.5]"), line
+
+
 def test_an_unloaded_support_is_told_not_plotted():
     """curling_pair's supports carry nothing: its reactions were 1e-12 (forces) and 1e-10
     (couples) beside an energy of 0.9 on a rod of length 1, drawn as noise.  The bound is

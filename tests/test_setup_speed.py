@@ -156,8 +156,8 @@ def test_bundled_rod_scenes_at_two_cell_counts(path):
     default stiffness depends on the cell size, a number in the text: other texts, unless
     the scene gives it)."""
     cells = load_scene(path)["geometry"]["n_cells"]
-    # doubled: every node stays a node, so a polyline's corners (split into rigidly
-    # joined pieces where they fall on nodes, bent_frame) split at both counts
+    # doubled: a polyline's corners (bent_frame: split into rigidly joined pieces of
+    # cells in proportion to their lengths, rod/kinks.py) give the same pieces, doubled
     scenes = [load_scene(path, {"geometry.n_cells": n}) for n in (cells, 2 * cells)]
     models = [build(scene, "rod").model for scene in scenes]
     texts = [m.problem.structure for m in models]

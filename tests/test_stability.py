@@ -55,12 +55,19 @@ def critical_load(case: str, n_cells: int, halvings: int = 18) -> float:
     rod = RodModel(STIFF, n_cells=n_cells, model="hyperelastic", start=ends[0], end=ends[1],
                    end_slide=slide,
                    end_loads=[EndLoad("force", (0.0, 0.0, -p_cr), lambda t: scale[0])])
-    tangent = TangentStiffness(rod)
+    return first_unstable_factor(rod, scale, halvings) * p_cr
+
+
+def first_unstable_factor(model, scale: list, halvings: int = 18) -> float:
+    """The factor of a quasi-static model's loads (``scale[0]``, read by their
+    histories) in [0.5, 1.5] where its count of negative eigenvalues leaves 0, by
+    bisection: each factor one step from the initial state."""
+    tangent = TangentStiffness(model)
 
     def unstable(factor: float) -> bool:
         scale[0] = factor
-        rod.set_initial_state()
-        TimeStepper(rod.problem).run(0.0, 1.0, 1.0)
+        model.set_initial_state()
+        TimeStepper(model.problem).run(0.0, 1.0, 1.0)
         return tangent.inertia(1.0).negative > 0
 
     lo, hi = 0.5, 1.5
@@ -68,7 +75,7 @@ def critical_load(case: str, n_cells: int, halvings: int = 18) -> float:
     for _ in range(halvings):
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if unstable(mid) else (mid, hi)
-    return 0.5 * (lo + hi) * p_cr
+    return 0.5 * (lo + hi)
 
 
 @pytest.mark.mpi
@@ -79,6 +86,35 @@ def test_euler_columns_lose_stability_at_the_critical_load_at_second_order(case)
     order = math.log2(errors[0] / errors[1])
     assert abs(order - 2) < 0.15, (case, errors, order)
     assert errors[1] < 1e-2, errors            # measured <= 6.5e-3 at 32 cells
+
+
+@pytest.mark.mpi
+def test_jointed_column_loses_stability_as_one_column():
+    """The clamped-free column as two rods of half its length joined rigidly (the
+    joint's constraint map: the count is that of P^T K P, K on the free dofs), the upper
+    rod turned by pi/2 about the axis with its bending stiffnesses swapped (A = (2, 1) in
+    its frame is (1, 2) in the lower's): the same column, whose weak plane (EI = 1)
+    buckles first.  The count leaves 0 at the one 16-cell column's discrete load
+    (bisection to 4e-6, the same loads: equal to it to 2 bisection intervals), which
+    is Euler's pi^2/4 with the 16-cell error 1.61e-3 (above; asserted < 2e-3)."""
+    from dolfin_rod import Rod, RodSystem
+    from dolfin_rod.rod.joints import Joint
+    p_cr = math.pi ** 2 / 4
+    scale = [0.0]
+    load = EndLoad("force", (0.0, 0.0, -p_cr), lambda t: scale[0])
+    half = [RodParameters(length=0.5, A=(*a, 1.0), B=(1e5, 1e5, 1e5))
+            for a in ((1.0, 2.0), (2.0, 1.0))]
+    joined = RodSystem([Rod(half[0], 8, name="lower"),
+                        Rod(half[1], 8, "free", end="free", name="upper",
+                            position=(0.0, 0.0, 0.5), orientation=(0.0, 0.0, math.pi / 2),
+                            end_loads=[load])],
+                       joints=[Joint("rigid", ("lower", "upper"), (0.0, 0.0, 0.5))],
+                       model="hyperelastic")
+    one = RodModel(RodParameters(length=1.0, A=(1.0, 2.0, 1.0), B=(1e5, 1e5, 1e5)),
+                   n_cells=16, model="hyperelastic", end_loads=[load])
+    factors = [first_unstable_factor(model, scale) for model in (joined, one)]
+    assert factors[0] == pytest.approx(factors[1], abs=2 * 2.0 ** -18)
+    assert 0 < factors[0] - 1 < 2e-3, factors
 
 
 @pytest.mark.mpi
@@ -223,6 +259,44 @@ def test_pinned_pinned_catenary_solves_at_any_orientation():
     turned = np.array([c * hanging[0] - s * hanging[1], s * hanging[0] + c * hanging[1],
                        hanging[2]])
     assert np.allclose(mid_node((-1.0, 0.3, 0.0)), turned, atol=1e-8)
+
+
+@pytest.mark.mpi
+def test_pinned_pinned_quaternion_catenary_rotated_off_the_axes():
+    """Item 3 on quaternions: the catenary above (16 cells, EI = 1e-2, the end moved
+    0.3 L along the chord, a unit transverse load) as a rod turned rigidly by the
+    rotation vector (0.3, -0.7, 0.5), its end motion and load turned with it.  Before,
+    the quaternion form failed there ("time step failed at t = 0 after 6 step cuts:
+    DIVERGED_DTOL"); with the start's twist about d3 held (a plane of its quaternion,
+    fem/multipoint.NodePlane) it solves: the mid-node displacement equals the rotation
+    vectors' run (measured 3.7e-12; asserted 1e-9, Newton's tolerance) and, turned back,
+    the unturned rod's (6e-17; asserted 1e-9), stable (no negative eigenvalue: the gauge
+    multipliers' count subtracted from the constrained, bordered K)."""
+    from dolfin_rod import Rod, RodSystem, loads
+    from dolfin_rod.rod import DistributedLoad
+    from dolfin_rod.theory.rotations import (np_quaternion_from_rotation_vector,
+                                             np_rotation_matrix)
+
+    def mid_node(rotations: str, turn) -> np.ndarray:
+        R = np_rotation_matrix(np_quaternion_from_rotation_vector(np.array(turn)))
+        chord, down = R @ np.array([0.0, 0.0, 1.0]), R @ np.array([-1.0, 0.0, 0.0])
+        rod = Rod(RodParameters(length=1.0, A=(1e-2,) * 3, B=(1e3,) * 3), 16, "pinned",
+                  end="pinned", orientation=turn,
+                  end_displacement={"end": lambda t: -0.3 * min(t, 1) * chord},
+                  distributed_loads=[DistributedLoad("force", tuple(down),
+                                                     loads.ramp(1.0, 1.0))])
+        model = RodSystem([rod], model="hyperelastic", rotations=rotations)
+        model.set_initial_state()
+        TimeStepper(model.problem).run(0.0, 1.0, 0.1)
+        assert TangentStiffness(model).inertia(1.0).negative == 0
+        # the mesh's displacement x = r - s e_3: r(L/2) = R (L/2 e_3) + R u of the unturned
+        return R.T @ (_mid_displacement(model) + [0.0, 0.0, 0.5]) - [0.0, 0.0, 0.5]
+
+    turn = (0.3, -0.7, 0.5)
+    quaternion = mid_node("quaternion", turn)
+    assert quaternion == pytest.approx(mid_node("rotation_vector", turn), abs=1e-9)
+    assert quaternion == pytest.approx(mid_node("quaternion", (0.0, 0.0, 0.0)), abs=1e-9)
+    assert quaternion[0] < -0.3        # it sags along the load
 
 
 def _mid_displacement(rod) -> np.ndarray:

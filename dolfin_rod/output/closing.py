@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .plots import choose_panels, relative_power_residual, unit, unwrapped_angle
+from .plots import (choose_panels, loaded_point, point_label, relative_power_residual, unit,
+                    unwrapped_angle)
 
 FILES = {
     "scene.toml": "the scene, copied verbatim",
@@ -69,9 +70,12 @@ def final_values(rows: list[dict], scene) -> list[str]:
                 _vector(last, "reaction_couple_end")
             lines.append(f"end torque {_text(value)}{u('moment')}")
         elif panel == "force_extension":
-            force = scene["loads"]["end_force"].vector()(last["time"])
-            lines.append(f"end force {_text(force)}{u('force')}, tip displacement "
-                         f"{moved()}{u('length')}")
+            rod, key, point = loaded_point(scene)
+            force = rod["loads"][key].vector()(last["time"])
+            shift = _vector(last, f"{point}_position") - _vector(first, f"{point}_position")
+            lines.append(f"{key.replace('_', ' ')} {_text(force)}{u('force')}, "
+                         f"{point_label(rod, key, point)} displacement {_text(shift)}"
+                         f"{u('length')}")
         elif panel == "reactions":
             lines += [_reaction(last, rod, name, u)
                       for rod, name in _rods(last, "reaction_force_start_x")]

@@ -13,7 +13,9 @@ from the scene's supports and loads):
     force_extension  the applied end force along its direction against the tip
                      displacement along it (a hysteresis loop when the rod is viscous;
                      a force that varies: ramp, smooth step, table); without an end
-                     force, a point force against its point's displacement
+                     force, a point force against its point's displacement; a system
+                     (by default under arc length only): its first rod with such a
+                     force; arc length: the limit point marked
     reactions        force and couple of the support at s = 0 (reaction_*_start_*)
     stability        the count of negative eigenvalues of the stiffness (the column
                      negative_eigenvalues of runs that check stability): 0 is stable
@@ -69,10 +71,12 @@ def choose_panels(scene, columns) -> list[str]:
         return ["end_torque", "twist", "energy", "power_residual"]
     boundary, loads = scene["boundary"], scene["loads"]
     panels = []
-    force = loaded_point(scene)
-    if force is not None and loads[force[0]].type not in ("constant", "step") \
-            and (force[0] == "point_force" or boundary["end"] == "free") \
-            and f"{force[1]}_position_x" in cols:
+    # a system: its tips' panel unless its path is a continuation's (the load path)
+    force = loaded_point(scene) if not scene.rods or \
+        scene["continuation"]["method"] == "arc_length" else None
+    if force is not None and force[0]["loads"][force[1]].type not in ("constant", "step") \
+            and (force[1] == "point_force" or force[0]["boundary"]["end"] == "free") \
+            and f"{force[2]}_position_x" in cols:
         panels.append("force_extension")
     if boundary.get("end_rotation") is not None and "reaction_couple_end_z" in cols:
         panels += ["end_torque", "twist" if "writhe" in cols else "tip_rotation"]
@@ -179,28 +183,59 @@ def _end_torque(ax, col, units, scene):
     return "end torque: couple of the support at s = L", axis_label("couple", "moment", units)
 
 
-def loaded_point(scene) -> tuple[str, str] | None:
-    """The force of force_extension and the columns of its point: ("end_force", "tip")
-    for a free end's force, else ("point_force", "point0") for a point force (point0 is
-    the first point of the point loads: the force's where no couple is elsewhere)."""
-    loads = scene["loads"]
-    if loads.get("end_force") is not None:
-        return "end_force", "tip"
-    force, couple = loads.get("point_force"), loads.get("point_couple")
-    if force is not None and (couple is None or couple.s == force.s):
-        return "point_force", "point0"
+def loaded_point(scene) -> tuple[object, str, str] | None:
+    """The force of force_extension: (the scene whose loads hold it, its key, the
+    columns' stem of its point): (scene, "end_force", "tip") for an end force, else
+    (scene, "point_force", "point0") for a point force (point0 is the first point of the
+    point loads: the force's where no couple is elsewhere); a system ([[rods]]): of its
+    first rod with such a force, that rod's scene and the stem "<rod>.tip" or
+    "<rod>.point0"."""
+    own = [(rod.scene, f"{rod.name}.") for rod in scene.rods] or [(scene, "")]
+    for rod, prefix in own:
+        loads = rod["loads"]
+        if loads.get("end_force") is not None:
+            return rod, "end_force", prefix + "tip"
+        force, couple = loads.get("point_force"), loads.get("point_couple")
+        if force is not None and (couple is None or couple.s == force.s):
+            return rod, "point_force", prefix + "point0"
     return None
 
 
-def _force_extension(ax, col, units, scene):
-    key, point = loaded_point(scene)
-    force = scene["loads"][key].vector()
+def force_and_displacement(col, scene) -> tuple[np.ndarray, np.ndarray, str, str]:
+    """force_extension's curve: the force along its direction e (that of its largest
+    value) and its point's displacement along e, the force's key and where its point is
+    ("tip", "point s = ..." with the rod's name in a system)."""
+    rod, key, point = loaded_point(scene)
+    force = rod["loads"][key].vector()
     f = np.array([force(t) for t in col.t])
     k = int(np.argmax(np.linalg.norm(f, axis=1)))
     e = f[k] / max(np.linalg.norm(f[k]), 1e-300)
     x = np.stack([col(f"{point}_position_{c}") for c in "xyz"], axis=1)
-    ax.plot((x - x[0]) @ e, f @ e)
-    where = "tip" if point == "tip" else f"point s = {scene['loads'][key].s:g}"
+    return f @ e, (x - x[0]) @ e, key, point_label(rod, key, point)
+
+
+def point_label(rod, key: str, point: str) -> str:
+    """Where force_extension's point is: "tip" or "point s = ..." (of the rod's
+    arc length), "<rod>'s ..." in a system."""
+    where = "tip" if point.endswith("tip") else f"point s = {rod['loads'][key].s:g}"
+    return f"{point.split('.')[0]}'s {where}" if "." in point else where
+
+
+def limit_point(force: np.ndarray) -> int | None:
+    """The step of the first maximum of the force along a path that turns back (a
+    continuation through a limit point), None if it only rises."""
+    falls = np.flatnonzero(np.diff(force) < 0)
+    return int(falls[0]) if falls.size and falls[0] > 0 else None
+
+
+def _force_extension(ax, col, units, scene):
+    f, d, key, where = force_and_displacement(col, scene)
+    ax.plot(d, f)
+    top = limit_point(f) if scene["continuation"]["method"] == "arc_length" else None
+    if top is not None:
+        ax.plot(d[top], f[top], "o", color="C3",
+                label=f"limit point: {f[top]:.4g} at {d[top]:.4g}")
+        ax.legend(fontsize="small")
     ax.set_xlabel(axis_label(f"displacement of the {where} along the force", "length", units))
     return f"force-displacement ({key.replace('_', ' ')} against its point's motion)", \
         axis_label(key.replace("_", " "), "force", units)

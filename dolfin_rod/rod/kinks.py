@@ -1,21 +1,27 @@
 """A stress-free polyline with kinks, split into rigidly joined pieces (issue 25).
 
-A rod whose stress-free shape (RodParameters.reference_shape) is a Polyline turning at
-points that sit at mesh nodes has rigid corners there.  One rod of P1 rotations cannot
-hold a corner: it spreads the corner's turn over the node's two cells (the node's d3
-bisects it), a frame with a rigid corner only to first order in h.  So a RodModel splits
-such a rod at those nodes into pieces, each straight (or a polyline bending between
-nodes), joined by rigid joints (joints.py: two nodes at one point, their frames keeping
-the corner's angle exactly, no penalty): the frame of rods and joints, at the smooth
-rod's order (tests/test_reference_shape.py).
+One rod of P1 rotations cannot hold a corner: it spreads the corner's turn over the
+cells around it (a node's d3 bisects a corner at the node; a corner inside a cell turns
+that cell's chord), a frame with a rigid corner only to first order in h.  So a rod
+whose stress-free shape (RodParameters.reference_shape) is a Polyline turning at some
+of its points (by more than KINK) is split at every such corner, wherever it falls, into
+straight pieces joined by rigid joints (joints.py: two nodes at one point, their frames
+keeping the corner's angle exactly, no penalty): the frame of rods and joints, at the
+smooth rod's order (tests/test_reference_shape.py).
 
-Piece k covers the rest arc lengths [s_k, s_k+1] of the rod (``offsets``: its loads and
-coefficients are the rod's at s_k + its own arc length, layout.Pieces.local_s), starts
-at the polyline's point there with the frame of the segment after it (d3 along the
-segment, d1 carried along the segments by parallel transport from ``normal``, as the
-polyline's own frames), placed as the rod is.  The first piece takes the rod's name, its
-support at s = 0, the start's loads and motions; the last one the end's (s = L); the
-ends between pieces are free (the joints hold them).
+Piece k covers the rest arc lengths [s_k, s_k+1] between two corners (``offsets``: its
+loads and coefficients are the rod's at s_k + its own arc length, layout.Pieces.
+local_s) with ``piece_cells`` cells: the rod's n_cells shared in proportion to the
+pieces' lengths (largest remainders, at least 1 each: the total is n_cells unless a
+piece needed its 1; a corner at a node keeps the rod's own cells).  A piece starts at
+its corner point with the frame of its segment (d3 along it, d1 carried along the
+segments by parallel transport from ``normal``, as the polyline's own frames), placed
+as the rod is, and is stretched by its chord over its rest length (1 unless the
+polyline has a ``rest_arc_length``).  The first piece takes the rod's name, its support
+at s = 0, the start's loads and motions; the last one the end's (s = L); the ends
+between pieces are free (the joints hold them), and each corner's joint is named
+"<rod>-corner<k>" (its reactions: joints.JointReactions).  Numpy only (``dolfin-rod
+check`` splits a scene's rods too: ``split_placed``).
 """
 
 from __future__ import annotations
@@ -27,84 +33,193 @@ import numpy as np
 from ..theory.quaternions import (CONJ, np_qmul, np_quaternion_from_matrix,
                                   np_quaternion_from_rotation_vector, np_rotation_matrix,
                                   np_rotation_vector)
-from .joint_points import Joint
-from .rods import Rod
+from .joint_points import Joint, joint_label
+from .placement import Geometry, PlacedRod, placed_shape
 from .start import Polyline, StartingState, parallel_transport
 
 KINK = 1e-9          # rad: a polyline point turning by more is a corner
-AT_NODE = 1e-9       # a point within AT_NODE h of a node is at the node
 
 
 @dataclass(frozen=True)
 class Split:
-    """The pieces of a rod (rods.Rod), the rigid joints between them, and the rest arc
-    length of each piece's start on the rod."""
+    """The pieces of a rod (rods.Rod or placement.PlacedRod), the rigid joints between
+    them, the rest arc length of each piece's start on the rod, and where the pieces
+    are (``parts``: Piece; none for a rod not split)."""
 
     rods: list
     joints: list
     offsets: tuple
+    parts: tuple = ()
 
 
-def corner_nodes(params, n_cells: int) -> list[int]:
-    """The interior nodes (indices 1..n_cells-1) at which the stress-free polyline
-    turns (by more than KINK); none for any other shape."""
-    shape = params.reference_shape
+@dataclass(frozen=True)
+class Piece:
+    """Where a piece of a split rod is: rest arc lengths [s0, s1] on the rod, cells,
+    placed start and orientation (a rotation vector), stretch of its straight shape;
+    its start ``point`` and ``frame`` (rotation matrix) in the rod's own frame."""
+
+    s0: float
+    s1: float
+    n_cells: int
+    position: tuple
+    orientation: tuple
+    stretch: float
+    point: tuple
+    frame: tuple
+
+
+def corner_indices(shape) -> np.ndarray:
+    """The indices of a stress-free Polyline's interior points where it turns by more
+    than KINK (none for any other shape)."""
     if not isinstance(shape, Polyline):
+        return np.zeros(0, dtype=int)
+    chords = _unit(np.diff(np.asarray(shape.points, float), axis=0))
+    turns = np.einsum("ij,ij->i", chords[:-1], chords[1:]) < np.cos(KINK)
+    return np.flatnonzero(turns) + 1
+
+
+def piece_cells(lengths, n_cells: int) -> list[int]:
+    """n_cells shared among pieces in proportion to their lengths: the floors of the
+    shares, the cells left to the largest remainders (ties: the earlier piece), at
+    least 1 each.  Shares that are whole numbers (corners at the rod's nodes) stay
+    exactly those (a round-off below them leaves a remainder near 1, which gets the
+    cell back)."""
+    lengths = np.asarray(lengths, float)
+    share = n_cells * lengths / lengths.sum()
+    cells = np.floor(share).astype(int)
+    left = n_cells - int(cells.sum())
+    cells[np.argsort(-(share - cells), kind="stable")[:max(left, 0)]] += 1
+    return np.maximum(cells, 1).tolist()
+
+
+def pieces(rod) -> list[Piece]:
+    """The pieces of a rod (rods.Rod or placement.PlacedRod) between the corners of its
+    stress-free polyline (see module); [] if it has none."""
+    shape = rod.params.reference_shape
+    corners = corner_indices(shape)
+    if not len(corners):
         return []
     points, arc = np.asarray(shape.points, float), shape.arc_lengths()
-    chords = _unit(np.diff(points, axis=0))
-    turns = np.einsum("ij,ij->i", chords[:-1], chords[1:]) < np.cos(KINK)
-    position = arc[1:-1] * n_cells / float(params.length)
-    nodes = np.rint(position).astype(int)
-    at_node = turns & (np.abs(position - nodes) < AT_NODE) & (nodes > 0) & (nodes < n_cells)
-    return sorted(set(nodes[at_node].tolist()))
-
-
-def split_at_kinks(rod: Rod) -> Split:
-    """The rod as pieces joined rigidly at its corner nodes (see module); the rod itself,
-    no joints, if it has none."""
-    corners = corner_nodes(rod.params, rod.n_cells)
-    if not corners:
-        return Split([rod], [], (0.0,))
-    L, n = float(rod.params.length), rod.n_cells
-    h = L / n
-    bounds = [0, *corners, n]
-    shape = rod.params.reference_shape
-    points, arc = np.asarray(shape.points, float), shape.arc_lengths()
     frames = _segment_frames(points, np.asarray(shape.normal, float))
+    bounds = [0, *corners.tolist(), len(points) - 1]
+    cells = piece_cells(np.diff(arc[bounds]), rod.n_cells)
     turn = np_quaternion_from_rotation_vector(np.asarray(rod.orientation, float))
     Q, p = np_rotation_matrix(turn), np.asarray(rod.position, float)
-    pieces, joints = [], []
-    for k, (i, j) in enumerate(zip(bounds[:-1], bounds[1:])):
-        s0, s1 = i * h, j * h
-        segment = min(int(np.searchsorted(arc, s0 + 0.5 * h)) - 1, len(frames) - 1)
-        start = np.array([np.interp(s0, arc, points[:, c]) for c in range(3)])
-        R = frames[segment]
-        inner = (arc > s0 + AT_NODE * h) & (arc < s1 - AT_NODE * h)
-        local = None
-        if np.any(inner):           # corners between nodes: a polyline of its own
-            end = np.array([np.interp(s1, arc, points[:, c]) for c in range(3)])
-            local = Polyline(tuple(map(tuple, (np.vstack([start, points[inner], end])
-                                               - start) @ R)),
-                             tuple([0.0, *(arc[inner] - s0), s1 - s0]))
-        pieces.append(replace(
-            rod, params=replace(rod.params, length=s1 - s0, reference_shape=local),
-            n_cells=j - i, name=rod.name if k == 0 else f"{rod.name}-{k}",
-            position=tuple(p + Q @ start),
-            orientation=tuple(np_rotation_vector(np_qmul(turn, np_quaternion_from_matrix(R)))),
-            point_loads=[replace(load, s=load.s - s0) for load in rod.point_loads
-                         if s0 <= load.s < s1 or (j == n and load.s == s1)],
-            **_ends(rod, first=k == 0, last=j == n)))
-        if k > 0:
-            joints.append(Joint("rigid", (pieces[k - 1].name, pieces[k].name),
-                                tuple(p + Q @ start), name=f"{rod.name}-corner{k}"))
-    return Split(pieces, joints, tuple(i * h for i in bounds[:-1]))
+    out = []
+    for i, j, n in zip(bounds[:-1], bounds[1:], cells):
+        chord = np.linalg.norm(points[j] - points[i])
+        out.append(Piece(
+            float(arc[i]), float(arc[j]), n, tuple(p + Q @ points[i]),
+            tuple(np_rotation_vector(np_qmul(turn, np_quaternion_from_matrix(frames[i])))),
+            1.0 if shape.rest_arc_length is None else chord / (arc[j] - arc[i]),
+            tuple(points[i]), tuple(map(tuple, frames[i]))))
+    return out
+
+
+def describe(label: str, shape, length: float, n_cells: int) -> str | None:
+    """What ``dolfin-rod check`` says of a rod (``label``: "the rod", "rod 'a'") whose
+    stress-free ``shape`` is split at its corners (None: not split)."""
+    parts = pieces(PlacedRod("", Geometry(length, reference_shape=shape), n_cells,
+                             ("free", "free")))
+    if not parts:
+        return None
+    cells = [part.n_cells for part in parts]
+    at = ", ".join(f"{part.s0:.6g}" for part in parts[1:])
+    return (f"{label} is split at its corners (s = {at}) into {len(parts)} straight pieces "
+            f"joined rigidly, of {', '.join(map(str, cells))} cells (in proportion to "
+            f"their lengths: {sum(cells)} cells, geometry.n_cells = {n_cells})")
+
+
+def split_at_kinks(rod) -> Split:
+    """The rod (rods.Rod) as pieces joined rigidly at its corners (see module); the rod
+    itself, no joints, if it has none."""
+    parts = pieces(rod)
+    if not parts:
+        return Split([rod], [], (0.0,))
+    out = []
+    for k, part in enumerate(parts):
+        first, last = k == 0, k == len(parts) - 1
+        out.append(replace(
+            _piece(rod, k, part),
+            point_loads=[replace(load, s=load.s - part.s0) for load in rod.point_loads
+                         if part.s0 <= load.s < part.s1 or (last and load.s == part.s1)],
+            **_held(rod, first, last, ("end_displacement", "end_rotation", "end_slide",
+                                       "end_springs", "end_turn")),
+            start=rod.start if first else "free", end=rod.end if last else "free",
+            end_loads=[load for load in rod.end_loads
+                       if (load.end == "start" and first) or (load.end == "end" and last)]))
+    return _joined(rod.name, out, parts)
+
+
+def split_placed(rod) -> Split:
+    """split_at_kinks of a placement.PlacedRod (``dolfin-rod check``: numpy only)."""
+    parts = pieces(rod)
+    if not parts:
+        return Split([rod], [], (0.0,))
+    out = [replace(_piece(rod, k, part),
+                   ends=(rod.ends[0] if k == 0 else "free",
+                         rod.ends[1] if k == len(parts) - 1 else "free"),
+                   **_held(rod, k == 0, k == len(parts) - 1, ("end_displacement",
+                                                              "end_rotation")))
+           for k, part in enumerate(parts)]
+    return _joined(rod.name, out, parts)
+
+
+def _piece(rod, k: int, part: Piece):
+    """Piece k of a rod: straight, of its length, cells, place and name."""
+    stretch = (0.0, 0.0, part.stretch) if part.stretch != 1.0 else rod.params.reference_stretch
+    return replace(rod, params=replace(rod.params, length=part.s1 - part.s0,
+                                       reference_shape=None, reference_stretch=stretch),
+                   n_cells=part.n_cells, name=rod.name if k == 0 else f"{rod.name}-{k}",
+                   position=part.position, orientation=part.orientation)
+
+
+def _joined(name: str, rods: list, parts: list[Piece]) -> Split:
+    """The pieces with the rigid joints at their corners."""
+    joints = [Joint("rigid", (a.name, b.name), part.position, name=f"{name}-corner{k + 1}")
+              for k, (a, b, part) in enumerate(zip(rods[:-1], rods[1:], parts[1:]))]
+    return Split(rods, joints, tuple(part.s0 for part in parts), tuple(parts))
+
+
+def attach(joints: list, splits: list[Split]) -> list:
+    """A system's joints on the pieces of its split rods (``splits``, one a rod): a joint
+    naming a split rod is on the piece with a node nearest its point (at a corner: the
+    piece before it), its label kept (joint_points.joint_label); then every corner's
+    rigid joint."""
+    split_of = {split.rods[0].name: split for split in splits if len(split.rods) > 1}
+    out = []
+    for joint in joints:
+        names = tuple(_piece_at(split_of[name], joint.point) if name in split_of else name
+                      for name in joint.rods)
+        out.append(joint if names == tuple(joint.rods) else
+                   replace(joint, rods=names, name=joint_label(joint)))
+    return out + [corner for split in splits for corner in split.joints]
+
+
+def _piece_at(split: Split, point) -> str:
+    """The name of the piece of ``split`` with a node nearest ``point``."""
+    distance = [np.linalg.norm(placed_shape(piece, np.linspace(
+        0.0, piece.params.length, piece.n_cells + 1))[0] - np.asarray(point, float),
+        axis=1).min() for piece in split.rods]
+    return split.rods[int(np.argmin(distance))].name
+
+
+def system_starts(starts: dict, splits: list[Split]) -> dict:
+    """A system's starting states {rod name: StartingState} as its pieces' (a split
+    rod's by ``piece_starts``, the others' as given)."""
+    out = {}
+    for name, start in starts.items():
+        split = next((split for split in splits if split.rods[0].name == name), None)
+        out.update(piece_starts(start, split) if split and len(split.rods) > 1
+                   else {name: start})
+    return out
 
 
 def piece_starts(start: StartingState, split: Split) -> dict:
     """{piece name: StartingState}: the rod's starting state (its stress-free shape
     placed at ``position`` with ``orientation``, velocities) as its pieces' (rod/start.
-    RodStarts: each in its piece's placed frame p_k, R_k): the rod's r = p + Q r_rod is
+    RodStarts: each in its piece's placed frame): with p_k, R_k the piece's start and
+    frame in the rod's own frame, the rod's r = p + Q r_rod (then placed as the rod) is
     p_k + R_k (p'' + Q'' r_piece) with Q'' = R_k^T Q R_k, p'' = R_k^T (p + Q p_k - p_k);
     velocity fields of the rod's s taken at the piece's s + offset.  A starting curve
     (``shape``) is a ValueError naming ``start.shape`` (not split yet)."""
@@ -115,9 +230,9 @@ def piece_starts(start: StartingState, split: Split) -> dict:
     q = np_quaternion_from_rotation_vector(np.asarray(start.orientation, float))
     Q, p = np_rotation_matrix(q), np.asarray(start.position, float)
     starts = {}
-    for piece, offset in zip(split.rods, split.offsets):
-        q_k = np_quaternion_from_rotation_vector(np.asarray(piece.orientation, float))
-        R_k, p_k = np_rotation_matrix(q_k), np.asarray(piece.position, float)
+    for piece, offset, part in zip(split.rods, split.offsets, split.parts):
+        R_k, p_k = np.asarray(part.frame, float), np.asarray(part.point, float)
+        q_k = np_quaternion_from_matrix(R_k)
         starts[piece.name] = replace(
             start, position=tuple(R_k.T @ (p + Q @ p_k - p_k)),
             orientation=tuple(np_rotation_vector(np_qmul(np_qmul(q_k * CONJ, q), q_k))),
@@ -131,14 +246,12 @@ def _at_offset(field, offset: float):
     return (lambda s: field(np.asarray(s, float) + offset)) if callable(field) else field
 
 
-def _ends(rod: Rod, first: bool, last: bool) -> dict:
-    """A piece's supports, end loads and end motions: the rod's at the ends it has."""
+def _held(rod, first: bool, last: bool, names: tuple) -> dict:
+    """A piece's end motions and supports given per end ({end: value}): the rod's at the
+    ends it has."""
     keep = {"start": first, "end": last}
-    own = {name: {end: v for end, v in (getattr(rod, name) or {}).items() if keep[end]}
-           or None for name in ("end_displacement", "end_rotation", "end_slide",
-                                "end_springs", "end_turn")}
-    return dict(own, start=rod.start if first else "free", end=rod.end if last else "free",
-                end_loads=[load for load in rod.end_loads if keep[load.end]])
+    return {name: {end: v for end, v in (getattr(rod, name) or {}).items() if keep[end]}
+            or None for name in names}
 
 
 def _segment_frames(points: np.ndarray, normal: np.ndarray) -> np.ndarray:

@@ -142,12 +142,10 @@ class FESimulation:
 
     def _stability_monitor(self):
         """Quasi-static 3-D rods: the stability of each step's equilibrium
-        (analysis/stability.py; segment contact's pairs included in K); a system with
-        joints is not checked (its constraints act on the assembled system, not in the
-        forms K is made of)."""
+        (analysis/stability.py; segment contact's pairs included in K; a system with
+        joints: K on the free dofs of the joints' constraint map, P^T K P)."""
         scene, model = self.scene, self.model
-        if scene.is_rod_material and not model.dynamic and scene["stability"]["check"] \
-                and not getattr(model, "joints", None):
+        if scene.is_rod_material and not model.dynamic and scene["stability"]["check"]:
             from ..analysis.stability import StabilityMonitor
             return StabilityMonitor(model, scene["stability"]["lowest_eigenvalue"],
                                     scene["stability"]["factorisation"] == "banded")

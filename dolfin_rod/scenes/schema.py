@@ -176,8 +176,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                "reference_curvature/stretch, from the rod's start along e3 "
                                "(then placed as the rod): {type = \"polyline\", points = "
                                "[[x, y, z], ...], normal = [1, 0, 0]} (a bent frame as one "
-                               "rod: a corner at a node turns its two cells by half the "
-                               "angle each), or an arc or helix (as initial.shape)"),
+                               "rod: split at every corner into straight pieces joined "
+                               "rigidly, its n_cells shared in proportion to their "
+                               "lengths; `dolfin-rod check` says how), or an arc or helix "
+                               "(as initial.shape)"),
         "rotations": Key(choice(*ROTATIONS), ROTATION_UNKNOWNS,
                          R + "rotation unknowns: auto = rotation_vector (6 unknowns per "
                          "node; the fast default) for the local variant, no constraint and "
