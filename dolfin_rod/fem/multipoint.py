@@ -34,6 +34,10 @@ unit ``axis`` only, y = y_0 + a axis (a support sliding along an axis that is no
 coordinate axis, or turning about one: rod/boundary_conditions.py).  Its component j of
 largest |axis_j| stays free and the others are its slaves, y_i = (axis_i/axis_j) y_j
 (+ the offset across the axis the state has when a solve starts, as a NodeLink's).
+A ``NodePlane`` is its complement: the node's values stay in the plane normal . y =
+normal . y_0 (one condition: the component of largest |normal_j| is the slave of the
+others, y_j = -sum_i (normal_i/normal_j) y_i + offset; a quaternion's spin about its
+director d3 held at one node, rod/boundary_conditions.py).
 """
 
 from __future__ import annotations
@@ -44,7 +48,7 @@ import dolfinx.fem as fem
 import numpy as np
 from petsc4py import PETSc
 
-__all__ = ["NodeLink", "NodeLine", "NodeMap", "ConstrainedSystem"]
+__all__ = ["NodeLink", "NodeLine", "NodePlane", "NodeMap", "ConstrainedSystem"]
 
 
 @dataclass(frozen=True)
@@ -59,13 +63,11 @@ class NodeLink:
 
 
 @dataclass(frozen=True)
-class NodeLine:
-    """The values of block ``block`` at the node s move along the unit ``axis`` only (see
-    module)."""
+class _OneNode:
+    """A link among the values of block ``block`` at one node s (master and slave)."""
 
     block: int
     s: float
-    axis: tuple
 
     @property
     def master_s(self) -> float:
@@ -73,11 +75,33 @@ class NodeLine:
 
     slave_s = master_s
 
+
+@dataclass(frozen=True)
+class NodeLine(_OneNode):
+    """The values of block ``block`` at the node s move along the unit ``axis`` only (see
+    module)."""
+
+    axis: tuple
+
     def weights(self) -> dict[int, dict[int, float]]:
         """{slave component i: {master component j: axis_i/axis_j}}."""
         a = np.asarray(self.axis, float)
         j = int(np.argmax(np.abs(a)))
         return {i: {j: a[i] / a[j]} for i in range(len(a)) if i != j}
+
+
+@dataclass(frozen=True)
+class NodePlane(_OneNode):
+    """The values of block ``block`` at the node s stay in the plane of ``normal`` (see
+    module)."""
+
+    normal: tuple
+
+    def weights(self) -> dict[int, dict[int, float]]:
+        """{slave component j: {component i: -normal_i/normal_j}}."""
+        c = np.asarray(self.normal, float)
+        j = int(np.argmax(np.abs(c)))
+        return {j: {i: -c[i] / c[j] for i in range(len(c)) if i != j and c[i] != 0.0}}
 
 
 @dataclass(frozen=True)
@@ -118,9 +142,9 @@ def node_rows(inner, fields: list, links: list) -> dict[tuple, int]:
     return {(k, side, i): r for part in comm.allgather(found) for k, side, i, r in part}
 
 
-def _weights(link: NodeLink | NodeLine) -> dict[int, dict[int, float]]:
+def _weights(link: NodeLink | NodeLine | NodePlane) -> dict[int, dict[int, float]]:
     """{slave component i: {master component j: weight}} of a linear link."""
-    if isinstance(link, NodeLine):
+    if isinstance(link, _OneNode):
         return link.weights()
     T = np.asarray(link.matrix, float)
     return {i: {j: T[i, j] for j in range(T.shape[1]) if T[i, j] != 0.0}

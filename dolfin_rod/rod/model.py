@@ -42,7 +42,7 @@ from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
 from .joints import JointReactions, joint_nodes, node_links
-from .kinks import Split, piece_starts, split_at_kinks
+from .kinks import attach, piece_starts, split_at_kinks, system_starts
 from .layout import RodLayout
 from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
@@ -113,17 +113,15 @@ class RodModel(FEModel):
         rod = Rod(params, n_cells, start, end_loads, distributed_loads, point_loads=point_loads,
                   end=end, **keyed)
         self._build([rod], model, variant, constraints, rotations, comm, obstacles=obstacles,
-                    contact=contact, split_kinks=True)
+                    contact=contact)
 
     def _build(self, rods: list[Rod], model: str, variant: str, constraint: str | None,
                rotations: str, comm, joints: Sequence[Joint] = (),
-               obstacles: Sequence[Obstacle] = (), contact: ContactLaw | None = None,
-               split_kinks: bool = False) -> None:
+               obstacles: Sequence[Obstacle] = (), contact: ContactLaw | None = None) -> None:
         """The model of one or several rods and their joints (see system.RodSystem); a
-        single rod (``split_kinks``) as the pieces between the corners of its stress-free
-        polyline, joined rigidly (kinks.py)."""
-        joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm,
-                                         split_kinks)
+        rod with corners in its stress-free polyline as the pieces between them, joined
+        rigidly (kinks.py)."""
+        joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
         self.rotations = self._rotation_unknowns(rotations, joints)
         disc = discretise(comm, self.layout, self.rotations)
         super().__init__(disc.mesh)
@@ -141,8 +139,8 @@ class RodModel(FEModel):
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
         if self.dynamic:       # the steps must resolve them (integrators' check_run)
             self.problem.prescribed_motions = {
-                (f"rods {rod.name!r}: " if len(self.rods) > 1 else "")
-                + f"{name}[{end!r}]": motion for rod in self.rods
+                (f"rods {self.rod_names[k]!r}: " if len(self.splits) > 1 else "")
+                + f"{name}[{end!r}]": motion for k, rod in enumerate(self.rods)
                 for name in ("end_displacement", "end_rotation")
                 for end, motion in (getattr(rod, name) or {}).items()}
         self.problem.structure = structure(rods, model, variant, constraint, self.rotations,
@@ -151,20 +149,23 @@ class RodModel(FEModel):
         self._diagnostics(resp, disc, natural_pairs, power, dissipation, springs)
 
     def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
-                           constraint: str | None, joints: Sequence[Joint], comm,
-                           split_kinks: bool = False) -> list[Joint]:
+                           constraint: str | None, joints: Sequence[Joint], comm) -> list[Joint]:
         """Refuse bad input before any mesh; the rods' data (a rod split at its kinks:
-        its pieces) and their layout on one mesh; the joints (with the kinks')."""
+        its pieces, ``splits``: kinks.Split of each rod) and their layout on one mesh; the
+        joints (on the pieces, with the corners')."""
         check_model(model, rods[0].params)
         check_variant(variant)
         constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.density))
         check_rods(rods, model, variant)
         check_joints(list(joints), rods)
-        split = split_at_kinks(rods[0]) if split_kinks else Split(rods, [], ())
-        self.kinked = len(split.rods) > len(rods)
-        self.split = split
-        length = float(rods[0].params.length)
-        rods, joints = split.rods, list(joints) + split.joints
+        self.splits = splits = [split_at_kinks(rod) for rod in rods]
+        self.kinked = any(len(split.rods) > 1 for split in splits)
+        self.user_rods = rods
+        length = max(float(rod.params.length) for rod in rods)
+        joints = attach(list(joints), splits)
+        rods = [piece for split in splits for piece in split.rods]
+        # each piece's rod (its name: the first piece's)
+        self.rod_names = [split.rods[0].name for split in splits for _ in split.rods]
         check_n_cells(sum(rod.n_cells for rod in rods), comm.size)   # cells per rank
         self.rods = rods
         self.params, self.model, self.variant, self.constraint = (rods[0].params, model,
@@ -175,8 +176,10 @@ class RodModel(FEModel):
         self.layout = layout = RodLayout(tuple(rod.name for rod in rods),
                                          tuple(float(rod.params.length) for rod in rods),
                                          tuple(rod.n_cells for rod in rods),
-                                         split.offsets if self.kinked else ())
-        self.length = length if self.kinked else max(layout.lengths)
+                                         tuple(offset for split in splits
+                                               for offset in split.offsets)
+                                         if self.kinked else ())
+        self.length = length
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(rods[0].params.density)
         return joints
@@ -303,14 +306,19 @@ class RodModel(FEModel):
                   for k, rod in enumerate(self.rods)]
         self.point_positions = diagnostics.PointPositions(
             unk, dict.fromkeys(p for own in points for p in own))
-        # a system's rods: each its own points ("<name>.point{j}_position_{xyz}")
-        self.rod_point_positions = [diagnostics.PointPositions(unk, own) for own in points]
+        # a system's rods: each its own points ("<name>.point{j}_position_{xyz}"; a rod
+        # split at its corners: its pieces' in turn)
+        self.rod_point_positions = [diagnostics.PointPositions(unk, dict.fromkeys(
+            p for own, rod in zip(points, self.rod_names) if rod == name for p in own))
+            for name in dict.fromkeys(self.rod_names)]
         forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
                                          drag_dissipation + friction_dissipation, sum(springs, 0))
-        if not layout.single:       # each rod's own energies, "<name>.free_energy", ...
-            for k, rod in enumerate(self.rods):
+        if len(self.splits) > 1:    # each rod's own energies, "<name>.free_energy", ...
+            for name in dict.fromkeys(self.rod_names):
+                own = [k for k, rod in enumerate(self.rod_names) if rod == name]
                 forms.update(diagnostics.rod_energy_forms(
-                    rod.name, resp, c, unk, disc, disc.pieces.indicator(k), springs[k]))
+                    name, resp, c, unk, disc, sum(disc.pieces.indicator(k) for k in own),
+                    sum((springs[k] for k in own), 0)))
         if self.contact:
             forms.update(self.contact.diagnostic_forms())
             forms["friction_dissipation"] = friction_dissipation or 0 * resp.psi * disc.dx_r
@@ -496,15 +504,20 @@ class RodModel(FEModel):
         with the loads at t = 0 (``equilibrium``); the stress-free shape is unchanged."""
         for name, given in (("natural_curvature", natural_curvature),
                             ("natural_stretch", natural_stretch)):
-            initial_state.check_natural(name, given, [rod.name for rod in self.rods])
+            initial_state.check_natural(name, given, [rod.name for rod in self.user_rods])
+        natural_curvature, natural_stretch = (
+            {piece.name: given[rod] for piece, rod in zip(self.rods, self.rod_names)
+             if rod in given} if isinstance(given, dict) else given     # a rod's: its pieces'
+            for given in (natural_curvature, natural_stretch))
         held = any("clamped" in supports.ends or bool(supports.rotation)
                    for supports in self.end_supports)
-        if self.layout.single or self.kinked:
+        if len(self.splits) == 1:
             check_start(start, self.length, self.dynamic, rotation_held=held)
-        if self.kinked and start is not None:       # the rod's start as its pieces'
-            start = RodStarts(piece_starts(start, self.split), self.rods, self.layout)
-        elif start is not None and not self.layout.single:
-            check_rod_starts(start, self.rods, self.dynamic, rotation_held=held)
+        if len(self.splits) == 1 and self.kinked and start is not None:
+            start = RodStarts(piece_starts(start, self.splits[0]), self.rods, self.layout)
+        elif start is not None and len(self.splits) > 1:     # pieces: each its share
+            check_rod_starts(start, self.user_rods, self.dynamic, rotation_held=held)
+            start = system_starts(start, self.splits)
             check_joints_at_start(self.rods, self.joints, start)
             start = RodStarts(start, self.rods, self.layout)
         initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
@@ -530,11 +543,12 @@ class RodModel(FEModel):
         d.update(self.tips[-1]())        # a rod split at its kinks: of its last piece
         d.update(self.point_positions())
         d.update(self.supports.reactions(self.residual, t, self.problem.structure))
-        if self.kinked:                  # the right end's reactions, of its last piece
+        if self.kinked:                  # the right end's reactions, of its last piece;
             right = self.end_supports[-1].reactions(self.residual, t, self.problem.structure)
             d["reaction_power"] = d.get("reaction_power", 0.0) + right.pop(
                 "reaction_power", 0.0)
             d.update(right)
+            d.update(self.joint_reactions())     # the corners' (joint_rod-corner1_force_x)
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         self.pass_through(t)

@@ -44,7 +44,8 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("loads", "start_couple"), ("loads", "point_force"), ("loads", "point_couple"),
     ("obstacles", "shape")} | {
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
-                             "between_rods", "self_friction", "between_rods_friction")} | {
+                             "between_rods", "self_friction", "between_rods_friction",
+                             "pair_curve")} | {
     ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue",
                                "at_bifurcation", "factorisation")} | {
     ("continuation", k) for k in ("method", "parameter", "arc_length", "load_scale",
