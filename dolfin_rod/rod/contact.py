@@ -91,6 +91,9 @@ class Obstacle:
         return (0.0, 0.0, 1.0) if direction is None else direction
 
 
+PAIR_CURVES = ("segments", "smooth")     # pair_contact.py, smooth_pairs.py
+
+
 @dataclass
 class ContactLaw:
     """The rod's radius r, the barrier's gap delta (0 < delta < r), its stiffness kappa
@@ -109,6 +112,7 @@ class ContactLaw:
     between_rods: bool = False      # pairs of segments of different rods of a system
     self_friction: float = 0.0      # Coulomb's mu of self-contact (pair_friction.py)
     between_rods_friction: float = 0.0      # ... of contact between rods
+    pair_curve: str = "segments"    # the pairs' curves: "segments" | "smooth" (C^1)
     self_contact: bool | None = None        # deprecated: self
 
     def __post_init__(self):
@@ -130,6 +134,9 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
     positive("contact.slip_tolerance", law.slip_tolerance)
     nonnegative("contact.self_friction", law.self_friction)
     nonnegative("contact.between_rods_friction", law.between_rods_friction)
+    if law.pair_curve not in PAIR_CURVES:
+        raise ValueError(f"contact.pair_curve must be one of {', '.join(PAIR_CURVES)}, got "
+                         f"{law.pair_curve!r}")
     if law.gap >= law.radius:
         raise ValueError(f"contact.gap must be < contact.radius ({law.radius:g}): the "
                          f"barrier acts within delta of the surface, got {law.gap:g}")

@@ -48,6 +48,9 @@ def check_contact_keys(scene: Scene) -> None:
             raise err(f"{name}.friction", "friction depends on the velocity: it needs a "
                                           "dynamic rod (material.density > 0)")
     for key, pairs in (("self_friction", "self"), ("between_rods_friction", "between_rods")):
+        if contact[key] > 0 and contact["pair_curve"] == "smooth":
+            raise err(f"contact.{key}", "friction between segments needs "
+                                        "contact.pair_curve = 'segments'")
         if contact[key] > 0 and not contact[pairs]:
             raise err(f"contact.{key}", f"applies to segments in contact: set "
                                         f"contact.{pairs} = true")
@@ -98,7 +101,8 @@ def contact_law(scene: Scene, params):
                       c["slip_tolerance"] or 1e-3 * geo["length"] / tim["t_end"],
                       self=c["self"], between_rods=c["between_rods"],
                       self_friction=c["self_friction"],
-                      between_rods_friction=c["between_rods_friction"])
+                      between_rods_friction=c["between_rods_friction"],
+                      pair_curve=c["pair_curve"])
 
 
 def contact_solver_options(scene: Scene) -> dict:

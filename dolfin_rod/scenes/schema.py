@@ -485,6 +485,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "between_rods_friction": Key(real(0.0), 0.0, R + "Coulomb friction coefficient mu "
                                      ">= 0 between segments of different rods "
                                      "(contact.between_rods; needs density > 0)"),
+        "pair_curve": Key(choice("segments", "smooth"), "segments", R + "the curves whose "
+                          "distance the pairs' barrier acts on: segments (the P1 centre "
+                          "line's capsules) | smooth (a C^1 Catmull-Rom curve through the "
+                          "nodes: a crossing's energy smooth as it moves across a node; no "
+                          "friction between segments; docs/contact.md, \"Smooth pairs\")"),
     },
     "obstacles": {
         "shape": Key(choice(*OBSTACLE_SHAPES), REQUIRED, R + "plane (a half-space) | sphere "
