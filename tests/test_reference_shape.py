@@ -218,8 +218,40 @@ def test_a_kinked_rod_placed_and_spun_at_the_start():
         r = (a + b) / 2 + np.outer(x, (b - a) / 2)
         energy += 0.5 * half * weights @ np.sum(np.cross(w, r) ** 2, axis=1)
     assert d["kinetic_energy"] == pytest.approx(energy, rel=1e-9)
-    with pytest.raises(ValueError, match="start.shape: a rod whose stress-free polyline is split"):
+    with pytest.raises(ValueError, match="start.shape: a rod split at its corners .* not on a "
+                                         "smooth arc"):
         model.set_initial_state(start=StartingState(shape=Arc(1.0)))
+
+
+def test_a_kinked_rod_starts_on_a_polyline():
+    """The kinked L-frame (column 1, beam 0.8, 10 cells: the corner between nodes, 6 + 4)
+    started on a polyline with its corner, stretched by 1 % (points x 1.01 at the rest
+    arc lengths 0, 1, 1.8) and placed (p, Q): each piece starts on its part of the
+    polyline (kinks.piece_starts), so at t = 0 the tip is p + Q (0.808, 0, 1.01) to
+    1e-12 and the corner transmits the beam's tension EA 0.01 = 10 along the beam,
+    -10 Q e_1 on it (the nodal residual of a uniform stretch: exact, to 1e-9).  A
+    polyline whose corner has another angle, and one cornering elsewhere, are
+    ValueErrors naming start.shape."""
+    p, theta = np.array([0.3, -0.2, 0.5]), np.array([0.2, 0.4, -0.1])
+    params = RodParameters(length=1.8, A=(2.0, 2.0, 1.5), B=(500.0, 500.0, 1e3),
+                           reference_shape=Polyline(((0, 0, 0), (0, 0, 1.0), (0.8, 0, 1.0))))
+    model = RodModel(params, 10, model="hyperelastic")
+    assert [rod.n_cells for rod in model.rods] == [6, 4]
+    stretched = Polyline(((0, 0, 0), (0, 0, 1.01), (0.808, 0, 1.01)), (0.0, 1.0, 1.8))
+    model.set_initial_state(start=StartingState(shape=stretched, position=tuple(p),
+                                                orientation=tuple(theta)))
+    d = model.diagnostics(0.0)
+    from dolfin_rod.theory.quaternions import (np_quaternion_from_rotation_vector,
+                                               np_rotation_matrix)
+    Q = np_rotation_matrix(np_quaternion_from_rotation_vector(theta))
+    assert tip(d) == pytest.approx(p + Q @ [0.808, 0.0, 1.01], abs=1e-12)
+    force = np.array([d[f"joint_rod-corner1_force_{c}"] for c in "xyz"])
+    assert np.linalg.norm(force + 10.0 * Q[:, 0]) < 1e-9 * 10.0, force
+    for bad in (Polyline(((0, 0, 0), (0, 0, 1.0), (0.64, 0, 1.48))),       # another angle
+                Polyline(((0, 0, 0), (0, 0, 1.1), (0.7, 0, 1.1)))):       # elsewhere
+        with pytest.raises(ValueError, match="start.shape: the starting polyline does not "
+                                             "keep the rod's rigid corners"):
+            model.set_initial_state(start=StartingState(shape=bad))
 
 
 @pytest.mark.parametrize("params, message", [
@@ -376,11 +408,25 @@ def test_kinked_rod_in_a_system_scene(tmp_path):
         assert series[key][-1] == pytest.approx(api[key], rel=1e-12, abs=1e-14), key
 
 
+# bent_frame 1e4 times softer (its 1 % stretch: forces of 120 N, whose round-off stays
+# below assert_serial_run_equal's absolute 1e-10), at 25 cells, started stretched
+STRETCHED_BENT_FRAME = (ROOT / "scenes" / "bent_frame.toml").read_text().replace(
+    "A = [4.0e4, 4.0e4, 2.4e4], B = [2.05e7, 2.05e7, 1.2e8]",
+    "A = [4.0, 4.0, 2.4], B = [2.05e3, 2.05e3, 1.2e4]").replace(
+    "[0.0, 0.0, -1.0e4]", "[0.0, 0.0, -1.0]").replace(
+    "n_cells = 28", "n_cells = 25").replace("[time]", """[initial]
+shape = { type = "polyline", points = [[0.0, 0.0, 0.0], [0.0, 0.0, 2.02], [1.515, 0.0, 2.02]], rest_arc_length = [0.0, 2.0, 3.5] }
+
+[time]""")
+
+
 @pytest.mark.mpi
-def test_kinked_rod_in_a_system_serial_equals_two_ranks(tmp_path):
-    """The scene of ``test_kinked_rod_in_a_system_scene`` on the ranks of the run and
-    serially (a separate process): the same time series, the corner's reactions too, to
-    1e-10 (quick_scenes.assert_serial_run_equal)."""
+@pytest.mark.parametrize("scene", [ARM_SCENE, STRETCHED_BENT_FRAME], ids=["arm", "stretched"])
+def test_kinked_rod_in_a_system_serial_equals_two_ranks(tmp_path, scene):
+    """The scene of ``test_kinked_rod_in_a_system_scene``, and bent_frame.toml at 25
+    cells (14 + 11: the corner between nodes) started on its L stretched by 1 %, on the
+    ranks of the run and serially (a separate process): the same time series, the
+    corner's reactions too, to 1e-10 (quick_scenes.assert_serial_run_equal)."""
     from mpi4py import MPI
     from quick_scenes import assert_serial_run_equal, quick_scene
 
@@ -389,7 +435,7 @@ def test_kinked_rod_in_a_system_serial_equals_two_ranks(tmp_path):
     folder = Path(comm.bcast(str(tmp_path), root=0))
     path = folder / "arm.toml"
     if comm.rank == 0:
-        path.write_text(ARM_SCENE)
+        path.write_text(scene)
     comm.barrier()
     quiet = dict(outputs__animation=False, outputs__plots=False, outputs__fields=False)
     summary = run_scene(quick_scene(path, 2, **quiet), folder / "run", quiet=True)
@@ -422,3 +468,28 @@ def test_placed_kinked_rod_of_a_system_starts_placed():
     expected = P + turn[0] @ (p + turn[1] @ np.array([0.8, 0.0, 1.0]))
     assert np.array([d[f"arm.tip_position_{c}"] for c in "xyz"]) == pytest.approx(
         expected, abs=1e-12)
+
+
+@pytest.mark.parametrize("shape, message", [
+    ('{ type = "polyline", points = [[0.0, 0.0, 0.0], [0.0, 0.0, 2.02], [1.515, 0.0, 2.02]], '
+     'rest_arc_length = [0.0, 2.0, 3.5] }', None),
+    ('{ type = "arc", radius = 2.0 }', "starts on a polyline with the same corners, not on a "
+                                       "smooth arc"),
+    ('{ type = "polyline", points = [[0.0, 0.0, 0.0], [0.0, 0.0, 2.0], [1.2, 0.0, 2.9]] }',
+     "the starting polyline does not keep the rod's rigid corners")])
+def test_kinked_scene_starting_shape_is_checked(tmp_path, shape, message):
+    """bent_frame.toml started on a curve: `dolfin-rod check` accepts its L stretched by
+    1 %, and refuses (exit 2, naming initial.shape, before any model) an arc and an L
+    whose corner has another angle."""
+    path = tmp_path / "start.toml"
+    path.write_text((ROOT / "scenes" / "bent_frame.toml").read_text().replace(
+        "[time]", f"[initial]\nshape = {shape}\n\n[time]"))
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run([sys.executable, "-m", "dolfin_rod", "check", str(path), "--out",
+                          str(tmp_path / "out")], capture_output=True, text=True, timeout=120,
+                         cwd=ROOT, env=env)
+    if message is None:
+        assert out.returncode == 0, out.stderr
+    else:
+        assert out.returncode == 2 and "[initial.shape]: " in out.stderr \
+            and message in out.stderr and "Traceback" not in out.stderr, out.stderr

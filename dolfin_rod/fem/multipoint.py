@@ -210,7 +210,8 @@ class ConstrainedSystem:
 
     def __init__(self, inner, fields: list, links: list):
         self.inner, self.groups = inner, inner.groups
-        self.terms = tuple(_ReducedTerm(self, term) for term in inner.terms)
+        self.terms = tuple(_ReducedTerm(self, term) for term in inner.terms
+                           if hasattr(term, "step_factor"))     # those that add entries
         comm = inner.x.getComm()
         self._mpi = mpi = comm.tompi4py()
         start, stop = inner.x.getOwnershipRange()
