@@ -28,7 +28,9 @@ from .. import loads as load_histories
 from ..theory.evolution import check_variant
 from ..checks import (ENDS, MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
                       check_n_cells, end_keyed, old_keywords)
+from ..fem import form_cache
 from ..fem.fe_model import FEModel
+from ..fem.gathered_form import LazyForms, data_of
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..integrators.step_control import IntegrationError
 from ..mpi import largest_on_ranks
@@ -54,6 +56,9 @@ from .structure import structure
 from .start import RodStarts, StartingState, check_rod_starts, check_start
 
 _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
+# structures as data (rod/structure.py) whose residual, made on their first model, had the
+# Functions and Constants of its terms: later models make it only when it is read
+_DATA_OF_TERMS: set[str] = set()
 
 
 def end_frames(rod: Rod) -> dict:
@@ -129,12 +134,14 @@ class RodModel(FEModel):
         self.pieces = disc.pieces
         resp = self._section_response(disc)
         F, natural_pairs, dissipation, power = self._balance(resp, disc, obstacles, contact)
-        springs = self._end_supports(F, disc)
-        self.residual = {name: F[name] for name in self.names}
+        springs, variations = self._end_supports(disc)
+        text = structure(rods, model, variant, constraint, self.rotations, comm.size, joints,
+                         obstacles, contact)
+        forms = self._residual_forms(F, variations, disc, text)
         self.joints = list(joints)
         nodes = joint_nodes(self, self.joints)
         self.segment_contact = self._segment_contact(contact, self.layout, nodes)
-        self.problem = self._problem(node_links(self, self.joints, nodes) + [
+        self.problem = self._problem(forms, node_links(self, self.joints, nodes) + [
             line for supports in self.end_supports for line in supports.links(self.names)])
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
         if self.dynamic:       # the steps must resolve them (integrators' check_run)
@@ -143,8 +150,7 @@ class RodModel(FEModel):
                 + f"{name}[{end!r}]": motion for k, rod in enumerate(self.rods)
                 for name in ("end_displacement", "end_rotation")
                 for end, motion in (getattr(rod, name) or {}).items()}
-        self.problem.structure = structure(rods, model, variant, constraint, self.rotations,
-                                           comm.size, joints, obstacles, contact)
+        self.problem.structure = text
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
         self._diagnostics(resp, disc, natural_pairs, power, dissipation, springs)
 
@@ -273,12 +279,41 @@ class RodModel(FEModel):
             F, unk, disc, [(k, load) for k, rod in enumerate(rods) for load in rod.end_loads],
             [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads],
             [(k, load) for k, rod in enumerate(rods) for load in rod.point_loads])
-        residual.one_quadrature_rule(F, unk, disc)
         return F, natural_pairs, (drag_dissipation, friction_dissipation), power
 
-    def _end_supports(self, F: dict, disc):
-        """Every rod's end supports; compliant ones add their energy's variation to the
-        balance F. Returns each rod's springs' energy (0 without springs)."""
+    def _residual_forms(self, F: dict, variations: dict, disc, text: str | None):
+        """The block residuals: the terms F made into one Form per block
+        (residual.one_quadrature_rule) plus the compliant supports' ``variations``, made
+        when first read (gathered_form.LazyForms: their data are those of the terms) for a
+        model whose structure ``text`` had a model before; the first model of a structure
+        makes them now and checks that they have the data of their terms."""
+        unk, names = self.unknowns, list(self.names)
+        data = data_of([itg for form in [*(F[name] for name in names), *variations.values()]
+                        for itg in form.integrals()])
+
+        def make() -> list:
+            residual.one_quadrature_rule(F, unk, disc)
+            for block, variation in variations.items():
+                F[block] += variation
+            return [F[name] for name in names]
+
+        forms = LazyForms(make, len(names), data)
+        if text is not None and text in _DATA_OF_TERMS:
+            return forms
+        made = list(forms)
+        if text is not None and form_cache.registry(made) == form_cache.registry(forms):
+            _DATA_OF_TERMS.add(text)
+        return made
+
+    @property
+    def residual(self) -> dict:
+        """The block residuals (ufl.Form) by block name."""
+        return dict(zip(self.names, self.problem.residual))
+
+    def _end_supports(self, disc):
+        """Every rod's end supports. Returns each rod's springs' energy (0 without
+        springs) and the variations of the compliant supports' energy that the balance
+        adds, {block: ufl.Form}."""
         unk = self.unknowns
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
@@ -288,11 +323,10 @@ class RodModel(FEModel):
                                           disc.pieces.indicator(k))
                    for k, supports in enumerate(self.end_supports)]
         springs = sum(per_rod, 0)
-        if any(supports.springs for supports in self.end_supports):
-            # compliant supports: their energy's variation in the balance
-            for block in ("displacement", unk.rotation):
-                F[block] += ufl.derivative(springs, unk.f[block], unk.t[block])
-        return per_rod
+        if not any(supports.springs for supports in self.end_supports):
+            return per_rod, {}
+        return per_rod, {block: ufl.derivative(springs, unk.f[block], unk.t[block])
+                         for block in ("displacement", unk.rotation)}
 
     def _diagnostics(self, resp, disc, natural_pairs, power, dissipation, springs) -> None:
         """Dissipation density, tips, the energy forms (diagnostics.py) and the check that
@@ -387,17 +421,19 @@ class RodModel(FEModel):
         for supports in self.end_supports:
             supports.set(t)
 
-    def _problem(self, links: list) -> SemiDiscreteProblem:
+    def _problem(self, forms, links: list) -> SemiDiscreteProblem:
         unk = self.unknowns
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
-                  list(self.residual.values()), self.loads, self.bcs, self.set_supports)
+                  forms, self.loads, self.bcs, self.set_supports)
         terms = [self.segment_contact] if self.segment_contact else []
+        if self.contact and self.contact.term:     # a mesh obstacle's features
+            terms.append(self.contact.term)
         where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
         if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step, terms=terms,
                                        where_failed=where, links=links)
-        rates_used = {c for F in self.residual.values() for c in F.coefficients()}
+        rates_used = set(form_cache.registry(forms))
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
             after_step=self.commit_rotations, check_step=self.check_step,
