@@ -282,3 +282,16 @@ def test_a_missing_or_unreadable_mesh_file_names_the_key(tmp_path):
     with pytest.raises(SceneError) as err:
         build(load_scene(scene_file), "rod")
     assert err.value.key == "obstacles[0].file" and "not a valid STL" in str(err.value)
+
+
+def test_the_bundled_mesh_scene_reads_its_file_and_draws_its_triangles():
+    """scenes/rope_over_boulder.toml: its STL (relative to the scene's folder) is the
+    320-triangle icosphere of radius 0.15 at the offset centre (every vertex 0.15 from
+    it, to float32's round-off), and the pictures get its placed triangles."""
+    from dolfin_rod.output.animation import Look
+    from dolfin_rod.scenes import load_scene
+    scene = load_scene(Path(__file__).resolve().parents[1] / "scenes/rope_over_boulder.toml")
+    corners = Look.of(scene).obstacles[0]["corners"]
+    assert corners.shape == (320, 3, 3)
+    radii = np.linalg.norm(corners - np.array([-0.16, 0.0, 0.45]), axis=2)
+    assert radii == pytest.approx(0.15, abs=1e-7)
