@@ -210,7 +210,8 @@ class ConstrainedSystem:
 
     def __init__(self, inner, fields: list, links: list):
         self.inner, self.groups = inner, inner.groups
-        self.terms = tuple(_ReducedTerm(self, term) for term in inner.terms)
+        self.terms = tuple(_ReducedTerm(self, term) for term in inner.terms
+                           if hasattr(term, "step_factor"))     # those that add entries
         comm = inner.x.getComm()
         self._mpi = mpi = comm.tompi4py()
         start, stop = inner.x.getOwnershipRange()
@@ -264,6 +265,7 @@ class ConstrainedSystem:
         self.x, self.b = P.createVecRight(), P.createVecRight()
         self._y, self._c, self._b = P.createVecLeft(), P.createVecLeft(), inner.b.duplicate()
         self._c.set(0.0)
+        self._forces_current = False    # self._b: F at the state of the last set?
         self._slave_values = []
         if self.maps:
             self.get(0, self.x)        # the maps' derivatives at the fields' state
@@ -303,6 +305,7 @@ class ConstrainedSystem:
 
     def set(self, k: int, z, blocks: bool = True) -> None:
         """Reduced vector -> y = Phi(z) + c -> group k."""
+        self._forces_current = False
         self._prolong(z)
         self.inner.set(k, self._y, blocks)
 
@@ -310,6 +313,7 @@ class ConstrainedSystem:
         """Group k -> y -> z = R y (the maps' own parameters fitted to y); the offset
         c = y - P z of the linear slaves kept (0 on the maps' rows); the maps' laws
         refreshed (a solve starts)."""
+        self._forces_current = False
         for m in self.maps:
             m.law.refresh()
         self.inner.get(k, self._y)
@@ -336,9 +340,11 @@ class ConstrainedSystem:
         return self.inner.bc_values()
 
     def residual(self, z, b, bc_values=None) -> None:
-        """b = P^T F(Phi(z) + c) (after ``set`` with the same z, as BlockSNES does)."""
+        """b = P^T F(Phi(z) + c) (after ``set`` with the same z, as BlockSNES does); F
+        kept for the Jacobian's curvature at this z (``_add_curvature``)."""
         self._prolong(z)
         self.inner.residual(self._y, self._b, bc_values)
+        self._forces_current = True
         self.P.multTranspose(self._b, b)
 
     def jacobian(self, A) -> None:
@@ -349,9 +355,21 @@ class ConstrainedSystem:
             self._insert_product(A)
         else:
             self.inner.A.PtAP(self.P, result=A)
-        curved = [m for m in self.maps if m.exact]
-        if curved:
-            self._add_curvature(A, curved)
+        if self.curved:
+            self._add_curvature(A, self.curved)
+
+    @property
+    def curved(self) -> list:
+        """The maps of the exact laws (their curvature is in the Jacobian)."""
+        return [m for m in self.maps if m.exact]
+
+    def carried(self, z) -> PETSc.Vec:
+        """A copy of the inner residual F(Phi(z) + c) (after ``set`` with the same z): its
+        slave rows are the forces the links carry."""
+        self._prolong(z)
+        self.inner.residual(self._y, self._b)
+        self._forces_current = True
+        return self._b.copy()
 
     def _insert_product(self, A) -> None:
         """A = P^T J P formed anew and inserted: J's pattern may have grown (pairs)."""
@@ -369,16 +387,26 @@ class ConstrainedSystem:
 
     def _add_curvature(self, A, maps: list) -> None:
         """A += sum_i F_i d^2 slave_i/d(arguments)^2 on each map's columns, F the inner
-        residual at y = Phi(z) + c (its slave rows: the force the map transmits)."""
-        self.inner.residual(self._y, self._b)
-        forces = self._values(self._b, [r for m in maps for r in m.slaves])
+        residual at y = Phi(z) + c (its slave rows: the force the map transmits): that of
+        the last ``residual`` if no ``set`` came after it (Newton: the residual, then the
+        Jacobian at the same iterate and loads), else assembled here."""
+        if not self._forces_current:
+            self.inner.residual(self._y, self._b)
+            self._forces_current = True
+        self.add_map_forces(A, maps, self._b)
+
+    def add_map_forces(self, A, maps: list, F) -> None:
+        """A += sum_i F_i d^2 slave_i/d(arguments)^2 on each map's columns, F a vector of
+        the inner system's layout (its slave rows used) and the maps' arguments those of
+        the last ``set``."""
+        forces = self._values(F, [r for m in maps for r in m.slaves])
         for m in maps:
             if not m.owned:
                 continue
             n = len(m.masters)
             H = m.law.curvature(m.arguments[:n], m.arguments[n:])
-            F = np.array([forces[r] for r in m.slaves])
-            A.setValues(m.columns, m.columns, np.einsum("i,ikl->kl", F, H).ravel(),
+            carried = np.array([forces[r] for r in m.slaves])
+            A.setValues(m.columns, m.columns, np.einsum("i,ikl->kl", carried, H).ravel(),
                         addv=PETSc.InsertMode.ADD_VALUES)
         A.assemble()
 

@@ -432,6 +432,8 @@ class RodModel(FEModel):
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
                   forms, self.loads, self.bcs, self.set_supports)
         terms = [self.segment_contact] if self.segment_contact else []
+        if self.contact and self.contact.term:     # a mesh obstacle's features
+            terms.append(self.contact.term)
         where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
         if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
