@@ -345,18 +345,24 @@ class RodModel(FEModel):
         self.rod_point_positions = [diagnostics.PointPositions(unk, dict.fromkeys(
             p for own, rod in zip(points, self.rod_names) if rod == name for p in own))
             for name in dict.fromkeys(self.rod_names)]
-        forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
-                                         drag_dissipation + friction_dissipation, sum(springs, 0))
-        if len(self.splits) > 1:    # each rod's own energies, "<name>.free_energy", ...
-            for name in dict.fromkeys(self.rod_names):
-                own = [k for k, rod in enumerate(self.rod_names) if rod == name]
-                forms.update(diagnostics.rod_energy_forms(
-                    name, resp, c, unk, disc, sum(disc.pieces.indicator(k) for k in own),
-                    sum((springs[k] for k in own), 0)))
-        if self.contact:
-            forms.update(self.contact.diagnostic_forms())
-            forms["friction_dissipation"] = friction_dissipation or 0 * resp.psi * disc.dx_r
-        self.set_diagnostic_forms(forms)
+
+        def energy_forms() -> dict:
+            forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
+                                             drag_dissipation + friction_dissipation,
+                                             sum(springs, 0))
+            if len(self.splits) > 1:    # each rod's own energies, "<name>.free_energy", ...
+                for name in dict.fromkeys(self.rod_names):
+                    own = [k for k, rod in enumerate(self.rod_names) if rod == name]
+                    forms.update(diagnostics.rod_energy_forms(
+                        name, resp, c, unk, disc, sum(disc.pieces.indicator(k) for k in own),
+                        sum((springs[k] for k in own), 0)))
+            if self.contact:
+                forms.update(self.contact.diagnostic_forms())
+                forms["friction_dissipation"] = (friction_dissipation
+                                                 or 0 * resp.psi * disc.dx_r)
+            return forms
+
+        self.set_diagnostic_forms(energy_forms)      # made at the first diagnostics
         h = min(length / n for length, n in zip(layout.lengths, layout.n_cells))
         self.pass_through = PassThroughCheck(
             unk.f["displacement"], distance=h, exclusion=3 * h,
