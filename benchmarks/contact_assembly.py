@@ -23,7 +23,10 @@ per Newton iteration (one residual and one Jacobian), best of a few repeats; the
 exponents p of cost ~ N^p between the sizes.
 
     ./rodenv python3 benchmarks/contact_assembly.py [--sizes 10000 100000]
-Writes results/bench/contact_assembly.json.
+        [--pair-curve smooth]
+Writes results/bench/contact_assembly.json (contact_assembly_smooth.json); with smooth
+pairs (contact.pair_curve, rod/smooth_pairs.py) ``pair_terms`` includes the curves'
+closest points (Newton from the segments').
 """
 
 from __future__ import annotations
@@ -70,13 +73,14 @@ def best_pair(f, g, repeats=7):
     return times.min(axis=0)
 
 
-def measure(n_cells: int, comm) -> dict:
+def measure(n_cells: int, comm, pair_curve: str = "segments") -> dict:
     t0 = time.perf_counter()
     length = n_cells * R                                   # h = r
     params = RodParameters(length=length, A=(1.0, 1.0, 1.0), B=(1e3, 1e3, 1e3), density=1.0,
                            section_inertia=1e-4)
     model = RodModel(params, n_cells, model="hyperelastic", start="free", end="free",
-                     contact=ContactLaw(R, DELTA, 1e3, self=True), comm=comm)
+                     contact=ContactLaw(R, DELTA, 1e3, self=True, pair_curve=pair_curve),
+                     comm=comm)
     model.set_initial_state()
     helix_state(model, n_cells)
     stepper = TimeStepper(model.problem)
@@ -108,15 +112,23 @@ def measure(n_cells: int, comm) -> dict:
     pairs = contact.pairs(P)
     X = P[contact.line.ends[pairs].reshape(-1, 4)]
     weights = np.full(len(pairs), R)
+
+    def pair_terms():
+        if pair_curve == "segments":
+            pair_contact.pair_energy(X, R, DELTA, 1e3, weights)
+        else:       # the curves' closest points (their search) and the pairs' terms
+            contact.forget()
+            contact.evaluate(u)
     xa = x.getArray(readonly=True)
     update = np.random.default_rng(0).uniform(-1, 1, len(xa)) * 0.1 * DELTA
     rod, both = best_pair(rod_only, with_contact, 7 if n_cells <= 20000 else 3)
-    out = {"segments": n_cells, "pairs": int(len(pairs)), "ranks": comm.size,
+    out = {"segments": n_cells, "pair_curve": pair_curve, "pairs": int(len(pairs)),
+           "ranks": comm.size,
            "set_up_s": set_up, "first_jacobian_s": first,
            "rod_assembly_s": rod,
            "broad_phase_tree_s": best(tree_search),
            "broad_phase_list_s": best(lambda: contact.pairs(P)),
-           "pair_terms_s": best(lambda: pair_contact.pair_energy(X, R, DELTA, 1e3, weights)),
+           "pair_terms_s": best(pair_terms),
            "update_check_s": best(lambda: terms[0].limit_step(xa, update.copy())),
            "rod_with_contact_s": both}
     out["contact_s"] = out["rod_with_contact_s"] - out["rod_assembly_s"]
@@ -141,9 +153,11 @@ def growth(results: list[dict]) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[10000, 100000])
+    parser.add_argument("--pair-curve", choices=("segments", "smooth"), default="segments",
+                        help="the pairs' curves (contact.pair_curve)")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    results = [measure(n, comm) for n in args.sizes]
+    results = [measure(n, comm, args.pair_curve) for n in args.sizes]
     if comm.rank == 0:
         for r in results:
             print(json.dumps(r))
@@ -151,9 +165,10 @@ def main() -> None:
         print(json.dumps({"growth_exponents": exponents}))
         folder = ROOT / "results" / "bench"
         folder.mkdir(parents=True, exist_ok=True)
-        (folder / "contact_assembly.json").write_text(
+        name = "contact_assembly" + ("" if args.pair_curve == "segments" else "_smooth")
+        (folder / f"{name}.json").write_text(
             json.dumps({"sizes": results, "growth_exponents": exponents}, indent=1))
-        print(f"wrote {folder / 'contact_assembly.json'}")
+        print(f"wrote {folder / (name + '.json')}")
 
 
 if __name__ == "__main__":

@@ -56,7 +56,8 @@ _MODULES = {"loads": "loads", "closed_forms": "torsion.closed_forms",
             "form_cache": "fem.form_cache",   # form_cache.clear(): time a fresh process
             "cosseratbench": "adapters.cosseratbench",   # the cosseratbench solver (extra [bench])
             "pair_contact": "rod.pair_contact",   # segment contact: pairs, pair_energy (docs/contact.md)
-            "linking": "rod.linking"}   # writhe, twist, linking number of polygons (docs/contact.md)
+            "linking": "rod.linking",   # writhe, twist, linking number of polygons (docs/contact.md)
+            "triangle_mesh": "rod.triangle_mesh"}   # mesh obstacles' surfaces (docs/contact.md)
 
 __all__ = sorted([*_WHERE, "run", "run_scene", "analyse", "RunResult"]) + list(_MODULES)
 

@@ -194,7 +194,7 @@ def kink_lines(scene: Scene) -> list[str]:
     """``check``'s line for each rod whose stress-free polyline is split at its corners
     into rigidly joined pieces (rod/kinks.py): where, and the pieces' cells."""
     from .rod.kinks import describe
-    from .scenes.builders import curve
+    from .rod.start import curve
     lines = []
     for rod in scene.rods or [None]:
         geo = (rod.scene if rod else scene)["geometry"]

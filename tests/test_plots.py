@@ -222,3 +222,18 @@ def test_rates_are_labelled_as_powers():
         "contact_energy", "pair_friction_force", "contact_force_x", "min_pair_gap")}
     assert [v.split("[")[1] for v in labels.values()] == \
         ["W]", "W]", "W]", "J]", "J]", "N]", "N]", "m]"]
+
+
+def test_closing_values_of_a_self_contact_rod_give_twist_and_writhe():
+    """scenes/plectoneme.toml's panels include "twist" from the rod's Tw and Wr columns
+    (no torsion model's end_rotation): the closing line gives Tw, Wr and their sum (it
+    raised KeyError 'end_rotation' after every run of the scene)."""
+    scene = load_scene(SCENES / "plectoneme.toml")
+    columns = ["free_energy", "dissipation_rate", "kinetic_energy", "load_power",
+               *(f"tip_position_{c}" for c in "xyz"), *(f"tip_quaternion_{i}" for i in range(4)),
+               *(f"reaction_{k}_{e}_{c}" for k in ("force", "couple") for e in ("start", "end")
+                 for c in "xyz"), "reaction_power", "contact_energy", "pair_contact_force",
+               "min_pair_gap", "contact_pairs", "total_dissipation", "power_residual"]
+    rows = [{"time": t, **dict.fromkeys(columns, t), "tip_quaternion_0": 1.0,
+             "twist": 6.625, "writhe": 1.375} for t in (0.0, 1.0)]
+    assert "twist Tw 6.625, writhe Wr 1.375, Tw + Wr 8 turns" in final_values(rows, scene)

@@ -205,15 +205,14 @@ def test_example_scenes_are_valid(name):
 @pytest.mark.mpi
 @pytest.mark.parametrize("name, cells", [
     ("frame.toml", None), ("double_pendulum.toml", None), ("tripod.toml", None),
-    ("hinged_door.toml", None), ("bent_frame.toml", None), ("bent_frame.toml", 25)])
+    ("hinged_door.toml", None), ("bent_frame.toml", None), ("bent_frame.toml", 27)])
 def test_system_scenes_serial_equals_two_ranks(tmp_path, name, cells):
-    """Each example scene, a few steps (bent_frame also at 25 cells: its corner between
-    nodes, split into pieces of 14 and 11 cells; not 27 cells, 15 + 12, whose 2-rank
-    partition leaves the clamped cell alone on a rank, which fem/assembly.py refuses, as
-    it does frame.toml's two rods of those cells), on the ranks of the run and serially
-    (a separate process): the same time series, every rod's and joint's column, to 1e-8
-    of the
-    largest value of its kind (``kind``: a force component that is 0 in theory is
+    """Each example scene, a few steps (bent_frame also at 27 cells: its corner between
+    nodes, split into pieces of 15 and 12 cells, whose 2-rank partition by graph
+    partitioning left the clamped cell alone on a rank, which fem/assembly.py refuses;
+    compat.contiguous_parts cuts at the pieces' ends), on the ranks of the run and
+    serially (a separate process): the same time series, every rod's and joint's column,
+    to 1e-8 of the largest value of its kind (``kind``: a force component that is 0 in theory is
     round-off of the others, measured 2.6e-8 N in a knee force of 1e4 N).  The dynamic pendulum's Newton stops at rtol 1e-4 of a tiny residual, on
     another iterate under another partition (block-Jacobi GMRES): measured 2.6e-9
     relative on a clamp force."""
@@ -350,3 +349,29 @@ def test_curling_pair_scene_each_rod_curls_onto_its_own_natural_curvature(tmp_pa
         angle = np.asarray(series[f"{rod}.tip_rotation_angle"])
         assert angle[0] == pytest.approx(arc(u0), abs=1e-12)
         assert angle[-1] == pytest.approx(arc(u0 * np.exp(-1.0 / tau)), rel=1e-2)
+
+
+@pytest.mark.parametrize("cells, parts, expected", [
+    # two rods of 15 and 12 cells on 2 ranks: the even cut (14) would leave the
+    # first rod's last cell alone on rank 1: moved to the rods' boundary
+    ((15, 12), 2, [15]),
+    # 16 + 12 on 2: the even cut at 14 leaves 2 cells of rod 1 on rank 1: kept
+    ((16, 12), 2, [14]),
+    # one rod of 9 cells on 3 ranks: no boundary inside, even cuts
+    ((9,), 3, [3, 6]),
+    # 3 rods of 4 cells on 2 ranks: the cut at 6 leaves 2 and 2 cells of rod 2: kept
+    ((4, 4, 4), 2, [6]),
+    # 10 + 1 + 10 on 3 ranks: cuts at 7 and 14 (rod 3's 3rd cell): kept
+    ((10, 1, 10), 3, [7, 14])])
+def test_contiguous_parts_cut_components_only_where_two_cells_stay(cells, parts, expected):
+    """compat.contiguous_parts: each part a run of consecutive cells, the cuts at
+    round(k m / parts) unless a component keeps fewer than 2 cells on a side (then at
+    its nearer end); the expected cuts worked out by hand above."""
+    from dolfin_rod.fem.compat import contiguous_parts
+    first = np.concatenate([[0], np.cumsum(np.asarray(cells) + 1)[:-1]])
+    mesh_cells = np.vstack([f + np.column_stack([np.arange(n), np.arange(1, n + 1)])
+                            for f, n in zip(first, cells)])
+    owners = contiguous_parts(mesh_cells, parts)
+    cuts = [int(i) for i in np.flatnonzero(np.diff(owners)) + 1]
+    assert cuts == expected
+    assert list(np.unique(owners)) == list(range(parts))

@@ -238,6 +238,32 @@ def test_a_second_models_diagnostics_and_reactions_are_its_own(case, monkeypatch
     assert abs(fresh["reaction_force_start_x"]) > 1e-3 * size     # a load reacted
 
 
+@pytest.mark.mpi
+@pytest.mark.parametrize("case", ["dynamic, rotation vectors", "quasi-static creep, quaternions"])
+def test_a_second_model_makes_its_residual_only_when_read(case):
+    """A second model of a structure (other material numbers, another cell count) binds
+    the cached kernels and steps without making its residual's Forms
+    (fem/gathered_form.LazyForms: the kernels' data are taken from the residual's terms);
+    read after the steps, its residual has the signature of the first model's and exactly
+    the Functions and Constants the kernels were bound to."""
+    from dolfin_rod import TimeStepper
+    from dolfin_rod.fem.gathered_form import LazyForms
+
+    first = make(case, VALUES[0], n_cells=4)
+    first.set_initial_state()
+    TimeStepper(first.problem).run(0.0, 0.02, 0.01)
+    second = make(case, VALUES[1], n_cells=6)
+    second.set_initial_state()
+    TimeStepper(second.problem).run(0.0, 0.02, 0.01)
+    lazy = second.problem.residual
+    assert isinstance(lazy, LazyForms) and not lazy.made
+    bound = form_cache.registry(lazy)
+    made = list(lazy)
+    assert lazy.made
+    assert form_cache.registry(made) == bound
+    assert signatures(second) == signatures(first)
+
+
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="signals one process")
 def test_an_interrupt_during_a_compile_waits_for_its_end():
     """FFCx cleans up a failed compile after an Exception only: a KeyboardInterrupt in it

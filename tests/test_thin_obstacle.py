@@ -1,7 +1,10 @@
-"""A node that would jump through a thin obstacle within one step is caught and the step
-cut (issue 26; rod/contact.path_entry, ObstacleContact.check_state; docs/contact.md).
+"""A node or a segment that would pass through a thin obstacle within one step is caught
+and the step cut (issue 26; rod/contact.sweep_entry, ObstacleContact.check_state;
+docs/contact.md).
 
-References: dense sampling of the straight paths (20001 points each) for the path test;
+References: dense sampling of the straight paths (20001 points each) and of the
+segments' sweeps (101 x 101 points, with the Lipschitz bound of the samples' spacing)
+for the sweep test;
 for a rod thrown at a thin cylinder with a step that carries it past the cylinder in
 one step, the same run without the path check (its node jumps through: ends on the far
 side) against the run with it (the node stays on its side, the rod bounces back).
@@ -17,7 +20,7 @@ from dolfin_rod import TimeStepper
 from dolfin_rod.rod import RodModel, RodParameters, StartingState
 from dolfin_rod.rod import contact
 from dolfin_rod.rod.contact import (NP_OPS, ContactLaw, Obstacle, Pose, default_stiffness,
-                                    path_entry, signed_distance)
+                                    make_pose, signed_distance, sweep_entry)
 
 THIN = Obstacle("cylinder", centre=(-0.05, 0.0, 0.1), axis=(0.0, 1.0, 0.0), radius=0.003,
                 length=0.05)
@@ -27,7 +30,7 @@ RADIUS = 0.002
 
 def test_path_entry_against_dense_sampling():
     """400 random straight paths of 0-0.4 m near a thin cylinder and a small sphere:
-    path_entry says a node's path enters an obstacle (signed distance <= 0) exactly when
+    sweep_entry says a node's path enters an obstacle (signed distance <= 0) exactly when
     20001 samples of it do (paths whose least sampled gap lies within 1e-6 m of 0 are left
     out: the samples' spacing, 2e-5 m, cannot decide them); both outcomes occur."""
     rng = np.random.default_rng(5)
@@ -43,10 +46,51 @@ def test_path_entry_against_dense_sampling():
             if abs(least) < 1e-6:
                 continue
             counted += 1
-            found = path_entry([pose], p0[None], p1[None])
+            found = sweep_entry([pose], p0[None], p1[None])
             assert (found is not None) == (least <= 0), (p0, p1, least)
             hits.append(found is not None)
         assert counted > 390 and 0 < sum(hits) < len(hits)
+
+
+def test_sweep_entry_of_segments_against_dense_sampling():
+    """120 random segments (0-0.2 m long) each moving on straight node paths (0-0.2 m)
+    near a thin cylinder, a small sphere and the edge of a mesh box: sweep_entry says the
+    sweep enters the obstacle exactly when 101 x 101 samples of it do, wherever the
+    samples decide it (least sampled d <= 0: it enters; least d above the Lipschitz
+    bound (L_s + L_t) / 200 of the samples' spacing: it does not); both outcomes occur,
+    and sweeps whose nodes' paths all stay outside enter (the case the nodes' check
+    missed)."""
+    rng = np.random.default_rng(7)
+    edge = Obstacle("mesh", vertices=[(x, y, z) for x in (-0.1, 0.0) for y in (-0.2, 0.2)
+                                      for z in (0.0, 0.1)],
+                    triangles=[(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5),
+                               (0, 5, 1), (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4),
+                               (1, 5, 7), (1, 7, 3)])
+    grid = np.linspace(0.0, 1.0, 101)
+    sigma, tau = (g.ravel()[:, None] for g in np.meshgrid(grid, grid))
+    for obstacle in (THIN, BALL, edge):
+        pose = make_pose(obstacle)
+        centre = np.mean(obstacle.surface.vertices, axis=0) if obstacle.shape == "mesh" \
+            else np.asarray(obstacle.centre)
+        decided, hits, between = 0, 0, 0
+        for _ in range(120):
+            A0 = centre + rng.uniform(-0.1, 0.1, 3)
+            B0 = A0 + rng.uniform(-0.1, 0.1, 3)
+            A1, B1 = A0 + rng.uniform(-0.1, 0.1, 3), B0 + rng.uniform(-0.1, 0.1, 3)
+            A = A0 + tau * (A1 - A0)
+            least = np.min(signed_distance(pose, A + sigma * (B0 + tau * (B1 - B0) - A),
+                                           NP_OPS))
+            bound = (max(np.linalg.norm(B0 - A0), np.linalg.norm(B1 - A1))
+                     + max(np.linalg.norm(A1 - A0), np.linalg.norm(B1 - B0))) / 200
+            if 0 < least <= bound:
+                continue
+            decided += 1
+            found = sweep_entry([pose], *(p[None] for p in (A0, A1, B0, B1)))
+            assert (found is not None) == (least <= 0), (A0, A1, B0, B1, least)
+            hits += found is not None
+            between += found is not None and sweep_entry([pose], A0[None], A1[None]) is None \
+                and sweep_entry([pose], B0[None], B1[None]) is None
+        assert decided > 90 and 0 < hits < decided and between > 0, (decided, hits, between)
 
 
 def _thrown(dt: float, t_end: float):
@@ -84,6 +128,50 @@ def test_a_node_does_not_jump_through_a_thin_obstacle(monkeypatch):
     assert stats.rejected > 0
     assert np.all(path > -0.045), path
     assert path[-1] > 0.0
-    monkeypatch.setattr(contact, "path_entry", lambda *args: None)
+    monkeypatch.setattr(contact, "sweep_entry", lambda *args: None)
     through, _ = _thrown(0.1, 0.4)
     assert through[0] < -0.053 and through[-1] == pytest.approx(-0.4, rel=1e-6)
+
+
+def _thrown_across(dt: float, steps: int):
+    """The rod of ``_thrown`` thrown at a thin cylinder that lies between its nodes
+    (z = 0.025, between s = 0 and 0.05): the nodes pass it 2.2 cm away, the segment
+    between them runs into it.  Returns the nodes' x after the last accepted step and
+    the error that stopped the run (None: it ran ``steps`` steps)."""
+    from dolfin_rod.integrators.step_control import IntegrationError
+    params = RodParameters(length=0.2, A=(1e-2,) * 3, B=(10.0,) * 3, density=1.0,
+                           section_inertia=1e-6)
+    law = ContactLaw(RADIUS, 5e-4, default_stiffness(1.0, (1e-2,) * 3, 0.2, 4, dt))
+    across = Obstacle("cylinder", centre=(-0.05, 0.0, 0.025), axis=(0.0, 1.0, 0.0),
+                      radius=0.003, length=0.05)
+    rod = RodModel(params, 4, model="hyperelastic", start="free", end="free",
+                   obstacles=[across], contact=law)
+    rod.set_initial_state(start=StartingState(velocity=(-1.0, 0.0, 0.0)))
+    stepper = TimeStepper(rod.problem)
+    x = rod.unknowns.f["displacement"]
+    try:
+        for k in range(steps):
+            stepper.run(k * dt, (k + 1) * dt, dt)
+    except IntegrationError as err:
+        return x.x.array.reshape(-1, 3)[:, 0].copy(), str(err)
+    return x.x.array.reshape(-1, 3)[:, 0].copy(), None
+
+
+@pytest.mark.mpi
+def test_a_segment_does_not_pass_through_a_thin_obstacle(monkeypatch):
+    """The nodal contact law cannot stop a segment whose nodes go round a thin
+    obstacle; the sweep check refuses every step that carries the segment into it: the
+    steps are cut until the run stops (exit 3 in a scene run) naming the obstacle and
+    the place (s = 0.025), the rod still on the near side (x = -0.046875 > -0.047, the
+    cylinder's near side).  With the nodes' paths checked only (the check before), the
+    rod passes through: x = -0.4 after 0.4 s."""
+    x, error = _thrown_across(0.1, 4)
+    assert error is not None and "passed through obstacles[0]" in error \
+        and "s = 0.025" in error, error
+    assert np.all(x > -0.047)
+    nodes_only = contact.sweep_entry
+    monkeypatch.setattr(contact, "sweep_entry",
+                        lambda poses, A0, A1, B0, B1: nodes_only(poses, np.vstack([A0, B0]),
+                                                                 np.vstack([A1, B1])))
+    x, error = _thrown_across(0.1, 4)
+    assert error is None and x == pytest.approx(-0.4, rel=1e-6)

@@ -7,6 +7,11 @@ pre-buckling deformation's change of the geometry neglected):
 
     K' = K_sigma(m', n') + dK/dt,   m', n' = dm/dy [y'], dn/dy [y'],   K y' = -dR/dt
 
+(a system with hinges adds sum_i F'_i d^2 Phi_i/dz^2: the rate along y' of the forces
+F_i the hinges carry, their "stresses" in P^T K P + sum_i F_i d^2 Phi_i/dz^2 (the exact
+tangent through a hinge, fem/multipoint.py), times the maps' second derivatives at the
+state; the loads' rate at the hinge is in dK/dt)
+
 K_sigma(m', n') = d^2/dy^2 int (m' . u(y) + n' . v(y)) ds is the geometric (initial
 stress) stiffness of the stress rates m', n' along the path's tangent y' (Dirichlet
 rows: the prescribed motion's rate), at the current geometry; dK/dt that of follower
@@ -101,14 +106,22 @@ def _pencil(tangent: TangentStiffness, state: PETSc.Vec, t: float,
         raise ValueError(f"buckling: the loads and prescribed motions do not change at "
                          f"t = {t:g} (nothing to scale: ramp them)")
     stress = _StressStiffness(tangent)
+    hinges = system.curved if isinstance(system, ConstrainedSystem) else []
+    carried = []        # the forces the hinges carry at y +- delta y' (their rate: F')
     try:
         for sign in (1.0, -1.0):
             x = state.copy()
             x.axpy(sign * delta, rate)
             system.set(0, x)
             stress.add_stresses(sign * 0.5 / delta)
+            if hinges:
+                carried.append(system.carried(x))
         system.set(0, state)
         dK = stress.matrix()
+        if hinges:
+            carried[0].axpy(-1.0, carried[1])
+            carried[0].scale(0.5 / delta)
+            system.add_map_forces(dK, hinges, carried[0])
         K = tangent.matrix(t)
         earlier = tangent.matrix(t - delta)        # follower loads: dK/dt (else 0)
         earlier.aypx(-1.0, K)

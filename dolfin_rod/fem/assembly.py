@@ -110,7 +110,7 @@ class _System:
         # rank zeroes only its own (owned) rows: no rendezvous (BuildTwoSided) per Jacobian
         A.setOption(PETSc.Mat.Option.SUBSET_OFF_PROC_ENTRIES, True)
         A.setOption(PETSc.Mat.Option.NO_OFF_PROC_ZERO_ROWS, True)
-        if self.terms:
+        if any(hasattr(term, "add_jacobian") for term in self.terms):
             A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
 
     def add_terms(self, terms) -> None:
@@ -121,18 +121,30 @@ class _System:
         system then grows A's sparsity, ``pattern_changes`` counts it, and a solver
         that keeps a factorisation of A must set it up anew: under MPI PETSc's nonzero
         state of A does not always show the change) and add_jacobian(A) (global rows,
-        before A.assemble())."""
+        before A.assemble()); a term may instead (or also) have prepare(x_owned), called
+        before the forms are assembled at x (a mesh obstacle's features, rod/contact.py),
+        and add nothing."""
         self.terms = tuple(term.bind(self) for term in terms)
         self._set_matrix_options(self.A)
+
+    def _prepare_terms(self, x) -> None:
+        if self.terms:
+            xa = x.getArray(readonly=True)
+            for term in self.terms:
+                if hasattr(term, "prepare"):
+                    term.prepare(xa)
 
     def _add_terms_to_residual(self, x, b) -> None:
         if self.terms:
             xa, ba = x.getArray(readonly=True), b.getArray()
             for term in self.terms:
-                term.add_residual(xa, ba)
+                if hasattr(term, "add_residual"):
+                    term.add_residual(xa, ba)
 
     def _add_terms_to_jacobian(self, A) -> None:
         for term in self.terms:
+            if not hasattr(term, "add_jacobian"):
+                continue
             entries = term.missing_entries()
             if entries is not None:
                 A.assemble()
@@ -265,6 +277,7 @@ class MonolithicSystem(_System):
 
     def residual(self, x, b, bc_values=None) -> None:
         """b = F(x), Dirichlet rows x - g (g: ``bc_values`` if given, else bc_values())."""
+        self._prepare_terms(x)
         with b.localForm() as bl:
             bl.set(0.0)
         for form in self.F:
@@ -312,6 +325,7 @@ class BlockedSystem(_System):
         compat.functions_to_block_vector(self.groups[k], x)
 
     def residual(self, x, b, bc_values=None) -> None:
+        self._prepare_terms(x)
         with b.localForm() as bl:
             bl.set(0.0)
         compat.assemble_block_vector(b, self.F, self.J)

@@ -134,8 +134,9 @@ def real_space(mesh, shape: tuple[int, ...] = ()) -> fem.FunctionSpace:
 
 def interval_components(comm, nodes, cells) -> dolfinx.mesh.Mesh:
     """An interval mesh of several components: node coordinates (n,) and cells (m, 2) of
-    vertex indices, given on rank 0 and distributed (ghosted across shared facets, as
-    ``create_interval``)."""
+    vertex indices, given on rank 0 in order along each component, and distributed in
+    contiguous pieces (contiguous_parts), ghosted across shared facets as
+    ``create_interval``."""
     import basix.ufl
     import numpy as np
     import ufl
@@ -144,12 +145,45 @@ def interval_components(comm, nodes, cells) -> dolfinx.mesh.Mesh:
         x, c = np.asarray(nodes, float).reshape(-1, 1), np.asarray(cells, np.int64)
     else:
         x, c = np.zeros((0, 1)), np.zeros((0, 2), dtype=np.int64)
+    owners = contiguous_parts(c, comm.size)
     ghosts = dolfinx.mesh.GhostMode.shared_facet
+
+    def part(_comm, _nparts, graph, ghosting):
+        """Each local cell's owner, then (ghosting) the other owners of its neighbours."""
+        links = [[owners[i]] + (sorted({owners[j] for j in graph.links(i)} - {owners[i]})
+                                if ghosting else []) for i in range(graph.num_nodes)]
+        offsets = np.cumsum([0] + [len(row) for row in links], dtype=np.int32)
+        return dolfinx.cpp.graph.AdjacencyList_int32(
+            np.array([r for row in links for r in row], dtype=np.int32), offsets)
+
+    if comm.size == 1:
+        partitioner = dolfinx.mesh.create_cell_partitioner(ghosts, *(() if _BLOCK_ASSEMBLERS
+                                                                     else (2,)))
+    else:
+        partitioner = dolfinx.cpp.mesh.create_cell_partitioner(
+            part, ghosts, *(() if _BLOCK_ASSEMBLERS else (2,)))
     if _BLOCK_ASSEMBLERS:
-        return dolfinx.mesh.create_mesh(
-            comm, c, x, domain, partitioner=dolfinx.mesh.create_cell_partitioner(ghosts))
-    return dolfinx.mesh.create_mesh(
-        comm, c, domain, x, partitioner=dolfinx.mesh.create_cell_partitioner(ghosts, 2))
+        return dolfinx.mesh.create_mesh(comm, c, x, domain, partitioner=partitioner)
+    return dolfinx.mesh.create_mesh(comm, c, domain, x, partitioner=partitioner)
+
+
+def contiguous_parts(cells, n_parts: int):
+    """The part of each cell (m, 2) of a mesh whose components are runs of consecutive
+    cells: n_parts runs of nearly equal length, each cut moved to its component's end
+    where it would leave fewer than 2 cells of the component on one side (a rank with
+    one cell of a component cannot hold its Dirichlet dofs: fem/assembly.py)."""
+    import numpy as np
+    m = len(cells)
+    breaks = [0] + [i for i in range(1, m) if cells[i][0] != cells[i - 1][1]] + [m]
+    cuts = []
+    for k in range(1, n_parts):
+        cut = round(k * m / n_parts)
+        b0 = max(b for b in breaks if b <= cut)
+        b1 = min(b for b in breaks if b >= cut)
+        if 0 < cut - b0 < 2 or 0 < b1 - cut < 2:
+            cut = b0 if cut - b0 <= b1 - cut else b1
+        cuts.append(cut)
+    return np.searchsorted(np.array(cuts), np.arange(m), side="right")
 
 
 def linear_problem(a, L, bcs, u: fem.Function, petsc_options: dict):

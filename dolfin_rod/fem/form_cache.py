@@ -52,6 +52,7 @@ from dolfinx.fem.forms import form_cpp_class
 from mpi4py import MPI
 
 from . import compat, compile_notice
+from .gathered_form import LazyForms
 
 _ENTRIES: dict[str, list] = {}
 _MODULES: dict[str, object] = {}
@@ -141,11 +142,15 @@ class Kernel:
 
 
 def registry(forms) -> list:
-    """The Functions and Constants of ``forms`` in creation order (UFL count)."""
-    objs = set()
-    for form in forms:
-        objs.update(form.coefficients())
-        objs.update(form.constants())
+    """The Functions and Constants of ``forms`` in creation order (UFL count); of
+    gathered_form.LazyForms without making them."""
+    if isinstance(forms, LazyForms):
+        objs = set(forms.data)
+    else:
+        objs = set()
+        for form in forms:
+            objs.update(form.coefficients())
+            objs.update(form.constants())
     return sorted(objs, key=lambda c: (isinstance(c, ufl.Constant), c.count()))
 
 

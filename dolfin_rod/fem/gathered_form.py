@@ -11,11 +11,20 @@ work's).
 UFL sorts a Form's integrals canonically and ``a - b`` is ``a + (-b)``, integral by
 integral, so the Form is the one the chain of sums gives (the same signature, the same
 kernels).
+
+``LazyForms``: block residuals made when first read.  A model binds its compiled kernels
+by the Functions and Constants of its residual (fem/form_cache.registry), which are those
+of its terms before the last rewriting (a rod's one-point rule), found by one traversal;
+a second model of a structure whose kernels are cached never makes the Forms unless
+something reads them (a new compile, an analysis, the reactions).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+
 import ufl
+from ufl.corealg.traversal import traverse_unique_terminals
 
 
 class GatheredForm:
@@ -54,3 +63,36 @@ class GatheredForm:
 def as_form(form) -> ufl.Form:
     """A ufl.Form of a GatheredForm or a ufl.Form."""
     return form.form() if isinstance(form, GatheredForm) else form
+
+
+def data_of(integrals) -> set:
+    """The Functions and Constants (ufl.Coefficient, ufl.Constant) in ``integrals``' integrands:
+    one traversal of their shared expressions (those of a Form's ``coefficients()`` and
+    ``constants()``)."""
+    seen: set = set()
+    return {t for itg in integrals for t in traverse_unique_terminals(itg.integrand(), seen)
+            if isinstance(t, (ufl.Coefficient, ufl.Constant))}
+
+
+class LazyForms(Sequence):
+    """A list of ``count`` ufl.Forms that ``make()`` returns, called at the first read of a
+    form; ``data``: the Functions and Constants the forms will have (data_of), known
+    before they are made."""
+
+    def __init__(self, make: Callable[[], list[ufl.Form]], count: int, data: set):
+        self._make, self._count, self.data = make, count, frozenset(data)
+        self._forms: list[ufl.Form] | None = None
+
+    def __len__(self) -> int:
+        return self._count
+
+    def __getitem__(self, index):
+        if self._forms is None:
+            self._forms = list(self._make())
+            self._make = None
+        return self._forms[index]
+
+    @property
+    def made(self) -> bool:
+        """Whether the forms were made (read)."""
+        return self._forms is not None

@@ -34,6 +34,10 @@ unit ``axis`` only, y = y_0 + a axis (a support sliding along an axis that is no
 coordinate axis, or turning about one: rod/boundary_conditions.py).  Its component j of
 largest |axis_j| stays free and the others are its slaves, y_i = (axis_i/axis_j) y_j
 (+ the offset across the axis the state has when a solve starts, as a NodeLink's).
+A ``NodePlane`` is its complement: the node's values stay in the plane normal . y =
+normal . y_0 (one condition: the component of largest |normal_j| is the slave of the
+others, y_j = -sum_i (normal_i/normal_j) y_i + offset; a quaternion's spin about its
+director d3 held at one node, rod/boundary_conditions.py).
 """
 
 from __future__ import annotations
@@ -44,7 +48,7 @@ import dolfinx.fem as fem
 import numpy as np
 from petsc4py import PETSc
 
-__all__ = ["NodeLink", "NodeLine", "NodeMap", "ConstrainedSystem"]
+__all__ = ["NodeLink", "NodeLine", "NodePlane", "NodeMap", "ConstrainedSystem"]
 
 
 @dataclass(frozen=True)
@@ -59,13 +63,11 @@ class NodeLink:
 
 
 @dataclass(frozen=True)
-class NodeLine:
-    """The values of block ``block`` at the node s move along the unit ``axis`` only (see
-    module)."""
+class _OneNode:
+    """A link among the values of block ``block`` at one node s (master and slave)."""
 
     block: int
     s: float
-    axis: tuple
 
     @property
     def master_s(self) -> float:
@@ -73,11 +75,33 @@ class NodeLine:
 
     slave_s = master_s
 
+
+@dataclass(frozen=True)
+class NodeLine(_OneNode):
+    """The values of block ``block`` at the node s move along the unit ``axis`` only (see
+    module)."""
+
+    axis: tuple
+
     def weights(self) -> dict[int, dict[int, float]]:
         """{slave component i: {master component j: axis_i/axis_j}}."""
         a = np.asarray(self.axis, float)
         j = int(np.argmax(np.abs(a)))
         return {i: {j: a[i] / a[j]} for i in range(len(a)) if i != j}
+
+
+@dataclass(frozen=True)
+class NodePlane(_OneNode):
+    """The values of block ``block`` at the node s stay in the plane of ``normal`` (see
+    module)."""
+
+    normal: tuple
+
+    def weights(self) -> dict[int, dict[int, float]]:
+        """{slave component j: {component i: -normal_i/normal_j}}."""
+        c = np.asarray(self.normal, float)
+        j = int(np.argmax(np.abs(c)))
+        return {j: {i: -c[i] / c[j] for i in range(len(c)) if i != j and c[i] != 0.0}}
 
 
 @dataclass(frozen=True)
@@ -118,9 +142,9 @@ def node_rows(inner, fields: list, links: list) -> dict[tuple, int]:
     return {(k, side, i): r for part in comm.allgather(found) for k, side, i, r in part}
 
 
-def _weights(link: NodeLink | NodeLine) -> dict[int, dict[int, float]]:
+def _weights(link: NodeLink | NodeLine | NodePlane) -> dict[int, dict[int, float]]:
     """{slave component i: {master component j: weight}} of a linear link."""
-    if isinstance(link, NodeLine):
+    if isinstance(link, _OneNode):
         return link.weights()
     T = np.asarray(link.matrix, float)
     return {i: {j: T[i, j] for j in range(T.shape[1]) if T[i, j] != 0.0}
@@ -186,7 +210,8 @@ class ConstrainedSystem:
 
     def __init__(self, inner, fields: list, links: list):
         self.inner, self.groups = inner, inner.groups
-        self.terms = tuple(_ReducedTerm(self, term) for term in inner.terms)
+        self.terms = tuple(_ReducedTerm(self, term) for term in inner.terms
+                           if hasattr(term, "step_factor"))     # those that add entries
         comm = inner.x.getComm()
         self._mpi = mpi = comm.tompi4py()
         start, stop = inner.x.getOwnershipRange()
@@ -240,6 +265,7 @@ class ConstrainedSystem:
         self.x, self.b = P.createVecRight(), P.createVecRight()
         self._y, self._c, self._b = P.createVecLeft(), P.createVecLeft(), inner.b.duplicate()
         self._c.set(0.0)
+        self._forces_current = False    # self._b: F at the state of the last set?
         self._slave_values = []
         if self.maps:
             self.get(0, self.x)        # the maps' derivatives at the fields' state
@@ -279,6 +305,7 @@ class ConstrainedSystem:
 
     def set(self, k: int, z, blocks: bool = True) -> None:
         """Reduced vector -> y = Phi(z) + c -> group k."""
+        self._forces_current = False
         self._prolong(z)
         self.inner.set(k, self._y, blocks)
 
@@ -286,6 +313,7 @@ class ConstrainedSystem:
         """Group k -> y -> z = R y (the maps' own parameters fitted to y); the offset
         c = y - P z of the linear slaves kept (0 on the maps' rows); the maps' laws
         refreshed (a solve starts)."""
+        self._forces_current = False
         for m in self.maps:
             m.law.refresh()
         self.inner.get(k, self._y)
@@ -312,9 +340,11 @@ class ConstrainedSystem:
         return self.inner.bc_values()
 
     def residual(self, z, b, bc_values=None) -> None:
-        """b = P^T F(Phi(z) + c) (after ``set`` with the same z, as BlockSNES does)."""
+        """b = P^T F(Phi(z) + c) (after ``set`` with the same z, as BlockSNES does); F
+        kept for the Jacobian's curvature at this z (``_add_curvature``)."""
         self._prolong(z)
         self.inner.residual(self._y, self._b, bc_values)
+        self._forces_current = True
         self.P.multTranspose(self._b, b)
 
     def jacobian(self, A) -> None:
@@ -325,9 +355,21 @@ class ConstrainedSystem:
             self._insert_product(A)
         else:
             self.inner.A.PtAP(self.P, result=A)
-        curved = [m for m in self.maps if m.exact]
-        if curved:
-            self._add_curvature(A, curved)
+        if self.curved:
+            self._add_curvature(A, self.curved)
+
+    @property
+    def curved(self) -> list:
+        """The maps of the exact laws (their curvature is in the Jacobian)."""
+        return [m for m in self.maps if m.exact]
+
+    def carried(self, z) -> PETSc.Vec:
+        """A copy of the inner residual F(Phi(z) + c) (after ``set`` with the same z): its
+        slave rows are the forces the links carry."""
+        self._prolong(z)
+        self.inner.residual(self._y, self._b)
+        self._forces_current = True
+        return self._b.copy()
 
     def _insert_product(self, A) -> None:
         """A = P^T J P formed anew and inserted: J's pattern may have grown (pairs)."""
@@ -345,16 +387,26 @@ class ConstrainedSystem:
 
     def _add_curvature(self, A, maps: list) -> None:
         """A += sum_i F_i d^2 slave_i/d(arguments)^2 on each map's columns, F the inner
-        residual at y = Phi(z) + c (its slave rows: the force the map transmits)."""
-        self.inner.residual(self._y, self._b)
-        forces = self._values(self._b, [r for m in maps for r in m.slaves])
+        residual at y = Phi(z) + c (its slave rows: the force the map transmits): that of
+        the last ``residual`` if no ``set`` came after it (Newton: the residual, then the
+        Jacobian at the same iterate and loads), else assembled here."""
+        if not self._forces_current:
+            self.inner.residual(self._y, self._b)
+            self._forces_current = True
+        self.add_map_forces(A, maps, self._b)
+
+    def add_map_forces(self, A, maps: list, F) -> None:
+        """A += sum_i F_i d^2 slave_i/d(arguments)^2 on each map's columns, F a vector of
+        the inner system's layout (its slave rows used) and the maps' arguments those of
+        the last ``set``."""
+        forces = self._values(F, [r for m in maps for r in m.slaves])
         for m in maps:
             if not m.owned:
                 continue
             n = len(m.masters)
             H = m.law.curvature(m.arguments[:n], m.arguments[n:])
-            F = np.array([forces[r] for r in m.slaves])
-            A.setValues(m.columns, m.columns, np.einsum("i,ikl->kl", F, H).ravel(),
+            carried = np.array([forces[r] for r in m.slaves])
+            A.setValues(m.columns, m.columns, np.einsum("i,ikl->kl", carried, H).ravel(),
                         addv=PETSc.InsertMode.ADD_VALUES)
         A.assemble()
 

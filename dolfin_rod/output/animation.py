@@ -51,7 +51,8 @@ class Look:
     colour: str = "auto"
     supports: dict = field(default_factory=dict)
     gravity: tuple | None = None
-    obstacles: tuple = ()       # the scene's [[obstacles]] tables (planes, spheres drawn)
+    obstacles: tuple = ()       # the scene's [[obstacles]] tables (planes, spheres and
+    #                             meshes drawn; a mesh's with its triangles' "corners")
 
     @classmethod
     def of(cls, scene, colour: str | None = None) -> Look:
@@ -61,7 +62,8 @@ class Look:
         supports = tuple(ends(r.scene["boundary"]) for r in scene.rods) if scene.rods \
             else ends(scene["boundary"])
         return cls(colour or scene["outputs"]["color"], supports,
-                   scene["loads"].get("gravity"), tuple(scene["obstacles"]))
+                   scene["loads"].get("gravity"), tuple(map(_drawn(scene),
+                                                            scene["obstacles"])))
 
 
 class FrameStore:
@@ -257,12 +259,32 @@ def plane_patch(box, point, normal) -> np.ndarray:
     return foot + a[..., None] * t1 + b[..., None] * t2
 
 
+def _drawn(scene):
+    """An [[obstacles]] table as drawn: a mesh's with the corners (m, 3, 3) of its placed
+    triangles."""
+    from ..scenes.contact import mesh_surface
+
+    def drawn(ob: dict) -> dict:
+        if ob["shape"] != "mesh":
+            return ob
+        surface = mesh_surface(scene, ob)
+        return {**ob, "corners": surface.vertices[surface.triangles]}
+    return drawn
+
+
 def draw_obstacles(ax, box, obstacles) -> None:
     """Planes as a grey square of the box's size about the point nearest the box's
-    centre, spheres as a grey wire sphere (drawn once, in the background); cylinders are
-    not drawn."""
+    centre, spheres as a grey wire sphere, meshes as their grey triangles that have a
+    corner in the box (drawn once, in the background); cylinders are not drawn."""
     grey = {"color": (0.5, 0.5, 0.5), "alpha": 0.25}
     for ob in obstacles:
+        if ob["shape"] == "mesh":
+            from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+            lo, hi = (np.asarray(b, float) for b in box)
+            inside = np.all((ob["corners"] >= lo) & (ob["corners"] <= hi), axis=2).any(1)
+            ax.add_collection3d(Poly3DCollection(
+                ob["corners"][inside], facecolor=(0.5, 0.5, 0.5, 0.25),
+                edgecolor=(0.4, 0.4, 0.4, 0.4), linewidth=0.3))
         if ob["shape"] == "plane":
             corners = plane_patch(box, ob["point"], ob["normal"])
             ax.plot_surface(*np.moveaxis(corners, -1, 0), linewidth=0, **grey)

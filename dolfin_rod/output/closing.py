@@ -79,9 +79,12 @@ def final_values(rows: list[dict], scene) -> list[str]:
         elif panel == "reactions":
             lines += [_reaction(last, rod, name, u)
                       for rod, name in _rods(last, "reaction_force_start_x")]
-        elif panel == "twist":
+        elif panel == "twist" and "end_rotation" in last:
             lines.append(f"end rotation phi(1) {last['end_rotation']:.4g}, mean natural twist "
                          f"{last['mean_natural_twist']:.4g}")
+        elif panel == "twist" and "writhe" in last:     # a self-contact rod's Tw and Wr
+            lines.append(f"twist Tw {last['twist']:.4g}, writhe Wr {last['writhe']:.4g}, "
+                         f"Tw + Wr {last['twist'] + last['writhe']:.4g} turns")
         elif panel == "energy":
             lines.append(f"K + Psi {last['free_energy'] + last['kinetic_energy']:.4g}"
                          f"{u('energy')}, dissipated {last['total_dissipation']:.4g}"

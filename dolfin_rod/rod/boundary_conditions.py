@@ -54,7 +54,7 @@ from .. import loads
 from ..checks import is_coordinate_axis, slide_axis_problem
 from ..fem import form_cache
 from ..fem.fe_model import ENDS, NodeValues, compiled_near_nodes, nodal_residual
-from ..fem.multipoint import NodeLine
+from ..fem.multipoint import NodeLine, NodePlane
 from ..theory.rotations import (conj, np_qmul, np_quaternion_from_rotation_vector,
                                 np_rotation_matrix, qmul, vec)
 from .rotation_vector import np_inverse_cayley
@@ -169,9 +169,19 @@ def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:
     holds the spin about d3 at s = 0 (rotation vectors: theta_3 = 0 there), which adds no
     couple where that mode has zero energy (the reaction is the residual along it, 0);
     where it has energy (anisotropic sections, a natural curvature) it is a torsional
-    support at s = 0."""
+    support at s = 0.  Quaternions: the twist of the start's rotation relative to its
+    stress-free one r held (``spin_normal``)."""
     return tuple(ends) == ("pinned", "pinned") and not (end_rotation or end_turn
                                                           or end_springs)
+
+
+def spin_normal(r: np.ndarray) -> np.ndarray:
+    """n with n . q = (conj(r) q)_3: the material e_3 component of the rotation q
+    relative to r (scalar first).  n . q = 0 is the rotation from r without twist about
+    d3 (its swing-twist decomposition: conj(r) q = swing twist, (conj(r) q)_3 = swing_0
+    twist_3, zero exactly when the twist is, for swings below pi): holding n . q at its
+    start value removes the spin about d3 from the node's rotations, linearly."""
+    return np.array([-r[3], r[2], -r[1], r[0]])
 
 
 class HeldComponents:
@@ -245,10 +255,14 @@ class EndSupports:
                 const = fem.Constant(mesh, np.zeros(shape) if shape else 0.0)
                 self.values[(block, end)] = const
                 model.dirichlet_at(block, spaces[block], self.s_ends[end], const)
-        if "rotation_increment" in spaces and not model.dynamic and spin_free(
-                ends, self.rotation, self.turn, self.springs):   # quasi-static: a null mode
-            model.dirichlet_at(self.block, spaces[self.block], self.s_ends["start"],
-                               fem.Constant(mesh, 0.0), component=2)
+        self.spin_plane = None      # quaternions: the start's twist held (``links``)
+        if not model.dynamic and spin_free(ends, self.rotation, self.turn, self.springs):
+            if "rotation_increment" in spaces:      # quasi-static: a null mode
+                model.dirichlet_at(self.block, spaces[self.block], self.s_ends["start"],
+                                   fem.Constant(mesh, 0.0), component=2)
+            else:
+                self.spin_plane = spin_normal(np.asarray((end_frames or {}).get(
+                    "start", _IDENTITY), float))
         unk = model.unknowns     # a turning end's rotation (reactions): nodal values
         self._rotations = unk.f["quaternion"] if unk.chart is None else unk.chart.q_n
         self._turned = {end: NodeValues(self._rotations.function_space, [self.s_ends[end]])
@@ -272,8 +286,12 @@ class EndSupports:
     def links(self, blocks: list[str]) -> list[NodeLine]:
         """The one-node links of the supports on axes that are not coordinate axes
         (``linked_axes``), for a model whose blocks are ``blocks``."""
-        return [NodeLine(blocks.index(block), self.s_ends[end], tuple(axis.tolist()))
-                for (block, end), axis in self.linked.items()]
+        lines = [NodeLine(blocks.index(block), self.s_ends[end], tuple(axis.tolist()))
+                 for (block, end), axis in self.linked.items()]
+        if self.spin_plane is None:
+            return lines
+        return lines + [NodePlane(blocks.index("quaternion"), self.s_ends["start"],
+                                  tuple(self.spin_plane.tolist()))]
 
     def _end_rotation(self, end: str, t: float) -> np.ndarray:
         """The end's rotation now: prescribed, or of the state at a turning end."""

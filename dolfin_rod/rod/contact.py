@@ -1,5 +1,5 @@
 """Contact of the rod with rigid obstacles (issue 26; docs/contact.md): planes
-(half-spaces), spheres and finite cylinders touching the rod's centre line thickened by
+(half-spaces), spheres, finite cylinders and triangle meshes (triangle_mesh.py) touching the rod's centre line thickened by
 its radius r, with a smooth barrier of stated gap delta and Coulomb friction.
 
 Gap of a centre-line point p to obstacle k: g_k(p) = d_k(p) - r, d_k the signed distance
@@ -23,6 +23,7 @@ K + Psi in the power balance, the friction's power -f_t . v_t >= 0 the dissipati
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from dataclasses import dataclass
@@ -34,11 +35,12 @@ import ufl
 
 from ..fem import compat
 from ..checks import nonnegative, positive, sample_points
+from .triangle_mesh import FACE, MeshError, Surface, placed_surface
 
-SHAPES = ("plane", "sphere", "cylinder")
+SHAPES = ("plane", "sphere", "cylinder", "mesh")
 XI_MIN = 1e-4             # g_min / delta: the barrier's exact range is [g_min, delta]
 BARRIER_CURVATURE = 2 * math.log(2) + 5.0   # b''(delta / 2) (dimensionless)
-PATH_DEPTH = 24           # bisections of a node's path in a step (path_entry)
+SWEEP_DEPTH = 48          # halvings of a segment's sweep in a step (sweep_entry)
 
 
 class InitialOverlap(ValueError):
@@ -54,7 +56,10 @@ class Obstacle:
     """A rigid obstacle, in the keys of a scene's [[obstacles]]: ``shape`` "plane" (the
     half-space behind ``point`` against the outward ``normal``), "sphere" (``radius``
     around ``centre``) or "cylinder" (``radius``, ``length`` along ``axis`` through its
-    ``centre``); ``friction`` the Coulomb coefficient mu >= 0.  Deprecated (this
+    ``centre``) or "mesh" (a triangle surface: ``file``, an STL or OBJ file, or
+    ``vertices`` and ``triangles``, placed by x = centre + R(rotation) scale v, rotation a
+    rotation vector; triangle_mesh.py); ``friction`` the Coulomb coefficient mu >= 0.
+    Deprecated (this
     release only): a sphere's or cylinder's centre as ``point``, a plane's normal as
     ``axis`` (the meaning they had), with a DeprecationWarning."""
 
@@ -65,11 +70,16 @@ class Obstacle:
     length: float = 0.0
     friction: float = 0.0
     normal: Sequence[float] | None = None      # plane: the outward normal
-    centre: Sequence[float] | None = None      # sphere, cylinder: the centre
+    centre: Sequence[float] | None = None      # sphere, cylinder: the centre; mesh: its
+    file: str | None = None                    # mesh: an STL or OBJ file      # offset
+    vertices: Sequence | None = None           # mesh: (n, 3) points, or from the file
+    triangles: Sequence | None = None          # mesh: (m, 3) vertex indices
+    rotation: Sequence[float] | None = None    # mesh: a rotation vector (radians)
+    scale: float = 1.0                         # mesh: a factor on the vertices
 
     def __post_init__(self):
         old, new = ("axis", "normal") if self.shape == "plane" else ("point", "centre")
-        if getattr(self, old) is not None:
+        if self.shape != "mesh" and getattr(self, old) is not None:
             if getattr(self, new) is not None:
                 raise TypeError(f"Obstacle: give {new} or the deprecated {old}, not both")
             warnings.warn(f"Obstacle: a {self.shape}'s {old!r} is deprecated and goes in "
@@ -84,11 +94,20 @@ class Obstacle:
         where = self.point if self.shape == "plane" else self.centre
         return (0.0, 0.0, 0.0) if where is None else where
 
+    @functools.cached_property
+    def surface(self) -> Surface:
+        """A mesh's checked and placed surface (MeshError naming the key at fault)."""
+        return placed_surface(self.file, self.vertices, self.triangles, self.centre,
+                              self.rotation, self.scale)
+
     @property
     def direction(self) -> Sequence[float]:
         """The plane's normal or the cylinder's axis (e_3 if not given)."""
         direction = self.normal if self.shape == "plane" else self.axis
         return (0.0, 0.0, 1.0) if direction is None else direction
+
+
+PAIR_CURVES = ("segments", "smooth")     # pair_contact.py, smooth_pairs.py
 
 
 @dataclass
@@ -109,6 +128,7 @@ class ContactLaw:
     between_rods: bool = False      # pairs of segments of different rods of a system
     self_friction: float = 0.0      # Coulomb's mu of self-contact (pair_friction.py)
     between_rods_friction: float = 0.0      # ... of contact between rods
+    pair_curve: str = "segments"    # the pairs' curves: "segments" | "smooth" (C^1)
     self_contact: bool | None = None        # deprecated: self
 
     def __post_init__(self):
@@ -130,6 +150,9 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
     positive("contact.slip_tolerance", law.slip_tolerance)
     nonnegative("contact.self_friction", law.self_friction)
     nonnegative("contact.between_rods_friction", law.between_rods_friction)
+    if law.pair_curve not in PAIR_CURVES:
+        raise ValueError(f"contact.pair_curve must be one of {', '.join(PAIR_CURVES)}, got "
+                         f"{law.pair_curve!r}")
     if law.gap >= law.radius:
         raise ValueError(f"contact.gap must be < contact.radius ({law.radius:g}): the "
                          f"barrier acts within delta of the surface, got {law.gap:g}")
@@ -139,6 +162,13 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
             raise ValueError(f"{name}.shape must be one of {', '.join(SHAPES)}, got "
                              f"{ob.shape!r}")
         nonnegative(f"{name}.friction", ob.friction)
+        if ob.shape == "mesh":
+            positive(f"{name}.scale", ob.scale)
+            try:
+                ob.surface
+            except MeshError as err:
+                raise ValueError(f"{name}.{err.key}: {err}") from None
+            continue
         keys = ("point", "normal") if ob.shape == "plane" else ("centre", "axis")
         if np.shape(ob.where) != (3,) or np.shape(ob.direction) != (3,):
             raise ValueError(f"{name}: {' and '.join(keys)} must be 3-vectors")
@@ -203,9 +233,56 @@ class Pose:
                     fem.Constant(mesh, np.asarray(value, dtype=float)))
 
 
-def signed_distance(pose: Pose, p, ops: _Ops = UFL_OPS):
+class MeshPose:
+    """A mesh obstacle's surface (numbers), or (on ``mesh``, the rod's) its nodes'
+    closest features as P1 fields, set by ``locate`` from the nodes' points: the contact
+    law's signed distance d = n . (p - a) (a face), s |(p - a) - ((p - a) . e) e| (an edge
+    of direction e; e = 0 for a vertex), triangle_mesh.Features."""
+
+    shape = "mesh"
+
+    def __init__(self, ob: Obstacle, mesh=None):
+        self.surface = ob.surface
+        self.friction = float(ob.friction) if mesh is None else fem.Constant(
+            mesh, float(ob.friction))
+        if mesh is None:
+            return
+        V3, V1 = (fem.functionspace(mesh, ("Lagrange", 1, shape)) for shape in ((3,), ()))
+        self.anchor, self.normal, self.direction = (fem.Function(V3) for _ in range(3))
+        self.on_face, self.sign = fem.Function(V1), fem.Function(V1)
+        self.fields = (self.anchor, self.normal, self.direction, self.on_face, self.sign)
+
+    def locate(self, points: np.ndarray) -> None:
+        """The fields at the owned nodes' ``points`` (n, 3): their closest features."""
+        f = self.surface.features(points)
+        edge = (f.kind == 1)[:, None]
+        for field, value in ((self.anchor, f.anchor), (self.normal, f.normal),
+                             (self.direction, np.where(edge, f.direction, 0.0)),
+                             (self.on_face, (f.kind == FACE).astype(float)),
+                             (self.sign, f.sign)):
+            field.x.array[: value.size] = value.ravel()
+            field.x.scatter_forward()
+
+    def distance(self, p, ops: _Ops):
+        if ops is NP_OPS:
+            return self.surface.signed_distance(p)
+        d = p - self.anchor
+        face = ufl.gt(self.on_face, 0.5)
+        off = ufl.dot(d, d) - ufl.dot(d, self.direction) ** 2
+        return ufl.conditional(face, ufl.dot(self.normal, d),
+                               self.sign * ufl.sqrt(ufl.conditional(face, 1.0, off)))
+
+
+def make_pose(ob: Obstacle, mesh=None) -> Pose | MeshPose:
+    """The obstacle's Pose (a mesh's MeshPose), as numbers or on ``mesh``."""
+    return MeshPose(ob, mesh) if ob.shape == "mesh" else Pose(ob, mesh)
+
+
+def signed_distance(pose: Pose | MeshPose, p, ops: _Ops = UFL_OPS):
     """Distance of the point p (UFL 3-vector, or numpy (n, 3)) to the obstacle's surface,
     negative inside."""
+    if pose.shape == "mesh":
+        return pose.distance(p, ops)
     d, a = p - pose.point, pose.axis
     if pose.shape == "plane":
         return ops.dot(d, a)
@@ -220,34 +297,44 @@ def signed_distance(pose: Pose, p, ops: _Ops = UFL_OPS):
     return ops.where(inside, ops.max(e_r, e_z), ops.sqrt(ops.where(inside, 1.0, outside)))
 
 
-def path_entry(poses: Sequence[Pose], P0: np.ndarray, P1: np.ndarray):
-    """(node, obstacle) of a node whose straight path P0 -> P1 ((n, 3) each) enters an
-    obstacle (numpy poses: signed distance d <= 0), or None.  d is 1-Lipschitz in the
-    point, so on [a, b] of the path's parameter it stays > 0 if d(a) + d(b) > |P1 - P0|
-    (b - a); other intervals are bisected (PATH_DEPTH times at most; still open after
-    them: counted as an entry).  (The body, not the body thickened by the rod's radius:
-    a node sliding on a curved obstacle at a small gap has chords that cut into the
-    gap, not into the body.)"""
-    move = np.linalg.norm(P1 - P0, axis=1)
+def sweep_entry(poses: Sequence[Pose | MeshPose], A0: np.ndarray, A1: np.ndarray,
+                B0: np.ndarray | None = None, B1: np.ndarray | None = None):
+    """(segment, obstacle) of a segment whose straight sweep enters an obstacle (numpy
+    poses: signed distance d <= 0 somewhere), or None: segment i runs from A(tau) to
+    B(tau) with A(tau) = A0 + tau (A1 - A0) (each (n, 3); B as A if not given: the
+    nodes' paths), its points p(sigma, tau) = A + sigma (B - A) for sigma, tau in
+    [0, 1].  d is 1-Lipschitz in the point and |dp/dsigma| <= L_s = max(|B0 - A0|,
+    |B1 - A1|) (|B - A| is convex in tau), |dp/dtau| <= L_t = max(|A1 - A0|, |B1 - B0|),
+    so on a rectangle of the (sigma, tau) square d stays > 0 if d at its centre exceeds
+    (L_s dsigma + L_t dtau) / 2; other rectangles are halved along their longer side
+    (in those bounds), SWEEP_DEPTH times at most (still open after them: counted as an
+    entry).  (The body, not the body thickened by the rod's radius: a rod sliding on a
+    curved obstacle at a small gap has chords that cut into the gap, not into the
+    body.)"""
+    B0, B1 = (A0, A1) if B0 is None else (B0, B1)
+    L_s = np.maximum(np.linalg.norm(B0 - A0, axis=1), np.linalg.norm(B1 - A1, axis=1))
+    L_t = np.maximum(np.linalg.norm(A1 - A0, axis=1), np.linalg.norm(B1 - B0, axis=1))
     for k, pose in enumerate(poses):
-        def gap(tau, i):
-            point = P0[i] + tau[:, None] * (P1 - P0)[i]
-            return signed_distance(pose, point, NP_OPS)
-        idx = np.arange(len(P0))
-        a, b = np.zeros(len(idx)), np.ones(len(idx))
-        ga, gb = gap(a, idx), gap(b, idx)
-        for _ in range(PATH_DEPTH):
-            inside = np.minimum(ga, gb) <= 0
-            if inside.any():
-                return int(idx[inside][0]), k
-            open_ = ga + gb <= move[idx] * (b - a)
+        idx = np.arange(len(A0))
+        s0, s1, t0, t1 = (np.full(len(idx), v) for v in (0.0, 1.0, 0.0, 1.0))
+        for _ in range(SWEEP_DEPTH):
+            sc, tc = (0.5 * (s0 + s1))[:, None], (0.5 * (t0 + t1))[:, None]
+            A = A0[idx] + tc * (A1 - A0)[idx]
+            d = signed_distance(pose, A + sc * (B0[idx] + tc * (B1 - B0)[idx] - A), NP_OPS)
+            if (d <= 0).any():
+                return int(idx[d <= 0][0]), k
+            ds, dt = L_s[idx] * (s1 - s0), L_t[idx] * (t1 - t0)
+            open_ = d <= 0.5 * (ds + dt)
             if not open_.any():
                 break
-            idx, a, b, ga, gb = idx[open_], a[open_], b[open_], ga[open_], gb[open_]
-            m = 0.5 * (a + b)
-            gm = gap(m, idx)
-            idx, a, b, ga, gb = (np.concatenate(v) for v in
-                                 ((idx, idx), (a, m), (m, b), (ga, gm), (gm, gb)))
+            idx, s0, s1, t0, t1, ds, dt = (v[open_] for v in (idx, s0, s1, t0, t1, ds, dt))
+            along_s = ds >= dt
+            sm, tm = np.where(along_s, 0.5 * (s0 + s1), s1), np.where(along_s, t1,
+                                                                   0.5 * (t0 + t1))
+            # the first halves [s0, sm] x [t0, tm] and the second ones beyond sm (or tm)
+            idx, s0, s1, t0, t1 = (np.concatenate(v) for v in (
+                (idx, idx), (s0, np.where(along_s, sm, s0)), (sm, s1),
+                (t0, np.where(along_s, t0, tm)), (tm, t1)))
         else:
             return int(idx[0]), k
     return None
@@ -307,8 +394,10 @@ class ObstacleContact:
         check_contact(obstacles, law)
         self.obstacles, self.law, self.x = list(obstacles), law, x
         self.mesh, self.dx_r = disc.mesh, disc.dx_r
-        self.poses = [Pose(ob, self.mesh) for ob in obstacles]      # UFL constants
-        self.numbers = [Pose(ob) for ob in obstacles]               # numpy values
+        self.poses = [make_pose(ob, self.mesh) for ob in obstacles]  # UFL constants
+        self.numbers = [make_pose(ob) for ob in obstacles]           # numpy values
+        self.meshes = [pose for pose in self.poses if pose.shape == "mesh"]
+        self.features = [f for pose in self.meshes for f in pose.fields]
         self.radius, self.gap, self.stiffness, self.slip = (
             fem.Constant(self.mesh, float(v)) for v in (law.radius, law.gap, law.stiffness,
                                                         law.slip_tolerance))
@@ -320,7 +409,10 @@ class ObstacleContact:
         self._lambda_exprs = None
         space = x.function_space
         self._owned = space.dofmap.index_map.size_local
-        self._nodes = space.tabulate_dof_coordinates()[: self._owned, 0]
+        self._all_nodes = space.tabulate_dof_coordinates()[:, 0]    # ghosts included
+        self._nodes = self._all_nodes[: self._owned]
+        cells = self.mesh.topology.index_map(1).size_local
+        self._segments = space.dofmap.list[:cells]          # the owned cells' two nodes
         self.V = V if any(ob.friction > 0 for ob in obstacles) else None
         self.start = None       # the nodes' points at the last commit (path check)
 
@@ -367,11 +459,18 @@ class ObstacleContact:
             self.friction_density(p, v, rest[:len(self.obstacles)]), v,
             *rest[len(self.obstacles):])
 
-    # the trapezoidal rule on the 1-point rule's midpoint: node values f -+ h/2 f_s
+    # the trapezoidal rule on the 1-point rule's midpoint: node values f -+ h/2 f_s (of
+    # the fields and of the mesh obstacles' features: each node's own)
     def _nodal(self, expr_of_point, *fields):
         h = ufl.CellVolume(self.mesh)
-        return [expr_of_point(*[f + sign * h / 2 * f.dx(0) for f in fields])
-                for sign in (-1.0, 1.0)]
+        out = []
+        for sign in (-1.0, 1.0):
+            def at(f, sign=sign):
+                return f + sign * h / 2 * f.dx(0)
+            expr = expr_of_point(*[at(f) for f in fields])
+            out.append(ufl.replace(expr, {f: at(f) for f in self.features})
+                       if self.features else expr)
+        return out
 
     def _trapezoid(self, expr_of_point, *fields):
         a, b = self._nodal(expr_of_point, *fields)
@@ -424,6 +523,7 @@ class ObstacleContact:
 
     def check_initial(self) -> None:
         """InitialOverlap if the state (at t = 0) has a node within r of an obstacle."""
+        self.locate()
         g, s, k = self.closest()
         if g <= 0:
             raise InitialOverlap(f"the rod's centre line at s = {s:.4g} is {-g:.3g} closer "
@@ -432,44 +532,70 @@ class ObstacleContact:
 
     def check_state(self) -> str | None:
         """A reason to reject a converged step: a node at or inside an obstacle, or a
-        node whose straight path from the last committed state entered one's body
-        (jumped through a thin obstacle within the step: path_entry)."""
+        segment whose sweep from the last committed state (its nodes on straight paths)
+        entered one's body (passed through a thin obstacle or across a sharp edge within
+        the step, or cuts into the body between its nodes: sweep_entry)."""
         g, s, k = self.closest()
         if g <= 0:
             return (f"the centre line at s = {s:.4g} is {-g:.3g} inside obstacles[{k}] "
                     f"(gap {g:.3g}; the barrier was overcome: raise contact.stiffness)")
         if self.start is None:
             return None
-        hit = path_entry(self.numbers, self.start, self._positions())
-        found = self.mesh.comm.allgather(None if hit is None else
-                                         (float(self._nodes[hit[0]]), hit[1]))
+        P0, P1 = self.start, self._positions(ghosts=True)
+        a, b = self._segments[:, 0], self._segments[:, 1]
+        hit = sweep_entry(self.numbers, P0[a], P1[a], P0[b], P1[b])
+        found = self.mesh.comm.allgather(None if hit is None else (float(np.mean(
+            self._all_nodes[self._segments[hit[0]]])), hit[1]))
         hit = next((h for h in found if h is not None), None)
         if hit is None:
             return None
-        return (f"the centre line at s = {hit[0]:.4g} passed through obstacles[{hit[1]}] "
-                "during the step (a node's path entered it: the step is cut)")
+        return (f"the centre line near s = {hit[0]:.4g} passed through obstacles[{hit[1]}] "
+                "during the step (the sweep of a segment entered it: the step is cut)")
 
-    def _positions(self) -> np.ndarray:
-        """(owned nodes, 3) the centre line's points."""
-        x = self.x.x.array.reshape(-1, 3)[: self._owned]
-        return x + np.outer(self._nodes, (0.0, 0.0, 1.0))
+    def _positions(self, ghosts: bool = False) -> np.ndarray:
+        """(owned nodes, 3) the centre line's points (``ghosts``: of all the rank's nodes,
+        the ghosts' values brought from their owners)."""
+        if not ghosts:
+            x = self.x.x.array.reshape(-1, 3)[: self._owned]
+            return x + np.outer(self._nodes, (0.0, 0.0, 1.0))
+        self.x.x.scatter_forward()
+        return self.x.x.array.reshape(-1, 3) + np.outer(self._all_nodes, (0.0, 0.0, 1.0))
 
     def commit(self) -> None:
         """After an accepted step (and at the start): its points start the next step's
         path check."""
-        self.start = self._positions()
+        self.locate()
+        self.start = self._positions(ghosts=True)
 
     def update_normal_forces(self) -> None:
         """lambda_k := the normal force density of the current state at the nodes (after
         an accepted step: the friction's lagged normal force)."""
         if self.V is None:
             return
+        self.locate()
         if self._lambda_exprs is None:
             points = compat.interpolation_points(self.normal_force[0].function_space)
             self._lambda_exprs = [fem.Expression(lam, points)
                                   for _, lam in self._normal_parts(self.r)]
         for lam, expr in zip(self.normal_force, self._lambda_exprs):
             lam.interpolate(expr)
+
+    def locate(self, owned_displacement: np.ndarray | None = None) -> None:
+        """The mesh obstacles' features at the nodes of the displacement (owned values;
+        default the current one): before the forms are assembled at it."""
+        if not self.meshes:
+            return
+        x = (self.x.x.array[: 3 * self._owned] if owned_displacement is None
+             else owned_displacement).reshape(-1, 3)
+        points = x + np.outer(self._nodes, (0.0, 0.0, 1.0))
+        for pose in self.meshes:
+            pose.locate(points)
+
+    @property
+    def term(self) -> "FeatureTerm | None":
+        """With mesh obstacles: the term (fem/assembly add_terms) that locates the
+        features at every residual's state before its forms are assembled."""
+        return FeatureTerm(self) if self.meshes else None
 
     def force_observable(self):
         """The contact force density (normal + friction) at a point of the rod (UFL; at
@@ -478,3 +604,38 @@ class ObstacleContact:
         if self.V is not None:
             f += self.friction_density(self.r, self.V, self.normal_force)
         return f
+
+
+class FeatureTerm:
+    """ObstacleContact's mesh features in a solve (fem/assembly add_terms): the problem's
+    term, bound to each system that holds the displacement."""
+
+    def __init__(self, contact: ObstacleContact):
+        self.contact = contact
+
+    def bind(self, system) -> "BoundFeatures":
+        return BoundFeatures(self, system)
+
+    def for_step(self, *stages):
+        """Per-step schemes evaluate the residual at several stage states, the features
+        are one node's for one state: refused."""
+        raise ValueError("a mesh obstacle ([[obstacles]] shape = \"mesh\") is solved by "
+                         "generalized-alpha or quasi-statically, not by a per-step scheme "
+                         "(time.scheme): its nodes' closest features are those of one "
+                         "state")
+
+
+class BoundFeatures:
+    """FeatureTerm in one assembled system: ``prepare`` locates the features at the
+    system's state x (its displacement rows; the displacement as it is if the system
+    does not solve for it, e.g. the start's accelerations)."""
+
+    def __init__(self, term: FeatureTerm, system):
+        contact = term.contact
+        self.contact = contact
+        held = [k for k, y in enumerate(system.groups[0]) if y is contact.x]
+        self.rows = (system.rows_of(held[0], np.arange(3 * contact._owned))
+                     if held else None)
+
+    def prepare(self, x_owned: np.ndarray) -> None:
+        self.contact.locate(None if self.rows is None else x_owned[self.rows])

@@ -33,8 +33,8 @@ import numpy as np
 from ..theory.quaternions import (CONJ, np_qmul, np_quaternion_from_matrix,
                                   np_quaternion_from_rotation_vector, np_rotation_matrix,
                                   np_rotation_vector)
-from .joint_points import Joint
-from .placement import Geometry, PlacedRod
+from .joint_points import Joint, check_joints_at_start, joint_label
+from .placement import Geometry, PlacedRod, placed_shape
 from .start import Polyline, StartingState, parallel_transport
 
 KINK = 1e-9          # rad: a polyline point turning by more is a corner
@@ -43,17 +43,20 @@ KINK = 1e-9          # rad: a polyline point turning by more is a corner
 @dataclass(frozen=True)
 class Split:
     """The pieces of a rod (rods.Rod or placement.PlacedRod), the rigid joints between
-    them, and the rest arc length of each piece's start on the rod."""
+    them, the rest arc length of each piece's start on the rod, and where the pieces
+    are (``parts``: Piece; none for a rod not split)."""
 
     rods: list
     joints: list
     offsets: tuple
+    parts: tuple = ()
 
 
 @dataclass(frozen=True)
 class Piece:
     """Where a piece of a split rod is: rest arc lengths [s0, s1] on the rod, cells,
-    placed start and orientation (a rotation vector), stretch of its straight shape."""
+    placed start and orientation (a rotation vector), stretch of its straight shape;
+    its start ``point`` and ``frame`` (rotation matrix) in the rod's own frame."""
 
     s0: float
     s1: float
@@ -61,6 +64,8 @@ class Piece:
     position: tuple
     orientation: tuple
     stretch: float
+    point: tuple
+    frame: tuple
 
 
 def corner_indices(shape) -> np.ndarray:
@@ -106,7 +111,8 @@ def pieces(rod) -> list[Piece]:
         out.append(Piece(
             float(arc[i]), float(arc[j]), n, tuple(p + Q @ points[i]),
             tuple(np_rotation_vector(np_qmul(turn, np_quaternion_from_matrix(frames[i])))),
-            1.0 if shape.rest_arc_length is None else chord / (arc[j] - arc[i])))
+            1.0 if shape.rest_arc_length is None else chord / (arc[j] - arc[i]),
+            tuple(points[i]), tuple(map(tuple, frames[i]))))
     return out
 
 
@@ -172,32 +178,115 @@ def _joined(name: str, rods: list, parts: list[Piece]) -> Split:
     """The pieces with the rigid joints at their corners."""
     joints = [Joint("rigid", (a.name, b.name), part.position, name=f"{name}-corner{k + 1}")
               for k, (a, b, part) in enumerate(zip(rods[:-1], rods[1:], parts[1:]))]
-    return Split(rods, joints, tuple(part.s0 for part in parts))
+    return Split(rods, joints, tuple(part.s0 for part in parts), tuple(parts))
+
+
+def attach(joints: list, splits: list[Split]) -> list:
+    """A system's joints on the pieces of its split rods (``splits``, one a rod): a joint
+    naming a split rod is on the piece with a node nearest its point (at a corner: the
+    piece before it), its label kept (joint_points.joint_label); then every corner's
+    rigid joint."""
+    split_of = {split.rods[0].name: split for split in splits if len(split.rods) > 1}
+    out = []
+    for joint in joints:
+        names = tuple(_piece_at(split_of[name], joint.point) if name in split_of else name
+                      for name in joint.rods)
+        out.append(joint if names == tuple(joint.rods) else
+                   replace(joint, rods=names, name=joint_label(joint)))
+    return out + [corner for split in splits for corner in split.joints]
+
+
+def _piece_at(split: Split, point) -> str:
+    """The name of the piece of ``split`` with a node nearest ``point``."""
+    distance = [np.linalg.norm(placed_shape(piece, np.linspace(
+        0.0, piece.params.length, piece.n_cells + 1))[0] - np.asarray(point, float),
+        axis=1).min() for piece in split.rods]
+    return split.rods[int(np.argmin(distance))].name
+
+
+def system_starts(starts: dict, splits: list[Split]) -> dict:
+    """A system's starting states {rod name: StartingState} as its pieces' (a split
+    rod's by ``piece_starts``, the others' as given)."""
+    out = {}
+    for name, start in starts.items():
+        split = next((split for split in splits if split.rods[0].name == name), None)
+        out.update(piece_starts(start, split) if split and len(split.rods) > 1
+                   else {name: start})
+    return out
 
 
 def piece_starts(start: StartingState, split: Split) -> dict:
-    """{piece name: StartingState}: the rod's starting state (its stress-free shape
-    placed at ``position`` with ``orientation``, velocities) as its pieces' (rod/start.
-    RodStarts: each in its piece's placed frame p_k, R_k): the rod's r = p + Q r_rod is
-    p_k + R_k (p'' + Q'' r_piece) with Q'' = R_k^T Q R_k, p'' = R_k^T (p + Q p_k - p_k);
-    velocity fields of the rod's s taken at the piece's s + offset.  A starting curve
-    (``shape``) is a ValueError naming ``start.shape`` (not split yet)."""
-    if start.shape is not None:
-        raise ValueError("start.shape: a rod whose stress-free polyline is split at its "
-                         "kinks (rod/kinks.py) starts in its stress-free shape (placed, "
-                         "with velocities), not on a curve yet")
+    """{piece name: StartingState}: the rod's starting state as its pieces' (rod/start.
+    RodStarts: each in its piece's placed frame), with p_k, R_k the piece's start and
+    frame in the rod's own frame and r = p + Q r_rod the rod's start (then placed as the
+    rod).  Its stress-free shape (``shape`` None): r_rod = p_k + R_k r_piece, so the
+    piece starts at p'' = R_k^T (p + Q p_k - p_k) turned by Q'' = R_k^T Q R_k.  A starting
+    polyline c(s) (``shape``, in the rod's own frame): piece k starts on its part over
+    [s_k, s_k+1] (``_piece_curve``), at p'' = R_k^T (p + Q c(s_k) - p_k) turned by
+    Q'' = R_k^T Q.  Velocity fields of the rod's s are taken at the piece's s + offset."""
+    if start.shape is not None and not isinstance(start.shape, Polyline):
+        raise ValueError(f"start.shape: a rod split at its corners (rod/kinks.py: rigid, "
+                         f"they keep their angle) starts on a polyline with the same "
+                         f"corners, not on a smooth {type(start.shape).__name__.lower()}")
     q = np_quaternion_from_rotation_vector(np.asarray(start.orientation, float))
     Q, p = np_rotation_matrix(q), np.asarray(start.position, float)
+    normals = _piece_normals(start.shape, split.parts) if start.shape else None
     starts = {}
-    for piece, offset in zip(split.rods, split.offsets):
-        q_k = np_quaternion_from_rotation_vector(np.asarray(piece.orientation, float))
-        R_k, p_k = np_rotation_matrix(q_k), np.asarray(piece.position, float)
+    for k, (piece, offset, part) in enumerate(zip(split.rods, split.offsets, split.parts)):
+        R_k, p_k = np.asarray(part.frame, float), np.asarray(part.point, float)
+        if start.shape is None:
+            q_k = np_quaternion_from_matrix(R_k)
+            moved = dict(position=tuple(R_k.T @ (p + Q @ p_k - p_k)), orientation=tuple(
+                np_rotation_vector(np_qmul(np_qmul(q_k * CONJ, q), q_k))))
+        else:
+            curve, c0 = _piece_curve(start.shape, part, normals[k])
+            moved = dict(shape=curve, position=tuple(R_k.T @ (p + Q @ c0 - p_k)),
+                         orientation=tuple(np_rotation_vector(np_quaternion_from_matrix(
+                             R_k.T @ Q))))
         starts[piece.name] = replace(
-            start, position=tuple(R_k.T @ (p + Q @ p_k - p_k)),
-            orientation=tuple(np_rotation_vector(np_qmul(np_qmul(q_k * CONJ, q), q_k))),
-            velocity=_at_offset(start.velocity, offset),
+            start, **moved, velocity=_at_offset(start.velocity, offset),
             angular_velocity=_at_offset(start.angular_velocity, offset))
+    if start.shape is not None:
+        try:
+            check_joints_at_start(split.rods, split.joints, starts)
+        except ValueError as err:
+            raise ValueError(f"start.shape: the starting polyline does not keep the rod's "
+                             f"rigid corners as they are in its stress-free shape, at the "
+                             f"same rest arc lengths with the same angles ({err})") from None
     return starts
+
+
+def _piece_curve(shape: Polyline, part: Piece, normal) -> tuple[Polyline, np.ndarray]:
+    """The part of a starting polyline over a piece's rest arc lengths [s0, s1], from
+    its point c(s0) (returned too), d1 from ``normal`` there."""
+    points, arc = np.asarray(shape.points, float), shape.arc_lengths()
+    tol = 1e-9 * arc[-1]
+    inner = (arc > part.s0 + tol) & (arc < part.s1 - tol)
+    ends = [np.array([np.interp(s, arc, points[:, c]) for c in range(3)])
+            for s in (part.s0, part.s1)]
+    line = np.vstack([ends[0], points[inner], ends[1]]) - ends[0]
+    rest = np.concatenate([[0.0], arc[inner] - part.s0, [part.s1 - part.s0]])
+    return Polyline(tuple(map(tuple, line)), tuple(rest), tuple(normal)), ends[0]
+
+
+def _piece_normals(shape: Polyline, parts) -> list:
+    """d1 at each piece's start on a starting polyline: the polyline's own rule (start.
+    Polyline: d3 the mean tangent of a node's two cells, d1 from ``normal`` carried from
+    node to node by parallel transport) over the pieces' nodes in turn, carried across
+    each corner from the tangent before it to the one after it."""
+    points, arc = np.asarray(shape.points, float), shape.arc_lengths()
+    normals, carried = [], None
+    for part in parts:
+        grid = np.linspace(part.s0, part.s1, part.n_cells + 1)
+        nodes = np.stack([np.interp(grid, arc, points[:, c]) for c in range(3)], axis=1)
+        chords = _unit(np.diff(nodes, axis=0))
+        tangents = _unit(np.concatenate((chords[:1], chords[:-1] + chords[1:], chords[-1:])))
+        d = (np.asarray(shape.normal, float) if carried is None else
+             parallel_transport(np.array([carried[1], tangents[0]]), carried[0])[1])
+        d1 = parallel_transport(tangents, d)
+        normals.append(d1[0])
+        carried = (d1[-1], tangents[-1])
+    return normals
 
 
 def _at_offset(field, offset: float):

@@ -28,7 +28,9 @@ from .. import loads as load_histories
 from ..theory.evolution import check_variant
 from ..checks import (ENDS, MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
                       check_n_cells, end_keyed, old_keywords)
+from ..fem import form_cache
 from ..fem.fe_model import FEModel
+from ..fem.gathered_form import LazyForms, data_of
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..integrators.step_control import IntegrationError
 from ..mpi import largest_on_ranks
@@ -42,7 +44,7 @@ from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
 from .joints import JointReactions, joint_nodes, node_links
-from .kinks import Split, piece_starts, split_at_kinks
+from .kinks import attach, piece_starts, split_at_kinks, system_starts
 from .layout import RodLayout
 from .linking import clamped_rod_linking
 from .pair_contact import SegmentContact, exclusion
@@ -54,6 +56,9 @@ from .structure import structure
 from .start import RodStarts, StartingState, check_rod_starts, check_start
 
 _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
+# structures as data (rod/structure.py) whose residual, made on their first model, had the
+# Functions and Constants of its terms: later models make it only when it is read
+_DATA_OF_TERMS: set[str] = set()
 
 
 def end_frames(rod: Rod) -> dict:
@@ -113,17 +118,15 @@ class RodModel(FEModel):
         rod = Rod(params, n_cells, start, end_loads, distributed_loads, point_loads=point_loads,
                   end=end, **keyed)
         self._build([rod], model, variant, constraints, rotations, comm, obstacles=obstacles,
-                    contact=contact, split_kinks=True)
+                    contact=contact)
 
     def _build(self, rods: list[Rod], model: str, variant: str, constraint: str | None,
                rotations: str, comm, joints: Sequence[Joint] = (),
-               obstacles: Sequence[Obstacle] = (), contact: ContactLaw | None = None,
-               split_kinks: bool = False) -> None:
+               obstacles: Sequence[Obstacle] = (), contact: ContactLaw | None = None) -> None:
         """The model of one or several rods and their joints (see system.RodSystem); a
-        single rod (``split_kinks``) as the pieces between the corners of its stress-free
-        polyline, joined rigidly (kinks.py)."""
-        joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm,
-                                         split_kinks)
+        rod with corners in its stress-free polyline as the pieces between them, joined
+        rigidly (kinks.py)."""
+        joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
         self.rotations = self._rotation_unknowns(rotations, joints)
         disc = discretise(comm, self.layout, self.rotations)
         super().__init__(disc.mesh)
@@ -131,40 +134,44 @@ class RodModel(FEModel):
         self.pieces = disc.pieces
         resp = self._section_response(disc)
         F, natural_pairs, dissipation, power = self._balance(resp, disc, obstacles, contact)
-        springs = self._end_supports(F, disc)
-        self.residual = {name: F[name] for name in self.names}
+        springs, variations = self._end_supports(disc)
+        text = structure(rods, model, variant, constraint, self.rotations, comm.size, joints,
+                         obstacles, contact)
+        forms = self._residual_forms(F, variations, disc, text)
         self.joints = list(joints)
         nodes = joint_nodes(self, self.joints)
         self.segment_contact = self._segment_contact(contact, self.layout, nodes)
-        self.problem = self._problem(node_links(self, self.joints, nodes) + [
+        self.problem = self._problem(forms, node_links(self, self.joints, nodes) + [
             line for supports in self.end_supports for line in supports.links(self.names)])
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
         if self.dynamic:       # the steps must resolve them (integrators' check_run)
             self.problem.prescribed_motions = {
-                (f"rods {rod.name!r}: " if len(self.rods) > 1 else "")
-                + f"{name}[{end!r}]": motion for rod in self.rods
+                (f"rods {self.rod_names[k]!r}: " if len(self.splits) > 1 else "")
+                + f"{name}[{end!r}]": motion for k, rod in enumerate(self.rods)
                 for name in ("end_displacement", "end_rotation")
                 for end, motion in (getattr(rod, name) or {}).items()}
-        self.problem.structure = structure(rods, model, variant, constraint, self.rotations,
-                                           comm.size, joints, obstacles, contact)
+        self.problem.structure = text
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
         self._diagnostics(resp, disc, natural_pairs, power, dissipation, springs)
 
     def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
-                           constraint: str | None, joints: Sequence[Joint], comm,
-                           split_kinks: bool = False) -> list[Joint]:
+                           constraint: str | None, joints: Sequence[Joint], comm) -> list[Joint]:
         """Refuse bad input before any mesh; the rods' data (a rod split at its kinks:
-        its pieces) and their layout on one mesh; the joints (with the kinks')."""
+        its pieces, ``splits``: kinks.Split of each rod) and their layout on one mesh; the
+        joints (on the pieces, with the corners')."""
         check_model(model, rods[0].params)
         check_variant(variant)
         constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.density))
         check_rods(rods, model, variant)
         check_joints(list(joints), rods)
-        split = split_at_kinks(rods[0]) if split_kinks else Split(rods, [], ())
-        self.kinked = len(split.rods) > len(rods)
-        self.split = split
-        length = float(rods[0].params.length)
-        rods, joints = split.rods, list(joints) + split.joints
+        self.splits = splits = [split_at_kinks(rod) for rod in rods]
+        self.kinked = any(len(split.rods) > 1 for split in splits)
+        self.user_rods = rods
+        length = max(float(rod.params.length) for rod in rods)
+        joints = attach(list(joints), splits)
+        rods = [piece for split in splits for piece in split.rods]
+        # each piece's rod (its name: the first piece's)
+        self.rod_names = [split.rods[0].name for split in splits for _ in split.rods]
         check_n_cells(sum(rod.n_cells for rod in rods), comm.size)   # cells per rank
         self.rods = rods
         self.params, self.model, self.variant, self.constraint = (rods[0].params, model,
@@ -175,8 +182,10 @@ class RodModel(FEModel):
         self.layout = layout = RodLayout(tuple(rod.name for rod in rods),
                                          tuple(float(rod.params.length) for rod in rods),
                                          tuple(rod.n_cells for rod in rods),
-                                         split.offsets if self.kinked else ())
-        self.length = length if self.kinked else max(layout.lengths)
+                                         tuple(offset for split in splits
+                                               for offset in split.offsets)
+                                         if self.kinked else ())
+        self.length = length
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(rods[0].params.density)
         return joints
@@ -201,9 +210,14 @@ class RodModel(FEModel):
         # quaternions it holds q in a plane, span(q_0, q_0 (0, a)), not a line)
         linked = [f"{name}[{end!r}]" for rod in rods for name, end in oblique_supports(rod)
                   if name == "end_turn"]
+        # joints: the system's, or only the rigid corners of a kinked rod (kinks.py)
+        what = ("joints need" if len(joints) > sum(len(split.joints) for split in self.splits)
+                else "a stress-free polyline with corners (split there into pieces joined "
+                     "rigidly, rod/kinks.py) needs")
         if joints and obstacle:
-            raise ValueError(f"joints need rotation-vector unknowns, which this system "
-                             f"cannot have: {obstacle}")
+            raise ValueError(f"{what} rotation-vector unknowns, which this "
+                             f"{'system' if len(self.splits) > 1 else 'rod'} cannot have: "
+                             f"{obstacle}")
         if linked and obstacle:
             raise ValueError(f"{linked[0]}: a turn about an axis off the coordinate axes "
                              f"needs rotation-vector unknowns, which this rod cannot have: "
@@ -214,7 +228,7 @@ class RodModel(FEModel):
             load_histories.jumps(motion) for rod in rods
             for motion in (rod.end_rotation or {}).values()))
         if joints and chosen != "rotation_vector":
-            raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
+            raise ValueError(f"{what} rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
         if linked and chosen != "rotation_vector":
             raise ValueError(f"{linked[0]}: a turn about an axis off the coordinate axes "
@@ -270,12 +284,41 @@ class RodModel(FEModel):
             F, unk, disc, [(k, load) for k, rod in enumerate(rods) for load in rod.end_loads],
             [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads],
             [(k, load) for k, rod in enumerate(rods) for load in rod.point_loads])
-        residual.one_quadrature_rule(F, unk, disc)
         return F, natural_pairs, (drag_dissipation, friction_dissipation), power
 
-    def _end_supports(self, F: dict, disc):
-        """Every rod's end supports; compliant ones add their energy's variation to the
-        balance F. Returns each rod's springs' energy (0 without springs)."""
+    def _residual_forms(self, F: dict, variations: dict, disc, text: str | None):
+        """The block residuals: the terms F made into one Form per block
+        (residual.one_quadrature_rule) plus the compliant supports' ``variations``, made
+        when first read (gathered_form.LazyForms: their data are those of the terms) for a
+        model whose structure ``text`` had a model before; the first model of a structure
+        makes them now and checks that they have the data of their terms."""
+        unk, names = self.unknowns, list(self.names)
+        data = data_of([itg for form in [*(F[name] for name in names), *variations.values()]
+                        for itg in form.integrals()])
+
+        def make() -> list:
+            residual.one_quadrature_rule(F, unk, disc)
+            for block, variation in variations.items():
+                F[block] += variation
+            return [F[name] for name in names]
+
+        forms = LazyForms(make, len(names), data)
+        if text is not None and text in _DATA_OF_TERMS:
+            return forms
+        made = list(forms)
+        if text is not None and form_cache.registry(made) == form_cache.registry(forms):
+            _DATA_OF_TERMS.add(text)
+        return made
+
+    @property
+    def residual(self) -> dict:
+        """The block residuals (ufl.Form) by block name."""
+        return dict(zip(self.names, self.problem.residual))
+
+    def _end_supports(self, disc):
+        """Every rod's end supports. Returns each rod's springs' energy (0 without
+        springs) and the variations of the compliant supports' energy that the balance
+        adds, {block: ufl.Form}."""
         unk = self.unknowns
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
@@ -285,11 +328,10 @@ class RodModel(FEModel):
                                           disc.pieces.indicator(k))
                    for k, supports in enumerate(self.end_supports)]
         springs = sum(per_rod, 0)
-        if any(supports.springs for supports in self.end_supports):
-            # compliant supports: their energy's variation in the balance
-            for block in ("displacement", unk.rotation):
-                F[block] += ufl.derivative(springs, unk.f[block], unk.t[block])
-        return per_rod
+        if not any(supports.springs for supports in self.end_supports):
+            return per_rod, {}
+        return per_rod, {block: ufl.derivative(springs, unk.f[block], unk.t[block])
+                         for block in ("displacement", unk.rotation)}
 
     def _diagnostics(self, resp, disc, natural_pairs, power, dissipation, springs) -> None:
         """Dissipation density, tips, the energy forms (diagnostics.py) and the check that
@@ -303,18 +345,29 @@ class RodModel(FEModel):
                   for k, rod in enumerate(self.rods)]
         self.point_positions = diagnostics.PointPositions(
             unk, dict.fromkeys(p for own in points for p in own))
-        # a system's rods: each its own points ("<name>.point{j}_position_{xyz}")
-        self.rod_point_positions = [diagnostics.PointPositions(unk, own) for own in points]
-        forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
-                                         drag_dissipation + friction_dissipation, sum(springs, 0))
-        if not layout.single:       # each rod's own energies, "<name>.free_energy", ...
-            for k, rod in enumerate(self.rods):
-                forms.update(diagnostics.rod_energy_forms(
-                    rod.name, resp, c, unk, disc, disc.pieces.indicator(k), springs[k]))
-        if self.contact:
-            forms.update(self.contact.diagnostic_forms())
-            forms["friction_dissipation"] = friction_dissipation or 0 * resp.psi * disc.dx_r
-        self.set_diagnostic_forms(forms)
+        # a system's rods: each its own points ("<name>.point{j}_position_{xyz}"; a rod
+        # split at its corners: its pieces' in turn)
+        self.rod_point_positions = [diagnostics.PointPositions(unk, dict.fromkeys(
+            p for own, rod in zip(points, self.rod_names) if rod == name for p in own))
+            for name in dict.fromkeys(self.rod_names)]
+
+        def energy_forms() -> dict:
+            forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
+                                             drag_dissipation + friction_dissipation,
+                                             sum(springs, 0))
+            if len(self.splits) > 1:    # each rod's own energies, "<name>.free_energy", ...
+                for name in dict.fromkeys(self.rod_names):
+                    own = [k for k, rod in enumerate(self.rod_names) if rod == name]
+                    forms.update(diagnostics.rod_energy_forms(
+                        name, resp, c, unk, disc, sum(disc.pieces.indicator(k) for k in own),
+                        sum((springs[k] for k in own), 0)))
+            if self.contact:
+                forms.update(self.contact.diagnostic_forms())
+                forms["friction_dissipation"] = (friction_dissipation
+                                                 or 0 * resp.psi * disc.dx_r)
+            return forms
+
+        self.set_diagnostic_forms(energy_forms)      # made at the first diagnostics
         h = min(length / n for length, n in zip(layout.lengths, layout.n_cells))
         self.pass_through = PassThroughCheck(
             unk.f["displacement"], distance=h, exclusion=3 * h,
@@ -379,17 +432,19 @@ class RodModel(FEModel):
         for supports in self.end_supports:
             supports.set(t)
 
-    def _problem(self, links: list) -> SemiDiscreteProblem:
+    def _problem(self, forms, links: list) -> SemiDiscreteProblem:
         unk = self.unknowns
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
-                  list(self.residual.values()), self.loads, self.bcs, self.set_supports)
+                  forms, self.loads, self.bcs, self.set_supports)
         terms = [self.segment_contact] if self.segment_contact else []
+        if self.contact and self.contact.term:     # a mesh obstacle's features
+            terms.append(self.contact.term)
         where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
         if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step, terms=terms,
                                        where_failed=where, links=links)
-        rates_used = {c for F in self.residual.values() for c in F.coefficients()}
+        rates_used = set(form_cache.registry(forms))
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
             after_step=self.commit_rotations, check_step=self.check_step,
@@ -496,15 +551,20 @@ class RodModel(FEModel):
         with the loads at t = 0 (``equilibrium``); the stress-free shape is unchanged."""
         for name, given in (("natural_curvature", natural_curvature),
                             ("natural_stretch", natural_stretch)):
-            initial_state.check_natural(name, given, [rod.name for rod in self.rods])
+            initial_state.check_natural(name, given, [rod.name for rod in self.user_rods])
+        natural_curvature, natural_stretch = (
+            {piece.name: given[rod] for piece, rod in zip(self.rods, self.rod_names)
+             if rod in given} if isinstance(given, dict) else given     # a rod's: its pieces'
+            for given in (natural_curvature, natural_stretch))
         held = any("clamped" in supports.ends or bool(supports.rotation)
                    for supports in self.end_supports)
-        if self.layout.single or self.kinked:
+        if len(self.splits) == 1:
             check_start(start, self.length, self.dynamic, rotation_held=held)
-        if self.kinked and start is not None:       # the rod's start as its pieces'
-            start = RodStarts(piece_starts(start, self.split), self.rods, self.layout)
-        elif start is not None and not self.layout.single:
-            check_rod_starts(start, self.rods, self.dynamic, rotation_held=held)
+        if len(self.splits) == 1 and self.kinked and start is not None:
+            start = RodStarts(piece_starts(start, self.splits[0]), self.rods, self.layout)
+        elif start is not None and len(self.splits) > 1:     # pieces: each its share
+            check_rod_starts(start, self.user_rods, self.dynamic, rotation_held=held)
+            start = system_starts(start, self.splits)
             check_joints_at_start(self.rods, self.joints, start)
             start = RodStarts(start, self.rods, self.layout)
         initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
@@ -530,11 +590,12 @@ class RodModel(FEModel):
         d.update(self.tips[-1]())        # a rod split at its kinks: of its last piece
         d.update(self.point_positions())
         d.update(self.supports.reactions(self.residual, t, self.problem.structure))
-        if self.kinked:                  # the right end's reactions, of its last piece
+        if self.kinked:                  # the right end's reactions, of its last piece;
             right = self.end_supports[-1].reactions(self.residual, t, self.problem.structure)
             d["reaction_power"] = d.get("reaction_power", 0.0) + right.pop(
                 "reaction_power", 0.0)
             d.update(right)
+            d.update(self.joint_reactions())     # the corners' (joint_rod-corner1_force_x)
         d["load_power"] += d.get("reaction_power", 0.0)   # work done by moving ends
         d["tip_rotation_angle"] = diagnostics.tip_rotation_angle(d)
         self.pass_through(t)

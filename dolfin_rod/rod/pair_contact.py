@@ -25,6 +25,10 @@ pair's largest node displacements; bisected where the bound cannot exclude it). 
 step is accepted only if every pair's gap is > 0 at its end and no two segments crossed
 on the straight path from the last accepted state (``crossed``, the same bound).
 
+With ``contact.pair_curve = "smooth"`` the pairs' distance is that of C^1 curves through
+the nodes (smooth_pairs.py: eight stencil nodes per pair, each close approach counted
+once); the searches, checks and bounds above then use the curves' distance.
+
 Coulomb friction of the pairs (``contact.self_friction``, ``between_rods_friction``):
 pair_friction.py, with the pairs and normal forces lagged at each accepted state
 (``commit``) and the nodes' velocities of the step's affine rate map (``set_rates``).
@@ -41,6 +45,7 @@ from petsc4py import PETSc
 from .contact import XI_MIN, barrier_derivatives
 from .pair_friction import PairFriction
 from .segments import closest_points, near_pairs
+from .smooth_pairs import LIPSCHITZ, Stencils, closest, counted, free, smooth_pair_energy
 
 CROSSING_DEPTH = 24     # bisections of a step's path before a pair counts as crossed
 STEP_FLOOR = 0.1        # a Newton update keeps every pair's gap above this share of its gap
@@ -168,6 +173,14 @@ class SegmentContact:
         self.x, self.law = x, law
         self.line = Centreline(x, rod_of)
         mu = (law.self_friction * self_contact, law.between_rods_friction * between_rods)
+        # the pairs' curves: the segments, or the C^1 curves of smooth_pairs.py
+        self.stencils = (Stencils(self.line.ends, self.line.rod)
+                         if law.pair_curve == "smooth" else None)
+        if self.stencils is not None and velocity is not None and max(mu) > 0:
+            raise ValueError("contact.pair_curve = 'smooth' has no friction between "
+                             "segments yet: set contact.self_friction and "
+                             "contact.between_rods_friction to 0 or pair_curve to "
+                             "'segments'")
         self.friction = (PairFriction(self.line, law, *mu)
                          if velocity is not None and max(mu) > 0 else None)
         self.velocity_field, self.rates = velocity, None
@@ -196,11 +209,37 @@ class SegmentContact:
         """:meth:`pairs` and their closest points (s, t, d) (segments.closest_points),
         computed once for the search and the pairs' terms (elementwise: the same bits)."""
         distance = self.reach if distance is None else distance
-        candidates = self.candidates(P, distance)
-        X = P[self.line.ends[candidates].reshape(-1, 4)]
-        s, t, d = closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])
-        keep = d < distance
-        return candidates[keep], (s[keep], t[keep], d[keep])
+        if self.stencils is not None:       # a curve lies within its bound of its chord
+            candidates = self.candidates(P, distance + 2 * self.stencils.deviation(P).max(
+                initial=0.0))
+            closest_ = self.curve_closest(P, candidates)
+        else:
+            candidates = self.candidates(P, distance)
+            X = P[self.line.ends[candidates].reshape(-1, 4)]
+            closest_ = closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])
+        keep = closest_[2] < distance
+        return candidates[keep], tuple(v[keep] for v in closest_)
+
+    def curve_closest(self, P: np.ndarray, pairs: np.ndarray):
+        """(s, t, d, sigma_s, sigma_t) of the pairs' C^1 curves (smooth_pairs.closest,
+        from the segments' closest points)."""
+        return self._curve_closest(P[self.pair_nodes(pairs)], pairs)
+
+    def _curve_closest(self, Y, pairs):
+        """curve_closest of pairs whose stencil nodes are at Y (m, 8, 3); the segments
+        are the stencils' middle nodes."""
+        s, t, _ = closest_points(Y[:, 1], Y[:, 2], Y[:, 5], Y[:, 6])
+        return closest(Y, *self._curve_weights(pairs), s, t)
+
+    def _curve_weights(self, pairs):
+        st = self.stencils
+        return ((lambda rows, u: st.weights(pairs[rows, 0], u)),
+                (lambda rows, u: st.weights(pairs[rows, 1], u)))
+
+    def pair_nodes(self, pairs: np.ndarray) -> np.ndarray:
+        """(m, 4) the pairs' segments' nodes, or (m, 8) their curves' stencil nodes."""
+        nodes = self.line.ends if self.stencils is None else self.stencils.nodes
+        return nodes[pairs].reshape(len(pairs), 2 * nodes.shape[1])
 
     def candidates(self, P: np.ndarray, distance: float) -> np.ndarray:
         """A superset of the pairs nearer than ``distance`` at P (a Verlet list): the
@@ -219,14 +258,37 @@ class SegmentContact:
         # or more apart in s (layout.py), so the s test never removes them
         pairs = near_pairs(P[line.ends[:, 0]], P[line.ends[:, 1]], line.mid_s, reach,
                            self.exclusion)
-        same = line.rod[pairs[:, 0]] == line.rod[pairs[:, 1]]
-        keep = (same & self.self_contact) | (~same & self.between_rods)
-        for near in self.through_joints:        # neighbours through a joint
-            keep &= near[pairs[:, 0]] + near[pairs[:, 1]] >= self.exclusion
-        pairs = pairs[keep]
+        pairs = pairs[self.allowed(pairs[:, 0], pairs[:, 1])]
         pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
         self._candidates = (P.copy(), reach, pairs)
         return pairs
+
+    def allowed(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """Whether segments i, j (>= 0) make a pair: of one rod and not neighbours (closer
+        in s than the exclusion) with self-contact, of different rods with between_rods,
+        and not neighbours through a joint."""
+        line = self.line
+        same = line.rod[i] == line.rod[j]
+        keep = (same & self.self_contact & (np.abs(line.mid_s[i] - line.mid_s[j])
+                                            >= self.exclusion)) | (~same & self.between_rods)
+        for near in self.through_joints:        # neighbours through a joint
+            keep &= near[i] + near[j] >= self.exclusion
+        return keep
+
+    def _counted_pairs(self, pairs, closest_):
+        """The pairs whose curves' minimiser is theirs (smooth_pairs.counted: the
+        neighbouring pair across an edge of the square is a pair too), their closest
+        points and which of (s, t) are free (smooth_pairs.free)."""
+        st = self.stencils
+        keep = np.ones(len(pairs), bool)
+        free_ = []
+        for col in (0, 1):
+            seg, other = pairs[:, col], pairs[:, 1 - col]
+            side = [(n >= 0) & self.allowed(np.maximum(n, 0), other)
+                    for n in (st.prev[seg], st.next[seg])]
+            keep &= counted(closest_[3 + col], *side)
+            free_.append(free(closest_[col], *side))
+        return pairs[keep], tuple(v[keep] for v in closest_), np.array(free_)[:, keep]
 
     def _joint_distances(self, joints) -> list[np.ndarray]:
         """Per joint point (the nodes (s_a, s_b) of the joints, those sharing a node
@@ -248,12 +310,20 @@ class SegmentContact:
         key, value = self._cache
         if key is not None and np.array_equal(key, P):
             return value
-        pairs, closest = self.near(P)
-        nodes = self.line.ends[pairs].reshape(-1, 4)
-        weights = 0.5 * self.line.lengths[pairs].sum(axis=1)
-        value = PairTerms(pairs, nodes, *pair_energy(
-            P[nodes], self.law.radius, self.law.gap, self.law.stiffness, weights,
-            closest=closest))
+        pairs, closest_ = self.near(P)
+        law = self.law
+        if self.stencils is not None:
+            pairs, closest_, free_ = self._counted_pairs(pairs, closest_)
+            nodes = self.pair_nodes(pairs)
+            energy = smooth_pair_energy(
+                P[nodes].reshape(-1, 8, 3), *self._curve_weights(pairs), *closest_[:2],
+                free_, law.radius, law.gap, law.stiffness, 0.5 * self.line.lengths[pairs].sum(axis=1))
+        else:
+            nodes = self.pair_nodes(pairs)
+            energy = pair_energy(P[nodes].reshape(-1, 4, 3), law.radius, law.gap,
+                                 law.stiffness, 0.5 * self.line.lengths[pairs].sum(axis=1),
+                                 closest=closest_)
+        value = PairTerms(pairs, nodes, *energy)
         self._cache = (P, value)
         return value
 
@@ -312,8 +382,9 @@ class SegmentContact:
         gaps = self._gaps(P, terms.pairs)
         G = terms.gradient
         out = {"pair_contact_energy": float(terms.energy.sum()),
-               "pair_contact_force": float(np.linalg.norm(G[:, :6].reshape(-1, 2, 3).sum(1),
-                                                          axis=1).sum()),
+               "pair_contact_force": float(np.linalg.norm(
+                   G[:, :G.shape[1] // 2].reshape(len(G), G.shape[1] // 6, 3).sum(1),
+                   axis=1).sum()),
                "min_pair_gap": float(gaps.min(initial=self.law.gap)),
                "contact_pairs": float(len(gaps))}
         if self.friction is not None:       # of the force the last step applied (commit)
@@ -322,8 +393,17 @@ class SegmentContact:
         return out
 
     def _gaps(self, P, pairs):
-        X = P[self.line.ends[pairs].reshape(-1, 4)]
-        return closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])[2] - 2 * self.law.radius
+        return self._distances(P, pairs) - 2 * self.law.radius
+
+    def _distances(self, P, pairs):
+        """The pairs' centre-line distances at P: of their segments or (smooth) curves."""
+        return self._pair_distances(P[self.pair_nodes(pairs)], pairs)
+
+    def _pair_distances(self, Y, pairs):
+        """The distances of pairs whose nodes (``pair_nodes``) are at Y (m, 4 | 8, 3)."""
+        if self.stencils is None:
+            return closest_points(Y[:, 0], Y[:, 1], Y[:, 2], Y[:, 3])[2]
+        return self._curve_closest(Y, pairs)[2]
 
     def force_density(self) -> np.ndarray:
         """(owned nodes, 3) the pairs' contact force per unit length at the owned nodes
@@ -411,16 +491,18 @@ class SegmentContact:
         tau, so on an interval [a, b] with d(a) + d(b) - L (b - a) > 2 floor it stays
         above the floor; other intervals are bisected CROSSING_DEPTH times."""
         move = np.linalg.norm(P1 - P0, axis=1)
-        pairs = self.pairs(P0, 2 * move.max() + self.reach)
+        smooth = self.stencils is not None
+        e = self.line.ends if not smooth else self.stencils.nodes
+        gain = LIPSCHITZ if smooth else 1.0     # a curve point moves <= gain its nodes' most
+        pairs = self.pairs(P0, 2 * gain * move.max() + self.reach)
         if not len(pairs):
             return None
-        e = self.line.ends
-        L = move[e[pairs[:, 0]]].max(1) + move[e[pairs[:, 1]]].max(1)
+        L = gain * (move[e[pairs[:, 0]]].max(1) + move[e[pairs[:, 1]]].max(1))
 
         def dist(tau, k):
-            nodes = e[pairs[k]].reshape(len(k), 4)
-            P = P0[nodes] + tau[:, None, None] * (P1 - P0)[nodes]
-            return closest_points(P[:, 0], P[:, 1], P[:, 2], P[:, 3])[2]
+            nodes = self.pair_nodes(pairs[k])
+            return self._pair_distances(P0[nodes] + tau[:, None, None] * (P1 - P0)[nodes],
+                                        pairs[k])
 
         idx = np.arange(len(pairs))
         a, b = np.zeros(len(pairs)), np.ones(len(pairs))
@@ -570,10 +652,10 @@ class BoundTerm:
         return self._entries(np.vstack([pairs, coming]))
 
     def _entries(self, pairs):
-        """(rows, columns) of the 3 x 3 blocks of every two nodes of each pair's four
-        nodes, rows of owned nodes only."""
+        """(rows, columns) of the 3 x 3 blocks of every two nodes of each pair's nodes
+        (``pair_nodes``), rows of owned nodes only."""
         n_nodes = self.contact.line.n_nodes
-        nodes = self.contact.line.ends[pairs].reshape(-1, 4)
+        nodes = self.contact.pair_nodes(pairs)
         keys = np.unique((nodes[:, :, None] * n_nodes + nodes[:, None, :]).ravel())
         a, b = keys // n_nodes, keys % n_nodes
         a, b = a[self.owned[a]], b[self.owned[a]]
@@ -597,19 +679,20 @@ class BoundTerm:
             self._add_matrix(A, nodes, rates[0] * H)
 
     def _add_matrix(self, A, nodes: np.ndarray, H: np.ndarray) -> None:
-        """A += the 12 x 12 blocks H of the pairs' nodes (rows of owned nodes)."""
+        """A += the blocks H (3k x 3k) of the pairs' k nodes (rows of owned nodes)."""
         if not len(nodes):
             return
-        rows = self.global_rows[nodes].reshape(-1, 12)
-        owned = np.repeat(self.owned[nodes], 3, axis=1)
+        rows = self.global_rows[nodes].reshape(len(nodes), -1)
+        owned = np.repeat(self.owned[nodes].reshape(len(nodes), -1), 3, axis=1)
         # one call for all pairs (PETSc's loop); other ranks' rows as -1: skipped
         A.setValuesRCV(np.where(owned, rows, -1).astype(PETSc.IntType),
                        rows.astype(PETSc.IntType), H, addv=PETSc.InsertMode.ADD_VALUES)
 
 
 class PairTerms(NamedTuple):
-    """The active pairs (m, 2) of segments, their nodes (m, 4) (global numbers), and
-    their energies (m,), gradients (m, 12) and Hessians (m, 12, 12)."""
+    """The active pairs (m, 2) of segments, their nodes (m, k) (global numbers: k = 4,
+    or 8 for smooth pairs' stencils), and their energies (m,), gradients (m, 3k) and
+    Hessians (m, 3k, 3k)."""
     pairs: np.ndarray
     nodes: np.ndarray
     energy: np.ndarray

@@ -121,6 +121,16 @@ class Polyline:
         return nodes[index], continuous(np_quaternion_from_matrix(R))[index]
 
 
+def curve(table: dict | None):
+    """The curve (Straight, Arc, Helix, Polyline) of a scene's shape table
+    (scenes/values.starting_shape), None for None."""
+    if table is None:
+        return None
+    keys = dict(table)
+    kind = keys.pop("type")
+    return {"straight": Straight, "arc": Arc, "helix": Helix, "polyline": Polyline}[kind](**keys)
+
+
 def continuous(q: np.ndarray) -> np.ndarray:
     """Unit quaternions of nodes in order along the rod, signs chosen so that neighbours
     lie in one hemisphere (q_k . q_k+1 > 0): the P1 interpolant of q and -q passes

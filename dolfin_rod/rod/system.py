@@ -40,9 +40,12 @@ from .rods import OLD_CONSTRAINT, Rod, new_keywords
 class RodSystem(RodModel):
     """Several rods (rods.Rod) in one model, joined by ``joints`` (joints.Joint); model,
     variant, constraints, rotations, obstacles and contact as RodModel (common to all
-    rods).  Diagnostics: the
-    system's energies and powers under the single rod's names, each rod's tip and
-    reactions as ``<name>.<key>``, each joint's reactions as ``joint_<name>_...``."""
+    rods).  A rod whose stress-free polyline has corners is split there into pieces
+    joined rigidly (kinks.py; the joints naming it attach to the piece at their point).
+    Diagnostics: the system's energies and powers under the single rod's names, each
+    rod's tip and reactions as ``<name>.<key>`` (a split rod's: of its last piece, of its
+    ends), each joint's reactions as ``joint_<name>_...`` (a corner's:
+    ``joint_<rod>-corner<k>_...``)."""
 
     @old_keywords("RodSystem", OLD_CONSTRAINT, new_keywords)
     def __init__(self, rods: Sequence[Rod], joints: Sequence[Joint] = (),
@@ -61,15 +64,18 @@ class RodSystem(RodModel):
         ``<name>.point{j}_position_{xyz}`` and its reactions (RodModel.diagnostics)."""
         d = self.assembled_diagnostics(t)
         moving, reaction_power = False, 0.0
-        for rod, tip, points, supports in zip(self.rods, self.tips, self.rod_point_positions,
-                                              self.end_supports):
-            own = tip()
+        first = 0
+        for split, points in zip(self.splits, self.rod_point_positions):
+            last = first + len(split.rods) - 1   # a rod split at its corners: its pieces
+            own = self.tips[last]()
             own.update(points())
-            own.update(supports.reactions(self.residual, t, self.problem.structure))
-            moving = moving or "reaction_power" in own
-            reaction_power += own.pop("reaction_power", 0.0)
+            for supports in self.end_supports[first:last + 1]:   # (inner ends: free)
+                own.update(supports.reactions(self.residual, t, self.problem.structure))
+                moving = moving or "reaction_power" in own
+                reaction_power += own.pop("reaction_power", 0.0)
             own["tip_rotation_angle"] = diagnostics.tip_rotation_angle(own)
-            d.update({f"{rod.name}.{key}": value for key, value in own.items()})
+            d.update({f"{split.rods[0].name}.{key}": value for key, value in own.items()})
+            first = last + 1
         if self.joint_reactions is not None:
             d.update(self.joint_reactions())
         if moving:

@@ -18,6 +18,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from ..checks import ENDS
+from ..rod.start import curve
 from .contact import (contact_law, contact_solver_options, obstacles, segment_pairs,
                       touching)
 from .rules import START_KEYS, adaptive_stepper, rod_rotations
@@ -339,18 +340,6 @@ def starting_state(scene: Scene):
         orientation=ini["orientation"] or zero, velocity=ini["velocity"] or zero,
         angular_velocity=ini["angular_velocity"] or zero,
         rotation_centre=ini["rotation_centre"], equilibrium=ini["equilibrium"])
-
-
-def curve(table: dict | None):
-    """The curve (rod/start.py: Straight, Arc, Helix, Polyline) of a shape table
-    (values.starting_shape), None for None."""
-    if table is None:
-        return None
-    from ..rod import start
-    keys = dict(table)
-    kind = keys.pop("type")
-    return {"straight": start.Straight, "arc": start.Arc, "helix": start.Helix,
-            "polyline": start.Polyline}[kind](**keys)
 
 
 def rod_arguments(scene: Scene) -> dict:

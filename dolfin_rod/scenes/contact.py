@@ -3,13 +3,18 @@ rules across keys and the obstacles and contact law they describe (rod/contact.p
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from .scene import Scene
 
-# per shape the pose keys it needs (every other pose key is an error)
+# per shape the pose keys it needs and those it may have (every other one is an error)
 POSE_KEYS = {"plane": ("point", "normal"), "sphere": ("centre", "radius"),
-             "cylinder": ("centre", "axis", "radius", "length")}
+             "cylinder": ("centre", "axis", "radius", "length"), "mesh": ()}
+OPTIONAL_KEYS = {"mesh": ("centre", "file", "vertices", "triangles", "rotation", "scale")}
+ALL_POSE_KEYS = ("point", "normal", "centre", "axis", "radius", "length", "file",
+                 "vertices", "triangles", "rotation", "scale")
 DIRECTIONS = ("normal", "axis")
 
 
@@ -34,13 +39,16 @@ def check_contact_keys(scene: Scene) -> None:
                                  f"barrier acts within the gap), got {contact['gap']:g}")
     for k, ob in enumerate(obstacles):
         name, needed = f"obstacles[{k}]", POSE_KEYS[ob["shape"]]
-        for key in POSE_KEYS["cylinder"] + ("point", "normal"):
+        allowed = needed + OPTIONAL_KEYS.get(ob["shape"], ())
+        for key in ALL_POSE_KEYS:
             if key in needed and ob[key] is None:
                 raise err(f"{name}.{key}", f"missing: a {ob['shape']} needs "
                                            f"{', '.join(needed)}")
-            if key not in needed and ob[key] is not None:
+            if key not in allowed and ob[key] is not None:
                 raise err(f"{name}.{key}", f"does not apply to a {ob['shape']} (its keys: "
-                                           f"{', '.join(needed)}, friction)")
+                                           f"{', '.join(allowed)}, friction)")
+        if ob["shape"] == "mesh":
+            _check_mesh(scene, k)
         for key in DIRECTIONS:
             if ob[key] is not None and not np.linalg.norm(ob[key]) > 0:
                 raise err(f"{name}.{key}", "must not be the zero vector")
@@ -48,12 +56,60 @@ def check_contact_keys(scene: Scene) -> None:
             raise err(f"{name}.friction", "friction depends on the velocity: it needs a "
                                           "dynamic rod (material.density > 0)")
     for key, pairs in (("self_friction", "self"), ("between_rods_friction", "between_rods")):
+        if contact[key] > 0 and contact["pair_curve"] == "smooth":
+            raise err(f"contact.{key}", "friction between segments needs "
+                                        "contact.pair_curve = 'segments'")
         if contact[key] > 0 and not contact[pairs]:
             raise err(f"contact.{key}", f"applies to segments in contact: set "
                                         f"contact.{pairs} = true")
         if contact[key] > 0 and not scene["material"]["dynamic"]:
             raise err(f"contact.{key}", "friction depends on the velocity: it needs a "
                                         "dynamic rod (material.density > 0)")
+
+
+def _check_mesh(scene: Scene, k: int) -> None:
+    """A mesh obstacle: a file or vertices and triangles, a surface (read and checked
+    now: rod/triangle_mesh.py), and an integrator that evaluates one state per step."""
+    from ..rod.triangle_mesh import MeshError
+    err, ob, name = scene.error, scene["obstacles"][k], f"obstacles[{k}]"
+    for key in ("scheme", "ts_type"):
+        if key in scene.given["time"]:
+            raise err(f"time.{key}", f"{name} is a mesh: it is solved by generalized-alpha "
+                                     "or quasi-statically (its nodes' closest features are "
+                                     "those of one state per step; docs/contact.md)")
+    try:
+        mesh_surface(scene, ob)
+    except MeshError as bad:
+        raise err(f"{name}.{bad.key}", str(bad)) from None
+
+
+def obstacle(scene: Scene, ob: dict):
+    """rod.contact.Obstacle of one [[obstacles]] entry (a mesh's file relative to the
+    scene's folder)."""
+    from ..rod.contact import Obstacle
+    given = {key: tuple(ob[key]) for key in ("point", "normal", "centre", "axis",
+                                             "rotation", "vertices", "triangles")
+             if ob[key] is not None}           # the shape's keys only (checked above)
+    if ob["file"] is not None:
+        given["file"] = mesh_file(scene, ob)
+    return Obstacle(ob["shape"], radius=ob["radius"] or 0.0, length=ob["length"] or 0.0,
+                    friction=ob["friction"], scale=ob["scale"] or 1.0, **given)
+
+
+def mesh_surface(scene: Scene, ob: dict):
+    """A mesh obstacle's placed surface (rod/triangle_mesh.py: numpy only, so that
+    `dolfin-rod check` stays cheap); MeshError naming the key at fault."""
+    from ..rod.triangle_mesh import placed_surface
+    return placed_surface(mesh_file(scene, ob), ob["vertices"], ob["triangles"],
+                          ob["centre"], ob["rotation"], ob["scale"] or 1.0)
+
+
+def mesh_file(scene: Scene, ob: dict) -> str | None:
+    """A mesh obstacle's file, relative to the scene's folder (None: not given)."""
+    if ob["file"] is None:
+        return None
+    folder = Path(scene.source).parent if Path(scene.source).is_file() else Path()
+    return str(folder / ob["file"])
 
 
 def touching(scene: Scene) -> bool:
@@ -75,14 +131,7 @@ def section_radius(scene: Scene) -> float | None:
 
 def obstacles(scene: Scene) -> list:
     """rod.contact.Obstacle of each [[obstacles]] entry."""
-    from ..rod.contact import Obstacle
-    out = []
-    for ob in scene["obstacles"]:
-        given = {key: tuple(ob[key]) for key in ("point", "normal", "centre", "axis")
-                 if ob[key] is not None}       # the shape's keys only (checked above)
-        out.append(Obstacle(ob["shape"], radius=ob["radius"] or 0.0,
-                            length=ob["length"] or 0.0, friction=ob["friction"], **given))
-    return out
+    return [obstacle(scene, ob) for ob in scene["obstacles"]]
 
 
 def contact_law(scene: Scene, params):
@@ -98,7 +147,8 @@ def contact_law(scene: Scene, params):
                       c["slip_tolerance"] or 1e-3 * geo["length"] / tim["t_end"],
                       self=c["self"], between_rods=c["between_rods"],
                       self_friction=c["self_friction"],
-                      between_rods_friction=c["between_rods_friction"])
+                      between_rods_friction=c["between_rods_friction"],
+                      pair_curve=c["pair_curve"])
 
 
 def contact_solver_options(scene: Scene) -> dict:

@@ -44,7 +44,8 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("loads", "start_couple"), ("loads", "point_force"), ("loads", "point_couple"),
     ("obstacles", "shape")} | {
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
-                             "between_rods", "self_friction", "between_rods_friction")} | {
+                             "between_rods", "self_friction", "between_rods_friction",
+                             "pair_curve")} | {
     ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue",
                                "at_bifurcation", "factorisation")} | {
     ("continuation", k) for k in ("method", "parameter", "arc_length", "load_scale",
@@ -406,6 +407,33 @@ def _check_rod_start(scene: Scene) -> None:
             raise err("geometry.reference_shape", f"the stress-free shape is a curve or the "
                                                   f"helix of geometry.{strains[0]}, not both")
         _check_curve(scene, "geometry.reference_shape", geo["reference_shape"])
+        _check_kinked_start(scene)
+
+
+def _check_kinked_start(scene: Scene) -> None:
+    """A rod split at the corners of its stress-free polyline (rod/kinks.py): its rigid
+    joints need rotation-vector unknowns (else an error naming geometry.reference_shape),
+    and a starting curve keeps its corners (kinks.piece_starts: a polyline with the same
+    corners, else an error naming initial.shape); numpy only."""
+    from ..rod.kinks import piece_starts, split_placed
+    from ..rod.placement import Geometry, PlacedRod
+    from ..rod.start import StartingState, curve
+    geo, ini = scene["geometry"], scene["initial"]
+    split = split_placed(PlacedRod("rod", Geometry(geo["length"], reference_shape=curve(
+        geo["reference_shape"])), geo["n_cells"], ("free", "free")))
+    if len(split.rods) == 1:
+        return
+    if rod_rotations(scene) != "rotation_vector":
+        raise scene.error("geometry.reference_shape", "a polyline with corners is split there "
+                          "into pieces joined rigidly, which needs rotation-vector unknowns "
+                          "(geometry.rotations), which this rod does not have: "
+                          + rod_rotations_reason(scene))
+    if ini["shape"] is not None:      # (where the rod starts and its velocities: no matter)
+        try:
+            piece_starts(StartingState(shape=curve(ini["shape"])), split)
+        except ValueError as bad:
+            raise scene.error("initial.shape", str(bad).removeprefix("start.shape: ")) \
+                from None
 
 
 def _check_curve(scene: Scene, key: str, shape: dict | None) -> None:

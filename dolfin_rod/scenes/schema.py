@@ -38,7 +38,7 @@ from .systems import validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
                      names_or_boolean, damping_tensor, entry_point, integer,
                      load_entry_point, path_problem, path_text,
-                     petsc_table, positive_pair, real, run_name, safe_name, scheme_name,
+                     petsc_table, points3, index_triples, positive_pair, real, run_name, safe_name, scheme_name,
                      section_inertia, spring_table, starting_shape, string, tensor_table,
                      toml_value,
                      ts_type_name,
@@ -53,7 +53,7 @@ VARIANTS = ("local", "uniform")
 ROD_MODELS = ("evolving", "kelvin_voigt", "hyperelastic")
 ROD_ENDS = ("clamped", "pinned", "free")
 CONSTRAINTS = ("none", "unshearable", "inextensible_unshearable")
-OBSTACLE_SHAPES = ("plane", "sphere", "cylinder")
+OBSTACLE_SHAPES = ("plane", "sphere", "cylinder", "mesh")
 
 # the fields that colour the 3-D pictures (output/animation.py), the panels of
 # histories.png (output/plots.py) and the unit systems of a scene's axes
@@ -425,7 +425,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                               "lowest_eigenvalue; SLEPc, ~10-30 ms a step)"),
         "factorisation": Key(choice("banded", "mumps"), "banded", R + "quasi-static: the "
                              "check's factorisation: banded (on one rank without "
-                             "multipliers a banded Cholesky first, MUMPS's LDL^T count "
+                             "constraint multipliers a banded Cholesky first, MUMPS's LDL^T count "
                              "only where K is not positive definite) | mumps (MUMPS's "
                              "LDL^T at every check; docs/stability.md)"),
         "at_bifurcation": Key(choice("switch", "stay"), "switch", R + "quasi-static, rotation "
@@ -485,13 +485,29 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "between_rods_friction": Key(real(0.0), 0.0, R + "Coulomb friction coefficient mu "
                                      ">= 0 between segments of different rods "
                                      "(contact.between_rods; needs density > 0)"),
+        "pair_curve": Key(choice("segments", "smooth"), "segments", R + "the curves whose "
+                          "distance the pairs' barrier acts on: segments (the P1 centre "
+                          "line's capsules) | smooth (a C^1 Catmull-Rom curve through the "
+                          "nodes: a crossing's energy smooth as it moves across a node; no "
+                          "friction between segments; docs/contact.md, \"Smooth pairs\")"),
     },
     "obstacles": {
         "shape": Key(choice(*OBSTACLE_SHAPES), REQUIRED, R + "plane (a half-space) | sphere "
-                     "| cylinder (finite, solid)"),
+                     "| cylinder (finite, solid) | mesh (a triangle surface: a solid if "
+                     "closed, else one-sided; docs/contact.md)"),
         "point": Key(vector3(), None, "plane: a point of its surface"),
         "normal": Key(vector3(), None, "plane: the outward normal (the solid is behind it)"),
-        "centre": Key(vector3(), None, "sphere, cylinder: the centre"),
+        "centre": Key(vector3(), None, "sphere, cylinder: the centre; mesh: the offset "
+                      "added to its vertices (default 0)"),
+        "file": Key(path_text, None, "mesh: an STL (ASCII or binary) or OBJ file, relative "
+                    "to the scene's folder; triangles counter-clockwise seen from outside"),
+        "vertices": Key(points3, None, "mesh: its vertices [[x, y, z], ...] (with "
+                        "triangles, instead of a file)"),
+        "triangles": Key(index_triples, None, "mesh: its triangles [[i, j, k], ...] "
+                         "(vertex indices from 0, counter-clockwise seen from outside)"),
+        "rotation": Key(vector3(), None, "mesh: a rotation vector (radians) applied to the "
+                        "vertices before the offset centre"),
+        "scale": Key(real(0.0, True), None, "mesh: a factor on the vertices (default 1)"),
         "axis": Key(vector3(), None, "cylinder: the axis direction"),
         "radius": Key(real(0.0, True), None, "sphere, cylinder: the radius"),
         "length": Key(real(0.0, True), None, "cylinder: the length along the axis"),

@@ -181,18 +181,22 @@ def _joint_axis(entry: dict, kind: str, where: str, source: str) -> tuple | None
 def _check_joint_points(scene: Scene) -> None:
     """Every joint at a node of both its rods (rod.joint_points.locate) and the rods'
     starting states meeting there (check_joints_at_start), before any model: the rods
-    as placed there (builders.placed_rods: no DOLFINx)."""
+    as placed there (builders.placed_rods: no DOLFINx), split at their corners as the
+    model splits them (rod/kinks.py)."""
     from ..rod.joint_points import check_joints_at_start, locate
+    from ..rod.kinks import attach, split_placed, system_starts
     from .builders import placed_rods, rod_starts, scene_joints
     if not scene.joints:
         return
-    rods, joints = placed_rods(scene), scene_joints(scene)
+    splits = [split_placed(rod) for rod in placed_rods(scene)]   # the model's pieces
+    rods = [piece for split in splits for piece in split.rods]
+    joints = attach(scene_joints(scene), splits)
     try:
         locate(rods, joints)
     except ValueError as err:
         key = str(err).partition(" ")[0].rstrip(":")
         raise SceneError(scene.source, key, str(err).partition(" ")[2]) from None
     try:
-        check_joints_at_start(rods, joints, rod_starts(scene) or {})
+        check_joints_at_start(rods, joints, system_starts(rod_starts(scene) or {}, splits))
     except ValueError as err:
         raise SceneError(scene.source, "initial", str(err)) from None

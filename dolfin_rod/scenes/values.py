@@ -161,6 +161,30 @@ def vector3(lo: float | None = None, lo_strict: bool = False):
     return check
 
 
+def points3(v) -> tuple:
+    """An array of [x, y, z] (a mesh's vertices)."""
+    if not isinstance(v, list) or not v:
+        raise BadValue(f"must be a non-empty array of [x, y, z], got {type_name(v)}")
+    out = []
+    for i, p in enumerate(v):
+        try:
+            out.append(vector3()(p))
+        except BadValue as bad:
+            raise BadValue(f"point {i} {bad.reason}") from None
+    return tuple(out)
+
+
+def index_triples(v) -> tuple:
+    """An array of [i, j, k] of integers >= 0 (a mesh's triangles)."""
+    if not isinstance(v, list) or not v:
+        raise BadValue(f"must be a non-empty array of [i, j, k], got {type_name(v)}")
+    for n, t in enumerate(v):
+        if not isinstance(t, list) or len(t) != 3 or \
+                not all(isinstance(i, int) and not isinstance(i, bool) and i >= 0 for i in t):
+            raise BadValue(f"entry {n} must be 3 integers >= 0, got {t!r}")
+    return tuple(tuple(t) for t in v)
+
+
 def scheme_name(v):
     v = string(v)
     try:
