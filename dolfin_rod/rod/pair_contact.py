@@ -49,6 +49,7 @@ from .smooth_pairs import LIPSCHITZ, Stencils, closest, counted, free, smooth_pa
 
 CROSSING_DEPTH = 24     # bisections of a step's path before a pair counts as crossed
 STEP_FLOOR = 0.1        # a Newton update keeps every pair's gap above this share of its gap
+ROUND_OFF = 1e-9        # relative margin of the path check's bound (``first_too_near``)
 
 
 def exclusion(radius: float, gap: float, h: float) -> float:
@@ -512,7 +513,10 @@ class SegmentContact:
             near = np.minimum(da, db) <= low[idx]
             if near.any():
                 return pairs[idx[near][0]]
-            open_ = da + db - L[idx] * (b - a) <= 2 * low[idx]
+            # with a round-off margin: a segment moved straight through another at the
+            # bound's rate has d(a) + d(b) = L (b - a) exactly on the interval of its
+            # passage (a V of slope L), which round-off must not close
+            open_ = da + db - L[idx] * (b - a) <= 2 * low[idx] + ROUND_OFF * L[idx] * (b - a)
             if not open_.any():
                 return None
             idx, a, b, da, db = idx[open_], a[open_], b[open_], da[open_], db[open_]
