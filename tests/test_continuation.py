@@ -18,6 +18,7 @@ points (d steps of ~4e-3: (4e-3)^2 F''/8 ~ 2e-4 F).
 
 from __future__ import annotations
 
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -61,8 +62,10 @@ def first_maximum(lam) -> tuple[float, int]:
     return extremum(np.arange(len(lam), dtype=float), lam, top), top
 
 
+@cache
 def displacement_controlled(steps: int = 200, d_max: float = 0.1):
-    """(d, F) of the half-arch with the crown's deflection prescribed."""
+    """(d, F) of the half-arch with the crown's deflection prescribed (computed once, the
+    reference of the API's and the scene's arc-length paths; callers do not modify it)."""
     rod = RodModel(ARCH, n_cells=CELLS, model="hyperelastic", start="clamped", end="pinned",
                    end_displacement={"start": lambda t: d_max * t * DOWN})
     rod.set_initial_state()

@@ -195,10 +195,13 @@ SCENE = Path(__file__).resolve().parents[1] / "scenes" / "ropes_pulled_over_each
     ("between_rods_friction = 0.5 ", "between_rods_friction = 0.5\nself_friction = 0.3",
      "contact.self_friction"),          # self-contact is off
     ("density = 1150.0 ", "", "contact.between_rods_friction"),   # quasi-static
+    ("between_rods_friction = 0.5 ", 'between_rods_friction = 0.5\npair_curve = "smooth"',
+     "contact.between_rods_friction"),  # smooth pairs have no friction
 ])
 def test_bad_friction_input_names_the_key(old, new, key):
     """One SceneError naming the key, before any solve: a negative coefficient, friction
-    without its kind of contact, friction on a quasi-static rod (no velocity)."""
+    without its kind of contact, friction on a quasi-static rod (no velocity), friction
+    with smooth pairs (contact.pair_curve)."""
     text = SCENE.read_text()
     assert old in text
     text = text.replace(old, new, 1).replace("gravity = [0.0, 0.0, -9.81]", "")

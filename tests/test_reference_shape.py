@@ -267,6 +267,17 @@ def test_bad_reference_shapes_are_named(params, message):
         RodModel(RodParameters(**params), 4)
 
 
+def test_kinked_rod_with_quaternions_is_refused_naming_its_corners():
+    """A kinked rod is split into pieces joined rigidly, and joints need rotation-vector
+    unknowns: quaternions asked for, or a rod that needs them (uniform variant), are a
+    ValueError that says it is the polyline's corners, before any mesh."""
+    params = RodParameters(length=2.0, reference_shape=Polyline(((0, 0, 0), (0, 0, 1), (1, 0, 1))))
+    for how in (dict(rotations="quaternion"), dict(variant="uniform")):
+        with pytest.raises(ValueError, match=r"a stress-free polyline with corners \(split "
+                                             r"there into pieces joined rigidly"):
+            RodModel(params, 5, **how)
+
+
 def test_bent_frame_scene_is_the_frame_scene(tmp_path):
     """scenes/bent_frame.toml (one rod, a corner in its stress-free polyline) against
     scenes/frame.toml (two rods welded), the same steel frame and load, 16 + 12 cells:
@@ -470,20 +481,28 @@ def test_placed_kinked_rod_of_a_system_starts_placed():
         expected, abs=1e-12)
 
 
-@pytest.mark.parametrize("shape, message", [
-    ('{ type = "polyline", points = [[0.0, 0.0, 0.0], [0.0, 0.0, 2.02], [1.515, 0.0, 2.02]], '
-     'rest_arc_length = [0.0, 2.0, 3.5] }', None),
-    ('{ type = "arc", radius = 2.0 }', "starts on a polyline with the same corners, not on a "
-                                       "smooth arc"),
-    ('{ type = "polyline", points = [[0.0, 0.0, 0.0], [0.0, 0.0, 2.0], [1.2, 0.0, 2.9]] }',
-     "the starting polyline does not keep the rod's rigid corners")])
-def test_kinked_scene_starting_shape_is_checked(tmp_path, shape, message):
-    """bent_frame.toml started on a curve: `dolfin-rod check` accepts its L stretched by
-    1 %, and refuses (exit 2, naming initial.shape, before any model) an arc and an L
-    whose corner has another angle."""
+def _start(shape: str) -> tuple[str, str]:
+    return "[time]", f"[initial]\nshape = {shape}\n\n[time]"
+
+
+@pytest.mark.parametrize("change, key, message", [
+    (_start('{ type = "polyline", points = [[0.0, 0.0, 0.0], [0.0, 0.0, 2.02], '
+            '[1.515, 0.0, 2.02]], rest_arc_length = [0.0, 2.0, 3.5] }'), None, None),
+    (_start('{ type = "arc", radius = 2.0 }'), "initial.shape",
+     "starts on a polyline with the same corners, not on a smooth arc"),
+    (_start('{ type = "polyline", points = [[0.0, 0.0, 0.0], [0.0, 0.0, 2.0], '
+            '[1.2, 0.0, 2.9]] }'), "initial.shape",
+     "the starting polyline does not keep the rod's rigid corners"),
+    (("n_cells = 28", 'n_cells = 28\nrotations = "quaternion"'), "geometry.reference_shape",
+     "a polyline with corners is split there into pieces joined rigidly, which needs "
+     "rotation-vector unknowns")])
+def test_kinked_scene_is_checked(tmp_path, change, key, message):
+    """bent_frame.toml started on a curve, or with quaternions: `dolfin-rod check`
+    accepts its L stretched by 1 %, and refuses (exit 2, naming the key, before any
+    model) an arc, an L whose corner has another angle, and quaternion unknowns (its
+    rigid corners are joints)."""
     path = tmp_path / "start.toml"
-    path.write_text((ROOT / "scenes" / "bent_frame.toml").read_text().replace(
-        "[time]", f"[initial]\nshape = {shape}\n\n[time]"))
+    path.write_text((ROOT / "scenes" / "bent_frame.toml").read_text().replace(*change))
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     out = subprocess.run([sys.executable, "-m", "dolfin_rod", "check", str(path), "--out",
                           str(tmp_path / "out")], capture_output=True, text=True, timeout=120,
@@ -491,5 +510,5 @@ def test_kinked_scene_starting_shape_is_checked(tmp_path, shape, message):
     if message is None:
         assert out.returncode == 0, out.stderr
     else:
-        assert out.returncode == 2 and "[initial.shape]: " in out.stderr \
+        assert out.returncode == 2 and f"[{key}]: " in out.stderr \
             and message in out.stderr and "Traceback" not in out.stderr, out.stderr

@@ -90,7 +90,7 @@ RADIUS, GAP = 0.01, 0.002       # the straight crossing's contact law
 
 def _straight_crossing(x0, y0, pair_curve, gap=GAP / 2):
     """Rod A (8 cells of 0.125) along e_1 from 0, rod B along e_2 crossing it at (x0,
-    y0) with its centre line 2 R + gap above: the system's segment contact."""
+    y0) with its centre line 2 R + gap above: the system's SegmentContact."""
     from dolfin_rod.rod import RodParameters
     from dolfin_rod.rod.rods import Rod
     from dolfin_rod.rod.system import RodSystem
@@ -101,7 +101,11 @@ def _straight_crossing(x0, y0, pair_curve, gap=GAP / 2):
     system = RodSystem(rods, model="hyperelastic", contact=ContactLaw(
         RADIUS, GAP, 1.0, between_rods=True, pair_curve=pair_curve))
     system.set_initial_state()
-    contact = system.segment_contact
+    return system.segment_contact
+
+
+def _pairs_at(x0, y0, pair_curve):
+    contact = _straight_crossing(x0, y0, pair_curve)
     return contact.evaluate(contact.owned_displacement())
 
 
@@ -116,12 +120,12 @@ def test_a_straight_crossing_has_one_energy_wherever_it_lies():
     exact = 0.125 * barrier_derivatives(np.array([GAP / 2]), GAP)[0][0]
     for x0, y0 in [(0.45, 0.0625), (0.5 - 1e-7, 0.0625), (0.5, 0.0625), (0.53, 0.0625),
                    (0.5, 0.0), (0.56, 1e-9)]:
-        terms = _straight_crossing(x0, y0, "smooth")
+        terms = _pairs_at(x0, y0, "smooth")
         assert len(terms.pairs) == 1 and terms.energy.sum() == pytest.approx(
             exact, rel=1e-12), (x0, y0, terms.pairs, terms.energy)
-    assert _straight_crossing(0.5, 0.0625, "segments").energy.sum() == pytest.approx(
+    assert _pairs_at(0.5, 0.0625, "segments").energy.sum() == pytest.approx(
         2 * exact, rel=1e-12)
-    assert _straight_crossing(0.5, 0.0, "segments").energy.sum() == pytest.approx(
+    assert _pairs_at(0.5, 0.0, "segments").energy.sum() == pytest.approx(
         4 * exact, rel=1e-12)
 
 
@@ -129,3 +133,25 @@ def test_bad_pair_curve_is_named():
     with pytest.raises(ValueError, match="contact.pair_curve"):
         check_contact([], ContactLaw(RADIUS, GAP, 1.0, between_rods=True,
                                      pair_curve="hermite"))
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("pair_curve", ["segments", "smooth"])
+def test_the_continuous_check_sees_the_curves_pass_through(pair_curve):
+    """Rod B moved straight down through rod A by 8 R (it ends 2 R + 2.9 delta below A:
+    no overlap at the end, only the path shows the passage): the path check names a
+    pair (the segment pairs missed it before the round-off margin: the distance is a V
+    of exactly the bound's slope); moved sideways along A, none.  Newton's update limit
+    along the path down: the largest 2^-k at which the gap stays above a tenth of its
+    start, the gap delta / 2 closing at 8 R tau: tau < 0.9 (delta / 2) / (8 R) =
+    0.01125, so 1/128 (the curves through collinear nodes are the lines: the same for
+    both)."""
+    contact = _straight_crossing(0.53, 0.0625, pair_curve)
+    P0 = contact.line.positions(contact.owned_displacement())
+    on_b = np.unique(contact.line.ends[contact.line.rod == 1])
+    down, along = P0.copy(), P0.copy()
+    down[on_b, 2] -= 8 * RADIUS
+    along[on_b, 0] += 0.3
+    assert contact.crossed(P0, down) is not None
+    assert contact.crossed(P0, along) is None
+    assert contact.step_fraction(P0, down) == 1 / 128

@@ -111,6 +111,8 @@ class TangentStiffness:
         self._symmetric = None  # K as SBAIJ, the factorisation's input
         self._entries = 0       # K's stored entries when _symmetric was made
         self._banded: BandedCholesky | bool | None = None     # at the first check
+        self._gauge: np.ndarray | None = None   # quaternions: each node's 4 rows of q
+        self.fast_checks = 0    # checks the banded test decided (stable)
 
     @staticmethod
     def _free_dofs(model, names) -> int:
@@ -193,14 +195,15 @@ class TangentStiffness:
         """The inertia of K at the current state and time t's loads; with a ``metric``
         G, the negative count is that of the eigenvalues of K v = lambda G v below
         -ZERO max K_ii / max G_ii (of K + that shift times G).  On one rank without
-        multipliers a banded Cholesky first (analysis/definiteness.py, ``banded``):
+        constraint multipliers a banded Cholesky first (analysis/definiteness.py, ``banded``):
         if it succeeds, K is positive definite, the count 0; otherwise, and on several
         ranks, MUMPS's LDL^T reads SBAIJ: one copy, kept, its values replaced at each
         check (K's pattern is fixed unless new segment-contact pairs grow it: then a
         new copy; G's is a part of it), so that MUMPS keeps its analysis (ordering,
         symbolic factorisation) and only refactorises."""
         A = self._assemble(t)
-        if self._fast_test(A) and self._banded.positive_definite(A, metric, ZERO):
+        if self._fast_test(A) and self._positive_definite(A, metric):
+            self.fast_checks += 1
             return Inertia(0, 0)
         K = symmetric_part(A, self.fixed, 1.0)
         if metric is not None:
@@ -226,14 +229,47 @@ class TangentStiffness:
         return Inertia(negative - self.multipliers, zero)
 
     def _fast_test(self, A: PETSc.Mat) -> bool:
-        """Whether the banded Cholesky applies (made at the first check): one rank,
-        no multipliers (they make K indefinite), an AIJ matrix, ``banded`` on."""
+        """Whether the banded Cholesky applies (made at the first check): one rank, an
+        AIJ matrix, ``banded`` on, and no multipliers (they make K indefinite) but the
+        quaternion gauge's (``_positive_definite``: its rows left out) on a rod without
+        joints."""
         if self._banded is None:
-            applies = (A.getComm().getSize() == 1
-                       and self.multipliers == 0 and A.getType() == "seqaij")
-            self._banded = BandedCholesky(A.getSize()[0], self.system.bc_rows) \
-                if applies else False
+            gauge = "quaternion" in self.names and "constraint_multiplier" not in self.names \
+                and not isinstance(self.system, ConstrainedSystem)
+            applies = (A.getComm().getSize() == 1 and A.getType() == "seqaij"
+                       and (self.multipliers == 0 or gauge))
+            fixed = self.system.bc_rows
+            if applies and gauge:
+                dofs = self.system.block_dofs
+                quaternion = dofs[self.names.index("quaternion")]
+                self._gauge = quaternion.reshape(-1, 4).astype(PETSc.IntType)
+                fixed = np.union1d(fixed, dofs[self.names.index("gauge_multiplier")])
+            self._banded = BandedCholesky(A.getSize()[0], fixed) if applies else False
         return self.banded and bool(self._banded)
+
+    def _positive_definite(self, A: PETSc.Mat, metric: PETSc.Mat | None) -> bool:
+        """The banded test of K (+ the metric's shift); quaternions: of K + c sum_i
+        e_i e_i^T without the gauge's rows, e_i = q_i/|q_i| at node i, c the largest
+        |K_ii|: on the directions the gauge leaves free (e_i . dq_i = 0) it is K, so
+        its Cholesky succeeding means K is positive definite there, the count 0 (along
+        e_i, where the energy is flat, it is c).  A is left as it was (c e_i e_i^T
+        added, then subtracted)."""
+        if self._gauge is None:
+            return self._banded.positive_definite(A, metric, ZERO)
+        q = self.model.f["quaternion"].x.array.reshape(-1, 4)
+        e = q / np.linalg.norm(q, axis=1)[:, None]
+        blocks = _largest_diagonal(A) * np.einsum("ni,nj->nij", e, e)
+
+        def add(sign: float) -> None:
+            for rows, block in zip(self._gauge, blocks):
+                A.setValues(rows, rows, sign * block.ravel(), addv=PETSc.InsertMode.ADD_VALUES)
+            A.assemble()
+
+        add(1.0)
+        try:
+            return self._banded.positive_definite(A, metric, ZERO)
+        finally:
+            add(-1.0)
 
     def _factorisation(self, comm) -> PETSc.KSP:
         """MUMPS LDL^T; every pivot counted (no ScaLAPACK root, ICNTL(13)), null pivots

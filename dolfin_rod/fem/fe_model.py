@@ -177,7 +177,7 @@ class FEModel:
         self.mesh = mesh
         self.bcs: list[fem.DirichletBC] = []                   # in order of creation
         self.block_bcs: dict[str, list[fem.DirichletBC]] = {}
-        self.diagnostic_forms: dict = {}                        # UFL, by key
+        self._given_diagnostics: dict | Callable[[], dict] = {}  # UFL by key, or its maker
         self._diagnostic_sums: FormSums | None = None           # compiled on first use
 
     def dirichlet(self, block: str, space, end: str, length: float, value,
@@ -206,11 +206,19 @@ class FEModel:
         """The Dirichlet conditions on one block."""
         return list(self.block_bcs.get(block, []))
 
-    def set_diagnostic_forms(self, forms: dict[str, ufl.Form]) -> None:
-        """The diagnostics' UFL forms; compiled at the first ``assembled_diagnostics`` (a
-        model that is only stepped never pays for them)."""
-        self.diagnostic_forms = dict(forms)
+    def set_diagnostic_forms(self, forms: dict[str, ufl.Form] | Callable[[], dict]) -> None:
+        """The diagnostics' UFL forms, or a function making them (called at the first read
+        of ``diagnostic_forms``); compiled at the first ``assembled_diagnostics`` (a model
+        that is only stepped never pays for them)."""
+        self._given_diagnostics = forms if callable(forms) else dict(forms)
         self._diagnostic_sums = None
+
+    @property
+    def diagnostic_forms(self) -> dict[str, ufl.Form]:
+        """The diagnostics' UFL forms by key (a function given for them: called now, once)."""
+        if callable(self._given_diagnostics):
+            self._given_diagnostics = dict(self._given_diagnostics())
+        return self._given_diagnostics
 
     def assembled_diagnostics(self, t: float) -> dict[str, float]:
         """Every diagnostic form at time t (loads set to t), summed over the ranks (one

@@ -210,9 +210,14 @@ class RodModel(FEModel):
         # quaternions it holds q in a plane, span(q_0, q_0 (0, a)), not a line)
         linked = [f"{name}[{end!r}]" for rod in rods for name, end in oblique_supports(rod)
                   if name == "end_turn"]
+        # joints: the system's, or only the rigid corners of a kinked rod (kinks.py)
+        what = ("joints need" if len(joints) > sum(len(split.joints) for split in self.splits)
+                else "a stress-free polyline with corners (split there into pieces joined "
+                     "rigidly, rod/kinks.py) needs")
         if joints and obstacle:
-            raise ValueError(f"joints need rotation-vector unknowns, which this system "
-                             f"cannot have: {obstacle}")
+            raise ValueError(f"{what} rotation-vector unknowns, which this "
+                             f"{'system' if len(self.splits) > 1 else 'rod'} cannot have: "
+                             f"{obstacle}")
         if linked and obstacle:
             raise ValueError(f"{linked[0]}: a turn about an axis off the coordinate axes "
                              f"needs rotation-vector unknowns, which this rod cannot have: "
@@ -223,7 +228,7 @@ class RodModel(FEModel):
             load_histories.jumps(motion) for rod in rods
             for motion in (rod.end_rotation or {}).values()))
         if joints and chosen != "rotation_vector":
-            raise ValueError("joints need rotation-vector unknowns (rotations 'auto' or "
+            raise ValueError(f"{what} rotation-vector unknowns (rotations 'auto' or "
                              f"'rotation_vector'), got {rotations!r}")
         if linked and chosen != "rotation_vector":
             raise ValueError(f"{linked[0]}: a turn about an axis off the coordinate axes "
@@ -345,18 +350,24 @@ class RodModel(FEModel):
         self.rod_point_positions = [diagnostics.PointPositions(unk, dict.fromkeys(
             p for own, rod in zip(points, self.rod_names) if rod == name for p in own))
             for name in dict.fromkeys(self.rod_names)]
-        forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
-                                         drag_dissipation + friction_dissipation, sum(springs, 0))
-        if len(self.splits) > 1:    # each rod's own energies, "<name>.free_energy", ...
-            for name in dict.fromkeys(self.rod_names):
-                own = [k for k, rod in enumerate(self.rod_names) if rod == name]
-                forms.update(diagnostics.rod_energy_forms(
-                    name, resp, c, unk, disc, sum(disc.pieces.indicator(k) for k in own),
-                    sum((springs[k] for k in own), 0)))
-        if self.contact:
-            forms.update(self.contact.diagnostic_forms())
-            forms["friction_dissipation"] = friction_dissipation or 0 * resp.psi * disc.dx_r
-        self.set_diagnostic_forms(forms)
+
+        def energy_forms() -> dict:
+            forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
+                                             drag_dissipation + friction_dissipation,
+                                             sum(springs, 0))
+            if len(self.splits) > 1:    # each rod's own energies, "<name>.free_energy", ...
+                for name in dict.fromkeys(self.rod_names):
+                    own = [k for k, rod in enumerate(self.rod_names) if rod == name]
+                    forms.update(diagnostics.rod_energy_forms(
+                        name, resp, c, unk, disc, sum(disc.pieces.indicator(k) for k in own),
+                        sum((springs[k] for k in own), 0)))
+            if self.contact:
+                forms.update(self.contact.diagnostic_forms())
+                forms["friction_dissipation"] = (friction_dissipation
+                                                 or 0 * resp.psi * disc.dx_r)
+            return forms
+
+        self.set_diagnostic_forms(energy_forms)      # made at the first diagnostics
         h = min(length / n for length, n in zip(layout.lengths, layout.n_cells))
         self.pass_through = PassThroughCheck(
             unk.f["displacement"], distance=h, exclusion=3 * h,

@@ -25,6 +25,10 @@ pair's largest node displacements; bisected where the bound cannot exclude it). 
 step is accepted only if every pair's gap is > 0 at its end and no two segments crossed
 on the straight path from the last accepted state (``crossed``, the same bound).
 
+With ``contact.pair_curve = "smooth"`` the pairs' distance is that of C^1 curves through
+the nodes (smooth_pairs.py: eight stencil nodes per pair, each close approach counted
+once); the searches, checks and bounds above then use the curves' distance.
+
 Coulomb friction of the pairs (``contact.self_friction``, ``between_rods_friction``):
 pair_friction.py, with the pairs and normal forces lagged at each accepted state
 (``commit``) and the nodes' velocities of the step's affine rate map (``set_rates``).
@@ -45,6 +49,7 @@ from .smooth_pairs import LIPSCHITZ, Stencils, closest, counted, free, smooth_pa
 
 CROSSING_DEPTH = 24     # bisections of a step's path before a pair counts as crossed
 STEP_FLOOR = 0.1        # a Newton update keeps every pair's gap above this share of its gap
+ROUND_OFF = 1e-9        # relative margin of the path check's bound (``first_too_near``)
 
 
 def exclusion(radius: float, gap: float, h: float) -> float:
@@ -508,7 +513,10 @@ class SegmentContact:
             near = np.minimum(da, db) <= low[idx]
             if near.any():
                 return pairs[idx[near][0]]
-            open_ = da + db - L[idx] * (b - a) <= 2 * low[idx]
+            # with a round-off margin: a segment moved straight through another at the
+            # bound's rate has d(a) + d(b) = L (b - a) exactly on the interval of its
+            # passage (a V of slope L), which round-off must not close
+            open_ = da + db - L[idx] * (b - a) <= 2 * low[idx] + ROUND_OFF * L[idx] * (b - a)
             if not open_.any():
                 return None
             idx, a, b, da, db = idx[open_], a[open_], b[open_], da[open_], db[open_]
@@ -648,8 +656,8 @@ class BoundTerm:
         return self._entries(np.vstack([pairs, coming]))
 
     def _entries(self, pairs):
-        """(rows, columns) of the 3 x 3 blocks of every two nodes of each pair's four
-        nodes, rows of owned nodes only."""
+        """(rows, columns) of the 3 x 3 blocks of every two nodes of each pair's nodes
+        (``pair_nodes``), rows of owned nodes only."""
         n_nodes = self.contact.line.n_nodes
         nodes = self.contact.pair_nodes(pairs)
         keys = np.unique((nodes[:, :, None] * n_nodes + nodes[:, None, :]).ravel())
@@ -675,7 +683,7 @@ class BoundTerm:
             self._add_matrix(A, nodes, rates[0] * H)
 
     def _add_matrix(self, A, nodes: np.ndarray, H: np.ndarray) -> None:
-        """A += the 12 x 12 blocks H of the pairs' nodes (rows of owned nodes)."""
+        """A += the blocks H (3k x 3k) of the pairs' k nodes (rows of owned nodes)."""
         if not len(nodes):
             return
         rows = self.global_rows[nodes].reshape(len(nodes), -1)
@@ -686,8 +694,9 @@ class BoundTerm:
 
 
 class PairTerms(NamedTuple):
-    """The active pairs (m, 2) of segments, their nodes (m, 4) (global numbers), and
-    their energies (m,), gradients (m, 12) and Hessians (m, 12, 12)."""
+    """The active pairs (m, 2) of segments, their nodes (m, k) (global numbers: k = 4,
+    or 8 for smooth pairs' stencils), and their energies (m,), gradients (m, 3k) and
+    Hessians (m, 3k, 3k)."""
     pairs: np.ndarray
     nodes: np.ndarray
     energy: np.ndarray

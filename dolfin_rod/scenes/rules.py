@@ -411,18 +411,24 @@ def _check_rod_start(scene: Scene) -> None:
 
 
 def _check_kinked_start(scene: Scene) -> None:
-    """A starting curve of a rod split at the corners of its stress-free polyline keeps
-    them (rod/kinks.piece_starts: a polyline with the same corners), else an error
-    naming initial.shape (numpy only)."""
+    """A rod split at the corners of its stress-free polyline (rod/kinks.py): its rigid
+    joints need rotation-vector unknowns (else an error naming geometry.reference_shape),
+    and a starting curve keeps its corners (kinks.piece_starts: a polyline with the same
+    corners, else an error naming initial.shape); numpy only."""
     from ..rod.kinks import piece_starts, split_placed
     from ..rod.placement import Geometry, PlacedRod
     from ..rod.start import StartingState, curve
     geo, ini = scene["geometry"], scene["initial"]
-    if ini["shape"] is None:
-        return
     split = split_placed(PlacedRod("rod", Geometry(geo["length"], reference_shape=curve(
         geo["reference_shape"])), geo["n_cells"], ("free", "free")))
-    if len(split.rods) > 1:       # (where the rod starts and its velocities: no matter)
+    if len(split.rods) == 1:
+        return
+    if rod_rotations(scene) != "rotation_vector":
+        raise scene.error("geometry.reference_shape", "a polyline with corners is split there "
+                          "into pieces joined rigidly, which needs rotation-vector unknowns "
+                          "(geometry.rotations), which this rod does not have: "
+                          + rod_rotations_reason(scene))
+    if ini["shape"] is not None:      # (where the rod starts and its velocities: no matter)
         try:
             piece_starts(StartingState(shape=curve(ini["shape"])), split)
         except ValueError as bad:

@@ -425,7 +425,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                               "lowest_eigenvalue; SLEPc, ~10-30 ms a step)"),
         "factorisation": Key(choice("banded", "mumps"), "banded", R + "quasi-static: the "
                              "check's factorisation: banded (on one rank without "
-                             "multipliers a banded Cholesky first, MUMPS's LDL^T count "
+                             "constraint multipliers a banded Cholesky first, MUMPS's LDL^T count "
                              "only where K is not positive definite) | mumps (MUMPS's "
                              "LDL^T at every check; docs/stability.md)"),
         "at_bifurcation": Key(choice("switch", "stay"), "switch", R + "quasi-static, rotation "
