@@ -7,7 +7,8 @@ A rod of N nodes lies along a great circle of an icosphere of radius 1 at the ga
 triangles.  Timed (best of 5): ``features`` (the broad phase, cKDTree of centroids
 queried for the nearest centroid and the ball c + R, and the exact closest points of the
 candidates), once per residual evaluation of a run; ``setup`` (the surface's checks,
-pseudo-normals and its cKDTree, once per run).  The exponents p of cost ~ m^p and ~ N^p between the sizes.
+pseudo-normals and its cKDTree, once per run).  The exponents p of cost ~ m^p and ~ N^p
+between the sizes.
 
     ./rodenv python3 benchmarks/mesh_obstacle.py
 Writes results/bench/mesh_obstacle.json.
@@ -17,24 +18,15 @@ from __future__ import annotations
 
 import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+from contact_assembly import best  # noqa: E402
 from meshes import icosphere  # noqa: E402
 
 from dolfin_rod import triangle_mesh  # noqa: E402
-
-
-def best(f, repeats: int = 5) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        f()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def main() -> None:

@@ -16,16 +16,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dolfin_rod import TimeStepper
 from dolfin_rod.rod import DistributedLoad, RodModel, RodParameters
 from dolfin_rod.rod.contact import ContactLaw, Obstacle, default_stiffness
 from dolfin_rod.rod.triangle_mesh import MeshError, Surface, read_mesh
-from dolfin_rod.scenes import SceneError, build, parse_scene
+from dolfin_rod.scenes import SceneError, build
 
 sys.path.insert(0, str(Path(__file__).parent))
 from meshes import (box, icosphere, prism, sagitta, write_obj,  # noqa: E402
                     write_stl_ascii, write_stl_binary)
-from test_contact import DELTA, G, R, ROD, TIGHT, _history, _lying_rod  # noqa: E402
+from test_contact import SCENE as CONTACT_SCENE  # noqa: E402
+from test_contact import (DELTA, G, R, ROD, TIGHT, _error, _history,  # noqa: E402
+                          _lying_rod, _propped)
 
 
 def _box_distance(p, half):
@@ -122,21 +123,10 @@ def test_rod_on_a_mesh_plane_is_the_rod_on_the_plane(friction):
                                                        abs=1e-9 * scale), key
 
 
-def _propped(obstacle, n=16):
-    """tests/test_contact.py's propped cantilever (w = 0.02, EI = 1e-2) on ``obstacle``:
-    (tip x, contact force x, smallest gap) at t = 1."""
-    w, EI = 0.02, 1e-2
-    params = RodParameters(length=1.0, A=(EI, EI, EI), B=(1e3, 1e3, 1e3))
-    rod = RodModel(params, n_cells=n, model="hyperelastic",
-                   distributed_loads=[DistributedLoad("force", (-w, 0.0, 0.0),
-                                                      lambda t: min(t, 1.0))],
-                   obstacles=[obstacle],
-                   contact=ContactLaw(R, DELTA, default_stiffness(0.0, params.A, 1.0, n, 1.0)))
-    rod.set_initial_state()
-    stepper = TimeStepper(rod.problem, None, TIGHT)
-    stepper.initial_accelerations(0.0)
-    stepper.run(0.0, 1.0, 0.1)
-    d = rod.diagnostics(1.0)
+def _prop(obstacle):
+    """(tip x, contact force x, smallest gap) of tests/test_contact.py's propped
+    cantilever on ``obstacle``."""
+    d = _propped(obstacle)
     return d["tip_position_x"], d["contact_force_x"], d["min_gap"]
 
 
@@ -153,12 +143,12 @@ def test_cantilever_propped_on_a_prism_converges_to_the_cylinder():
     0.76 s; ratios 4.05, 4.13), the force 8.7e-5, 1.8e-5, 2.9e-6 smaller."""
     Ro = 0.05
     centre = (-(R + 0.5 * DELTA + Ro), 0.0, 1.0)
-    x, F, _ = _propped(Obstacle("cylinder", centre=centre, axis=(0.0, 1.0, 0.0), radius=Ro,
+    x, F, _ = _prop(Obstacle("cylinder", centre=centre, axis=(0.0, 1.0, 0.0), radius=Ro,
                                 length=0.2))
     for n in (8, 16, 32):
         V, T = prism(n, Ro, 0.2, 0.3 * 2 * np.pi / n)
         s = Ro * (1 - np.cos(np.pi / n))
-        xm, Fm, gap = _propped(Obstacle("mesh", vertices=V, triangles=T, centre=centre))
+        xm, Fm, gap = _prop(Obstacle("mesh", vertices=V, triangles=T, centre=centre))
         assert 0.0 < gap < DELTA
         assert abs(xm - x) <= s
         assert abs(Fm - F) <= 3 * 1e-2 * s + 1e-6 * F
@@ -217,34 +207,16 @@ def test_mesh_contact_jacobian_is_the_residuals_derivative():
 
 # -- scenes ----------------------------------------------------------------------------------
 
-SCENE = """
-[material]
-model = "hyperelastic"
-stiffness = { A = [1e-2, 1e-2, 1e-2], B = [10.0, 10.0, 10.0] }
-density = 1.0
-section_inertia = 1e-5
-[boundary]
-start = "free"
-end = "free"
-[loads]
-gravity = [-9.81, 0.0, 0.0]
-[contact]
-radius = 0.01
-[[obstacles]]
+PLANE = """[[obstacles]]
+shape = "plane"
+point = [-0.0105, 0.0, 0.0]
+normal = [1.0, 0.0, 0.0]
+"""
+SCENE = CONTACT_SCENE.replace(PLANE, """[[obstacles]]
 shape = "mesh"
 vertices = [[-0.0105, -1.0, -1.0], [-0.0105, 1.0, -1.0], [-0.0105, 1.0, 2.0], [-0.0105, -1.0, 2.0]]
 triangles = [[0, 1, 2], [0, 2, 3]]
-friction = 0.3
-[time]
-t_end = 0.1
-dt = 0.01
-"""
-
-
-def _error(text: str) -> SceneError:
-    with pytest.raises(SceneError) as err:
-        build(parse_scene(text), "rod")
-    return err.value
+""")
 
 
 @pytest.mark.parametrize("change, key, words", [
@@ -282,3 +254,16 @@ def test_a_missing_or_unreadable_mesh_file_names_the_key(tmp_path):
     with pytest.raises(SceneError) as err:
         build(load_scene(scene_file), "rod")
     assert err.value.key == "obstacles[0].file" and "not a valid STL" in str(err.value)
+
+
+def test_the_bundled_mesh_scene_reads_its_file_and_draws_its_triangles():
+    """scenes/rope_over_boulder.toml: its STL (relative to the scene's folder) is the
+    320-triangle icosphere of radius 0.15 at the offset centre (every vertex 0.15 from
+    it, to float32's round-off), and the pictures get its placed triangles."""
+    from dolfin_rod.output.animation import Look
+    from dolfin_rod.scenes import load_scene
+    scene = load_scene(Path(__file__).resolve().parents[1] / "scenes/rope_over_boulder.toml")
+    corners = Look.of(scene).obstacles[0]["corners"]
+    assert corners.shape == (320, 3, 3)
+    radii = np.linalg.norm(corners - np.array([-0.16, 0.0, 0.45]), axis=2)
+    assert radii == pytest.approx(0.15, abs=1e-7)

@@ -1,6 +1,7 @@
 """Contact of the rod with rigid obstacles (issue 26; docs/contact.md): planes
-(half-spaces), spheres, finite cylinders and triangle meshes (triangle_mesh.py) touching the rod's centre line thickened by
-its radius r, with a smooth barrier of stated gap delta and Coulomb friction.
+(half-spaces), spheres, finite cylinders and triangle meshes (triangle_mesh.py) touching
+the rod's centre line thickened by its radius r, with a smooth barrier of stated gap
+delta and Coulomb friction.
 
 Gap of a centre-line point p to obstacle k: g_k(p) = d_k(p) - r, d_k the signed distance
 of p to the obstacle's surface (negative inside).  Contact law (per unit length, at the

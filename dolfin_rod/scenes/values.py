@@ -163,15 +163,7 @@ def vector3(lo: float | None = None, lo_strict: bool = False):
 
 def points3(v) -> tuple:
     """An array of [x, y, z] (a mesh's vertices)."""
-    if not isinstance(v, list) or not v:
-        raise BadValue(f"must be a non-empty array of [x, y, z], got {type_name(v)}")
-    out = []
-    for i, p in enumerate(v):
-        try:
-            out.append(vector3()(p))
-        except BadValue as bad:
-            raise BadValue(f"point {i} {bad.reason}") from None
-    return tuple(out)
+    return _points(v, least=1)
 
 
 def index_triples(v) -> tuple:
@@ -506,9 +498,10 @@ def starting_shape(v) -> dict:
     return out
 
 
-def _points(v) -> tuple:
-    if not isinstance(v, list) or len(v) < 2:
-        raise BadValue(f"must be an array of at least two [x, y, z], got {type_name(v)}")
+def _points(v, least: int = 2) -> tuple:
+    if not isinstance(v, list) or len(v) < least:
+        raise BadValue(f"must be an array of at least {('one', 'two')[least - 1]} "
+                       f"[x, y, z], got {type_name(v)}")
     out = []
     for i, p in enumerate(v):
         try:
