@@ -66,7 +66,7 @@ def make(case: str, values: dict = VALUES[0], n_cells: int = 4, loads=None,
     params = RodParameters(**values, **{**spec["params"], **changes})
     loads = loads or dict(distributed_loads=[DistributedLoad("force", (1.0, 0.0, 0.0))])
     return RodModel(params, n_cells=n_cells, model=spec["model"],
-                    variant=spec.get("variant", "local"), constraints=spec.get("constraint"),
+                    variant=spec.get("variant", "local"), constraints=spec.get("constraints"),
                     rotations=spec.get("rotations", "auto"), comm=MPI.COMM_WORLD, **loads)
 
 
