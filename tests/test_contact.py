@@ -345,7 +345,7 @@ def test_capstan_holds_below_the_overhang_and_slides_above(mu):
     limit friction is used almost fully along the contact, where the smoothed law creeps
     at up to eps; measured 2.1e-3, 1.2e-3, 5.6e-6 m/s for mu = 0.1, 0.3, 0.6); at 1.05 h2*
     it slides at > 0.5 m/s (measured 1.4-2.8 m/s), 300 times faster.  Under `mpirun -n 2`
-    too (mu = 0.6: 1297 s for both overhangs at load 11-12 on 2 cores)."""
+    too (2 ranks at load 10-12 on 2 cores: mu = 0.6 1297 s, mu = 0.1 and 0.3 687 s)."""
     speeds = []
     for ratio in (0.95, 1.05):
         _, rows = _capstan(mu, ratio)

@@ -267,3 +267,14 @@ def test_the_bundled_mesh_scene_reads_its_file_and_draws_its_triangles():
     assert corners.shape == (320, 3, 3)
     radii = np.linalg.norm(corners - np.array([-0.16, 0.0, 0.45]), axis=2)
     assert radii == pytest.approx(0.15, abs=1e-7)
+
+
+def test_an_open_surface_is_one_sided_within_its_border():
+    """The square [0, 1]^2 at z = 0 as two triangles (normal +e_3): above it d = z;
+    behind it, within its border, d = z < 0 (inside); beside it, closest to its border,
+    d = +distance to the border (outside), also behind the plane."""
+    square = Surface([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], [(0, 1, 2), (0, 2, 3)])
+    assert not square.closed
+    P = np.array([[0.5, 0.5, 0.2], [0.5, 0.5, -0.2], [1.3, 0.5, -0.4], [1.3, 1.4, 0.0],
+                  [-0.3, 0.5, 0.4]])
+    assert square.signed_distance(P) == pytest.approx([0.2, -0.2, 0.5, 0.5, 0.5])

@@ -7,7 +7,9 @@ and s the sign of (p - q) . N, N the angle-weighted pseudo-normal of the feature
 holds q (the face's normal; an edge's: the sum of its faces'; a vertex's: its faces'
 normals weighted by their angles there): exact for a closed, outward-oriented surface
 (Baerentzen & Aanaes 2005).  An open surface (e.g. a terrain, a plane of two triangles)
-is one-sided: the side its normals point to is outside.
+is one-sided: the side its normals point to is outside, the points behind it whose
+closest point is inside its border are inside, every point closest to its border is
+outside (d jumps from -D to D where the region behind the surface meets the border's).
 
 Within the region of points closest to one feature d is that feature's distance: the
 plane of a face (n . (p - a), linear), the line of an edge, or a vertex.  The contact
@@ -184,6 +186,10 @@ class Surface:
                                          "volume): orient the triangles counter-clockwise "
                                          "seen from outside")
         self.edges, self.tri_edges = edges, index.reshape(-1, 3)
+        # an open surface's border: points closest to it are outside
+        self.border_edges = count == 1
+        self.border_vertices = np.zeros(len(V), bool)
+        self.border_vertices[edges[self.border_edges].ravel()] = True
         # pseudo-normals: edges (sum of their faces'), vertices (angle-weighted)
         face_of = np.repeat(np.arange(len(T)), 3)
         self.edge_normals = np.zeros((len(edges), 3))
@@ -250,7 +256,10 @@ class Surface:
                            [self.normals[t], self.edge_normals[edge]],
                            self.vertex_normals[T[np.arange(len(t)), corner % 3]])
         offset = P - q
-        sign = np.where(np.einsum("ij,ij->i", offset, normal) < 0, -1.0, 1.0)
+        vertex = T[np.arange(len(t)), corner % 3]
+        border = np.where(kind == EDGE, self.border_edges[edge],
+                          (kind == VERTEX) & self.border_vertices[vertex])
+        sign = np.where((np.einsum("ij,ij->i", offset, normal) < 0) & ~border, -1.0, 1.0)
         distance = sign * np.linalg.norm(offset, axis=1)
         return Features(distance, anchor, normal, direction, kind, sign)
 
