@@ -25,7 +25,13 @@ from test_scenes import relaxation_rederived
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def cli(*args, mpi: int = 0, timeout: float = 120) -> subprocess.CompletedProcess:
+# s: a hang ends the test; a first 3-D rod run on a cold FFCx cache compiles its kernels
+# for ~125 s idle (the CLI's own notice), and a compile killed by a shorter timeout
+# leaves FFCx's lock behind, which fails every later run of those kernels
+CLI_TIMEOUT = 600
+
+
+def cli(*args, mpi: int = 0, timeout: float = CLI_TIMEOUT) -> subprocess.CompletedProcess:
     cmd = [sys.executable, "-m", "dolfin_rod", *map(str, args)]
     if mpi:
         cmd = [shutil.which("mpirun") or "mpirun", "-n", str(mpi), *cmd]
