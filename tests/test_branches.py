@@ -30,6 +30,7 @@ from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
 import dolfin_rod
+from test_buckling import jointed_column_scene
 from test_stability import COLUMN_SCENE
 
 TWISTED = """
@@ -182,30 +183,7 @@ def test_quaternion_form_twisted_rod_ends_buckled_as_rotation_vectors(tmp_path, 
     assert couple == pytest.approx(0.188531, abs=1e-5)
 
 
-JOINTED_COLUMN = """
-[material]
-model = "hyperelastic"
-stiffness = { A = [1.0, 1.0, 1.0], B = [1e5, 1e5, 1e5] }
-[boundary]
-end = "free"
-[[rods]]
-name = "lower"
-geometry = { length = 0.5, n_cells = 8 }
-boundary = { start = "clamped" }
-[[rods]]
-name = "upper"
-position = [0.0, 0.0, 0.5]
-geometry = { length = 0.5, n_cells = 8 }
-boundary = { start = "free" }
-loads = { end_force = { type = "ramp", value = [0.0, 0.0, -3.7011016504085092], duration = 1.0 } }
-[[joints]]
-kind = "rigid"
-rods = ["lower", "upper"]
-point = [0.0, 0.0, 0.5]
-[time]
-t_end = 1.0
-dt = 0.05
-[outputs]
+JOINTED_COLUMN = jointed_column_scene(8, -3.7011016504085092, 0.05) + """[outputs]
 fields = false
 animation = false
 plots = false

@@ -442,30 +442,36 @@ def test_jointed_column_buckles_as_one_column():
     assert factors[0][:2] == pytest.approx([1.0016, 2.0031], rel=1e-4)
 
 
-JOINTED_SCENE = """
+def jointed_column_scene(n_cells: int, load: float, dt: float) -> str:
+    """A clamped-free column of length 1 as two rods of ``n_cells`` joined rigidly at
+    mid-height, a dead tip force (0, 0, ``load``) ramped over t in [0, 1], steps ``dt``."""
+    return f"""
 [material]
 model = "hyperelastic"
-stiffness = { A = [1.0, 1.0, 1.0], B = [1e5, 1e5, 1e5] }
+stiffness = {{ A = [1.0, 1.0, 1.0], B = [1e5, 1e5, 1e5] }}
 [boundary]
 end = "free"
 [[rods]]
 name = "lower"
-geometry = { length = 0.5, n_cells = 4 }
-boundary = { start = "clamped" }
+geometry = {{ length = 0.5, n_cells = {n_cells} }}
+boundary = {{ start = "clamped" }}
 [[rods]]
 name = "upper"
 position = [0.0, 0.0, 0.5]
-geometry = { length = 0.5, n_cells = 4 }
-boundary = { start = "free" }
-loads = { end_force = { type = "ramp", value = [0.0, 0.0, -1.2337005501361697], duration = 1.0 } }
+geometry = {{ length = 0.5, n_cells = {n_cells} }}
+boundary = {{ start = "free" }}
+loads = {{ end_force = {{ type = "ramp", value = [0.0, 0.0, {load!r}], duration = 1.0 }} }}
 [[joints]]
 kind = "rigid"
 rods = ["lower", "upper"]
 point = [0.0, 0.0, 0.5]
 [time]
 t_end = 1.0
-dt = 0.5
+dt = {dt!r}
 """
+
+
+JOINTED_SCENE = jointed_column_scene(4, -1.2337005501361697, 0.5)
 
 
 @pytest.mark.mpi
