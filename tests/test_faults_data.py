@@ -381,7 +381,9 @@ def _rows_written(run: Path, n: int = 20):
 def _assert_interrupted(run: Path, err: str) -> None:
     summary = json.loads((run / "summary.json").read_text())
     assert summary["status"] == "interrupted", summary
-    assert len(read_csv(run / "timeseries.csv")) == summary["steps"] + 1 > 20
+    # _rows_written waited for a header and 20 rows; the signal may arrive before
+    # another row, so the rows kept are at least those 20 (issue 28, item 22)
+    assert len(read_csv(run / "timeseries.csv")) == summary["steps"] + 1 >= 20
     assert "Traceback" not in err and "interrupted: t = " in err, err
 
 
