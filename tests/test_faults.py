@@ -887,3 +887,61 @@ def test_load_histories_have_analytic_rates(history, t, slope):
     assert loads.rate(h, t) == pytest.approx(slope, abs=1e-15)
     if t not in (0.0, 0.5):             # kinks of f or f': one-sided rates differ there
         assert loads.central_difference(h, t) == pytest.approx(slope, abs=1e-8)
+
+
+# --- a compile killed before its end (SIGKILL) left FFCx's lock for every later run ---
+
+STALE_LOCK = """
+import sys
+import dolfinx, ufl
+from mpi4py import MPI
+from dolfin_rod.fem import form_cache
+form_cache.JIT_WAIT = 2          # s: the wait for another process's compile, shortened
+mesh = dolfinx.mesh.create_unit_interval(MPI.COMM_WORLD, 4)
+form = dolfinx.fem.Constant(mesh, {value}) * ufl.dx(domain=mesh)
+total = mesh.comm.allreduce(dolfinx.fem.assemble_scalar(form_cache.jit_form(form)))
+print(f"total {{total}}")
+"""
+
+
+def _kill_mid_compile(cache: Path, age: float) -> Path:
+    """What SIGKILL during FFCx's compile leaves: the module's .c (its lock), no .c.cached,
+    no library; ``age`` seconds old."""
+    (lock,) = (cache / "fenics").glob("*.c")
+    for left in (cache / "fenics").glob(lock.stem + ".*"):
+        if left != lock:
+            left.unlink()
+    stamp = datetime.datetime.now().timestamp() - age
+    os.utime(lock, (stamp, stamp))
+    return lock
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own processes")
+def test_a_lock_left_by_a_killed_compile_is_removed_once_it_is_stale(tmp_path):
+    """A kernel compile killed before its end used to make every later run of the same
+    kernel wait and fail (TimeoutError): a lock that was older than the wait when the
+    wait began is removed, serially and under mpirun -n 2 (rank 0 decides, no rank
+    hangs); a younger lock (a compile that may be running) is waited for and kept."""
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path),
+           "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    for k in list(env):
+        if k.startswith(("OMPI_COMM_WORLD", "PMIX_", "OMPI_MCA_ess", "PMI_")):
+            env.pop(k)
+    script = STALE_LOCK.format(value=0.3125)       # a value no other test compiles
+    mpirun = [shutil.which("mpirun") or "mpirun", "-n", "2"]
+
+    def run(*launcher: str) -> subprocess.CompletedProcess:
+        return subprocess.run([*launcher, sys.executable, "-c", script], capture_output=True,
+                              text=True, timeout=MPI_TIMEOUT, cwd=ROOT, env=env)
+
+    assert "total 0.3125" in run().stdout                 # compiled once: the cache
+    for launcher in ([], mpirun):
+        lock = _kill_mid_compile(tmp_path, age=60.0)
+        done = run(*launcher)
+        assert done.returncode == 0, done.stderr
+        assert done.stdout.count("total 0.3125") == (2 if launcher else 1), done.stdout
+        assert f"removed {lock}" in done.stderr, done.stderr
+        assert lock.with_suffix(".c.cached").is_file()
+    lock = _kill_mid_compile(tmp_path, age=0.0)
+    waited = run()
+    assert waited.returncode != 0 and "TimeoutError" in waited.stderr and lock.is_file()

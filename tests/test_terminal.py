@@ -97,3 +97,16 @@ def test_a_long_compile_is_announced_once(tmp_path):
         with compile_notice.watching(tmp_path):
             fem.form(fresh())
     assert captured.getvalue() == ""
+
+
+def test_the_packages_warnings_reach_stderr_on_both_releases():
+    """DOLFINx 0.9's FFCx routes every Python warning to a logger without a handler on
+    import: the package's warnings (a cut step, a first-order restart) never reached a
+    user (fem/compat.py undoes it).  A user's process: the public API, then a warning."""
+    import subprocess
+    import sys
+    code = ("import warnings, dolfin_rod; dolfin_rod.RodModel; "
+            "warnings.warn('a step was cut', RuntimeWarning)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=ROOT, timeout=120)
+    assert done.returncode == 0 and "RuntimeWarning: a step was cut" in done.stderr, done

@@ -14,11 +14,16 @@ The rest of the package calls these functions and never checks a version.
                        0.10+'s partitioner takes the facet-to-cell link limit
     C++ Form           0.9: the ufcx pointer and a dict of subdomain data; 0.10+: a list
                        of pointers and a list (a cached kernel's form, fem/form_cache.py)
+    Python warnings    0.9: importing FFCx (dolfinx does) routes every warning to a logger
+                       with no handler (``logging.captureWarnings(True)``), so the
+                       package's warnings (a cut step, a first-order restart) were never
+                       shown; undone here, they reach stderr as on 0.11
 """
 
 from __future__ import annotations
 
 import itertools
+import logging
 
 import dolfinx
 import dolfinx.fem as fem
@@ -29,6 +34,7 @@ from petsc4py import PETSc
 DOLFINX_VERSION = tuple(int(x) for x in dolfinx.__version__.split(".")[:2])
 _BLOCK_ASSEMBLERS = DOLFINX_VERSION < (0, 10)   # the *_block functions (removed in 0.10)
 _prefixes = itertools.count()
+logging.captureWarnings(False)     # FFCx 0.9 captured them (see above)
 
 
 def vector(form: fem.Form) -> PETSc.Vec:

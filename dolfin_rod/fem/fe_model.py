@@ -98,7 +98,7 @@ class FormSums:
             integrals = [itg.reconstruct(integrand=itg.integrand() * w[k])
                          for k, form in enumerate(forms) for itg in form.integrals()]
             summed = ufl.Form(integrals) if integrals else None
-            self.form = fem.form(summed) if summed else None
+            self.form = form_cache.jit_form(summed) if summed else None
             if key and summed:
                 form_cache.store(key, [self.form], [summed], objects)
         self.n, self.comm = len(forms), mesh.comm
@@ -147,7 +147,7 @@ def compiled_near_nodes(form: ufl.Form, mesh, s_nodes, key: str | None = None) -
     entry = form_cache.lookup(key)
     objects = form_cache.registry([form])
     if entry is None:
-        compiled = fem.form(restricted)
+        compiled = form_cache.jit_form(restricted)
         if key:
             form_cache.store(key, [compiled], [restricted], objects, tagged=True)
         return compiled

@@ -36,8 +36,11 @@ import importlib.util
 import json
 import os
 import platform
+import re
 import signal
 import threading
+import time
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -119,13 +122,68 @@ def compile_forms(forms):
     its end (interrupts_held)."""
     try:
         with compile_notice.watching(_FOLDER), interrupts_held():
-            return fem.form(forms, jit_options={"cffi_extra_compile_args": KERNEL_FLAGS,
-                                                "timeout": JIT_WAIT})
+            return jit_form(forms, KERNEL_FLAGS)
     except Exception as err:
         if "DOLFIN_ROD_KERNEL_FLAGS" not in os.environ:
             raise
         raise RuntimeError(f"DOLFIN_ROD_KERNEL_FLAGS={os.environ['DOLFIN_ROD_KERNEL_FLAGS']!r}:"
                            f" the step kernels did not compile with these flags ({err})") from err
+
+
+def jit_form(forms, flags: list[str] | None = None):
+    """fem.form of a form or (nested) list of forms (with compiler ``flags`` if given),
+    waiting up to JIT_WAIT for another process compiling the same kernel.  A compile
+    killed before its end (SIGKILL, out of memory) leaves FFCx's lock, the module's .c
+    file without its .c.cached, and every later run waited for it and failed: a lock
+    that was older than JIT_WAIT when this wait began (so no compile finished in twice
+    that time) is removed once, with a warning naming it, and the compile redone."""
+    options = {"timeout": JIT_WAIT} | ({"cffi_extra_compile_args": flags} if flags else {})
+    began = time.time()
+    try:
+        return fem.form(forms, jit_options=options)
+    except Exception as err:
+        if not _removed_stale_lock(err, forms, began - JIT_WAIT):
+            raise
+        return fem.form(forms, jit_options=options)
+
+
+_LOCK_IN_MESSAGE = re.compile(r"remove (.+\.c)\)")
+
+
+def _removed_stale_lock(err: Exception, forms, stale_before: float) -> bool:
+    """Whether the JIT failure ``err`` was a wait for a lock last written before the
+    time ``stale_before``, now removed.  Under MPI, DOLFINx's JIT fails on every rank at
+    once, with the message naming the lock on rank 0 only: rank 0 decides, tells the
+    others."""
+    text = str(err)
+    if not isinstance(err, TimeoutError) and "JIT" not in text and "just-in-time" not in text:
+        return False
+    comm = _comm(forms)
+    removed = None
+    found = _LOCK_IN_MESSAGE.search(text)
+    if comm.rank == 0 and found:
+        lock = Path(found.group(1))
+        if lock.is_file() and not lock.with_suffix(".c.cached").exists() \
+                and lock.stat().st_mtime < stale_before:
+            lock.unlink(missing_ok=True)
+            removed = str(lock)
+    removed = comm.bcast(removed, root=0) if comm.size > 1 else removed
+    if removed:
+        warnings.warn(f"removed {removed}: the lock of a kernel compile that was killed "
+                      "before its end; compiling that kernel again", RuntimeWarning)
+    return removed is not None
+
+
+def _comm(forms):
+    """The communicator of the forms' mesh (DOLFINx's JIT is collective on it)."""
+    stack = [forms]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, ufl.Form):
+            return item.ufl_domains()[0].ufl_cargo().comm
+        if isinstance(item, (list, tuple)):
+            stack.extend(item)
+    return MPI.COMM_WORLD
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from ..fem import compat
+from ..fem import compat, form_cache
 from ..fem.fe_model import ENDS
 from ..fem.solvers import BlockSNES, SolverError
 from ..theory.rotations import np_qmul
@@ -183,7 +183,8 @@ def settle(model, t: float) -> None:
 def _means(model, field) -> np.ndarray:
     """(1/L_k) int_rod k field ds of a DG0 vector field, one row per rod (MPI-reduced)."""
     chi = model.pieces.indicator
-    parts = [fem.assemble_scalar(fem.form(chi(k) * field[i] * ufl.dx(domain=model.mesh)))
+    dx = ufl.dx(domain=model.mesh)
+    parts = [fem.assemble_scalar(form_cache.jit_form(chi(k) * field[i] * dx))
              for k in range(len(model.rods)) for i in range(3)]
     total = np.array(model.mesh.comm.allreduce(np.array(parts), op=MPI.SUM)).reshape(-1, 3)
     return total / np.array(model.layout.lengths)[:, None]

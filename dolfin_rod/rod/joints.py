@@ -30,9 +30,9 @@ second rod's residual at its joined node (as the reactions at a support).
 
 from __future__ import annotations
 
-import dolfinx.fem as fem
 import numpy as np
 
+from ..fem import form_cache
 from ..fem.multipoint import NodeLink, NodeMap
 from ..fem.fe_model import NodeValues, near_nodes, nodal_residual
 from ..theory.quaternions import CONJ, np_qmul, np_rotation_matrix
@@ -167,8 +167,8 @@ class JointReactions:
 
     def __call__(self) -> dict:
         if self.forms is None:
-            self.forms = {b: fem.form(near_nodes(self.model.residual[b], self.model.mesh,
-                                                 self.s_nodes)) for b in self.blocks}
+            self.forms = {b: form_cache.jit_form(near_nodes(
+                self.model.residual[b], self.model.mesh, self.s_nodes)) for b in self.blocks}
         force, moment = (nodal_residual(self.forms[b], self.nodes[b]) for b in self.blocks)
         q = self.rotations(self.model.unknowns.chart.q_n.x.array)
         out = {}

@@ -39,7 +39,7 @@ from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports, linked_axes, spin_free
 from .constitutive import check_model, energy_function, section_response
-from .contact import ContactLaw, Obstacle, ObstacleContact, check_contact
+from .contact import ContactLaw, InitialOverlap, Obstacle, ObstacleContact, check_contact
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
@@ -47,6 +47,7 @@ from .joints import JointReactions, joint_nodes, node_links
 from .kinks import attach, piece_starts, split_at_kinks, system_starts
 from .layout import RodLayout
 from .linking import clamped_rod_linking
+from .obstacle_segments import ObstacleSegments
 from .pair_contact import SegmentContact, exclusion
 from .placement import placed_shape
 from .material import RodParameters, coefficients, is_zero
@@ -141,6 +142,7 @@ class RodModel(FEModel):
         self.joints = list(joints)
         nodes = joint_nodes(self, self.joints)
         self.segment_contact = self._segment_contact(contact, self.layout, nodes)
+        self.obstacle_segments = self._obstacle_segments(obstacles, contact, self.layout)
         self.problem = self._problem(forms, node_links(self, self.joints, nodes) + [
             line for supports in self.end_supports for line in supports.links(self.names)])
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
@@ -397,6 +399,19 @@ class RodModel(FEModel):
         self.pair_force = fem.Function(P1, name="pair_contact_force")
         return contact
 
+    def _obstacle_segments(self, obstacles, law, layout) -> ObstacleSegments | None:
+        """The segment contact of the obstacles that act on the segments
+        (obstacle_segments.py; ObstacleContact.segment_obstacles), None if none does."""
+        if not self.contact or not self.contact.segment_obstacles:
+            return None
+        contact = ObstacleSegments(self.unknowns.f["displacement"], law,
+                                   [(k, obstacles[k]) for k in self.contact.segment_obstacles],
+                                   layout.rod_of)
+        contact.block = list(self.names).index("displacement")
+        P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
+        self.segment_force = fem.Function(P1, name="obstacle_segment_force")
+        return contact
+
     def _check_pair_friction(self, law) -> None:
         """Friction between segments (pair_friction.py) follows the velocities of
         generalized-alpha's steps: a dynamic rod with rotation-vector unknowns."""
@@ -436,7 +451,7 @@ class RodModel(FEModel):
         unk = self.unknowns
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
                   forms, self.loads, self.bcs, self.set_supports)
-        terms = [self.segment_contact] if self.segment_contact else []
+        terms = [term for term in (self.segment_contact, self.obstacle_segments) if term]
         if self.contact and self.contact.term:     # a mesh obstacle's features
             terms.append(self.contact.term)
         where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
@@ -511,8 +526,9 @@ class RodModel(FEModel):
         reason = chart.check_increment() if chart is not None else None
         if reason is None and self.contact:
             reason = self.contact.check_state()
-        if reason is None and self.segment_contact:
-            reason = self.segment_contact.check_state()
+        for contact in (self.segment_contact, self.obstacle_segments):
+            if reason is None and contact:
+                reason = contact.check_state()
         return reason
 
     def checkpoint_state(self) -> dict:
@@ -573,6 +589,12 @@ class RodModel(FEModel):
             self.contact.check_initial()
             self.contact.update_normal_forces()
             self.contact.commit()
+        if self.obstacle_segments:
+            g, s, k = self.obstacle_segments.closest()
+            if g <= 0:
+                raise InitialOverlap(f"the rod's segment at s = {s:.4g} is {-g:.3g} closer "
+                                     f"to obstacles[{k}] than the rod's radius at t = 0: "
+                                     "move the obstacle or the rod", k)
         if self.segment_contact:
             reason = self.segment_contact.check_state()
             if reason:
@@ -607,6 +629,12 @@ class RodModel(FEModel):
         contact_energy), total force, smallest gap and count, into d."""
         if self.contact:
             d["min_gap"] = self.contact.closest()[0]
+        if self.obstacle_segments:
+            segments = self.obstacle_segments.diagnostics()
+            d["min_gap"] = min(d["min_gap"], segments.pop("min_gap"))
+            for key, value in segments.items():
+                d[key] = d.get(key, 0.0) + value
+            self._update_field(self.segment_force, self.obstacle_segments)
         if self.segment_contact:
             pairs = self.segment_contact.diagnostics()
             d["contact_energy"] = d.get("contact_energy", 0.0) + pairs.pop(
@@ -616,7 +644,7 @@ class RodModel(FEModel):
                 d["dissipation_rate"] += friction
                 d["friction_dissipation"] = d.get("friction_dissipation", 0.0) + friction
             d.update(pairs)
-            self._update_pair_force()
+            self._update_field(self.pair_force, self.segment_contact)
             if self.layout.single and self.supports.ends == ("clamped", "clamped") \
                     and self.segment_contact.self_contact:
                 d["twist"], d["writhe"] = self._twist_and_writhe()
@@ -634,11 +662,12 @@ class RodModel(FEModel):
         R = np.stack([np_rotation_matrix(qk) for qk in q])
         return clamped_rod_linking(points, R[:, :, 0], R[0, :, 2], R[-1, :, 2])
 
-    def _update_pair_force(self) -> None:
-        """The pairs' contact force per unit length at the nodes (pair_force)."""
-        f = self.pair_force
+    @staticmethod
+    def _update_field(f, contact) -> None:
+        """A segment contact's force per unit length at the nodes into the P1 field f
+        (pair_force, segment_force)."""
         n = f.function_space.dofmap.index_map.size_local
-        f.x.array[: 3 * n] = self.segment_contact.force_density().ravel()
+        f.x.array[: 3 * n] = contact.force_density().ravel()
         f.x.scatter_forward()
 
     def observables(self) -> dict:
@@ -662,4 +691,6 @@ class RodModel(FEModel):
             out["contact_force"] = self.contact.force_observable()
         if self.segment_contact:
             out["contact_force"] = out.get("contact_force", 0) + self.pair_force
+        if self.obstacle_segments:
+            out["contact_force"] = out["contact_force"] + self.segment_force
         return out

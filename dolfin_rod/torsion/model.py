@@ -29,7 +29,7 @@ from mpi4py import MPI
 
 from .. import loads as load_histories
 from ..checks import DEGREE, N_CELLS, VARIANT, check_n_cells, profile_violation, sample_points
-from ..fem import compat
+from ..fem import compat, form_cache
 from ..fem.fe_model import FEModel, end_measures, scalar_coefficient, vertex_measure
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem, TimeDependentValue
 from ..fem.solvers import default_lu
@@ -290,7 +290,7 @@ class TorsionModel(FEModel):
         solver.solve()
         if self.viscous:  # the impulse of the end torsion: int mu dphi_s ds
             return self.mesh.comm.allreduce(
-                fem.assemble_scalar(fem.form(self.coefficients["mu"] * self.phi.dx(0) * dx)),
+                fem.assemble_scalar(form_cache.jit_form(self.coefficients["mu"] * self.phi.dx(0) * dx)),
                 op=MPI.SUM)
         return 0.0
 
