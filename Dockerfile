@@ -10,7 +10,7 @@ ARG DEBIAN
 COPY env/ /tmp/env/
 RUN sh /tmp/env/install.sh "${DEBIAN}" && rm -rf /tmp/env
 ENV OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_btl=self,vader \
-    OMPI_MCA_rmaps_base_oversubscribe=1 MPLBACKEND=Agg
+    OMPI_MCA_rmaps_base_oversubscribe=1 UCX_MEM_EVENTS=no MPLBACKEND=Agg
 WORKDIR /project
 COPY . /project
 RUN pip install --no-deps --no-build-isolation --break-system-packages -e /project

@@ -116,6 +116,11 @@ PROPPED = (0.02, 1e-2)      # the propped cantilever's load per length w and EI
 def _propped(obstacle, n: int = 16) -> dict:
     """A quasi-static cantilever (L = 1, EI = 1e-2, 16 cells) under w = 0.02 per length
     (ramped over t <= 1) whose tip rests on ``obstacle``: its diagnostics at t = 1."""
+    return propped_rod(obstacle, n).diagnostics(1.0)
+
+
+def propped_rod(obstacle, n: int = 16) -> RodModel:
+    """The cantilever of ``_propped`` on ``obstacle`` (anywhere along it) at t = 1."""
     w, EI = PROPPED
     params = RodParameters(length=1.0, A=(EI, EI, EI), B=(1e3, 1e3, 1e3))
     rod = RodModel(params, n_cells=n, model="hyperelastic",
@@ -127,7 +132,7 @@ def _propped(obstacle, n: int = 16) -> dict:
     stepper = TimeStepper(rod.problem, None, TIGHT)
     stepper.initial_accelerations(0.0)
     stepper.run(0.0, 1.0, 0.1)
-    return rod.diagnostics(1.0)
+    return rod
 
 
 @pytest.mark.mpi
@@ -205,6 +210,15 @@ def _error(text: str) -> SceneError:
     (("normal = [1.0, 0.0, 0.0]", "normal = [1.0, 0.0, 0.0]\naxis = [0.0, 1.0, 0.0]"),
      "obstacles[0].axis", None),
     (("normal = [1.0, 0.0, 0.0]", "normal = [0.0, 0.0, 0.0]"), "obstacles[0].normal", None),
+    (("friction = 0.3", "contact = \"segments\""), "obstacles[0].contact", None),
+    (("friction = 0.3", "contact = \"edges\""), "obstacles[0].contact", None),
+    (('shape = "plane"', 'shape = "sphere"\ncontact = "segments"'), "obstacles[0].friction",
+     [("point = [-0.0105, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]",
+       "centre = [-0.1, 0.0, 0.5]\nradius = 0.05")]),
+    (('shape = "plane"', 'shape = "cylinder"'), "obstacles[0]",      # a thin bar across
+     [("point = [-0.0105, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\nfriction = 0.3",  # a cell
+       "centre = [0.0, 0.0, 0.05]\naxis = [0.0, 1.0, 0.0]\nradius = 0.003\nlength = 0.1"),
+      ("[contact]", "[geometry]\nn_cells = 10\n[contact]")]),
     (("density = 1.0\nsection_inertia = 1e-5", ""), "obstacles[0].friction",
      [("gravity = [-9.81, 0.0, 0.0]", "distributed_force = { value = [-9.81, 0.0, 0.0] }"),
       ('start = "free"', 'start = "clamped"')]),
@@ -248,9 +262,10 @@ def test_contact_jacobian_is_the_residuals_derivative(shape):
     import dolfinx.fem.petsc as fem_petsc
     import ufl
     rod = _lying_rod(1e-2, (-G, 0.0, 0.0), n_cells=4, gap0=0.5 * DELTA)
-    if shape != "plane":        # a sphere / cylinder under the rod's middle
+    if shape != "plane":        # a sphere / cylinder under the rod's middle, its law on
+        # the nodes (these forms): thinner than the cells (0.25), "auto" takes the segments
         ob = Obstacle(shape, centre=(-(R + 0.5 * DELTA + 0.05), 0.0, 0.5),
-                      axis=(0.0, 1.0, 0.0), radius=0.05, length=0.1)
+                      axis=(0.0, 1.0, 0.0), radius=0.05, length=0.1, contact="nodes")
         rod = RodModel(ROD, n_cells=4, model="hyperelastic", start="free", end="free",
                        obstacles=[ob], contact=ContactLaw(R, DELTA, 1e3))
         rod.set_initial_state()

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from dolfin_rod.output.animation import (Look, animation_name, colour_field, colour_scale,
-                                         colour_values, magnification, plane_patch,
+                                         colour_values, cylinder_wire, magnification,
+                                         plane_patch,
                                          rod_animation, rod_snapshots, support_nodes)
 from dolfin_rod.output.closing import FILES
 from dolfin_rod.output.line_fields import LineSample
@@ -134,6 +135,12 @@ def test_a_plane_obstacle_is_drawn_in_its_plane(tmp_path):
     assert np.linalg.norm(corners[1, 0] - corners[0, 0]) == pytest.approx(2.0, rel=1e-15)
     frames = [frame(t, tip=0.3 * t) for t in np.linspace(0, 1, 3)]
     look = Look("auto", {}, None, ({"shape": "plane", "point": point, "normal": normal},
-                                   {"shape": "sphere", "centre": (0.5, 0, 0.5), "radius": 0.2}))
-    rod_snapshots(frames, tmp_path / "s.png", look=look)      # a plane and a sphere drawn
+                                   {"shape": "sphere", "centre": (0.5, 0, 0.5), "radius": 0.2},
+                                   {"shape": "cylinder", "centre": (0, 0, 0.5), "radius": 0.01,
+                                    "axis": (0, 1, 0), "length": 0.5}))
+    rod_snapshots(frames, tmp_path / "s.png", look=look)      # plane, sphere, cylinder
     assert (tmp_path / "s.png").stat().st_size > 10_000
+    # the cylinder's wire: on its surface (radius 0.01 about the axis e_2), lid to lid
+    wire = cylinder_wire(look.obstacles[2]) - (0, 0, 0.5)
+    np.testing.assert_allclose(np.linalg.norm(wire[..., [0, 2]], axis=-1), 0.01, rtol=1e-14)
+    assert wire[..., 1].min() == pytest.approx(-0.25) and wire[..., 1].max() == pytest.approx(0.25)

@@ -12,6 +12,8 @@ side) against the run with it (the node stays on its side, the rod bounces back)
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -96,13 +98,14 @@ def test_sweep_entry_of_segments_against_dense_sampling():
 def _thrown(dt: float, t_end: float):
     """A free rod (L = 0.2, 4 cells, r = 2 mm) along e_3 thrown at 1 m/s along -e_1
     towards the thin cylinder (radius 3 mm, axis e_2, 5 cm from it, at its middle
-    node's height); the default barrier stiffness for dt.  Returns the middle node's x
-    at every step and the steps' stats."""
+    node's height; its contact on the nodes: the nodal law's check is tested); the
+    default barrier stiffness for dt.  Returns the middle node's x at every step and the
+    steps' stats."""
     params = RodParameters(length=0.2, A=(1e-2,) * 3, B=(10.0,) * 3, density=1.0,
                            section_inertia=1e-6)
     law = ContactLaw(RADIUS, 5e-4, default_stiffness(1.0, (1e-2,) * 3, 0.2, 4, dt))
     rod = RodModel(params, 4, model="hyperelastic", start="free", end="free",
-                   obstacles=[THIN], contact=law)
+                   obstacles=[replace(THIN, contact="nodes")], contact=law)
     rod.set_initial_state(start=StartingState(velocity=(-1.0, 0.0, 0.0)))
     stepper = TimeStepper(rod.problem)
     x = rod.unknowns.f["displacement"]
@@ -133,18 +136,21 @@ def test_a_node_does_not_jump_through_a_thin_obstacle(monkeypatch):
     assert through[0] < -0.053 and through[-1] == pytest.approx(-0.4, rel=1e-6)
 
 
-def _thrown_across(dt: float, steps: int):
-    """The rod of ``_thrown`` thrown at a thin cylinder that lies between its nodes
-    (z = 0.025, between s = 0 and 0.05): the nodes pass it 2.2 cm away, the segment
-    between them runs into it.  Returns the nodes' x after the last accepted step and
-    the error that stopped the run (None: it ran ``steps`` steps)."""
+def _thrown_across(dt: float, steps: int, contact: str = "nodes", n_cells: int = 4,
+                   z: float = 0.025, rows: list | None = None):
+    """The rod of ``_thrown`` (``n_cells``) thrown at a thin cylinder that lies between
+    its nodes (at z: 0.025 is between s = 0 and 0.05 of 4 cells: the nodes pass it 2.2 cm
+    away, the segment between them runs into it), its ``contact`` on the nodes or
+    ("auto") the segments.  Returns the nodes' x after the last accepted step and the
+    error that stopped the run (None: it ran ``steps`` steps); the diagnostics of each
+    step into ``rows``."""
     from dolfin_rod.integrators.step_control import IntegrationError
     params = RodParameters(length=0.2, A=(1e-2,) * 3, B=(10.0,) * 3, density=1.0,
                            section_inertia=1e-6)
-    law = ContactLaw(RADIUS, 5e-4, default_stiffness(1.0, (1e-2,) * 3, 0.2, 4, dt))
-    across = Obstacle("cylinder", centre=(-0.05, 0.0, 0.025), axis=(0.0, 1.0, 0.0),
-                      radius=0.003, length=0.05)
-    rod = RodModel(params, 4, model="hyperelastic", start="free", end="free",
+    law = ContactLaw(RADIUS, 5e-4, default_stiffness(1.0, (1e-2,) * 3, 0.2, n_cells, dt))
+    across = Obstacle("cylinder", centre=(-0.05, 0.0, z), axis=(0.0, 1.0, 0.0),
+                      radius=0.003, length=0.05, contact=contact)
+    rod = RodModel(params, n_cells, model="hyperelastic", start="free", end="free",
                    obstacles=[across], contact=law)
     rod.set_initial_state(start=StartingState(velocity=(-1.0, 0.0, 0.0)))
     stepper = TimeStepper(rod.problem)
@@ -152,6 +158,8 @@ def _thrown_across(dt: float, steps: int):
     try:
         for k in range(steps):
             stepper.run(k * dt, (k + 1) * dt, dt)
+            if rows is not None:
+                rows.append(rod.diagnostics((k + 1) * dt))
     except IntegrationError as err:
         return x.x.array.reshape(-1, 3)[:, 0].copy(), str(err)
     return x.x.array.reshape(-1, 3)[:, 0].copy(), None
@@ -175,3 +183,20 @@ def test_a_segment_does_not_pass_through_a_thin_obstacle(monkeypatch):
                                                                  np.vstack([A1, B1])))
     x, error = _thrown_across(0.1, 4)
     assert error is None and x == pytest.approx(-0.4, rel=1e-6)
+
+
+@pytest.mark.mpi
+def test_a_rod_thrown_at_a_thin_obstacle_between_its_nodes_bounces_back():
+    """The rod of ``_thrown_across`` with 5 cells thrown at the thin cylinder at its
+    middle (z = 0.1, the middle of a cell, the nodes 2 cm on either side): the nodal law
+    cannot hold it (the steps are cut until the run stops, as above); with the default
+    contact ("auto": segments, rod/obstacle_segments.py) the segment meets the cylinder
+    and the rod bounces back (the impact at its centre of mass: it moves away at x > 0
+    after 0.4 s), every step's gap > 0 (no step rejected for a pass-through)."""
+    x, error = _thrown_across(0.1, 4, n_cells=5, z=0.1)
+    assert error is not None and "passed through obstacles[0]" in error
+    rows = []
+    x, error = _thrown_across(0.1, 4, contact="auto", n_cells=5, z=0.1, rows=rows)
+    assert error is None
+    assert min(d["min_gap"] for d in rows) > 0.0
+    assert np.all(x > 0.0), x

@@ -274,8 +274,8 @@ def _drawn(scene):
 
 def draw_obstacles(ax, box, obstacles) -> None:
     """Planes as a grey square of the box's size about the point nearest the box's
-    centre, spheres as a grey wire sphere, meshes as their grey triangles that have a
-    corner in the box (drawn once, in the background); cylinders are not drawn."""
+    centre, spheres as a grey wire sphere, cylinders as a grey wire tube, meshes as their
+    grey triangles that have a corner in the box (drawn once, in the background)."""
     grey = {"color": (0.5, 0.5, 0.5), "alpha": 0.25}
     for ob in obstacles:
         if ob["shape"] == "mesh":
@@ -293,6 +293,22 @@ def draw_obstacles(ax, box, obstacles) -> None:
             unit = np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)])
             points = np.asarray(ob["centre"])[:, None, None] + ob["radius"] * unit
             ax.plot_wireframe(*points, linewidth=0.5, **grey)
+        elif ob["shape"] == "cylinder":
+            ax.plot_wireframe(*np.moveaxis(cylinder_wire(ob), -1, 0), linewidth=1.5,
+                              color=(0.4, 0.4, 0.4), alpha=0.6)     # a thin bar stays visible
+
+
+def cylinder_wire(ob) -> np.ndarray:
+    """(5, 13, 3) points of a cylinder's wire picture: 13 points on each of 5 circles
+    along its axis, lid to lid."""
+    axis = np.asarray(ob["axis"], float) / np.linalg.norm(ob["axis"])
+    e1 = np.cross(axis, (1.0, 0.0, 0.0) if abs(axis[0]) < 0.9 else (0.0, 1.0, 0.0))
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    phi = np.linspace(0.0, 2 * np.pi, 13)[:, None]
+    ring = ob["radius"] * (np.cos(phi) * e1 + np.sin(phi) * e2)
+    along = np.linspace(-0.5, 0.5, 5)[:, None, None] * ob["length"] * axis
+    return np.asarray(ob["centre"], float) + along + ring[None]
 
 
 def _gravity_quiver(ax, box, gravity) -> None:

@@ -33,12 +33,15 @@ from typing import Sequence
 import dolfinx.fem as fem
 import numpy as np
 import ufl
+from mpi4py import MPI
 
 from ..fem import compat
 from ..checks import nonnegative, positive, sample_points
 from .triangle_mesh import FACE, MeshError, Surface, placed_surface
 
 SHAPES = ("plane", "sphere", "cylinder", "mesh")
+CONTACT_MODES = ("auto", "nodes", "segments")   # where an obstacle's barrier acts
+SEGMENT_SHAPES = ("sphere", "cylinder")         # ... on segments: obstacle_segments.py
 XI_MIN = 1e-4             # g_min / delta: the barrier's exact range is [g_min, delta]
 BARRIER_CURVATURE = 2 * math.log(2) + 5.0   # b''(delta / 2) (dimensionless)
 SWEEP_DEPTH = 48          # halvings of a segment's sweep in a step (sweep_entry)
@@ -59,7 +62,9 @@ class Obstacle:
     around ``centre``) or "cylinder" (``radius``, ``length`` along ``axis`` through its
     ``centre``) or "mesh" (a triangle surface: ``file``, an STL or OBJ file, or
     ``vertices`` and ``triangles``, placed by x = centre + R(rotation) scale v, rotation a
-    rotation vector; triangle_mesh.py); ``friction`` the Coulomb coefficient mu >= 0.
+    rotation vector; triangle_mesh.py); ``friction`` the Coulomb coefficient mu >= 0;
+    ``contact`` where its barrier acts: "nodes" (this module), "segments" (a sphere's or
+    cylinder's, frictionless: obstacle_segments.py) or "auto" (``on_segments``).
     Deprecated (this
     release only): a sphere's or cylinder's centre as ``point``, a plane's normal as
     ``axis`` (the meaning they had), with a DeprecationWarning."""
@@ -77,6 +82,7 @@ class Obstacle:
     triangles: Sequence | None = None          # mesh: (m, 3) vertex indices
     rotation: Sequence[float] | None = None    # mesh: a rotation vector (radians)
     scale: float = 1.0                         # mesh: a factor on the vertices
+    contact: str = "auto"                      # "nodes" | "segments" | "auto"
 
     def __post_init__(self):
         old, new = ("axis", "normal") if self.shape == "plane" else ("point", "centre")
@@ -163,6 +169,7 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
             raise ValueError(f"{name}.shape must be one of {', '.join(SHAPES)}, got "
                              f"{ob.shape!r}")
         nonnegative(f"{name}.friction", ob.friction)
+        check_contact_mode(name, ob)
         if ob.shape == "mesh":
             positive(f"{name}.scale", ob.scale)
             try:
@@ -180,6 +187,35 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
             positive(f"{name}.radius", ob.radius)
         if ob.shape == "cylinder":
             positive(f"{name}.length", ob.length)
+
+
+def check_contact_mode(name: str, ob: Obstacle) -> None:
+    """ValueError naming ``name``.contact (or .friction) if the obstacle's contact mode is
+    not one of CONTACT_MODES, or "segments" on a shape or with friction it has not."""
+    if ob.contact not in CONTACT_MODES:
+        raise ValueError(f"{name}.contact must be one of {', '.join(CONTACT_MODES)}, got "
+                         f"{ob.contact!r}")
+    if ob.contact == "segments" and ob.shape not in SEGMENT_SHAPES:
+        raise ValueError(f"{name}.contact = 'segments' applies to a sphere or a cylinder, "
+                         f"not a {ob.shape} (its contact acts on the nodes: 'nodes' or "
+                         "'auto')")
+    if ob.contact == "segments" and ob.friction > 0:
+        raise ValueError(f"{name}.friction: segment contact is frictionless (friction on "
+                         "the nodes: contact = 'nodes' or 'auto')")
+
+
+def on_segments(ob: Obstacle, radius: float, gap: float, h: float) -> bool:
+    """Whether the obstacle's barrier acts on the rod's segments (obstacle_segments.py)
+    rather than its nodes: contact = "segments", or "auto" for a frictionless sphere or
+    cylinder of radius R that nodes h apart (the longest cell) cannot hold, h^2 >=
+    4 (r + delta) (2 R + r + delta): a straight rod across it, the obstacle midway
+    between two nodes, has its chord touch the body while both nodes are still beyond
+    the barrier's reach r + delta (docs/contact.md, "Thin obstacles")."""
+    if ob.contact != "auto":
+        return ob.contact == "segments"
+    reach = radius + gap
+    return (ob.shape in SEGMENT_SHAPES and ob.friction == 0
+            and h * h >= 4 * reach * (2 * ob.radius + reach))
 
 
 def default_stiffness(rho_A, bending, length: float, n_cells: int, dt: float) -> float:
@@ -389,7 +425,9 @@ class ObstacleContact:
     """The contact terms of a rod's residual and diagnostics, and the checks of its states.
 
     disc: the rod's discretisation (1-point rule dx_r), x: the displacement (P1), xt its
-    test function, V the centre line's velocity (P1; None: quasi-static, no friction)."""
+    test function, V the centre line's velocity (P1; None: quasi-static, no friction).
+    The barrier of the obstacles ``on_segments`` (``segment_obstacles``) acts on the
+    segments (obstacle_segments.py), not in these forms; the checks cover every one."""
 
     def __init__(self, obstacles: Sequence[Obstacle], law: ContactLaw, disc, x, V):
         check_contact(obstacles, law)
@@ -414,6 +452,11 @@ class ObstacleContact:
         self._nodes = self._all_nodes[: self._owned]
         cells = self.mesh.topology.index_map(1).size_local
         self._segments = space.dofmap.list[:cells]          # the owned cells' two nodes
+        h = self.mesh.comm.allreduce(float(np.max(np.abs(np.diff(
+            self._all_nodes[self._segments], axis=1)), initial=0.0)), op=MPI.MAX)
+        self.segment_obstacles = [k for k, ob in enumerate(obstacles)
+                                  if on_segments(ob, law.radius, law.gap, h)]
+        self.nodal = [k for k in range(len(obstacles)) if k not in self.segment_obstacles]
         self.V = V if any(ob.friction > 0 for ob in obstacles) else None
         self.start = None       # the nodes' points at the last commit (path check)
 
@@ -422,8 +465,9 @@ class ObstacleContact:
         return signed_distance(pose, p) - self.radius
 
     def energy_density(self, p):
-        return sum(self.stiffness * barrier(self._gap(pose, p), self.gap)
-                   for pose in self.poses)
+        """The nodal obstacles' barrier energy per unit length at p (UFL; there is one)."""
+        return sum(self.stiffness * barrier(self._gap(self.poses[k], p), self.gap)
+                   for k in self.nodal)
 
     def force_density(self, p):
         """-d(energy density)/dp: the normal contact force per unit length at p."""
@@ -485,7 +529,8 @@ class ObstacleContact:
         """Adds the contact forces' virtual work to F["displacement"] (the normal force as
         the derivative of ``energy``); returns the friction's dissipation rate form (0
         without friction)."""
-        F["displacement"] += ufl.derivative(self.energy(), self.x, xt)
+        if self.nodal:
+            F["displacement"] += ufl.derivative(self.energy(), self.x, xt)
         if self.V is None:
             return 0
         lams = self.normal_force
@@ -495,7 +540,10 @@ class ObstacleContact:
                                 self.r, self.V, *lams)
 
     def diagnostic_forms(self) -> dict:
-        """contact_energy and the total contact force on the rod (normal and friction)."""
+        """contact_energy and the total contact force on the rod (normal and friction)
+        of the nodal obstacles (none if every obstacle acts on the segments)."""
+        if not self.nodal:
+            return {}
         forms = {"contact_energy": self.energy()}
         for i, c in enumerate("xyz"):
             total = self._trapezoid(lambda p: self.force_density(p)[i], self.r)
@@ -601,6 +649,8 @@ class ObstacleContact:
     def force_observable(self):
         """The contact force density (normal + friction) at a point of the rod (UFL; at
         the vertices the nodal value)."""
+        if not self.nodal:
+            return ufl.as_vector((0.0, 0.0, 0.0))
         f = self.force_density(self.r)
         if self.V is not None:
             f += self.friction_density(self.r, self.V, self.normal_force)

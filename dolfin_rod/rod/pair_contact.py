@@ -364,13 +364,13 @@ class SegmentContact:
         block = next(k for k, y in enumerate(fields) if y is self.x)
         return StepTerm(self, stages, previous[block], before_previous[block])
 
-    def bind(self, system) -> "BoundTerm":
+    def bind(self, system, step: "StepTerm | None" = None) -> "BoundTerm":
         """The term in an assembled ``system`` (fem/assembly) one of whose unknowns is x
         (any block: the tangent stiffness of analysis/ holds the mechanical blocks only),
         or whose block ``self.block`` (the model's displacement block) holds another
         unknown of its space (the start's accelerations: then x is fixed and the term
-        adds its residual only)."""
-        return BoundTerm(self, system)
+        adds its residual only); with ``step``, a per-step scheme's stages."""
+        return BoundTerm(self, system, step)
 
     # -- diagnostics ------------------------------------------------------------------
 
@@ -409,13 +409,7 @@ class SegmentContact:
     def force_density(self) -> np.ndarray:
         """(owned nodes, 3) the pairs' contact force per unit length at the owned nodes
         (the nodes' forces over their share of the reference length, h/2 per cell)."""
-        terms = self.evaluate(self.owned_displacement())
-        forces = np.zeros((self.line.n_nodes, 3))
-        np.add.at(forces, terms.nodes.ravel(), -terms.gradient.reshape(-1, 3))
-        share = np.zeros(self.line.n_nodes)
-        np.add.at(share, self.line.ends.ravel(), np.repeat(self.line.lengths / 2, 2))
-        owned = self.line.owned_global
-        return forces[owned] / share[owned, None]
+        return nodal_force_density(self.line, self.evaluate(self.owned_displacement()))
 
     # -- the step's checks ------------------------------------------------------------
 
@@ -548,6 +542,18 @@ class SegmentContact:
         return alpha
 
 
+def nodal_force_density(line: Centreline, terms: "PairTerms") -> np.ndarray:
+    """(owned nodes, 3) the terms' contact force per unit length at the owned nodes of
+    the centre line (the nodes' forces -dE/dX over their share of the reference length,
+    h/2 per cell)."""
+    forces = np.zeros((line.n_nodes, 3))
+    np.add.at(forces, terms.nodes.ravel(), -terms.gradient.reshape(-1, 3))
+    share = np.zeros(line.n_nodes)
+    np.add.at(share, line.ends.ravel(), np.repeat(line.lengths / 2, 2))
+    owned = line.owned_global
+    return forces[owned] / share[owned, None]
+
+
 class StepTerm:
     """SegmentContact in a per-step scheme's residual (SegmentContact.for_step): stage k
     adds w_k dE/dX(Y_k) to the residual and w_k a0_k H(Y_k) to the Jacobian, Y_k the
@@ -558,7 +564,7 @@ class StepTerm:
         self.previous, self.before_previous = previous, before_previous
 
     def bind(self, system) -> "BoundTerm":
-        return BoundTerm(self.contact, system, self)
+        return self.contact.bind(system, self)
 
     def states(self, u: np.ndarray) -> list[tuple[float, float, np.ndarray]]:
         """(w_k, a0_k, Y_k) of the stages at the owned displacement u."""

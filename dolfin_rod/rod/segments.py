@@ -24,16 +24,17 @@ FEW = 128      # segments whose every pair the pass-through check compares (8128
 
 def closest_points(p0, p1, q0, q1):
     """Parameters (s, t) in [0, 1] of the closest points of segment pairs ((n, 3) each)
-    and their distances."""
+    and their distances; a second segment of length 0 (q0 = q1) is a point (t = 0)."""
     d1, d2, w = p1 - p0, q1 - q0, p0 - q0
     a, e = np.einsum("ij,ij->i", d1, d1), np.einsum("ij,ij->i", d2, d2)
     b, c, f = (np.einsum("ij,ij->i", d1, d2), np.einsum("ij,ij->i", d1, w),
                np.einsum("ij,ij->i", d2, w))
     denom = a * e - b * b
     parallel = denom <= 1e-12 * a * e
-    s = np.where(parallel, 0.0, np.clip((b * f - c * e) / np.where(parallel, 1.0, denom),
-                                        0.0, 1.0))
-    t = (b * s + f) / e
+    point = e == 0.0            # q a point (a sphere's centre, obstacle_segments.py)
+    s = np.where(parallel, np.where(point, np.clip(-c / a, 0.0, 1.0), 0.0),
+                 np.clip((b * f - c * e) / np.where(parallel, 1.0, denom), 0.0, 1.0))
+    t = np.where(point, 0.0, (b * s + f) / np.where(point, 1.0, e))
     s = np.where(t < 0.0, np.clip(-c / a, 0.0, 1.0),
                  np.where(t > 1.0, np.clip((b - c) / a, 0.0, 1.0), s))
     t = np.clip(t, 0.0, 1.0)

@@ -16,6 +16,8 @@ OPTIONAL_KEYS = {"mesh": ("centre", "file", "vertices", "triangles", "rotation",
 ALL_POSE_KEYS = ("point", "normal", "centre", "axis", "radius", "length", "file",
                  "vertices", "triangles", "rotation", "scale")
 DIRECTIONS = ("normal", "axis")
+SEGMENT_SHAPES = ("sphere", "cylinder")     # contact = "segments" (rod/contact.py's; no
+                                            # DOLFINx import for `dolfin-rod check`)
 
 
 def check_contact_keys(scene: Scene) -> None:
@@ -55,6 +57,7 @@ def check_contact_keys(scene: Scene) -> None:
         if ob["friction"] > 0 and not scene["material"]["dynamic"]:
             raise err(f"{name}.friction", "friction depends on the velocity: it needs a "
                                           "dynamic rod (material.density > 0)")
+        _check_segments(scene, k)
     for key, pairs in (("self_friction", "self"), ("between_rods_friction", "between_rods")):
         if contact[key] > 0 and contact["pair_curve"] == "smooth":
             raise err(f"contact.{key}", "friction between segments needs "
@@ -65,6 +68,21 @@ def check_contact_keys(scene: Scene) -> None:
         if contact[key] > 0 and not scene["material"]["dynamic"]:
             raise err(f"contact.{key}", "friction depends on the velocity: it needs a "
                                         "dynamic rod (material.density > 0)")
+
+
+def _check_segments(scene: Scene, k: int) -> None:
+    """contact = "segments": a sphere or a cylinder, frictionless (rod/contact.py
+    check_contact_mode, with the scene's keys)."""
+    ob, name = scene["obstacles"][k], f"obstacles[{k}]"
+    if ob["contact"] != "segments":
+        return
+    if ob["shape"] not in SEGMENT_SHAPES:
+        raise scene.error(f"{name}.contact", f"'segments' applies to a sphere or a "
+                                             f"cylinder, not a {ob['shape']}: 'nodes' or "
+                                             "'auto'")
+    if ob["friction"] > 0:
+        raise scene.error(f"{name}.friction", "segment contact is frictionless: friction "
+                                              "needs contact = 'nodes' (or 'auto')")
 
 
 def _check_mesh(scene: Scene, k: int) -> None:
@@ -93,7 +111,8 @@ def obstacle(scene: Scene, ob: dict):
     if ob["file"] is not None:
         given["file"] = mesh_file(scene, ob)
     return Obstacle(ob["shape"], radius=ob["radius"] or 0.0, length=ob["length"] or 0.0,
-                    friction=ob["friction"], scale=ob["scale"] or 1.0, **given)
+                    friction=ob["friction"], scale=ob["scale"] or 1.0,
+                    contact=ob["contact"], **given)
 
 
 def mesh_surface(scene: Scene, ob: dict):

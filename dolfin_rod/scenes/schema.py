@@ -513,6 +513,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "length": Key(real(0.0, True), None, "cylinder: the length along the axis"),
         "friction": Key(real(0.0), 0.0, "Coulomb friction coefficient mu >= 0 (needs "
                         "density > 0)"),
+        "contact": Key(choice("auto", "nodes", "segments"), "auto", "where the barrier "
+                       "acts: nodes (the centre line's nodes) | segments (a sphere's or "
+                       "cylinder's, frictionless: a thin obstacle between two nodes holds "
+                       "the segment) | auto (segments for a frictionless sphere or cylinder "
+                       "of radius R when the longest cell h has h^2 >= 4 (r + gap) (2 R + r "
+                       "+ gap), else nodes; docs/contact.md, \"Thin obstacles\")"),
     },
 }
 REQUIRED_TABLES = ("time",)

@@ -1,0 +1,144 @@
+"""Contact of the rod's segments with thin obstacles (issue 26; docs/contact.md, "Thin
+obstacles"): a sphere or a finite cylinder whose barrier acts on the centre line's
+segments, not only at its nodes (contact.on_segments: ``contact = "segments"``, or
+"auto" for an obstacle thinner than the nodes can hold).
+
+The obstacle is a fixed segment Q = (q0, q1) of radius R (a cylinder's axis between its
+lids' centres; a sphere's centre, q0 = q1): segment i of the rod, P_i = (p0, p1), is at
+the distance d_i of the two segments (segments.closest_points) and has the gap
+g_i = d_i - R - r; it carries the energy
+
+    E_i = kappa (h_i / 2) b(g_i)
+
+with the obstacles' barrier b (contact.py) and the cell's reference length h_i (a node
+on the obstacle then has the nodal law's energy kappa (h_(i-1) + h_i) / 2 b: its two
+segments' closest point).  The energy, gradient and Hessian are the segment pairs'
+(pair_contact.pair_energy with the obstacle's segment as the second one, radius
+(R + r) / 2 for each: d - 2 (R + r) / 2) restricted to the rod's two nodes (the
+obstacle's do not move): the value function's exact Hessian.  The cylinder is thus a
+capsule (its lids rounded by hemispheres of radius R): exact where the rod touches its
+side.  A cell's two nodes are coupled by the rod's own forms, so the Jacobian's pattern
+does not grow.  Frictionless.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from .contact import ContactLaw, Obstacle, unit
+from .pair_contact import (BoundTerm, Centreline, PairTerms, StepTerm, nodal_force_density,
+                           pair_energy)
+from .segments import closest_points
+
+
+def obstacle_segment(ob: Obstacle) -> tuple[np.ndarray, np.ndarray]:
+    """(q0, q1): a cylinder's axis from lid to lid, a sphere's centre twice."""
+    centre = np.asarray(ob.where, float)
+    half = 0.5 * ob.length * unit(ob.direction) if ob.shape == "cylinder" else 0.0 * centre
+    return centre - half, centre + half
+
+
+class ObstacleSegments:
+    """The segment contact of the rod (displacement ``x``, P1) with ``obstacles`` ((k,
+    Obstacle) of the scene's obstacles[k]), a term that fem/assembly adds to the residual
+    and Jacobian of the systems holding x (``bind``; pair_contact.BoundTerm's rows)."""
+
+    friction, rates = None, None        # frictionless: BoundTerm's friction hooks unused
+
+    def __init__(self, x, law: ContactLaw, obstacles: Sequence[tuple[int, Obstacle]], rod_of):
+        self.x, self.law = x, law
+        self.line = Centreline(x, rod_of)
+        self.index = np.array([k for k, _ in obstacles], dtype=np.int64)
+        ends = [obstacle_segment(ob) for _, ob in obstacles]
+        self.q0, self.q1 = (np.array([e[j] for e in ends]) for j in (0, 1))
+        self.contact_radius = np.array([ob.radius for _, ob in obstacles]) + law.radius
+        self.block = 0          # the displacement's block in the problem (model sets it)
+        self._cache = (None, None)
+
+    def owned_displacement(self) -> np.ndarray:
+        return self.x.x.array[: 3 * self.line.n_owned]
+
+    def distances(self, P: np.ndarray):
+        """(cells, obstacles) arrays s, t, d of each segment's closest points to each
+        obstacle's segment at the nodes' positions P."""
+        line, n = self.line, len(self.index)
+        p0, p1 = (np.repeat(P[line.ends[:, j]], n, axis=0) for j in (0, 1))
+        q0, q1 = (np.tile(q, (len(line.ends), 1)) for q in (self.q0, self.q1))
+        return tuple(v.reshape(-1, n) for v in closest_points(p0, p1, q0, q1))
+
+    def evaluate(self, owned_displacement: np.ndarray) -> PairTerms:
+        """The (segment, obstacle) pairs within the barrier's reach at this state and
+        their energies, gradients (m, 6) and Hessians (m, 6, 6) in the segment's nodes
+        (collective; kept for the Jacobian at the same state)."""
+        P = self.line.positions(owned_displacement)
+        key, value = self._cache
+        if key is not None and np.array_equal(key, P):
+            return value
+        s, t, d = self.distances(P)
+        cell, j = np.nonzero(d < self.contact_radius + self.law.gap)
+        nodes = self.line.ends[cell]
+        X = np.concatenate([P[nodes], np.stack([self.q0[j], self.q1[j]], axis=1)], axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):  # an iterate through the
+            E, G, H = pair_energy(                             # axis (d = 0): NaN, Newton
+                X, 0.5 * self.contact_radius[j], self.law.gap,  # fails, the step is cut
+                self.law.stiffness, 0.5 * self.line.lengths[cell],
+                closest=(s[cell, j], t[cell, j], d[cell, j]))
+        value = PairTerms(np.column_stack([cell, self.index[j]]), nodes, E, G[:, :6],
+                          H[:, :6, :6])
+        self._cache = (P, value)
+        return value
+
+    def for_step(self, stages, fields, previous, before_previous) -> StepTerm:
+        """The term in a per-step scheme's residual (pair_contact.StepTerm)."""
+        block = next(k for k, y in enumerate(fields) if y is self.x)
+        return StepTerm(self, stages, previous[block], before_previous[block])
+
+    def bind(self, system, step: StepTerm | None = None) -> "BoundSegments":
+        return BoundSegments(self, system, step)
+
+    # -- gaps, checks, diagnostics ------------------------------------------------------
+
+    def closest(self) -> tuple[float, float, int]:
+        """(smallest gap, s of its segment's midpoint, obstacle index k) of the current
+        state (the same on every rank: the gathered centre line)."""
+        _, _, d = self.distances(self.line.positions(self.owned_displacement()))
+        gaps = d - self.contact_radius
+        cell, j = np.unravel_index(np.argmin(gaps), gaps.shape)
+        return float(gaps[cell, j]), float(self.line.mid_s[cell]), int(self.index[j])
+
+    def check_state(self) -> str | None:
+        """A reason to reject a converged step (or the initial state): a segment at or
+        inside an obstacle's radius plus r."""
+        g, s, k = self.closest()
+        if g > 0:
+            return None
+        return (f"the centre line's segment at s = {s:.4g} is {-g:.3g} inside obstacles[{k}] "
+                f"(gap {g:.3g}; the barrier was overcome: raise contact.stiffness)")
+
+    def diagnostics(self) -> dict[str, float]:
+        """The segments' barrier energy, their total contact force on the rod (x, y, z)
+        and the smallest gap, of the current state."""
+        terms = self.evaluate(self.owned_displacement())
+        force = -terms.gradient.reshape(-1, 3).sum(axis=0)
+        out = {"contact_energy": float(terms.energy.sum()), "min_gap": self.closest()[0]}
+        out.update({f"contact_force_{c}": float(force[i]) for i, c in enumerate("xyz")})
+        return out
+
+    def force_density(self) -> np.ndarray:
+        """(owned nodes, 3) the segments' contact force per unit length at the nodes."""
+        return nodal_force_density(self.line, self.evaluate(self.owned_displacement()))
+
+
+class BoundSegments(BoundTerm):
+    """ObstacleSegments in one assembled system: pair_contact.BoundTerm's residual rows
+    and Jacobian entries of the owned nodes; no entries beyond the rod's own (a cell's
+    two nodes) and no limit on Newton's updates (as the nodal law: the barrier's Taylor
+    range holds the iterates, the accepted states are checked)."""
+
+    def missing_entries(self):
+        return None
+
+    def step_factor(self, x_owned: np.ndarray, y_owned: np.ndarray) -> float:
+        return 1.0

@@ -1,0 +1,170 @@
+"""Segment contact with thin obstacles (issue 26; rod/obstacle_segments.py,
+docs/contact.md "Thin obstacles"): a rod rests on a cylinder thinner than its cells.
+
+References: beam theory (a cantilever propped at a point a inside a cell: the prop's
+reaction from the deflection it holds), the closest points of a segment and a point or a
+segment by dense sampling, Taylor remainders of the energy's gradient and Hessian
+(Newton's quadratic convergence), the run that stopped before (tests/test_thin_obstacle:
+a rod thrown at a 6 mm cylinder between its nodes).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from dolfin_rod.rod.contact import ContactLaw, Obstacle, check_contact, on_segments
+from dolfin_rod.rod.pair_contact import pair_energy
+from dolfin_rod.rod.segments import closest_points
+from test_contact import DELTA, PROPPED, R, propped_rod
+
+THIN_R = 0.003          # the bar's radius: nodes 1/16 apart cannot hold a rod across it
+
+
+def test_closest_points_of_a_segment_and_a_point_against_sampling():
+    """A second segment of length 0 (a sphere's centre) is a point: the distance is the
+    least of 20001 samples of the first segment's distance to it (to the samples'
+    spacing, Lipschitz 1: 1e-4 of the segment's length), t = 0."""
+    rng = np.random.default_rng(3)
+    p0, p1, q = (rng.uniform(-1, 1, (200, 3)) for _ in range(3))
+    s, t, d = closest_points(p0, p1, q, q)
+    u = np.linspace(0.0, 1.0, 20001)[None, :, None]
+    sampled = np.min(np.linalg.norm(p0[:, None] + u * (p1 - p0)[:, None] - q[:, None],
+                                    axis=2), axis=1)
+    length = np.linalg.norm(p1 - p0, axis=1)
+    assert np.all(t == 0.0)
+    assert np.all(d <= sampled + 1e-15) and np.all(sampled - d <= 1e-4 * length)
+    assert np.all((s >= 0) & (s <= 1)) and 0 < np.sum((s > 0) & (s < 1)) < 200
+
+
+@pytest.mark.parametrize("shape", ["sphere", "cylinder"])
+def test_segment_obstacle_energy_taylor_test(shape):
+    """The energy of a segment near a thin obstacle (pair_energy with the obstacle's
+    segment fixed; its rows of the segment's two nodes): |E(X + h dX) - E - h G dX| and
+    |G(X + h dX) - G - h H dX| fall 4-fold per halving of h (ratios 4 +- 0.2: second
+    order, the consistent Hessian Newton converges quadratically with), the segment's
+    closest point inside it and (cylinder) inside the bar's axis."""
+    q0, q1 = ((0.0, 0.0, 0.0),) * 2 if shape == "sphere" else ((0.0, -0.1, 0.0),
+                                                                 (0.0, 0.1, 0.0))
+    rho, delta = THIN_R + R, DELTA
+    X = np.array([[[rho + 0.4 * delta, 0.01, -0.03], [rho + 0.6 * delta, -0.02, 0.04],
+                   q0, q1]])
+    rng = np.random.default_rng(2)
+    dX = np.zeros_like(X)
+    dX[0, :2] = rng.standard_normal((2, 3))
+
+    def terms(Y):
+        return pair_energy(Y, 0.5 * rho, delta, 1e3, np.array([0.05]))
+
+    E, G, H = terms(X)
+    s, t, _ = closest_points(*X[:, :, None].transpose(1, 2, 0, 3)[:, 0])
+    assert 0 < s[0] < 1 and (shape == "sphere" or 0 < t[0] < 1)
+    g, h6 = G[0, :6], H[0, :6, :6]
+    step = dX[0, :2].ravel()
+    rests = []
+    for k in range(4):
+        h = 1e-5 * delta * 2.0**-k
+        E1, G1, _ = terms(X + h * dX)
+        rests.append((abs(E1[0] - E[0] - h * g @ step),
+                      np.linalg.norm(G1[0, :6] - g - h * h6 @ step)))
+    ratios = np.array(rests[:-1]) / np.array(rests[1:])
+    assert np.all(np.abs(ratios - 4.0) < 0.2), ratios
+
+
+def test_auto_chooses_segments_for_thin_obstacles_only():
+    """obstacles[k].contact = "auto": segments where nodes h apart cannot hold a rod
+    across the obstacle (h^2 >= 4 (r + delta) (2 R + r + delta)), nodes elsewhere and for
+    planes, meshes and obstacles with friction; explicit choices kept."""
+    reach = R + DELTA
+    h_limit = np.sqrt(4 * reach * (2 * THIN_R + reach))
+    bar = Obstacle("cylinder", centre=(0, 0, 0), axis=(0, 1, 0), radius=THIN_R, length=0.1)
+    assert on_segments(bar, R, DELTA, 1.001 * h_limit)
+    assert not on_segments(bar, R, DELTA, 0.999 * h_limit)
+    for ob in (Obstacle("plane", point=(0, 0, 0), normal=(1, 0, 0)),
+               Obstacle("sphere", centre=(0, 0, 0), radius=THIN_R, friction=0.3),
+               Obstacle("sphere", centre=(0, 0, 0), radius=THIN_R, contact="nodes")):
+        assert not on_segments(ob, R, DELTA, 1.0)
+    assert on_segments(Obstacle("sphere", centre=(0, 0, 0), radius=1.0, contact="segments"),
+                       R, DELTA, 1e-3)
+
+
+@pytest.mark.parametrize("ob, key", [
+    (Obstacle("plane", point=(0, 0, 0), normal=(1, 0, 0), contact="segments"),
+     "obstacles[0].contact"),
+    (Obstacle("sphere", centre=(0, 0, 0), radius=0.1, contact="edges"), "obstacles[0].contact"),
+    (Obstacle("cylinder", centre=(0, 0, 0), axis=(0, 1, 0), radius=0.1, length=1.0,
+              friction=0.2, contact="segments"), "obstacles[0].friction")])
+def test_bad_segment_contact_is_named(ob, key):
+    with pytest.raises(ValueError, match=key.replace("[", r"\[").replace("]", r"\]")):
+        check_contact([ob], ContactLaw(R, DELTA, 1.0))
+
+
+def _point_at(rod, a: float) -> np.ndarray:
+    """The centre line's point at s = a (P1: linear between the nodes), over all ranks."""
+    x = rod.unknowns.f["displacement"]
+    n = x.function_space.dofmap.index_map.size_local
+    s = x.function_space.tabulate_dof_coordinates()[:n, 0]
+    gathered = MPI.COMM_WORLD.allgather((s, x.x.array.reshape(-1, 3)[:n]))
+    s_all = np.concatenate([g[0] for g in gathered])
+    x_all = np.concatenate([g[1] for g in gathered]) + np.outer(s_all, (0.0, 0.0, 1.0))
+    order = np.argsort(s_all)
+    return np.array([np.interp(a, s_all[order], x_all[order, i]) for i in range(3)])
+
+
+@pytest.mark.mpi
+def test_cantilever_propped_by_a_thin_bar_between_two_nodes():
+    """The quasi-static cantilever of test_contact (L = 1, EI = 1e-2, w = 0.02, 16 cells,
+    r = 1 cm) propped by a bar of radius 3 mm across it at a = 0.78125, the middle of a
+    cell (nodes 3.1 cm on either side: beyond the barrier's reach, so the nodal law
+    would let the cell pass through it; "auto" takes segments).  Beam theory's reaction of
+    a prop at a that holds the deflection Delta (the centre line's at a):
+    F = 3 EI / a^3 (w a^2 (6 L^2 - 4 L a + a^2) / (24 EI) - Delta), to 1 % (the P1 rod's
+    O(h^2) error at 16 cells with the point force spread on the cell's two nodes: 0.12 %
+    measured); the gap in (0, delta); the segment's closest point keeps R + r + g from
+    the axis."""
+    w, EI = PROPPED
+    a = 0.78125
+    bar = Obstacle("cylinder", centre=(-(R + 0.5 * DELTA + THIN_R), 0.0, a),
+                   axis=(0.0, 1.0, 0.0), radius=THIN_R, length=0.2)
+    rod = propped_rod(bar)
+    assert rod.contact.segment_obstacles == [0]
+    d = rod.diagnostics(1.0)
+    Delta = -_point_at(rod, a)[0]
+    reaction = 3 * EI / a**3 * (w * a**2 * (6 - 4 * a + a**2) / (24 * EI) - Delta)
+    assert 0.0 < d["min_gap"] < DELTA
+    assert Delta < w * a**2 * (6 - 4 * a + a**2) / (24 * EI)       # held
+    assert d["contact_force_x"] == pytest.approx(reaction, rel=1e-2)
+    # frictionless: the force is normal to the cell's chord (not to e_3: the rod slopes)
+    chord = _point_at(rod, a + 1 / 32) - _point_at(rod, a - 1 / 32)
+    force = np.array([d[f"contact_force_{c}"] for c in "xyz"])
+    assert abs(force @ chord) < 1e-9 * np.linalg.norm(force) * np.linalg.norm(chord)
+
+
+@pytest.mark.mpi
+def test_rope_over_a_thin_bar_scene_rests_on_the_bar():
+    """scenes/rope_over_thin_bar.toml: the rope (31 cells of 3.2 cm) dropped across a bar
+    of radius 4 mm at the middle of its middle cell ("auto": segment contact) folds over
+    it and its ends land on the ground.  At rest (t = 2 s) bar and ground carry the weight
+    rho_A g L = 0.7848 N to 1e-3 (the rest: the drag of the ends' creep under the smoothed
+    friction, < eps = 1e-3 m/s; measured 1.7e-4); the gap stays in (0, delta) at every
+    output; the rope's middle lies on the bar (its centre line r + R + g above the bar's
+    axis, not below it: the nodes on either side are 1.6 cm away)."""
+    from pathlib import Path
+
+    from dolfin_rod.scenes import build, load_scene
+    scene = load_scene(Path(__file__).resolve().parents[1] / "scenes/rope_over_thin_bar.toml")
+    sim = build(scene, "rod")
+    rod = sim.model
+    assert rod.contact.segment_obstacles == [0]
+    sim.start()
+    sim.begin(0.0)
+    gaps = []
+    for k in range(100):
+        sim.advance(0.02 * k, 0.02 * (k + 1))
+        gaps.append(sim.diagnostics(0.02 * (k + 1))["min_gap"])
+    d = sim.diagnostics(2.0)
+    assert 0.0 < min(gaps) and max(gaps[10:]) < 5e-4
+    assert d["contact_force_x"] == pytest.approx(0.08 * 9.81, rel=1e-3)
+    middle = _point_at(rod, 0.5)
+    assert middle[0] == pytest.approx(-0.01 + 0.004 + 0.005, abs=5e-4)  # bar's top + r
