@@ -506,7 +506,9 @@ class RodModel(FEModel):
             return None
         contact = ObstacleSegments(self.unknowns.f["displacement"], law,
                                    [(k, obstacles[k]) for k in self.contact.segment_obstacles],
-                                   layout.rod_of)
+                                   layout.rod_of, self.contact.h)
+        if not len(contact.index):      # meshes without sharp edges
+            return None
         contact.block = list(self.names).index("displacement")
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
         self.segment_force = fem.Function(P1, name="obstacle_segment_force")

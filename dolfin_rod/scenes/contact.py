@@ -16,8 +16,8 @@ OPTIONAL_KEYS = {"mesh": ("centre", "file", "vertices", "triangles", "rotation",
 ALL_POSE_KEYS = ("point", "normal", "centre", "axis", "radius", "length", "file",
                  "vertices", "triangles", "rotation", "scale")
 DIRECTIONS = ("normal", "axis")
-SEGMENT_SHAPES = ("sphere", "cylinder")     # contact = "segments" (rod/contact.py's; no
-                                            # DOLFINx import for `dolfin-rod check`)
+SEGMENT_SHAPES = ("sphere", "cylinder", "mesh")     # contact = "segments" (rod/contact.py's;
+                                                    # no DOLFINx for `dolfin-rod check`)
 
 
 def check_contact_keys(scene: Scene) -> None:
@@ -77,9 +77,9 @@ def _check_segments(scene: Scene, k: int) -> None:
     if ob["contact"] != "segments":
         return
     if ob["shape"] not in SEGMENT_SHAPES:
-        raise scene.error(f"{name}.contact", f"'segments' applies to a sphere or a "
-                                             f"cylinder, not a {ob['shape']}: 'nodes' or "
-                                             "'auto'")
+        raise scene.error(f"{name}.contact", f"'segments' applies to a sphere, a "
+                                             f"cylinder or a mesh, not a {ob['shape']}: "
+                                             "'nodes' or 'auto'")
     if ob["friction"] > 0:
         raise scene.error(f"{name}.friction", "segment contact is frictionless: friction "
                                               "needs contact = 'nodes' (or 'auto')")
