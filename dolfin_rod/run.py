@@ -206,13 +206,15 @@ def draws_alone(scene: Scene, comm) -> bool:
     return comm.size == 1 and bool(outputs["plots"] or outputs["animation"])
 
 
-def import_finite_elements() -> None:
-    """Import DOLFINx and its stack with Ctrl-C and SIGTERM recorded, not raised, until
-    the imports are complete: an interrupt raised inside an import leaves a package half
-    imported (DOLFINx's module initialisation then aborts, or its dependency check
-    fails); recorded, it ends the start-up right after (KeyboardInterrupt: exit 130).
-    Numba is hidden meanwhile: DOLFINx then skips its optional numba helpers, whose
-    import is a third of its own (docs/performance.md); it stays importable after."""
+def import_finite_elements(checkpoints: bool) -> None:
+    """Import DOLFINx and its stack (with adios4dolfinx if the run writes or reads
+    ``checkpoints``: 0.1 s of a run's start otherwise) with Ctrl-C and SIGTERM recorded,
+    not raised, until the imports are complete: an interrupt raised inside an import
+    leaves a package half imported (DOLFINx's module initialisation then aborts, or its
+    dependency check fails); recorded, it ends the start-up right after
+    (KeyboardInterrupt: exit 130).  Numba is hidden meanwhile: DOLFINx then skips its
+    optional numba helpers, whose import is a third of its own (docs/performance.md); it
+    stays importable after."""
     import signal
     caught: list[int] = []
     names = ("SIGINT", "SIGTERM")
@@ -222,7 +224,8 @@ def import_finite_elements() -> None:
     if numba_absent:   # DOLFINx's numba helpers (dolfinx.utils), unused here: 0.4-0.5 s
         sys.modules["numba"] = None
     try:
-        import adios4dolfinx  # noqa: F401
+        if checkpoints:
+            import adios4dolfinx  # noqa: F401
         import basix.ufl  # noqa: F401
         import dolfinx.fem.petsc  # noqa: F401
         import ufl  # noqa: F401
@@ -254,9 +257,10 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
         print_on_root(comm, f"model: {choice.model} ({choice.reason})")
     stability_warning(scene, comm)
     from .output.drawing import painting
-    with painting(draws_alone(scene, comm)) as painter:   # matplotlib imported meanwhile
+    from .output.notices import noticed
+    with painting(draws_alone(scene, comm)) as painter, noticed(comm) as seen:
         try:
-            import_finite_elements()
+            import_finite_elements(resume or bool(scene["outputs"]["checkpoint_every"]))
             sim = build(scene, choice.model, comm)
             impulse = sim.start()
         except BaseException:
@@ -278,12 +282,13 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
             writer.provisional_summary(_summary(
                 scene, choice, sim, writer, comm, "interrupted", f"interrupted at t = {t:g} "
                 "(a signal; this summary was written at once, as mpirun ends its ranks "
-                "within half a second of a Ctrl-C or SIGTERM sent to it)", t, impulse))
+                "within half a second of a Ctrl-C or SIGTERM sent to it)", t, impulse, seen))
         status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
                                         meta["step"], stop_after, quiet, provisional)
         status, message = _unstable_end(scene, sim, status, message)
         clock["integration"] = time.perf_counter() - t_run
-        summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse)
+        summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse,
+                           seen)
         if analysis is not None and status.startswith("completed"):
             t_analysis = time.perf_counter()
             summary.update(analysis(sim, t, folder))
@@ -513,7 +518,9 @@ def _unstable_end(scene, sim, status: str, message: str) -> tuple[str, str]:
         "stiffness: an unstable equilibrium (stability.follow_unstable = true accepts it)")
 
 
-def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> dict:
+def _summary(scene, choice, sim, writer, comm, status, message, t, impulse,
+             seen: list[str]) -> dict:
+    from .output.notices import listed
     summary = {
         "scene": scene.name, "source": scene.source, "model": choice.model,
         "reason": choice.reason, "method": getattr(sim, "describe", lambda: "")(),
@@ -523,6 +530,7 @@ def _summary(scene, choice, sim, writer, comm, status, message, t, impulse) -> d
         "final": dict(writer.balance.previous or {}),
         "total_dissipation": writer.balance.total_dissipation,
         "title": f"{scene.name}: {choice.model} model",
+        "warnings": listed(seen),
     }
     if scene.is_rod_material and scene["material"]["derived"]:
         summary["derived"] = scene["material"]["derived"]    # from the physical input

@@ -241,18 +241,23 @@ def _twist_relaxation(scene, t):
 
 
 @pytest.mark.mpi
-def test_twist_fit_example_starts_at_its_resolution(tmp_path):
+def test_twist_fit_example_starts_at_its_resolution(tmp_path, capsys):
     """examples/fit/dna_twist.toml at its 16 cells (the half turn in one step from rest:
     "time step failed at t = 0 after 6 step cuts: SNES DIVERGED_MAX_IT" before issue 27),
     its first 8 steps: completed (one step cut, two sub-solves), and the end torque is
     eq. stressrelax of the discrete twist to the BDF2 error of the test below (1e-3
-    m(0+))."""
+    m(0+)).  The cut is said once on stderr (rank 0) and kept in summary.json."""
     scene = load_scene(TWIST_FIT, {**QUIET, "time.t_end": 0.2})
     folder = shared_folder(tmp_path) / "twist_fit"
     summary = run_scene(scene, folder, quiet=True)
     assert summary["status"] == "completed", summary["message"]
+    (cut,) = summary["warnings"]
+    assert cut.startswith("step at t = 0 cut to dt = "), cut
+    err = capsys.readouterr().err
+    assert err == (f"warning: {cut}\n" if MPI.COMM_WORLD.rank == 0 else ""), err
     if MPI.COMM_WORLD.rank != 0:
         return
+    assert json.loads((folder / "summary.json").read_text())["warnings"] == [cut]
     rows = json.loads((folder / "timeseries.json").read_text())
     t, m = np.array(rows["time"][1:]), np.array(rows["reaction_couple_end_z"][1:])
     m0, factor, exact_h, _ = _twist_relaxation(scene, t)

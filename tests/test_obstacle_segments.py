@@ -10,6 +10,8 @@ a rod thrown at a 6 mm cylinder between its nodes).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -141,6 +143,59 @@ def test_cantilever_propped_by_a_thin_bar_between_two_nodes():
     assert abs(force @ chord) < 1e-9 * np.linalg.norm(force) * np.linalg.norm(chord)
 
 
+CUBE_TRIANGLES = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
+                  (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]
+
+
+def _diamond(a: float) -> Obstacle:
+    """A cube of side 4 cm turned by 45 degrees about e_2, one edge (along e_2) pointing
+    at +e_1 below the cantilever at s = a (0.5 delta + r below its centre line), its nodal
+    law and ("segments") its sharp edges on the segments."""
+    side = 0.02
+    vertices = [(x, y, z) for x in (-side, side) for y in (-side, side) for z in (-side, side)]
+    return Obstacle("mesh", vertices=vertices, triangles=CUBE_TRIANGLES,
+                    centre=(-(R + 0.5 * DELTA) - side * np.sqrt(2), 0.0, a),
+                    rotation=(0.0, np.pi / 4, 0.0), contact="segments")
+
+
+def test_a_cubes_sharp_edges_are_its_segments():
+    """A cube's 12 edges are convex with a right angle between their faces' normals; those
+    of a cube turned about e_2 lie where the turned cube's are; a flat surface (two
+    triangles) has no convex edge."""
+    ob = _diamond(0.5)
+    ends, turn = ob.surface.convex_edges()
+    assert len(turn) == 12 and np.allclose(turn, np.pi / 2, atol=1e-14)
+    top = ends[np.argmax(ends[:, :, 0].sum(axis=1))]       # the edge pointing at +e_1
+    assert np.allclose(top[:, 0], -(R + 0.5 * DELTA), atol=1e-15)
+    assert np.allclose(np.sort(top[:, 1]), [-0.02, 0.02]) and np.allclose(top[:, 2], 0.5)
+    flat = Obstacle("mesh", vertices=[(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)],
+                    triangles=[(0, 1, 3), (0, 3, 2)])
+    assert len(flat.surface.convex_edges()[1]) == 0
+
+
+@pytest.mark.mpi
+def test_cantilever_propped_by_a_sharp_mesh_edge_between_two_nodes():
+    """The propped cantilever above on the edge of a cube turned by 45 degrees (a mesh,
+    contact = "segments": its nodal law and its sharp edges as segments of radius 0),
+    the edge at a = 0.78125, the middle of a cell (the nodes 3.1 cm away: 2.2 cm from the
+    faces, beyond the barrier's reach r + delta = 1.1 cm, so the nodal law alone would
+    let the cell cut the edge): beam theory's prop reaction with the measured deflection
+    at a, to 1 % as for the bar (1.1e-3 measured); the gap in (0, delta).  On the nodes
+    only the steps are cut until the run stops (at t = 0.058) as the cell meets the edge."""
+    from dolfin_rod.integrators.step_control import IntegrationError
+    w, EI = PROPPED
+    a = 0.78125
+    rod = propped_rod(_diamond(a))
+    assert len(rod.obstacle_segments.index) == 12
+    d = rod.diagnostics(1.0)
+    Delta = -_point_at(rod, a)[0]
+    reaction = 3 * EI / a**3 * (w * a**2 * (6 - 4 * a + a**2) / (24 * EI) - Delta)
+    assert 0.0 < d["min_gap"] < DELTA
+    assert d["contact_force_x"] == pytest.approx(reaction, rel=1e-2)
+    with pytest.raises(IntegrationError, match=r"passed through obstacles\[0\]"):
+        propped_rod(replace(_diamond(a), contact="nodes"))
+
+
 @pytest.mark.mpi
 def test_rope_over_a_thin_bar_scene_rests_on_the_bar():
     """scenes/rope_over_thin_bar.toml: the rope (31 cells of 3.2 cm) dropped across a bar
@@ -168,3 +223,29 @@ def test_rope_over_a_thin_bar_scene_rests_on_the_bar():
     assert d["contact_force_x"] == pytest.approx(0.08 * 9.81, rel=1e-3)
     middle = _point_at(rod, 0.5)
     assert middle[0] == pytest.approx(-0.01 + 0.004 + 0.005, abs=5e-4)  # bar's top + r
+
+
+def test_check_says_where_each_obstacles_contact_acts():
+    """`dolfin-rod check` names where each obstacle's barrier acts, by the model's rule
+    (the rope's bar: segments; the ground: nodes; a mesh with contact = "segments": its
+    nodes and its sharp edges, a cube's 12 at these cells)."""
+    from pathlib import Path
+
+    from dolfin_rod.cli import _check_lines
+    from dolfin_rod.scenes import load_scene
+    path = Path(__file__).resolve().parents[1] / "scenes/rope_over_thin_bar.toml"
+    lines = _check_lines(load_scene(path), 1)
+    assert any("obstacles[0] (cylinder, contact = 'auto') acts on the segments" in line
+               for line in lines), lines
+    assert any("obstacles[1] (plane, contact = 'auto') acts on the nodes" in line
+               for line in lines), lines
+    from dolfin_rod.scenes import parse_scene
+    text = path.read_text()
+    cube = _diamond(0.5)
+    mesh = (f'[[obstacles]]\nshape = "mesh"\ncontact = "segments"\ncentre = [-0.05, 0.0, 0.5]\n'
+            f"vertices = {[list(v) for v in cube.vertices]}\n"
+            f"triangles = {[list(t) for t in CUBE_TRIANGLES]}\n\n")
+    text = text[:text.index("[[obstacles]]")] + mesh + text[text.index("[time]"):]
+    lines = _check_lines(parse_scene(text), 1)
+    assert any("acts on the nodes, its 12 sharp edges on the segments" in line
+               for line in lines), lines

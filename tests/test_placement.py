@@ -65,3 +65,16 @@ def test_scene_rods_are_placed_as_the_model_rods(name):
             h = light[k].params.length / light[k].n_cells
             r = placed_shape(light[k], [node * h])[0][0]
             assert np.linalg.norm(r - joint.point) < 1e-9 * scale, (joint, r)
+
+
+@pytest.mark.parametrize("v0", [(0.0, 0.0, 1.0), (-0.1, 0.0, 1.2)])
+def test_a_straight_helix_is_the_line_s_v0(v0):
+    """Zero reference curvature: r(s) = s v0 and q = 1, exactly (placement.helix's
+    straight case, which skips the series of the curved one), with +0.0 where s v0 is 0
+    (what the curved case's matrix product gives: its sums start at +0.0)."""
+    from dolfin_rod.rod.placement import helix
+    s = np.linspace(0.0, 2.0, 9)
+    r, q = helix(s, (0.0, 0.0, 0.0), v0)
+    assert np.array_equal(r, np.outer(s, v0))
+    assert not np.signbit(r[r == 0.0]).any()
+    assert np.array_equal(q, np.tile([1.0, 0.0, 0.0, 0.0], (len(s), 1)))

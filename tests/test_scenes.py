@@ -789,3 +789,24 @@ def test_one_load_syntax_for_end_and_distributed_loads_with_ramp_t0():
     assert distributed.profile(0.5) == 1.5 and end.profile is None
     with pytest.raises(SceneError, match=r"\[loads.end_force.profile\]: a profile along s"):
         parse_scene(ROD_BASE + f"[loads]\nend_force = {load}, profile = 2.0 }}\n")
+
+
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="one process of its own")
+def test_a_run_without_checkpoints_does_not_import_adios4dolfinx(tmp_path):
+    """run.import_finite_elements: adios4dolfinx (0.1 s of a run's start) only for runs
+    that write or read checkpoints; the summary still names its version (its metadata)."""
+    import subprocess
+    import sys
+    from importlib.metadata import version
+
+    scene = Path(__file__).resolve().parents[1] / "scenes" / "gravity_cantilever.toml"
+    code = ("import sys; sys.path.insert(0, %r); from quick_scenes import quick_scene; "
+            "from dolfin_rod import run_scene; run_scene(quick_scene(%r, 2, "
+            "outputs__animation=False, outputs__plots=False), %r, quiet=True); "
+            "print('adios4dolfinx' in sys.modules)"
+            % (str(Path(__file__).resolve().parent), str(scene), str(tmp_path / "run")))
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=600, check=True)
+    assert done.stdout.strip().splitlines()[-1] == "False"
+    data = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert data["versions"]["adios4dolfinx"] == version("adios4dolfinx")

@@ -22,9 +22,10 @@ import ufl
 from mpi4py import MPI
 
 from pathlib import Path
+from unittest import mock
 
 from dolfin_rod.fem import compat, form_cache
-from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters
+from dolfin_rod.rod import DistributedLoad, EndLoad, RodModel, RodParameters, residual
 from dolfin_rod.run import choose_model
 from dolfin_rod.scenes import load_scene
 from dolfin_rod.scenes.builders import build
@@ -252,16 +253,43 @@ def test_a_second_model_makes_its_residual_only_when_read(case):
     first = make(case, VALUES[0], n_cells=4)
     first.set_initial_state()
     TimeStepper(first.problem).run(0.0, 0.02, 0.01)
-    second = make(case, VALUES[1], n_cells=6)
-    second.set_initial_state()
-    TimeStepper(second.problem).run(0.0, 0.02, 0.01)
-    lazy = second.problem.residual
-    assert isinstance(lazy, LazyForms) and not lazy.made
+    with mock.patch.object(residual, "internal_forces",
+                           wraps=residual.internal_forces) as terms_made:
+        second = make(case, VALUES[1], n_cells=6)
+        second.set_initial_state()
+        TimeStepper(second.problem).run(0.0, 0.02, 0.01)
+        assert terms_made.call_count == 0      # nor its terms (their data: by role)
+        lazy = second.problem.residual
+        assert isinstance(lazy, LazyForms) and not lazy.made
+        assert second.m is not None and terms_made.call_count == 1     # made when read
     bound = form_cache.registry(lazy)
     made = list(lazy)
     assert lazy.made
     assert form_cache.registry(made) == bound
     assert signatures(second) == signatures(first)
+
+
+@pytest.mark.mpi
+def test_models_of_one_layout_share_their_mesh_and_spaces():
+    """fem/shared_mesh.py: a second model of the same layout (other material numbers)
+    takes the first's mesh, block spaces and its stepper's mixed space, with Functions
+    of its own; another cell count has a mesh of its own."""
+    from dolfin_rod import TimeStepper
+
+    case = "dynamic, rotation vectors"
+    first, second = (make(case, values, n_cells=4) for values in VALUES)
+    other = make(case, VALUES[0], n_cells=6)
+    assert second.mesh is first.mesh and other.mesh is not first.mesh
+    for name in first.names:
+        assert second.f[name].function_space is first.f[name].function_space
+        assert second.f[name] is not first.f[name]
+    spaces = []
+    for model in (first, second):
+        model.set_initial_state()
+        stepper = TimeStepper(model.problem)
+        stepper.compile()
+        spaces.append(stepper.integrator.solver.system.W)
+    assert spaces[0] is spaces[1]
 
 
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="signals one process")

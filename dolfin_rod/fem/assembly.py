@@ -26,7 +26,7 @@ import ufl
 from petsc4py import PETSc
 from ufl.algorithms import expand_derivatives
 
-from . import compat, form_cache
+from . import compat, form_cache, shared_mesh
 
 
 def jacobian_blocks(F: list[ufl.Form], y: list[fem.Function], wrt=None) -> list[list]:
@@ -171,6 +171,25 @@ class _System:
         A.zeroRows(self._bc_global, diag=1.0)
 
 
+def mixed_space(spaces: list) -> tuple:
+    """The mixed space W of the blocks' ``spaces`` and, per block j, its local (unrolled)
+    dofs -> W's local dofs, cell by cell."""
+    mesh = spaces[0].mesh
+    W = fem.functionspace(mesh, basix.ufl.mixed_element([V.ufl_element() for V in spaces]))
+    cells = mesh.topology.index_map(mesh.topology.dim)
+    ncells = cells.size_local + cells.num_ghosts
+    maps = []
+    for j, V in enumerate(spaces):
+        bs = V.dofmap.index_map_bs
+        cell_dofs = V.dofmap.list[:ncells]
+        unrolled = (cell_dofs[:, :, None] * bs + np.arange(bs)).reshape(ncells, -1)
+        m = np.empty((V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts) * bs,
+                     dtype=np.int32)
+        m[unrolled.ravel()] = W.sub(j).dofmap.list[:ncells].ravel()
+        maps.append(m)
+    return W, maps
+
+
 class MonolithicSystem(_System):
     """All blocks in one mixed element; block Functions mirror the mixed ones.
 
@@ -182,21 +201,12 @@ class MonolithicSystem(_System):
         self.groups = groups
         spaces = [y.function_space for y in groups[0]]
         mesh = spaces[0].mesh
-        W = fem.functionspace(mesh, basix.ufl.mixed_element(
-            [V.ufl_element() for V in spaces]))
+        # the mixed space and the maps of the blocks' spaces: one per mesh kept for models
+        # of one layout (shared_mesh.py; the role holds the spaces, so their ids stay theirs)
+        _, W, self._maps = shared_mesh.space(mesh, ("mixed", *map(id, spaces)),
+                                             lambda: (spaces, *mixed_space(spaces)))
         self.W = W
         self.w = [fem.Function(W) for _ in groups]
-        # block j's local (unrolled) dofs -> W's local dofs, cell by cell
-        cells = mesh.topology.index_map(mesh.topology.dim)
-        ncells = cells.size_local + cells.num_ghosts
-        self._maps = []
-        for j, V in enumerate(spaces):
-            bs = V.dofmap.index_map_bs
-            cell_dofs = V.dofmap.list[:ncells]
-            unrolled = (cell_dofs[:, :, None] * bs + np.arange(bs)).reshape(ncells, -1)
-            m = np.empty(len(groups[0][j].x.array), dtype=np.int32)
-            m[unrolled.ravel()] = W.sub(j).dofmap.list[:ncells].ravel()
-            self._maps.append(m)
         self._n_owned = W.dofmap.index_map.size_local
         # views fetched once (a DOLFINx array property costs ~1 us; set/get run 6-7
         # times per time step)

@@ -24,7 +24,6 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import ufl
-from ufl.corealg.traversal import traverse_unique_terminals
 
 
 class GatheredForm:
@@ -66,12 +65,24 @@ def as_form(form) -> ufl.Form:
 
 
 def data_of(integrals) -> set:
-    """The Functions and Constants (ufl.Coefficient, ufl.Constant) in ``integrals``' integrands:
-    one traversal of their shared expressions (those of a Form's ``coefficients()`` and
-    ``constants()``)."""
-    seen: set = set()
-    return {t for itg in integrals for t in traverse_unique_terminals(itg.integrand(), seen)
-            if isinstance(t, (ufl.Coefficient, ufl.Constant))}
+    """The Functions and Constants (ufl.Coefficient, ufl.Constant) in ``integrals``' integrands
+    (those of a Form's ``coefficients()`` and ``constants()``): one traversal of their
+    shared expressions, known by identity (UFL's traversal keeps a set of the expressions
+    themselves, whose hashes, computed for every new expression, cost a second model of a
+    rod 80 % of the traversal)."""
+    seen: set[int] = set()
+    found: set = set()
+    stack = [itg.integrand() for itg in integrals]
+    while stack:
+        expr = stack.pop()
+        if id(expr) in seen:
+            continue
+        seen.add(id(expr))
+        if expr.ufl_operands:
+            stack.extend(expr.ufl_operands)
+        elif isinstance(expr, (ufl.Coefficient, ufl.Constant)):
+            found.add(expr)
+    return found
 
 
 class LazyForms(Sequence):

@@ -340,7 +340,8 @@ class BlockSNES:
         """The line search's pre-check: terms shorten Newton's update y (x - y)."""
         xa, ya = x.getArray(readonly=True), y.getArray()
         for term in self.system.terms:
-            term.limit_step(xa, ya)
+            if hasattr(term, "limit_step"):     # (a mesh obstacle's features have none)
+                term.limit_step(xa, ya)
 
     def _jacobian(self, snes, x, A, P):
         if self.reuse_ratio is not None and not self._new_jacobian_needed(snes):

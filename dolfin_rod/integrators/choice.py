@@ -61,7 +61,8 @@ def choose_integrator(problem: SemiDiscreteProblem, scheme: str | None = None,
         get_scheme(scheme)
     if problem.terms and ts_type is not None:
         raise ValueError("terms assembled outside the forms (a rod's segment contact, "
-                         "contact.self / contact.between_rods) are not solved by PETSc TS "
+                         "contact.self / contact.between_rods, or an obstacle's on the "
+                         "segments, obstacles[k].contact) are not solved by PETSc TS "
                          "(ts_type): its residual and Jacobian callbacks see the forms "
                          "only; a per-step scheme (time.scheme) or generalized-alpha")
     if ts_type is not None:

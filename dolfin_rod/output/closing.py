@@ -13,7 +13,7 @@ FILES = {
     "scene.toml": "the scene, copied verbatim",
     "timeseries.csv": "the time series, one row per step",
     "timeseries.json": "the same columns as JSON",
-    "summary.json": "model and why, status, final values, versions, files",
+    "summary.json": "model and why, status, final values, warnings, versions, files",
     "timings.json": "wall-clock seconds of set-up, integration, output, pictures",
     "histories.png": "the plots of what the scene is about",
     "rod.bp": "ParaView >= 5.13 (ADIOS2VTXReader): the deformed rod and its fields",

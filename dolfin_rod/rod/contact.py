@@ -37,11 +37,13 @@ from mpi4py import MPI
 
 from ..fem import compat
 from ..checks import nonnegative, positive, sample_points
+from . import segments
 from .triangle_mesh import FACE, MeshError, Surface, placed_surface
 
 SHAPES = ("plane", "sphere", "cylinder", "mesh")
 CONTACT_MODES = ("auto", "nodes", "segments")   # where an obstacle's barrier acts
-SEGMENT_SHAPES = ("sphere", "cylinder")         # ... on segments: obstacle_segments.py
+SEGMENT_SHAPES = ("sphere", "cylinder", "mesh")  # ... on segments (a mesh: its sharp
+                                                 # edges): obstacle_segments.py
 XI_MIN = 1e-4             # g_min / delta: the barrier's exact range is [g_min, delta]
 BARRIER_CURVATURE = 2 * math.log(2) + 5.0   # b''(delta / 2) (dimensionless)
 SWEEP_DEPTH = 48          # halvings of a segment's sweep in a step (sweep_entry)
@@ -64,7 +66,8 @@ class Obstacle:
     ``vertices`` and ``triangles``, placed by x = centre + R(rotation) scale v, rotation a
     rotation vector; triangle_mesh.py); ``friction`` the Coulomb coefficient mu >= 0;
     ``contact`` where its barrier acts: "nodes" (this module), "segments" (a sphere's or
-    cylinder's, frictionless: obstacle_segments.py) or "auto" (``on_segments``).
+    cylinder's; a mesh's nodes and its sharp edges' segments; frictionless:
+    obstacle_segments.py) or "auto" (``on_segments``).
     Deprecated (this
     release only): a sphere's or cylinder's centre as ``point``, a plane's normal as
     ``axis`` (the meaning they had), with a DeprecationWarning."""
@@ -196,9 +199,9 @@ def check_contact_mode(name: str, ob: Obstacle) -> None:
         raise ValueError(f"{name}.contact must be one of {', '.join(CONTACT_MODES)}, got "
                          f"{ob.contact!r}")
     if ob.contact == "segments" and ob.shape not in SEGMENT_SHAPES:
-        raise ValueError(f"{name}.contact = 'segments' applies to a sphere or a cylinder, "
-                         f"not a {ob.shape} (its contact acts on the nodes: 'nodes' or "
-                         "'auto')")
+        raise ValueError(f"{name}.contact = 'segments' applies to a sphere, a cylinder or "
+                         f"a mesh, not a {ob.shape} (its contact acts on the nodes: "
+                         "'nodes' or 'auto')")
     if ob.contact == "segments" and ob.friction > 0:
         raise ValueError(f"{name}.friction: segment contact is frictionless (friction on "
                          "the nodes: contact = 'nodes' or 'auto')")
@@ -206,16 +209,14 @@ def check_contact_mode(name: str, ob: Obstacle) -> None:
 
 def on_segments(ob: Obstacle, radius: float, gap: float, h: float) -> bool:
     """Whether the obstacle's barrier acts on the rod's segments (obstacle_segments.py)
-    rather than its nodes: contact = "segments", or "auto" for a frictionless sphere or
+    rather than its nodes: contact = "segments" (a mesh: on its sharp edges, its nodal
+    law kept: obstacle_segments.fixed_segments), or "auto" for a frictionless sphere or
     cylinder of radius R that nodes h apart (the longest cell) cannot hold, h^2 >=
     4 (r + delta) (2 R + r + delta): a straight rod across it, the obstacle midway
     between two nodes, has its chord touch the body while both nodes are still beyond
     the barrier's reach r + delta (docs/contact.md, "Thin obstacles")."""
-    if ob.contact != "auto":
-        return ob.contact == "segments"
-    reach = radius + gap
-    return (ob.shape in SEGMENT_SHAPES and ob.friction == 0
-            and h * h >= 4 * reach * (2 * ob.radius + reach))
+    return segments.on_segments(ob.contact, ob.shape, ob.friction, ob.radius,
+                                radius + gap, h)
 
 
 def default_stiffness(rho_A, bending, length: float, n_cells: int, dt: float) -> float:
@@ -454,9 +455,11 @@ class ObstacleContact:
         self._segments = space.dofmap.list[:cells]          # the owned cells' two nodes
         h = self.mesh.comm.allreduce(float(np.max(np.abs(np.diff(
             self._all_nodes[self._segments], axis=1)), initial=0.0)), op=MPI.MAX)
+        self.h = h              # the longest cell (on_segments, obstacle_segments.py)
         self.segment_obstacles = [k for k, ob in enumerate(obstacles)
                                   if on_segments(ob, law.radius, law.gap, h)]
-        self.nodal = [k for k in range(len(obstacles)) if k not in self.segment_obstacles]
+        self.nodal = [k for k, ob in enumerate(obstacles)       # a mesh's faces: nodes
+                      if k not in self.segment_obstacles or ob.shape == "mesh"]
         self.V = V if any(ob.friction > 0 for ob in obstacles) else None
         self.start = None       # the nodes' points at the last commit (path check)
 

@@ -32,6 +32,7 @@ import ufl
 
 from ..theory import constraints
 from ..theory.evolution import real_space
+from ..fem import shared_mesh
 from ..fem.fe_model import vertex_measure
 from ..theory.rotations import material_derivative_vector
 from .layout import Pieces, RodLayout
@@ -56,7 +57,9 @@ class Discretisation:
 
 
 def discretise(comm, layout: RodLayout, rotations: str) -> Discretisation:
-    mesh = layout.mesh(comm)
+    """The discretisation of ``layout``; its mesh that of an earlier model of the same
+    layout in this process (fem/shared_mesh.py)."""
+    mesh = shared_mesh.mesh(layout, comm, lambda: layout.mesh(comm))
     degree = 2 if rotations == "rotation_vector" else 4
     s = ufl.SpatialCoordinate(mesh)[0]
     # the outward normal is -1 at s = 0 and +1 at s = L: untagged end points (a form with
@@ -76,7 +79,13 @@ def function_spaces(mesh, evolving: bool, variant: str, constraint: str | None,
     """One space object per block (blocks sharing an element still get their own: the
     assembly finds a Dirichlet condition's block by its space).  The uniform variant of
     several rods: one real vector of every rod's global natural strains in turn
-    (layout.Pieces.of_rods)."""
+    (layout.Pieces.of_rods).  Made once per mesh and kind (fem/shared_mesh.py)."""
+    return dict(shared_mesh.space(mesh, ("blocks", evolving, variant, constraint, dynamic,
+                                         rotations, n_rods), lambda: _function_spaces(
+        mesh, evolving, variant, constraint, dynamic, rotations, n_rods)))
+
+
+def _function_spaces(mesh, evolving, variant, constraint, dynamic, rotations, n_rods) -> dict:
     def natural_space(shape):
         if variant == "uniform":
             return real_space(mesh, shape if n_rods == 1 else (n_rods * int(np.prod(shape)),))

@@ -83,24 +83,39 @@ def check_loads(end_loads, distributed_loads, point_loads=(), length: float = np
                              f"{load.end!r}")
 
 
-def _load_value(load, rod: int, disc: Discretisation):
-    """The load's vector (a constant, or value(s) for a distributed profile, s the rod's
+@dataclass
+class LoadData:
+    """A load's Constants (load_data): its amplitude, its value (None: a profile value(s),
+    made with the terms) and, at a point, the cell size h and the point s_0."""
+
+    rod: int
+    load: object
+    where: str                # "end", "distributed" or "point"
+    amplitude: fem.Constant
+    value: fem.Constant | None
+    point: tuple = ()         # (h, s_0) of a point load
+
+    def constants(self) -> dict:
+        named = {"amplitude": self.amplitude, "value": self.value,
+                 **dict(zip(("h", "s0"), self.point))}
+        return {name: const for name, const in named.items() if const is not None}
+
+
+def _load_value(data: LoadData, disc: Discretisation):
+    """The load's vector (its Constant, or value(s) for a distributed profile, s the rod's
     own arc length)."""
-    if callable(load.value):
-        return ufl.as_vector(list(load.value(disc.pieces.local_s(rod))))
-    return fem.Constant(disc.mesh, np.asarray(load.value, float))
+    if data.value is None:
+        return ufl.as_vector(list(data.load.value(disc.pieces.local_s(data.rod))))
+    return data.value
 
 
-def point_weight(load: PointLoad, rod: int, disc: Discretisation):
+def point_weight(data: LoadData, disc: Discretisation):
     """The density that puts a point load at s_0 on the nodes when integrated by
     ``point_measure``: the P1 hat functions' values N_i(s_0) (the consistent load vector,
     exact for P1 test functions; at a node, all of it on that node)."""
-    layout = disc.pieces.layout
-    # Constants, not numbers: the compiled kernels are shared by models of other s, h
-    h = fem.Constant(disc.mesh, layout.lengths[rod] / layout.n_cells[rod])
-    distance = abs(disc.pieces.local_s(rod, offset=False)
-                   - fem.Constant(disc.mesh, float(load.s)))
-    return ufl.max_value(0.0, 1.0 - distance / h) / h, h
+    h, s0 = data.point
+    distance = abs(disc.pieces.local_s(data.rod, offset=False) - s0)
+    return ufl.max_value(0.0, 1.0 - distance / h) / h
 
 
 def point_measure(density, h, disc: Discretisation):
@@ -109,26 +124,46 @@ def point_measure(density, h, disc: Discretisation):
     return density * disc.dx_v + (h / 2) * density * disc.ds
 
 
-def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, end_loads, distributed_loads,
-                point_loads=()):
-    """Subtracts each load's virtual work from its balance block; returns the load
-    histories (TimeDependentValue) and the power of the loads (a UFL form, or 0).
-    end_loads, distributed_loads, point_loads: (rod index, load) pairs (layout.py: a
-    load acts on its rod only)."""
-    q, dTheta = unk.q, unk.dTheta
-    histories, power = [], 0
-    chi = disc.pieces.indicator
-    placed = [(k, load, disc.end_weight[load.end] * chi(k), lambda f: f * disc.ds)
-              for k, load in end_loads]
-    placed += [(k, load, chi(k), lambda f: f * disc.dx) for k, load in distributed_loads]
-    for k, load in point_loads:
-        density, h = point_weight(load, k, disc)
-        placed.append((k, load, chi(k) * density,
-                       lambda f, h=h: point_measure(f, h, disc)))
-    for rod, load, weight, integral in placed:
+def load_data(disc: Discretisation, end_loads, distributed_loads, point_loads=()):
+    """The loads' Constants, made before their terms (apply_loads): the load histories
+    (TimeDependentValue) and each load's LoadData.  end_loads, distributed_loads,
+    point_loads: (rod index, load) pairs (layout.py: a load acts on its rod only)."""
+    layout = disc.pieces.layout
+    placed = [(k, load, "end", ()) for k, load in end_loads]
+    placed += [(k, load, "distributed", ()) for k, load in distributed_loads]
+    # Constants, not numbers: the compiled kernels are shared by models of other s, h
+    placed += [(k, load, "point", (fem.Constant(disc.mesh, layout.lengths[k] / layout.n_cells[k]),
+                                   fem.Constant(disc.mesh, float(load.s))))
+               for k, load in point_loads]
+    histories, data = [], []
+    for rod, load, where, point in placed:
         amp = fem.Constant(disc.mesh, 0.0)
         histories.append(TimeDependentValue(amp, load.history))
-        val = weight * amp * _load_value(load, rod, disc)
+        value = None if callable(load.value) else fem.Constant(
+            disc.mesh, np.asarray(load.value, float))
+        data.append(LoadData(rod, load, where, amp, value, point))
+    return histories, data
+
+
+def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, loads: list[LoadData]):
+    """Subtracts each load's virtual work from its balance block (``loads``: load_data);
+    returns the power of the loads (a UFL form, or 0)."""
+    q, dTheta = unk.q, unk.dTheta
+    power = 0
+    chi = disc.pieces.indicator
+    placed = []
+    for data in loads:
+        if data.where == "end":
+            placed.append((data, disc.end_weight[data.load.end] * chi(data.rod),
+                           lambda f: f * disc.ds))
+        elif data.where == "distributed":
+            placed.append((data, chi(data.rod), lambda f: f * disc.dx))
+        else:
+            placed.append((data, chi(data.rod) * point_weight(data, disc),
+                           lambda f, h=data.point[0]: point_measure(f, h, disc)))
+    for data, weight, integral in placed:
+        load = data.load
+        val = weight * data.amplitude * _load_value(data, disc)
         if load.kind == "force":
             F["displacement"] -= integral(balance.force_work(
                 val, q, unk.t["displacement"], load.follower))
@@ -136,7 +171,7 @@ def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, end_loads, distrib
         else:
             F[unk.rotation] -= integral(balance.couple_work(val, q, dTheta, load.follower))
             power += integral(balance.couple_work(val, q, unk.W, load.follower))
-    return histories, power
+    return power
 
 
 def drag(F: dict, unk: Unknowns, c: dict, params: list, disc: Discretisation):

@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Sequence
 
 import dolfinx.fem as fem
@@ -28,7 +29,7 @@ from .. import loads as load_histories
 from ..theory.evolution import check_variant
 from ..checks import (ENDS, MAX_CELL_TURN, N_CELLS, ROD_MODEL, ROTATION_UNKNOWNS, VARIANT,
                       check_n_cells, end_keyed, old_keywords)
-from ..fem import form_cache
+from ..fem import form_cache, shared_mesh
 from ..fem.fe_model import FEModel
 from ..fem.gathered_form import LazyForms, data_of
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
@@ -60,6 +61,25 @@ _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
 # structures as data (rod/structure.py) whose residual, made on their first model, had the
 # Functions and Constants of its terms: later models make it only when it is read
 _DATA_OF_TERMS: set[str] = set()
+# of those whose residual had only Functions and Constants made before the terms: their
+# roles (RodModel._data_roles); later models neither make the terms nor traverse them
+_ROLES: dict[str, frozenset] = {}
+
+
+@dataclass
+class Terms:
+    """A rod model's UFL (RodModel._balance): the section's response, the block terms F,
+    the contact force n, the evolution's natural pairs, the (drag, friction) dissipation,
+    the loads' power, each rod's springs' energy and their variations by block."""
+
+    resp: object
+    F: dict
+    n: object
+    natural_pairs: list
+    dissipation: tuple
+    power: object
+    springs: list
+    variations: dict
 
 
 def end_frames(rod: Rod) -> dict:
@@ -133,12 +153,24 @@ class RodModel(FEModel):
         super().__init__(disc.mesh)
         self.dx, self.dx_r = disc.dx, disc.dx_r
         self.pieces = disc.pieces
-        resp = self._section_response(disc)
-        F, natural_pairs, dissipation, power = self._balance(resp, disc, obstacles, contact)
-        springs, variations = self._end_supports(disc)
+        # every Function and Constant of the terms first, in the order in which the terms
+        # made them before (their order is the kernels' and the registry's: form_cache),
+        # then the terms (UFL): made at their first read (_terms)
+        self._section_data(disc)
+        # several rods and obstacles: the response's Functions before the obstacles'
+        response = self._response_terms(disc) if obstacles and not self.layout.single else None
+        self.contact = self._obstacle_contact(obstacles, contact, disc)
+        zero = residual.diagonal_zero(self.unknowns, disc)
+        self.loads, loads = external_forces.load_data(
+            disc, [(k, load) for k, rod in enumerate(self.rods) for load in rod.end_loads],
+            [(k, load) for k, rod in enumerate(self.rods) for load in rod.distributed_loads],
+            [(k, load) for k, rod in enumerate(self.rods) for load in rod.point_loads])
+        self._end_supports()
+        self._made_terms, self._xi = None, None
+        self._make_terms = lambda: self._balance(disc, zero, loads, response)
         text = structure(rods, model, variant, constraint, self.rotations, comm.size, joints,
                          obstacles, contact)
-        forms = self._residual_forms(F, variations, disc, text)
+        forms = self._residual_forms(disc, text, self._data_roles(zero, loads))
         self.joints = list(joints)
         nodes = joint_nodes(self, self.joints)
         self.segment_contact = self._segment_contact(contact, self.layout, nodes)
@@ -154,7 +186,7 @@ class RodModel(FEModel):
                 for end, motion in (getattr(rod, name) or {}).items()}
         self.problem.structure = text
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
-        self._diagnostics(resp, disc, natural_pairs, power, dissipation, springs)
+        self._diagnostics(disc)
 
     def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
                            constraint: str | None, joints: Sequence[Joint], comm) -> list[Joint]:
@@ -246,9 +278,9 @@ class RodModel(FEModel):
                                  f"'rotation_vector'), not of {chosen!r}")
         return chosen
 
-    def _section_response(self, disc):
-        """The unknowns, the material coefficients and the section's response (strains,
-        psi, m, n: constitutive.py) on the discretisation."""
+    def _section_data(self, disc) -> None:
+        """The unknowns, the material coefficients and the reference strains on the
+        discretisation."""
         per_rod = self.variant == "uniform" and not self.layout.single   # each rod's strains
         self.unknowns = unk = unknowns(function_spaces(
             disc.mesh, self.evolving, self.variant, self.constraint, self.dynamic,
@@ -258,74 +290,141 @@ class RodModel(FEModel):
         self.V, self.W = unk.V, unk.W
         self.coefficients = c = coefficients([rod.params for rod in self.rods], disc.pieces)
         self.J = c["J"]
-        S_ref = fem.functionspace(disc.mesh, ("DG", 0, (3,)))   # set by the initial state
+        S_ref = shared_mesh.space(disc.mesh, "reference strains", lambda: fem.functionspace(
+            disc.mesh, ("DG", 0, (3,))))                      # set by the initial state
         self.reference = (fem.Function(S_ref, name="u_ref"), fem.Function(S_ref, name="v_ref"))
-        psi_fn = energy_function(self.rods[0].params, c, self.evolving, *self.reference)
-        resp = section_response(unk, c, psi_fn, self.evolving, self.constraint, self.reference)
-        self.psi, self.m, self.u, self.v = resp.psi, resp.m, resp.u, resp.v
-        self.u_d, self.v_d = resp.u_d, resp.v_d
-        return resp
 
-    def _balance(self, resp, disc, obstacles, contact):
-        """The block residuals of the balance laws, evolution, inertia, drag, contact and
-        loads; with the evolution's natural pairs, the drag and friction dissipation and
-        the loads' power."""
+    def _response_terms(self, disc) -> tuple:
+        """The section's response (strains, psi, m, n: constitutive.py) and the block
+        residuals of the balance laws, evolution, inertia and drag: (response, F, n, the
+        evolution's natural pairs, the drag's dissipation).  Several rods make Functions
+        here (layout.Pieces: indicators, lengths)."""
         unk, c, rods = self.unknowns, self.coefficients, self.rods
-        F, self.n = residual.internal_forces(unk, resp, self.constraint, disc)
+        psi_fn = energy_function(rods[0].params, c, self.evolving, *self.reference)
+        resp = section_response(unk, c, psi_fn, self.evolving, self.constraint, self.reference)
+        F, n = residual.internal_forces(unk, resp, self.constraint, disc)
         residual.gauge(F, unk, disc)
         natural_pairs = (residual.evolution(F, unk, resp, c, self.variant, self.constraint,
                                             disc) if self.evolving else [])
         if self.dynamic:
             residual.inertia(F, unk, c, disc)
         drag_dissipation = external_forces.drag(F, unk, c, [rod.params for rod in rods], disc)
-        self.contact = self._obstacle_contact(obstacles, contact, disc)
+        return resp, F, n, natural_pairs, drag_dissipation
+
+    def _balance(self, disc, zero, loads, response: tuple | None = None) -> Terms:
+        """The model's terms: the response's (``response``, made before, or now:
+        _response_terms), the obstacles' contact and the loads (their Functions and
+        Constants made before: ``zero``, ``loads``), the supports' springs
+        (_spring_terms); the friction's dissipation and the loads' power."""
+        unk = self.unknowns
+        resp, F, n, natural_pairs, drag_dissipation = response or self._response_terms(disc)
         friction_dissipation = (self.contact.add_to(F, unk.t["displacement"])
                                 if self.contact else 0)
-        residual.zero_diagonals(F, unk, disc)
-        self.loads, power = external_forces.apply_loads(
-            F, unk, disc, [(k, load) for k, rod in enumerate(rods) for load in rod.end_loads],
-            [(k, load) for k, rod in enumerate(rods) for load in rod.distributed_loads],
-            [(k, load) for k, rod in enumerate(rods) for load in rod.point_loads])
-        return F, natural_pairs, (drag_dissipation, friction_dissipation), power
+        residual.zero_diagonals(F, unk, disc, zero)
+        power = external_forces.apply_loads(F, unk, disc, loads)
+        springs, variations = self._spring_terms(disc)
+        return Terms(resp, F, n, natural_pairs, (drag_dissipation, friction_dissipation),
+                     power, springs, variations)
 
-    def _residual_forms(self, F: dict, variations: dict, disc, text: str | None):
+    def _terms(self) -> Terms:
+        """The model's UFL terms (_balance), made at the first call."""
+        if self._made_terms is None:
+            self._made_terms, self._make_terms = self._make_terms(), None
+        return self._made_terms
+
+    def _data_roles(self, zero, loads) -> dict:
+        """The Functions and Constants made before the terms, by role (the same roles in
+        every model of a structure): the unknowns' fields, rates, accelerations, the
+        stored rotations, the material coefficients, the reference strains, the zero of
+        the diagonals, the loads' and the springs' Constants."""
+        unk = self.unknowns
+        roles: dict = {}
+        for kind, fields in (("field", unk.f), ("rate", unk.r), ("acceleration", unk.acc)):
+            roles.update({(kind, name): g for name, g in fields.items()})
+        if unk.chart is not None:
+            roles.update({("chart", name): getattr(unk.chart, name)
+                          for name in ("s_mid", "q_n", "eta")})
+        roles.update({("coefficient", name): value for name, value in self.coefficients.items()
+                      if isinstance(value, (ufl.Coefficient, ufl.Constant))})
+        roles.update({("reference", k): g for k, g in enumerate(self.reference)})
+        if zero is not None:
+            roles[("zero",)] = zero
+        for j, load in enumerate(loads):
+            roles.update({("load", j, name): const for name, const in load.constants().items()})
+        for k, supports in enumerate(self.end_supports):
+            roles.update({("spring", k, end, i): const for end, pair in supports.rest.items()
+                          for i, const in enumerate(pair)})
+        return roles
+
+    def _residual_forms(self, disc, text: str | None, roles: dict):
         """The block residuals: the terms F made into one Form per block
-        (residual.one_quadrature_rule) plus the compliant supports' ``variations``, made
-        when first read (gathered_form.LazyForms: their data are those of the terms) for a
-        model whose structure ``text`` had a model before; the first model of a structure
-        makes them now and checks that they have the data of their terms."""
+        (residual.one_quadrature_rule) plus the compliant supports' variations, made when
+        first read (gathered_form.LazyForms) for a model whose structure ``text`` had a
+        model before: their data are the Functions and Constants of the roles its forms
+        had (``roles``: _data_roles; the terms are not made), else those of the terms
+        (data_of).  The first model of a structure makes them now, checks that they have
+        the data of their terms and records their roles."""
         unk, names = self.unknowns, list(self.names)
-        data = data_of([itg for form in [*(F[name] for name in names), *variations.values()]
-                        for itg in form.integrals()])
 
         def make() -> list:
-            residual.one_quadrature_rule(F, unk, disc)
-            for block, variation in variations.items():
-                F[block] += variation
-            return [F[name] for name in names]
+            terms = self._terms()
+            residual.one_quadrature_rule(terms.F, unk, disc)
+            for block, variation in terms.variations.items():
+                terms.F[block] += variation
+            return [terms.F[name] for name in names]
 
+        known = _ROLES.get(text)
+        if known is not None and known <= roles.keys():
+            return LazyForms(make, len(names), {roles[role] for role in known})
+        terms = self._terms()
+        data = data_of([itg for form in [*(terms.F[name] for name in names),
+                                         *terms.variations.values()]
+                        for itg in form.integrals()])
         forms = LazyForms(make, len(names), data)
         if text is not None and text in _DATA_OF_TERMS:
             return forms
         made = list(forms)
         if text is not None and form_cache.registry(made) == form_cache.registry(forms):
             _DATA_OF_TERMS.add(text)
+            role_of = {id(obj): role for role, obj in roles.items()}
+            if all(id(obj) in role_of for obj in data):
+                _ROLES[text] = frozenset(role_of[id(obj)] for obj in data)
         return made
+
+    psi = property(lambda self: self._terms().resp.psi, doc="free energy per length psi")
+    m = property(lambda self: self._terms().resp.m, doc="contact couple m (material)")
+    u = property(lambda self: self._terms().resp.u, doc="curvature strain u")
+    v = property(lambda self: self._terms().resp.v, doc="stretch strain v")
+    u_d = property(lambda self: self._terms().resp.u_d, doc="natural curvature u_d")
+    v_d = property(lambda self: self._terms().resp.v_d, doc="natural stretch v_d")
+    n = property(lambda self: self._terms().n, doc="contact force n (material: "
+                 "constitutive + the constraint's multiplier; None if inextensible)")
+
+    @property
+    def xi(self):
+        """The dissipation rate density xi (eq. disspw)."""
+        if self._xi is None:
+            terms = self._terms()
+            self._xi = diagnostics.dissipation_density(terms.resp, self.coefficients,
+                                                       terms.natural_pairs)
+        return self._xi
 
     @property
     def residual(self) -> dict:
         """The block residuals (ufl.Form) by block name."""
         return dict(zip(self.names, self.problem.residual))
 
-    def _end_supports(self, disc):
-        """Every rod's end supports. Returns each rod's springs' energy (0 without
-        springs) and the variations of the compliant supports' energy that the balance
-        adds, {block: ufl.Form}."""
-        unk = self.unknowns
+    def _end_supports(self) -> None:
+        """Every rod's end supports (their Dirichlet conditions and Constants)."""
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
                                          rod.end_springs, rod.end_turn, end_frames(rod))
                              for k, rod in enumerate(self.rods)]
+
+    def _spring_terms(self, disc):
+        """Each rod's springs' energy (0 without springs) and the variations of the
+        compliant supports' energy that the balance adds, {block: ufl.Form}."""
+        unk = self.unknowns
         per_rod = [supports.spring_energy(unk, disc.ds, disc.end_weight,
                                           disc.pieces.indicator(k))
                    for k, supports in enumerate(self.end_supports)]
@@ -335,12 +434,10 @@ class RodModel(FEModel):
         return per_rod, {block: ufl.derivative(springs, unk.f[block], unk.t[block])
                          for block in ("displacement", unk.rotation)}
 
-    def _diagnostics(self, resp, disc, natural_pairs, power, dissipation, springs) -> None:
-        """Dissipation density, tips, the energy forms (diagnostics.py) and the check that
-        the rod does not pass through itself."""
+    def _diagnostics(self, disc) -> None:
+        """Tips, the energy forms (diagnostics.py) and the check that the rod does not
+        pass through itself."""
         unk, c, layout = self.unknowns, self.coefficients, self.layout
-        drag_dissipation, friction_dissipation = dissipation
-        self.xi = diagnostics.dissipation_density(resp, c, natural_pairs)
         self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(self.rods))]
         points = [dict.fromkeys((layout.starts[k], layout.lengths[k] / layout.n_cells[k],
                                  load.s) for load in rod.point_loads)
@@ -354,7 +451,10 @@ class RodModel(FEModel):
             for name in dict.fromkeys(self.rod_names)]
 
         def energy_forms() -> dict:
-            forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, power,
+            terms = self._terms()
+            resp, springs = terms.resp, terms.springs
+            drag_dissipation, friction_dissipation = terms.dissipation
+            forms = diagnostics.energy_forms(resp, self.xi, c, unk, disc, terms.power,
                                              drag_dissipation + friction_dissipation,
                                              sum(springs, 0))
             if len(self.splits) > 1:    # each rod's own energies, "<name>.free_energy", ...
@@ -406,7 +506,9 @@ class RodModel(FEModel):
             return None
         contact = ObstacleSegments(self.unknowns.f["displacement"], law,
                                    [(k, obstacles[k]) for k in self.contact.segment_obstacles],
-                                   layout.rod_of)
+                                   layout.rod_of, self.contact.h)
+        if not len(contact.index):      # meshes without sharp edges
+            return None
         contact.block = list(self.names).index("displacement")
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
         self.segment_force = fem.Function(P1, name="obstacle_segment_force")

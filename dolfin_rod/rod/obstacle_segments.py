@@ -30,30 +30,42 @@ import numpy as np
 from .contact import ContactLaw, Obstacle, unit
 from .pair_contact import (BoundTerm, Centreline, PairTerms, StepTerm, nodal_force_density,
                            pair_energy)
-from .segments import closest_points
+from .segments import chord_reaches_edge, closest_points
 
 
-def obstacle_segment(ob: Obstacle) -> tuple[np.ndarray, np.ndarray]:
-    """(q0, q1): a cylinder's axis from lid to lid, a sphere's centre twice."""
+def fixed_segments(ob: Obstacle, reach: float, h: float):
+    """(q0 (m, 3), q1 (m, 3), radius (m,)) of the obstacle's fixed segments: a cylinder's
+    axis from lid to lid, a sphere's centre twice (radius R); a mesh's convex edges that
+    nodes h apart cannot hold a rod across, (h / 2) sin(phi / 2) >= reach = r + delta
+    (phi the angle between the faces' normals: a chord across the edge touches it while
+    its nodes are beyond the barrier's reach from both faces; radius 0)."""
+    if ob.shape == "mesh":
+        ends, turn = ob.surface.convex_edges()
+        sharp = chord_reaches_edge(h, turn, reach)
+        return ends[sharp, 0], ends[sharp, 1], np.zeros(int(sharp.sum()))
     centre = np.asarray(ob.where, float)
     half = 0.5 * ob.length * unit(ob.direction) if ob.shape == "cylinder" else 0.0 * centre
-    return centre - half, centre + half
+    return (centre - half)[None], (centre + half)[None], np.array([ob.radius])
 
 
 class ObstacleSegments:
     """The segment contact of the rod (displacement ``x``, P1) with ``obstacles`` ((k,
-    Obstacle) of the scene's obstacles[k]), a term that fem/assembly adds to the residual
-    and Jacobian of the systems holding x (``bind``; pair_contact.BoundTerm's rows)."""
+    Obstacle) of the scene's obstacles[k]; their ``fixed_segments`` for the longest cell
+    h), a term that fem/assembly adds to the residual and Jacobian of the systems holding
+    x (``bind``; pair_contact.BoundTerm's rows)."""
 
     friction, rates = None, None        # frictionless: BoundTerm's friction hooks unused
 
-    def __init__(self, x, law: ContactLaw, obstacles: Sequence[tuple[int, Obstacle]], rod_of):
+    def __init__(self, x, law: ContactLaw, obstacles: Sequence[tuple[int, Obstacle]],
+                 rod_of, h: float):
         self.x, self.law = x, law
         self.line = Centreline(x, rod_of)
-        self.index = np.array([k for k, _ in obstacles], dtype=np.int64)
-        ends = [obstacle_segment(ob) for _, ob in obstacles]
-        self.q0, self.q1 = (np.array([e[j] for e in ends]) for j in (0, 1))
-        self.contact_radius = np.array([ob.radius for _, ob in obstacles]) + law.radius
+        parts = [(k, fixed_segments(ob, law.radius + law.gap, h)) for k, ob in obstacles]
+        self.index = np.concatenate([np.full(len(q[2]), k, dtype=np.int64)
+                                     for k, q in parts])
+        self.q0, self.q1, radius = (np.concatenate([q[j] for _, q in parts])
+                                    for j in range(3))
+        self.contact_radius = radius + law.radius
         self.block = 0          # the displacement's block in the problem (model sets it)
         self._cache = (None, None)
 

@@ -43,6 +43,9 @@ class PlacedRod:
 def helix(s, u0, v0):
     """Stress-free configuration of constant strains: q(s) = exp(s u0/2), r = int R v0."""
     u0, v0 = np.asarray(u0, float), np.asarray(v0, float)
+    q = np_quaternion_from_rotation_vector(np.outer(s, u0))
+    if not u0.any():    # straight: what the loop gives, (s I) v0 with no -0.0, at once
+        return np.outer(s, v0) + 0.0, q
     a = np.linalg.norm(u0)
     U = np.array([[0, -u0[2], u0[1]], [u0[2], 0, -u0[0]], [-u0[1], u0[0], 0]])
     r = np.zeros((len(s), 3))
@@ -54,7 +57,6 @@ def helix(s, u0, v0):
             c1 = (1 - np.cos(a * si)) / a**2
             c2 = (a * si - np.sin(a * si)) / a**3
         r[i] = (si * np.eye(3) + c1 * U + c2 * U @ U) @ v0
-    q = np_quaternion_from_rotation_vector(np.outer(s, u0))
     return r, q
 
 

@@ -87,15 +87,21 @@ def inertia(F: dict, unk: Unknowns, c: dict, disc: Discretisation) -> None:
         unk.t["angular_velocity"], disc.dx_v)
 
 
-def zero_diagonals(F: dict, unk: Unknowns, disc: Discretisation) -> None:
-    """Adds 0 * (y_i, v_i) at the vertices to the P1 blocks.  Still needed: without it the
-    blocked layout (assembly.BlockedSystem, the uniform variant) assembles the quaternion
-    residual 2e-4 off the mixed layout, which splits its kernels by quadrature rule
-    (tests/test_assembly.py; DOLFINx 0.9 / FFCx, a kernel with the vertex rule and Gauss
-    rules together).  Drop it once BlockedSystem splits its forms by rule as well."""
-    if unk.chart is not None:      # rotation vectors: the mixed layout only (one rule)
+def diagonal_zero(unk: Unknowns, disc: Discretisation):
+    """The Constant 0 of zero_diagonals (None for rotation vectors: the mixed layout only,
+    one rule)."""
+    return fem.Constant(disc.mesh, 0.0) if unk.chart is None else None
+
+
+def zero_diagonals(F: dict, unk: Unknowns, disc: Discretisation, zero) -> None:
+    """Adds 0 * (y_i, v_i) at the vertices to the P1 blocks (``zero``: diagonal_zero).
+    Still needed: without it the blocked layout (assembly.BlockedSystem, the uniform
+    variant) assembles the quaternion residual 2e-4 off the mixed layout, which splits
+    its kernels by quadrature rule (tests/test_assembly.py; DOLFINx 0.9 / FFCx, a kernel
+    with the vertex rule and Gauss rules together).  Drop it once BlockedSystem splits its
+    forms by rule as well."""
+    if zero is None:
         return
-    zero = fem.Constant(disc.mesh, 0.0)
     for name in ("displacement", "quaternion", "gauge_multiplier", "velocity",
                  "angular_velocity"):
         if name in F:

@@ -35,6 +35,7 @@ import ufl
 
 from ufl.corealg.traversal import unique_pre_traversal
 
+from ..fem import shared_mesh
 from ..mpi import largest_on_ranks
 from ..theory.kinematics import strain_rates
 from ..theory.rotations import conj, np_qmul, qmul, rotation_matrix, vec
@@ -133,9 +134,11 @@ class RotationVectorChart:
 
     def __init__(self, mesh, theta: fem.Function):
         self.mesh, self.theta = mesh, theta
-        self.s_mid = fem.Function(fem.functionspace(mesh, ("DG", 0)), name="cell_midpoint")
+        self.s_mid = fem.Function(shared_mesh.space(mesh, "cell midpoints", lambda: (
+            fem.functionspace(mesh, ("DG", 0)))), name="cell_midpoint")
         self.s_mid.interpolate(lambda X: X[0])
-        Q = fem.functionspace(mesh, ("Lagrange", 1, (4,)))
+        Q = shared_mesh.space(mesh, "stored rotations", lambda: fem.functionspace(
+            mesh, ("Lagrange", 1, (4,))))
         self.node_s = Q.tabulate_dof_coordinates()[:, 0]
         self.q_n = fem.Function(Q, name="stored_rotation")
         self.eta = fem.Function(theta.function_space, name="body_rate_perturbation")

@@ -209,6 +209,23 @@ class Surface:
             np.stack([a, b, c], axis=1) - self.centroids[:, None], axis=2)))
         self._tree = None
 
+    def convex_edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ends (m, 2, 3), turn (m,)) of the interior edges where the surface is convex
+        (the second face's far corner behind the first face's plane by more than
+        round-off: a flat quad's diagonal is no edge) and the angle
+        between their two faces' normals (0: flat, pi / 2: a box's edge)."""
+        T, V = self.triangles, self.vertices
+        edge = self.tri_edges.ravel()          # entry j: triangle j // 3's edge j % 3
+        order = np.argsort(edge, kind="stable")
+        twice = order[~self.border_edges[edge[order]]].reshape(-1, 2)  # an edge's 2 entries
+        f1, f2 = twice[:, 0] // 3, twice[:, 1] // 3
+        e = self.edges[edge[twice[:, 0]]]
+        far = T[f2][(T[f2] != e[:, :1]) & (T[f2] != e[:, 1:])]     # f2's third corner
+        n1, n2 = self.normals[f1], self.normals[f2]
+        convex = np.einsum("ij,ij->i", n1, V[far] - V[e[:, 0]]) < -1e-12 * self.size
+        turn = np.arccos(np.clip(np.einsum("ij,ij->i", n1, n2), -1.0, 1.0))
+        return V[e[convex]], turn[convex]
+
     def tree(self):
         """A cKDTree of the triangles' centroids (scipy, imported here: only mesh
         obstacles need it)."""

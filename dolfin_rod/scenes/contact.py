@@ -16,8 +16,8 @@ OPTIONAL_KEYS = {"mesh": ("centre", "file", "vertices", "triangles", "rotation",
 ALL_POSE_KEYS = ("point", "normal", "centre", "axis", "radius", "length", "file",
                  "vertices", "triangles", "rotation", "scale")
 DIRECTIONS = ("normal", "axis")
-SEGMENT_SHAPES = ("sphere", "cylinder")     # contact = "segments" (rod/contact.py's; no
-                                            # DOLFINx import for `dolfin-rod check`)
+SEGMENT_SHAPES = ("sphere", "cylinder", "mesh")     # contact = "segments" (rod/contact.py's;
+                                                    # no DOLFINx for `dolfin-rod check`)
 
 
 def check_contact_keys(scene: Scene) -> None:
@@ -77,9 +77,9 @@ def _check_segments(scene: Scene, k: int) -> None:
     if ob["contact"] != "segments":
         return
     if ob["shape"] not in SEGMENT_SHAPES:
-        raise scene.error(f"{name}.contact", f"'segments' applies to a sphere or a "
-                                             f"cylinder, not a {ob['shape']}: 'nodes' or "
-                                             "'auto'")
+        raise scene.error(f"{name}.contact", f"'segments' applies to a sphere, a "
+                                             f"cylinder or a mesh, not a {ob['shape']}: "
+                                             "'nodes' or 'auto'")
     if ob["friction"] > 0:
         raise scene.error(f"{name}.friction", "segment contact is frictionless: friction "
                                               "needs contact = 'nodes' (or 'auto')")
@@ -129,6 +129,32 @@ def mesh_file(scene: Scene, ob: dict) -> str | None:
         return None
     folder = Path(scene.source).parent if Path(scene.source).is_file() else Path()
     return str(folder / ob["file"])
+
+
+def contact_lines(scene: Scene) -> list[str]:
+    """``check``'s line per obstacle: where its barrier acts, nodes or segments
+    (rod/segments.on_segments with the longest cell h; a mesh's sharp edges,
+    rod/obstacle_segments.fixed_segments)."""
+    from ..rod.segments import chord_reaches_edge, on_segments
+    c = scene["contact"]
+    if not scene["obstacles"]:
+        return []
+    reach = c["radius"] + (c["gap"] or c["radius"] / 10)
+    h = max(own["geometry"]["length"] / own["geometry"]["n_cells"]
+            for own in [rod.scene for rod in scene.rods] or [scene])
+    lines = []
+    for k, ob in enumerate(scene["obstacles"]):
+        where = "on the nodes"
+        if on_segments(ob["contact"], ob["shape"], ob["friction"], ob["radius"] or 0.0,
+                       reach, h):
+            where = "on the segments"
+            if ob["shape"] == "mesh":
+                edges = chord_reaches_edge(h, mesh_surface(scene, ob).convex_edges()[1],
+                                           reach).sum()
+                where = f"on the nodes, its {edges} sharp edges on the segments"
+        lines.append(f"contact: obstacles[{k}] ({ob['shape']}, contact = "
+                     f"{ob['contact']!r}) acts {where} (longest cell h = {h:.4g})")
+    return lines
 
 
 def touching(scene: Scene) -> bool:

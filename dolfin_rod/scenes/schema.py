@@ -516,7 +516,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "contact": Key(choice("auto", "nodes", "segments"), "auto", "where the barrier "
                        "acts: nodes (the centre line's nodes) | segments (a sphere's or "
                        "cylinder's, frictionless: a thin obstacle between two nodes holds "
-                       "the segment) | auto (segments for a frictionless sphere or cylinder "
+                       "the segment; a mesh: its nodal law and its sharp convex edges on "
+                       "the segments) | auto (segments for a frictionless sphere or cylinder "
                        "of radius R when the longest cell h has h^2 >= 4 (r + gap) (2 R + r "
                        "+ gap), else nodes; docs/contact.md, \"Thin obstacles\")"),
     },
