@@ -172,7 +172,7 @@ def main() -> None:
 COMMANDS = {
     "python3 -c 'import dolfin_rod'": ["-c", "import dolfin_rod"],
     "import the finite-element stack": [
-        "-c", "import adios4dolfinx, basix.ufl, dolfinx.fem.petsc, ufl"],   # run.py's set
+        "-c", "import basix.ufl, dolfinx.fem.petsc, ufl"],   # run.py's (no checkpoints)
     "python3 -c 'import dolfin_rod, dolfinx.fem.petsc'": [      # the compute stack: the
         "-c", "import dolfin_rod, dolfinx.fem.petsc"],            # honest baseline
     "dolfin-rod check": ["-m", "dolfin_rod", "check", str(SCENE)],

@@ -206,13 +206,15 @@ def draws_alone(scene: Scene, comm) -> bool:
     return comm.size == 1 and bool(outputs["plots"] or outputs["animation"])
 
 
-def import_finite_elements() -> None:
-    """Import DOLFINx and its stack with Ctrl-C and SIGTERM recorded, not raised, until
-    the imports are complete: an interrupt raised inside an import leaves a package half
-    imported (DOLFINx's module initialisation then aborts, or its dependency check
-    fails); recorded, it ends the start-up right after (KeyboardInterrupt: exit 130).
-    Numba is hidden meanwhile: DOLFINx then skips its optional numba helpers, whose
-    import is a third of its own (docs/performance.md); it stays importable after."""
+def import_finite_elements(checkpoints: bool) -> None:
+    """Import DOLFINx and its stack (with adios4dolfinx if the run writes or reads
+    ``checkpoints``: 0.1 s of a run's start otherwise) with Ctrl-C and SIGTERM recorded,
+    not raised, until the imports are complete: an interrupt raised inside an import
+    leaves a package half imported (DOLFINx's module initialisation then aborts, or its
+    dependency check fails); recorded, it ends the start-up right after
+    (KeyboardInterrupt: exit 130).  Numba is hidden meanwhile: DOLFINx then skips its
+    optional numba helpers, whose import is a third of its own (docs/performance.md); it
+    stays importable after."""
     import signal
     caught: list[int] = []
     names = ("SIGINT", "SIGTERM")
@@ -222,7 +224,8 @@ def import_finite_elements() -> None:
     if numba_absent:   # DOLFINx's numba helpers (dolfinx.utils), unused here: 0.4-0.5 s
         sys.modules["numba"] = None
     try:
-        import adios4dolfinx  # noqa: F401
+        if checkpoints:
+            import adios4dolfinx  # noqa: F401
         import basix.ufl  # noqa: F401
         import dolfinx.fem.petsc  # noqa: F401
         import ufl  # noqa: F401
@@ -257,7 +260,7 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
     from .output.notices import noticed
     with painting(draws_alone(scene, comm)) as painter, noticed(comm) as seen:
         try:
-            import_finite_elements()
+            import_finite_elements(resume or bool(scene["outputs"]["checkpoint_every"]))
             sim = build(scene, choice.model, comm)
             impulse = sim.start()
         except BaseException:

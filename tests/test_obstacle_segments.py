@@ -223,3 +223,29 @@ def test_rope_over_a_thin_bar_scene_rests_on_the_bar():
     assert d["contact_force_x"] == pytest.approx(0.08 * 9.81, rel=1e-3)
     middle = _point_at(rod, 0.5)
     assert middle[0] == pytest.approx(-0.01 + 0.004 + 0.005, abs=5e-4)  # bar's top + r
+
+
+def test_check_says_where_each_obstacles_contact_acts():
+    """`dolfin-rod check` names where each obstacle's barrier acts, by the model's rule
+    (the rope's bar: segments; the ground: nodes; a mesh with contact = "segments": its
+    nodes and its sharp edges, a cube's 12 at these cells)."""
+    from pathlib import Path
+
+    from dolfin_rod.cli import _check_lines
+    from dolfin_rod.scenes import load_scene
+    path = Path(__file__).resolve().parents[1] / "scenes/rope_over_thin_bar.toml"
+    lines = _check_lines(load_scene(path), 1)
+    assert any("obstacles[0] (cylinder, contact = 'auto') acts on the segments" in line
+               for line in lines), lines
+    assert any("obstacles[1] (plane, contact = 'auto') acts on the nodes" in line
+               for line in lines), lines
+    from dolfin_rod.scenes import parse_scene
+    text = path.read_text()
+    cube = _diamond(0.5)
+    mesh = (f'[[obstacles]]\nshape = "mesh"\ncontact = "segments"\ncentre = [-0.05, 0.0, 0.5]\n'
+            f"vertices = {[list(v) for v in cube.vertices]}\n"
+            f"triangles = {[list(t) for t in CUBE_TRIANGLES]}\n\n")
+    text = text[:text.index("[[obstacles]]")] + mesh + text[text.index("[time]"):]
+    lines = _check_lines(parse_scene(text), 1)
+    assert any("acts on the nodes, its 12 sharp edges on the segments" in line
+               for line in lines), lines

@@ -60,7 +60,10 @@ from .run_folders import OutputError, files_in, on_root
 
 
 def versions() -> dict[str, str]:
-    import adios4dolfinx
+    """The versions of the stack (adios4dolfinx's from its metadata: a run without
+    checkpoints does not import it)."""
+    from importlib.metadata import version
+
     import dolfinx
     import petsc4py
     import scipy
@@ -71,7 +74,7 @@ def versions() -> dict[str, str]:
             "dolfinx": dolfinx.__version__, "petsc4py": petsc4py.__version__,
             "petsc": ".".join(str(v) for v in PETSc.Sys.getVersion()),
             "numpy": np.__version__, "scipy": scipy.__version__,
-            "adios4dolfinx": adios4dolfinx.__version__}
+            "adios4dolfinx": version("adios4dolfinx")}
 
 
 def show_progress(enabled: bool, rank: int) -> bool:

@@ -37,6 +37,7 @@ from mpi4py import MPI
 
 from ..fem import compat
 from ..checks import nonnegative, positive, sample_points
+from . import segments
 from .triangle_mesh import FACE, MeshError, Surface, placed_surface
 
 SHAPES = ("plane", "sphere", "cylinder", "mesh")
@@ -214,11 +215,8 @@ def on_segments(ob: Obstacle, radius: float, gap: float, h: float) -> bool:
     4 (r + delta) (2 R + r + delta): a straight rod across it, the obstacle midway
     between two nodes, has its chord touch the body while both nodes are still beyond
     the barrier's reach r + delta (docs/contact.md, "Thin obstacles")."""
-    if ob.contact != "auto":
-        return ob.contact == "segments"
-    reach = radius + gap
-    return (ob.shape in ("sphere", "cylinder") and ob.friction == 0
-            and h * h >= 4 * reach * (2 * ob.radius + reach))
+    return segments.on_segments(ob.contact, ob.shape, ob.friction, ob.radius,
+                                radius + gap, h)
 
 
 def default_stiffness(rho_A, bending, length: float, n_cells: int, dt: float) -> float:

@@ -30,7 +30,7 @@ import numpy as np
 from .contact import ContactLaw, Obstacle, unit
 from .pair_contact import (BoundTerm, Centreline, PairTerms, StepTerm, nodal_force_density,
                            pair_energy)
-from .segments import closest_points
+from .segments import chord_reaches_edge, closest_points
 
 
 def fixed_segments(ob: Obstacle, reach: float, h: float):
@@ -41,7 +41,7 @@ def fixed_segments(ob: Obstacle, reach: float, h: float):
     its nodes are beyond the barrier's reach from both faces; radius 0)."""
     if ob.shape == "mesh":
         ends, turn = ob.surface.convex_edges()
-        sharp = 0.5 * h * np.sin(turn / 2) >= reach
+        sharp = chord_reaches_edge(h, turn, reach)
         return ends[sharp, 0], ends[sharp, 1], np.zeros(int(sharp.sum()))
     centre = np.asarray(ob.where, float)
     half = 0.5 * ob.length * unit(ob.direction) if ob.shape == "cylinder" else 0.0 * centre

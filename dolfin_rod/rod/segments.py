@@ -42,6 +42,34 @@ def closest_points(p0, p1, q0, q1):
     return s, t, np.sqrt(np.einsum("ij,ij->i", gap, gap))
 
 
+def chord_reaches_round(h, radius: float, reach: float):
+    """Whether a straight chord of length h across a round obstacle of radius R (a sphere,
+    a cylinder's side), the obstacle midway, touches it while both its ends are farther
+    than ``reach`` from its surface: h^2 >= 4 reach (2 R + reach) (the ends then lie
+    sqrt(h^2 / 4 + R^2) >= R + reach from the centre): nodes h apart whose barrier
+    reaches ``reach`` cannot hold a rod across it (contact.on_segments)."""
+    return np.asarray(h) ** 2 >= 4 * reach * (2 * radius + reach)
+
+
+def on_segments(contact: str, shape: str, friction: float, radius: float, reach: float,
+                h: float) -> bool:
+    """Whether an obstacle's barrier acts on the rod's segments (rod/contact.on_segments:
+    an obstacle's keys contact, shape, friction, radius; the barrier's reach r + delta,
+    the longest cell h): "segments", or "auto" for a frictionless sphere or cylinder
+    that ``chord_reaches_round`` (numpy only: `dolfin-rod check` says it too)."""
+    if contact != "auto":
+        return contact == "segments"
+    return (shape in ("sphere", "cylinder") and friction == 0
+            and bool(chord_reaches_round(h, radius, reach)))
+
+
+def chord_reaches_edge(h, turn, reach: float):
+    """The same for a convex edge whose faces' normals turn by ``turn``: the chord across
+    it makes the angle turn / 2 with each face, its ends (h / 2) sin(turn / 2) from them
+    (obstacle_segments.fixed_segments)."""
+    return 0.5 * np.asarray(h) * np.sin(np.asarray(turn) / 2) >= reach
+
+
 def near_pairs(p0, p1, mid_s, distance: float, exclusion: float,
                tree: bool = True) -> np.ndarray:
     """(m, 2) index pairs i < j of segments (rows of p0, p1; parameters mid_s of their

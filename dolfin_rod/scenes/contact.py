@@ -131,6 +131,32 @@ def mesh_file(scene: Scene, ob: dict) -> str | None:
     return str(folder / ob["file"])
 
 
+def contact_lines(scene: Scene) -> list[str]:
+    """``check``'s line per obstacle: where its barrier acts, nodes or segments
+    (rod/segments.on_segments with the longest cell h; a mesh's sharp edges,
+    rod/obstacle_segments.fixed_segments)."""
+    from ..rod.segments import chord_reaches_edge, on_segments
+    c = scene["contact"]
+    if not scene["obstacles"]:
+        return []
+    reach = c["radius"] + (c["gap"] or c["radius"] / 10)
+    h = max(own["geometry"]["length"] / own["geometry"]["n_cells"]
+            for own in [rod.scene for rod in scene.rods] or [scene])
+    lines = []
+    for k, ob in enumerate(scene["obstacles"]):
+        where = "on the nodes"
+        if on_segments(ob["contact"], ob["shape"], ob["friction"], ob["radius"] or 0.0,
+                       reach, h):
+            where = "on the segments"
+            if ob["shape"] == "mesh":
+                edges = chord_reaches_edge(h, mesh_surface(scene, ob).convex_edges()[1],
+                                           reach).sum()
+                where = f"on the nodes, its {edges} sharp edges on the segments"
+        lines.append(f"contact: obstacles[{k}] ({ob['shape']}, contact = "
+                     f"{ob['contact']!r}) acts {where} (longest cell h = {h:.4g})")
+    return lines
+
+
 def touching(scene: Scene) -> bool:
     """Obstacles, self-contact or contact between rods."""
     c = scene["contact"]
