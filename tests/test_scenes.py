@@ -688,11 +688,48 @@ def test_adaptive_ts_scene(tmp_path):
 # --- every bundled scene runs --------------------------------------------------------------
 
 
-@pytest.mark.mpi
-@pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
+# Bundled scenes that a test of their own runs on two ranks (against the serial run or
+# the same reference): test_bundled_scene_runs runs them serially only (make test-mpi
+# takes 3-6 s a scene); every other scene also runs here under mpirun.
+ON_TWO_RANKS_ELSEWHERE = {
+    "beck_column.toml": "test_vibration::test_modes_command_reports_flutter",
+    "bent_frame.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
+    "cantilever_creep.toml": "test_scenes::test_quasi_static_rod_scene_resumes_exactly",
+    "column_buckling_modes.toml": "test_buckling::test_buckle_command",
+    "deep_arch.toml": "test_continuation::test_deep_arch_scene",
+    "dna_overstretching.toml": "test_dna::test_pull_scene_under_mpirun_matches_serial",
+    "double_pendulum.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
+    "frame.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
+    "gravity_cantilever.toml":
+        "test_scenes::test_dynamic_rod_scene_runs_the_default_api_and_resumes_exactly",
+    "hanging_twist.toml":
+        "test_supports::test_hanging_twist_scene_carries_the_weight_serially_and_on_two_ranks",
+    "hinged_door.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
+    "inclined_clamp.toml":
+        "test_oblique_supports::test_inclined_clamp_scene_serially_and_on_two_ranks",
+    "lee_frame.toml": "test_continuation::test_lee_frame_from_its_scene",
+    "rope_over_thin_bar.toml":
+        "test_obstacle_segments::test_rope_over_a_thin_bar_scene_rests_on_the_bar",
+    "ropes_pulled_over_each_other.toml":   # its friction between rods and self-friction
+        "test_pair_friction::test_static_friction_between_rods_holds (and self-friction)",
+    "snap_through_arch.toml": "test_continuation::test_snap_through_scene",
+    "spin_up.toml": "test_damping::test_spin_up_scene_on_two_ranks_equals_the_serial_run",
+    "sprung_cantilever.toml": "test_supports::test_sprung_cantilever_scene_serially_and_on_two_ranks",
+    "string_modes.toml": "test_vibration::test_modes_command",
+    "torsion_creep.toml": "test_architecture::test_run_returns_what_it_writes (ODE), "
+                          "test_cli::test_run_under_mpirun_rank0_writes (torsion PDE)",
+    "torsion_relaxation.toml": "test_torsion::test_parallel_run_reproduces_serial",
+    "tripod.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
+}
+
+
+@pytest.mark.parametrize("path", [
+    pytest.param(p, id=p.name, marks=() if p.name in ON_TWO_RANKS_ELSEWHERE else pytest.mark.mpi)
+    for p in SCENES])
 def test_bundled_scene_runs(path, tmp_path):
     """Each scenes/*.toml, a few steps on at most 8 cells (tests/quick_scenes.py), writes
-    its outputs; the physics of each is checked by the tests above and the demos."""
+    its outputs; the physics of each is checked by the tests above and the demos.  Under
+    mpirun: the scenes that no other test runs on two ranks (ON_TWO_RANKS_ELSEWHERE)."""
     from quick_scenes import quick_scene
     import tomllib
     n = tomllib.loads(path.read_text()).get("geometry", {}).get("n_cells", 32)
