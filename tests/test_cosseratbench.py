@@ -118,7 +118,9 @@ def _crossing(cells: int, frames: int = 11):
     return _scores("crossing", cells, frames)
 
 
-@pytest.mark.mpi
+# Serial only: the same crossing (a RodSystem with segment contact between the rods) runs
+# on two ranks in test_crossing_ropes.py (13 cells, against the elastica), and the
+# adapter on two ranks in the capstan tests above.
 def test_crossing_ropes_settle_on_each_other():
     """The crossing as one RodSystem with contact between the rods, 27 elements (odd, as
     cosseratbench asks).  The symmetric state (the ropes touching inside their middle

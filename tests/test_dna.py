@@ -204,7 +204,8 @@ def plateau_lag_estimate(rate: float) -> float:
     return n_d * rate / fprime.min() ** 2
 
 
-@pytest.mark.mpi
+# Serial only: the pulling cycle on two ranks is test_pull_scene_under_mpirun_matches_serial
+# (the same model under mpirun -n 2 = serially to 1e-9, through the transition's onset).
 def test_slow_loading_tends_to_the_equilibrium_curve(tmp_path):
     """X/L0 over the cycle against the equilibrium curve v_3(F) of dpsi/dv_d,3 = 0,
     n_3 = F (dna.equilibrium_stretch): the deviation is first order in the rate."""

@@ -233,7 +233,9 @@ def _ring_drift(dt, t_end=0.5):
     return np.max(np.abs(np.array(energy) - energy[0])), contact, gap
 
 
-@pytest.mark.mpi
+# Serial only: the same ring's self-contact on two ranks is test_pair_friction.py's
+# test_self_friction_dissipates_and_the_power_balance_closes (this ring with friction,
+# its power balance at second order) and test_zero_friction_is_the_frictionless_contact.
 def test_frictionless_contact_conserves_energy_at_second_order():
     """The ring's ends collide (the barrier's energy reaches 3.5 % of E, the gap 0.64
     delta) and K + Psi + contact energy is conserved to the integrator's

@@ -368,7 +368,8 @@ def discrete_flutter_load(n_cells: int) -> tuple[float, object]:
     return p, modes(p * (1 + 1e-3))
 
 
-@pytest.mark.mpi
+# Serial only: the non-Hermitian pencil on two ranks is test_modes_command_reports_flutter
+# (Beck's column at 16 cells above its flutter load: the complex pair, its growth rate).
 def test_beck_column_flutters():
     """Beck's column (clamped-free, a follower tip force P: not conservative, K not
     symmetric; analysis/vibration.py solves the non-Hermitian pencil): the lowest two

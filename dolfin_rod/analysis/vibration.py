@@ -4,14 +4,15 @@ Small motions y = phi e^{i omega t} about an equilibrium (pre-stressed, pre-twis
 with evolved natural strains: they are frozen, they move on the viscous time scale)
 solve K phi = omega^2 M phi: K the tangent stiffness at the state and the loads of time
 t (analysis/stability.py: rates and accelerations zero; its symmetric part unless
-follower loads act), M the
+follower loads or couples act), M the
 derivative of the residual with respect to the accelerations (rho A for the positions,
 the rotary inertia rho J for the rotations, eqs. linmom, angmom), both with Dirichlet
 rows and columns removed (K: identity, M: zero, so those dofs give omega = infinity).
 The lowest pairs by analysis/eigen.py (shift-and-invert below the spectrum: rigid
 modes, omega = 0, are found too).  Damping and gyroscopic terms are left out (undamped
-modes; a state at rest).  Follower loads are not conservative: K is not symmetric and
-the pencil is solved as it is (non-Hermitian: analysis/eigen.py's "general"); where two
+modes; a state at rest).  Follower loads and couples (dead ones too: a couple of
+fixed spatial direction is not conservative on 3-D rotations) are not conservative: K
+is not symmetric and the pencil is solved as it is (non-Hermitian: analysis/eigen.py's "general"); where two
 frequencies meet, omega^2 turns into a complex pair, a growing mode (flutter; Beck's
 column in tests/test_vibration.py).  The quaternion form: its rotations' inertia enters through
 the kinematic equation W = 2 vec(conj(q) q_t)/|q|^2, so M's rotation block is rho J in
@@ -35,7 +36,7 @@ from ..fem.assembly import block_system
 from ..fem.multipoint import ConstrainedSystem
 from ..theory.rotations import material_derivative_vector
 from .eigen import eigenpairs
-from .stability import TangentStiffness, at_rest_map, symmetric_part
+from .stability import TangentStiffness, at_rest_map, non_conservative, symmetric_part
 
 __all__ = ["VibrationModes", "vibration_modes"]
 
@@ -45,7 +46,7 @@ class VibrationModes:
     """``omega``: angular frequencies (rad per time unit), ascending; ``frequencies``:
     omega / 2 pi; ``eigenvalues``: omega^2 (negative: an unstable state, omega then
     reported as -sqrt|omega^2|; below 1e-10 |K|/|M|: 0, a rigid mode); with follower
-    loads (a non-symmetric K) ``imaginary``: the imaginary parts of omega^2, a complex
+    loads or couples (a non-symmetric K) ``imaginary``: the imaginary parts of omega^2, a complex
     pair omega^2 = a +- i b is flutter: omega = Re sqrt(a + i b) and ``growth_rates`` =
     |Im sqrt(a + i b)| (the motion e^{i omega t} grows as e^{growth t}; 0 otherwise);
     ``shapes``: per mode {"displacement", "rotation"} nodal values (largest displacement
@@ -68,19 +69,19 @@ class VibrationModes:
 
 def vibration_modes(model, t: float, count: int = 6) -> VibrationModes:
     """The ``count`` lowest natural frequencies and modes of a dynamic RodModel (or
-    RodSystem) about its current state under time t's loads; with follower loads the
-    non-symmetric K (non-conservative: flutter, a complex pair of omega^2, is found).
+    RodSystem) about its current state under time t's loads; with follower loads or
+    couples the non-symmetric K (non-conservative: flutter, a complex pair of omega^2, is found).
     Raises ValueError for a quasi-static rod (density = 0: no mass)."""
     if not model.dynamic:
         raise ValueError("vibration modes: a rod with mass (density > 0: "
                          "RodParameters.density or a scene's material.density)")
     tangent = TangentStiffness(model)
-    follower = any(load.follower for load in [*model.end_loads, *model.distributed_loads])
-    K = tangent.matrix(t, symmetric=not follower)
+    general = non_conservative(model)
+    K = tangent.matrix(t, symmetric=not general)
     M = _mass(tangent)
     scale = K.norm(PETSc.NormType.INFINITY) / M.norm(PETSc.NormType.INFINITY)
     pairs = eigenpairs(K, M, count, target=-1e-8 * scale,
-                       kind="general" if follower else "symmetric")
+                       kind="general" if general else "symmetric")
     K.destroy()
     M.destroy()
     complex_pair = np.abs(pairs.imaginary) > 1e-10 * scale
