@@ -477,28 +477,41 @@ def _report_stability_changes(sim, comm) -> bool:
     eigenvalues not yet shown; whether the state switched branches since the last
     call."""
     branches = getattr(sim, "branches", None)
+    monitor = getattr(sim, "stability", None)
     switched = False
     while branches is not None and len(branches.switches) > branches.reported:
         switch = branches.switches[branches.reported]
         branches.reported += 1
         switched = switched or switch.after is not None
-        print_on_root(comm, f"warning: t = {switch.t:g}: {_switch_text(switch)}",
-                      file=sys.stderr)
-    monitor = getattr(sim, "stability", None)
+        text = _switch_text(switch, monitor is None or monitor.conservative)
+        print_on_root(comm, f"warning: t = {switch.t:g}: {text}", file=sys.stderr)
     while monitor is not None and len(monitor.changes) > monitor.reported:
         t, before, after = monitor.changes[monitor.reported]
         monitor.reported += 1
         state = "unstable" if after else "stable again"
         print_on_root(comm, f"warning: t = {t:g}: the equilibrium is {state}: {after} "
                             f"negative eigenvalue(s) of the tangent stiffness (was {before}; "
-                            "docs/stability.md)", file=sys.stderr)
+                            f"docs/stability.md){_energy_criterion(monitor)}", file=sys.stderr)
     return switched
 
 
-def _switch_text(switch) -> str:
-    """What a branch switch (analysis/branches.Switch) did, in words."""
-    met = (f"a bifurcation: the path's equilibrium became unstable ({switch.unstable} "
-           f"negative eigenvalue(s) of the tangent stiffness, was {switch.stable})")
+def _energy_criterion(monitor) -> str:
+    """What the count means under non-conservative loads (follower loads, couples):
+    appended to its warnings and to an unstable end's message; "" otherwise."""
+    if monitor.conservative:
+        return ""
+    return ("; the loads are not conservative (couples, follower loads): the count is "
+            "that of K's symmetric part, the energy criterion, which neither proves nor "
+            "excludes instability; `dolfin-rod modes` with a density decides (flutter, "
+            "divergence; docs/stability.md, \"Couples\")")
+
+
+def _switch_text(switch, conservative: bool) -> str:
+    """What a branch switch (analysis/branches.Switch) did, in words (under
+    non-conservative loads a rise of the count is no bifurcation: _energy_criterion)."""
+    met = (f"{'a bifurcation: ' if conservative else ''}the path's equilibrium became "
+           f"unstable ({switch.unstable} negative eigenvalue(s) of the tangent stiffness, "
+           f"was {switch.stable})")
     if switch.after is None:
         return f"{met}; no stable branch found along the critical mode, the path goes on"
     return (f"{met}; switched to a stable branch, down the energy from the critical mode's "
@@ -515,7 +528,8 @@ def _unstable_end(scene, sim, status: str, message: str) -> tuple[str, str]:
         return status, message
     return "completed (unstable equilibrium)", (
         f"the end state has {monitor.negative} negative eigenvalue(s) of the tangent "
-        "stiffness: an unstable equilibrium (stability.follow_unstable = true accepts it)")
+        "stiffness: an unstable equilibrium (stability.follow_unstable = true accepts it)"
+        + _energy_criterion(monitor))
 
 
 def _summary(scene, choice, sim, writer, comm, status, message, t, impulse,

@@ -212,9 +212,6 @@ def _error(text: str) -> SceneError:
     (("normal = [1.0, 0.0, 0.0]", "normal = [0.0, 0.0, 0.0]"), "obstacles[0].normal", None),
     (("friction = 0.3", "contact = \"segments\""), "obstacles[0].contact", None),
     (("friction = 0.3", "contact = \"edges\""), "obstacles[0].contact", None),
-    (('shape = "plane"', 'shape = "sphere"\ncontact = "segments"'), "obstacles[0].friction",
-     [("point = [-0.0105, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]",
-       "centre = [-0.1, 0.0, 0.5]\nradius = 0.05")]),
     (('shape = "plane"', 'shape = "cylinder"'), "obstacles[0]",      # a thin bar across
      [("point = [-0.0105, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\nfriction = 0.3",  # a cell
        "centre = [0.0, 0.0, 0.05]\naxis = [0.0, 1.0, 0.0]\nradius = 0.003\nlength = 0.1"),

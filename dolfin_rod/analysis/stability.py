@@ -10,8 +10,10 @@ eigenvalues: one factorisation per check.  Multipliers (the quaternion gauge, th
 constraints of Section 4.5) border K: [[K, C^T], [C, 0]] with C of full rank m has
 (negative count of K on ker C) + m negative eigenvalues, so m is subtracted.
 Dirichlet dofs are removed (identity rows and columns, positive pivots).  Follower
-loads make K non-symmetric; its symmetric part is factorised (the energy criterion;
-for non-conservative loads a dynamic analysis decides, not this count).
+loads and couples (dead ones too) make K non-symmetric; its symmetric part is factorised
+(the energy criterion, which for non-conservative loads neither proves nor excludes
+instability: the vibration modes decide, analysis/vibration.py; ``StabilityMonitor.
+conservative`` says which, the run's warnings say so; docs/stability.md "Couples").
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from ..theory.quaternions import np_qmul
 from ..theory.rotations import material_derivative_vector
 
 __all__ = ["Inertia", "TangentStiffness", "LowestEigenvalues", "StabilityMonitor",
-           "at_rest_map", "symmetric_part"]
+           "at_rest_map", "non_conservative", "symmetric_part"]
 
 MECHANICAL = ("displacement", "rotation_increment", "quaternion")
 MULTIPLIERS = ("gauge_multiplier", "constraint_multiplier")
@@ -62,6 +64,15 @@ def at_rest_map(model) -> dict:
     moving = [model.r[n] for n in model.names] + [
         a for a in getattr(model.problem, "accelerations", []) if a is not None]
     return {f: fem.Function(f.function_space) for f in moving}
+
+
+def non_conservative(model) -> bool:
+    """Whether a rod's loads make K non-symmetric: follower loads, and couples of any
+    kind (a dead couple, fixed spatial components, does path-dependent work on finite
+    3-D rotations: not conservative, Ziegler; Argyris 1982, "An excursion into large
+    rotations"; its load stiffness is skew, docs/stability.md "Couples")."""
+    loads = [*model.end_loads, *model.distributed_loads, *model.point_loads]
+    return any(load.follower or load.kind == "couple" for load in loads)
 
 
 def symmetric_part(A: PETSc.Mat, fixed: PETSc.IS, diagonal: float) -> PETSc.Mat:
@@ -373,7 +384,9 @@ class StabilityMonitor:
     """The inertia after every step of a quasi-static run (``check(t)``): the count of
     negative eigenvalues, if asked the lowest eigenvalue (``lowest``; LowestEigenvalues),
     the times the count changed (``changes``: (t, before, after)), and the cost
-    (``seconds`` over ``checks``); ``banded``: TangentStiffness's."""
+    (``seconds`` over ``checks``); ``banded``: TangentStiffness's; ``conservative``:
+    False for follower loads and couples (the count is then the energy criterion's, of
+    K's symmetric part)."""
 
     def __init__(self, model, lowest: bool = False, banded: bool = True):
         self.tangent = TangentStiffness(model, banded)
@@ -385,6 +398,7 @@ class StabilityMonitor:
         self.changes: list[tuple[float, int, int]] = []
         self.seconds, self.checks = 0.0, 0
         self.reported = 0       # changes the run has warned about
+        self.conservative = not non_conservative(model)   # else: the energy criterion
 
     def _metric(self) -> LowestEigenvalues | None:
         """LowestEigenvalues, whose metric G exists without constraint multipliers: the

@@ -36,7 +36,7 @@ from ..fem.assembly import block_system
 from ..fem.multipoint import ConstrainedSystem
 from ..theory.rotations import material_derivative_vector
 from .eigen import eigenpairs
-from .stability import TangentStiffness, at_rest_map, symmetric_part
+from .stability import TangentStiffness, at_rest_map, non_conservative, symmetric_part
 
 __all__ = ["VibrationModes", "vibration_modes"]
 
@@ -95,15 +95,6 @@ def vibration_modes(model, t: float, count: int = 6) -> VibrationModes:
                           [shapes[k] for k in order], pairs.residuals[order],
                           np.where(complex_pair, pairs.imaginary, 0.0)[order],
                           growth[order])
-
-
-def non_conservative(model) -> bool:
-    """Whether a rod's loads make K non-symmetric: follower loads, and couples of any
-    kind (a dead couple, fixed spatial components, does path-dependent work on finite
-    3-D rotations: not conservative, Ziegler; Argyris 1982, "An excursion into large
-    rotations"; its load stiffness is skew, docs/stability.md "Couples")."""
-    loads = [*model.end_loads, *model.distributed_loads, *model.point_loads]
-    return any(load.follower or load.kind == "couple" for load in loads)
 
 
 def _mass(tangent: TangentStiffness) -> PETSc.Mat:

@@ -66,8 +66,8 @@ class Obstacle:
     ``vertices`` and ``triangles``, placed by x = centre + R(rotation) scale v, rotation a
     rotation vector; triangle_mesh.py); ``friction`` the Coulomb coefficient mu >= 0;
     ``contact`` where its barrier acts: "nodes" (this module), "segments" (a sphere's or
-    cylinder's; a mesh's nodes and its sharp edges' segments; frictionless:
-    obstacle_segments.py) or "auto" (``on_segments``).
+    cylinder's; a mesh's nodes and its sharp edges' segments: obstacle_segments.py) or
+    "auto" (``on_segments``).
     Deprecated (this
     release only): a sphere's or cylinder's centre as ``point``, a plane's normal as
     ``axis`` (the meaning they had), with a DeprecationWarning."""
@@ -193,8 +193,8 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
 
 
 def check_contact_mode(name: str, ob: Obstacle) -> None:
-    """ValueError naming ``name``.contact (or .friction) if the obstacle's contact mode is
-    not one of CONTACT_MODES, or "segments" on a shape or with friction it has not."""
+    """ValueError naming ``name``.contact if the obstacle's contact mode is not one of
+    CONTACT_MODES, or "segments" on a shape it does not apply to (a plane)."""
     if ob.contact not in CONTACT_MODES:
         raise ValueError(f"{name}.contact must be one of {', '.join(CONTACT_MODES)}, got "
                          f"{ob.contact!r}")
@@ -202,21 +202,17 @@ def check_contact_mode(name: str, ob: Obstacle) -> None:
         raise ValueError(f"{name}.contact = 'segments' applies to a sphere, a cylinder or "
                          f"a mesh, not a {ob.shape} (its contact acts on the nodes: "
                          "'nodes' or 'auto')")
-    if ob.contact == "segments" and ob.friction > 0:
-        raise ValueError(f"{name}.friction: segment contact is frictionless (friction on "
-                         "the nodes: contact = 'nodes' or 'auto')")
 
 
 def on_segments(ob: Obstacle, radius: float, gap: float, h: float) -> bool:
     """Whether the obstacle's barrier acts on the rod's segments (obstacle_segments.py)
     rather than its nodes: contact = "segments" (a mesh: on its sharp edges, its nodal
-    law kept: obstacle_segments.fixed_segments), or "auto" for a frictionless sphere or
-    cylinder of radius R that nodes h apart (the longest cell) cannot hold, h^2 >=
+    law kept: obstacle_segments.fixed_segments), or "auto" for a sphere or cylinder of
+    radius R that nodes h apart (the longest cell) cannot hold, h^2 >=
     4 (r + delta) (2 R + r + delta): a straight rod across it, the obstacle midway
     between two nodes, has its chord touch the body while both nodes are still beyond
     the barrier's reach r + delta (docs/contact.md, "Thin obstacles")."""
-    return segments.on_segments(ob.contact, ob.shape, ob.friction, ob.radius,
-                                radius + gap, h)
+    return segments.on_segments(ob.contact, ob.shape, ob.radius, radius + gap, h)
 
 
 def default_stiffness(rho_A, bending, length: float, n_cells: int, dt: float) -> float:

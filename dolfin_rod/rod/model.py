@@ -504,9 +504,14 @@ class RodModel(FEModel):
         (obstacle_segments.py; ObstacleContact.segment_obstacles), None if none does."""
         if not self.contact or not self.contact.segment_obstacles:
             return None
-        contact = ObstacleSegments(self.unknowns.f["displacement"], law,
-                                   [(k, obstacles[k]) for k in self.contact.segment_obstacles],
-                                   layout.rod_of, self.contact.h)
+        on = [(k, obstacles[k]) for k in self.contact.segment_obstacles]
+        rubbing = [k for k, ob in on if ob.friction > 0]
+        if rubbing and self.unknowns.chart is None:
+            raise ValueError(f"obstacles[{rubbing[0]}].friction on the segments needs "
+                             "rotation-vector unknowns (advanced by generalized-alpha, whose "
+                             f"velocities the friction follows), got {self.rotations!r}")
+        contact = ObstacleSegments(self.unknowns.f["displacement"], law, on, layout.rod_of,
+                                   self.contact.h, self.unknowns.V if rubbing else None)
         if not len(contact.index):      # meshes without sharp edges
             return None
         contact.block = list(self.names).index("displacement")
@@ -591,8 +596,9 @@ class RodModel(FEModel):
         if self.contact:
             self.contact.update_normal_forces()
             self.contact.commit()
-        if self.segment_contact:
-            self.segment_contact.commit()
+        for contact in (self.segment_contact, self.obstacle_segments):
+            if contact:
+                contact.commit()
         self.check_cell_turns()
 
     def check_cell_turns(self) -> None:
@@ -647,7 +653,7 @@ class RodModel(FEModel):
             committed = state["rotations_committed_at"]
             for supports in self.end_supports:
                 supports.committed_time = None if committed is None else float(committed)
-        for contact in (self.contact, self.segment_contact):
+        for contact in (self.contact, self.segment_contact, self.obstacle_segments):
             if contact:
                 contact.commit()
 
@@ -697,6 +703,7 @@ class RodModel(FEModel):
                 raise InitialOverlap(f"the rod's segment at s = {s:.4g} is {-g:.3g} closer "
                                      f"to obstacles[{k}] than the rod's radius at t = 0: "
                                      "move the obstacle or the rod", k)
+            self.obstacle_segments.commit()
         if self.segment_contact:
             reason = self.segment_contact.check_state()
             if reason:
@@ -734,6 +741,7 @@ class RodModel(FEModel):
         if self.obstacle_segments:
             segments = self.obstacle_segments.diagnostics()
             d["min_gap"] = min(d["min_gap"], segments.pop("min_gap"))
+            d["dissipation_rate"] += segments.get("friction_dissipation", 0.0)
             for key, value in segments.items():
                 d[key] = d.get(key, 0.0) + value
             self._update_field(self.segment_force, self.obstacle_segments)

@@ -18,7 +18,14 @@ segments' closest point).  The energy, gradient and Hessian are the segment pair
 obstacle's do not move): the value function's exact Hessian.  The cylinder is thus a
 capsule (its lids rounded by hemispheres of radius R): exact where the rod touches its
 side.  A cell's two nodes are coupled by the rod's own forms, so the Jacobian's pattern
-does not grow.  Frictionless.
+does not grow.
+
+Coulomb friction (the obstacle's ``friction`` mu): the segment pairs' law
+(pair_friction.py) with the obstacle's segment at rest: at each accepted state each
+segment within reach is frozen with its closest point s, normal n (from the obstacle's
+segment to the rod's) and normal force lambda = -kappa (h / 2) b'(g); in the next step
+its nodes carry w_k F, w = (1 - s, s), F = -mu lambda phi(|u| / eps) u / |u|, u the
+tangential velocity T ((1 - s) V_0 + s V_1) of its closest point.
 """
 
 from __future__ import annotations
@@ -28,8 +35,10 @@ from typing import Sequence
 import numpy as np
 
 from .contact import ContactLaw, Obstacle, unit
-from .pair_contact import (BoundTerm, Centreline, PairTerms, StepTerm, nodal_force_density,
-                           pair_energy)
+from .contact import barrier_derivatives
+from .pair_contact import (BoundTerm, Centreline, NodeRates, PairTerms, StepTerm,
+                           nodal_force_density, pair_energy)
+from .pair_friction import PairFriction
 from .segments import chord_reaches_edge, closest_points
 
 
@@ -48,16 +57,14 @@ def fixed_segments(ob: Obstacle, reach: float, h: float):
     return (centre - half)[None], (centre + half)[None], np.array([ob.radius])
 
 
-class ObstacleSegments:
+class ObstacleSegments(NodeRates):
     """The segment contact of the rod (displacement ``x``, P1) with ``obstacles`` ((k,
     Obstacle) of the scene's obstacles[k]; their ``fixed_segments`` for the longest cell
     h), a term that fem/assembly adds to the residual and Jacobian of the systems holding
     x (``bind``; pair_contact.BoundTerm's rows)."""
 
-    friction, rates = None, None        # frictionless: BoundTerm's friction hooks unused
-
     def __init__(self, x, law: ContactLaw, obstacles: Sequence[tuple[int, Obstacle]],
-                 rod_of, h: float):
+                 rod_of, h: float, velocity=None):
         self.x, self.law = x, law
         self.line = Centreline(x, rod_of)
         parts = [(k, fixed_segments(ob, law.radius + law.gap, h)) for k, ob in obstacles]
@@ -66,7 +73,11 @@ class ObstacleSegments:
         self.q0, self.q1, radius = (np.concatenate([q[j] for _, q in parts])
                                     for j in range(3))
         self.contact_radius = radius + law.radius
-        self.block = 0          # the displacement's block in the problem (model sets it)
+        mu = np.concatenate([np.full(len(q[2]), ob.friction)
+                             for (_, q), (_, ob) in zip(parts, obstacles)])
+        self.velocity_field = velocity
+        self.friction = (ObstacleFriction(self, mu)
+                         if velocity is not None and mu.max(initial=0.0) > 0 else None)
         self._cache = (None, None)
 
     def owned_displacement(self) -> np.ndarray:
@@ -120,6 +131,18 @@ class ObstacleSegments:
         cell, j = np.unravel_index(np.argmin(gaps), gaps.shape)
         return float(gaps[cell, j]), float(self.line.mid_s[cell]), int(self.index[j])
 
+    def commit(self) -> None:
+        """After an accepted step (and at the start): friction's power of the force the
+        step applied (its frozen segments, the step's velocities), then the segments
+        frozen anew at this state."""
+        if self.friction is None:
+            return
+        u = self.owned_displacement()
+        friction, V = self.friction, self.velocities(u)
+        friction.dissipation, friction.force = friction.power(V)
+        friction.total = friction.total_force(V)
+        friction.lag(self.line.positions(u))
+
     def check_state(self) -> str | None:
         """A reason to reject a converged step (or the initial state): a segment at or
         inside an obstacle's radius plus r."""
@@ -136,11 +159,50 @@ class ObstacleSegments:
         force = -terms.gradient.reshape(-1, 3).sum(axis=0)
         out = {"contact_energy": float(terms.energy.sum()), "min_gap": self.closest()[0]}
         out.update({f"contact_force_{c}": float(force[i]) for i, c in enumerate("xyz")})
+        if self.friction is not None:       # of the force the last step applied (commit)
+            out["friction_dissipation"] = self.friction.dissipation
+            out.update({f"contact_force_{c}": out[f"contact_force_{c}"]
+                        + float(self.friction.total[i]) for i, c in enumerate("xyz")})
         return out
 
     def force_density(self) -> np.ndarray:
         """(owned nodes, 3) the segments' contact force per unit length at the nodes."""
         return nodal_force_density(self.line, self.evaluate(self.owned_displacement()))
+
+
+class ObstacleFriction(PairFriction):
+    """Coulomb friction of the segments on the obstacles of ``contact`` (an
+    ObstacleSegments; mu per obstacle segment): pair_friction's law and its residual and
+    Jacobian per unit rate, with the obstacle at rest (module docstring)."""
+
+    def __init__(self, contact: ObstacleSegments, mu: np.ndarray):
+        super().__init__(contact.line, contact.law, 0.0, 0.0)
+        self.contact, self.mu_of = contact, mu
+        self.nodes, self.w = np.zeros((0, 2), dtype=np.int64), np.zeros((0, 2))
+        self.total = np.zeros(3)        # the force the last step applied (commit)
+
+    def total_force(self, V: np.ndarray) -> np.ndarray:
+        """The frozen segments' friction forces on the rod, summed, at the nodes'
+        velocities V."""
+        u, _, m = self.slip(V)
+        return -((self.bound * m)[:, None] * u).sum(axis=0)
+
+    def lag(self, P: np.ndarray) -> None:
+        """Freeze the segments within the barrier's reach of positions P (nodes, 3):
+        closest points, normals, normal forces; those without friction dropped."""
+        c, law = self.contact, self.law
+        s, t, d = c.distances(P)
+        cell, j = np.nonzero((d < c.contact_radius + law.gap) & (self.mu_of > 0))
+        s, t, d = s[cell, j], t[cell, j], d[cell, j]
+        lam = -law.stiffness * 0.5 * self.line.lengths[cell] * barrier_derivatives(
+            d - c.contact_radius[j], law.gap)[1]
+        ends = self.line.ends[cell]
+        n = (P[ends[:, 0]] + s[:, None] * (P[ends[:, 1]] - P[ends[:, 0]])
+             - c.q0[j] - t[:, None] * (c.q1[j] - c.q0[j])) / d[:, None]
+        self.pairs = np.column_stack([cell, c.index[j]])
+        self.nodes, self.w = ends, np.stack([1 - s, s], axis=1)
+        self.T = np.eye(3)[None] - n[:, :, None] * n[:, None, :]
+        self.bound = self.mu_of[j] * lam
 
 
 class BoundSegments(BoundTerm):

@@ -161,7 +161,31 @@ class Centreline:
         return out
 
 
-class SegmentContact:
+class NodeRates:
+    """The nodes' velocities of a term on the gathered centre line ``line`` (friction:
+    the segment pairs', the segments' on obstacles): ``velocity_field`` (P1, the rate of
+    x) or the step's affine maps (``set_rates``) of the model's displacement ``block``."""
+
+    velocity_field, rates, block = None, None, 0
+
+    def set_rates(self, maps) -> None:
+        """The step's rates as affine maps of the unknowns, per block (slope, intercept):
+        rate = slope y + intercept (the integrator's, before a step's solve), or None (the
+        rate fields as they are: the start's solves, after the step)."""
+        self.rates = None if maps is None else maps[self.block]
+
+    def velocities(self, owned_displacement: np.ndarray) -> np.ndarray:
+        """(nodes, 3) the nodes' velocities at the displacement (owned) of a solve."""
+        n = 3 * self.line.n_owned
+        if self.rates is None:
+            owned = self.velocity_field.x.array[:n]
+        else:
+            slope, intercept = self.rates
+            owned = slope * owned_displacement + intercept[:n]
+        return self.line.gather(owned.reshape(-1, 3))
+
+
+class SegmentContact(NodeRates):
     """Self-contact (pairs within a rod) and contact between rods (``between_rods``) of
     the segments of ``x`` (the rod's displacement, P1), a term that fem/assembly adds to
     the residual and Jacobian of the systems that hold x (``bind``); law: the contact
@@ -340,22 +364,6 @@ class SegmentContact:
 
     def owned_displacement(self) -> np.ndarray:
         return self.x.x.array[: 3 * self.line.n_owned]
-
-    def set_rates(self, maps) -> None:
-        """The step's rates as affine maps of the unknowns, per block (slope, intercept):
-        rate = slope y + intercept (the integrator's, before a step's solve), or None (the
-        rate fields as they are: the start's solves, after the step)."""
-        self.rates = None if maps is None else maps[self.block]
-
-    def velocities(self, owned_displacement: np.ndarray) -> np.ndarray:
-        """(nodes, 3) the nodes' velocities at the displacement (owned) of a solve."""
-        n = 3 * self.line.n_owned
-        if self.rates is None:
-            owned = self.velocity_field.x.array[:n]
-        else:
-            slope, intercept = self.rates
-            owned = slope * owned_displacement + intercept[:n]
-        return self.line.gather(owned.reshape(-1, 3))
 
     def for_step(self, stages, fields, previous, before_previous) -> "StepTerm":
         """The term in a per-step scheme's residual sum_k w_k F(Y_k, ...) (stages: (w_k,

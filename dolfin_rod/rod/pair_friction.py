@@ -76,7 +76,7 @@ class PairFriction:
         self.T = np.eye(3)[None] - n[:, :, None] * n[:, None, :]
         self.bound = bound[keep]
 
-    def _slip(self, V: np.ndarray):
+    def slip(self, V: np.ndarray):
         """The tangential relative velocities u (m, 3) of the frozen pairs and
         m(|u|^2 / eps^2) / eps (m,) at the nodes' velocities V (nodes, 3)."""
         rel = np.einsum("mk,mki->mi", self.w, V[self.nodes])
@@ -87,22 +87,24 @@ class PairFriction:
 
     def residual(self, V: np.ndarray):
         """(pair nodes (m, 4), residual entries (m, 12) = -w_k F, Jacobian per unit rate
-        (m, 12, 12) dR/dV) at the nodes' velocities V (nodes, 3)."""
-        u, y2, m = self._slip(V)
+        (m, 12, 12) dR/dV) at the nodes' velocities V (nodes, 3); (m, 2), (m, 6),
+        (m, 6, 6) for segments on obstacles (obstacle_segments.ObstacleFriction)."""
+        u, y2, m = self.slip(V)
         F = -(self.bound * m)[:, None] * u
-        G = -(self.w[:, :, None] * F[:, None, :]).reshape(-1, 12)
+        k = 3 * self.w.shape[1]         # 12 for a pair, 6 for a segment on an obstacle
+        G = -(self.w[:, :, None] * F[:, None, :]).reshape(-1, k)
         eps = self.law.slip_tolerance
         C = m[:, None, None] * self.T + (2 * mollifier_slope(y2) / eps**3)[:, None, None] \
             * u[:, :, None] * u[:, None, :]
         K = self.bound[:, None, None] * np.einsum("mij,mjk->mik", C, self.T)
         ww = self.w[:, :, None] * self.w[:, None, :]
-        H = np.einsum("mkl,mij->mkilj", ww, K).reshape(-1, 12, 12)
+        H = np.einsum("mkl,mij->mkilj", ww, K).reshape(-1, k, k)
         return self.nodes, G, H
 
     def power(self, V: np.ndarray) -> tuple[float, float]:
         """(dissipation rate mu lambda phi |u| summed over the pairs, the sum of the
         friction forces' magnitudes |F|) at the nodes' velocities V."""
-        u, _, m = self._slip(V)
+        u, _, m = self.slip(V)
         F = (self.bound * m)[:, None] * u
         return (float(np.einsum("mi,mi->", F, u)),
                 float(np.linalg.norm(F, axis=1).sum()))

@@ -51,16 +51,14 @@ def chord_reaches_round(h, radius: float, reach: float):
     return np.asarray(h) ** 2 >= 4 * reach * (2 * radius + reach)
 
 
-def on_segments(contact: str, shape: str, friction: float, radius: float, reach: float,
-                h: float) -> bool:
+def on_segments(contact: str, shape: str, radius: float, reach: float, h: float) -> bool:
     """Whether an obstacle's barrier acts on the rod's segments (rod/contact.on_segments:
-    an obstacle's keys contact, shape, friction, radius; the barrier's reach r + delta,
-    the longest cell h): "segments", or "auto" for a frictionless sphere or cylinder
-    that ``chord_reaches_round`` (numpy only: `dolfin-rod check` says it too)."""
+    an obstacle's keys contact, shape, radius; the barrier's reach r + delta,
+    the longest cell h): "segments", or "auto" for a sphere or cylinder that
+    ``chord_reaches_round`` (numpy only: `dolfin-rod check` says it too)."""
     if contact != "auto":
         return contact == "segments"
-    return (shape in ("sphere", "cylinder") and friction == 0
-            and bool(chord_reaches_round(h, radius, reach)))
+    return shape in ("sphere", "cylinder") and bool(chord_reaches_round(h, radius, reach))
 
 
 def chord_reaches_edge(h, turn, reach: float):

@@ -71,7 +71,7 @@ def check_contact_keys(scene: Scene) -> None:
 
 
 def _check_segments(scene: Scene, k: int) -> None:
-    """contact = "segments": a sphere or a cylinder, frictionless (rod/contact.py
+    """contact = "segments": a sphere, a cylinder or a mesh (rod/contact.py
     check_contact_mode, with the scene's keys)."""
     ob, name = scene["obstacles"][k], f"obstacles[{k}]"
     if ob["contact"] != "segments":
@@ -80,9 +80,6 @@ def _check_segments(scene: Scene, k: int) -> None:
         raise scene.error(f"{name}.contact", f"'segments' applies to a sphere, a "
                                              f"cylinder or a mesh, not a {ob['shape']}: "
                                              "'nodes' or 'auto'")
-    if ob["friction"] > 0:
-        raise scene.error(f"{name}.friction", "segment contact is frictionless: friction "
-                                              "needs contact = 'nodes' (or 'auto')")
 
 
 def _check_mesh(scene: Scene, k: int) -> None:
@@ -145,8 +142,7 @@ def contact_lines(scene: Scene) -> list[str]:
     lines = []
     for k, ob in enumerate(scene["obstacles"]):
         where = "on the nodes"
-        if on_segments(ob["contact"], ob["shape"], ob["friction"], ob["radius"] or 0.0,
-                       reach, h):
+        if on_segments(ob["contact"], ob["shape"], ob["radius"] or 0.0, reach, h):
             where = "on the segments"
             if ob["shape"] == "mesh":
                 edges = chord_reaches_edge(h, mesh_surface(scene, ob).convex_edges()[1],

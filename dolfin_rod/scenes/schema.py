@@ -515,9 +515,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
                         "density > 0)"),
         "contact": Key(choice("auto", "nodes", "segments"), "auto", "where the barrier "
                        "acts: nodes (the centre line's nodes) | segments (a sphere's or "
-                       "cylinder's, frictionless: a thin obstacle between two nodes holds "
-                       "the segment; a mesh: its nodal law and its sharp convex edges on "
-                       "the segments) | auto (segments for a frictionless sphere or cylinder "
+                       "cylinder's: a thin obstacle between two nodes holds the segment; a "
+                       "mesh: its nodal law and its sharp convex edges on the segments; "
+                       "friction needs rotation vectors) | auto (segments for a sphere or "
+                       "cylinder "
                        "of radius R when the longest cell h has h^2 >= 4 (r + gap) (2 R + r "
                        "+ gap), else nodes; docs/contact.md, \"Thin obstacles\")"),
     },
