@@ -103,8 +103,9 @@ def _mesh_plane_rod(dt, gravity, friction=0.0, drag=0.0, gap0=1.5 * DELTA, n_cel
     return rod
 
 
-@pytest.mark.mpi
-@pytest.mark.parametrize("friction", [0.0, 0.2])
+# Under mpirun: the frictionless drop (the mesh's face distances on two ranks); friction
+# on an obstacle on two ranks is test_contact.py's incline tests (the same law).
+@pytest.mark.parametrize("friction", [pytest.param(0.0, marks=pytest.mark.mpi), 0.2])
 def test_rod_on_a_mesh_plane_is_the_rod_on_the_plane(friction):
     """A rod dropped onto a 2-triangle mesh plane (with drag, frictionless), and sliding
     down a 30-degree incline on it (mu = 0.2): every row of the time series equals the

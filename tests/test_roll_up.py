@@ -93,7 +93,7 @@ def test_quasi_static_roll_up_closes_the_circle_and_is_unstable(tmp_path):
 
 @pytest.mark.mpi
 def test_rolled_up_rod_flutters_under_a_dead_couple(tmp_path):
-    """The rolled-up rod with mass (rho A = 1, rho J = 0.01: the rotary inertia of a
+    """The rolled-up rod with mass (rho A = 1, rho J = diag(0.01, 0.01, 0.02): that of a
     section with I/A = EI/EA = 0.01; 8 cells), started in equilibrium on the circle:
     `dolfin-rod modes` finds its lowest out-of-plane pair complex (flutter; before the
     dead couple was recognised as non-conservative it reported the symmetric part's two

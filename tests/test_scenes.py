@@ -714,7 +714,8 @@ ON_TWO_RANKS_ELSEWHERE = {
         "test_pair_friction::test_static_friction_between_rods_holds (and self-friction)",
     "snap_through_arch.toml": "test_continuation::test_snap_through_scene",
     "spin_up.toml": "test_damping::test_spin_up_scene_on_two_ranks_equals_the_serial_run",
-    "sprung_cantilever.toml": "test_supports::test_sprung_cantilever_scene_serially_and_on_two_ranks",
+    "sprung_cantilever.toml":
+        "test_supports::test_sprung_cantilever_scene_serially_and_on_two_ranks",
     "string_modes.toml": "test_vibration::test_modes_command",
     "torsion_creep.toml": "test_architecture::test_run_returns_what_it_writes (ODE), "
                           "test_cli::test_run_under_mpirun_rank0_writes (torsion PDE)",

@@ -21,8 +21,10 @@ from torsion_runs import run, series
 ALPHA, ALPHA_D, MU_D = 2.0, 1.0, 0.5
 
 
-@pytest.mark.mpi
-@pytest.mark.parametrize("variant", ["local", "uniform"])
+# Under mpirun: the uniform variant (its global unknowns).  The end rotation is a Dirichlet
+# condition, the same for both variants; the local variant on two ranks (= serial) is
+# test_parallel_run_reproduces_serial[local].
+@pytest.mark.parametrize("variant", ["local", pytest.param("uniform", marks=pytest.mark.mpi)])
 def test_relaxation_matches_closed_form(variant):
     u0 = 0.5
     p = TorsionParameters(alpha=ALPHA, alpha_d=ALPHA_D, mu=0.0, mu_d=MU_D)
@@ -48,7 +50,8 @@ def test_relaxation_impulse_of_viscous_rod():
     assert model.set_initial_state() == pytest.approx(cf.relaxation_impulse(u0, mu), rel=1e-12)
 
 
-@pytest.mark.mpi
+# Serial only: an end torsion on a Kelvin-Voigt rod by BDF2 on two ranks, both variants,
+# is test_parallel_run_reproduces_serial (cases.torsion_inhomogeneous: = serial to 1e-9).
 @pytest.mark.parametrize("variant", ["local", "uniform"])
 def test_creep_with_kelvin_voigt_viscosity(variant):
     m0, mu = 0.8, 0.4

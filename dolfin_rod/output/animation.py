@@ -10,9 +10,10 @@
           ``snapshots.png``  selected frames in 3-D and the colour field along s.
 torsion:  ``spacetime.png``  phi(s, t) and u_d(s, t) as space-time images.
 
-The GIF is cheap (issue 30): matplotlib draws the axes, colour bar and labels once; each
-frame is that image with the projected centre line drawn on it by Pillow, and the GIF is
-written once with one palette (an MP4: the same frames through FFMpegWriter).
+The GIF is cheap (issue 30): matplotlib draws the axes, colour bar and labels once, and
+that image is reduced to the GIF's one palette once; each frame is a copy of it with the
+projected centre line drawn on it by Pillow in the palette's colours, and the GIF is
+written once (an MP4: the same frames in RGB through FFMpegWriter).
 
 Frames are kept thinned (``FrameStore``: at most ``max_frames``, every other frame is
 dropped when full), so memory does not grow with the number of steps; the GIF draws at
@@ -28,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..scenes.schema import COLOURS
+from .plots import save_laid_out
 
 __all__ = ["FrameStore", "Look", "rod_animation", "rod_snapshots", "torsion_spacetime",
            "colour_field", "magnification", "animation_name", "GIF_FRAMES", "COLOURS"]
@@ -327,11 +329,11 @@ def _draw_rod(draw, pixels, segments, colours, width) -> None:
         draw.line([tuple(pixels[i]), tuple(pixels[j])], fill=c, width=width)
 
 
-def _draw_supports(draw, pixels, supports) -> None:
+def _draw_supports(draw, pixels, supports, black) -> None:
     for node, kind in supports:
         x, y = pixels[node]
         box = [x - 7, y - 7, x + 7, y + 7]
-        (draw.rectangle if kind == "clamped" else draw.ellipse)(box, fill=(0, 0, 0))
+        (draw.rectangle if kind == "clamped" else draw.ellipse)(box, fill=black)
 
 
 def animation_name() -> str:
@@ -371,26 +373,61 @@ def rod_animation(frames: list, path: Path, title: str = "", look: Look = Look()
     font = ImageFont.load_default(size=18)
     cmap = plt.get_cmap(cmap_name)
     pixels = [project(p) for p in shapes]
+    palette = _Palette(background)
+    black = palette.index((0, 0, 0))
     images = []
     for k, (t, sample) in enumerate(shown):
-        image = background.copy()
+        image = palette.background.copy()
+        palette.write(image, (20, 40), f"t = {t:.4g}", font)
         draw = ImageDraw.Draw(image)
         for j in range(min(TRAIL, k), 0, -1):
-            grey = (int(255 - 90 * (TRAIL + 1 - j) / TRAIL),) * 3
+            grey = palette.index((int(255 - 90 * (TRAIL + 1 - j) / TRAIL),) * 3)
             _draw_rod(draw, pixels[k - j], shown[k - j][1].segments(), [grey] * len(
                 values[k - j]), 2)
-        colours = [tuple(int(255 * c) for c in rgba[:3]) for rgba in cmap(norm(values[k]))]
-        _draw_rod(draw, pixels[k], sample.segments(), colours, 5)
-        _draw_supports(draw, pixels[k], supports)
-        draw.text((20, 40), f"t = {t:.4g}", fill=(0, 0, 0), font=font)
+        _draw_rod(draw, pixels[k], sample.segments(),
+                  palette.indices(cmap(norm(values[k]))[:, :3] * 255), 5)
+        _draw_supports(draw, pixels[k], supports, black)
         images.append(image)
     if Path(path).suffix == ".mp4":
-        _write_mp4(images, path)
+        _write_mp4([image.convert("RGB") for image in images], path)
         return
-    palette = background.quantize(colors=255)
-    gif = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in images]
-    gif[0].save(path, save_all=True, append_images=gif[1:], duration=FRAME_MS, loop=0,
-                optimize=False)     # (optimize: 0.7 s of palette work for no gain)
+    images[0].save(path, save_all=True, append_images=images[1:], duration=FRAME_MS,
+                   loop=0, optimize=False)   # (optimize: 0.7 s of palette work for no gain)
+
+
+class _Palette:
+    """The GIF's one palette (255 colours of the drawn axes) and the axes in it; the
+    frames are drawn on copies of that palette image with the palette's colours nearest
+    to the rod's (as a frame drawn in RGB and quantized without dithering, at a third of
+    the copying and without a quantization per frame)."""
+
+    def __init__(self, background):
+        self.rgb, self.palette = background, background.quantize(colors=255)
+        self.background = self._reduced(background)
+        self.colours = np.asarray(self.palette.getpalette()[:3 * 255], float).reshape(-1, 3)
+
+    def _reduced(self, rgb):
+        from PIL import Image
+        return rgb.quantize(palette=self.palette, dither=Image.Dither.NONE)
+
+    def write(self, image, at: tuple, text: str, font) -> None:
+        """Black text at ``at`` on a palette image, its edges blended as in RGB: drawn on
+        the axes' pixels under it and reduced to the palette."""
+        from PIL import ImageDraw
+        left, top, right, bottom = ImageDraw.Draw(self.rgb).textbbox(at, text, font=font)
+        box = (int(left) - 1, int(top) - 1, int(right) + 2, int(bottom) + 2)
+        patch = self.rgb.crop(box)
+        ImageDraw.Draw(patch).text((at[0] - box[0], at[1] - box[1]), text, fill=(0, 0, 0),
+                                   font=font)
+        image.paste(self._reduced(patch), box[:2])
+
+    def indices(self, rgb: np.ndarray) -> list[int]:
+        """The palette's indices nearest to each colour (rows 0-255)."""
+        distance = np.linalg.norm(rgb[:, None, :] - self.colours[None], axis=2)
+        return np.argmin(distance, axis=1).tolist()
+
+    def index(self, rgb: tuple) -> int:
+        return self.indices(np.asarray([rgb], float))[0]
 
 
 def _write_mp4(images: list, path: Path) -> None:
@@ -444,8 +481,7 @@ def rod_snapshots(frames: list, path: Path, title: str = "", n: int = 6,
     ax2.set_xlabel("s"), ax2.set_ylabel(colour_label(key))
     ax2.set_title(f"{colour_label(key)} along the rod", fontsize=9)
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    save_laid_out(fig, path, 90)
     plt.close(fig)
 
 
@@ -464,6 +500,5 @@ def torsion_spacetime(frames: list, path: Path, title: str = "") -> None:
         a.set_xlabel("s"), a.set_title(name, fontsize=10)
     ax[0].set_ylabel("t")
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    save_laid_out(fig, path, 90)
     plt.close(fig)
