@@ -278,6 +278,7 @@ def _sliding_over_bars(mu: float, a: float, steps: int, dt: float = 1e-2) -> lis
                    obstacles=bars, contact=law)
     rod.set_initial_state()
     assert rod.contact.segment_obstacles == [0, 1]
+    assert rod.contact.V is None and rod.obstacle_segments.friction is not None  # not twice
     return _history(rod, dt, steps, {**TIGHT, "snes_linesearch_type": "bt"})
 
 
@@ -285,21 +286,19 @@ def _sliding_over_bars(mu: float, a: float, steps: int, dt: float = 1e-2) -> lis
 def test_a_rod_slides_over_thin_bars_with_kinetic_friction():
     """mu = 0.2 < tan 30 deg: the rod slides along itself over two thin bars (each
     between two nodes at the start, its contact handed from segment to segment as the
-    rod slides over the nodes) with the acceleration g (sin a - mu cos a) (a quadratic
-    fit of the tip's position over the last 0.2 s), to 5 %: the bars' normal force
-    swings by +-20 % about the weight's share as they pass the nodes (a node on a bar
-    has the energy of its two segments, the cell's middle of one), the lagged friction
-    with it (measured 3.0 %; test_contact's plane, without nodes to pass: 1e-6); the
-    friction's dissipation >= 0 at every step, the gaps > 0."""
+    rod slides over the nodes), from rest, 0.26 m in 0.4 s: its mean acceleration
+    2 (z(T) - z(0)) / T^2 is g (sin a - mu cos a) to 5 %: the bars' normal force swings
+    by +-20 % about the weight's share as they pass the nodes (a node on a bar has the
+    energy of its two segments, the cell's middle of one), the lagged friction with it
+    (measured 2.3 %, 1.8 % at half the step; test_contact's plane, without nodes to
+    pass: 1e-6); the friction's dissipation >= 0 at every step, the gaps > 0."""
     from test_contact import G
     a, mu, dt = np.radians(30.0), 0.2, 1e-2
     rows = _sliding_over_bars(mu, a, 40, dt)
     assert min(d["friction_dissipation"] for d in rows) >= 0.0
     assert min(d["min_gap"] for d in rows) > 0.0
-    t = np.array([d["time"] for d in rows])
-    z = np.array([d["tip_position_z"] for d in rows])
-    late = t > 0.2
-    accel = 2 * np.polyfit(t[late], z[late], 2)[0]
+    T, z = rows[-1]["time"], rows[-1]["tip_position_z"]
+    accel = 2 * (z - 1.0) / T**2                    # the tip starts at rest at z = 1
     assert accel == pytest.approx(-G * (np.sin(a) - mu * np.cos(a)), rel=5e-2)
 
 

@@ -456,7 +456,7 @@ class ObstacleContact:
                                   if on_segments(ob, law.radius, law.gap, h)]
         self.nodal = [k for k, ob in enumerate(obstacles)       # a mesh's faces: nodes
                       if k not in self.segment_obstacles or ob.shape == "mesh"]
-        self.V = V if any(ob.friction > 0 for ob in obstacles) else None
+        self.V = V if any(obstacles[k].friction > 0 for k in self.nodal) else None
         self.start = None       # the nodes' points at the last commit (path check)
 
     # densities at a point p of the centre line (UFL), per obstacle
@@ -490,8 +490,9 @@ class ObstacleContact:
         normal force densities ``lams`` (one per obstacle) there."""
         f = ufl.as_vector((0.0, 0.0, 0.0))
         eps = self.slip
-        for ob, pose, lam, (n, _) in zip(self.obstacles, self.poses, lams,
-                                         self._normal_parts(p)):
+        parts = self._normal_parts(p)
+        for k in self.nodal:        # (the segments' friction: obstacle_segments.py)
+            ob, pose, lam, (n, _) = self.obstacles[k], self.poses[k], lams[k], parts[k]
             if ob.friction > 0:
                 v_t = v - ufl.dot(v, n) * n
                 f -= pose.friction * lam * mollifier(ufl.dot(v_t, v_t) / eps**2) / eps * v_t
