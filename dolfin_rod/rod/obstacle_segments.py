@@ -113,6 +113,11 @@ class ObstacleSegments(NodeRates):
         self._cache = (P, value)
         return value
 
+    def forget(self) -> None:
+        """The next :meth:`evaluate` computes the terms anew even at the same state (the
+        cost of a new state, benchmarks/obstacle_segments.py)."""
+        self._cache = (None, None)
+
     def for_step(self, stages, fields, previous, before_previous) -> StepTerm:
         """The term in a per-step scheme's residual (pair_contact.StepTerm)."""
         block = next(k for k, y in enumerate(fields) if y is self.x)
