@@ -48,7 +48,8 @@ def eigenpairs(A: PETSc.Mat, B: PETSc.Mat | None = None, count: int = 1,
                target: float = 0.0, kind: str = "symmetric", tolerance: float = 1e-10,
                max_iterations: int = 200) -> Eigenpairs:
     """The ``count`` eigenpairs of A x = lambda B x (B None: the identity) nearest
-    ``target``.
+    ``target`` (kind "general": count + 1 when the count would cut a complex conjugate
+    pair in two).
 
     kind: "symmetric" (A symmetric, B symmetric positive semi-definite: GHEP),
           "symmetric_indefinite" (both symmetric, B indefinite: GHIEP; e.g. the load's
@@ -107,7 +108,11 @@ def _pairs(eps, A, B, found: int, count: int, target: float, kind: str) -> Eigen
         vectors.append(x)
     # by distance, equal distances (to 9 digits: +-lambda pairs) by value
     order = sorted(range(found), key=lambda i: (float(f"{abs(values[i] - target):.9e}"),
-                                                values[i].real))[:count]
+                                                values[i].real))
+    last = values[order[count - 1]]
+    whole = count < found and last.imag != 0.0 and \
+        abs(values[order[count]] - last.conjugate()) <= 1e-12 * abs(last)
+    order = order[:count + 1 if whole else count]       # a complex pair is not cut
     values = np.array(values)[order]
     for i in set(range(found)) - set(order):
         vectors[i].destroy()
