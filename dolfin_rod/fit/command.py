@@ -134,6 +134,6 @@ def plot_fit(result: FitResult, path: Path, title: str) -> None:
     bottom.axhline(0.0, color="0.5", lw=0.8)
     bottom.set_xlabel("time")
     bottom.set_ylabel("residual")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    from ..output.plots import save_laid_out
+    save_laid_out(fig, path, dpi=120)
     plt.close(fig)

@@ -86,5 +86,6 @@ def draw_modes(path: Path, centre: np.ndarray, displaced: list[np.ndarray],
     """mode_figure saved as ``path`` (PNG)."""
     import matplotlib.pyplot as plt
     fig = mode_figure(centre, displaced, titles, heading, segments)
+    fig.set_layout_engine(None)     # laid out: savefig would lay it out again (plots.py)
     fig.savefig(path, dpi=100)
     plt.close(fig)
