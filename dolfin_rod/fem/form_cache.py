@@ -163,8 +163,9 @@ def _removed_stale_lock(err: Exception, forms, stale_before: float) -> bool:
     found = _LOCK_IN_MESSAGE.search(text)
     if comm.rank == 0 and found:
         lock = Path(found.group(1))
-        if lock.is_file() and not lock.with_suffix(".c.cached").exists() \
-                and lock.stat().st_mtime < stale_before:
+        if lock.name.startswith("libffcx_") and lock.is_file() \
+                and not lock.with_suffix(".c.cached").exists() \
+                and lock.stat().st_mtime < stale_before:     # FFCx's module, nothing else
             lock.unlink(missing_ok=True)
             removed = str(lock)
     removed = comm.bcast(removed, root=0) if comm.size > 1 else removed

@@ -175,6 +175,8 @@ class RodModel(FEModel):
         nodes = joint_nodes(self, self.joints)
         self.segment_contact = self._segment_contact(contact, self.layout, nodes)
         self.obstacle_segments = self._obstacle_segments(obstacles, contact, self.layout)
+        # the terms of segment contact that fem/assembly adds (pair_contact.BoundTerm)
+        self.segment_terms = [t for t in (self.segment_contact, self.obstacle_segments) if t]
         self.problem = self._problem(forms, node_links(self, self.joints, nodes) + [
             line for supports in self.end_supports for line in supports.links(self.names)])
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
@@ -558,7 +560,7 @@ class RodModel(FEModel):
         unk = self.unknowns
         blocks = ([unk.f[n] for n in self.names], [unk.r[n] for n in self.names],
                   forms, self.loads, self.bcs, self.set_supports)
-        terms = [term for term in (self.segment_contact, self.obstacle_segments) if term]
+        terms = list(self.segment_terms)
         if self.contact and self.contact.term:     # a mesh obstacle's features
             terms.append(self.contact.term)
         where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
@@ -596,9 +598,8 @@ class RodModel(FEModel):
         if self.contact:
             self.contact.update_normal_forces()
             self.contact.commit()
-        for contact in (self.segment_contact, self.obstacle_segments):
-            if contact:
-                contact.commit()
+        for contact in self.segment_terms:
+            contact.commit()
         self.check_cell_turns()
 
     def check_cell_turns(self) -> None:
@@ -634,8 +635,8 @@ class RodModel(FEModel):
         reason = chart.check_increment() if chart is not None else None
         if reason is None and self.contact:
             reason = self.contact.check_state()
-        for contact in (self.segment_contact, self.obstacle_segments):
-            if reason is None and contact:
+        for contact in self.segment_terms:
+            if reason is None:
                 reason = contact.check_state()
         return reason
 
@@ -653,7 +654,7 @@ class RodModel(FEModel):
             committed = state["rotations_committed_at"]
             for supports in self.end_supports:
                 supports.committed_time = None if committed is None else float(committed)
-        for contact in (self.contact, self.segment_contact, self.obstacle_segments):
+        for contact in (self.contact, *self.segment_terms):
             if contact:
                 contact.commit()
 
