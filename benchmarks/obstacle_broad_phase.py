@@ -44,6 +44,7 @@ import numpy as np
 from mpi4py import MPI
 
 from contact_assembly import best
+from obstacle_segments import growth_exponents
 from dolfin_rod import ContactLaw, Obstacle, RodModel, RodParameters, TimeStepper
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -141,13 +142,8 @@ def main() -> None:
             for r in rows:
                 if "evaluate_all_s" not in r:
                     r["evaluate_all_estimated_s"] = per_pair * r["cells"] * r["sharp_edges"]
-    growth = {}
-    for a, b in zip(results, results[1:]):
-        if a["cubes"] == b["cubes"]:
-            ratio = np.log(b["cells"] / a["cells"])
-            growth[f"{a['sharp_edges']} edges {a['cells']}->{b['cells']}"] = {
-                k: float(np.log(b[k] / a[k]) / ratio)
-                for k in ("rod_forms_s", "features_s", "evaluate_s", "search_s")}
+    growth = growth_exponents(results, "sharp_edges", ("rod_forms_s", "features_s",
+                                                       "evaluate_s", "search_s"))
     if comm.rank == 0:
         out = {"load_before": load, "load_after": os.getloadavg(), "sizes": results,
                "growth_exponents": growth}

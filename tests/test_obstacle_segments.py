@@ -77,8 +77,10 @@ def test_segment_obstacle_energy_taylor_test(shape):
 
 def test_auto_chooses_segments_for_thin_obstacles_only():
     """obstacles[k].contact = "auto": segments where nodes h apart cannot hold a rod
-    across the obstacle (h^2 >= 4 (r + delta) (2 R + r + delta)), with or without
-    friction; nodes elsewhere and for planes and meshes; explicit choices kept."""
+    across the obstacle (h^2 >= 4 (r + delta) (2 R + r + delta); a mesh: some convex
+    edge has (h / 2) sin(phi / 2) >= r + delta, a cube's edges at h >= 2 sqrt(2)
+    (r + delta)), with or without friction; nodes elsewhere and for planes; explicit
+    choices kept."""
     reach = R + DELTA
     h_limit = np.sqrt(4 * reach * (2 * THIN_R + reach))
     bar = Obstacle("cylinder", centre=(0, 0, 0), axis=(0, 1, 0), radius=THIN_R, length=0.1)
@@ -91,6 +93,25 @@ def test_auto_chooses_segments_for_thin_obstacles_only():
         assert not on_segments(ob, R, DELTA, 1.0)
     assert on_segments(Obstacle("sphere", centre=(0, 0, 0), radius=1.0, contact="segments"),
                        R, DELTA, 1e-3)
+    cube = replace(_diamond(0.5), contact="auto")
+    assert on_segments(cube, R, DELTA, 1.001 * 2 * np.sqrt(2) * reach)
+    assert not on_segments(cube, R, DELTA, 0.999 * 2 * np.sqrt(2) * reach)
+    assert not on_segments(replace(cube, contact="nodes"), R, DELTA, 1.0)
+
+
+def test_auto_puts_a_cubes_sharp_edges_on_the_segments():
+    """The propped cantilever's rod (16 cells: h = 1/16 > 2 sqrt(2) (r + delta) = 0.031)
+    over the cube with contact = "auto": its faces on the nodes and its 12 edges on the
+    segments, as with "segments"; with a radius 5 times the cell's the edges are held
+    by the nodes (h < 2 sqrt(2) (r + delta)): nodes only."""
+    from dolfin_rod.rod import RodModel, RodParameters
+    for radius, edges in ((R, 12), (5 * R, 0)):
+        rod = RodModel(RodParameters(length=1.0, A=(1e-2,) * 3, B=(1e3,) * 3), 16,
+                       model="hyperelastic", obstacles=[replace(_diamond(0.78125),
+                                                                contact="auto")],
+                       contact=ContactLaw(radius, DELTA, 1.0))
+        assert rod.contact.nodal == [0]
+        assert len(rod.obstacle_segments.index if rod.obstacle_segments else ()) == edges
 
 
 @pytest.mark.parametrize("ob, key", [
@@ -228,7 +249,7 @@ def test_rope_over_a_thin_bar_scene_rests_on_the_bar():
 def test_check_says_where_each_obstacles_contact_acts():
     """`dolfin-rod check` names where each obstacle's barrier acts, by the model's rule
     (the rope's bar: segments; the ground: nodes; a mesh with contact = "segments": its
-    nodes and its sharp edges, a cube's 12 at these cells)."""
+    nodes and its sharp edges, a cube's 12 at these cells, and so with "auto")."""
     from pathlib import Path
 
     from dolfin_rod.cli import _check_lines
@@ -246,9 +267,10 @@ def test_check_says_where_each_obstacles_contact_acts():
             f"vertices = {[list(v) for v in cube.vertices]}\n"
             f"triangles = {[list(t) for t in CUBE_TRIANGLES]}\n\n")
     text = text[:text.index("[[obstacles]]")] + mesh + text[text.index("[time]"):]
-    lines = _check_lines(parse_scene(text), 1)
-    assert any("acts on the nodes, its 12 sharp edges on the segments" in line
-               for line in lines), lines
+    for contact in ("segments", "auto"):     # the rope's cells: h = 0.032 > 0.0156
+        lines = _check_lines(parse_scene(text.replace('"segments"', f'"{contact}"')), 1)
+        assert any(f"contact = '{contact}') acts on the nodes, its 12 sharp edges on the "
+                   "segments" in line for line in lines), lines
 
 
 def _sliding_over_bars(mu: float, a: float, steps: int, dt: float = 1e-2) -> list:
