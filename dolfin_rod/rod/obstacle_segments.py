@@ -26,6 +26,16 @@ segment within reach is frozen with its closest point s, normal n (from the obst
 segment to the rod's) and normal force lambda = -kappa (h / 2) b'(g); in the next step
 its nodes carry w_k F, w = (1 - s, s), F = -mu lambda phi(|u| / eps) u / |u|, u the
 tangential velocity T ((1 - s) V_0 + s V_1) of its closest point.
+
+Broad phase (``near``): with more than ``ALL_PAIRS`` (cell, obstacle segment) pairs, a
+scipy cKDTree of the obstacle segments cut into pieces no longer than the longest cell
+(fixed: built once) is searched from a cKDTree of the cells' midpoints (O(N log N));
+the pairs it finds within reach + skin are kept as a candidate list (a Verlet list, as
+pair_contact's) while no node moved farther than the skin from where the list was built
+(the obstacle is fixed and every point of a segment moves by at most its nodes' largest
+displacement, so a pair's distance changes by no more).  Fewer pairs are compared all
+(no scipy import).  Either way the pairs come out in the order (cell, then obstacle
+segment) and their closest points are computed elementwise: the same pairs and bits.
 """
 
 from __future__ import annotations
@@ -40,6 +50,9 @@ from .pair_contact import (BoundTerm, Centreline, NodeRates, PairTerms, StepTerm
                            nodal_force_density, pair_energy)
 from .pair_friction import PairFriction
 from .segments import chord_reaches_edge, closest_points
+
+ALL_PAIRS = 4096    # (cell, obstacle segment) pairs compared all, without a tree
+ROUND_OFF = 1e-9    # relative margin of the broad phase's bounds (triangle inequality)
 
 
 def fixed_segments(ob: Obstacle, reach: float, h: float):
@@ -79,17 +92,92 @@ class ObstacleSegments(NodeRates):
         self.friction = (ObstacleFriction(self, mu)
                          if velocity is not None and mu.max(initial=0.0) > 0 else None)
         self._cache = (None, None)
+        self.tree = len(self.line.ends) * len(self.index) > ALL_PAIRS   # the broad phase
+        self.skin = law.radius / 2                   # the candidate list's margin
+        self._candidates = (None, 0.0, None)         # positions, distance, pairs
+        self._pieces = None                          # the obstacle segments' tree
 
     def owned_displacement(self) -> np.ndarray:
         return self.x.x.array[: 3 * self.line.n_owned]
 
     def distances(self, P: np.ndarray):
         """(cells, obstacles) arrays s, t, d of each segment's closest points to each
-        obstacle's segment at the nodes' positions P."""
+        obstacle's segment at the nodes' positions P (every pair: the reference of the
+        broad phase, tests/test_obstacle_segments.py)."""
         line, n = self.line, len(self.index)
         p0, p1 = (np.repeat(P[line.ends[:, j]], n, axis=0) for j in (0, 1))
         q0, q1 = (np.tile(q, (len(line.ends), 1)) for q in (self.q0, self.q1))
         return tuple(v.reshape(-1, n) for v in closest_points(p0, p1, q0, q1))
+
+    def pair_distances(self, P: np.ndarray, cell: np.ndarray, j: np.ndarray):
+        """s, t, d of the pairs (cell, j) at positions P (elementwise: the bits of
+        ``distances``)."""
+        ends = self.line.ends[cell]
+        return closest_points(P[ends[:, 0]], P[ends[:, 1]], self.q0[j], self.q1[j])
+
+    def near(self, P: np.ndarray, gap: float):
+        """(cell, j, s, t, d) of the pairs whose gap d - (R_j + r) is below ``gap``
+        (d < R_j + r + gap) at positions P, in the order (cell, then j): every pair
+        compared, or the broad phase's candidates (module docstring)."""
+        if not self.tree:
+            s, t, d = self.distances(P)
+            cell, j = np.nonzero(d < self.contact_radius + gap)
+            return cell, j, s[cell, j], t[cell, j], d[cell, j]
+        cell, j = self.candidates(P, float(self.contact_radius.max()) + gap)
+        s, t, d = self.pair_distances(P, cell, j)
+        keep = d < self.contact_radius[j] + gap
+        return cell[keep], j[keep], s[keep], t[keep], d[keep]
+
+    def candidates(self, P: np.ndarray, distance: float):
+        """(cell, j) a superset of the pairs nearer than ``distance`` at P, in the order
+        (cell, then j): those nearer than D = distance + skin at the positions P_c of the
+        last search, kept while every node stays within D - distance of P_c (a pair's
+        distance changes by at most its segment's largest node displacement: the
+        obstacle is fixed); else searched anew (``search``)."""
+        P_c, reach, pairs = self._candidates
+        if P_c is not None and distance <= reach <= distance + self.skin and \
+                np.sqrt(np.max(np.einsum("ij,ij->i", P - P_c, P - P_c))) <= reach - distance:
+            return pairs
+        reach = distance + self.skin
+        cell, j = self.search(P, reach)
+        keep = self.pair_distances(P, cell, j)[2] < reach
+        pairs = cell[keep], j[keep]
+        self._candidates = (P.copy(), reach, pairs)
+        return pairs
+
+    def search(self, P: np.ndarray, distance: float, cells: np.ndarray | None = None):
+        """(cell, j) in the order (cell, then j), a superset of the pairs nearer than
+        ``distance`` at P (of ``cells``, default all): the obstacle segments' pieces
+        (half-length at most l / 2) whose centre is within distance + h / 2 + l / 2 of a
+        cell's midpoint (h the longest cell at P): the closest points of a pair lie
+        within h / 2 and l / 2 of these."""
+        ends = self.line.ends if cells is None else self.line.ends[cells]
+        p0, p1 = P[ends[:, 0]], P[ends[:, 1]]
+        h = np.sqrt(np.max(np.einsum("ij,ij->i", p1 - p0, p1 - p0), initial=0.0))
+        tree, piece_of, half = self.pieces()
+        from scipy.spatial import cKDTree       # imported only with the broad phase
+        found = cKDTree(0.5 * (p0 + p1)).sparse_distance_matrix(
+            tree, (distance + 0.5 * h + half) * (1 + ROUND_OFF), output_type="ndarray")
+        cell = found["i"] if cells is None else cells[found["i"]]
+        key = np.unique(cell.astype(np.int64) * len(self.index) + piece_of[found["j"]])
+        return key // len(self.index), key % len(self.index)
+
+    def pieces(self):
+        """(cKDTree of the pieces' centres, each piece's obstacle segment, the largest
+        half-length): the obstacle segments cut into pieces no longer than the longest
+        cell of the reference configuration (built once: the obstacles are fixed)."""
+        if self._pieces is None:
+            from scipy.spatial import cKDTree
+            length = np.linalg.norm(self.q1 - self.q0, axis=1)
+            count = np.maximum(1, np.ceil(length / self.line.lengths.max())).astype(np.int64)
+            piece_of = np.repeat(np.arange(len(count)), count)
+            first = np.cumsum(count) - count
+            share = (np.arange(count.sum()) - first[piece_of] + 0.5) / count[piece_of]
+            q0, q1 = self.q0[piece_of], self.q1[piece_of]
+            centres = q0 + share[:, None] * (q1 - q0)
+            self._pieces = (cKDTree(centres), piece_of,
+                            float(np.max(0.5 * length / count)))
+        return self._pieces
 
     def evaluate(self, owned_displacement: np.ndarray) -> PairTerms:
         """The (segment, obstacle) pairs within the barrier's reach at this state and
@@ -99,15 +187,13 @@ class ObstacleSegments(NodeRates):
         key, value = self._cache
         if key is not None and np.array_equal(key, P):
             return value
-        s, t, d = self.distances(P)
-        cell, j = np.nonzero(d < self.contact_radius + self.law.gap)
+        cell, j, s, t, d = self.near(P, self.law.gap)
         nodes = self.line.ends[cell]
         X = np.concatenate([P[nodes], np.stack([self.q0[j], self.q1[j]], axis=1)], axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):  # an iterate through the
             E, G, H = pair_energy(                             # axis (d = 0): NaN, Newton
                 X, 0.5 * self.contact_radius[j], self.law.gap,  # fails, the step is cut
-                self.law.stiffness, 0.5 * self.line.lengths[cell],
-                closest=(s[cell, j], t[cell, j], d[cell, j]))
+                self.law.stiffness, 0.5 * self.line.lengths[cell], closest=(s, t, d))
         value = PairTerms(np.column_stack([cell, self.index[j]]), nodes, E, G[:, :6],
                           H[:, :6, :6])
         self._cache = (P, value)
@@ -117,6 +203,11 @@ class ObstacleSegments(NodeRates):
         """The next :meth:`evaluate` computes the terms anew even at the same state (the
         cost of a new state, benchmarks/obstacle_segments.py)."""
         self._cache = (None, None)
+
+    def forget_candidates(self) -> None:
+        """The next :meth:`near` searches its candidates anew (the broad phase's cost,
+        benchmarks/obstacle_broad_phase.py)."""
+        self._candidates = (None, 0.0, None)
 
     def for_step(self, stages, fields, previous, before_previous) -> StepTerm:
         """The term in a per-step scheme's residual (pair_contact.StepTerm)."""
@@ -131,10 +222,39 @@ class ObstacleSegments(NodeRates):
     def closest(self) -> tuple[float, float, int]:
         """(smallest gap, s of its segment's midpoint, obstacle index k) of the current
         state (the same on every rank: the gathered centre line)."""
-        _, _, d = self.distances(self.line.positions(self.owned_displacement()))
-        gaps = d - self.contact_radius
-        cell, j = np.unravel_index(np.argmin(gaps), gaps.shape)
-        return float(gaps[cell, j]), float(self.line.mid_s[cell]), int(self.index[j])
+        g, cell, j = self.smallest(self.line.positions(self.owned_displacement()))
+        return g, float(self.line.mid_s[cell]), int(self.index[j])
+
+    def smallest(self, P: np.ndarray) -> tuple[float, int, int]:
+        """(smallest gap, its cell, its obstacle segment j) at positions P (the first in
+        the order (cell, then j) where several are equal)."""
+        if self.tree:
+            cell, j = self.nearest(P)
+            gaps = self.pair_distances(P, cell, j)[2] - self.contact_radius[j]
+        else:
+            _, _, d = self.distances(P)
+            cell, j = (v.ravel() for v in np.indices(d.shape))
+            gaps = (d - self.contact_radius).ravel()
+        k = np.argmin(gaps)
+        return float(gaps[k]), int(cell[k]), int(j[k])
+
+    def nearest(self, P: np.ndarray):
+        """(cell, j) in the order (cell, then j), a superset of the pairs whose gap is the
+        smallest at P: U, the smallest gap of each cell to the obstacle segment of its
+        nearest piece, bounds it; the cells whose midpoint is nearer than U + R + r +
+        h / 2 + l / 2 to some piece (R + r the largest contact radius) are searched
+        within U + R + r."""
+        tree, piece_of, half = self.pieces()
+        ends = self.line.ends
+        p0, p1 = P[ends[:, 0]], P[ends[:, 1]]
+        h = np.sqrt(np.max(np.einsum("ij,ij->i", p1 - p0, p1 - p0), initial=0.0))
+        apart, piece = tree.query(0.5 * (p0 + p1))
+        j = piece_of[piece]
+        cells = np.arange(len(ends))
+        bound = float(np.min(self.pair_distances(P, cells, j)[2] - self.contact_radius[j]))
+        distance = (bound + float(self.contact_radius.max())) * (1 + ROUND_OFF)
+        return self.search(P, distance, cells[apart <= (distance + 0.5 * h + half)
+                                              * (1 + ROUND_OFF)])
 
     def commit(self) -> None:
         """After an accepted step (and at the start): friction's power of the force the
@@ -196,9 +316,9 @@ class ObstacleFriction(PairFriction):
         """Freeze the segments within the barrier's reach of positions P (nodes, 3):
         closest points, normals, normal forces; those without friction dropped."""
         c, law = self.contact, self.law
-        s, t, d = c.distances(P)
-        cell, j = np.nonzero((d < c.contact_radius + law.gap) & (self.mu_of > 0))
-        s, t, d = s[cell, j], t[cell, j], d[cell, j]
+        cell, j, s, t, d = c.near(P, law.gap)
+        rubbing = self.mu_of[j] > 0
+        cell, j, s, t, d = (v[rubbing] for v in (cell, j, s, t, d))
         lam = -law.stiffness * 0.5 * self.line.lengths[cell] * barrier_derivatives(
             d - c.contact_radius[j], law.gap)[1]
         ends = self.line.ends[cell]
