@@ -100,6 +100,18 @@ def measure(n_cells: int, kind: str, comm) -> dict:
     return out
 
 
+def growth_exponents(results: list, group: str, keys) -> dict:
+    """The exponents p of cost ~ cells^p of ``keys`` between consecutive sizes of the
+    results with the same ``group``."""
+    growth = {}
+    for a, b in zip(results, results[1:]):
+        if a[group] == b[group]:
+            ratio = np.log(b["cells"] / a["cells"])
+            growth[f"{a[group]} {a['cells']}->{b['cells']}"] = {
+                k: float(np.log(b[k] / a[k]) / ratio) for k in keys}
+    return growth
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000])
@@ -109,13 +121,7 @@ def main() -> None:
     if comm.rank == 0:
         for r in results:
             print(json.dumps(r))
-        growth = {}
-        for a, b in zip(results, results[1:]):
-            if a["obstacle"] == b["obstacle"]:
-                ratio = np.log(b["cells"] / a["cells"])
-                growth[f"{a['obstacle']} {a['cells']}->{b['cells']}"] = {
-                    k: float(np.log(b[k] / a[k]) / ratio)
-                    for k in ("rod_assembly_s", "evaluate_s")}
+        growth = growth_exponents(results, "obstacle", ("rod_assembly_s", "evaluate_s"))
         print(json.dumps({"growth_exponents": growth}))
         folder = ROOT / "results" / "bench"
         folder.mkdir(parents=True, exist_ok=True)

@@ -164,8 +164,10 @@ def test_a_straight_rods_curve_counts_a_bar_once_wherever_it_lies():
 
 def test_auto_chooses_segments_for_thin_obstacles_only():
     """obstacles[k].contact = "auto": segments where nodes h apart cannot hold a rod
-    across the obstacle (h^2 >= 4 (r + delta) (2 R + r + delta)), with or without
-    friction; nodes elsewhere and for planes and meshes; explicit choices kept."""
+    across the obstacle (h^2 >= 4 (r + delta) (2 R + r + delta); a mesh: some convex
+    edge has (h / 2) sin(phi / 2) >= r + delta, a cube's edges at h >= 2 sqrt(2)
+    (r + delta)), with or without friction; nodes elsewhere and for planes; explicit
+    choices kept."""
     reach = R + DELTA
     h_limit = np.sqrt(4 * reach * (2 * THIN_R + reach))
     bar = Obstacle("cylinder", centre=(0, 0, 0), axis=(0, 1, 0), radius=THIN_R, length=0.1)
@@ -178,6 +180,25 @@ def test_auto_chooses_segments_for_thin_obstacles_only():
         assert not on_segments(ob, R, DELTA, 1.0)
     assert on_segments(Obstacle("sphere", centre=(0, 0, 0), radius=1.0, contact="segments"),
                        R, DELTA, 1e-3)
+    cube = replace(_diamond(0.5), contact="auto")
+    assert on_segments(cube, R, DELTA, 1.001 * 2 * np.sqrt(2) * reach)
+    assert not on_segments(cube, R, DELTA, 0.999 * 2 * np.sqrt(2) * reach)
+    assert not on_segments(replace(cube, contact="nodes"), R, DELTA, 1.0)
+
+
+def test_auto_puts_a_cubes_sharp_edges_on_the_segments():
+    """The propped cantilever's rod (16 cells: h = 1/16 > 2 sqrt(2) (r + delta) = 0.031)
+    over the cube with contact = "auto": its faces on the nodes and its 12 edges on the
+    segments, as with "segments"; with a radius 5 times the cell's the edges are held
+    by the nodes (h < 2 sqrt(2) (r + delta)): nodes only."""
+    from dolfin_rod.rod import RodModel, RodParameters
+    for radius, edges in ((R, 12), (5 * R, 0)):
+        rod = RodModel(RodParameters(length=1.0, A=(1e-2,) * 3, B=(1e3,) * 3), 16,
+                       model="hyperelastic", obstacles=[replace(_diamond(0.78125),
+                                                                contact="auto")],
+                       contact=ContactLaw(radius, DELTA, 1.0))
+        assert rod.contact.nodal == [0]
+        assert len(rod.obstacle_segments.index if rod.obstacle_segments else ()) == edges
 
 
 @pytest.mark.parametrize("ob, key", [
@@ -350,7 +371,7 @@ def test_rope_over_a_thin_bar_scene_rests_on_the_bar(curve):
 def test_check_says_where_each_obstacles_contact_acts():
     """`dolfin-rod check` names where each obstacle's barrier acts, by the model's rule
     (the rope's bar: segments; the ground: nodes; a mesh with contact = "segments": its
-    nodes and its sharp edges, a cube's 12 at these cells)."""
+    nodes and its sharp edges, a cube's 12 at these cells, and so with "auto")."""
     from pathlib import Path
 
     from dolfin_rod.cli import _check_lines
@@ -368,9 +389,10 @@ def test_check_says_where_each_obstacles_contact_acts():
             f"vertices = {[list(v) for v in cube.vertices]}\n"
             f"triangles = {[list(t) for t in CUBE_TRIANGLES]}\n\n")
     text = text[:text.index("[[obstacles]]")] + mesh + text[text.index("[time]"):]
-    lines = _check_lines(parse_scene(text), 1)
-    assert any("acts on the nodes, its 12 sharp edges on the segments" in line
-               for line in lines), lines
+    for contact in ("segments", "auto"):     # the rope's cells: h = 0.032 > 0.0156
+        lines = _check_lines(parse_scene(text.replace('"segments"', f'"{contact}"')), 1)
+        assert any(f"contact = '{contact}') acts on the nodes, its 12 sharp edges on the "
+                   "segments" in line for line in lines), lines
 
 
 def _sliding_over_bars(mu: float, a: float, steps: int, dt: float = 1e-2, EI: float = 10.0,
@@ -544,3 +566,77 @@ def test_frictionless_segment_contact_conserves_energy_at_second_order(curve, sl
     normal = 0.5 * 0.2 * 0.02**2            # the kinetic energy of the motion onto the bar
     assert all(r[2] > 0.1 * normal and 0 < r[3] < DELTA for r in runs), runs
     assert np.all(drifts[:-1] / drifts[1:] > 3.5), drifts
+
+
+def _thrown_at_boxes(n_cells: int = 20, count: int = 25):
+    """A free rod (L = 0.2, r = 2 mm, delta = 1 mm, h = 1 cm) sent at 0.05 m/s along -e_1
+    onto a grid of ``count`` cubes (half-side 1 cm, 3 cm apart, their faces 1.5 delta
+    from it; meshes.boxes, contact = "segments": 12 count sharp edges, the rod crossing
+    five rows of them)."""
+    from dolfin_rod.rod import RodModel, RodParameters, StartingState
+    from meshes import boxes, grid
+    r, delta, half = 0.002, 1e-3, 0.01
+    V, T = boxes(grid(count, 0.03, (-(r + 1.5 * delta + half), 0.0, 0.1)), half)
+    grid = Obstacle("mesh", vertices=V.tolist(), triangles=T.tolist(), contact="segments")
+    params = RodParameters(length=0.2, A=(1e-2,) * 3, B=(10.0,) * 3, density=1.0,
+                           section_inertia=1e-6)
+    rod = RodModel(params, n_cells, model="hyperelastic", start="free", end="free",
+                   obstacles=[grid], contact=ContactLaw(r, delta, 1e3))
+    rod.set_initial_state(start=StartingState(velocity=(-0.05, 0.0, 0.0)))
+    return rod
+
+
+@pytest.mark.mpi
+def test_the_broad_phase_finds_the_pairs_every_pair_comparison_finds():
+    """The obstacle segments' broad phase (the pieces' cKDTree and its candidate list,
+    kept while no node moved beyond the skin) against comparing every (cell, obstacle
+    segment) pair: on random centre lines (random walks of 20 cells of 0.2 to 2 h, among
+    300 sharp edges of 25 cubes, and 1 m away from them), each moved by 1e-4, 5e-4, 2e-3
+    (below and beyond the skin r / 2 = 1e-3: the list kept and searched anew), the same
+    pairs within reach in the same order with the same closest points and distances,
+    bit for bit, and the same smallest gap and its pair."""
+    rod = _thrown_at_boxes()
+    contact = rod.obstacle_segments
+    assert contact.tree and len(contact.index) == 300
+    rng = np.random.default_rng(7)
+    n, h = len(contact.line.ends) + 1, contact.line.lengths.max()
+    found = 0
+    for trial in range(40):
+        steps = rng.standard_normal((n, 3))
+        steps *= (rng.uniform(0.2, 2.0, n) * h / np.linalg.norm(steps, axis=1))[:, None]
+        start = np.array([-0.005 + 1.0 * (trial % 8 == 7), 0.0, 0.1]) + rng.uniform(
+            -0.06, 0.06, 3) * (0.2, 1.0, 1.0)
+        P = start + np.cumsum(steps, axis=0)
+        for amplitude in (0.0, 1e-4, 5e-4, 2e-3):
+            Q = P + amplitude * rng.uniform(-1, 1, P.shape) / np.sqrt(3)
+            contact.tree = True
+            broad = contact.near(Q, contact.law.gap), contact.smallest(Q)
+            contact.tree = False
+            every = contact.near(Q, contact.law.gap), contact.smallest(Q)
+            assert all(np.array_equal(a, b) for a, b in zip(broad[0], every[0]))
+            assert broad[1] == every[1]
+            found += len(broad[0][0])
+    assert found > 200, found       # the configurations meet the edges (measured 811)
+
+
+@pytest.mark.mpi
+def test_a_rod_thrown_at_many_sharp_edges_is_the_same_with_the_broad_phase():
+    """The rod of ``_thrown_at_boxes`` pressed onto the cubes' faces and edges and
+    bouncing back (24 steps of 5 ms; up to 20 (cell, edge) pairs active, the smallest gap
+    1.9e-4): every step's diagnostics (contact energy, force, smallest gap, energies)
+    are the same, bit for bit, with the broad phase and comparing every pair."""
+    from dolfin_rod import TimeStepper
+    rows = []
+    for tree in (True, False):
+        rod = _thrown_at_boxes()
+        rod.obstacle_segments.tree = tree
+        stepper = TimeStepper(rod.problem)
+        stepper.initial_accelerations(0.0)
+        run = []
+        for k in range(24):
+            stepper.run(5e-3 * k, 5e-3 * (k + 1), 5e-3)
+            run.append(rod.diagnostics(5e-3 * (k + 1)))
+        rows.append(run)
+    assert rows[0] == rows[1]
+    assert max(d["contact_energy"] for d in rows[0]) > 0
+    assert 0 < min(d["min_gap"] for d in rows[0]) < 1e-3

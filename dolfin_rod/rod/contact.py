@@ -213,8 +213,11 @@ def on_segments(ob: Obstacle, radius: float, gap: float, h: float) -> bool:
     radius R that nodes h apart (the longest cell) cannot hold, h^2 >=
     4 (r + delta) (2 R + r + delta): a straight rod across it, the obstacle midway
     between two nodes, has its chord touch the body while both nodes are still beyond
-    the barrier's reach r + delta (docs/contact.md, "Thin obstacles")."""
-    return segments.on_segments(ob.contact, ob.shape, ob.radius, radius + gap, h)
+    the barrier's reach r + delta (docs/contact.md, "Thin obstacles"); "auto" for a mesh
+    with a convex edge that nodes h apart cannot hold (segments.chord_reaches_edge)."""
+    turn = (ob.surface.convex_edges()[1] if ob.shape == "mesh" and ob.contact == "auto"
+            else ())
+    return segments.on_segments(ob.contact, ob.shape, ob.radius, radius + gap, h, turn)
 
 
 def default_stiffness(rho_A, bending, length: float, n_cells: int, dt: float) -> float:

@@ -142,11 +142,11 @@ def contact_lines(scene: Scene) -> list[str]:
     lines = []
     for k, ob in enumerate(scene["obstacles"]):
         where = "on the nodes"
-        if on_segments(ob["contact"], ob["shape"], ob["radius"] or 0.0, reach, h):
+        turn = mesh_surface(scene, ob).convex_edges()[1] if ob["shape"] == "mesh" else ()
+        if on_segments(ob["contact"], ob["shape"], ob["radius"] or 0.0, reach, h, turn):
             where = "on the segments"
             if ob["shape"] == "mesh":
-                edges = chord_reaches_edge(h, mesh_surface(scene, ob).convex_edges()[1],
-                                           reach).sum()
+                edges = chord_reaches_edge(h, turn, reach).sum()
                 where = f"on the nodes, its {edges} sharp edges on the segments"
         lines.append(f"contact: obstacles[{k}] ({ob['shape']}, contact = "
                      f"{ob['contact']!r}) acts {where} (longest cell h = {h:.4g})")
