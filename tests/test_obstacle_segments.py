@@ -186,6 +186,7 @@ def test_auto_chooses_segments_for_thin_obstacles_only():
     assert not on_segments(replace(cube, contact="nodes"), R, DELTA, 1.0)
 
 
+@pytest.mark.mpi
 def test_auto_puts_a_cubes_sharp_edges_on_the_segments():
     """The propped cantilever's rod (16 cells: h = 1/16 > 2 sqrt(2) (r + delta) = 0.031)
     over the cube with contact = "auto": its faces on the nodes and its 12 edges on the

@@ -162,7 +162,7 @@ class ObstacleSegments(NodeRates):
             return pairs
         reach = distance + self.skin
         cell, j = self.search(P, reach)
-        keep = self.pair_distances(P, cell, j)[2] < reach
+        keep = self.pair_distances(P, cell, j)[2] < reach * (1 + ROUND_OFF)  # round-off
         pairs = cell[keep], j[keep]
         self._candidates = (P.copy(), reach, pairs)
         return pairs
