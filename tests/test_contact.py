@@ -119,15 +119,17 @@ def _propped(obstacle, n: int = 16) -> dict:
     return propped_rod(obstacle, n).diagnostics(1.0)
 
 
-def propped_rod(obstacle, n: int = 16) -> RodModel:
-    """The cantilever of ``_propped`` on ``obstacle`` (anywhere along it) at t = 1."""
+def propped_rod(obstacle, n: int = 16, curve: str = "segments") -> RodModel:
+    """The cantilever of ``_propped`` on ``obstacle`` (anywhere along it) at t = 1
+    (contact.obstacle_curve ``curve``)."""
     w, EI = PROPPED
     params = RodParameters(length=1.0, A=(EI, EI, EI), B=(1e3, 1e3, 1e3))
     rod = RodModel(params, n_cells=n, model="hyperelastic",
                    distributed_loads=[DistributedLoad("force", (-w, 0.0, 0.0),
                                                       lambda t: min(t, 1.0))],
                    obstacles=[obstacle],
-                   contact=ContactLaw(R, DELTA, default_stiffness(0.0, params.A, 1.0, n, 1.0)))
+                   contact=ContactLaw(R, DELTA, default_stiffness(0.0, params.A, 1.0, n, 1.0),
+                                      obstacle_curve=curve))
     rod.set_initial_state()
     stepper = TimeStepper(rod.problem, None, TIGHT)
     stepper.initial_accelerations(0.0)

@@ -139,6 +139,7 @@ class ContactLaw:
     self_friction: float = 0.0      # Coulomb's mu of self-contact (pair_friction.py)
     between_rods_friction: float = 0.0      # ... of contact between rods
     pair_curve: str = "segments"    # the pairs' curves: "segments" | "smooth" (C^1)
+    obstacle_curve: str = "segments"    # the rod's curves on thin obstacles: the same
     self_contact: bool | None = None        # deprecated: self
 
     def __post_init__(self):
@@ -160,9 +161,10 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
     positive("contact.slip_tolerance", law.slip_tolerance)
     nonnegative("contact.self_friction", law.self_friction)
     nonnegative("contact.between_rods_friction", law.between_rods_friction)
-    if law.pair_curve not in PAIR_CURVES:
-        raise ValueError(f"contact.pair_curve must be one of {', '.join(PAIR_CURVES)}, got "
-                         f"{law.pair_curve!r}")
+    for key in ("pair_curve", "obstacle_curve"):
+        if getattr(law, key) not in PAIR_CURVES:
+            raise ValueError(f"contact.{key} must be one of {', '.join(PAIR_CURVES)}, got "
+                             f"{getattr(law, key)!r}")
     if law.gap >= law.radius:
         raise ValueError(f"contact.gap must be < contact.radius ({law.radius:g}): the "
                          f"barrier acts within delta of the surface, got {law.gap:g}")
