@@ -56,6 +56,22 @@ class InitialOverlap(ValueError):
         super().__init__(reason)
         self.obstacle = obstacle
 
+    @classmethod
+    def at(cls, where: str, s: float, g: float, k: int, gap: float) -> "InitialOverlap":
+        """The overlap of ``where`` ("centre line", "segment") at s, gap g <= 0 to
+        obstacles[k], with where the rod may start instead: a rod just touching (|g| at
+        most a millionth of the gap: round-off of a rod laid on a floor at its radius)
+        starts where the barrier is infinite."""
+        place = (f"start it off the surface by a gap in (0, {gap:.3g}] (contact.gap; "
+                 "the barrier holds the rod there) or farther")
+        if -g <= 1e-6 * gap:
+            return cls(f"the rod's {where} at s = {s:.4g} touches obstacles[{k}] at t = 0 "
+                       f"(gap 0 between the surfaces, where the barrier is infinite): "
+                       f"{place}", k)
+        return cls(f"the rod's {where} at s = {s:.4g} is {-g:.3g} closer to obstacles[{k}] "
+                   f"than the rod's radius at t = 0 (it cuts into the obstacle): move the "
+                   f"obstacle or the rod; {place}", k)
+
 
 @dataclass
 class Obstacle:
@@ -139,6 +155,7 @@ class ContactLaw:
     self_friction: float = 0.0      # Coulomb's mu of self-contact (pair_friction.py)
     between_rods_friction: float = 0.0      # ... of contact between rods
     pair_curve: str = "segments"    # the pairs' curves: "segments" | "smooth" (C^1)
+    obstacle_curve: str = "segments"    # the rod's curves on thin obstacles: the same
     self_contact: bool | None = None        # deprecated: self
 
     def __post_init__(self):
@@ -160,9 +177,10 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
     positive("contact.slip_tolerance", law.slip_tolerance)
     nonnegative("contact.self_friction", law.self_friction)
     nonnegative("contact.between_rods_friction", law.between_rods_friction)
-    if law.pair_curve not in PAIR_CURVES:
-        raise ValueError(f"contact.pair_curve must be one of {', '.join(PAIR_CURVES)}, got "
-                         f"{law.pair_curve!r}")
+    for key in ("pair_curve", "obstacle_curve"):
+        if getattr(law, key) not in PAIR_CURVES:
+            raise ValueError(f"contact.{key} must be one of {', '.join(PAIR_CURVES)}, got "
+                             f"{getattr(law, key)!r}")
     if law.gap >= law.radius:
         raise ValueError(f"contact.gap must be < contact.radius ({law.radius:g}): the "
                          f"barrier acts within delta of the surface, got {law.gap:g}")
@@ -578,9 +596,7 @@ class ObstacleContact:
         self.locate()
         g, s, k = self.closest()
         if g <= 0:
-            raise InitialOverlap(f"the rod's centre line at s = {s:.4g} is {-g:.3g} closer "
-                                 f"to obstacles[{k}] than the rod's radius at t = 0: move "
-                                 "the obstacle or the rod", k)
+            raise InitialOverlap.at("centre line", s, g, k, self.law.gap)
 
     def check_state(self) -> str | None:
         """A reason to reject a converged step: a node at or inside an obstacle, or a

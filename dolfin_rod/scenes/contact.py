@@ -189,7 +189,7 @@ def contact_law(scene: Scene, params):
                       self=c["self"], between_rods=c["between_rods"],
                       self_friction=c["self_friction"],
                       between_rods_friction=c["between_rods_friction"],
-                      pair_curve=c["pair_curve"])
+                      pair_curve=c["pair_curve"], obstacle_curve=c["obstacle_curve"])
 
 
 def contact_solver_options(scene: Scene) -> dict:
