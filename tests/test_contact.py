@@ -235,6 +235,22 @@ def test_bad_contact_input_names_the_key(change, key, also):
     assert _error(text).key == key
 
 
+@pytest.mark.parametrize("point, says", [
+    ("-0.01", "touches obstacles[0] at t = 0 (gap 0 between the surfaces"),
+    ("-0.005", "is 0.005 closer to obstacles[0] than the rod's radius at t = 0 (it cuts"),
+])
+def test_initial_overlap_says_where_the_rod_may_start(point, says):
+    """A rod laid on the plane at its radius (gap exactly 0, the barrier infinite: how a
+    user puts a rope on a floor) is told that it touches, not that it is "-0 closer";
+    a rod cutting 5 mm into it how far; both where it may start: a gap in (0, delta],
+    delta = r / 10 = 0.001 by default."""
+    err = _error(SCENE.replace("point = [-0.0105, 0.0, 0.0]", f"point = [{point}, 0.0, 0.0]"))
+    assert err.key == "obstacles[0]"
+    assert says in str(err)
+    assert "start it off the surface by a gap in (0, 0.001] (contact.gap" in str(err)
+    assert "-0 " not in str(err)
+
+
 def test_contact_scene_runs_and_rests():
     """The scene above (friction 0.3): the example scene's keys map to the model, the
     plane carries the weight after 0.1 s (to 1 %: the drop from 0.5 delta still rings)."""

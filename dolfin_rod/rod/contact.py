@@ -56,6 +56,22 @@ class InitialOverlap(ValueError):
         super().__init__(reason)
         self.obstacle = obstacle
 
+    @classmethod
+    def at(cls, where: str, s: float, g: float, k: int, gap: float) -> "InitialOverlap":
+        """The overlap of ``where`` ("centre line", "segment") at s, gap g <= 0 to
+        obstacles[k], with where the rod may start instead: a rod just touching (|g| at
+        most a millionth of the gap: round-off of a rod laid on a floor at its radius)
+        starts where the barrier is infinite."""
+        place = (f"start it off the surface by a gap in (0, {gap:.3g}] (contact.gap; "
+                 "the barrier holds the rod there) or farther")
+        if -g <= 1e-6 * gap:
+            return cls(f"the rod's {where} at s = {s:.4g} touches obstacles[{k}] at t = 0 "
+                       f"(gap 0 between the surfaces, where the barrier is infinite): "
+                       f"{place}", k)
+        return cls(f"the rod's {where} at s = {s:.4g} is {-g:.3g} closer to obstacles[{k}] "
+                   f"than the rod's radius at t = 0 (it cuts into the obstacle): move the "
+                   f"obstacle or the rod; {place}", k)
+
 
 @dataclass
 class Obstacle:
@@ -580,9 +596,7 @@ class ObstacleContact:
         self.locate()
         g, s, k = self.closest()
         if g <= 0:
-            raise InitialOverlap(f"the rod's centre line at s = {s:.4g} is {-g:.3g} closer "
-                                 f"to obstacles[{k}] than the rod's radius at t = 0: move "
-                                 "the obstacle or the rod", k)
+            raise InitialOverlap.at("centre line", s, g, k, self.law.gap)
 
     def check_state(self) -> str | None:
         """A reason to reject a converged step: a node at or inside an obstacle, or a

@@ -722,9 +722,7 @@ class RodModel(FEModel):
         if self.obstacle_segments:
             g, s, k = self.obstacle_segments.closest()
             if g <= 0:
-                raise InitialOverlap(f"the rod's segment at s = {s:.4g} is {-g:.3g} closer "
-                                     f"to obstacles[{k}] than the rod's radius at t = 0: "
-                                     "move the obstacle or the rod", k)
+                raise InitialOverlap.at("segment", s, g, k, self.obstacle_segments.law.gap)
             self.obstacle_segments.commit()
         if self.segment_contact:
             reason = self.segment_contact.check_state()
