@@ -119,20 +119,23 @@ def _propped(obstacle, n: int = 16) -> dict:
     return propped_rod(obstacle, n).diagnostics(1.0)
 
 
-def propped_rod(obstacle, n: int = 16, curve: str = "segments") -> RodModel:
+def propped_rod(obstacle, n: int = 16, curve: str = "smooth",
+                rotations: str = "rotation_vector", scheme: str | None = None) -> RodModel:
     """The cantilever of ``_propped`` on ``obstacle`` (anywhere along it) at t = 1
-    (contact.obstacle_curve ``curve``)."""
+    (contact.obstacle_curve ``curve``; its unknowns' ``rotations``, stepped by
+    ``scheme``, default the rod's choice)."""
     w, EI = PROPPED
     params = RodParameters(length=1.0, A=(EI, EI, EI), B=(1e3, 1e3, 1e3))
-    rod = RodModel(params, n_cells=n, model="hyperelastic",
+    rod = RodModel(params, n_cells=n, model="hyperelastic", rotations=rotations,
                    distributed_loads=[DistributedLoad("force", (-w, 0.0, 0.0),
                                                       lambda t: min(t, 1.0))],
                    obstacles=[obstacle],
                    contact=ContactLaw(R, DELTA, default_stiffness(0.0, params.A, 1.0, n, 1.0),
                                       obstacle_curve=curve))
     rod.set_initial_state()
-    stepper = TimeStepper(rod.problem, None, TIGHT)
-    stepper.initial_accelerations(0.0)
+    stepper = TimeStepper(rod.problem, scheme, TIGHT)
+    if scheme is None:                  # generalized-alpha's start
+        stepper.initial_accelerations(0.0)
     stepper.run(0.0, 1.0, 0.1)
     return rod
 

@@ -155,7 +155,7 @@ class ContactLaw:
     self_friction: float = 0.0      # Coulomb's mu of self-contact (pair_friction.py)
     between_rods_friction: float = 0.0      # ... of contact between rods
     pair_curve: str = "segments"    # the pairs' curves: "segments" | "smooth" (C^1)
-    obstacle_curve: str = "segments"    # the rod's curves on thin obstacles: the same
+    obstacle_curve: str = "smooth"      # the rod's curves on thin obstacles: the same
     self_contact: bool | None = None        # deprecated: self
 
     def __post_init__(self):
