@@ -248,7 +248,23 @@ def test_initial_overlap_says_where_the_rod_may_start(point, says):
     assert err.key == "obstacles[0]"
     assert says in str(err)
     assert "start it off the surface by a gap in (0, 0.001] (contact.gap" in str(err)
-    assert "-0 " not in str(err)
+    assert "-0 " not in str(err) and "triangles" not in str(err)      # a plane
+
+
+def test_a_rod_behind_a_mesh_hears_of_the_triangles_orientation():
+    """The plane of SCENE as a mesh square (x = -0.0105) whose triangles are clockwise
+    seen from the rod (their normal -x, the rod behind them: how an open bowl comes out
+    when given from inside): the rod's nodes are 0.0105 behind the surface, gap -0.0105
+    - r = -0.0205; the error says so and that the triangles may face the wrong way."""
+    mesh = ('vertices = [[-0.0105, -1.0, -1.0], [-0.0105, 1.0, -1.0], [-0.0105, 1.0, 2.0], '
+            '[-0.0105, -1.0, 2.0]]\ntriangles = [[0, 2, 1], [0, 3, 2]]')
+    text = SCENE.replace('shape = "plane"', 'shape = "mesh"').replace(
+        "point = [-0.0105, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]", mesh)
+    err = _error(text)
+    assert err.key == "obstacles[0]"
+    assert "is 0.0205 closer to obstacles[0]" in str(err)
+    assert "the triangles of obstacles[0] face the other way: give them counter-clockwise " \
+           "seen from the rod's side" in str(err)
 
 
 def test_contact_scene_runs_and_rests():

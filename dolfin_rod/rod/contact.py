@@ -57,13 +57,19 @@ class InitialOverlap(ValueError):
         self.obstacle = obstacle
 
     @classmethod
-    def at(cls, where: str, s: float, g: float, k: int, gap: float) -> "InitialOverlap":
+    def at(cls, where: str, s: float, g: float, k: int, gap: float,
+           shape: str) -> "InitialOverlap":
         """The overlap of ``where`` ("centre line", "segment") at s, gap g <= 0 to
-        obstacles[k], with where the rod may start instead: a rod just touching (|g| at
-        most a millionth of the gap: round-off of a rod laid on a floor at its radius)
-        starts where the barrier is infinite."""
+        obstacles[k] of ``shape``, with where the rod may start instead: a rod just
+        touching (|g| at most a millionth of the gap: round-off of a rod laid on a floor
+        at its radius) starts where the barrier is infinite; a rod behind a mesh may see
+        its triangles turned the wrong way (an open bowl given clockwise from inside)."""
         place = (f"start it off the surface by a gap in (0, {gap:.3g}] (contact.gap; "
                  "the barrier holds the rod there) or farther")
+        if shape == "mesh":
+            place += (f"; if the rod is on the side it should stay on, the triangles of "
+                      f"obstacles[{k}] face the other way: give them counter-clockwise "
+                      f"seen from the rod's side")
         if -g <= 1e-6 * gap:
             return cls(f"the rod's {where} at s = {s:.4g} touches obstacles[{k}] at t = 0 "
                        f"(gap 0 between the surfaces, where the barrier is infinite): "
@@ -614,7 +620,8 @@ class ObstacleContact:
         self.locate()
         g, s, k = self.closest()
         if g <= 0:
-            raise InitialOverlap.at("centre line", s, g, k, self.law.gap)
+            raise InitialOverlap.at("centre line", s, g, k, self.law.gap,
+                                    self.obstacles[k].shape)
 
     def check_state(self) -> str | None:
         """A reason to reject a converged step: a node at or inside an obstacle, or a

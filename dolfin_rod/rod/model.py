@@ -730,7 +730,8 @@ class RodModel(FEModel):
         if self.obstacle_segments:
             g, s, k = self.obstacle_segments.closest()
             if g <= 0:
-                raise InitialOverlap.at("segment", s, g, k, self.obstacle_segments.law.gap)
+                raise InitialOverlap.at("segment", s, g, k, self.obstacle_segments.law.gap,
+                                        self.contact.obstacles[k].shape)
             self.obstacle_segments.commit()
         if self.segment_contact:
             reason = self.segment_contact.check_state()
