@@ -591,6 +591,24 @@ class ObstacleContact:
             local = (float(g[i, k]), float(self._nodes[i]), int(k))
         return min(self.mesh.comm.allgather(local))
 
+    def nearest_obstacle(self) -> str:
+        """Where a failed solve was, for step_control.step_failure: the obstacle nearest
+        the centre line at the current state, with the friction's knobs if it has
+        friction (a stick-slip transition sharper than Newton resolves in a step stalls
+        it: a kink of a prescribed motion dragging a rod on a floor; a larger
+        slip_tolerance, a smaller dt or a smooth_step let it through, docs/contact.md)."""
+        g, s, k = self.closest()
+        said = (f"obstacles[{k}] nearest the centre line at s = {s:.4g}, gap {g:.3g} (the "
+                f"barrier acts below {self.law.gap:g})")
+        mu = self.obstacles[k].friction
+        if mu > 0:
+            said += (f"; with friction mu = {mu:g} Newton may stall where the rod turns "
+                     f"from sticking to sliding within a step: a larger "
+                     f"contact.slip_tolerance (now {self.law.slip_tolerance:.3g}), a smaller "
+                     f"time.dt or a smooth_step instead of a ramp's kink in a prescribed "
+                     f"motion lets it through")
+        return said
+
     def check_initial(self) -> None:
         """InitialOverlap if the state (at t = 0) has a node within r of an obstacle."""
         self.locate()

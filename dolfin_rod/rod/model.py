@@ -578,7 +578,7 @@ class RodModel(FEModel):
         terms = list(self.segment_terms)
         if self.contact and self.contact.term:     # a mesh obstacle's features
             terms.append(self.contact.term)
-        where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
+        where = self.where_failed
         if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step, terms=terms,
@@ -592,6 +592,14 @@ class RodModel(FEModel):
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
             links=links, terms=terms, scale_motions=self.scale_motions,
             motion_turn=self.motion_turn, where_failed=where)
+
+    def where_failed(self) -> str | None:
+        """Where a step that finally failed went wrong (step_control.step_failure): the
+        segment pair nearest to touching, the obstacle nearest the centre line."""
+        said = [where() for where in (
+            self.segment_contact and self.segment_contact.nearest_pair,
+            self.contact and self.contact.nearest_obstacle) if where]
+        return "; ".join(w for w in said if w) or None
 
     def scale_motions(self, fraction: float) -> None:
         """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""
