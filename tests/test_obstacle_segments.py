@@ -358,7 +358,7 @@ def test_rope_over_a_thin_bar_scene_rests_on_the_bar(curve):
     of radius 4 mm at the middle of its middle cell ("auto": segment contact) folds over
     it and its ends land on the ground.  At rest (t = 2 s) bar and ground carry the weight
     rho_A g L = 0.7848 N to 1e-3 (the rest: the drag of the ends' creep under the smoothed
-    friction, < eps = 1e-3 m/s; measured 1.7e-4, 1.2e-4 on the curve); the gap stays in
+    friction, < eps = 1e-3 m/s; measured 1.7e-4, 1.1e-4 on the curve); the gap stays in
     (0, delta) at every output; the rope's middle lies on the bar (its centre line
     r + R + g above the bar's axis, not below it: the nodes on either side are 1.6 cm
     away).  With contact.obstacle_curve = "smooth" the C^1 curve's contact point lies
@@ -455,7 +455,7 @@ def test_a_rod_slides_over_thin_bars_with_kinetic_friction(curve):
     between two nodes at the start, its contact handed from segment to segment as the
     rod slides over the nodes), from rest, 0.26 m in 0.4 s: its mean acceleration
     2 (z(T) - z(0)) / T^2 is g (sin a - mu cos a) to 5 % (measured 2.3 % on the segments,
-    1.8 % at half the step; 2.2 % on the curve): what limits it is not the contact law
+    1.8 % at half the step; 2.3 % on the curve): what limits it is not the contact law
     but the start and the rod (test_the_bars_carry_the_weights_share_as_a_rod_slides and
     test_a_stiff_rod_slides_over_thin_bars_at_coulombs_acceleration below): the first
     steps' acceleration (7 % off in the first, with the frictionless accelerations of the
