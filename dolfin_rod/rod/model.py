@@ -203,7 +203,7 @@ class RodModel(FEModel):
                 for end, motion in (getattr(rod, name) or {}).items()}
         self.problem.structure = text
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
-        self._diagnostics(disc)
+        self._diagnostics(disc, nodes)
 
     def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
                            constraint: str | None, joints: Sequence[Joint], comm) -> list[Joint]:
@@ -451,9 +451,9 @@ class RodModel(FEModel):
         return per_rod, {block: ufl.derivative(springs, unk.f[block], unk.t[block])
                          for block in ("displacement", unk.rotation)}
 
-    def _diagnostics(self, disc) -> None:
+    def _diagnostics(self, disc, joint_nodes) -> None:
         """Tips, the energy forms (diagnostics.py) and the check that the rod does not
-        pass through itself."""
+        pass through itself (segments joined at ``joint_nodes`` are neighbours)."""
         unk, c, layout = self.unknowns, self.coefficients, self.layout
         self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(self.rods))]
         points = [dict.fromkeys((layout.starts[k], layout.lengths[k] / layout.n_cells[k],
@@ -491,7 +491,10 @@ class RodModel(FEModel):
         self.pass_through = PassThroughCheck(
             unk.f["displacement"], distance=h, exclusion=3 * h,
             hint="self-contact is off: set contact.self = true (contact.between_rods for "
-                 "rods of a system; docs/contact.md)")
+                 "rods of a system; docs/contact.md)" if layout.single else
+                 "contact between rods is off: set contact.between_rods = true "
+                 "(contact.self for a rod through itself; docs/contact.md)", layout=layout,
+            names=self.rod_names, joints=joint_nodes)
 
     def _segment_contact(self, law, layout, joint_nodes) -> SegmentContact | None:
         """The segment pairs' contact (pair_contact.py) if the law asks for it; the
