@@ -17,10 +17,12 @@ system (generalized-alpha on the rotation group) is assembled at that state:
                    less noisy on a loaded machine than the difference above)
 
 per Newton iteration (one residual and one Jacobian), best of a few repeats in turns;
-the exponents p of cost ~ N^p between the sizes.
+the exponents p of cost ~ N^p between the sizes.  ``--obstacle-curve smooth``: the
+barrier on the rod's C^1 curve (contact.obstacle_curve).
 
     ./rodenv python3 benchmarks/obstacle_segments.py [--sizes 1000 10000 100000]
-Writes results/bench/obstacle_segments.json.
+        [--obstacle-curve smooth]
+Writes results/bench/obstacle_segments.json (obstacle_segments_smooth.json).
 """
 
 from __future__ import annotations
@@ -53,14 +55,14 @@ def obstacle(kind: str, middle: float) -> Obstacle:
                     rotation=(0.0, np.pi / 4, 0.0), contact="segments")
 
 
-def measure(n_cells: int, kind: str, comm) -> dict:
+def measure(n_cells: int, kind: str, comm, curve: str = "segments") -> dict:
     n_cells += 1 - n_cells % 2                     # odd: the middle is a cell's middle
     length = n_cells * H
     params = RodParameters(length=length, A=(1.0, 1.0, 1.0), B=(1e3, 1e3, 1e3), density=1.0,
                            section_inertia=1e-4)
     model = RodModel(params, n_cells, model="hyperelastic", start="free",
                      end="free", obstacles=[obstacle(kind, 0.5 * length)],
-                     contact=ContactLaw(R, DELTA, 1e3), comm=comm)
+                     contact=ContactLaw(R, DELTA, 1e3, obstacle_curve=curve), comm=comm)
     model.set_initial_state()
     stepper = TimeStepper(model.problem)
     system = stepper.solver.system
@@ -91,7 +93,7 @@ def measure(n_cells: int, kind: str, comm) -> dict:
         segments.forget()
         segments.evaluate(u)
 
-    out = {"cells": n_cells, "obstacle": kind,
+    out = {"cells": n_cells, "obstacle": kind, "obstacle_curve": curve,
            "obstacle_segments": int(len(segments.index)), "active": active,
            "ranks": comm.size, "rod_assembly_s": float(rod),
            "rod_with_segments_s": float(both), "evaluate_s": best(evaluate)}
@@ -100,28 +102,38 @@ def measure(n_cells: int, kind: str, comm) -> dict:
     return out
 
 
+def growth_exponents(results: list, group: str, keys) -> dict:
+    """The exponents p of cost ~ cells^p of ``keys`` between consecutive sizes of the
+    results with the same ``group``."""
+    growth = {}
+    for a, b in zip(results, results[1:]):
+        if a[group] == b[group]:
+            ratio = np.log(b["cells"] / a["cells"])
+            growth[f"{a[group]} {a['cells']}->{b['cells']}"] = {
+                k: float(np.log(b[k] / a[k]) / ratio) for k in keys}
+    return growth
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000])
+    parser.add_argument("--obstacle-curve", choices=("segments", "smooth"),
+                        default="segments")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    results = [measure(n, kind, comm) for kind in ("bar", "cube") for n in args.sizes]
+    results = [measure(n, kind, comm, args.obstacle_curve) for kind in ("bar", "cube")
+               for n in args.sizes]
     if comm.rank == 0:
         for r in results:
             print(json.dumps(r))
-        growth = {}
-        for a, b in zip(results, results[1:]):
-            if a["obstacle"] == b["obstacle"]:
-                ratio = np.log(b["cells"] / a["cells"])
-                growth[f"{a['obstacle']} {a['cells']}->{b['cells']}"] = {
-                    k: float(np.log(b[k] / a[k]) / ratio)
-                    for k in ("rod_assembly_s", "evaluate_s")}
+        growth = growth_exponents(results, "obstacle", ("rod_assembly_s", "evaluate_s"))
         print(json.dumps({"growth_exponents": growth}))
         folder = ROOT / "results" / "bench"
         folder.mkdir(parents=True, exist_ok=True)
-        (folder / "obstacle_segments.json").write_text(
+        name = "obstacle_segments" + ("_smooth" if args.obstacle_curve == "smooth" else "")
+        (folder / f"{name}.json").write_text(
             json.dumps({"sizes": results, "growth_exponents": growth}, indent=1))
-        print(f"wrote {folder / 'obstacle_segments.json'}")
+        print(f"wrote {folder / f'{name}.json'}")
 
 
 if __name__ == "__main__":

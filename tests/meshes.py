@@ -53,6 +53,26 @@ def box(half=(1.0, 1.0, 1.0), centre=(0.0, 0.0, 0.0)):
     return np.asarray(centre) + corners * np.asarray(half), T
 
 
+def boxes(centres, half: float, turn: float = 0.0):
+    """(vertices, triangles) of cubes of half-side ``half`` turned by ``turn`` about e_2,
+    centred at ``centres`` (k, 3): one closed surface of 12 k sharp edges (the broad
+    phase of rod/obstacle_segments.py)."""
+    V, T = box((half,) * 3)
+    c, s = np.cos(turn), np.sin(turn)
+    V = V @ np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
+    return (np.concatenate([V + centre for centre in np.asarray(centres, float)]),
+            np.concatenate([T + 8 * k for k in range(len(centres))]))
+
+
+def grid(count: int, spacing: float, centre=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """(count, 3) points on a square grid in the plane x = centre_x, ``spacing`` apart,
+    about ``centre``."""
+    side = int(np.ceil(np.sqrt(count)))
+    k = np.arange(count)
+    return np.asarray(centre) + spacing * np.column_stack(
+        [0 * k, k % side - (side - 1) / 2, k // side - (side - 1) / 2])
+
+
 def write_stl_ascii(path, V, T) -> None:
     lines = ["solid test"]
     for t in T:

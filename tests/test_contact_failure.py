@@ -57,3 +57,60 @@ def test_a_newton_failure_in_contact_names_the_pair(tmp_path):
     message = proc.stdout + proc.stderr
     assert "DIVERGED_MAX_IT" in message and "; where: " in message
     assert PAIR.search(message) and "at Newton's last iterate" in message
+
+
+DRAGGED = """
+[scene]
+units = "SI"
+[geometry]
+length = 0.5
+n_cells = 12
+[section]
+shape = "circle"
+radius = 0.005
+[material]
+model = "hyperelastic"
+youngs_modulus = 1e8
+poisson_ratio = 0.4
+density = 1150.0
+[boundary]
+start = "pinned"
+end = "free"
+start_displacement = { type = "ramp", value = [-0.05, 0.0, 0.0], t0 = 0.02, duration = 0.5 }
+[initial]
+position = [0.0, 0.0, 0.00525]
+orientation = [0.0, 1.5707963267948966, 0.0]
+[loads]
+gravity = [0.0, 0.0, -9.81]
+[[obstacles]]
+shape = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+friction = 0.4
+[solver]
+options = { snes_max_it = 1 }
+[time]
+t_end = 0.03
+dt = 0.005
+max_step_cuts = 1
+"""
+
+
+def test_a_newton_failure_on_an_obstacle_names_it_and_the_friction_knobs(tmp_path):
+    """A rod lying on a floor with friction, dragged by its start (as a user writes it;
+    with the default Newton it stalls at the ramp's kink after resting 0.2 s, docs/
+    contact.md), here Newton limited to one iteration so that the first step fails:
+    exit 3, and the error names the floor, the gap at the last state (the rod starts
+    at z = r + delta / 2: gap 0.00025 m, delta = r / 10 = 0.0005) and the knobs that
+    let a stick-slip transition through, with the slip tolerance in use (the default
+    1e-3 L / t_end = 1e-3 x 0.5 / 0.03 = 0.0167 m/s)."""
+    scene = tmp_path / "dragged.toml"
+    scene.write_text(DRAGGED)
+    proc = cli("run", scene, "--out", tmp_path / "run")
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    message = proc.stdout + proc.stderr
+    assert "DIVERGED_MAX_IT" in message
+    assert re.search(r"; where: obstacles\[0\] nearest the centre line at s = [0-9.]+, "
+                     r"gap 0\.00025 \(the barrier acts below 0\.0005\); with friction "
+                     r"mu = 0\.4 ", message), message
+    assert "contact.slip_tolerance (now 0.0167), a smaller time.dt" in message

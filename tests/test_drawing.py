@@ -173,3 +173,28 @@ def test_a_run_does_not_import_matplotlib(tmp_path):
                          check=True, cwd=ROOT)
     assert out.stdout.split()[-2:] == ["complete", "False"], out.stdout
     assert {"histories.png", "snapshots.png"} <= {p.name for p in (tmp_path / "run").iterdir()}
+
+
+
+def test_the_painter_unpickles_a_run_s_pictures_without_the_fe_stack(tmp_path):
+    """The pictures a run sends its painter (module functions and LineSamples, pickled)
+    load in a process that has imported what the run had when it forked the painter
+    (output/writer.py) without importing UFL, DOLFINx, PETSc, Basix or FFCx: such an
+    import (UFL: 60-150 ms) would lie on the pictures' path (issue 30, target 2)."""
+    import pickle
+
+    import numpy as np
+
+    from dolfin_rod.output import animation
+    from dolfin_rod.output.line_fields import LineSample
+    s = np.linspace(0.0, 1.0, 3)
+    sample = LineSample(s, s[1:] - 0.25, {"centre_line": np.zeros((3, 3))}, {})
+    job = pickle.dumps(([("a.gif", partial(animation.rod_animation, [(0.0, sample)],
+                                           tmp_path / "a.gif"))], tmp_path))
+    painter = ("import pickle, sys; from dolfin_rod.output import writer; "
+               "pickle.loads(sys.stdin.buffer.read()); "
+               "print(*sorted({m.split('.')[0] for m in sys.modules} & "
+               "{'dolfinx', 'petsc4py', 'ufl', 'basix', 'ffcx'}))")
+    out = subprocess.run([sys.executable, "-c", painter], input=job, capture_output=True,
+                         check=True, cwd=ROOT)
+    assert out.stdout.decode().split() == [], out.stdout

@@ -196,6 +196,29 @@ def test_a_step_that_rotates_a_node_by_more_than_a_quarter_turn_is_refused():
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("turn, size", [(1.9, 1.0), (2.0 - 1e-9, 1.0), (2.0 - 1e-9, 3.0),
+                                        (2.0 + 1e-9, 1.0), (2.0 + 1e-9, 0.5), (2.5, 1.0)])
+def test_a_cell_turned_by_more_than_two_rad_is_refused_at_the_limit(turn, size):
+    """RodModel.check_cell_turns after every step: stored rotations twisted about e_3 by
+    ``turn`` rad per cell (q = size (cos(phi/2), 0, 0, sin(phi/2)), phi = turn s / h:
+    closed form) pass below checks.MAX_CELL_TURN = 2 rad and are refused above it, 1e-9
+    rad from the limit too (there the quick bound defers to the exact turn; round-off
+    of the turn: ~1e-15 rad) and whatever the quaternions' size; the same on every rank."""
+    from dolfin_rod.integrators.step_control import IntegrationError
+    rod = _rod(n_cells=4)
+    rod.set_initial_state()
+    rod.problem.set_bcs(0.0)
+    k = turn * 4 / PARAMS.length
+    rod.unknowns.chart.set_nodal_rotations(lambda s: size * np.stack(
+        [np.cos(k * s / 2), 0 * s, 0 * s, np.sin(k * s / 2)], axis=1))
+    if turn <= 2.0:
+        rod.check_cell_turns()
+        return
+    with pytest.raises(IntegrationError, match=f"turned by {turn:.4g} rad against its start"):
+        rod.check_cell_turns()
+
+
+@pytest.mark.mpi
 def test_a_refused_step_is_redone_as_two_half_steps():
     """problem.check_step refusing the first attempt (as check_increment refuses a
     spurious root): the state is restored and the step done as two half steps, the same

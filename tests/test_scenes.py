@@ -811,3 +811,19 @@ def test_a_run_without_checkpoints_does_not_import_adios4dolfinx(tmp_path):
     assert done.stdout.strip().splitlines()[-1] == "False"
     data = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert data["versions"]["adios4dolfinx"] == version("adios4dolfinx")
+
+
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="one process of its own")
+def test_a_run_imports_dolfinx_without_numba_and_leaves_numba_importable():
+    """run.import_finite_elements (fem/compat.py's table: numba): DOLFINx 0.9's optional
+    numba helpers are skipped while a run imports the stack, and numba imports as usual
+    after it (user code, PyElastica)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from dolfin_rod.run import import_finite_elements; "
+            "import_finite_elements(False); skipped = 'numba' not in sys.modules; "
+            "import numba; print(skipped, numba.__name__)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=600, check=True)
+    assert done.stdout.split() == ["True", "numba"], done.stdout + done.stderr

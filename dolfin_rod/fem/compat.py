@@ -18,6 +18,12 @@ The rest of the package calls these functions and never checks a version.
                        with no handler (``logging.captureWarnings(True)``), so the
                        package's warnings (a cut step, a first-order restart) were never
                        shown; undone here, they reach stderr as on 0.11
+    numba              0.9: ``dolfinx.utils`` imports numba for optional helpers this
+                       package never uses (0.2-0.5 s, a third of DOLFINx's import);
+                       0.11 does not.  A run hides it while it imports the stack and
+                       makes it importable again right after
+                       (``run.import_finite_elements``: it must act before DOLFINx is
+                       imported, which this module does at its top)
 """
 
 from __future__ import annotations

@@ -288,12 +288,13 @@ class LieGeneralizedAlpha:
     def _np_update(self, i, d, h):
         """(algorithmic acceleration or rate, rate, acceleration) at t_{n+1} of block i
         from its increment d: _ufl_update's formulas as one matrix product (~3x fewer
-        array operations per step)."""
+        array operations per step; the columns stacked by np.array, 3x cheaper than
+        np.vstack at a few nodes)."""
         if self.order[i] == 0:
             return d / h, d / h, None
         _, _, _, vn, alg, _, acc_n = self._arrays[i]
         C = self._update_matrix(self.order[i], h)
-        out = C @ np.vstack((d, vn, alg) if self.order[i] == 1 else (d, vn, alg, acc_n))
+        out = C @ np.array((d, vn, alg) if self.order[i] == 1 else (d, vn, alg, acc_n))
         return out[0], out[1], out[2] if self.order[i] == 2 else None
 
     def _update_matrix(self, order: int, h: float) -> np.ndarray:

@@ -11,6 +11,10 @@ computed from them) of the owned cells.  Rank 0 receives them sorted by s:
 
 A 1-D rod has few unknowns, so gathering them is cheap and the writers (VTX, animation)
 run on rank 0 alone, in global s order, with the same output on any number of ranks.
+
+UFL is imported where it is used, not with the module: the painter process (drawing.py)
+unpickles the run's LineSamples, and importing UFL there cost 60-150 ms of the pictures'
+wall time (issue 30, target 2).
 """
 
 from __future__ import annotations
@@ -18,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import ufl
 
 __all__ = ["LineSample", "LineSampler"]
 
@@ -51,6 +54,7 @@ class LineSample:
 
 
 def _components(expr) -> list:
+    import ufl
     shape = ufl.shape(expr)
     if shape == ():
         return [expr]
@@ -59,6 +63,7 @@ def _components(expr) -> list:
 
 def _pack(s, exprs: dict):
     """One UFL vector (s first, then every component) and each field's slice in it."""
+    import ufl
     comps, layout = [s], {}
     for name, e in exprs.items():
         c = _components(e)
@@ -88,6 +93,7 @@ class LineSampler:
     """Evaluates ``observables`` along the rod and gathers them on rank 0 (see module)."""
 
     def __init__(self, mesh, observables: dict, point: tuple[str, ...]):
+        import ufl
         self.mesh, self.comm = mesh, mesh.comm
         s = ufl.SpatialCoordinate(mesh)[0]
         point_exprs = {k: v for k, v in observables.items() if k in point}

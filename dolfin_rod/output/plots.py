@@ -414,7 +414,9 @@ def save_laid_out(fig, path: Path, dpi: int) -> None:
     """The figure laid out (tight_layout) and saved: matplotlib's tight_layout leaves a
     placeholder layout engine on the figure, for which savefig lays the figure out again
     (a draw without pixels: a quarter of histories.png's time) before drawing it; without
-    an engine it draws once, the same pixels."""
+    an engine it draws once, the same pixels.  A PNG is compressed at zlib's level 1, not
+    Pillow's 6: the same pixels, files 5-10 % larger, 6 % off histories.png's time."""
     fig.tight_layout()
     fig.set_layout_engine(None)
-    fig.savefig(path, dpi=dpi)
+    png = {"pil_kwargs": {"compress_level": 1}} if Path(path).suffix == ".png" else {}
+    fig.savefig(path, dpi=dpi, **png)

@@ -51,13 +51,18 @@ def chord_reaches_round(h, radius: float, reach: float):
     return np.asarray(h) ** 2 >= 4 * reach * (2 * radius + reach)
 
 
-def on_segments(contact: str, shape: str, radius: float, reach: float, h: float) -> bool:
+def on_segments(contact: str, shape: str, radius: float, reach: float, h: float,
+                turn=()) -> bool:
     """Whether an obstacle's barrier acts on the rod's segments (rod/contact.on_segments:
     an obstacle's keys contact, shape, radius; the barrier's reach r + delta,
-    the longest cell h): "segments", or "auto" for a sphere or cylinder that
-    ``chord_reaches_round`` (numpy only: `dolfin-rod check` says it too)."""
+    the longest cell h; a mesh's convex edges' ``turn``, triangle_mesh.convex_edges):
+    "segments", or "auto" for a sphere or cylinder that ``chord_reaches_round`` and a
+    mesh with an edge that ``chord_reaches_edge`` (its sharp edges then act on the
+    segments, its faces on the nodes; numpy only: `dolfin-rod check` says it too)."""
     if contact != "auto":
         return contact == "segments"
+    if shape == "mesh":
+        return bool(np.any(chord_reaches_edge(h, turn, reach)))
     return shape in ("sphere", "cylinder") and bool(chord_reaches_round(h, radius, reach))
 
 

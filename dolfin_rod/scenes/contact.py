@@ -142,11 +142,11 @@ def contact_lines(scene: Scene) -> list[str]:
     lines = []
     for k, ob in enumerate(scene["obstacles"]):
         where = "on the nodes"
-        if on_segments(ob["contact"], ob["shape"], ob["radius"] or 0.0, reach, h):
+        turn = mesh_surface(scene, ob).convex_edges()[1] if ob["shape"] == "mesh" else ()
+        if on_segments(ob["contact"], ob["shape"], ob["radius"] or 0.0, reach, h, turn):
             where = "on the segments"
             if ob["shape"] == "mesh":
-                edges = chord_reaches_edge(h, mesh_surface(scene, ob).convex_edges()[1],
-                                           reach).sum()
+                edges = chord_reaches_edge(h, turn, reach).sum()
                 where = f"on the nodes, its {edges} sharp edges on the segments"
         lines.append(f"contact: obstacles[{k}] ({ob['shape']}, contact = "
                      f"{ob['contact']!r}) acts {where} (longest cell h = {h:.4g})")
@@ -189,7 +189,7 @@ def contact_law(scene: Scene, params):
                       self=c["self"], between_rods=c["between_rods"],
                       self_friction=c["self_friction"],
                       between_rods_friction=c["between_rods_friction"],
-                      pair_curve=c["pair_curve"])
+                      pair_curve=c["pair_curve"], obstacle_curve=c["obstacle_curve"])
 
 
 def contact_solver_options(scene: Scene) -> dict:

@@ -45,7 +45,7 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("obstacles", "shape")} | {
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
                              "between_rods", "self_friction", "between_rods_friction",
-                             "pair_curve")} | {
+                             "pair_curve", "obstacle_curve")} | {
     ("stability", k) for k in ("check", "follow_unstable", "lowest_eigenvalue",
                                "at_bifurcation", "factorisation")} | {
     ("continuation", k) for k in ("method", "parameter", "arc_length", "load_scale",
