@@ -114,3 +114,50 @@ def test_a_newton_failure_on_an_obstacle_names_it_and_the_friction_knobs(tmp_pat
                      r"gap 0\.00025 \(the barrier acts below 0\.0005\); with friction "
                      r"mu = 0\.4 ", message), message
     assert "contact.slip_tolerance (now 0.0167), a smaller time.dt" in message
+
+
+PRESSED = """
+[scene]
+units = "SI"
+[geometry]
+length = 0.1
+n_cells = 20
+[section]
+shape = "circle"
+radius = 0.001
+[material]
+model = "hyperelastic"
+youngs_modulus = 2e11
+poisson_ratio = 0.3
+[boundary]
+start = "clamped"
+start_displacement = { type = "ramp", value = [0.0, 0.0, -0.01], duration = 1.0 }
+[initial]
+position = [0.0, 0.0, 0.0015]
+orientation = [0.0, 1.5707963267948966, 0.0]
+[[obstacles]]
+shape = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[time]
+t_end = 1.0
+dt = 0.1
+"""
+
+
+def test_a_prescribed_end_driven_into_an_obstacle_is_named(tmp_path):
+    """A steel wire (r = 1 mm) clamped 1.5 mm above a table, its clamp lowered 1 cm in
+    1 s (a robot pressing a compliant finger, written with the clamp's path through the
+    table): the clamp's surface reaches the table at t = 0.5 mm / (1 cm/s) = 0.05 s,
+    where no barrier can hold back the prescribed end.  Exit 3 before 0.05 s, and the
+    error names the motion's key, not "raise contact.stiffness" (which cannot help)."""
+    scene = tmp_path / "pressed.toml"
+    scene.write_text(PRESSED)
+    proc = cli("run", scene, "--out", tmp_path / "run")
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    message = proc.stdout + proc.stderr
+    failed = float(re.search(r"time step failed at t = ([0-9.e-]+)", message).group(1))
+    assert 0.0 < failed < 0.05
+    assert ("the prescribed motion boundary.start_displacement drives its end (s = 0) "
+            "into obstacles[0]") in message, message
+    assert "raise contact.stiffness" not in message

@@ -623,14 +623,22 @@ class ObstacleContact:
             raise InitialOverlap.at("centre line", s, g, k, self.law.gap,
                                     self.obstacles[k].shape)
 
-    def check_state(self) -> str | None:
+    def check_state(self, prescribed: dict[float, str] | None = None) -> str | None:
         """A reason to reject a converged step: a node at or inside an obstacle, or a
         segment whose sweep from the last committed state (its nodes on straight paths)
         entered one's body (passed through a thin obstacle or across a sharp edge within
-        the step, or cuts into the body between its nodes: sweep_entry)."""
+        the step, or cuts into the body between its nodes: sweep_entry).  ``prescribed``:
+        {s of an end whose displacement is prescribed: its key}; such an end inside is
+        driven there by its motion, which no barrier stiffness can stop."""
         g, s, k = self.closest()
         if g <= 0:
-            return (f"the centre line at s = {s:.4g} is {-g:.3g} inside obstacles[{k}] "
+            key = next((key for s_end, key in (prescribed or {}).items()
+                        if abs(s_end - s) <= 1e-9 * max(abs(s_end), 1.0)), None)
+            if key is not None:
+                return (f"the prescribed motion {key} drives its end (s = {s:.4g}) into "
+                        f"obstacles[{k}] (gap {g:.3g}): the barrier cannot hold back a "
+                        f"prescribed end; stop the motion before the obstacle or move it")
+            return (f"the centre line at s = {s:.4g} is {abs(g):.3g} inside obstacles[{k}] "
                     f"(gap {g:.3g}; the barrier was overcome: raise contact.stiffness)")
         if self.start is None:
             return None

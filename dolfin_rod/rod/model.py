@@ -666,7 +666,11 @@ class RodModel(FEModel):
         chart = self.unknowns.chart
         reason = chart.check_increment() if chart is not None else None
         if reason is None and self.contact:
-            reason = self.contact.check_state()
+            named = len(self.end_supports) > 1
+            reason = self.contact.check_state({
+                supports.s_ends[end]: f"boundary.{end}_displacement"
+                + (f" (rod {self.rod_names[i]})" if named else "")
+                for i, supports in enumerate(self.end_supports) for end in supports.displacement})
         for contact in self.segment_terms:
             if reason is None:
                 reason = contact.check_state()
