@@ -119,20 +119,23 @@ def _propped(obstacle, n: int = 16) -> dict:
     return propped_rod(obstacle, n).diagnostics(1.0)
 
 
-def propped_rod(obstacle, n: int = 16, curve: str = "segments") -> RodModel:
+def propped_rod(obstacle, n: int = 16, curve: str = "smooth",
+                rotations: str = "rotation_vector", scheme: str | None = None) -> RodModel:
     """The cantilever of ``_propped`` on ``obstacle`` (anywhere along it) at t = 1
-    (contact.obstacle_curve ``curve``)."""
+    (contact.obstacle_curve ``curve``; its unknowns' ``rotations``, stepped by
+    ``scheme``, default the rod's choice)."""
     w, EI = PROPPED
     params = RodParameters(length=1.0, A=(EI, EI, EI), B=(1e3, 1e3, 1e3))
-    rod = RodModel(params, n_cells=n, model="hyperelastic",
+    rod = RodModel(params, n_cells=n, model="hyperelastic", rotations=rotations,
                    distributed_loads=[DistributedLoad("force", (-w, 0.0, 0.0),
                                                       lambda t: min(t, 1.0))],
                    obstacles=[obstacle],
                    contact=ContactLaw(R, DELTA, default_stiffness(0.0, params.A, 1.0, n, 1.0),
                                       obstacle_curve=curve))
     rod.set_initial_state()
-    stepper = TimeStepper(rod.problem, None, TIGHT)
-    stepper.initial_accelerations(0.0)
+    stepper = TimeStepper(rod.problem, scheme, TIGHT)
+    if scheme is None:                  # generalized-alpha's start
+        stepper.initial_accelerations(0.0)
     stepper.run(0.0, 1.0, 0.1)
     return rod
 
@@ -245,7 +248,23 @@ def test_initial_overlap_says_where_the_rod_may_start(point, says):
     assert err.key == "obstacles[0]"
     assert says in str(err)
     assert "start it off the surface by a gap in (0, 0.001] (contact.gap" in str(err)
-    assert "-0 " not in str(err)
+    assert "-0 " not in str(err) and "triangles" not in str(err)      # a plane
+
+
+def test_a_rod_behind_a_mesh_hears_of_the_triangles_orientation():
+    """The plane of SCENE as a mesh square (x = -0.0105) whose triangles are clockwise
+    seen from the rod (their normal -x, the rod behind them: how an open bowl comes out
+    when given from inside): the rod's nodes are 0.0105 behind the surface, gap -0.0105
+    - r = -0.0205; the error says so and that the triangles may face the wrong way."""
+    mesh = ('vertices = [[-0.0105, -1.0, -1.0], [-0.0105, 1.0, -1.0], [-0.0105, 1.0, 2.0], '
+            '[-0.0105, -1.0, 2.0]]\ntriangles = [[0, 2, 1], [0, 3, 2]]')
+    text = SCENE.replace('shape = "plane"', 'shape = "mesh"').replace(
+        "point = [-0.0105, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]", mesh)
+    err = _error(text)
+    assert err.key == "obstacles[0]"
+    assert "is 0.0205 closer to obstacles[0]" in str(err)
+    assert "the triangles of obstacles[0] face the other way: give them counter-clockwise " \
+           "seen from the rod's side" in str(err)
 
 
 def test_contact_scene_runs_and_rests():
