@@ -20,10 +20,11 @@ SEGMENT_SHAPES = ("sphere", "cylinder", "mesh")     # contact = "segments" (rod/
                                                     # no DOLFINx for `dolfin-rod check`)
 
 
-def check_contact_keys(scene: Scene) -> None:
+def check_contact_keys(scene: Scene, rotations: str) -> None:
     """[[obstacles]] need contact.radius; [contact] needs obstacles; each obstacle has the
     pose keys of its shape; gap < radius; friction needs a dynamic rod (segment friction
-    also its kind of contact)."""
+    also its kind of contact; on an obstacle that acts on the segments, the rod's
+    ``rotations`` (rules.rod_rotations) rotation vectors)."""
     err, contact, obstacles = scene.error, scene["contact"], scene["obstacles"]
     given = scene.given["contact"]
     if not touching(scene):
@@ -59,15 +60,13 @@ def check_contact_keys(scene: Scene) -> None:
                                           "dynamic rod (material.density > 0)")
         _check_segments(scene, k)
         if ob["friction"] > 0 and acts_on_segments(scene, k)[0]:
-            from .rules import rod_rotations
-            if rod_rotations(scene) != "rotation_vector":
+            if rotations != "rotation_vector":
                 raise err(f"{name}.friction", "this obstacle acts on the segments (a "
                                               "sphere or cylinder thinner than the cells "
                                               "can hold, or a mesh's sharp edges; "
                                               "docs/contact.md): their friction needs "
                                               "rotation-vector unknowns "
-                                              "(geometry.rotations), got "
-                                              f"{rod_rotations(scene)!r}")
+                                              f"(geometry.rotations), got {rotations!r}")
     for key, pairs in (("self_friction", "self"), ("between_rods_friction", "between_rods")):
         if contact[key] > 0 and contact["pair_curve"] == "smooth":
             raise err(f"contact.{key}", "friction between segments needs "
