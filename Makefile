@@ -4,6 +4,8 @@
 RODENV  := ./rodenv
 PYTEST  := python3 -m pytest
 NP      ?= 2
+# the serial run's pytest-xdist workers: one per core (JOBS=0: one process, no workers)
+JOBS    ?= auto
 # `make test` covers: DOLFINX if set; else the host's own DOLFINx if python3 imports one
 # (the Docker image, conda; ./rodenv then runs natively); else both releases.
 RELEASES = $(or $(DOLFINX),$(shell python3 -c 'import dolfinx; \
@@ -25,8 +27,8 @@ test:            ## the CI suite on each release: serial run, then the MPI run o
 	        || exit 1; \
 	done
 
-test-serial:
-	$(RODENV) $(PYTEST) -m "not slow"
+test-serial:     ## the default tests, one worker per core (an MPI job of a test: tests/conftest.py)
+	$(RODENV) $(PYTEST) -m "not slow" -n $(JOBS) --dist worksteal
 
 test-mpi:
 	$(RODENV) mpirun -n $(NP) tests/mpi_pytest.sh -m "mpi and not slow"

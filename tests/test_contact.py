@@ -119,20 +119,23 @@ def _propped(obstacle, n: int = 16) -> dict:
     return propped_rod(obstacle, n).diagnostics(1.0)
 
 
-def propped_rod(obstacle, n: int = 16, curve: str = "segments") -> RodModel:
+def propped_rod(obstacle, n: int = 16, curve: str = "smooth",
+                rotations: str = "rotation_vector", scheme: str | None = None) -> RodModel:
     """The cantilever of ``_propped`` on ``obstacle`` (anywhere along it) at t = 1
-    (contact.obstacle_curve ``curve``)."""
+    (contact.obstacle_curve ``curve``; its unknowns' ``rotations``, stepped by
+    ``scheme``, default the rod's choice)."""
     w, EI = PROPPED
     params = RodParameters(length=1.0, A=(EI, EI, EI), B=(1e3, 1e3, 1e3))
-    rod = RodModel(params, n_cells=n, model="hyperelastic",
+    rod = RodModel(params, n_cells=n, model="hyperelastic", rotations=rotations,
                    distributed_loads=[DistributedLoad("force", (-w, 0.0, 0.0),
                                                       lambda t: min(t, 1.0))],
                    obstacles=[obstacle],
                    contact=ContactLaw(R, DELTA, default_stiffness(0.0, params.A, 1.0, n, 1.0),
                                       obstacle_curve=curve))
     rod.set_initial_state()
-    stepper = TimeStepper(rod.problem, None, TIGHT)
-    stepper.initial_accelerations(0.0)
+    stepper = TimeStepper(rod.problem, scheme, TIGHT)
+    if scheme is None:                  # generalized-alpha's start
+        stepper.initial_accelerations(0.0)
     stepper.run(0.0, 1.0, 0.1)
     return rod
 
@@ -218,6 +221,11 @@ def _error(text: str) -> SceneError:
      [("point = [-0.0105, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\nfriction = 0.3",  # a cell
        "centre = [0.0, 0.0, 0.05]\naxis = [0.0, 1.0, 0.0]\nradius = 0.003\nlength = 0.1"),
       ("[contact]", "[geometry]\nn_cells = 10\n[contact]")]),
+    (('shape = "plane"', 'shape = "cylinder"'), "obstacles[0].friction",   # a thin bar
+     [("point = [-0.0105, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]",        # 0.5 mm off,
+       "centre = [-0.0135, 0.0, 0.05]\naxis = [0.0, 1.0, 0.0]\nradius = 0.003\n"
+       "length = 0.1"),                          # on the segments (h = 0.1), quaternions
+      ("[contact]", '[geometry]\nn_cells = 10\nrotations = "quaternion"\n[contact]')]),
     (("density = 1.0\nsection_inertia = 1e-5", ""), "obstacles[0].friction",
      [("gravity = [-9.81, 0.0, 0.0]", "distributed_force = { value = [-9.81, 0.0, 0.0] }"),
       ('start = "free"', 'start = "clamped"')]),
@@ -230,6 +238,38 @@ def test_bad_contact_input_names_the_key(change, key, also):
         assert old in text
         text = text.replace(old, new, 1)
     assert _error(text).key == key
+
+
+@pytest.mark.parametrize("point, says", [
+    ("-0.01", "touches obstacles[0] at t = 0 (gap 0 between the surfaces"),
+    ("-0.005", "is 0.005 closer to obstacles[0] than the rod's radius at t = 0 (it cuts"),
+])
+def test_initial_overlap_says_where_the_rod_may_start(point, says):
+    """A rod laid on the plane at its radius (gap exactly 0, the barrier infinite: how a
+    user puts a rope on a floor) is told that it touches, not that it is "-0 closer";
+    a rod cutting 5 mm into it how far; both where it may start: a gap in (0, delta],
+    delta = r / 10 = 0.001 by default."""
+    err = _error(SCENE.replace("point = [-0.0105, 0.0, 0.0]", f"point = [{point}, 0.0, 0.0]"))
+    assert err.key == "obstacles[0]"
+    assert says in str(err)
+    assert "start it off the surface by a gap in (0, 0.001] (contact.gap" in str(err)
+    assert "-0 " not in str(err) and "triangles" not in str(err)      # a plane
+
+
+def test_a_rod_behind_a_mesh_hears_of_the_triangles_orientation():
+    """The plane of SCENE as a mesh square (x = -0.0105) whose triangles are clockwise
+    seen from the rod (their normal -x, the rod behind them: how an open bowl comes out
+    when given from inside): the rod's nodes are 0.0105 behind the surface, gap -0.0105
+    - r = -0.0205; the error says so and that the triangles may face the wrong way."""
+    mesh = ('vertices = [[-0.0105, -1.0, -1.0], [-0.0105, 1.0, -1.0], [-0.0105, 1.0, 2.0], '
+            '[-0.0105, -1.0, 2.0]]\ntriangles = [[0, 2, 1], [0, 3, 2]]')
+    text = SCENE.replace('shape = "plane"', 'shape = "mesh"').replace(
+        "point = [-0.0105, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]", mesh)
+    err = _error(text)
+    assert err.key == "obstacles[0]"
+    assert "is 0.0205 closer to obstacles[0]" in str(err)
+    assert "the triangles of obstacles[0] face the other way: give them counter-clockwise " \
+           "seen from the rod's side" in str(err)
 
 
 def test_contact_scene_runs_and_rests():

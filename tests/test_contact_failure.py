@@ -57,3 +57,107 @@ def test_a_newton_failure_in_contact_names_the_pair(tmp_path):
     message = proc.stdout + proc.stderr
     assert "DIVERGED_MAX_IT" in message and "; where: " in message
     assert PAIR.search(message) and "at Newton's last iterate" in message
+
+
+DRAGGED = """
+[scene]
+units = "SI"
+[geometry]
+length = 0.5
+n_cells = 12
+[section]
+shape = "circle"
+radius = 0.005
+[material]
+model = "hyperelastic"
+youngs_modulus = 1e8
+poisson_ratio = 0.4
+density = 1150.0
+[boundary]
+start = "pinned"
+end = "free"
+start_displacement = { type = "ramp", value = [-0.05, 0.0, 0.0], t0 = 0.02, duration = 0.5 }
+[initial]
+position = [0.0, 0.0, 0.00525]
+orientation = [0.0, 1.5707963267948966, 0.0]
+[loads]
+gravity = [0.0, 0.0, -9.81]
+[[obstacles]]
+shape = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+friction = 0.4
+[solver]
+options = { snes_max_it = 1 }
+[time]
+t_end = 0.03
+dt = 0.005
+max_step_cuts = 1
+"""
+
+
+def test_a_newton_failure_on_an_obstacle_names_it_and_the_friction_knobs(tmp_path):
+    """A rod lying on a floor with friction, dragged by its start (as a user writes it;
+    with the default Newton it stalls at the ramp's kink after resting 0.2 s, docs/
+    contact.md), here Newton limited to one iteration so that the first step fails:
+    exit 3, and the error names the floor, the gap at the last state (the rod starts
+    at z = r + delta / 2: gap 0.00025 m, delta = r / 10 = 0.0005) and the knobs that
+    let a stick-slip transition through, with the slip tolerance in use (the default
+    1e-3 L / t_end = 1e-3 x 0.5 / 0.03 = 0.0167 m/s)."""
+    scene = tmp_path / "dragged.toml"
+    scene.write_text(DRAGGED)
+    proc = cli("run", scene, "--out", tmp_path / "run")
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    message = proc.stdout + proc.stderr
+    assert "DIVERGED_MAX_IT" in message
+    assert re.search(r"; where: obstacles\[0\] nearest the centre line at s = [0-9.]+, "
+                     r"gap 0\.00025 \(the barrier acts below 0\.0005\); with friction "
+                     r"mu = 0\.4 ", message), message
+    assert "contact.slip_tolerance (now 0.0167), a smaller time.dt" in message
+
+
+PRESSED = """
+[scene]
+units = "SI"
+[geometry]
+length = 0.1
+n_cells = 20
+[section]
+shape = "circle"
+radius = 0.001
+[material]
+model = "hyperelastic"
+youngs_modulus = 2e11
+poisson_ratio = 0.3
+[boundary]
+start = "clamped"
+start_displacement = { type = "ramp", value = [0.0, 0.0, -0.01], duration = 1.0 }
+[initial]
+position = [0.0, 0.0, 0.0015]
+orientation = [0.0, 1.5707963267948966, 0.0]
+[[obstacles]]
+shape = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[time]
+t_end = 1.0
+dt = 0.1
+"""
+
+
+def test_a_prescribed_end_driven_into_an_obstacle_is_named(tmp_path):
+    """A steel wire (r = 1 mm) clamped 1.5 mm above a table, its clamp lowered 1 cm in
+    1 s (a robot pressing a compliant finger, written with the clamp's path through the
+    table): the clamp's surface reaches the table at t = 0.5 mm / (1 cm/s) = 0.05 s,
+    where no barrier can hold back the prescribed end.  Exit 3 before 0.05 s, and the
+    error names the motion's key, not "raise contact.stiffness" (which cannot help)."""
+    scene = tmp_path / "pressed.toml"
+    scene.write_text(PRESSED)
+    proc = cli("run", scene, "--out", tmp_path / "run")
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    message = proc.stdout + proc.stderr
+    failed = float(re.search(r"time step failed at t = ([0-9.e-]+)", message).group(1))
+    assert 0.0 < failed < 0.05
+    assert ("the prescribed motion boundary.start_displacement drives its end (s = 0) "
+            "into obstacles[0]") in message, message
+    assert "raise contact.stiffness" not in message

@@ -3,8 +3,12 @@ Debian release; the README's test command (CI) covers every release."""
 
 import os
 import re
+import sys
+import threading
 import tomllib
 from pathlib import Path
+
+from conftest import Cores, starts_mpi
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,7 +44,8 @@ def test_install_script_reads_one_package_list_per_release():
     for debian in releases().values():
         packages = (ROOT / f"env/debian-packages-{debian}.txt").read_text().split()
         for required in ("python3-dolfinx-real", "python3-adios4dolfinx", "python3-petsc4py",
-                         "openmpi-bin", "python3-pytest", "python3-pip"):
+                         "openmpi-bin", "python3-pytest", "python3-pytest-xdist",
+                         "python3-pip"):
             assert required in packages, (debian, required)
     assert "python3-scifem" in (ROOT / "env/debian-packages-trixie.txt").read_text().split()
 
@@ -58,6 +63,41 @@ def test_ci_runs_the_readme_test_command_on_every_release():
     assert fallback and fallback.group(1).split() == list(releases())
     for target in ("test-serial", "test-mpi", "test-interrupt"):
         assert re.search(rf"DOLFINX=\$\$v \$\(MAKE\) .*{target}", makefile)
+    # the serial run's workers (pytest-xdist): what tests/conftest.py schedules
+    assert re.search(r"^test-serial:.*\n\t.*-m \"not slow\" -n \$\(JOBS\)", makefile, re.M)
+
+
+def test_an_mpi_launcher_is_recognised_directly_and_through_rodenv():
+    assert starts_mpi(["mpirun", "-n", "2", sys.executable, "-m", "dolfin_rod"])
+    assert starts_mpi(["/usr/bin/mpirun", "-n", "3", sys.executable])
+    assert starts_mpi([ROOT / "rodenv", "mpiexec", "-n", "2", sys.executable])
+    assert starts_mpi("mpirun -n 2 python3 demos/torsion_creep.py")
+    assert not starts_mpi([sys.executable, "-m", "dolfin_rod", "run", "mpirun.toml"])
+    assert not starts_mpi([sys.executable, "-c", "import subprocess  # mpirun"])
+
+
+def test_a_test_starting_mpi_waits_for_the_others_and_holds_them_back(tmp_path):
+    """Two workers' claims (two open file descriptions: flocks conflict as between two
+    processes): the whole waits for a share to end, a new share waits for the whole."""
+    first, second = Cores(tmp_path), Cores(tmp_path)
+    first.share()
+    whole = threading.Thread(target=lambda: (second.share(), second.take_whole()))
+    whole.start()
+    whole.join(timeout=0.5)
+    assert whole.is_alive()                       # the MPI job waits for the running test
+    first.release()
+    whole.join(timeout=10)
+    assert not whole.is_alive() and second.whole
+    share = threading.Thread(target=first.share)
+    share.start()
+    share.join(timeout=0.5)
+    assert share.is_alive()                       # the next test waits for the MPI test
+    second.release()
+    share.join(timeout=10)
+    assert not share.is_alive()
+    first.release()
+    first.close()
+    second.close()
 
 
 def test_pyproject_declares_the_supported_dolfinx_releases():

@@ -110,3 +110,19 @@ def test_the_packages_warnings_reach_stderr_on_both_releases():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           cwd=ROOT, timeout=120)
     assert done.returncode == 0 and "RuntimeWarning: a step was cut" in done.stderr, done
+
+
+def test_a_large_power_residual_is_explained():
+    """The closing line of the power balance: a run whose residual reaches 0.6 of the
+    power scale (rows made by hand: E = K + Psi rises by 1 J over a step of 1 s with
+    D = P = 0, then by 0.6 J with P = 1 W: residuals 1 and 0.4 of the scale 1) is told
+    what D leaves out; one of 1e-3 is only shown."""
+    from dolfin_rod.output.closing import power_line
+    from dolfin_rod.output.plots import relative_power_residual
+    base = {"free_energy": 0.0, "kinetic_energy": 0.0, "dissipation_rate": 0.0,
+            "load_power": 0.0, "power_residual": 0.0}
+    rows = [{**base, "time": 0.0}, {**base, "time": 1.0, "free_energy": 1.0, "power_residual": 1.0},
+            {**base, "time": 2.0, "free_energy": 1.6, "load_power": 1.0, "power_residual": -0.4}]
+    assert list(relative_power_residual(rows)) == [1.0, 0.4]
+    assert "numerical damping" in power_line(0.4)
+    assert power_line(1e-3) == "power balance: largest relative residual after the first step 0.001"

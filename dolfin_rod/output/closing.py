@@ -90,9 +90,24 @@ def final_values(rows: list[dict], scene) -> list[str]:
                          f"{u('energy')}, dissipated {last['total_dissipation']:.4g}"
                          f"{u('energy')}")
         elif panel == "power_residual" and len(rows) > 2:
-            lines.append("power balance: largest relative residual after the first step "
-                         f"{np.nanmax(relative_power_residual(rows)[1:]):.2g}")
+            lines.append(power_line(np.nanmax(relative_power_residual(rows)[1:])))
     return lines
+
+
+# above this relative residual the line says what the balance leaves out
+LARGE_POWER_RESIDUAL = 0.05
+
+
+def power_line(largest: float) -> str:
+    """The closing line of the power balance; a large residual is explained, not only
+    shown: D is the material's and the loads' dissipation, so what the time integrator
+    damps numerically (generalized-alpha with rho_inf < 1; rho_inf = 0 with obstacles)
+    and what happens within a step (an impact) stays in the residual."""
+    line = f"power balance: largest relative residual after the first step {largest:.2g}"
+    if largest > LARGE_POWER_RESIDUAL:
+        line += (" (the balance's D leaves out the time integrator's numerical damping and "
+                 "events shorter than a step, such as impacts: docs/outputs.md)")
+    return line
 
 
 def _reaction(last: dict, rod: str, name: str, u) -> str:

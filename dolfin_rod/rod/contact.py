@@ -56,6 +56,28 @@ class InitialOverlap(ValueError):
         super().__init__(reason)
         self.obstacle = obstacle
 
+    @classmethod
+    def at(cls, where: str, s: float, g: float, k: int, gap: float,
+           shape: str) -> "InitialOverlap":
+        """The overlap of ``where`` ("centre line", "segment") at s, gap g <= 0 to
+        obstacles[k] of ``shape``, with where the rod may start instead: a rod just
+        touching (|g| at most a millionth of the gap: round-off of a rod laid on a floor
+        at its radius) starts where the barrier is infinite; a rod behind a mesh may see
+        its triangles turned the wrong way (an open bowl given clockwise from inside)."""
+        place = (f"start it off the surface by a gap in (0, {gap:.3g}] (contact.gap; "
+                 "the barrier holds the rod there) or farther")
+        if shape == "mesh":
+            place += (f"; if the rod is on the side it should stay on, the triangles of "
+                      f"obstacles[{k}] face the other way: give them counter-clockwise "
+                      f"seen from the rod's side")
+        if -g <= 1e-6 * gap:
+            return cls(f"the rod's {where} at s = {s:.4g} touches obstacles[{k}] at t = 0 "
+                       f"(gap 0 between the surfaces, where the barrier is infinite): "
+                       f"{place}", k)
+        return cls(f"the rod's {where} at s = {s:.4g} is {-g:.3g} closer to obstacles[{k}] "
+                   f"than the rod's radius at t = 0 (it cuts into the obstacle): move the "
+                   f"obstacle or the rod; {place}", k)
+
 
 @dataclass
 class Obstacle:
@@ -139,7 +161,7 @@ class ContactLaw:
     self_friction: float = 0.0      # Coulomb's mu of self-contact (pair_friction.py)
     between_rods_friction: float = 0.0      # ... of contact between rods
     pair_curve: str = "segments"    # the pairs' curves: "segments" | "smooth" (C^1)
-    obstacle_curve: str = "segments"    # the rod's curves on thin obstacles: the same
+    obstacle_curve: str = "smooth"      # the rod's curves on thin obstacles: the same
     self_contact: bool | None = None        # deprecated: self
 
     def __post_init__(self):
@@ -575,23 +597,48 @@ class ObstacleContact:
             local = (float(g[i, k]), float(self._nodes[i]), int(k))
         return min(self.mesh.comm.allgather(local))
 
+    def nearest_obstacle(self) -> str:
+        """Where a failed solve was, for step_control.step_failure: the obstacle nearest
+        the centre line at the current state, with the friction's knobs if it has
+        friction (a stick-slip transition sharper than Newton resolves in a step stalls
+        it: a kink of a prescribed motion dragging a rod on a floor; a larger
+        slip_tolerance, a smaller dt or a smooth_step let it through, docs/contact.md)."""
+        g, s, k = self.closest()
+        said = (f"obstacles[{k}] nearest the centre line at s = {s:.4g}, gap {g:.3g} (the "
+                f"barrier acts below {self.law.gap:g})")
+        mu = self.obstacles[k].friction
+        if mu > 0:
+            said += (f"; with friction mu = {mu:g} Newton may stall where the rod turns "
+                     f"from sticking to sliding within a step: a larger "
+                     f"contact.slip_tolerance (now {self.law.slip_tolerance:.3g}), a smaller "
+                     f"time.dt or a smooth_step instead of a ramp's kink in a prescribed "
+                     f"motion lets it through")
+        return said
+
     def check_initial(self) -> None:
         """InitialOverlap if the state (at t = 0) has a node within r of an obstacle."""
         self.locate()
         g, s, k = self.closest()
         if g <= 0:
-            raise InitialOverlap(f"the rod's centre line at s = {s:.4g} is {-g:.3g} closer "
-                                 f"to obstacles[{k}] than the rod's radius at t = 0: move "
-                                 "the obstacle or the rod", k)
+            raise InitialOverlap.at("centre line", s, g, k, self.law.gap,
+                                    self.obstacles[k].shape)
 
-    def check_state(self) -> str | None:
+    def check_state(self, prescribed: dict[float, str] | None = None) -> str | None:
         """A reason to reject a converged step: a node at or inside an obstacle, or a
         segment whose sweep from the last committed state (its nodes on straight paths)
         entered one's body (passed through a thin obstacle or across a sharp edge within
-        the step, or cuts into the body between its nodes: sweep_entry)."""
+        the step, or cuts into the body between its nodes: sweep_entry).  ``prescribed``:
+        {s of an end whose displacement is prescribed: its key}; such an end inside is
+        driven there by its motion, which no barrier stiffness can stop."""
         g, s, k = self.closest()
         if g <= 0:
-            return (f"the centre line at s = {s:.4g} is {-g:.3g} inside obstacles[{k}] "
+            key = next((key for s_end, key in (prescribed or {}).items()
+                        if abs(s_end - s) <= 1e-9 * max(abs(s_end), 1.0)), None)
+            if key is not None:
+                return (f"the prescribed motion {key} drives its end (s = {s:.4g}) into "
+                        f"obstacles[{k}] (gap {g:.3g}): the barrier cannot hold back a "
+                        f"prescribed end; stop the motion before the obstacle or move it")
+            return (f"the centre line at s = {s:.4g} is {abs(g):.3g} inside obstacles[{k}] "
                     f"(gap {g:.3g}; the barrier was overcome: raise contact.stiffness)")
         if self.start is None:
             return None

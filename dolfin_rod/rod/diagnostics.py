@@ -4,6 +4,8 @@ rotation angle."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import ufl
 
@@ -54,15 +56,28 @@ def rod_energy_forms(name: str, resp, c: dict, unk, disc, chi, support_energy=0)
 class Tip:
     """tip_position_{xyz} (r = s_tip e_3 + x) and tip_quaternion_{0..3} at the tip node
     s = s_tip (a rod's right end: L, or its end on a system's mesh): nodal values
-    (rotation vectors: q_n c(theta) of the tip node only)."""
+    (rotation vectors: q_n c(theta) of the tip node only).  The tip's dofs are looked up
+    at the first call (~0.3 ms of a model's set-up that a run without diagnostics, such
+    as a benchmark's or a fit's, does not need)."""
 
     def __init__(self, unk, s_tip: float):
         self.unk, self.length = unk, s_tip
-        self.x_node = NodeValues(unk.f["displacement"].function_space, [s_tip])
+
+    @functools.cached_property
+    def x_node(self) -> NodeValues:
+        return NodeValues(self.unk.f["displacement"].function_space, [self.length])
+
+    @functools.cached_property
+    def q_node(self) -> NodeValues:
+        unk = self.unk
         q = unk.f["quaternion"] if unk.chart is None else unk.chart.q_n
-        self.q_node = NodeValues(q.function_space, [s_tip])
-        self.theta_node = (None if unk.chart is None else
-                           NodeValues(unk.f[unk.rotation].function_space, [s_tip]))
+        return NodeValues(q.function_space, [self.length])
+
+    @functools.cached_property
+    def theta_node(self) -> NodeValues | None:
+        unk = self.unk
+        return (None if unk.chart is None else
+                NodeValues(unk.f[unk.rotation].function_space, [self.length]))
 
     def __call__(self) -> dict:
         unk = self.unk

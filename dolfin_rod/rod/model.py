@@ -203,7 +203,7 @@ class RodModel(FEModel):
                 for end, motion in (getattr(rod, name) or {}).items()}
         self.problem.structure = text
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
-        self._diagnostics(disc)
+        self._diagnostics(disc, nodes)
 
     def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
                            constraint: str | None, joints: Sequence[Joint], comm) -> list[Joint]:
@@ -451,9 +451,9 @@ class RodModel(FEModel):
         return per_rod, {block: ufl.derivative(springs, unk.f[block], unk.t[block])
                          for block in ("displacement", unk.rotation)}
 
-    def _diagnostics(self, disc) -> None:
+    def _diagnostics(self, disc, joint_nodes) -> None:
         """Tips, the energy forms (diagnostics.py) and the check that the rod does not
-        pass through itself."""
+        pass through itself (segments joined at ``joint_nodes`` are neighbours)."""
         unk, c, layout = self.unknowns, self.coefficients, self.layout
         self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(self.rods))]
         points = [dict.fromkeys((layout.starts[k], layout.lengths[k] / layout.n_cells[k],
@@ -491,7 +491,10 @@ class RodModel(FEModel):
         self.pass_through = PassThroughCheck(
             unk.f["displacement"], distance=h, exclusion=3 * h,
             hint="self-contact is off: set contact.self = true (contact.between_rods for "
-                 "rods of a system; docs/contact.md)")
+                 "rods of a system; docs/contact.md)" if layout.single else
+                 "contact between rods is off: set contact.between_rods = true "
+                 "(contact.self for a rod through itself; docs/contact.md)", layout=layout,
+            names=self.rod_names, joints=joint_nodes)
 
     def _segment_contact(self, law, layout, joint_nodes) -> SegmentContact | None:
         """The segment pairs' contact (pair_contact.py) if the law asks for it; the
@@ -578,7 +581,7 @@ class RodModel(FEModel):
         terms = list(self.segment_terms)
         if self.contact and self.contact.term:     # a mesh obstacle's features
             terms.append(self.contact.term)
-        where = self.segment_contact.nearest_pair if self.segment_contact else lambda: None
+        where = self.where_failed
         if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step, terms=terms,
@@ -592,6 +595,14 @@ class RodModel(FEModel):
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
             links=links, terms=terms, scale_motions=self.scale_motions,
             motion_turn=self.motion_turn, where_failed=where)
+
+    def where_failed(self) -> str | None:
+        """Where a step that finally failed went wrong (step_control.step_failure): the
+        segment pair nearest to touching, the obstacle nearest the centre line."""
+        said = [where() for where in (
+            self.segment_contact and self.segment_contact.nearest_pair,
+            self.contact and self.contact.nearest_obstacle) if where]
+        return "; ".join(w for w in said if w) or None
 
     def scale_motions(self, fraction: float) -> None:
         """Every rod's prescribed end motions scaled by ``fraction`` (EndSupports.scale)."""
@@ -655,7 +666,11 @@ class RodModel(FEModel):
         chart = self.unknowns.chart
         reason = chart.check_increment() if chart is not None else None
         if reason is None and self.contact:
-            reason = self.contact.check_state()
+            named = len(self.end_supports) > 1
+            reason = self.contact.check_state({
+                supports.s_ends[end]: f"boundary.{end}_displacement"
+                + (f" (rod {self.rod_names[i]})" if named else "")
+                for i, supports in enumerate(self.end_supports) for end in supports.displacement})
         for contact in self.segment_terms:
             if reason is None:
                 reason = contact.check_state()
@@ -722,9 +737,8 @@ class RodModel(FEModel):
         if self.obstacle_segments:
             g, s, k = self.obstacle_segments.closest()
             if g <= 0:
-                raise InitialOverlap(f"the rod's segment at s = {s:.4g} is {-g:.3g} closer "
-                                     f"to obstacles[{k}] than the rod's radius at t = 0: "
-                                     "move the obstacle or the rod", k)
+                raise InitialOverlap.at("segment", s, g, k, self.obstacle_segments.law.gap,
+                                        self.contact.obstacles[k].shape)
             self.obstacle_segments.commit()
         if self.segment_contact:
             reason = self.segment_contact.check_state()

@@ -20,8 +20,8 @@ capsule (its lids rounded by hemispheres of radius R): exact where the rod touch
 side.  A cell's two nodes are coupled by the rod's own forms, so the Jacobian's pattern
 does not grow.
 
-With ``contact.obstacle_curve = "smooth"`` the barrier acts on the rod's C^1 curve
-instead (smooth_pairs.py: each cell's Catmull-Rom cubic through its four stencil nodes,
+With ``contact.obstacle_curve = "smooth"`` (the default; "segments": the law above) the
+barrier acts on the rod's C^1 curve instead (smooth_pairs.py: each cell's Catmull-Rom cubic through its four stencil nodes,
 the obstacle's segment a straight second curve): a cell carries kappa w b(d - R - r) of
 its curve's closest point only where that minimiser is its own (smooth_pairs.counted:
 not its neighbour's along the rod), so a contact counts once wherever it lies, across

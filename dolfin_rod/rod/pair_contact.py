@@ -44,7 +44,7 @@ from petsc4py import PETSc
 
 from .contact import XI_MIN, barrier_derivatives
 from .pair_friction import PairFriction
-from .segments import closest_points, near_pairs
+from .segments import closest_points, joint_distances, near_pairs
 from .smooth_pairs import LIPSCHITZ, Stencils, closest, counted, free, smooth_pair_energy
 
 CROSSING_DEPTH = 24     # bisections of a step's path before a pair counts as crossed
@@ -316,17 +316,8 @@ class SegmentContact(NodeRates):
         return pairs[keep], tuple(v[keep] for v in closest_), np.array(free_)[:, keep]
 
     def _joint_distances(self, joints) -> list[np.ndarray]:
-        """Per joint point (the nodes (s_a, s_b) of the joints, those sharing a node
-        merged: one place in space) each segment's distance in s to the nearest of its
-        nodes: two segments whose distances add up to less than the exclusion are
-        neighbours through the joint (as within a rod), no pair."""
-        groups: list[set] = []
-        for joint in joints:
-            linked = [g for g in groups if g & set(joint)]
-            merged = set(joint).union(*linked)
-            groups = [g for g in groups if g not in linked] + [merged]
-        return [np.min(np.abs(self.line.mid_s[:, None] - np.array(sorted(g))[None, :]),
-                       axis=1) for g in groups]
+        """segments.joint_distances of the segments' midpoints."""
+        return joint_distances(self.line.mid_s, joints)
 
     def evaluate(self, owned_displacement: np.ndarray) -> "PairTerms":
         """The active pairs at this state and their energies, gradients, Hessians

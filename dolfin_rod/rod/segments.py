@@ -113,17 +113,36 @@ def crossing_sides(p0, p1, pairs) -> np.ndarray:
     return np.sign(np.einsum("ij,ij->i", gap, np.cross(d1, d2)))
 
 
+def joint_distances(mid_s: np.ndarray, joints) -> list[np.ndarray]:
+    """Per joint point (the nodes (s_a, s_b) of the joints, those sharing a node merged:
+    one place in space) each segment's distance in s (its midpoint's, ``mid_s``) to the
+    nearest of its nodes: two segments whose distances add up to less than the exclusion
+    are neighbours through the joint (as within a rod), no pair."""
+    groups: list[set] = []
+    for joint in joints:
+        linked = [g for g in groups if g & set(joint)]
+        merged = set(joint).union(*linked)
+        groups = [g for g in groups if g not in linked] + [merged]
+    return [np.min(np.abs(mid_s[:, None] - np.array(sorted(g))[None, :]), axis=1)
+            for g in groups]
+
+
 class PassThroughCheck:
     """At output times: did two non-neighbouring segments pass through each other since
     the last check?  Pairs nearer than ``distance`` at both checks whose crossing side
-    flipped; the first such event is reported once per run (a warning on rank 0 naming
-    the time and the two places s).  Cost: one gather of the centre line, one
-    midpoint tree (none while every segment points within 60 degrees of the mean
-    direction: such a line cannot meet itself)."""
+    flipped (not neighbours through ``joints``, joint_distances); the first such event is
+    reported once per run (a warning on rank 0 naming the time and the two places s,
+    with several rods (``layout``, a RodLayout; ``names``: each of its rods' name, a
+    rod split at its kinks named as the user's rod) the rods and s on each).  Cost: one gather of the centre line, one midpoint tree (none for
+    one rod while every segment points within 60 degrees of the mean direction: such a
+    line cannot meet itself; two rods can, crossing at 90 degrees)."""
 
-    def __init__(self, x, distance: float, exclusion: float, hint: str):
+    def __init__(self, x, distance: float, exclusion: float, hint: str, layout=None,
+                 names=(), joints=()):
         space = x.function_space
         self.x, self.comm, self.hint = x, space.mesh.comm, hint
+        self.layout = None if layout is None or layout.single else layout
+        self.names, self.joints = list(names), list(joints)
         self.distance, self.exclusion = distance, exclusion
         n_cells = space.mesh.topology.index_map(1).size_local
         dofs = space.dofmap.list[:n_cells]
@@ -153,21 +172,38 @@ class PassThroughCheck:
         tangents = p1 - p0
         mean = tangents.sum(axis=0)
         cosines = (tangents @ mean) ** 2 / np.einsum("ij,ij->i", tangents, tangents)
-        if np.all(cosines > 0.25 * (mean @ mean)) and np.all(tangents @ mean > 0):
+        if self.layout is None and np.all(cosines > 0.25 * (mean @ mean)) \
+                and np.all(tangents @ mean > 0):
             self.previous = None        # every tangent within 60 degrees of the mean
             return
         pairs = near_pairs(p0, p1, mid_s, self.distance, self.exclusion,
                            tree=len(mid_s) > FEW)
+        for near in joint_distances(mid_s, self.joints):    # neighbours through a joint
+            pairs = pairs[near[pairs[:, 0]] + near[pairs[:, 1]] >= self.exclusion]
         sides = dict(zip(map(tuple, pairs), crossing_sides(p0, p1, pairs)))
         passed = [pair for pair, side in sides.items() if self.previous is not None
                   and self.previous.get(pair, side) * side < 0]
         self.previous = sides
         if passed:
-            i, j = passed[0]
             self.warned = True
-            warnings.warn(f"at t = {t:.6g} the rod passed through itself near s = "
-                          f"{mid_s[i]:.4g} and s = {mid_s[j]:.4g} ({self.hint})",
-                          PassThroughWarning, stacklevel=2)
+            warnings.warn(f"at t = {t:.6g} {self._places(*(mid_s[k] for k in passed[0]))} "
+                          f"({self.hint})", PassThroughWarning, stacklevel=2)
+
+    def _places(self, a: float, b: float) -> str:
+        """Who passed through whom at the parameters a < b of the two segments."""
+        if self.layout is None:
+            return f"the rod passed through itself near s = {a:.4g} and s = {b:.4g}"
+        ka, kb = self.layout.rod_of([a, b])
+        offsets = self.layout.offsets or (0.0,) * len(self.names)
+        sa, sb = (s - self.layout.starts[k] + offsets[k] for s, k in ((a, ka), (b, kb)))
+        name_a, name_b = self.names[ka], self.names[kb]
+        if len(set(self.names)) == 1:
+            return f"the rod passed through itself near s = {sa:.4g} and s = {sb:.4g}"
+        if name_a == name_b:
+            return (f"rod {name_a} passed through itself near s = {sa:.4g} and "
+                    f"s = {sb:.4g}")
+        return f"rod {name_a} near s = {sa:.4g} and rod {name_b} near s = {sb:.4g} " \
+               "passed through each other"
 
 
 class PassThroughWarning(UserWarning):

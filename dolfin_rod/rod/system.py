@@ -81,5 +81,6 @@ class RodSystem(RodModel):
         if moving:
             d["reaction_power"] = reaction_power
             d["load_power"] += reaction_power
+        self.pass_through(t)
         self.contact_diagnostics(d)
         return d

@@ -490,7 +490,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
                           "line's capsules) | smooth (a C^1 Catmull-Rom curve through the "
                           "nodes: a crossing's energy smooth as it moves across a node; no "
                           "friction between segments; docs/contact.md, \"Smooth pairs\")"),
-        "obstacle_curve": Key(choice("segments", "smooth"), "segments", R + "the rod's curves "
+        "obstacle_curve": Key(choice("segments", "smooth"), "smooth", R + "the rod's curves "
                               "whose distance a thin obstacle's barrier acts on (its "
                               "contact on the segments): segments (the P1 chords) | smooth "
                               "(the C^1 Catmull-Rom curve of pair_curve: a contact's energy "
