@@ -221,6 +221,11 @@ def _error(text: str) -> SceneError:
      [("point = [-0.0105, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\nfriction = 0.3",  # a cell
        "centre = [0.0, 0.0, 0.05]\naxis = [0.0, 1.0, 0.0]\nradius = 0.003\nlength = 0.1"),
       ("[contact]", "[geometry]\nn_cells = 10\n[contact]")]),
+    (('shape = "plane"', 'shape = "cylinder"'), "obstacles[0].friction",   # a thin bar
+     [("point = [-0.0105, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]",        # 0.5 mm off,
+       "centre = [-0.0135, 0.0, 0.05]\naxis = [0.0, 1.0, 0.0]\nradius = 0.003\n"
+       "length = 0.1"),                          # on the segments (h = 0.1), quaternions
+      ("[contact]", '[geometry]\nn_cells = 10\nrotations = "quaternion"\n[contact]')]),
     (("density = 1.0\nsection_inertia = 1e-5", ""), "obstacles[0].friction",
      [("gravity = [-9.81, 0.0, 0.0]", "distributed_force = { value = [-9.81, 0.0, 0.0] }"),
       ('start = "free"', 'start = "clamped"')]),

@@ -20,10 +20,11 @@ SEGMENT_SHAPES = ("sphere", "cylinder", "mesh")     # contact = "segments" (rod/
                                                     # no DOLFINx for `dolfin-rod check`)
 
 
-def check_contact_keys(scene: Scene) -> None:
+def check_contact_keys(scene: Scene, rotations: str) -> None:
     """[[obstacles]] need contact.radius; [contact] needs obstacles; each obstacle has the
     pose keys of its shape; gap < radius; friction needs a dynamic rod (segment friction
-    also its kind of contact)."""
+    also its kind of contact; on an obstacle that acts on the segments, the rod's
+    ``rotations`` (rules.rod_rotations) rotation vectors)."""
     err, contact, obstacles = scene.error, scene["contact"], scene["obstacles"]
     given = scene.given["contact"]
     if not touching(scene):
@@ -58,6 +59,14 @@ def check_contact_keys(scene: Scene) -> None:
             raise err(f"{name}.friction", "friction depends on the velocity: it needs a "
                                           "dynamic rod (material.density > 0)")
         _check_segments(scene, k)
+        if ob["friction"] > 0 and acts_on_segments(scene, k)[0]:
+            if rotations != "rotation_vector":
+                raise err(f"{name}.friction", "this obstacle acts on the segments (a "
+                                              "sphere or cylinder thinner than the cells "
+                                              "can hold, or a mesh's sharp edges; "
+                                              "docs/contact.md): their friction needs "
+                                              "rotation-vector unknowns "
+                                              f"(geometry.rotations), got {rotations!r}")
     for key, pairs in (("self_friction", "self"), ("between_rods_friction", "between_rods")):
         if contact[key] > 0 and contact["pair_curve"] == "smooth":
             raise err(f"contact.{key}", "friction between segments needs "
@@ -132,18 +141,12 @@ def contact_lines(scene: Scene) -> list[str]:
     """``check``'s line per obstacle: where its barrier acts, nodes or segments
     (rod/segments.on_segments with the longest cell h; a mesh's sharp edges,
     rod/obstacle_segments.fixed_segments)."""
-    from ..rod.segments import chord_reaches_edge, on_segments
-    c = scene["contact"]
-    if not scene["obstacles"]:
-        return []
-    reach = c["radius"] + (c["gap"] or c["radius"] / 10)
-    h = max(own["geometry"]["length"] / own["geometry"]["n_cells"]
-            for own in [rod.scene for rod in scene.rods] or [scene])
+    from ..rod.segments import chord_reaches_edge
     lines = []
     for k, ob in enumerate(scene["obstacles"]):
         where = "on the nodes"
-        turn = mesh_surface(scene, ob).convex_edges()[1] if ob["shape"] == "mesh" else ()
-        if on_segments(ob["contact"], ob["shape"], ob["radius"] or 0.0, reach, h, turn):
+        segments, h, reach, turn = acts_on_segments(scene, k)
+        if segments:
             where = "on the segments"
             if ob["shape"] == "mesh":
                 edges = chord_reaches_edge(h, turn, reach).sum()
@@ -151,6 +154,20 @@ def contact_lines(scene: Scene) -> list[str]:
         lines.append(f"contact: obstacles[{k}] ({ob['shape']}, contact = "
                      f"{ob['contact']!r}) acts {where} (longest cell h = {h:.4g})")
     return lines
+
+
+def acts_on_segments(scene: Scene, k: int) -> tuple[bool, float, float, tuple]:
+    """Whether obstacles[k]'s barrier acts on the segments (rod/segments.on_segments:
+    a sphere's or cylinder's, a mesh's sharp edges), with the longest cell h, the reach
+    r + delta and a mesh's convex edges' turns."""
+    from ..rod.segments import on_segments
+    c, ob = scene["contact"], scene["obstacles"][k]
+    reach = c["radius"] + (c["gap"] or c["radius"] / 10)
+    h = max(own["geometry"]["length"] / own["geometry"]["n_cells"]
+            for own in [rod.scene for rod in scene.rods] or [scene])
+    turn = mesh_surface(scene, ob).convex_edges()[1] if ob["shape"] == "mesh" else ()
+    return (on_segments(ob["contact"], ob["shape"], ob["radius"] or 0.0, reach, h, turn),
+            h, reach, turn)
 
 
 def touching(scene: Scene) -> bool:

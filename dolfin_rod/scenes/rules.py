@@ -69,7 +69,7 @@ def check_combinations(scene: Scene) -> None:
     if rod:
         _check_rod_material(scene)
         _check_rod_ends(scene)
-        check_contact_keys(scene)
+        check_contact_keys(scene, rod_rotations(scene))
         _check_continuation(scene)
     else:
         _check_torsion(scene)
