@@ -98,8 +98,8 @@ max_step_cuts = 1
 
 def test_a_newton_failure_on_an_obstacle_names_it_and_the_friction_knobs(tmp_path):
     """A rod lying on a floor with friction, dragged by its start (as a user writes it;
-    with the default Newton it stalls at the ramp's kink after resting 0.2 s, docs/
-    contact.md), here Newton limited to one iteration so that the first step fails:
+    docs/contact.md), here Newton limited to one iteration, with the fallback line
+    search too, so that the first step fails:
     exit 3, and the error names the floor, the gap at the last state (the rod starts
     at z = r + delta / 2: gap 0.00025 m, delta = r / 10 = 0.0005) and the knobs that
     let a stick-slip transition through, with the slip tolerance in use (the default
