@@ -283,8 +283,9 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
                 scene, choice, sim, writer, comm, "interrupted", f"interrupted at t = {t:g} "
                 "(a signal; this summary was written at once, as mpirun ends its ranks "
                 "within half a second of a Ctrl-C or SIGTERM sent to it)", t, impulse, seen))
-        status, message, t = _integrate(scene, sim, writer, comm, 0 if meta is None else
-                                        meta["step"], stop_after, quiet, provisional)
+        status, message, t, fault = _integrate(scene, sim, writer, comm, 0 if meta is None
+                                               else meta["step"], stop_after, quiet,
+                                               provisional)
         status, message = _unstable_end(scene, sim, status, message)
         clock["integration"] = time.perf_counter() - t_run
         summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse,
@@ -295,6 +296,8 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
             clock["analysis"] = time.perf_counter() - t_analysis
         clock["total"] = time.perf_counter() - clock["start"]
         writer.finish(summary, {k: v for k, v in clock.items() if k != "start"})
+        if fault is not None:   # the files closed and the summary written: now its traceback
+            raise fault
     summary["pictures"] = comm.bcast(summary.get("pictures"), root=0)
     summary["folder"] = str(folder)
     _report(summary, status, message, t, folder, comm, quiet)
@@ -412,7 +415,7 @@ def _first_row(sim, writer, t0: float, fields: bool) -> None:
 
 
 def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | None,
-               quiet: bool, provisional=None) -> tuple[str, str, float]:
+               quiet: bool, provisional=None) -> tuple[str, str, float, Exception | None]:
     """Steps done+1 .. n (PETSc TS: the whole run), recording each; (status, message, t)
     with t the time of the last recorded row.  ``provisional(t)`` at the first SIGINT or
     SIGTERM (rank 0): the summary of the rows so far, before the step ends."""
@@ -453,7 +456,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
         if comm.allreduce(interrupted.raised, op=MPI.LOR):   # stop between steps
             raise KeyboardInterrupt
 
-    status, message = "completed", ""
+    status, message, fault = "completed", "", None
     try:
         if done == 0:
             _first_row(sim, writer, times[0], outs["every"])
@@ -465,11 +468,16 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
         status, message = "interrupted", f"interrupted at t = {progress['t']:g}"
     except (IntegrationError, SolverError, OutputError) as err:   # keep what was computed
         status, message = "failed", f"{type(err).__name__}: {err}"
+    except Exception as err:     # a fault of the package: kept too, then raised (run)
+        status, message = "failed", (f"{type(err).__name__}: {err} (an internal error of "
+                                     "dolfin_rod, not of the scene: please report it with "
+                                     "the traceback that follows)")
+        fault = err
     finally:
         interrupted.restore()
         if bar is not None:
             bar.close()
-    return status, message, progress["t"]
+    return status, message, progress["t"], fault
 
 
 def _report_stability_changes(sim, comm) -> bool:

@@ -98,8 +98,8 @@ max_step_cuts = 1
 
 def test_a_newton_failure_on_an_obstacle_names_it_and_the_friction_knobs(tmp_path):
     """A rod lying on a floor with friction, dragged by its start (as a user writes it;
-    with the default Newton it stalls at the ramp's kink after resting 0.2 s, docs/
-    contact.md), here Newton limited to one iteration so that the first step fails:
+    docs/contact.md), here Newton limited to one iteration, with the fallback line
+    search too, so that the first step fails:
     exit 3, and the error names the floor, the gap at the last state (the rod starts
     at z = r + delta / 2: gap 0.00025 m, delta = r / 10 = 0.0005) and the knobs that
     let a stick-slip transition through, with the slip tolerance in use (the default
@@ -115,6 +115,36 @@ def test_a_newton_failure_on_an_obstacle_names_it_and_the_friction_knobs(tmp_pat
                      r"mu = 0\.4 ", message), message
     assert "contact.slip_tolerance (now 0.0167), a smaller time.dt" in message
 
+
+
+def test_a_rod_dragged_from_rest_slides_at_coulombs_force(tmp_path):
+    """The dragged rod above with the default Newton, pulled 5 cm over 0.5 s (it stalled
+    at the ramp's kink with the backtracking line search alone: steps of 1e-4 of
+    Newton's; the l2 line search, tried where it fails, passes): the run completes on 1
+    and 2 ranks, the start ends 5 cm back, and while the rod slides steadily at 0.1 m/s
+    (far above the slip tolerance, where the smoothed law is Coulomb's: phi(v / eps) = 1
+    beyond eps) the pull equals mu times the floor's normal force.  From t = 0.3 s: the
+    kink's transient (the rod's vibration and its acceleration, excited by the velocity
+    jump) has decayed to 5e-8 of the pull by then (measured; 2e-3 at 0.1 s), the rest is
+    Newton's rtol 1e-8: rel 1e-6."""
+    scene = tmp_path / "dragged.toml"
+    scene.write_text(DRAGGED.replace("options = { snes_max_it = 1 }\n", "")
+                     .replace("t_end = 0.03", "t_end = 0.6").replace("max_step_cuts = 1", ""))
+    runs = []
+    for ranks in (0, 2):
+        out = tmp_path / f"run{ranks}"
+        proc = cli("run", scene, "--out", out, "--quiet", mpi=ranks)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        with open(out / "timeseries.csv") as f:
+            runs.append([{k: float(v) for k, v in row.items() if v} for row in csv.DictReader(f)])
+    for rows in runs:
+        sliding = [r for r in rows if 0.3 <= r["time"] <= 0.5]
+        for r in sliding:
+            assert r["reaction_force_start_x"] == pytest.approx(
+                -0.4 * r["contact_force_z"], rel=1e-6, abs=0.0)
+        assert rows[-1]["tip_position_x"] == pytest.approx(0.45, abs=1e-5)   # 0.5 - 0.05
+    assert runs[1][-1]["reaction_force_start_x"] == pytest.approx(
+        runs[0][-1]["reaction_force_start_x"], rel=1e-6)
 
 PRESSED = """
 [scene]

@@ -792,3 +792,35 @@ def test_full_disk_while_adios2_writes_fields_or_a_checkpoint(tmp_path, capsys, 
         assert np.allclose([float(row[k] or 0) for k in row],
                            [float(reference[k] or 0) for k in row], rtol=1e-8, atol=1e-10)
     assert not list(run.glob("checkpoint/*.partial"))
+
+
+def test_an_internal_error_mid_run_keeps_the_rows_and_closes_the_files(tmp_path,
+                                                                      monkeypatch):
+    """A fault of the package itself (here an AttributeError raised when the 4th row of
+    the bundled gravity cantilever, shortened to 10 steps, is recorded): the error still
+    reaches the caller with its traceback, but first the rows before it (0, 1, 2) are in
+    timeseries.csv, summary.json says "failed" and why, and rod.bp is closed (its index
+    written: ADIOS2 writes md.idx at close)."""
+    from dolfin_rod import run_scene
+    from dolfin_rod.output.writer import RunWriter
+    calls = {"n": 0}
+    record = RunWriter.record
+
+    def failing(self, *args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 4:
+            raise AttributeError("'Thing' object has no attribute 'x' (injected)")
+        return record(self, *args, **kwargs)
+    monkeypatch.setattr(RunWriter, "record", failing)
+    scene = tmp_path / "gc.toml"
+    text = (ROOT / "scenes" / "gravity_cantilever.toml").read_text()
+    scene.write_text(text.replace("t_end = 1.0 ", "t_end = 0.1 "))
+    out = tmp_path / "run"
+    with pytest.raises(AttributeError, match="injected"):
+        run_scene(scene, out, quiet=True)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed"
+    assert "AttributeError" in summary["message"] and "internal error" in summary["message"]
+    with open(out / "timeseries.csv") as f:
+        assert [int(r["step"]) for r in csv.DictReader(f)] == [0, 1, 2]
+    assert (out / "rod.bp" / "md.idx").is_file()

@@ -127,6 +127,16 @@ dt = 0.1
 """
 
 
+def _two_rods(text: str):
+    """(model, its displacement Function, s at its dofs, where rod b's s begins) of a
+    started two-rod scene."""
+    sim = build(parse_scene(text), "rod")
+    sim.start()
+    x = sim.model.f["displacement"]
+    return sim.model, x, x.function_space.tabulate_dof_coordinates()[:, 0], \
+        sim.model.layout.starts[1]
+
+
 @pytest.mark.mpi
 def test_two_rods_passing_through_each_other_are_reported_once():
     """[[rods]] without contact.between_rods: rod a along x, rod b along y crossing it
@@ -135,12 +145,7 @@ def test_two_rods_passing_through_each_other_are_reported_once():
     rods and s on each (each tangent 45 degrees from the mean: the one-rod shortcut,
     no pass-through within 60 degrees of a mean direction, must not hide it); nothing
     while b stays above."""
-    sim = build(parse_scene(TWO_RODS), "rod")
-    sim.start()
-    rod = sim.model
-    x = rod.f["displacement"]
-    s = x.function_space.tabulate_dof_coordinates()[:, 0]
-    b_start = rod.layout.starts[1]
+    rod, x, s, b_start = _two_rods(TWO_RODS)
     local = np.where(s < b_start, s, s - b_start)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -184,12 +189,7 @@ def test_rods_meeting_at_a_joint_are_neighbours_there():
     closest points lies along the post, normal to t_a x t_b), which flipped and warned
     in the bundled hinged_door and tripod scenes.  Segments within the exclusion 3h of the joint
     along both rods are neighbours (as along one rod): no warning."""
-    sim = build(parse_scene(HINGED), "rod")
-    sim.start()
-    rod = sim.model
-    x = rod.f["displacement"]
-    s = x.function_space.tabulate_dof_coordinates()[:, 0]
-    b_start = rod.layout.starts[1]
+    rod, x, s, b_start = _two_rods(HINGED)
     on_a = (s < b_start)[:, None]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

@@ -86,7 +86,7 @@ def petsc_options(comm, options: dict | None) -> dict:
 
 # options read only when a solver is set up or solves (block Jacobi's sub-solvers, the
 # factorisation packages, viewers) and this package's own: not probed by option_problem
-LATE_OPTIONS = ("sub_", "mat_", "jacobian_reuse_ratio")
+LATE_OPTIONS = ("sub_", "mat_", "jacobian_reuse_ratio", "linesearch_fallback")
 
 
 def option_problem(options: dict) -> tuple[str, str] | None:
@@ -266,6 +266,11 @@ class BlockSNES:
     floor (stiff axial terms: E A eps, above a small load's snes_rtol) only stops at
     snes_max_it, where the quaternion rod, whose unit quaternions are part of |y|, stops.
 
+    Option ``linesearch_fallback`` (not a PETSc option; default none): a line search type
+    a solve that failed is retried with once, from the same start, before it is reported
+    failed (the line search given by snes_linesearch_type is back for the next solve).
+    A solve that succeeds with the first is unchanged, bit for bit.
+
     Option ``jacobian_reuse_ratio`` r (not a PETSc option; default REUSE_RATIO, 0: a new
     Jacobian every iteration): each solve starts with a new Jacobian and LU and keeps
     them while every Newton iteration reduces the residual norm by at least the factor
@@ -290,6 +295,7 @@ class BlockSNES:
         lagged = any(k.startswith("snes_lag_") for k in options or {})
         self.reuse_ratio = settings.pop("jacobian_reuse_ratio",
                                         None if lagged else REUSE_RATIO)
+        self.fallback = settings.pop("linesearch_fallback", None)
         if self.reuse_ratio is not None:   # PETSc asks every iteration, _jacobian decides
             settings.update(snes_lag_jacobian=1, snes_lag_preconditioner=1)
         self.system = block_system(F, [y], bcs=bcs, cache=cache)
@@ -306,8 +312,7 @@ class BlockSNES:
         for k, v in settings.items():
             opts[self.prefix + k] = v
         self.snes.setFromOptions()
-        if any(hasattr(term, "limit_step") for term in self.system.terms):
-            self.snes.setLineSearchPreCheck(self._limit_step)
+        self._set_pre_check()
         self.step_scale = step_scale
         if step_scale > 0.0:
             self.snes.setConvergenceTest(self._converged)
@@ -401,6 +406,38 @@ class BlockSNES:
         return self.iterations
 
     def _solve_once(self) -> None:
+        if self.fallback is None:
+            return self._newton()
+        start = self.x.copy()
+        try:
+            self._newton()
+        except SolverError:
+            start.copy(self.x)
+            self._with_line_search(self.fallback, self._newton)
+        finally:
+            start.destroy()
+
+    def _with_line_search(self, kind: str, solve) -> None:
+        """solve() with the line search ``kind``, then the configured one again (through
+        the options database: petsc4py 3.22 has no SNESGetLineSearch; the pre-check, the
+        terms' update limit, set anew after each change)."""
+        opts, key = PETSc.Options(), f"{self.prefix}snes_linesearch_type"
+        configured = opts.getString(key, "basic")
+        try:
+            opts[key] = kind
+            self.snes.setFromOptions()
+            self._set_pre_check()
+            solve()
+        finally:
+            opts[key] = configured
+            self.snes.setFromOptions()
+            self._set_pre_check()
+
+    def _set_pre_check(self) -> None:
+        if any(hasattr(term, "limit_step") for term in self.system.terms):
+            self.snes.setLineSearchPreCheck(self._limit_step)
+
+    def _newton(self) -> None:
         self._initial_norm = None
         self.snes.solve(None, self.x)
         reason = self.snes.getConvergedReason()

@@ -213,7 +213,7 @@ def contact_solver_options(scene: Scene) -> dict:
     """Obstacles: Newton to rtol 1e-8 (the dynamic rod's 1e-4 accepts a step whose
     residual is dominated by the barrier's: docs/contact.md) unless time.rtol is given;
     friction: with a backtracking line search (the sticking law's Newton steps overshoot
-    without one); segment pairs: without PETSc's divergence test."""
+    without one) and, where it fails, the l2 line search; segment pairs: without PETSc's divergence test."""
     if not touching(scene):
         return {}
     options = {} if "rtol" in scene.given["time"] else {"snes_rtol": 1e-8}
@@ -221,6 +221,9 @@ def contact_solver_options(scene: Scene) -> dict:
     if any(ob["friction"] > 0 for ob in scene["obstacles"]) or c["self_friction"] > 0 \
             or c["between_rods_friction"] > 0:
         options["snes_linesearch_type"] = "bt"
+        # bt stalls where a prescribed motion starts a sticking rod sliding within a step
+        # (its steps shrink to 1e-4: docs/contact.md); l2 takes those steps
+        options["linesearch_fallback"] = "l2"
     if segment_pairs(scene):    # a pair's barrier may raise the residual 1e4-fold on the
         options["snes_divergence_tolerance"] = -1.0     # way to its root: no divergence stop
     return options
