@@ -323,6 +323,7 @@ class BlockSNES:
         weakref.finalize(self, _forget_options, self.prefix, list(settings))
         self._last_norm = np.inf
         self._x_at_residual, self._r = self.x.duplicate(), self.system.b.duplicate()
+        self._start = self.x.duplicate() if self.fallback is not None else None
         self._residual_norm, self._initial_norm = np.inf, None
         self._bc_values = None
         self._persists = tuple(str(settings.get(f"snes_lag_{k}_persists", False)).lower()
@@ -408,14 +409,12 @@ class BlockSNES:
     def _solve_once(self) -> None:
         if self.fallback is None:
             return self._newton()
-        start = self.x.copy()
+        self.x.copy(self._start)        # (one vector for every solve, not one a solve)
         try:
             self._newton()
         except SolverError:
-            start.copy(self.x)
+            self._start.copy(self.x)
             self._with_line_search(self.fallback, self._newton)
-        finally:
-            start.destroy()
 
     def _with_line_search(self, kind: str, solve) -> None:
         """solve() with the line search ``kind``, then the configured one again (through
