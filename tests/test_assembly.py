@@ -370,3 +370,4 @@ def test_own_newton_loop_is_snes_newtonls_iterate_for_iterate(monkeypatch, case)
         reason = {"max_it": "DIVERGED_MAX_IT", "linear solve": "DIVERGED_LINEAR_SOLVE",
                   "non-finite": "DIVERGED_F"}[case]
         assert reason in own[4], own[4]
+

@@ -292,13 +292,11 @@ class MonolithicSystem(_System):
     def residual(self, x, b, bc_values=None) -> None:
         """b = F(x), Dirichlet rows x - g (g: ``bc_values`` if given, else bc_values())."""
         self._prepare_terms(x)
-        with b.localForm() as bl:       # (one local form for all: DOLFINx's PETSc
-            local = bl.array_w          # assemble_vector takes one per form)
-            local[:] = 0.0
-            for form in self.F:
-                fem.assemble_vector(local, form)
-        if self._ghosted:
-            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        with b.localForm() as bl:       # (one local form for all forms: DOLFINx's
+            bl.set(0.0)                 # PETSc assemble_vector takes one per form; each
+            for form in self.F:         # array is released inside, which marks b changed)
+                fem.assemble_vector(bl.array_w, form)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         self._add_terms_to_residual(x, b)
         self._replace_bc_rows(x, b, bc_values)
 
