@@ -542,7 +542,8 @@ RENAMED = {("geometry", "reference_twist"): "initial.natural_twist (u_d at t = 0
 
 def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
     """Read and validate a scene file; every failure is a SceneError.  ``overrides``
-    {"table.key": value} (None: remove the key) change the file's values first, e.g.
+    {"table.key": value} (None: remove the key; "table.key.subkey" a key of an inline
+    table such as loads.end_force.value) change the file's values first, e.g.
     ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``."""
     path = Path(path)
     try:
@@ -569,18 +570,40 @@ def parse_scene(text: str, source: str = "<string>", default_name: str = "scene"
         raise SceneError(source, "", f"invalid TOML: {err}") from None
     if overrides:
         for name, value in overrides.items():
-            table, _, key = name.partition(".")
-            if not key:
-                raise SceneError(source, name, "an override is named \"table.key\"")
-            section = raw.setdefault(table, {})
-            if value is None:
-                section.pop(key, None)
-            elif isinstance(section, dict):
-                section[key] = value
+            _override(raw, name, value, source)
         text = f"# {source} with overrides {overrides}\n" + to_toml(raw)
     scene = validate(raw, source, default_name)
     scene.text = text
     return scene
+
+
+def _override(raw: dict, name: str, value: Any, source: str) -> None:
+    """raw[table][key]... = value (None: remove it) for name "table.key" or a key inside
+    a table's inline table, "table.key.sub" (e.g. loads.end_force.value); a SceneError
+    naming the override where the path does not lead through tables (an array of tables
+    such as [[rods]], which an override cannot index: edit the file)."""
+    table, *path = name.split(".")
+    if not path or not all(path):
+        raise SceneError(source, name, "an override is named \"table.key\" (or "
+                                       "\"table.key.subkey\")")
+    if value is None and table not in raw:
+        return
+    section, where = raw.setdefault(table, {}), table
+    for key in path[:-1]:
+        if not isinstance(section, dict):
+            break
+        if value is None and key not in section:
+            return                                  # nothing there to remove
+        section, where = section.setdefault(key, {}), f"{where}.{key}"
+    if not isinstance(section, dict):
+        kind = "an array of tables" if isinstance(section, list) else "not a table"
+        raise SceneError(source, name, f"override {name!r}: {where} is {kind}; an override "
+                                       "can only change a key of a table: edit the scene "
+                                       "file")
+    if value is None:
+        section.pop(path[-1], None)
+    else:
+        section[path[-1]] = value
 
 
 def to_toml(raw: dict) -> str:
