@@ -13,7 +13,7 @@ torsion/ode.py.  The integrator of an FE model is picked in integrators/choice.p
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
@@ -302,7 +302,7 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
                                 start=rod_starts(scene) if scene.rods else starting_state(scene))
 
     if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
-        from ..rod.contact import InitialOverlap
+        from ..rod.obstacle_shapes import InitialOverlap
         try:
             initial_state()
         except InitialOverlap as err:
@@ -384,6 +384,47 @@ def placed_rods(scene: Scene) -> list:
             geo["n_cells"], (boundary["start"], boundary["end"]), motions["displacement"],
             motions["rotation"], entry.position, entry.orientation))
     return rods
+
+
+class CentreLine(NamedTuple):
+    """A rod's nodes at t = 0 (``initial_centre_lines``): its name (None for the rod of
+    a scene without [[rods]]), their rest arc lengths s on it and positions (n, 3); a rod
+    split at its corners (rod/kinks.py) gives one per piece."""
+
+    rod: str | None
+    s: np.ndarray
+    points: np.ndarray
+
+
+def initial_centre_lines(scene: Scene) -> list[CentreLine] | None:
+    """Where the nodes of every rod are at t = 0, as the model places them (its
+    stress-free shape or [initial] start, placed; split at its corners as the model
+    splits it), in numpy (no DOLFINx: ``dolfin-rod check``); None if a start is settled
+    in static equilibrium first (initial.equilibrium: known after that solve only)."""
+    from ..rod.kinks import split_placed, system_starts
+    from ..rod.placement import Geometry, PlacedRod
+    from ..rod.start import RodStarts
+    if scene.rods:
+        rods, starts = placed_rods(scene), rod_starts(scene) or {}
+    else:
+        geo, boundary = scene["geometry"], scene["boundary"]
+        rods = [PlacedRod("rod", Geometry(geo["length"], geo["reference_curvature"],
+                                          geo["reference_stretch"],
+                                          curve(geo["reference_shape"])),
+                          geo["n_cells"], (boundary["start"], boundary["end"]))]
+        start = starting_state(scene)
+        starts = {} if start is None else {"rod": start}
+    if any(start.equilibrium for start in starts.values()):
+        return None
+    splits = [split_placed(rod) for rod in rods]
+    state = RodStarts(system_starts(starts, splits), [p for split in splits for p in split.rods])
+    lines = []
+    for split in splits:
+        name = split.rods[0].name if scene.rods else None
+        for piece, offset in zip(split.rods, split.offsets):
+            s = np.linspace(0.0, piece.params.length, piece.n_cells + 1)
+            lines.append(CentreLine(name, s + offset, state.rod_state(piece, s)[0]))
+    return lines
 
 
 def rods_and_joints(scene: Scene) -> tuple[list, list]:

@@ -79,6 +79,29 @@ def check_contact_keys(scene: Scene, rotations: str) -> None:
                                         "dynamic rod (material.density > 0)")
 
 
+def check_initial_overlap(scene: Scene, lines: list | None) -> None:
+    """A rod whose nodes start within its radius of an obstacle (rod/obstacle_shapes.py:
+    the gaps of the model's check at t = 0) on the rods' centre ``lines`` at t = 0
+    (builders.initial_centre_lines, in numpy; None: a start settled in equilibrium
+    first, left to run): the error naming obstacles[k] that run gives, before any model."""
+    from ..rod.obstacle_shapes import InitialOverlap, gaps, make_pose
+    if not scene["obstacles"] or lines is None:
+        return
+    radius = scene["contact"]["radius"]
+    poses = [make_pose(obstacle(scene, ob), tree=False)      # (no scipy import)
+             for ob in scene["obstacles"]]
+    nearest = []
+    for line in lines:
+        g = gaps(poses, line.points, radius)
+        i, k = np.unravel_index(np.argmin(g), g.shape)
+        nearest.append((float(g[i, k]), float(line.s[i]), int(k), line.rod))
+    g, s, k, rod = min(nearest, key=lambda near: near[0])
+    if g <= 0:
+        gap = scene["contact"]["gap"] or radius / 10
+        raise scene.error(f"obstacles[{k}]", str(InitialOverlap.at(
+            "centre line", s, g, k, gap, scene["obstacles"][k]["shape"], rod)))
+
+
 def _check_segments(scene: Scene, k: int) -> None:
     """contact = "segments": a sphere, a cylinder or a mesh (rod/contact.py
     check_contact_mode, with the scene's keys)."""
@@ -110,7 +133,7 @@ def _check_mesh(scene: Scene, k: int) -> None:
 def obstacle(scene: Scene, ob: dict):
     """rod.contact.Obstacle of one [[obstacles]] entry (a mesh's file relative to the
     scene's folder)."""
-    from ..rod.contact import Obstacle
+    from ..rod.obstacle_shapes import Obstacle
     given = {key: tuple(ob[key]) for key in ("point", "normal", "centre", "axis",
                                              "rotation", "vertices", "triangles")
              if ob[key] is not None}           # the shape's keys only (checked above)
