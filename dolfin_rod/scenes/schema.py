@@ -32,7 +32,7 @@ from ..checks import (DEGREE, MAX_STEP_CUTS, MIN_LENGTH, N_CELLS, NEWTON_ATOL, N
 from ..rod.rotation_choice import ROTATIONS
 from ..rod.sections import SHAPES as SECTION_SHAPES
 from .builders import initial_centre_lines
-from .contact import check_initial_overlap, touching
+from .contact import check_initial_contact, touching
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
@@ -609,7 +609,7 @@ def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> S
     else:
         scene = _validate_tables(raw, source, default_name)
     if scene.is_rod_material and touching(scene):    # contact at t = 0: the rods placed
-        check_initial_overlap(scene, initial_centre_lines(scene))
+        check_initial_contact(scene, initial_centre_lines(scene))
     return scene
 
 
