@@ -242,8 +242,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                        "youngs_modulus): A_d = r A, B_d = r B"),
         "relaxation_time": Key(positive_pair, None, R + "tau or [tau_u, tau_v] (s): the "
                                "natural strains' relaxation times at a held strain, M_d = "
-                               "tau_u (A + A_d), N_d = tau_v (B + B_d) instead of "
-                               "viscosity.M_d, N_d (evolving model)"),
+                               "tau_u (A + A_d), N_d = tau_v (B + B_d) (uniform variant: "
+                               "times geometry.length, its law integrating over s) instead "
+                               "of viscosity.M_d, N_d (evolving model)"),
         "density": Key(coefficient(False), None, R + "mass per length rho A (kg/m; number or "
                        "{polynomial}); with a [section]: the mass density rho (kg/m^3, a "
                        "number), rho A = rho a and section_inertia = rho (I_11, I_22); > 0: "
