@@ -31,6 +31,8 @@ from ..checks import (DEGREE, MAX_STEP_CUTS, MIN_LENGTH, N_CELLS, NEWTON_ATOL, N
                       SCHEME, TS_ATOL, TS_RTOL, VARIANT, read_regular_file)
 from ..rod.rotation_choice import ROTATIONS
 from ..rod.sections import SHAPES as SECTION_SHAPES
+from .builders import initial_centre_lines
+from .contact import check_initial_contact, touching
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
@@ -625,10 +627,14 @@ def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> S
     if not isinstance(raw, dict):
         raise SceneError(source, "", f"a scene must be a table, got {type_name(raw)}")
     if "rods" in raw:
-        return validate_system(dict(raw), source, default_name, _validate_tables)
-    if "joints" in raw:
+        scene = validate_system(dict(raw), source, default_name, _validate_tables)
+    elif "joints" in raw:
         raise SceneError(source, "joints", "joints join the rods of [[rods]] tables")
-    return _validate_tables(raw, source, default_name)
+    else:
+        scene = _validate_tables(raw, source, default_name)
+    if scene.is_rod_material and touching(scene):    # contact at t = 0: the rods placed
+        check_initial_contact(scene, initial_centre_lines(scene))
+    return scene
 
 
 def _validate_tables(raw: dict, source: str, default_name: str,
