@@ -127,7 +127,8 @@ switching variant on a rod with L != 1 rescales time by L.
 (unique; the rod's output columns are `<name>.<key>`), `position` (its s = 0 end, m),
 `orientation` (a rotation vector turning e_3 into its initial tangent), and its own
 `geometry`, `section`, `material`, `boundary`, `loads`, `initial` as inline tables laid
-over the scene's tables key by key (an error names `rods[k].<table>.<key>`;
+over the scene's tables key by key (a `section` with a `shape` replaces the scene's
+[section]; an error names `rods[k].<table>.<key>`;
 `material.model`, `variant`, `constraints`, `energy` and `geometry.rotations` are shared
 and given in the scene's tables only; `initial.natural_*` are each rod's own (or the
 scene's for every rod); a rod's starting
