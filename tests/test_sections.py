@@ -304,3 +304,27 @@ def test_a_fibre_in_si_units_is_warned_of_newtons_absolute_tolerance_and_creeps_
     A, A_d, M_d = derived["A"][2], derived["A_d"][2], derived["M_d"][2]
     creep = 0.05 * (1e-9 / A + 1e-9 / A_d * (1 - np.exp(-6.0 * A_d / M_d)))
     assert sim.diagnostics(6.0)["tip_rotation_angle"] == pytest.approx(creep, rel=1e-3)
+
+
+@pytest.mark.parametrize("load, warned", [
+    ('{ type = "step", value = [0.0, 0.0, 1e-3], t0 = 6.0 }', "[loads.end_couple.t0]: it "
+     "first changes at t = 6, not before time.t_end = 6"),
+    ('{ type = "ramp", value = [0.0, 0.0, 1e-3], t0 = 7.0, duration = 1.0 }',
+     "[loads.end_couple.t0]: it first changes at t = 7"),
+    ('{ type = "table", times = [0.0, 6.5, 7.0], values = [[0.0, 0.0, 1e-3], [0.0, 0.0, '
+     '1e-3], [0.0, 0.0, 0.0]] }', "[loads.end_couple.times]: it first changes at t = 6.5"),
+    ('{ type = "ramp", value = [0.0, 0.0, 1e-3], t0 = 5.0, duration = 2.0 }', None),
+    ('{ type = "step", value = [0.0, 0.0, 0.0], t0 = 9.0 }', None),
+])
+def test_a_load_that_starts_after_the_run_is_warned_of(load, warned):
+    """A load whose history first changes at or after time.t_end = 6 never acts (a t0
+    meant for a longer run): warned of, naming its key; one changing before, or never
+    (zero), is not."""
+    from dolfin_rod.scenes.run_warnings import late_history_warnings
+    text = FIBRE.replace("end_couple = { value = [0.0, 0.0, 1e-9] }", f"end_couple = {load}")
+    warnings = late_history_warnings(parse_scene(text))
+    if warned is None:
+        assert warnings == []
+    else:
+        (warning,) = warnings
+        assert warned in warning and warning.endswith("it never acts in this run"), warning

@@ -1,7 +1,8 @@
 """Warnings about a valid scene before its run: explicit Euler above its stability limit
 (torsion/stability.py, docs/stability.md); a [section] not small against the rod's length
 (a dimension given in mm instead of m); a Newton tolerance time.atol not small against the
-scene's forces (a thin fibre in SI units: Newton accepts its first guess)."""
+scene's forces (a thin fibre in SI units: Newton accepts its first guess); a load or end
+motion that starts only at or after time.t_end."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from ..torsion.stability import euler_step_limit
 from .scene import Scene
 
 __all__ = ["explicit_stability_warning", "explicit_euler_limit", "slenderness_warnings",
-           "tolerance_warning", "residual_scale"]
+           "tolerance_warning", "residual_scale", "late_history_warnings"]
 
 COEFFICIENTS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 # a rod's length over its section's largest dimension below which the scene is warned
@@ -138,3 +139,34 @@ def tolerance_warning(scene: Scene) -> str | None:
             "absolute test may pass a step's first guess unchanged (a creep that does not "
             f"creep); take time.atol <= {ATOL_FRACTION * scale:.3g}, or units in which the "
             "forces are not small (docs/scenes.md, [time])")
+
+
+def _first_change(spec) -> tuple[float, str] | None:
+    """When a history first departs from its value at t = 0, and the key that sets it
+    (None if it never changes: a constant, a zero step or ramp)."""
+    if spec.type == "table":
+        values = np.asarray(spec.values, dtype=float).reshape(len(spec.times), -1)
+        moves = np.flatnonzero(np.any(np.diff(values, axis=0) != 0.0, axis=1))
+        return (float(spec.times[moves[0]]), "times") if moves.size else None
+    if spec.type == "constant" or not np.any(np.asarray(spec.value, dtype=float)):
+        return None
+    return spec.t0, "t0"
+
+
+def late_history_warnings(scene: Scene) -> list[str]:
+    """A warning for each load or prescribed end motion that first changes at or after
+    time.t_end: it never acts in the run (a t0 meant for a longer run)."""
+    t_end, out = scene["time"]["t_end"], []
+    parts = [(rod.name, rod.scene) for rod in scene.rods] or [(None, scene)]
+    for name, part in parts:
+        for table in ("loads", "boundary"):
+            for key, spec in part[table].items():
+                if not hasattr(spec, "breakpoints"):
+                    continue
+                first = _first_change(spec)
+                if first is not None and first[0] >= t_end:
+                    rod = f" (rod {name})" if name else ""
+                    out.append(f"{scene.source}: [{table}.{key}.{first[1]}]{rod}: it first "
+                               f"changes at t = {first[0]:g}, not before time.t_end = "
+                               f"{t_end:g}: it never acts in this run")
+    return out
