@@ -296,6 +296,9 @@ def test_a_fibre_in_si_units_is_warned_of_newtons_absolute_tolerance_and_creeps_
         tolerance_warning(scene) and "take time.atol <= 1e-15" in tolerance_warning(scene)
     assert tolerance_warning(parse_scene(FIBRE.replace("1e-9]", "1e-3]"))) is None
     assert tolerance_warning(parse_scene(TWISTED.replace("VARIANT", "local"))) is None
+    elastic = FIBRE.replace("[material]\n", '[material]\nmodel = "hyperelastic"\n').replace(
+        "natural_stiffness_ratio = 0.5\nrelaxation_time = 2.0\n", "")
+    assert tolerance_warning(parse_scene(elastic)) is None      # loads step by more
     sim = build(parse_scene(FIBRE.replace("scheme", "atol = 1e-15\nscheme")), "rod")
     sim.start()
     for k in range(24):
