@@ -33,7 +33,9 @@ scores dolfin_rod next to PyElastica and MuJoCo.  How a scenario is mapped:
   10 and stiffness rule as for obstacles (a rod's weight per length as the pressure);
 - with any contact: generalized-alpha with rho_inf = 0 (a barrier's impacts damped,
   docs/contact.md), Newton to rtol 1e-8, with friction a backtracking line search
-  (scenes/contact.py's choices) and FRICTION_STEPS times more steps;
+  (scenes/contact.py's choices) and FRICTION_STEPS times more steps; a quasi-static
+  rod that starts on an obstacle with friction (the capstan's rope) starts with zero
+  accelerations (``start_at_rest``);
 - dynamics: generalized-alpha on the rotation group (dolfin_rod's default), at most
   ``STEPS_PER_PERIOD`` steps per period of the scenario's slowest mode and at least one
   per frame; a quasi-static scenario adds damping proportional to mass at the rate
