@@ -315,6 +315,67 @@ def test_initial_overlap_says_where_the_rod_may_start(point, says):
     assert "-0 " not in str(err) and "triangles" not in str(err)      # a plane
 
 
+ROD_B = """
+[[rods]]
+name = "a"
+[[rods]]
+name = "b"
+position = [0.1, 0.0, 0.0]
+orientation = [0.0, -1.5707963267948966, 0.0]
+"""
+KINKED = ('[geometry]\nn_cells = 10\nreference_shape = { type = "polyline", points = '
+          '[[0.0, 0.0, 0.0], [0.0, 0.0, 0.5], [-0.3, 0.0, 0.9]] }\n[contact]')
+
+
+@pytest.mark.parametrize("change, says", [
+    ((), "the rod's centre line at s = 0 is 0.005 closer to obstacles[0] than the rod's "
+         "radius at t = 0 (it cuts into the obstacle)"),
+    ((("[contact]", ROD_B + "[contact]"),), "the centre line of rod 'b' at s = 1 is 0.905 "
+                                            "closer to obstacles[0]"),
+    ((("[contact]", KINKED), ("point = [-0.005, 0.0, 0.0]", "point = [-0.2, 0.0, 0.0]")),
+     "the rod's centre line at s = 1 is 0.11 closer to obstacles[0]"),
+])
+def test_check_refuses_a_rod_that_starts_inside_an_obstacle(tmp_path, change, says):
+    """As a user runs it: ``dolfin-rod check`` exits 2 naming obstacles[0], with where
+    along the rod (its own arc length), how deep and where it may start, before any model
+    (was: OK, and ``run`` refused it after building the model).  The plane x = -0.005 of
+    SCENE: the rod along e_3 (r = 0.01) is 0.005 in at every node, the first at s = 0;
+    rod b of a system from x = 0.1 along -e_1: node s at x = 0.1 - s, gap 0.095 - s,
+    the deepest at s = 1 (rod a as SCENE's); a rod bent at s = 0.5 (split there into two pieces) towards
+    -e_1, its nodes past the corner at x = -0.6 (s - 0.5), the plane x = -0.2: the
+    deepest at s = 1, x = -0.3, gap -0.3 + 0.2 - 0.01."""
+    from test_cli import cli
+    text = SCENE.replace("point = [-0.0105, 0.0, 0.0]", "point = [-0.005, 0.0, 0.0]")
+    for old, new in change:
+        assert old in text
+        text = text.replace(old, new, 1)
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    proc = cli("check", path)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert proc.stderr.count("\n") == 1 and "[obstacles[0]]" in proc.stderr
+    assert says in proc.stderr
+    assert "start it off the surface by a gap in (0, 0.001] (contact.gap" in proc.stderr
+    path.write_text(text.replace("point = [-0.005, 0.0, 0.0]", "point = [-0.0105, 0.0, 0.0]")
+                    .replace("point = [-0.2, 0.0, 0.0]", "point = [-0.4, 0.0, 0.0]")
+                    .replace("position = [0.1,", "position = [1.1,"))
+    assert cli("check", path).returncode == 0       # the same rods 0.5 mm off the plane
+
+
+def test_check_and_the_model_say_the_same_of_an_overlap():
+    """The rod of SCENE 5 mm inside the plane: the model's own check at t = 0 (the
+    Python API, RodModel.set_initial_state) raises the message ``dolfin-rod check``
+    gives."""
+    plane = Obstacle("plane", point=(-0.005, 0.0, 0.0), normal=(1.0, 0.0, 0.0))
+    rod = RodModel(ROD, n_cells=8, model="hyperelastic", start="free", end="free",
+                   obstacles=[plane], contact=ContactLaw(R, DELTA, 1.0))
+    with pytest.raises(ValueError) as model:
+        rod.set_initial_state()
+    scene = _error(SCENE.replace("point = [-0.0105, 0.0, 0.0]", "point = [-0.005, 0.0, 0.0]")
+                   .replace("friction = 0.3", "friction = 0.0"))
+    assert str(scene).endswith(str(model.value))
+
+
 def test_a_rod_behind_a_mesh_hears_of_the_triangles_orientation():
     """The plane of SCENE as a mesh square (x = -0.0105) whose triangles are clockwise
     seen from the rod (their normal -x, the rod behind them: how an open bowl comes out

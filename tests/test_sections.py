@@ -226,3 +226,32 @@ def test_relaxation_viscosities_carry_the_length_in_the_uniform_variant():
     assert np.allclose(uniform["M_d"], 3.0 * local["M_d"], rtol=1e-15)
     assert np.allclose(uniform["N_d"], 3.0 * local["N_d"], rtol=1e-15)
     assert local["M_d"][0] == pytest.approx(0.1 * 2 * local["A"][0], rel=1e-15)
+
+
+def test_a_section_in_mm_given_as_metres_is_warned_of(tmp_path, capsys):
+    """radius = 5 (meant: 5 mm) on a 1 m rod: L/d = 0.1, not a rod (rod theory needs
+    L/d >~ 10); `check` says so on stderr and still passes the scene (exit 0: a stout
+    body is a modelling choice, not an invalid scene).  The 5 mm rod (L/d = 100) and the
+    bundled scenes are not warned of; in [[rods]] the warning names the rod."""
+    from dolfin_rod.cli import main
+    from dolfin_rod.scenes.run_warnings import slenderness_warnings
+    path = tmp_path / "mm.toml"
+    path.write_text(PHYSICAL.replace(f"radius = {RADIUS}", "radius = 5.0"))
+    assert main(["check", str(path)]) == 0
+    err = capsys.readouterr().err
+    assert "[section]: the section's largest dimension 10 is not small against the rod's " \
+           "length 1 (L/d = 0.1)" in err and "mm instead of m" in err, err
+    assert slenderness_warnings(parse_scene(PHYSICAL)) == []
+    system = parse_scene(PHYSICAL.replace("[loads]\ngravity = [-9.81, 0.0, 0.0]\n", "") + """
+[[rods]]
+name = "thin"
+[[rods]]
+name = "fat"
+position = [1.0, 0.0, 0.0]
+section = { shape = "tube", outer_radius = 0.4, inner_radius = 0.3 }
+""")
+    (warning,) = slenderness_warnings(system)
+    assert "[section] (rod fat): the section's largest dimension 0.8" in warning
+    # the rod's own shape replaces the scene's [section] (its radius was kept and refused)
+    fat = system.rods[1].scene["material"]["derived"]["section"]
+    assert fat["area"] == pytest.approx(np.pi * (0.4**2 - 0.3**2), rel=1e-14)
