@@ -172,7 +172,8 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
     choice = choose_model(scene, ranks)
     lines = [f"{scene.source}: OK", f"model: {choice.model}", f"why: {choice.reason}"]
     if choice.model == "rod":
-        from .scenes.contact import contact_lines
+        from .scenes.builders import initial_centre_lines
+        from .scenes.contact import contact_lines, touching
         from .scenes.physical import describe
         from .scenes.rules import rod_rotations_reason
         for rod in scene.rods or [None]:          # [[rods]]: each rod's derived tensors
@@ -185,7 +186,7 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
                   + (f" about {list(j.axis)}" if j.axis is not None else "")
                   for j in scene.joints]
         lines.append(f"rotations: {rod_rotations_reason(scene)}")
-        lines += contact_lines(scene)
+        lines += contact_lines(scene, initial_centre_lines(scene)) if touching(scene) else []
     if choice.model != "ode":                      # (the ODE prints its own solution)
         from .scenes.rules import time_stepping
         lines.append(f"time stepping: {time_stepping(scene)}")

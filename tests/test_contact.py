@@ -110,6 +110,65 @@ def test_rod_sticks_on_an_incline_with_static_friction():
     assert creep == pytest.approx(y * eps * 10.0, rel=1e-3)
 
 
+
+def _incline_series(tmp_path, angle: float, mu: float, t_end: float, dt: float) -> dict:
+    """The time series of SCENE's rod run as the CLI runs a scene (dolfin_rod.run), on
+    its plane x = -(r + delta / 2) tilted by gravity at ``angle`` degrees from the
+    plane's normal, friction ``mu``, every contact and solver setting at its default:
+    gap r / 10, stiffness from dt, slip tolerance 1e-3 L / t_end, Newton to rtol 1e-8
+    with bt and the l2 fallback (scenes/contact.contact_solver_options)."""
+    from mpi4py import MPI
+
+    from dolfin_rod import run
+    a = np.radians(angle)
+    text = (SCENE.replace("gravity = [-9.81, 0.0, 0.0]",
+                          f"gravity = [{-G * np.cos(a)}, 0.0, {-G * np.sin(a)}]")
+            .replace("friction = 0.3", f"friction = {mu}")
+            .replace("t_end = 0.1", f"t_end = {t_end}").replace("dt = 0.01", f"dt = {dt}")
+            + "[outputs]\nfields = false\nanimation = false\nplots = false\n")
+    folder = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0)) / "run"
+    result = run(parse_scene(text), out=folder, quiet=True)
+    assert result.status == "completed", result.summary["message"]
+    return {k: np.array(v, float) for k, v in result.series.items()}
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("angle, mu", [(10.0, 0.05), (60.0, 1.2)])
+def test_rod_slides_down_an_incline_at_the_scene_defaults(tmp_path, angle, mu):
+    """A scene at its contact defaults (_incline_series), mu < tan a, from the nearly
+    frictionless to a steep slope with mu = 1.2: the acceleration along the slope (a
+    quadratic fit over t >= 0.5 s) is g (sin a - mu cos a) to 1e-6 (measured 6e-13 and
+    3e-9: Newton's rtol 1e-8 at the defaults, not test_rod_slides_down_an_incline's
+    1e-10), the plane carries the weight's normal part to 1e-8, friction's dissipation
+    >= 0 at every step.  Measured on a grid of a = 10-60 degrees, mu = 0.05-1.2,
+    8-33 cells, dt 5e-3-4e-2, r 2-50 mm, quaternions, 2 ranks: the same within 4e-7
+    (docs/contact.md, "At the defaults")."""
+    s = _incline_series(tmp_path, angle, mu, 1.0, 1e-2)
+    a = np.radians(angle)
+    late = s["time"] >= 0.5
+    accel = -2 * np.polyfit(s["time"][late], s["tip_position_z"][late], 2)[0]
+    assert accel == pytest.approx(G * (np.sin(a) - mu * np.cos(a)), rel=1e-6)
+    assert s["contact_force_x"][-1] == pytest.approx(G * np.cos(a), rel=1e-8)
+    assert s["friction_dissipation"].min() >= 0.0
+
+
+@pytest.mark.mpi
+def test_rod_sticks_on_an_incline_at_the_scene_defaults(tmp_path):
+    """mu = 1.2 > tan 45 deg at the defaults (_incline_series), dt = 0.04 (4x the
+    scene's), t_end = 11 s, so eps = 1e-3 L / t_end: from t = 1 s to 11 s the rod creeps
+    less than eps * 10 s, at the smoothed law's speed y eps (phi(y) = tan a / mu,
+    y = 0.645) to 1e-6 (measured 6e-12; the creep is steady once the rod has settled
+    on the barrier, within 1 s); dissipation >= 0 at every step."""
+    a, mu, t_end = np.radians(45.0), 1.2, 11.0
+    s = _incline_series(tmp_path, 45.0, mu, t_end, 4e-2)
+    eps = 1e-3 * 1.0 / t_end
+    z = dict(zip(np.round(s["time"], 6), s["tip_position_z"]))
+    creep = abs(z[11.0] - z[1.0])
+    assert creep < eps * 10.0
+    y = brentq(lambda y: 1.5 * y - 0.5 * y**3 - np.tan(a) / mu, 0.0, 1.0)
+    assert creep == pytest.approx(y * eps * 10.0, rel=1e-6)
+    assert s["friction_dissipation"].min() >= 0.0
+
 PROPPED = (0.02, 1e-2)      # the propped cantilever's load per length w and EI
 
 
@@ -254,6 +313,67 @@ def test_initial_overlap_says_where_the_rod_may_start(point, says):
     assert says in str(err)
     assert "start it off the surface by a gap in (0, 0.001] (contact.gap" in str(err)
     assert "-0 " not in str(err) and "triangles" not in str(err)      # a plane
+
+
+ROD_B = """
+[[rods]]
+name = "a"
+[[rods]]
+name = "b"
+position = [0.1, 0.0, 0.0]
+orientation = [0.0, -1.5707963267948966, 0.0]
+"""
+KINKED = ('[geometry]\nn_cells = 10\nreference_shape = { type = "polyline", points = '
+          '[[0.0, 0.0, 0.0], [0.0, 0.0, 0.5], [-0.3, 0.0, 0.9]] }\n[contact]')
+
+
+@pytest.mark.parametrize("change, says", [
+    ((), "the rod's centre line at s = 0 is 0.005 closer to obstacles[0] than the rod's "
+         "radius at t = 0 (it cuts into the obstacle)"),
+    ((("[contact]", ROD_B + "[contact]"),), "the centre line of rod 'b' at s = 1 is 0.905 "
+                                            "closer to obstacles[0]"),
+    ((("[contact]", KINKED), ("point = [-0.005, 0.0, 0.0]", "point = [-0.2, 0.0, 0.0]")),
+     "the rod's centre line at s = 1 is 0.11 closer to obstacles[0]"),
+])
+def test_check_refuses_a_rod_that_starts_inside_an_obstacle(tmp_path, change, says):
+    """As a user runs it: ``dolfin-rod check`` exits 2 naming obstacles[0], with where
+    along the rod (its own arc length), how deep and where it may start, before any model
+    (was: OK, and ``run`` refused it after building the model).  The plane x = -0.005 of
+    SCENE: the rod along e_3 (r = 0.01) is 0.005 in at every node, the first at s = 0;
+    rod b of a system from x = 0.1 along -e_1: node s at x = 0.1 - s, gap 0.095 - s,
+    the deepest at s = 1 (rod a as SCENE's); a rod bent at s = 0.5 (split there into two pieces) towards
+    -e_1, its nodes past the corner at x = -0.6 (s - 0.5), the plane x = -0.2: the
+    deepest at s = 1, x = -0.3, gap -0.3 + 0.2 - 0.01."""
+    from test_cli import cli
+    text = SCENE.replace("point = [-0.0105, 0.0, 0.0]", "point = [-0.005, 0.0, 0.0]")
+    for old, new in change:
+        assert old in text
+        text = text.replace(old, new, 1)
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    proc = cli("check", path)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert proc.stderr.count("\n") == 1 and "[obstacles[0]]" in proc.stderr
+    assert says in proc.stderr
+    assert "start it off the surface by a gap in (0, 0.001] (contact.gap" in proc.stderr
+    path.write_text(text.replace("point = [-0.005, 0.0, 0.0]", "point = [-0.0105, 0.0, 0.0]")
+                    .replace("point = [-0.2, 0.0, 0.0]", "point = [-0.4, 0.0, 0.0]")
+                    .replace("position = [0.1,", "position = [1.1,"))
+    assert cli("check", path).returncode == 0       # the same rods 0.5 mm off the plane
+
+
+def test_check_and_the_model_say_the_same_of_an_overlap():
+    """The rod of SCENE 5 mm inside the plane: the model's own check at t = 0 (the
+    Python API, RodModel.set_initial_state) raises the message ``dolfin-rod check``
+    gives."""
+    plane = Obstacle("plane", point=(-0.005, 0.0, 0.0), normal=(1.0, 0.0, 0.0))
+    rod = RodModel(ROD, n_cells=8, model="hyperelastic", start="free", end="free",
+                   obstacles=[plane], contact=ContactLaw(R, DELTA, 1.0))
+    with pytest.raises(ValueError) as model:
+        rod.set_initial_state()
+    scene = _error(SCENE.replace("point = [-0.0105, 0.0, 0.0]", "point = [-0.005, 0.0, 0.0]")
+                   .replace("friction = 0.3", "friction = 0.0"))
+    assert str(scene).endswith(str(model.value))
 
 
 def test_a_rod_behind_a_mesh_hears_of_the_triangles_orientation():

@@ -230,9 +230,9 @@ def test_non_empty_out_needs_resume_or_overwrite(tmp_path, capsys):
     before = snapshot(run)
     code, _, err = run_main(capsys, "run", scene_file, "--out", run)
     assert code == 2 and "is not empty: pass --resume" in err and snapshot(run) == before
-    (run / "stale.txt").write_text("old")
+    (run / "animation.mp4").write_text("old")      # a stale output of the old run goes
     assert run_main(capsys, "run", scene_file, "--out", run, "--overwrite", "--quiet")[0] == 0
-    assert not (run / "stale.txt").exists() and (run / "summary.json").exists()
+    assert not (run / "animation.mp4").exists() and (run / "summary.json").exists()
     other = tmp_path / "notes"
     other.mkdir()
     (other / "thesis.tex").write_text("precious")

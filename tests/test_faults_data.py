@@ -67,15 +67,31 @@ def test_overwrite_refuses_a_users_folder_that_holds_a_scene(tmp_path, capsys):
         assert err.startswith("error: --overwrite: ") and "not a dolfin-rod run folder" in err
         assert ".dolfin-rod-run" in err and out == "" and err.count("\n") == 1, err
         assert snapshot(project) == before
-    # a folder the program made is replaced (stale files go)
+    # a folder the program made is replaced (its stale outputs go) unless it holds a file
+    # no run wrote: a user's notes put into the run folder are never deleted
     run = folder / "run"
     assert run_main(capsys, "run", scene_file, "--out", run, "--quiet")[0] == 0
     if COMM.rank == 0:
-        (run / "stale.txt").write_text("old")
+        (run / "notes.txt").write_text("mine")
+        (run / "analysis").mkdir()
+        (run / "analysis" / "fit.py").write_text("mine")
+        (run / "rod" / "step-99999.vtu").write_text("stale output")
+    COMM.barrier()
+    before = snapshot(run) if COMM.rank == 0 else None
+    code, out, err = run_main(capsys, "run", scene_file, "--out", run, "--overwrite")
+    assert code == 2
+    if COMM.rank == 0:
+        assert err == (f"error: --overwrite: {run} holds files its run did not write "
+                       "(analysis/fit.py, notes.txt): move them out of it first; nothing "
+                       "was deleted\n"), err
+        assert snapshot(run) == before
+        shutil.rmtree(run / "analysis")
+        (run / "notes.txt").unlink()
     COMM.barrier()
     assert run_main(capsys, "run", scene_file, "--out", run, "--overwrite", "--quiet")[0] == 0
     if COMM.rank == 0:
-        assert not (run / "stale.txt").exists() and (run / ".dolfin-rod-run").is_file()
+        assert not (run / "rod" / "step-99999.vtu").exists()
+        assert (run / ".dolfin-rod-run").is_file()
 
 
 # --- item 25: --out LINK --overwrite: a clear message, nothing deleted -------------------

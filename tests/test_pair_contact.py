@@ -379,3 +379,98 @@ def test_jacobian_pattern_grows_once_and_keeps_the_forms_entries():
     system.jacobian(system.A)
     assert system.pattern_changes == 1
     assert system.A.getInfo()["mallocs"] == 0
+
+
+# -- bad input at t = 0, as a user runs it (dolfin-rod check | run) --------------------------
+
+HAIRPIN = """
+[material]
+model = "hyperelastic"
+stiffness = { A = [1e-2, 1e-2, 1e-2], B = [10.0, 10.0, 10.0] }
+[geometry]
+n_cells = 40
+[boundary]
+start = "clamped"
+end = "free"
+[initial]
+shape = { type = "polyline", points = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.5], [0.015, 0.0, 0.5], [0.015, 0.0, 0.015]] }
+[contact]
+radius = 0.01
+self = true
+[time]
+t_end = 0.1
+dt = 0.1
+"""
+
+
+def _checked(tmp_path, text: str, command: str = "check"):
+    from test_cli import cli
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    return cli(command, path, *(("--out", tmp_path / "run", "--quiet") if command == "run"
+                                else ()))
+
+
+@pytest.mark.parametrize("scene, key, says", [
+    # a hairpin (L = 1): legs 0.015 apart, capsules of r = 0.01 overlap by 2 r - 0.015
+    (HAIRPIN, "contact.self", "overlap by 0.005 at t = 0 (their centre lines are closer "
+                              "than 2 contact.radius = 0.02)"),
+    # crossing_rods.toml with the prop 8 mm below the beam (r = 5 mm): overlap 2 mm where
+    # they cross, at x = 0.75 on the beam (a node: its first segment, s in [0.625, 0.75]),
+    # y = 0 on the prop (s = 0.25, a node: segment [0.125, 0.25])
+    ("crossing_rods", "contact.between_rods",
+     "segments of rod beam at s = 0.6875 and rod prop at s = 0.1875, near (0.75, 0, "
+     "-0.004): overlap by 0.002 at t = 0"),
+    # self-contact whose neighbour exclusion pi (r + delta) + h = pi (0.35 + 0.035) + 1/40
+    # = 1.2345 (delta = r / 10 by default) covers the rod (L = 1)
+    (HAIRPIN.replace("radius = 0.01", "radius = 0.35"), "contact.radius",
+     "self-contact excludes neighbours closer along the rod than pi (r + delta) + h = "
+     "1.235, which is not shorter than the rod (1)"),
+])
+def test_check_refuses_segments_overlapping_at_the_start(tmp_path, scene, key, says):
+    """``dolfin-rod check`` exits 2 with one line naming the key, before any model (was:
+    OK; ``run`` then failed with a traceback, exit 1, for the overlaps, and named
+    scene.model for the radius); the same scenes started apart pass."""
+    from pathlib import Path
+    if scene == "crossing_rods":
+        scene = (Path(__file__).parents[1] / "scenes" / "crossing_rods.toml").read_text()
+        apart = scene
+        scene = scene.replace("position = [0.75, -0.25, -0.01075]",
+                              "position = [0.75, -0.25, -0.008]")
+    else:
+        apart = scene.replace("[0.015, 0.0, 0.5], [0.015, 0.0, 0.015]",
+                              "[0.025, 0.0, 0.5], [0.025, 0.0, 0.025]").replace(
+            "radius = 0.35", "radius = 0.01")
+    proc = _checked(tmp_path, scene)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert proc.stderr.count("\n") == 1 and f"[{key}]" in proc.stderr and says in proc.stderr
+    assert _checked(tmp_path, apart).returncode == 0
+
+
+def test_check_says_how_segments_touch(tmp_path):
+    """``dolfin-rod check`` prints a contact line for self-contact and for contact
+    between rods, as it does for obstacles: the exclusion pi (r + delta) + h with
+    r = 0.01, delta = r / 10 (the default), h = 1/40."""
+    proc = _checked(tmp_path, HAIRPIN.replace("[0.015, 0.0, 0.5], [0.015, 0.0, 0.015]",
+                                              "[0.025, 0.0, 0.5], [0.025, 0.0, 0.025]"))
+    assert proc.returncode == 0, proc.stderr
+    assert ("contact: self (the rod's own segments, capsules of radius 0.01, barrier gap "
+            "0.001, pair_curve = 'segments', frictionless) excludes neighbours closer along "
+            f"the rod than pi (r + gap) + h = {np.pi * 0.011 + 1 / 40:.4g} (longest cell "
+            "h = 0.025)") in proc.stdout
+    from test_cli import cli
+    from pathlib import Path
+    crossing = cli("check", Path(__file__).parents[1] / "scenes" / "crossing_rods.toml")
+    assert ("contact: between_rods (segments of different rods, capsules of radius 0.005, "
+            "barrier gap 0.0005, pair_curve = 'segments', frictionless)") in crossing.stdout
+
+
+def test_run_refuses_smooth_pairs_overlapping_at_the_start(tmp_path):
+    """The hairpin with the pairs on smooth curves (contact.pair_curve = "smooth": left
+    to the model, check cannot place those curves without it): ``dolfin-rod run`` exits
+    2 naming contact.self with where and how much (was: a traceback, exit 1)."""
+    proc = _checked(tmp_path, HAIRPIN.replace("self = true", 'self = true\npair_curve = '
+                                              '"smooth"'), "run")
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "[contact.self]" in proc.stderr and "at t = 0 (their centre lines" in proc.stderr
+    assert "Traceback" not in proc.stderr

@@ -5,12 +5,14 @@ rank waits in a collective call for one that failed.
 
 Every folder made here carries the marker file ``.dolfin-rod-run``; ``--overwrite``
 replaces only a folder with that marker (never a user's folder that happens to hold a
-``scene.toml``), and never through a symbolic link.
+``scene.toml``), never through a symbolic link, and never one holding a file that no
+run wrote (a user's script or notes put into the run folder: ``foreign_files``).
 """
 
 from __future__ import annotations
 
 import datetime
+import json
 import os
 import shutil
 import tempfile
@@ -102,9 +104,37 @@ def prepare_run_folder(folder: Path, resume: bool, overwrite: bool) -> None:
             raise OutputError(f"--overwrite: {folder} is not a dolfin-rod run folder (it "
                               f"has no {MARKER} marker, which every run folder gets); "
                               "refusing to delete it")
+        foreign = foreign_files(folder)
+        if foreign:
+            shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more"
+                                               if len(foreign) > 5 else "")
+            raise OutputError(f"--overwrite: {folder} holds files its run did not write "
+                              f"({shown}): move them out of it first; nothing was deleted")
         shutil.rmtree(folder)
     folder.mkdir(parents=True, exist_ok=True)
     mark_run_folder(folder)
+
+
+# what every run writes under these names (the README's table), for a run that ended
+# before its summary.json, which lists every file written, could be written
+RUN_FILES = (MARKER, "scene.toml", "scene.toml-new", "timeseries.csv", "timeseries.json",
+             "summary.json", "timings.json", "histories.png", "snapshots.png",
+             "spacetime.png", "animation.gif", "animation.mp4", "rod.pvd", "rod.bp")
+RUN_FOLDERS = ("rod", "checkpoint")
+
+
+def foreign_files(folder: Path) -> list[str]:
+    """The files under a run folder that no dolfin-rod command wrote there: neither in
+    its summary.json's list of every file written (with `buckle`'s and `modes`' files)
+    nor of the names every run writes (RUN_FILES, RUN_FOLDERS)."""
+    written = set(RUN_FILES)
+    try:
+        listed = json.loads((folder / "summary.json").read_text()).get("files", [])
+        written |= {str(f) for f in listed} if isinstance(listed, list) else set()
+    except (OSError, ValueError, AttributeError):
+        pass                                   # killed before its summary: the names only
+    return [f for f in files_in(folder)
+            if f not in written and Path(f).parts[0] not in RUN_FOLDERS]
 
 
 def new_run_folder(parent: Path, name: str) -> Path:

@@ -49,11 +49,11 @@ from .kinks import attach, piece_starts, split_at_kinks, system_starts
 from .layout import RodLayout
 from .linking import clamped_rod_linking
 from .obstacle_segments import ObstacleSegments
-from .pair_contact import SegmentContact, exclusion
+from .pair_contact import SegmentContact
 from .placement import placed_shape
 from .material import RodParameters, coefficients, is_zero
 from .rods import OLD_CONSTRAINT, OLD_ENDS, Rod, check_rods, new_keywords, positional_ends
-from .segments import PassThroughCheck
+from .segments import PassThroughCheck, exclusion_problem
 from .structure import structure
 from .start import RodStarts, StartingState, check_rod_starts, check_start
 
@@ -502,12 +502,9 @@ class RodModel(FEModel):
         if law is None or not (law.self or law.between_rods):
             return None
         h = max(length / n for length, n in zip(layout.lengths, layout.n_cells))
-        reach = exclusion(law.radius, law.gap, h)
-        if law.self and reach >= min(layout.lengths):
-            raise ValueError(f"contact.radius = {law.radius:g}: self-contact excludes "
-                             f"neighbours closer along the rod than pi (r + delta) + h = "
-                             f"{reach:.4g}, which is not shorter than the rod "
-                             f"({min(layout.lengths):g}): a smaller radius or more cells")
+        problem = exclusion_problem(law.radius, law.gap, h, min(layout.lengths))
+        if law.self and problem:
+            raise ValueError(problem)
         check_contact([], law)
         self._check_pair_friction(law)
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
@@ -744,9 +741,9 @@ class RodModel(FEModel):
                                         self.contact.obstacles[k].shape)
             self.obstacle_segments.commit()
         if self.segment_contact:
-            reason = self.segment_contact.check_state()
-            if reason:
-                raise ValueError(f"the initial state: {reason}")
+            overlap = self.segment_contact.initial_overlap()
+            if overlap:
+                raise overlap
             self.segment_contact.commit()
 
     def diagnostics(self, t: float) -> dict[str, float]:

@@ -58,8 +58,9 @@ from typing import Sequence
 
 import numpy as np
 
-from .contact import ContactLaw, Obstacle, unit
+from .contact import ContactLaw
 from .contact import barrier_derivatives
+from .obstacle_shapes import Obstacle, unit
 from .pair_contact import (BoundTerm, Centreline, NodeRates, PairTerms, StepTerm,
                            nodal_force_density, pair_energy)
 from .pair_friction import PairFriction

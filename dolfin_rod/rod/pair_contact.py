@@ -36,7 +36,6 @@ pair_friction.py, with the pairs and normal forces lagged at each accepted state
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -44,17 +43,12 @@ from petsc4py import PETSc
 
 from .contact import XI_MIN, barrier_derivatives
 from .pair_friction import PairFriction
-from .segments import closest_points, joint_distances, near_pairs
+from .segments import PairOverlap, closest_points, exclusion, joint_distances, near_pairs
 from .smooth_pairs import LIPSCHITZ, Stencils, closest, counted, free, smooth_pair_energy
 
 CROSSING_DEPTH = 24     # bisections of a step's path before a pair counts as crossed
 STEP_FLOOR = 0.1        # a Newton update keeps every pair's gap above this share of its gap
 ROUND_OFF = 1e-9        # relative margin of the path check's bound (``first_too_near``)
-
-
-def exclusion(radius: float, gap: float, h: float) -> float:
-    """The distance in s within which segments of one rod are neighbours, not a pair."""
-    return math.pi * (radius + gap) + h
 
 
 def pair_energy(X, radius: float, gap: float, stiffness, weights, order: int = 2,
@@ -439,17 +433,35 @@ class SegmentContact(NodeRates):
         return None if crossed is None else self._where(crossed, "passed through each "
                                                         "other during the step")
 
+    def initial_overlap(self) -> PairOverlap | None:
+        """At t = 0: the pair with the smallest gap if it is <= 0 (the error of a start
+        with overlapping segments, naming contact.self or contact.between_rods)."""
+        P = self.line.positions(self.owned_displacement())
+        pairs = self.pairs(P)
+        gaps = self._gaps(P, pairs)
+        if not len(gaps) or gaps.min() > 0:
+            return None
+        k = int(np.argmin(gaps))
+        names, point = self._named(pairs[k], P)
+        return PairOverlap.at(names, point, float(gaps[k]), self.law.radius,
+                              self.line.rod[pairs[k][0]] == self.line.rod[pairs[k][1]])
+
     def _where(self, pair, what: str, P: np.ndarray | None = None) -> str:
         """The pair's segments named by rod and arc length (their midpoints), the point
         between their closest points at positions P (default the current state), and
         ``what``."""
+        names, point = self._named(pair, P)
+        return (f"segments of {names[0]} and {names[1]}, near ("
+                f"{', '.join(f'{v:.4g}' for v in point)}): {what}")
+
+    def _named(self, pair, P: np.ndarray | None = None) -> tuple[list[str], np.ndarray]:
+        """The names of the pair's segments (``segment_name``) and the point between their
+        closest points at positions P (default the current state)."""
         P = self.line.positions(self.owned_displacement()) if P is None else P
         X = P[self.line.ends[np.asarray(pair)].reshape(4)]
         s, t, _ = closest_points(*(X[k][None] for k in range(4)))
         point = 0.5 * (X[0] + s[0] * (X[1] - X[0]) + X[2] + t[0] * (X[3] - X[2]))
-        names = [self.segment_name(k) for k in pair]
-        return (f"segments of {names[0]} and {names[1]}, near ("
-                f"{', '.join(f'{v:.4g}' for v in point)}): {what}")
+        return [self.segment_name(k) for k in pair], point
 
     def segment_name(self, k: int) -> str:
         """'rod NAME at s = ...' of segment k (its midpoint's arc length on its rod)."""

@@ -17,7 +17,9 @@ rho I_11, rho (I_11 + I_22))).  G = E / (2 (1 + nu)) or nu = E / (2 G) - 1.
 Natural configuration (evolving model): A_d = r A, B_d = r B (natural_stiffness_ratio
 r), and relaxation times tau_u, tau_v [s]: M_d = tau_u (A + A_d), N_d = tau_v (B + B_d),
 the time constants of the natural strains at a held strain (eq. dotmfupeq: M_d u_d' =
-A (u - u_d) - A_d u_d, i.e. u_d relaxes at the rate (A + A_d)/M_d = 1/tau_u).
+A (u - u_d) - A_d u_d, i.e. u_d relaxes at the rate (A + A_d)/M_d = 1/tau_u).  The
+uniform variant's law integrates over the rod (eq. unatevolunif: M_d u_d' = int_0^L ...),
+so the same tau_u needs M_d = tau_u L (A + A_d) (``uniform_length`` L; docs/rod.md).
 """
 
 from __future__ import annotations
@@ -132,11 +134,13 @@ class Material:
 def section_parameters(section: Section, material: Material,
                        shear_factor: tuple[float, float] | None = None,
                        natural_stiffness_ratio: float | None = None,
-                       relaxation_time: tuple[float, float] | None = None) -> dict:
+                       relaxation_time: tuple[float, float] | None = None,
+                       uniform_length: float | None = None) -> dict:
     """RodParameters keywords of a section and material: A, B, density (rho a, per
     length), section_inertia (rho I_11, rho I_22) and, with
     natural_stiffness_ratio r, A_d = r A, B_d = r B; with relaxation_time (tau_u, tau_v)
-    also M_d, N_d (module docstring).  Tensors as diagonals (3-tuples)."""
+    also M_d, N_d (module docstring; for the uniform variant give the rod's length as
+    uniform_length).  Tensors as diagonals (3-tuples)."""
     E, G, nu = material.moduli()
     rho = float(material.density)
     if not (np.isfinite(rho) and rho >= 0):
@@ -153,15 +157,19 @@ def section_parameters(section: Section, material: Material,
         if "A_d" not in out:
             raise ValueError("relaxation_time needs natural_stiffness_ratio (M_d = tau (A + "
                              "A_d))")
-        out.update(relaxation_viscosities(out, relaxation_time))
+        out.update(relaxation_viscosities(out, relaxation_time, uniform_length))
     return out
 
 
-def relaxation_viscosities(tensors: dict, relaxation_time: tuple[float, float]) -> dict:
+def relaxation_viscosities(tensors: dict, relaxation_time: tuple[float, float],
+                           uniform_length: float | None = None) -> dict:
     """M_d = tau_u (A + A_d), N_d = tau_v (B + B_d) for diagonal 3-tuples or 3x3 arrays
-    A, A_d, B, B_d (the relaxation times of the natural strains at a held strain)."""
+    A, A_d, B, B_d (the relaxation times of the natural strains at a held strain); times
+    the rod's length L = uniform_length for the uniform variant (eq. unatevolunif
+    integrates its law over s)."""
     tau_u, tau_v = (_positive("relaxation_time", t) for t in relaxation_time)
+    length = 1.0 if uniform_length is None else _positive("uniform_length", uniform_length)
 
     def total(k):
         return np.asarray(tensors[k], float) + np.asarray(tensors[k + "_d"], float)
-    return {"M_d": tau_u * total("A"), "N_d": tau_v * total("B")}
+    return {"M_d": tau_u * length * total("A"), "N_d": tau_v * length * total("B")}

@@ -15,6 +15,7 @@ onto itself within an arc of pi r.
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -40,6 +41,44 @@ def closest_points(p0, p1, q0, q1):
     t = np.clip(t, 0.0, 1.0)
     gap = (p0 + s[:, None] * d1) - (q0 + t[:, None] * d2)
     return s, t, np.sqrt(np.einsum("ij,ij->i", gap, gap))
+
+
+def exclusion(radius: float, gap: float, h: float) -> float:
+    """The distance in s within which segments of one rod are neighbours, not a pair
+    (pair_contact.py): pi (r + delta) + h, h the longest cell."""
+    return math.pi * (radius + gap) + h
+
+
+def exclusion_problem(radius: float, gap: float, h: float, shortest: float) -> str | None:
+    """Why self-contact cannot work on rods whose shortest is ``shortest`` long (the
+    exclusion covers it: no pair would be left; its message names contact.radius), or
+    None."""
+    reach = exclusion(radius, gap, h)
+    if reach < shortest:
+        return None
+    return (f"contact.radius = {radius:g}: self-contact excludes neighbours closer along "
+            f"the rod than pi (r + delta) + h = {reach:.4g}, which is not shorter than the "
+            f"rod ({shortest:g}): a smaller radius or more cells")
+
+
+class PairOverlap(ValueError):
+    """Two segments whose capsules overlap at t = 0 (``key``: contact.self for segments
+    of one rod, contact.between_rods for two rods)."""
+
+    def __init__(self, reason: str, key: str):
+        super().__init__(reason)
+        self.key = key
+
+    @classmethod
+    def at(cls, names: tuple[str, str], point, g: float, radius: float,
+           same_rod: bool) -> "PairOverlap":
+        """The overlap g <= 0 of the segments of ``names`` ("the rod at s = ...", "rod b
+        at s = ...": their midpoints) near ``point``."""
+        where = ", ".join(f"{v:.4g}" for v in point)
+        return cls(f"the initial state: segments of {names[0]} and {names[1]}, near "
+                   f"({where}): overlap by {-g:.3g} at t = 0 (their centre lines are closer "
+                   f"than 2 contact.radius = {2 * radius:g}): start them farther apart",
+                   "contact.self" if same_rod else "contact.between_rods")
 
 
 def chord_reaches_round(h, radius: float, reach: float):

@@ -27,6 +27,8 @@ import numpy as np
 FACE, EDGE, VERTEX = 0, 1, 2            # a feature's kind
 MERGE = 1e-9                            # vertices closer than MERGE x size are one
 DEGENERATE = 1e-12                      # a triangle with area < DEGENERATE x size^2
+ALL_PAIRS = 200_000                     # (point, triangle) pairs compared all without
+                                        # a tree (Surface.candidates)
 
 
 class MeshError(ValueError):
@@ -234,11 +236,18 @@ class Surface:
             self._tree = cKDTree(self.centroids)
         return self._tree
 
-    def candidates(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def candidates(self, points: np.ndarray, tree: bool = True) -> tuple[np.ndarray,
+                                                                        np.ndarray]:
         """(point, triangle) pairs that hold each point's closest triangle: those whose
         centroid is within c + R of it, c the nearest centroid's distance and R the
         largest centroid-to-corner distance (the closest triangle's centroid is within
-        d + R <= c + R)."""
+        d + R <= c + R); found by a cKDTree, or (``tree`` False: ``dolfin-rod check``,
+        without scipy's import) from every pair's distance while there are at most
+        ALL_PAIRS."""
+        if not tree and len(points) * len(self.centroids) <= ALL_PAIRS:
+            d = np.linalg.norm(points[:, None] - self.centroids[None], axis=2)
+            near = d.min(axis=1, keepdims=True)
+            return np.nonzero(d <= near + self.reach * (1 + 1e-12) + 1e-300)
         tree = self.tree()
         near, _ = tree.query(points)
         balls = tree.query_ball_point(points, near + self.reach * (1 + 1e-12) + 1e-300)
@@ -246,13 +255,14 @@ class Surface:
         return (np.repeat(np.arange(len(points)), counts),
                 np.fromiter((t for b in balls for t in b), int, counts.sum()))
 
-    def features(self, points) -> "Features":
-        """The signed distance of each point (n, 3) and its closest feature."""
+    def features(self, points, tree: bool = True) -> "Features":
+        """The signed distance of each point (n, 3) and its closest feature (``tree``:
+        ``candidates``)."""
         P = np.asarray(points, float).reshape(-1, 3)
         if not len(P):
             return Features(*(np.zeros(s) for s in ((0,), (0, 3), (0, 3), (0, 3))),
                             np.zeros(0, int), np.zeros(0))
-        i, t = self.candidates(P)
+        i, t = self.candidates(P, tree)
         q, kind, corner = closest_on_triangles(P[i], *(self.vertices[self.triangles[t, k]]
                                                        for k in range(3)))
         dist2 = np.einsum("ij,ij->i", P[i] - q, P[i] - q)
@@ -280,9 +290,9 @@ class Surface:
         distance = sign * np.linalg.norm(offset, axis=1)
         return Features(distance, anchor, normal, direction, kind, sign)
 
-    def signed_distance(self, points) -> np.ndarray:
-        """d of each point (n, 3) (negative inside)."""
-        return self.features(points).distance
+    def signed_distance(self, points, tree: bool = True) -> np.ndarray:
+        """d of each point (n, 3) (negative inside; ``tree``: ``candidates``)."""
+        return self.features(points, tree).distance
 
 
 class Features:

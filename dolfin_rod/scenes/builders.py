@@ -13,7 +13,7 @@ torsion/ode.py.  The integrator of an FE model is picked in integrators/choice.p
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
@@ -301,12 +301,15 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
         model.set_initial_state(**natural_strains(scene),
                                 start=rod_starts(scene) if scene.rods else starting_state(scene))
 
-    if scene["obstacles"]:     # an obstacle that cuts the rod at t = 0: before any solve
-        from ..rod.contact import InitialOverlap
+    if touching(scene):    # an obstacle or a segment cutting the rod at t = 0: no solve
+        from ..rod.obstacle_shapes import InitialOverlap
+        from ..rod.segments import PairOverlap
         try:
             initial_state()
         except InitialOverlap as err:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
+        except PairOverlap as err:
+            raise scene.error(err.key, str(err)) from None
     return FESimulation("rod", model, scene, initial_state)
 
 
@@ -384,6 +387,61 @@ def placed_rods(scene: Scene) -> list:
             geo["n_cells"], (boundary["start"], boundary["end"]), motions["displacement"],
             motions["rotation"], entry.position, entry.orientation))
     return rods
+
+
+class CentreLine(NamedTuple):
+    """A rod's nodes at t = 0 (``initial_centre_lines``): its name (None for the rod of
+    a scene without [[rods]]), their rest arc lengths s on it and positions (n, 3), and
+    the length of the piece they span (a rod split at its corners, rod/kinks.py, gives
+    one per piece, as the model's layout has)."""
+
+    rod: str | None
+    s: np.ndarray
+    points: np.ndarray
+    length: float
+
+
+class StartLines(NamedTuple):
+    """The rods' centre lines at t = 0 (one per piece, in the model's order), the joints'
+    nodes (piece, node, piece, node; the corners' rigid joints included) and whether a
+    start is settled in static equilibrium before t = 0 (initial.equilibrium: the points
+    are where the settling starts, the rod's start known after that solve only)."""
+
+    lines: list[CentreLine]
+    joints: list[tuple[int, int, int, int]]
+    settled: bool
+
+
+def initial_centre_lines(scene: Scene) -> StartLines:
+    """Where the nodes of every rod are at t = 0, as the model places them (its
+    stress-free shape or [initial] start, placed; split at its corners as the model
+    splits it), in numpy (no DOLFINx: ``dolfin-rod check``)."""
+    from ..rod.joint_points import locate
+    from ..rod.kinks import attach, split_placed, system_starts
+    from ..rod.placement import Geometry, PlacedRod
+    from ..rod.start import RodStarts
+    if scene.rods:
+        rods, starts = placed_rods(scene), rod_starts(scene) or {}
+    else:
+        geo, boundary = scene["geometry"], scene["boundary"]
+        rods = [PlacedRod("rod", Geometry(geo["length"], geo["reference_curvature"],
+                                          geo["reference_stretch"],
+                                          curve(geo["reference_shape"])),
+                          geo["n_cells"], (boundary["start"], boundary["end"]))]
+        start = starting_state(scene)
+        starts = {} if start is None else {"rod": start}
+    splits = [split_placed(rod) for rod in rods]
+    pieces = [piece for split in splits for piece in split.rods]
+    state = RodStarts(system_starts(starts, splits), pieces)
+    lines = []
+    for split in splits:
+        name = split.rods[0].name if scene.rods else None
+        for piece, offset in zip(split.rods, split.offsets):
+            s = np.linspace(0.0, piece.params.length, piece.n_cells + 1)
+            lines.append(CentreLine(name, s + offset, state.rod_state(piece, s)[0],
+                                    piece.params.length))
+    joints = locate(pieces, attach(scene_joints(scene) if scene.rods else [], splits))
+    return StartLines(lines, joints, any(start.equilibrium for start in starts.values()))
 
 
 def rods_and_joints(scene: Scene) -> tuple[list, list]:

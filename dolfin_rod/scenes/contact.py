@@ -18,6 +18,7 @@ ALL_POSE_KEYS = ("point", "normal", "centre", "axis", "radius", "length", "file"
 DIRECTIONS = ("normal", "axis")
 SEGMENT_SHAPES = ("sphere", "cylinder", "mesh")     # contact = "segments" (rod/contact.py's;
                                                     # no DOLFINx for `dolfin-rod check`)
+FEW_SEGMENTS = 400          # the start's pair check compares every pair (no scipy import)
 
 
 def check_contact_keys(scene: Scene, rotations: str) -> None:
@@ -79,6 +80,101 @@ def check_contact_keys(scene: Scene, rotations: str) -> None:
                                         "dynamic rod (material.density > 0)")
 
 
+def check_initial_contact(scene: Scene, start) -> None:
+    """Contact at t = 0 on the rods' centre lines ``start`` (builders.StartLines, placed
+    in numpy), the model's own checks before any model: self-contact whose neighbour
+    exclusion covers a rod (contact.radius), a node within its radius of an obstacle
+    (obstacles[k]), two segments' capsules overlapping (contact.self or
+    contact.between_rods).  A start settled in equilibrium first (``start.settled``)
+    and smooth pairs' curves (contact.pair_curve = "smooth") are left to run."""
+    c = scene["contact"]
+    radius = c["radius"]
+    gap = c["gap"] or radius / 10
+    h = longest_cell(start)
+    if c["self"]:
+        from ..rod.segments import exclusion_problem
+        problem = exclusion_problem(radius, gap, h,
+                                    min(line.length for line in start.lines))
+        if problem:
+            raise scene.error("contact.radius", problem)
+    if start.settled:
+        return
+    _check_obstacle_overlap(scene, start.lines, radius, gap)
+    if segment_pairs(scene) and c["pair_curve"] == "segments":
+        _check_pair_overlap(scene, start, radius, gap, h)
+
+
+def longest_cell(start) -> float:
+    """The longest cell of the rods (their pieces: the model's layout) at t = 0."""
+    return max(line.length / (len(line.s) - 1) for line in start.lines)
+
+
+def _check_obstacle_overlap(scene: Scene, lines: list, radius: float, gap: float) -> None:
+    """A rod whose nodes start within its radius of an obstacle (rod/obstacle_shapes.py:
+    the gaps of the model's check at t = 0): the error naming obstacles[k] run gives."""
+    from ..rod.obstacle_shapes import InitialOverlap, gaps, make_pose
+    if not scene["obstacles"]:
+        return
+    poses = [make_pose(obstacle(scene, ob), tree=False)      # (no scipy import)
+             for ob in scene["obstacles"]]
+    nearest = []
+    for line in lines:
+        g = gaps(poses, line.points, radius)
+        i, k = np.unravel_index(np.argmin(g), g.shape)
+        nearest.append((float(g[i, k]), float(line.s[i]), int(k), line.rod))
+    g, s, k, rod = min(nearest, key=lambda near: near[0])
+    if g <= 0:
+        raise scene.error(f"obstacles[{k}]", str(InitialOverlap.at(
+            "centre line", s, g, k, gap, scene["obstacles"][k]["shape"], rod)))
+
+
+def _check_pair_overlap(scene: Scene, start, radius: float, gap: float, h: float) -> None:
+    """Two segments of the rods that make a pair (pair_contact.SegmentContact.allowed:
+    of one piece farther apart in s than the exclusion with contact.self, of two with
+    contact.between_rods, not neighbours through a joint) whose capsules overlap at
+    t = 0: the error naming contact.self or contact.between_rods run gives.  The pieces
+    are laid on one parameter line as the model's layout lays them (a gap of the longest
+    between them: layout.RodLayout.starts)."""
+    from ..rod.segments import (PairOverlap, closest_points, exclusion, joint_distances,
+                                near_pairs)
+    lines, c = start.lines, scene["contact"]
+    spacing = max(line.length for line in lines)
+    a = np.concatenate([[0.0], np.cumsum([line.length + spacing for line in lines])[:-1]])
+    nodes = np.concatenate([[0], np.cumsum([len(line.s) for line in lines])])
+    P = np.vstack([line.points for line in lines])
+    ends = np.vstack([nodes[k] + np.column_stack([np.arange(len(line.s) - 1),
+                                                  np.arange(1, len(line.s))])
+                      for k, line in enumerate(lines)])
+    piece = np.concatenate([np.full(len(line.s) - 1, k) for k, line in enumerate(lines)])
+    local = np.concatenate([0.5 * (line.s[1:] + line.s[:-1]) - line.s[0] for line in lines])
+    mid_s = a[piece] + local
+    own_s = np.concatenate([0.5 * (line.s[1:] + line.s[:-1]) for line in lines])
+    reach, excluded = 2 * radius + gap, exclusion(radius, gap, h)
+    pairs = near_pairs(P[ends[:, 0]], P[ends[:, 1]], mid_s, reach, 0.0,
+                       tree=len(ends) > FEW_SEGMENTS)
+    i, j = pairs[:, 0], pairs[:, 1]
+    same = piece[i] == piece[j]
+    keep = (same & c["self"] & (np.abs(mid_s[i] - mid_s[j]) >= excluded)) | \
+        (~same & c["between_rods"])
+    joints = [(a[p] + m * lines[p].length / (len(lines[p].s) - 1),
+               a[q] + n * lines[q].length / (len(lines[q].s) - 1))
+              for p, m, q, n in start.joints]
+    for near in joint_distances(mid_s, joints):        # neighbours through a joint
+        keep &= near[i] + near[j] >= excluded
+    i, j = i[keep], j[keep]
+    X = [P[ends[i, 0]], P[ends[i, 1]], P[ends[j, 0]], P[ends[j, 1]]]
+    u, v, d = closest_points(*X)
+    if not len(d) or d.min() - 2 * radius > 0:
+        return
+    k = int(np.argmin(d))
+    point = 0.5 * (X[0][k] + u[k] * (X[1][k] - X[0][k]) + X[2][k] + v[k] * (X[3][k] - X[2][k]))
+    names = tuple(("the rod" if lines[piece[m]].rod is None else
+                   f"rod {lines[piece[m]].rod}") + f" at s = {own_s[m]:.4g}" for m in (i[k], j[k]))
+    err = PairOverlap.at(names, point, float(d[k] - 2 * radius), radius,
+                         lines[piece[i[k]]].rod == lines[piece[j[k]]].rod)
+    raise scene.error(err.key, str(err))
+
+
 def _check_segments(scene: Scene, k: int) -> None:
     """contact = "segments": a sphere, a cylinder or a mesh (rod/contact.py
     check_contact_mode, with the scene's keys)."""
@@ -110,7 +206,7 @@ def _check_mesh(scene: Scene, k: int) -> None:
 def obstacle(scene: Scene, ob: dict):
     """rod.contact.Obstacle of one [[obstacles]] entry (a mesh's file relative to the
     scene's folder)."""
-    from ..rod.contact import Obstacle
+    from ..rod.obstacle_shapes import Obstacle
     given = {key: tuple(ob[key]) for key in ("point", "normal", "centre", "axis",
                                              "rotation", "vertices", "triangles")
              if ob[key] is not None}           # the shape's keys only (checked above)
@@ -137,10 +233,11 @@ def mesh_file(scene: Scene, ob: dict) -> str | None:
     return str(folder / ob["file"])
 
 
-def contact_lines(scene: Scene) -> list[str]:
+def contact_lines(scene: Scene, start) -> list[str]:
     """``check``'s line per obstacle: where its barrier acts, nodes or segments
     (rod/segments.on_segments with the longest cell h; a mesh's sharp edges,
-    rod/obstacle_segments.fixed_segments)."""
+    rod/obstacle_segments.fixed_segments); then ``pair_lines`` (``start``: the rods at
+    t = 0, builders.StartLines)."""
     from ..rod.segments import chord_reaches_edge
     lines = []
     for k, ob in enumerate(scene["obstacles"]):
@@ -153,6 +250,31 @@ def contact_lines(scene: Scene) -> list[str]:
                 where = f"on the nodes, its {edges} sharp edges on the segments"
         lines.append(f"contact: obstacles[{k}] ({ob['shape']}, contact = "
                      f"{ob['contact']!r}) acts {where} (longest cell h = {h:.4g})")
+    return lines + pair_lines(scene, start)
+
+
+def pair_lines(scene: Scene, start) -> list[str]:
+    """``check``'s line for self-contact and for contact between rods (pair_contact.py):
+    the capsules' radius, the barrier's gap, the pairs' curves, friction, and for
+    self-contact the neighbours excluded along the rod (segments.exclusion; the longest
+    cell of the rods at t = 0, ``start``: builders.StartLines)."""
+    from ..rod.segments import exclusion
+    c, lines = scene["contact"], []
+    radius = c["radius"]
+    gap = c["gap"] or radius / 10
+    h = longest_cell(start)
+    for key, what in (("self", "the rod's own segments"),
+                      ("between_rods", "segments of different rods")):
+        if not c[key]:
+            continue
+        said = (f"contact: {key} ({what}, capsules of radius {radius:g}, barrier gap "
+                f"{gap:g}, pair_curve = {c['pair_curve']!r}")
+        said += f", friction mu = {c[key + '_friction']:g})" if c[key + "_friction"] > 0 \
+            else ", frictionless)"
+        if key == "self":
+            said += (f" excludes neighbours closer along the rod than pi (r + gap) + h = "
+                     f"{exclusion(radius, gap, h):.4g} (longest cell h = {h:.4g})")
+        lines.append(said)
     return lines
 
 

@@ -117,7 +117,8 @@ def _mass(scene: Scene, section) -> dict:
 
 
 def _relaxation(scene: Scene) -> dict:
-    """M_d = tau_u (A + A_d), N_d = tau_v (B + B_d) from the (given or derived) tensors."""
+    """M_d = tau_u (A + A_d), N_d = tau_v (B + B_d) from the (given or derived) tensors,
+    times the rod's length for the uniform variant (rod/sections.py)."""
     mat, err = scene["material"], scene.error
     if mat["model"] != "evolving":
         raise err("material.relaxation_time", f"the {mat['model']} model has no natural "
@@ -132,11 +133,13 @@ def _relaxation(scene: Scene) -> dict:
         if k not in stiff:
             raise err("material.relaxation_time", f"needs the stiffness {k} (material."
                                                   "stiffness or youngs_modulus)")
+    # the uniform law integrates over s (eq. unatevolunif): tau needs one more factor L
+    length = scene["geometry"]["length"] if mat["variant"] == "uniform" else 1.0
     out = {}
     for tau, name, (a, a_d) in zip(mat["relaxation_time"], ("M_d", "N_d"),
                                    (("A", "A_d"), ("B", "B_d"))):
         terms = _sum_terms(stiff[a].terms, stiff[a_d].terms)
-        visc[name] = Tensor(tuple(tau * t for t in terms))
+        visc[name] = Tensor(tuple(tau * length * t for t in terms))
         first = visc[name].terms[0]
         out[name] = ("polynomial in s" if len(terms) > 1 else np.diag(first).tolist()
                      if not np.any(first - np.diag(np.diag(first))) else first.tolist())

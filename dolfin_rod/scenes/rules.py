@@ -11,6 +11,8 @@ import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
+from ..rod import placement
+from ..theory.quaternions import np_quaternion_from_rotation_vector, np_rotation_matrix
 from ..rod.rotation_choice import (choose_rotations, rotation_vector_obstacle,
                                    rotations_reason)
 from ..checks import (EQUILIBRIUM_NEEDS, MAX_CELL_TURN, is_coordinate_axis,
@@ -578,6 +580,36 @@ def _turn_axis(scene: Scene, end: str):
     return np.asarray(axis)
 
 
+def _held_directions(held: bool, free_axis) -> np.ndarray:
+    """Rows spanning the directions a support holds: all three, or those across the
+    axis it slides along or turns about."""
+    if not held:
+        return np.zeros((3, 3))
+    return np.eye(3) if free_axis is None else np.eye(3) - np.outer(free_axis, free_axis)
+
+
+def _rigid_motions_held(scene: Scene, held: list) -> bool:
+    """Whether the two ends' supports ((position, rotation) directions held at the start
+    and the end: _held_directions) hold every rigid motion (translation c, rotation w) of
+    a rod whose start shape is its stress-free helix of reference strains (straight by
+    default): an end at x moves by c + w x x, so the six columns (c, w) must have rank 6
+    (a simply supported beam: a hinge at the start, a roller sliding along the axis at
+    the end).  Other start shapes: False (the supports must then hold one end fully)."""
+    geo = scene["geometry"]
+    if "shape" in scene.given["initial"] or geo["reference_shape"] is not None:
+        return False
+    r, _ = placement.helix(np.array([0.0, geo["length"]]), geo["reference_curvature"],
+                           geo["reference_stretch"])
+    turn = np_rotation_matrix(np_quaternion_from_rotation_vector(
+        np.asarray(scene["initial"]["orientation"] or (0.0, 0.0, 0.0), float)))
+    rows = []          # x in units of the length: the columns of w scaled as those of c
+    for (position, rotation), x in zip(held, (np.zeros(3), turn @ r[-1] / geo["length"])):
+        w_cross_x = np.cross(np.eye(3), x).T          # column j: e_j x x
+        rows += [np.hstack([position, position @ w_cross_x]),
+                 np.hstack([np.zeros((3, 3)), rotation])]
+    return np.linalg.matrix_rank(np.vstack(rows)) == 6
+
+
 def _along(spec, axis) -> bool:
     """Whether a vector history has a component along the axis."""
     values = np.array(spec.values if spec.type == "table" else (spec.value,), float)
@@ -587,7 +619,7 @@ def _along(spec, axis) -> bool:
 def _check_rod_ends(scene: Scene) -> None:
     """Supports, prescribed end motions and end loads of the 3-D rod."""
     bnd, lds, err = scene["boundary"], scene["loads"], scene.error
-    fixed_x, fixed_q = [], []
+    fixed_x, fixed_q, held = [], [], []
     for end in ("start", "end"):
         kind = bnd[end]
         if kind == "rotation":
@@ -609,6 +641,9 @@ def _check_rod_ends(scene: Scene) -> None:
         spring = _spring(scene, end, x and axis is None, q and turn is None)
         fixed_x.append((x and axis is None) or np.all(spring.get("translational", 0.0)))
         fixed_q.append((q and turn is None) or np.all(spring.get("rotational", 0.0)))
+        held.append((_held_directions(x, axis) if x else
+                     np.diag(np.broadcast_to(spring.get("translational", 0.0), 3) > 0) * 1.0,
+                     _held_directions(q, turn) if q else np.eye(3) * fixed_q[-1]))
         for load, fixed, what in (("force", x, "position"), ("couple", q, "rotation")):
             spec = lds[f"{end}_{load}"]
             if spec is None:
@@ -642,10 +677,12 @@ def _check_rod_ends(scene: Scene) -> None:
                                       f"geometry.length = {length:g}")
     _check_turns_resolved(scene)
     if not scene["material"]["dynamic"] and not scene.joined and \
-            not (any(fixed_x) and any(fixed_q)):
-        raise err("boundary.start", "a quasi-static rod needs a fixed position and a fixed "
-                                    "rotation somewhere (e.g. start = \"clamped\"); rigid "
-                                    "motions are free otherwise")
+            not (any(fixed_x) and any(fixed_q)) and not _rigid_motions_held(scene, held):
+        raise err("boundary.start", "a quasi-static rod needs supports that hold every "
+                                    "rigid motion: a fixed position and a fixed rotation "
+                                    "somewhere (e.g. start = \"clamped\"), or a hinge at one "
+                                    "end and a roller at the other (boundary.start_turn, "
+                                    "end_slide); rigid motions are free otherwise")
 
 
 # loads and end motions a buckling analysis scales ([loads] and [boundary] keys)

@@ -31,6 +31,8 @@ from ..checks import (DEGREE, MAX_STEP_CUTS, MIN_LENGTH, N_CELLS, NEWTON_ATOL, N
                       SCHEME, TS_ATOL, TS_RTOL, VARIANT, read_regular_file)
 from ..rod.rotation_choice import ROTATIONS
 from ..rod.sections import SHAPES as SECTION_SHAPES
+from .builders import initial_centre_lines
+from .contact import check_initial_contact, touching
 from .histories import HistorySpec, distributed, history
 from .rules import check_combinations
 from .scene import Scene, SceneError
@@ -240,8 +242,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                        "youngs_modulus): A_d = r A, B_d = r B"),
         "relaxation_time": Key(positive_pair, None, R + "tau or [tau_u, tau_v] (s): the "
                                "natural strains' relaxation times at a held strain, M_d = "
-                               "tau_u (A + A_d), N_d = tau_v (B + B_d) instead of "
-                               "viscosity.M_d, N_d (evolving model)"),
+                               "tau_u (A + A_d), N_d = tau_v (B + B_d) (uniform variant: "
+                               "times geometry.length, its law integrating over s) instead "
+                               "of viscosity.M_d, N_d (evolving model)"),
         "density": Key(coefficient(False), None, R + "mass per length rho A (kg/m; number or "
                        "{polynomial}); with a [section]: the mass density rho (kg/m^3, a "
                        "number), rho A = rho a and section_inertia = rho (I_11, I_22); > 0: "
@@ -541,7 +544,8 @@ RENAMED = {("geometry", "reference_twist"): "initial.natural_twist (u_d at t = 0
 
 def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
     """Read and validate a scene file; every failure is a SceneError.  ``overrides``
-    {"table.key": value} (None: remove the key) change the file's values first, e.g.
+    {"table.key": value} (None: remove the key; "table.key.subkey" a key of an inline
+    table such as loads.end_force.value) change the file's values first, e.g.
     ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``."""
     path = Path(path)
     try:
@@ -568,18 +572,40 @@ def parse_scene(text: str, source: str = "<string>", default_name: str = "scene"
         raise SceneError(source, "", f"invalid TOML: {err}") from None
     if overrides:
         for name, value in overrides.items():
-            table, _, key = name.partition(".")
-            if not key:
-                raise SceneError(source, name, "an override is named \"table.key\"")
-            section = raw.setdefault(table, {})
-            if value is None:
-                section.pop(key, None)
-            elif isinstance(section, dict):
-                section[key] = value
+            _override(raw, name, value, source)
         text = f"# {source} with overrides {overrides}\n" + to_toml(raw)
     scene = validate(raw, source, default_name)
     scene.text = text
     return scene
+
+
+def _override(raw: dict, name: str, value: Any, source: str) -> None:
+    """raw[table][key]... = value (None: remove it) for name "table.key" or a key inside
+    a table's inline table, "table.key.sub" (e.g. loads.end_force.value); a SceneError
+    naming the override where the path does not lead through tables (an array of tables
+    such as [[rods]], which an override cannot index: edit the file)."""
+    table, *path = name.split(".")
+    if not path or not all(path):
+        raise SceneError(source, name, "an override is named \"table.key\" (or "
+                                       "\"table.key.subkey\")")
+    if value is None and table not in raw:
+        return
+    section, where = raw.setdefault(table, {}), table
+    for key in path[:-1]:
+        if not isinstance(section, dict):
+            break
+        if value is None and key not in section:
+            return                                  # nothing there to remove
+        section, where = section.setdefault(key, {}), f"{where}.{key}"
+    if not isinstance(section, dict):
+        kind = "an array of tables" if isinstance(section, list) else "not a table"
+        raise SceneError(source, name, f"override {name!r}: {where} is {kind}; an override "
+                                       "can only change a key of a table: edit the scene "
+                                       "file")
+    if value is None:
+        section.pop(path[-1], None)
+    else:
+        section[path[-1]] = value
 
 
 def to_toml(raw: dict) -> str:
@@ -601,10 +627,14 @@ def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> S
     if not isinstance(raw, dict):
         raise SceneError(source, "", f"a scene must be a table, got {type_name(raw)}")
     if "rods" in raw:
-        return validate_system(dict(raw), source, default_name, _validate_tables)
-    if "joints" in raw:
+        scene = validate_system(dict(raw), source, default_name, _validate_tables)
+    elif "joints" in raw:
         raise SceneError(source, "joints", "joints join the rods of [[rods]] tables")
-    return _validate_tables(raw, source, default_name)
+    else:
+        scene = _validate_tables(raw, source, default_name)
+    if scene.is_rod_material and touching(scene):    # contact at t = 0: the rods placed
+        check_initial_contact(scene, initial_centre_lines(scene))
+    return scene
 
 
 def _validate_tables(raw: dict, source: str, default_name: str,
