@@ -127,7 +127,8 @@ switching variant on a rod with L != 1 rescales time by L.
 (unique; the rod's output columns are `<name>.<key>`), `position` (its s = 0 end, m),
 `orientation` (a rotation vector turning e_3 into its initial tangent), and its own
 `geometry`, `section`, `material`, `boundary`, `loads`, `initial` as inline tables laid
-over the scene's tables key by key (an error names `rods[k].<table>.<key>`;
+over the scene's tables key by key (a `section` with a `shape` replaces the scene's
+[section]; an error names `rods[k].<table>.<key>`;
 `material.model`, `variant`, `constraints`, `energy` and `geometry.rotations` are shared
 and given in the scene's tables only; `initial.natural_*` are each rod's own (or the
 scene's for every rod); a rod's starting
@@ -389,7 +390,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "rtol": Key(real(0.0, True, 1.0), NEWTON_RTOL, "relative tolerance (SNES / solve_ivp)"),
         "atol": Key(real(0.0, True, 1.0), NEWTON_ATOL,
                     "absolute tolerance (SNES residual / solve_ivp); keep it above the "
-                    "round-off floor of the residual (~1e-12 fails at 64 cells)"),
+                    "round-off floor of the residual (~1e-12 fails at 64 cells) and, 3-D "
+                    "rod, below 1e-6 of the scene's forces (a thin fibre in SI units: "
+                    "`check` warns, Newton would pass its first guess unchanged)"),
         "max_step_cuts": Key(integer(0, 30), MAX_STEP_CUTS, "step halvings before giving up"),
         "ode_solution": Key(choice("exact", "scheme"), ODE_SOLUTION,
                             "ODE model: closed form/solve_ivp, or the FE model's scheme"),
