@@ -331,3 +331,33 @@ def test_a_load_that_starts_after_the_run_is_warned_of(load, warned):
     else:
         (warning,) = warnings
         assert warned in warning and warning.endswith("it never acts in this run"), warning
+
+
+def test_a_quasi_static_start_far_from_equilibrium_names_the_starting_shape():
+    """A straight steel wire started as a quarter arc (initial.shape), quasi-static, no
+    load: its start is the straight equilibrium, which Newton does not reach from a
+    quarter turn in 25 iterations.  The failure said only "apply such loads or end
+    motions gradually" (the scene has none); it now names the starting shape too."""
+    from dolfin_rod.integrators.step_control import IntegrationError
+    text = """
+[geometry]
+length = 0.7853981633974483
+n_cells = 16
+[section]
+shape = "circle"
+radius = 0.003
+[material]
+model = "hyperelastic"
+youngs_modulus = 2.1e11
+poisson_ratio = 0.3
+[initial]
+shape = { type = "arc", radius = 0.5 }
+[time]
+t_end = 1.0
+dt = 0.5
+"""
+    sim = build(parse_scene(text), "rod")
+    with pytest.raises(IntegrationError, match=r"the start at t = 0: .*initial.shape is only "
+                                                "Newton's first guess"):
+        sim.start()
+        sim.advance(0.0, 0.5)

@@ -40,7 +40,7 @@ from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports, linked_axes, spin_free
 from .constitutive import check_model, energy_function, section_response
-from .contact import ContactLaw, InitialOverlap, Obstacle, ObstacleContact, check_contact
+from .contact import ContactLaw, InitialOverlap, Obstacle, ObstacleContact, Spin, check_contact
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
@@ -559,8 +559,11 @@ class RodModel(FEModel):
         if any(ob.friction > 0 for ob in obstacles) and not self.dynamic:
             raise ValueError("obstacles[k].friction needs a dynamic rod (density > 0): "
                              "the friction force depends on the velocity")
-        return ObstacleContact(obstacles, law, disc, self.unknowns.f["displacement"],
-                               self.unknowns.V if self.dynamic else None)
+        unk = self.unknowns
+        return ObstacleContact(obstacles, law, disc, unk.f["displacement"],
+                               unk.V if self.dynamic else None,
+                               Spin(unk.q, unk.W, unk.dTheta, unk.rotation)
+                               if self.dynamic else None)
 
     @property
     def supports(self) -> EndSupports:
