@@ -31,7 +31,7 @@ import warnings
 from pathlib import Path
 
 from .mpi import agree, print_on_root
-from .run import ANALYSES, analyse, choose_model, run, stability_warning
+from .run import ANALYSES, analyse, choose_model, run, scene_warnings
 from .scenes.scene import Scene, SceneError
 
 __all__ = ["main", "schema_markdown"]
@@ -164,7 +164,7 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
         raise OutputError(f"{what} {problem}")
     for line in lines:
         print_on_root(comm, line)
-    stability_warning(scene, comm)
+    scene_warnings(scene, comm)
 
 
 def _check_lines(scene: Scene, ranks: int) -> list[str]:

@@ -35,7 +35,7 @@ from .mpi import agree, print_on_root
 from .scenes.scene import Scene, SceneError
 
 __all__ = ["run", "run_scene", "analyse", "RunResult", "march", "choose_model",
-           "stability_warning"]
+           "scene_warnings"]
 
 
 @dataclass
@@ -191,12 +191,16 @@ def choose_model(scene: Scene, ranks: int):
     return choice
 
 
-def stability_warning(scene: Scene, comm) -> None:
-    """Warn (stderr, rank 0) before a run that explicit Euler would make diverge."""
-    from .scenes.run_warnings import explicit_stability_warning
-    warning = explicit_stability_warning(scene)
-    if warning:
-        print_on_root(comm, f"warning: {warning}", file=sys.stderr)
+def scene_warnings(scene: Scene, comm) -> None:
+    """Warn (stderr, rank 0) before a run that explicit Euler would make diverge, of a
+    section not small against the rod's length, of a Newton time.atol not small against
+    the forces, of a load that starts only after the run (scenes/run_warnings.py)."""
+    from .scenes.run_warnings import (explicit_stability_warning, late_history_warnings,
+                                      slenderness_warnings, tolerance_warning)
+    for warning in [explicit_stability_warning(scene), *slenderness_warnings(scene),
+                    tolerance_warning(scene), *late_history_warnings(scene)]:
+        if warning:
+            print_on_root(comm, f"warning: {warning}", file=sys.stderr)
 
 
 def draws_alone(scene: Scene, comm) -> bool:
@@ -255,7 +259,7 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
     folder = _run_folder(scene, out, comm, resume, overwrite)
     if not quiet:
         print_on_root(comm, f"model: {choice.model} ({choice.reason})")
-    stability_warning(scene, comm)
+    scene_warnings(scene, comm)
     from .output.drawing import painting
     from .output.notices import noticed
     with painting(draws_alone(scene, comm)) as painter, noticed(comm) as seen:

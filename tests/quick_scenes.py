@@ -3,9 +3,6 @@ if asked, fewer cells and other overrides (the test-only override of issue 14)."
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 import tomllib
 from pathlib import Path
 
@@ -24,19 +21,17 @@ def quick_scene(path: Path | str, steps: int = 4, **overrides) -> Scene:
 
 
 def run_serially(path: Path | str, out: Path, steps: int = 4, **overrides) -> str:
-    """run_scene(quick_scene(...)) in a separate single-process Python (for MPI tests);
-    returns the run's status."""
-    from serial_reference import _singleton_env
-    code = ("import sys, json; sys.path.insert(0, %r); from quick_scenes import quick_scene; "
-            "from dolfin_rod import run_scene; "
-            "s = run_scene(quick_scene(%r, %d, **%r), %r, quiet=True); "
-            "print(json.dumps(s['status']))" % (str(ROOT / "tests"), str(path), steps,
-                                                 overrides, str(out)))
-    proc = subprocess.run([sys.executable, "-c", code], env=_singleton_env(), cwd=ROOT,
-                          capture_output=True, text=True, timeout=600)
-    if proc.returncode != 0:
-        raise RuntimeError(f"serial run of {path} failed:\n{proc.stderr[-3000:]}")
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+    """run_scene(quick_scene(...)) by the single-process Python of the serial references
+    (for MPI tests, on one rank); returns the run's status."""
+    from serial_reference import on_one_process
+    return on_one_process("quick_scenes.run_status", str(path), str(out), steps, overrides)
+
+
+def run_status(path: str, out: str, steps: int, overrides: dict) -> str:
+    """The status of run_scene(quick_scene(...)) written into ``out`` (run_serially's
+    request)."""
+    from dolfin_rod import run_scene
+    return run_scene(quick_scene(path, steps, **overrides), out, quiet=True)["status"]
 
 
 def assert_serial_run_equal(path: Path | str, folder: Path, steps: int, atol: float = 1e-10,

@@ -6,6 +6,7 @@
 #   start-up:    exit status 130, no Python traceback
 #   SIGTERM to ./rodenv mid-run, and Ctrl-C and SIGTERM under `./rodenv mpirun -n 2`
 #   (issue 28 item 22): the same as Ctrl-C mid-run
+#   SIGKILL to ./rodenv mid-run: the command ends with it (it went on writing its folder)
 # Run by `make test` for each release (DOLFINX=0.9|0.11); the first run also compiles
 # the scene's forms, so the start-up case does not interrupt a compiler.
 set -euo pipefail
@@ -69,6 +70,19 @@ mid_run term terminate
 mid_run mpi-int interrupt mpirun -n 2
 mid_run mpi-term terminate mpirun -n 2
 
+# kill -9 of ./rodenv: no trap sees it; the run must not go on writing its folder
+start killed
+rows() { [ "$(cat "$work/killed/timeseries.csv" 2>/dev/null | wc -l)" -ge 20 ]; }
+wait_for "20 steps" rows
+kill -KILL "$pid"
+wait "$pid" || true
+sleep 3
+before=$(wc -l <"$work/killed/timeseries.csv")
+sleep 3
+[ "$(wc -l <"$work/killed/timeseries.csv")" = "$before" ] \
+    || fail "killed: the run went on writing after ./rodenv was SIGKILLed"
+! pgrep -f "$work/killed" >/dev/null || fail "killed: the run is still alive"
+
 started() { grep -q '^model: ' "$work/startup.out"; }
 start startup
 wait_for "start-up message" started
@@ -76,4 +90,4 @@ interrupt
 [ "$status" = 130 ] || { cat "$work/startup.err" >&2; fail "start-up: exit status $status"; }
 ! grep -q Traceback "$work/startup.err" || { cat "$work/startup.err" >&2; fail "start-up: traceback"; }
 echo "rodenv_interrupt: OK (mid-run and start-up Ctrl-C, SIGTERM, both under mpirun -n 2:" \
-    "exit status 130, summary written)"
+    "exit status 130, summary written; SIGKILL: the run ends with ./rodenv)"

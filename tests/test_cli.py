@@ -183,6 +183,23 @@ def test_set_changes_keys_and_outputs_every_the_frames_written(tmp_path):
         assert "Traceback" not in out.stderr and not (tmp_path / "bad").exists()
 
 
+def test_set_reaches_a_key_of_an_inline_table_and_refuses_an_array_of_tables():
+    """--set loads.end_force.value=... changes that key of the inline table (was "unknown
+    key" in [loads]); a key of [[joints]] or [[rods]] cannot be overridden (was ignored
+    silently: --set joints.kind=ball checked OK and ran the rigid joint), nor a key inside
+    a number."""
+    from dolfin_rod.scenes import SceneError, load_scene
+    scene = load_scene(ROOT / "scenes/buckled_column.toml",
+                       {"loads.end_force.value": [0.0, 0.0, -1.0]})
+    assert scene["loads"]["end_force"].value == (0.0, 0.0, -1.0)
+    assert scene["loads"]["end_force"].duration == 1.0           # the rest of it kept
+    for name, says in (("joints.kind", "joints is an array of tables"),
+                       ("rods.name", "rods is an array of tables"),
+                       ("time.dt.x", "time.dt is not a table")):
+        with pytest.raises(SceneError, match=rf"\[{name}\]: override '{name}': {says}"):
+            load_scene(ROOT / "scenes/frame.toml", {name: "ball"})
+
+
 def test_interrupted_run_keeps_what_it_computed(tmp_path):
     """SIGINT mid-run: exit 130, the CSV holds every step up to the interruption and the
     JSON files are written with status 'interrupted'."""

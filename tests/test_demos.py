@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from dolfin_rod import closed_forms
-from serial_reference import _singleton_env
+from serial_reference import singleton_env
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -26,7 +26,7 @@ def run_demo(name: str, ranks: int, *args: str, timeout: float = 900) -> str:
     cmd = [sys.executable, f"demos/{name}.py", *args]
     if ranks > 1:
         cmd = ["mpirun", "-n", str(ranks)] + cmd
-    proc = subprocess.run(cmd, cwd=ROOT, env=_singleton_env(), capture_output=True,
+    proc = subprocess.run(cmd, cwd=ROOT, env=singleton_env(), capture_output=True,
                           text=True, timeout=timeout)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
     return proc.stdout

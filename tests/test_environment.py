@@ -8,6 +8,9 @@ import threading
 import tomllib
 from pathlib import Path
 
+import pytest
+
+import serial_reference
 from conftest import Cores, starts_mpi
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -98,6 +101,19 @@ def test_a_test_starting_mpi_waits_for_the_others_and_holds_them_back(tmp_path):
     first.release()
     first.close()
     second.close()
+
+
+def test_the_serial_references_python_answers_and_a_failure_ends_it():
+    """The MPI tests' serial references (tests/serial_reference.py): one Python serves
+    them in turn; what a request prints does not spoil its answer; a failing request is
+    raised with its traceback and ends that Python, and the next request starts anew."""
+    assert serial_reference.on_one_process("builtins.print", "a run's output") is None
+    first = serial_reference.on_one_process("os.getpid")
+    assert serial_reference.on_one_process("math.hypot", 3.0, 4.0) == 5.0
+    assert serial_reference.on_one_process("os.getpid") == first    # the same Python
+    with pytest.raises(RuntimeError, match=r"math.sqrt(?s:.*)ValueError"):
+        serial_reference.on_one_process("math.sqrt", -1.0)
+    assert serial_reference.on_one_process("os.getpid") != first    # a new one
 
 
 def test_pyproject_declares_the_supported_dolfinx_releases():

@@ -226,3 +226,138 @@ def test_relaxation_viscosities_carry_the_length_in_the_uniform_variant():
     assert np.allclose(uniform["M_d"], 3.0 * local["M_d"], rtol=1e-15)
     assert np.allclose(uniform["N_d"], 3.0 * local["N_d"], rtol=1e-15)
     assert local["M_d"][0] == pytest.approx(0.1 * 2 * local["A"][0], rel=1e-15)
+
+
+def test_a_section_in_mm_given_as_metres_is_warned_of(tmp_path, capsys):
+    """radius = 5 (meant: 5 mm) on a 1 m rod: L/d = 0.1, not a rod (rod theory needs
+    L/d >~ 10); `check` says so on stderr and still passes the scene (exit 0: a stout
+    body is a modelling choice, not an invalid scene).  The 5 mm rod (L/d = 100) and the
+    bundled scenes are not warned of; in [[rods]] the warning names the rod."""
+    from dolfin_rod.cli import main
+    from dolfin_rod.scenes.run_warnings import slenderness_warnings
+    path = tmp_path / "mm.toml"
+    path.write_text(PHYSICAL.replace(f"radius = {RADIUS}", "radius = 5.0"))
+    assert main(["check", str(path)]) == 0
+    err = capsys.readouterr().err
+    assert "[section]: the section's largest dimension 10 is not small against the rod's " \
+           "length 1 (L/d = 0.1)" in err and "mm instead of m" in err, err
+    assert slenderness_warnings(parse_scene(PHYSICAL)) == []
+    system = parse_scene(PHYSICAL.replace("[loads]\ngravity = [-9.81, 0.0, 0.0]\n", "") + """
+[[rods]]
+name = "thin"
+[[rods]]
+name = "fat"
+position = [1.0, 0.0, 0.0]
+section = { shape = "tube", outer_radius = 0.4, inner_radius = 0.3 }
+""")
+    (warning,) = slenderness_warnings(system)
+    assert "[section] (rod fat): the section's largest dimension 0.8" in warning
+    # the rod's own shape replaces the scene's [section] (its radius was kept and refused)
+    fat = system.rods[1].scene["material"]["derived"]["section"]
+    assert fat["area"] == pytest.approx(np.pi * (0.4**2 - 0.3**2), rel=1e-14)
+
+
+FIBRE = """
+[geometry]
+length = 0.05
+n_cells = 4
+[section]
+shape = "circle"
+radius = 1e-4
+[material]
+youngs_modulus = 3e9
+poisson_ratio = 0.4
+natural_stiffness_ratio = 0.5
+relaxation_time = 2.0
+[boundary]
+start = "clamped"
+end = "free"
+[loads]
+end_couple = { value = [0.0, 0.0, 1e-9] }
+[time]
+t_end = 6.0
+dt = 0.25
+scheme = "bdf2"
+"""
+
+
+def test_a_fibre_in_si_units_is_warned_of_newtons_absolute_tolerance_and_creeps_below_it():
+    """A nylon fibre (r 0.1 mm, L 5 cm) under an end torque m = 1e-9 N m creeps as
+    u(t) = m/A + m/A_d (1 - exp(-t A_d/M_d)) (homogeneous twist; M_d/A_d = tau (1 + r)/r
+    = 6 s).  With the default time.atol = 1e-10 > m, Newton's absolute test passed every
+    step's linear predictor: the twist grew linearly, 30 % high at t = 6 s (with the
+    constant predictor it did not creep at all): the scene is now warned of, naming
+    time.atol and the bound 1e-6 m.  At that bound the run meets the closed form (BDF2
+    with dt = tau/8: measured -2.4e-4 relative, -1.0e-3 at dt = tau/4; tolerance 1e-3)."""
+    from dolfin_rod.scenes.run_warnings import residual_scale, tolerance_warning
+    scene = parse_scene(FIBRE)
+    assert residual_scale(scene) == pytest.approx(1e-9, rel=1e-15)
+    assert "[time.atol]: 1e-10 is not small against the scene's forces" in \
+        tolerance_warning(scene) and "take time.atol <= 1e-15" in tolerance_warning(scene)
+    assert tolerance_warning(parse_scene(FIBRE.replace("1e-9]", "1e-3]"))) is None
+    assert tolerance_warning(parse_scene(TWISTED.replace("VARIANT", "local"))) is None
+    elastic = FIBRE.replace("[material]\n", '[material]\nmodel = "hyperelastic"\n').replace(
+        "natural_stiffness_ratio = 0.5\nrelaxation_time = 2.0\n", "")
+    assert tolerance_warning(parse_scene(elastic)) is None      # loads step by more
+    sim = build(parse_scene(FIBRE.replace("scheme", "atol = 1e-15\nscheme")), "rod")
+    sim.start()
+    for k in range(24):
+        sim.advance(0.25 * k, 0.25 * (k + 1))
+    derived = scene["material"]["derived"]
+    A, A_d, M_d = derived["A"][2], derived["A_d"][2], derived["M_d"][2]
+    creep = 0.05 * (1e-9 / A + 1e-9 / A_d * (1 - np.exp(-6.0 * A_d / M_d)))
+    assert sim.diagnostics(6.0)["tip_rotation_angle"] == pytest.approx(creep, rel=1e-3)
+
+
+@pytest.mark.parametrize("load, warned", [
+    ('{ type = "step", value = [0.0, 0.0, 1e-3], t0 = 6.0 }', "[loads.end_couple.t0]: it "
+     "first changes at t = 6, not before time.t_end = 6"),
+    ('{ type = "ramp", value = [0.0, 0.0, 1e-3], t0 = 7.0, duration = 1.0 }',
+     "[loads.end_couple.t0]: it first changes at t = 7"),
+    ('{ type = "table", times = [0.0, 6.5, 7.0], values = [[0.0, 0.0, 1e-3], [0.0, 0.0, '
+     '1e-3], [0.0, 0.0, 0.0]] }', "[loads.end_couple.times]: it first changes at t = 6.5"),
+    ('{ type = "ramp", value = [0.0, 0.0, 1e-3], t0 = 5.0, duration = 2.0 }', None),
+    ('{ type = "step", value = [0.0, 0.0, 0.0], t0 = 9.0 }', None),
+])
+def test_a_load_that_starts_after_the_run_is_warned_of(load, warned):
+    """A load whose history first changes at or after time.t_end = 6 never acts (a t0
+    meant for a longer run): warned of, naming its key; one changing before, or never
+    (zero), is not."""
+    from dolfin_rod.scenes.run_warnings import late_history_warnings
+    text = FIBRE.replace("end_couple = { value = [0.0, 0.0, 1e-9] }", f"end_couple = {load}")
+    warnings = late_history_warnings(parse_scene(text))
+    if warned is None:
+        assert warnings == []
+    else:
+        (warning,) = warnings
+        assert warned in warning and warning.endswith("it never acts in this run"), warning
+
+
+def test_a_quasi_static_start_far_from_equilibrium_names_the_starting_shape():
+    """A straight steel wire started as a quarter arc (initial.shape), quasi-static, no
+    load: its start is the straight equilibrium, which Newton does not reach from a
+    quarter turn in 25 iterations.  The failure said only "apply such loads or end
+    motions gradually" (the scene has none); it now names the starting shape too."""
+    from dolfin_rod.integrators.step_control import IntegrationError
+    text = """
+[geometry]
+length = 0.7853981633974483
+n_cells = 16
+[section]
+shape = "circle"
+radius = 0.003
+[material]
+model = "hyperelastic"
+youngs_modulus = 2.1e11
+poisson_ratio = 0.3
+[initial]
+shape = { type = "arc", radius = 0.5 }
+[time]
+t_end = 1.0
+dt = 0.5
+"""
+    sim = build(parse_scene(text), "rod")
+    with pytest.raises(IntegrationError, match=r"the start at t = 0: .*initial.shape is only "
+                                                "Newton's first guess"):
+        sim.start()
+        sim.advance(0.0, 0.5)

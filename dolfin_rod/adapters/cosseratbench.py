@@ -33,7 +33,9 @@ scores dolfin_rod next to PyElastica and MuJoCo.  How a scenario is mapped:
   10 and stiffness rule as for obstacles (a rod's weight per length as the pressure);
 - with any contact: generalized-alpha with rho_inf = 0 (a barrier's impacts damped,
   docs/contact.md), Newton to rtol 1e-8, with friction a backtracking line search
-  (scenes/contact.py's choices) and FRICTION_STEPS times more steps;
+  (scenes/contact.py's choices) and FRICTION_STEPS times more steps; a quasi-static
+  rod that starts on an obstacle with friction (the capstan's rope) starts with zero
+  accelerations (``start_at_rest``);
 - dynamics: generalized-alpha on the rotation group (dolfin_rod's default), at most
   ``STEPS_PER_PERIOD`` steps per period of the scenario's slowest mode and at least one
   per frame; a quasi-static scenario adds damping proportional to mass at the rate
@@ -393,6 +395,8 @@ def run_model(scenario: Scenario, built, times: np.ndarray, dt: float) -> list:
     model.set_initial_state(start=start)
     scheme = "generalized_alpha:0.0" if in_contact(scenario) else None
     stepper = TimeStepper(model.problem, scheme, solver_options(scenario))
+    if held_at_rest(scenario, model):
+        start_at_rest(stepper, float(times[0]))
     frames = [frame(model)]
     try:
         for t0, t1 in zip(times[:-1], times[1:]):
@@ -402,6 +406,31 @@ def run_model(scenario: Scenario, built, times: np.ndarray, dt: float) -> list:
         raise Diverged(f"dolfin_rod: {err}", time=getattr(err, "t", None)) from err
     return [(np.stack([f[k][0] for f in frames]), np.stack([f[k][1] for f in frames]))
             for k in range(len(frames[0]))]
+
+
+def held_at_rest(scenario: Scenario, model) -> bool:
+    """Whether ``model`` (in its starting state) begins at rest held by friction: a
+    quasi-static scenario (the question is whether an equilibrium exists: the solver
+    may damp its way to it) whose rod starts within the barrier's gap of an obstacle with
+    friction (the capstan's rope, placed by ``barrier_start``; not the pile's, lowered
+    from above the floor)."""
+    if not (scenario.quasi_static and any(ob.friction > 0 for ob in scenario.obstacles)):
+        return False
+    return model.diagnostics(0.0)["min_gap"] < model.contact.law.gap
+
+
+def start_at_rest(stepper, t0: float) -> None:
+    """The integrator started at t0 with zero accelerations (a rod ``held_at_rest``).
+    The smoothed friction law carries no force at zero slip, so the accelerations solved
+    at t0 are the frictionless ones (the capstan's heavy side falling at ~g (h2 - h1) /
+    L); generalized-alpha (rho_inf = 0) carries them into the first steps' velocities,
+    which friction reads as slip: the rope at mu = 0.3, 0.8 h2* slid 8.2 mm at
+    cosseratbench's time_step_scale 4 (0.39 mm from rest), at mu = 0.6 the first step
+    failed (docs/contact.md), and every capstan run cut its first steps 3-11 times."""
+    stepper.initial_accelerations(t0)
+    for name, f in stepper.checkpoint_state()["functions"].items():
+        if name.startswith(("acceleration_", "algorithmic_")):
+            f.x.array[:] = 0.0
 
 
 def frame(model) -> list[tuple[np.ndarray, np.ndarray]]:

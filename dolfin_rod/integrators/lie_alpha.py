@@ -363,8 +363,11 @@ class LieGeneralizedAlpha:
             for f, array in zip(p.fields, initial):     # the state as it was given
                 f.x.array[:] = array
             raise IntegrationError(f"the start at t = {t0:.6g}: {err}" + (
-                "; apply such loads or end motions gradually (a ramp or smooth_step "
-                "history)" if 0 in self.order else ""), t0) from err
+                "; the start is the equilibrium with the loads and end motions at t0, "
+                "sought from the starting state: apply them gradually (a ramp or "
+                "smooth_step history), or start nearer to it (a quasi-static rod's "
+                "initial.shape is only Newton's first guess)" if 0 in self.order else ""),
+                t0) from err
         finally:
             for bc, value in zip(zeroed, values):
                 bc.g.value[...] = value

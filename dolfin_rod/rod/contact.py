@@ -14,12 +14,21 @@ nodes: the trapezoidal rule, so every node carries its own contact force):
     friction   f_t = -mu lambda phi(|v_t| / eps) v_t / |v_t|,  phi(y) = 3y/2 - y^3/2 for
                y < 1, 1 beyond (C^1), with the normal force lambda = -kappa b'(g) of the
                last accepted state (lagged, as in incremental potential contact), v_t the
-               centre line's velocity tangent to the obstacle and eps the slip tolerance:
-               a rod held by static friction creeps at less than eps.
+               velocity tangent to the obstacle of the contact point on the rod's surface,
+               c = -r n from the centre line (n the obstacle's outward normal): v_t the
+               tangential part of v + W_3 d_3 x c (W_3 = W . e_3 the spin about the rod's
+               axis d_3), and eps the slip tolerance: a rod held by static friction creeps
+               at less than eps.  f_t acts at that point: on the centre line the force
+               f_t and the torque (c x f_t) . d_3 about the axis (a rod across a slope
+               rolls; twisting a rod on a floor meets friction).  The sections' tilt
+               rates (W_1, W_2: bending and shear) are left out of the point's velocity,
+               and the bending couple out of the couple (docs/contact.md, "Rolling").
 
 The normal force enters the residual as the derivative of the contact energy (its
-Jacobian by UFL: consistent), the friction force as a force; the contact energy joins
-K + Psi in the power balance, the friction's power -f_t . v_t >= 0 the dissipation.
+Jacobian by UFL: consistent), the friction force and torque as the virtual work
+f_t . dx + ((c x f_t) . d_3) dTheta_3 (their Jacobian by UFL too, through the
+integrator's rates); the contact energy joins K + Psi in the power balance, the
+friction's power -f_t . (v + W_3 d_3 x c) >= 0 the dissipation.
 """
 
 from __future__ import annotations
@@ -32,10 +41,12 @@ from typing import Sequence
 import dolfinx.fem as fem
 import numpy as np
 import ufl
+from ufl.algorithms import extract_arguments, extract_coefficients
 from mpi4py import MPI
 
 from ..fem import compat
 from ..checks import nonnegative, positive, sample_points
+from ..theory.rotations import rotation_matrix
 from . import obstacle_shapes, segments
 from .obstacle_shapes import (NP_OPS, SHAPES, InitialOverlap, MeshPose, Obstacle, Ops, Pose,
                               check_contact_mode, signed_distance, sweep_entry)
@@ -47,6 +58,19 @@ BARRIER_CURVATURE = 2 * math.log(2) + 5.0   # b''(delta / 2) (dimensionless)
 
 
 PAIR_CURVES = ("segments", "smooth")     # pair_contact.py, smooth_pairs.py
+
+
+@dataclass
+class Spin:
+    """The rod's rotation where the friction needs it (its contact point lies on the
+    surface, off the centre line): the rotation q, the material angular velocity W and
+    the material virtual rotation dTheta (discretisation.Unknowns) and the name of the
+    rotation block."""
+
+    q: ufl.core.expr.Expr
+    W: ufl.core.expr.Expr
+    dTheta: ufl.core.expr.Expr
+    block: str
 
 
 @dataclass
@@ -224,11 +248,13 @@ class ObstacleContact:
     """The contact terms of a rod's residual and diagnostics, and the checks of its states.
 
     disc: the rod's discretisation (1-point rule dx_r), x: the displacement (P1), xt its
-    test function, V the centre line's velocity (P1; None: quasi-static, no friction).
+    test function, V the centre line's velocity (P1; None: quasi-static, no friction),
+    spin the rotation's terms (Spin; with V).
     The barrier of the obstacles ``on_segments`` (``segment_obstacles``) acts on the
     segments (obstacle_segments.py), not in these forms; the checks cover every one."""
 
-    def __init__(self, obstacles: Sequence[Obstacle], law: ContactLaw, disc, x, V):
+    def __init__(self, obstacles: Sequence[Obstacle], law: ContactLaw, disc, x, V,
+                 spin: Spin | None = None):
         check_contact(obstacles, law)
         self.obstacles, self.law, self.x = list(obstacles), law, x
         self.mesh, self.dx_r = disc.mesh, disc.dx_r
@@ -259,6 +285,16 @@ class ObstacleContact:
         self.nodal = [k for k, ob in enumerate(obstacles)       # a mesh's faces: nodes
                       if k not in self.segment_obstacles or ob.shape == "mesh"]
         self.V = V if any(obstacles[k].friction > 0 for k in self.nodal) else None
+        self.spin = spin if self.V is not None else None
+        if self.V is not None and spin is None:
+            raise ValueError("obstacle friction acts at the rod's surface: it needs the "
+                             "rotation's terms (spin)")
+        # the P1 data of the rotation's terms, at the nodes as the fields are (_nodal)
+        self._spin_fields = [] if self.spin is None else [
+            f for f in extract_coefficients(
+                ufl.as_vector([*self.spin.q, *self.spin.W]))
+            + extract_arguments(self.spin.dTheta)
+            + extract_coefficients(self.spin.dTheta)]
         self.start = None       # the nodes' points at the last commit (path check)
 
     # densities at a point p of the centre line (UFL), per obstacle
@@ -288,22 +324,31 @@ class ObstacleContact:
         return out
 
     def friction_density(self, p, v, lams):
-        """Coulomb friction per unit length at p moving with velocity v, with the lagged
-        normal force densities ``lams`` (one per obstacle) there."""
-        f = ufl.as_vector((0.0, 0.0, 0.0))
+        """(force, torque): Coulomb friction per unit length at the centre line's point p
+        moving with velocity v, with the lagged normal force densities ``lams`` (one per
+        obstacle) there, acting at the surface point c = -r n of each obstacle (module
+        docstring): the force f_t, and the torque (c x f_t) . d_3 of its couple about the
+        rod's axis d_3, the component that the spin W_3 d_3 in the point's velocity
+        works against."""
+        f, torque = ufl.as_vector((0.0, 0.0, 0.0)), 0.0
         eps = self.slip
         parts = self._normal_parts(p)
+        d3 = ufl.dot(rotation_matrix(self.spin.q), ufl.as_vector((0.0, 0.0, 1.0)))
         for k in self.nodal:        # (the segments' friction: obstacle_segments.py)
             ob, pose, lam, (n, _) = self.obstacles[k], self.poses[k], lams[k], parts[k]
             if ob.friction > 0:
-                v_t = v - ufl.dot(v, n) * n
-                f -= pose.friction * lam * mollifier(ufl.dot(v_t, v_t) / eps**2) / eps * v_t
-        return f
+                c = -self.radius * n
+                v_c = v + self.spin.W[2] * ufl.cross(d3, c)
+                v_t = v_c - ufl.dot(v_c, n) * n
+                f_k = -pose.friction * lam * mollifier(ufl.dot(v_t, v_t) / eps**2) / eps * v_t
+                f, torque = f + f_k, torque + ufl.dot(ufl.cross(c, f_k), d3)
+        return f, torque
 
     def _friction(self, expr_of_force):
-        """The trapezoidal integral of expr_of_force(f_friction, v, *more) at the nodes."""
+        """The trapezoidal integral of expr_of_force(f_friction, couple, v, *more) at the
+        nodes (and of the rotation's terms in it: Spin)."""
         return lambda p, v, *rest: expr_of_force(
-            self.friction_density(p, v, rest[:len(self.obstacles)]), v,
+            *self.friction_density(p, v, rest[:len(self.obstacles)]), v,
             *rest[len(self.obstacles):])
 
     # the trapezoidal rule on the 1-point rule's midpoint: node values f -+ h/2 f_s (of
@@ -315,8 +360,8 @@ class ObstacleContact:
             def at(f, sign=sign):
                 return f + sign * h / 2 * f.dx(0)
             expr = expr_of_point(*[at(f) for f in fields])
-            out.append(ufl.replace(expr, {f: at(f) for f in self.features})
-                       if self.features else expr)
+            data = [*self.features, *self._spin_fields]
+            out.append(ufl.replace(expr, {f: at(f) for f in data}) if data else expr)
         return out
 
     def _trapezoid(self, expr_of_point, *fields):
@@ -329,17 +374,19 @@ class ObstacleContact:
 
     def add_to(self, F: dict, xt) -> ufl.Form | int:
         """Adds the contact forces' virtual work to F["displacement"] (the normal force as
-        the derivative of ``energy``); returns the friction's dissipation rate form (0
-        without friction)."""
+        the derivative of ``energy``) and the friction's couple's to the rotation block;
+        returns the friction's dissipation rate form (0 without friction)."""
         if self.nodal:
             F["displacement"] += ufl.derivative(self.energy(), self.x, xt)
         if self.V is None:
             return 0
-        lams = self.normal_force
-        F["displacement"] -= self._trapezoid(self._friction(lambda f, v, w: ufl.dot(f, w)),
-                                             self.r, self.V, *lams, xt)
-        return -self._trapezoid(self._friction(lambda f, v: ufl.dot(f, v)),
-                                self.r, self.V, *lams)
+        lams, spin = self.normal_force, self.spin
+        F["displacement"] -= self._trapezoid(self._friction(
+            lambda f, m, v, dx: ufl.dot(f, dx)), self.r, self.V, *lams, xt)
+        F[spin.block] -= self._trapezoid(self._friction(
+            lambda f, m, v: m * spin.dTheta[2]), self.r, self.V, *lams)
+        return -self._trapezoid(self._friction(
+            lambda f, m, v: ufl.dot(f, v) + m * spin.W[2]), self.r, self.V, *lams)
 
     def diagnostic_forms(self) -> dict:
         """contact_energy and the total contact force on the rod (normal and friction)
@@ -350,8 +397,8 @@ class ObstacleContact:
         for i, c in enumerate("xyz"):
             total = self._trapezoid(lambda p: self.force_density(p)[i], self.r)
             if self.V is not None:
-                total += self._trapezoid(self._friction(lambda f, v: f[i]), self.r, self.V,
-                                         *self.normal_force)
+                total += self._trapezoid(self._friction(lambda f, c, v: f[i]), self.r,
+                                         self.V, *self.normal_force)
             forms[f"contact_force_{c}"] = total
         return forms
 
@@ -478,7 +525,7 @@ class ObstacleContact:
             return ufl.as_vector((0.0, 0.0, 0.0))
         f = self.force_density(self.r)
         if self.V is not None:
-            f += self.friction_density(self.r, self.V, self.normal_force)
+            f += self.friction_density(self.r, self.V, self.normal_force)[0]
         return f
 
 

@@ -40,7 +40,7 @@ from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
 from .boundary_conditions import EndSupports, linked_axes, spin_free
 from .constitutive import check_model, energy_function, section_response
-from .contact import ContactLaw, InitialOverlap, Obstacle, ObstacleContact, check_contact
+from .contact import ContactLaw, InitialOverlap, Obstacle, ObstacleContact, Spin, check_contact
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .joint_points import Joint, check_joints, check_joints_at_start
@@ -182,6 +182,7 @@ class RodModel(FEModel):
             [(k, load) for k, rod in enumerate(self.rods) for load in rod.point_loads])
         self._end_supports()
         self._made_terms, self._xi = None, None
+        self._cell_nodes = None     # each cell's two nodes (check_cell_turns)
         self._make_terms = lambda: self._balance(disc, zero, loads, response)
         text = structure(rods, model, variant, constraint, self.rotations, comm.size, joints,
                          obstacles, contact)
@@ -558,8 +559,11 @@ class RodModel(FEModel):
         if any(ob.friction > 0 for ob in obstacles) and not self.dynamic:
             raise ValueError("obstacles[k].friction needs a dynamic rod (density > 0): "
                              "the friction force depends on the velocity")
-        return ObstacleContact(obstacles, law, disc, self.unknowns.f["displacement"],
-                               self.unknowns.V if self.dynamic else None)
+        unk = self.unknowns
+        return ObstacleContact(obstacles, law, disc, unk.f["displacement"],
+                               unk.V if self.dynamic else None,
+                               Spin(unk.q, unk.W, unk.dTheta, unk.rotation)
+                               if self.dynamic else None)
 
     @property
     def supports(self) -> EndSupports:
@@ -637,8 +641,10 @@ class RodModel(FEModel):
         chart = self.unknowns.chart
         q = chart.q_n if chart is not None else self.unknowns.f["quaternion"]
         nodes = q.x.array.reshape(-1, 4)
-        cells = q.function_space.dofmap.list
-        a, b = nodes[cells[:, 0]], nodes[cells[:, 1]]
+        if self._cell_nodes is None:    # (numpy's index type: int32 costs a conversion)
+            cells = q.function_space.dofmap.list
+            self._cell_nodes = cells[:, 0].astype(np.intp), cells[:, 1].astype(np.intp)
+        a, b = nodes[self._cell_nodes[0]], nodes[self._cell_nodes[1]]
         local = 0.0
         if not _safely_within(a, b):
             p = np_qmul(a * _CONJUGATE, b)

@@ -127,7 +127,8 @@ switching variant on a rod with L != 1 rescales time by L.
 (unique; the rod's output columns are `<name>.<key>`), `position` (its s = 0 end, m),
 `orientation` (a rotation vector turning e_3 into its initial tangent), and its own
 `geometry`, `section`, `material`, `boundary`, `loads`, `initial` as inline tables laid
-over the scene's tables key by key (an error names `rods[k].<table>.<key>`;
+over the scene's tables key by key (a `section` with a `shape` replaces the scene's
+[section]; an error names `rods[k].<table>.<key>`;
 `material.model`, `variant`, `constraints`, `energy` and `geometry.rotations` are shared
 and given in the scene's tables only; `initial.natural_*` are each rod's own (or the
 scene's for every rod); a rod's starting
@@ -389,7 +390,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "rtol": Key(real(0.0, True, 1.0), NEWTON_RTOL, "relative tolerance (SNES / solve_ivp)"),
         "atol": Key(real(0.0, True, 1.0), NEWTON_ATOL,
                     "absolute tolerance (SNES residual / solve_ivp); keep it above the "
-                    "round-off floor of the residual (~1e-12 fails at 64 cells)"),
+                    "round-off floor of the residual (~1e-12 fails at 64 cells) and, 3-D "
+                    "rod, below 1e-6 of the scene's forces (a thin fibre in SI units: "
+                    "`check` warns, Newton would pass its first guess unchanged)"),
         "max_step_cuts": Key(integer(0, 30), MAX_STEP_CUTS, "step halvings before giving up"),
         "ode_solution": Key(choice("exact", "scheme"), ODE_SOLUTION,
                             "ODE model: closed form/solve_ivp, or the FE model's scheme"),
@@ -544,7 +547,8 @@ RENAMED = {("geometry", "reference_twist"): "initial.natural_twist (u_d at t = 0
 
 def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
     """Read and validate a scene file; every failure is a SceneError.  ``overrides``
-    {"table.key": value} (None: remove the key) change the file's values first, e.g.
+    {"table.key": value} (None: remove the key; "table.key.subkey" a key of an inline
+    table such as loads.end_force.value) change the file's values first, e.g.
     ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``."""
     path = Path(path)
     try:
@@ -571,18 +575,40 @@ def parse_scene(text: str, source: str = "<string>", default_name: str = "scene"
         raise SceneError(source, "", f"invalid TOML: {err}") from None
     if overrides:
         for name, value in overrides.items():
-            table, _, key = name.partition(".")
-            if not key:
-                raise SceneError(source, name, "an override is named \"table.key\"")
-            section = raw.setdefault(table, {})
-            if value is None:
-                section.pop(key, None)
-            elif isinstance(section, dict):
-                section[key] = value
+            _override(raw, name, value, source)
         text = f"# {source} with overrides {overrides}\n" + to_toml(raw)
     scene = validate(raw, source, default_name)
     scene.text = text
     return scene
+
+
+def _override(raw: dict, name: str, value: Any, source: str) -> None:
+    """raw[table][key]... = value (None: remove it) for name "table.key" or a key inside
+    a table's inline table, "table.key.sub" (e.g. loads.end_force.value); a SceneError
+    naming the override where the path does not lead through tables (an array of tables
+    such as [[rods]], which an override cannot index: edit the file)."""
+    table, *path = name.split(".")
+    if not path or not all(path):
+        raise SceneError(source, name, "an override is named \"table.key\" (or "
+                                       "\"table.key.subkey\")")
+    if value is None and table not in raw:
+        return
+    section, where = raw.setdefault(table, {}), table
+    for key in path[:-1]:
+        if not isinstance(section, dict):
+            break
+        if value is None and key not in section:
+            return                                  # nothing there to remove
+        section, where = section.setdefault(key, {}), f"{where}.{key}"
+    if not isinstance(section, dict):
+        kind = "an array of tables" if isinstance(section, list) else "not a table"
+        raise SceneError(source, name, f"override {name!r}: {where} is {kind}; an override "
+                                       "can only change a key of a table: edit the scene "
+                                       "file")
+    if value is None:
+        section.pop(path[-1], None)
+    else:
+        section[path[-1]] = value
 
 
 def to_toml(raw: dict) -> str:

@@ -114,7 +114,9 @@ def _rod(raw: dict, entry: dict, k: int, source: str, default_name: str,
                 raise SceneError(source, f"{where}.{table}.{key}",
                                  f"{SHARED[table, key]} is shared by every rod: give it in "
                                  f"[{table}]")
-        if own:
+        if table == "section" and "shape" in own:
+            merged[table] = dict(own)       # a shape of its own: the scene's dimensions go
+        elif own:
             merged.setdefault(table, {}).update(own)
     try:
         scene = validate_one(merged, source, default_name, joined)
