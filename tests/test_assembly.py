@@ -267,3 +267,107 @@ def test_default_newton_keeps_its_jacobian_also_on_large_quasi_static_load_steps
     assert np.abs(x_full).max() > 0.5               # rolled up: the tip moved by ~L
     assert np.allclose(x_default, x_full, rtol=0, atol=1e-8)
     assert its_default > its_full, (its_default, its_full)
+
+
+# an SNES option outside solvers.PLAIN_NEWTON that changes nothing here (the function
+# count limit, far above any solve's): the solves then go through SNESSolve
+THROUGH_SNES = {"snes_max_funcs": 100000}
+
+
+def _recorded_solves(monkeypatch, build, options, run):
+    """The residual norms of every Newton iterate (BlockSNES._residual), the final
+    displacements, the Newton iterations and which loop ran: BlockSNES's own
+    (_plain_newton) or SNESSolve, of ``run(stepper)`` on the model ``build()``."""
+    from dolfin_rod.fem import solvers
+    norms, own = [], []
+    residual, plain = solvers.BlockSNES._residual, solvers.BlockSNES._plain_newton
+
+    def recorded(self, snes, x, b):
+        residual(self, snes, x, b)
+        norms.append(self._residual_norm)
+
+    def counted(self):
+        own.append(1)
+        plain(self)
+    monkeypatch.setattr(solvers.BlockSNES, "_residual", recorded)
+    monkeypatch.setattr(solvers.BlockSNES, "_plain_newton", counted)
+    model = build()
+    stepper = TimeStepper(model.problem, solver_options=options)
+    outcome = run(stepper)
+    x = np.concatenate(model.mesh.comm.allgather(model.f["displacement"].x.array))
+    monkeypatch.undo()
+    return norms, x, stepper.stats.newton_iterations, bool(own), outcome
+
+
+def _falling_rod():
+    model = RodModel(RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2),
+                                   density=2.0, section_inertia=1e-3), n_cells=6,
+                     distributed_loads=[DistributedLoad("force", (-5.0, 0.0, 1.0))])
+    model.set_initial_state()
+    return model
+
+
+def _rolled_rod():
+    model = RodModel(RodParameters(length=1.0, A=(2.0, 2.0, 1.0), B=(1e3, 1e3, 1e3)),
+                     n_cells=8, model="hyperelastic", end_loads=[EndLoad(
+                         "couple", (4 * np.pi, 0.0, 0.0), loads.ramp(1.0, 1.0),
+                         follower=True)])
+    model.set_initial_state()
+    return model
+
+
+def _poisoned_rod():
+    """The falling rod with a non-finite displacement on every rank (an owned entry: the
+    first), so that every residual norm is NaN."""
+    model = _falling_rod()
+    model.f["displacement"].x.array[0] = np.nan
+    return model
+
+
+def _failure(stepper):
+    """The message of a step that fails (no step cuts), or None."""
+    from dolfin_rod import IntegrationError
+    stepper.max_cuts = 0
+    try:
+        stepper.run(0.0, 0.05, 0.05)
+    except IntegrationError as err:
+        return str(err)
+    return None
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("case", ["dynamic", "quasi-static", "max_it", "linear solve",
+                                  "non-finite"])
+def test_own_newton_loop_is_snes_newtonls_iterate_for_iterate(monkeypatch, case):
+    """BlockSNES runs Newton itself (_plain_newton) with the default options and any that
+    set only PLAIN_NEWTON's SNES options; with another SNES option SNESSolve runs (newtonls,
+    basic line search).  The reference is SNESSolve: every iterate's residual norm, the
+    final state and the iteration counts are the same bit for bit (the same operations in
+    the same order), on a dynamic rod (generalized-alpha on rotation vectors: SNES's KSP
+    is PETSc's LU serially, block-Jacobi GMRES on 2 ranks) and a quasi-static one rolled
+    up in 4 load steps (backward Euler); a solve that fails fails the same way, with the
+    same reason (snes_max_it 1: DIVERGED_MAX_IT; a linear solve stopped after one GMRES
+    iteration without a preconditioner: DIVERGED_LINEAR_SOLVE; a NaN in the state:
+    DIVERGED_FNORM_NAN, PETSc 3.23+ DIVERGED_FUNCTION_NANORINF)."""
+    build, extra, run = {
+        "dynamic": (_falling_rod, {}, lambda st: st.run(0.0, 0.2, 0.02)),
+        "quasi-static": (_rolled_rod, {}, lambda st: st.run(0.0, 1.0, 0.25)),
+        "max_it": (_falling_rod, {"snes_max_it": 1, "snes_rtol": 1e-14}, _failure),
+        "linear solve": (_falling_rod, {"ksp_type": "gmres", "ksp_max_it": 1,
+                                        "pc_type": "none"}, _failure),
+        "non-finite": (_poisoned_rod, {}, _failure)}[case]
+    own = _recorded_solves(monkeypatch, build, extra, run)
+    snes = _recorded_solves(monkeypatch, build, {**extra, **THROUGH_SNES}, run)
+    assert own[3] and not snes[3]
+    assert np.array_equal(own[0], snes[0], equal_nan=True) and own[0]
+    assert np.array_equal(own[1], snes[1], equal_nan=True) and own[2] == snes[2]
+    assert own[4] == snes[4]
+    if case == "dynamic":
+        assert np.abs(own[1]).max() > 1e-3 and len(own[0]) > 20     # the rod moved
+    elif case == "quasi-static":
+        assert np.abs(own[1]).max() > 0.5           # rolled up: the tip moved by ~L
+    else:
+        reason = {"max_it": "DIVERGED_MAX_IT", "linear solve": "DIVERGED_LINEAR_SOLVE",
+                  "non-finite": "DIVERGED_F"}[case]
+        assert reason in own[4], own[4]
+

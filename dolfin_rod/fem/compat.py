@@ -24,6 +24,8 @@ The rest of the package calls these functions and never checks a version.
                        makes it importable again right after
                        (``run.import_finite_elements``: it must act before DOLFINx is
                        imported, which this module does at its top)
+    SNES reasons       a non-finite residual norm: 0.9's PETSc 3.22 DIVERGED_FNORM_NAN,
+                       0.11's PETSc 3.25 DIVERGED_FUNCTION_NANORINF (``NONFINITE_NORM``)
 """
 
 from __future__ import annotations
@@ -41,6 +43,9 @@ DOLFINX_VERSION = tuple(int(x) for x in dolfinx.__version__.split(".")[:2])
 _BLOCK_ASSEMBLERS = DOLFINX_VERSION < (0, 10)   # the *_block functions (removed in 0.10)
 _prefixes = itertools.count()
 logging.captureWarnings(False)     # FFCx 0.9 captured them (see above)
+_reasons = PETSc.SNES.ConvergedReason
+NONFINITE_NORM = (_reasons.DIVERGED_FNORM_NAN if hasattr(_reasons, "DIVERGED_FNORM_NAN")
+                  else _reasons.DIVERGED_FUNCTION_NANORINF)
 
 
 def vector(form: fem.Form) -> PETSc.Vec:

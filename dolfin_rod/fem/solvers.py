@@ -19,6 +19,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..checks import NEWTON_ATOL, NEWTON_RTOL
+from . import compat
 from .assembly import block_system
 from .multipoint import ConstrainedSystem
 
@@ -64,6 +65,22 @@ JACOBIAN_REUSE = {
 # 10 load steps: 15-20 % less time than full Newton (docs/performance.md).
 REUSE_RATIO = 0.1
 _ids = itertools.count()
+# The SNES options of Newton as BlockSNES runs it itself (_plain_newton): SNES newtonls
+# with the basic line search (full steps), its tolerances, and the Jacobian rule
+# (jacobian_reuse_ratio, which asks for a Jacobian every iteration: lag 1).  Given any
+# other SNES option (a monitor, a viewer, another type or line search, snes_lag_*, ...),
+# SNES solves; KSP, PC and matrix options are the KSP's, which both use.
+PLAIN_NEWTON = {"snes_type": "newtonls", "snes_linesearch_type": "basic", "snes_rtol": None,
+                "snes_atol": None, "snes_stol": None, "snes_max_it": None,
+                "snes_divergence_tolerance": None, "snes_lag_jacobian": "1",
+                "snes_lag_preconditioner": "1"}
+
+
+def plain_newton(settings: dict) -> bool:
+    """Whether the PETSc options ``settings`` set no SNES option but PLAIN_NEWTON's (with
+    its values where it names one)."""
+    return all(k in PLAIN_NEWTON and PLAIN_NEWTON[k] in (None, str(v).lower())
+               for k, v in settings.items() if k.startswith("snes_"))
 
 
 def default_lu(comm) -> str:
@@ -164,16 +181,24 @@ def default_test(snes, it: int, norms, fnorm0: float, step_scale: float = 0.0) -
     snes_max_it is PETSc's own check) with |y| + step_scale in the step test; ``fnorm0``
     the solve's initial residual norm."""
     xnorm, ynorm, fnorm = norms
+    return newton_test(snes, it, fnorm, fnorm0, lambda: (xnorm, ynorm), step_scale)
+
+
+def newton_test(snes, it: int, fnorm: float, fnorm0: float, step_norms,
+                step_scale: float = 0.0) -> int:
+    """default_test with the step test's norms (|y|, |dy|) from ``step_norms()``, called
+    only when that test is reached (BlockSNES's own Newton loop computes them then)."""
     rtol, atol, stol, _ = snes.getTolerances()
     reasons = PETSc.SNES.ConvergedReason
     if not math.isfinite(fnorm):      # (a float: math's test, 1 us less than numpy's)
-        return reasons.DIVERGED_FNORM_NAN
+        return compat.NONFINITE_NORM
     if fnorm < atol:
         return reasons.CONVERGED_FNORM_ABS
     if it == 0:
         return reasons.ITERATING
     if fnorm <= rtol * fnorm0:
         return reasons.CONVERGED_FNORM_RELATIVE
+    xnorm, ynorm = step_norms()
     if ynorm < stol * (xnorm + step_scale):
         return reasons.CONVERGED_SNORM_RELATIVE
     divtol = snes.getDivergenceTolerance()
@@ -285,6 +310,14 @@ class BlockSNES:
     stiff rods, measured; a step that starts at the floor fluctuates there); else
     SolverError.  Options that stop without testing the residual (snes_type ksponly,
     snes_max_it with snes_convergence_test skip) thus never return a wrong answer.
+
+    With the default options, or any that set no SNES option but those of PLAIN_NEWTON
+    (tolerances; the Jacobian rule), Newton runs in this class (_plain_newton) instead
+    of SNESSolve: SNES newtonls with the basic line search step for step, the same
+    iterates, norms, tests and reasons, bit for bit, without SNES's per-solve set-up and
+    viewers and its callbacks into Python (docs/performance.md, eleventh round); SNES's
+    KSP solves the linear systems, with every KSP and PC option.  Other options
+    (monitors, viewers, line searches, lags), and the fallback line search, go to SNES.
     """
 
     def __init__(self, F: list[ufl.Form] | None, y: list[fem.Function], bcs=(), options=None,
@@ -313,6 +346,11 @@ class BlockSNES:
             opts[self.prefix + k] = v
         self.snes.setFromOptions()
         self._set_pre_check()
+        self._ksp = self.snes.getKSP()
+        self._plain = self.reuse_ratio is not None and plain_newton(settings)
+        if self._plain:     # (SNES sets the same operators at each of its iterations)
+            self._ksp.setOperators(self.system.A, self.system.A)
+        self._update = None       # _plain_newton's update, made at its first solve
         self.step_scale = step_scale
         if step_scale > 0.0:
             self.snes.setConvergenceTest(self._converged)
@@ -351,22 +389,27 @@ class BlockSNES:
                 term.limit_step(xa, ya)
 
     def _jacobian(self, snes, x, A, P):
-        if self.reuse_ratio is not None and not self._new_jacobian_needed(snes):
-            return      # A unchanged: PETSc keeps its LU as well (PCSetUp: same state)
+        if self.reuse_ratio is None or self._new_jacobian_needed(snes.getIterationNumber(),
+                                                                   snes.getFunctionNorm()):
+            self._assemble_jacobian()
+        # else A unchanged: PETSc keeps its LU as well (PCSetUp: same state)
+
+    def _assemble_jacobian(self) -> None:
         t0 = time.perf_counter()
         changes = self.system.pattern_changes
-        self.system.jacobian(A)
+        self.system.jacobian(self.system.A)
         if self.system.pattern_changes != changes:    # a new factorisation, symbolic too
-            snes.getKSP().getPC().reset()
+            self._ksp.getPC().reset()       # (which drops the operators: set again, as
+            self._ksp.setOperators(self.system.A, self.system.A)    # SNES does after this)
         self.timings["jacobian"] += time.perf_counter() - t0
         self.counts["jacobian"] += 1
 
-    def _new_jacobian_needed(self, snes) -> bool:
-        """jacobian_reuse_ratio: a new Jacobian at the first iteration of a solve and after
-        an iteration that reduced the residual norm by less than the ratio."""
-        norm, last = snes.getFunctionNorm(), self._last_norm
-        self._last_norm = norm
-        return snes.getIterationNumber() == 0 or norm > self.reuse_ratio * last
+    def _new_jacobian_needed(self, it: int, norm: float) -> bool:
+        """jacobian_reuse_ratio: a new Jacobian at the first iteration (``it`` 0) of a
+        solve and after an iteration that reduced the residual ``norm`` by less than the
+        ratio."""
+        last, self._last_norm = self._last_norm, norm
+        return it == 0 or norm > self.reuse_ratio * last
 
     def _converged(self, snes, it: int, norms) -> int:
         if it == 0:
@@ -414,7 +457,7 @@ class BlockSNES:
             self._newton()
         except SolverError:
             self._start.copy(self.x)
-            self._with_line_search(self.fallback, self._newton)
+            self._with_line_search(self.fallback, self._snes_newton)
 
     def _with_line_search(self, kind: str, solve) -> None:
         """solve() with the line search ``kind``, then the configured one again (through
@@ -433,17 +476,74 @@ class BlockSNES:
             self._set_pre_check()
 
     def _set_pre_check(self) -> None:
-        if any(hasattr(term, "limit_step") for term in self.system.terms):
+        if self._limits_step():
             self.snes.setLineSearchPreCheck(self._limit_step)
 
+    def _limits_step(self) -> bool:
+        return any(hasattr(term, "limit_step") for term in self.system.terms)
+
     def _newton(self) -> None:
+        if self._plain:
+            self._plain_newton()
+        else:
+            self._snes_newton()
+
+    def _snes_newton(self) -> None:
         self._initial_norm = None
         self.snes.solve(None, self.x)
-        reason = self.snes.getConvergedReason()
+        self._outcome(self.snes.getConvergedReason())
+
+    def _outcome(self, reason: int) -> None:
+        """The solve's iterations counted; SolverError unless it converged to a residual
+        that meets the tolerances (_verify_residual)."""
         self.iterations += self.snes.getIterationNumber()
-        if reason <= 0 or not np.isfinite(self.snes.getFunctionNorm()):
+        if reason <= 0 or not math.isfinite(self.snes.getFunctionNorm()):
             raise SolverError(_REASONS.get(reason, str(reason)), self.iterations)
         self._verify_residual(reason)
+
+    def _plain_newton(self) -> None:
+        """SNESSolve_NEWTONLS with the basic line search (PETSc 3.22 and 3.25) without
+        SNES: x <- x - J^-1 F(x) (J by the Jacobian rule, solved by SNES's KSP; the
+        terms' update limit as the line search's pre-check) until the convergence test
+        (newton_test: PETSc's default with the step scale), snes_max_it
+        (DIVERGED_MAX_IT), a failed linear solve (DIVERGED_LINEAR_SOLVE) or a non-finite
+        residual norm (compat.NONFINITE_NORM) stops it; SNES's reason, iteration count
+        and residual norm are then set as SNESSolve leaves them."""
+        snes, ksp, x, b = self.snes, self._ksp, self.x, self.system.b
+        if self._update is None:
+            self._update = x.duplicate()
+        dx, limits = self._update, self._limits_step()
+        _, _, _, max_it = snes.getTolerances()
+        self._initial_norm = None
+        self._residual(snes, x, b)
+        fnorm0 = fnorm = self._residual_norm
+        it, reason = 0, newton_test(snes, 0, fnorm, fnorm0, None, self.step_scale)
+        reasons = PETSc.SNES.ConvergedReason
+        while not reason:
+            if it == max_it:
+                reason = reasons.DIVERGED_MAX_IT
+                break
+            if self._new_jacobian_needed(it, fnorm):
+                self._assemble_jacobian()
+            ksp.solve(b, dx)
+            if ksp.getConvergedReason() < 0:
+                reason = reasons.DIVERGED_LINEAR_SOLVE
+                break
+            if limits:
+                self._limit_step(x, dx)
+            x.axpy(-1.0, dx)
+            self._residual(snes, x, b)
+            fnorm = self._residual_norm
+            if not math.isfinite(fnorm):
+                reason = compat.NONFINITE_NORM
+                break
+            it += 1
+            reason = newton_test(snes, it, fnorm, fnorm0, lambda: (x.norm(), dx.norm()),
+                                 self.step_scale)
+        snes.setConvergedReason(reason)
+        snes.setIterationNumber(it)
+        snes.setFunctionNorm(fnorm)
+        self._outcome(reason)
 
     def round_off_floor(self) -> float:
         """The order of the residual norm's round-off floor, eps || |J| h ||: a residual

@@ -182,6 +182,7 @@ class RodModel(FEModel):
             [(k, load) for k, rod in enumerate(self.rods) for load in rod.point_loads])
         self._end_supports()
         self._made_terms, self._xi = None, None
+        self._cell_nodes = None     # each cell's two nodes (check_cell_turns)
         self._make_terms = lambda: self._balance(disc, zero, loads, response)
         text = structure(rods, model, variant, constraint, self.rotations, comm.size, joints,
                          obstacles, contact)
@@ -640,8 +641,10 @@ class RodModel(FEModel):
         chart = self.unknowns.chart
         q = chart.q_n if chart is not None else self.unknowns.f["quaternion"]
         nodes = q.x.array.reshape(-1, 4)
-        cells = q.function_space.dofmap.list
-        a, b = nodes[cells[:, 0]], nodes[cells[:, 1]]
+        if self._cell_nodes is None:    # (numpy's index type: int32 costs a conversion)
+            cells = q.function_space.dofmap.list
+            self._cell_nodes = cells[:, 0].astype(np.intp), cells[:, 1].astype(np.intp)
+        a, b = nodes[self._cell_nodes[0]], nodes[self._cell_nodes[1]]
         local = 0.0
         if not _safely_within(a, b):
             p = np_qmul(a * _CONJUGATE, b)
