@@ -226,7 +226,6 @@ def test_slow_loading_tends_to_the_equilibrium_curve(tmp_path):
 # --- twist relaxation -----------------------------------------------------------------------
 
 
-@pytest.mark.mpi
 def _twist_relaxation(scene, t):
     """m(0+), the end node's reaction factor and eq. stressrelax's torque at t for the
     discrete twist u0_h and the continuous one u0 (alpha = C - g^2/S, alpha_d = A_d,33,
@@ -265,6 +264,7 @@ def test_twist_fit_example_starts_at_its_resolution(tmp_path, capsys):
     assert np.abs(m - factor * exact_h).max() < 1e-3 * m0     # measured 3.2e-4
 
 
+@pytest.mark.mpi
 def test_twist_relaxation_is_the_torsion_closed_form(tmp_path):
     """The end torque of scenes/dna_twist_relaxation.toml against eq. stressrelax with
     alpha = C - g^2/S, alpha_d = A_d,33, mu_d = M_d,33 and the discrete twist u0_h."""
