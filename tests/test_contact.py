@@ -362,6 +362,22 @@ def test_check_refuses_a_rod_that_starts_inside_an_obstacle(tmp_path, change, sa
     assert cli("check", path).returncode == 0       # the same rods 0.5 mm off the plane
 
 
+def test_check_refuses_a_thin_bar_cutting_a_cell(tmp_path):
+    """rope_over_thin_bar.toml with the bar 2 mm higher: its axis 8 mm below the rope,
+    radius 4 mm, the rope's r = 5 mm: the cell across it (its midpoint s = 0.5 over the
+    axis; 31 cells, the nodes 16 mm on either side, clear of the bar) cuts 1 mm into it.
+    ``dolfin-rod check`` exits 2 naming obstacles[0] with the model's message (was: OK,
+    and ``run`` refused it after building the model); the bar where it was passes."""
+    from test_cli import cli
+    text = (Path(__file__).parents[1] / "scenes" / "rope_over_thin_bar.toml").read_text()
+    path = tmp_path / "scene.toml"
+    path.write_text(text.replace("centre = [0.0, 0.0, -0.01]", "centre = [0.0, 0.0, -0.008]"))
+    proc = cli("check", path)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert ("[obstacles[0]]: the rod's segment at s = 0.5 is 0.001 closer to obstacles[0] "
+            "than the rod's radius at t = 0") in proc.stderr
+
+
 def test_check_and_the_model_say_the_same_of_an_overlap():
     """The rod of SCENE 5 mm inside the plane: the model's own check at t = 0 (the
     Python API, RodModel.set_initial_state) raises the message ``dolfin-rod check``

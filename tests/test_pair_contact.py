@@ -465,12 +465,21 @@ def test_check_says_how_segments_touch(tmp_path):
             "barrier gap 0.0005, pair_curve = 'segments', frictionless)") in crossing.stdout
 
 
-def test_run_refuses_smooth_pairs_overlapping_at_the_start(tmp_path):
-    """The hairpin with the pairs on smooth curves (contact.pair_curve = "smooth": left
-    to the model, check cannot place those curves without it): ``dolfin-rod run`` exits
-    2 naming contact.self with where and how much (was: a traceback, exit 1)."""
-    proc = _checked(tmp_path, HAIRPIN.replace("self = true", 'self = true\npair_curve = '
-                                              '"smooth"'), "run")
+def test_smooth_pairs_overlapping_at_the_start_are_refused(tmp_path):
+    """The hairpin with the pairs on smooth curves (contact.pair_curve = "smooth"): its
+    straight legs are their own curves, so ``dolfin-rod check`` refuses it with the same
+    overlap 0.005, naming contact.self (was: OK, and ``run`` failed with a traceback,
+    exit 1); the model's own check at t = 0 (the API) raises the same error."""
+    from dolfin_rod.rod.segments import PairOverlap
+    from dolfin_rod.rod.start import Polyline, StartingState
+    smooth = HAIRPIN.replace("self = true", 'self = true\npair_curve = "smooth"')
+    proc = _checked(tmp_path, smooth)
     assert proc.returncode == 2, proc.stdout + proc.stderr
-    assert "[contact.self]" in proc.stderr and "at t = 0 (their centre lines" in proc.stderr
-    assert "Traceback" not in proc.stderr
+    assert "[contact.self]" in proc.stderr and "overlap by 0.005 at t = 0" in proc.stderr
+    params = RodParameters(length=1.0, A=(1e-2,) * 3, B=(10.0,) * 3)
+    rod = RodModel(params, 40, model="hyperelastic", start="clamped", end="free",
+                   contact=ContactLaw(0.01, 0.001, 1.0, self=True, pair_curve="smooth"))
+    with pytest.raises(PairOverlap) as err:
+        rod.set_initial_state(start=StartingState(shape=Polyline(
+            ((0.0, 0.0, 0.0), (0.0, 0.0, 0.5), (0.015, 0.0, 0.5), (0.015, 0.0, 0.015)))))
+    assert err.value.key == "contact.self" and "overlap by 0.005 at t = 0" in str(err.value)

@@ -50,10 +50,10 @@ from ..theory.rotations import rotation_matrix
 from . import obstacle_shapes, segments
 from .obstacle_shapes import (NP_OPS, SHAPES, InitialOverlap, MeshPose, Obstacle, Ops, Pose,
                               check_contact_mode, signed_distance, sweep_entry)
+from .barrier import TAYLOR, XI_MIN, barrier_derivatives
 from .obstacle_shapes import gaps as obstacle_gaps
 from .triangle_mesh import FACE, MeshError
 
-XI_MIN = 1e-4             # g_min / delta: the barrier's exact range is [g_min, delta]
 BARRIER_CURVATURE = 2 * math.log(2) + 5.0   # b''(delta / 2) (dimensionless)
 
 
@@ -150,7 +150,7 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
 def on_segments(ob: Obstacle, radius: float, gap: float, h: float) -> bool:
     """Whether the obstacle's barrier acts on the rod's segments (obstacle_segments.py)
     rather than its nodes: contact = "segments" (a mesh: on its sharp edges, its nodal
-    law kept: obstacle_segments.fixed_segments), or "auto" for a sphere or cylinder of
+    law kept: obstacle_shapes.fixed_segments), or "auto" for a sphere or cylinder of
     radius R that nodes h apart (the longest cell) cannot hold, h^2 >=
     4 (r + delta) (2 R + r + delta): a straight rod across it, the obstacle midway
     between two nodes, has its chord touch the body while both nodes are still beyond
@@ -226,39 +226,15 @@ def make_pose(ob: Obstacle, mesh=None) -> Pose | MeshPose:
 
 # -- the law -------------------------------------------------------------------------------
 
-def _beta(xi):
-    """-(xi - 1)^2 ln(xi), the barrier b(g) = delta^2 beta(g / delta) on [XI_MIN, 1]."""
-    return -(xi - 1.0) ** 2 * math.log(xi)
-
-
-_TAYLOR = (_beta(XI_MIN),                                   # beta and its derivatives at
-           -2 * (XI_MIN - 1) * math.log(XI_MIN) - (XI_MIN - 1) ** 2 / XI_MIN,   # XI_MIN
-           -2 * math.log(XI_MIN) - 4 * (XI_MIN - 1) / XI_MIN + (XI_MIN - 1) ** 2 / XI_MIN**2)
-
-
 def barrier(g, delta):
     """b(g) (module docstring): the IPC barrier on [g_min, delta], 0 beyond, its Taylor
     polynomial of degree 2 below g_min; delta a number or a UFL constant."""
     xi = g / delta
     exact = -(xi - 1.0) ** 2 * ufl.ln(ufl.max_value(xi, XI_MIN))
-    b0, b1, b2 = _TAYLOR
+    b0, b1, b2 = TAYLOR
     taylor = b0 + b1 * (xi - XI_MIN) + 0.5 * b2 * (xi - XI_MIN) ** 2
     return delta**2 * ufl.conditional(ufl.ge(xi, 1.0), 0.0,
                                       ufl.conditional(ufl.ge(xi, XI_MIN), exact, taylor))
-
-
-def barrier_derivatives(g, delta: float):
-    """(b, b', b'') of ``barrier`` at the gaps g (numpy; segment pairs, pair_contact.py)."""
-    xi = np.asarray(g, float) / delta
-    xc = np.clip(xi, XI_MIN, 1.0)
-    ln = np.log(xc)
-    exact = (-(xc - 1) ** 2 * ln, -2 * (xc - 1) * ln - (xc - 1) ** 2 / xc,
-             -2 * ln - 4 * (xc - 1) / xc + (xc - 1) ** 2 / xc**2)
-    b0, b1, b2 = _TAYLOR
-    dxi = xi - XI_MIN
-    taylor = (b0 + b1 * dxi + 0.5 * b2 * dxi**2, b1 + b2 * dxi, b2 + 0 * dxi)
-    return tuple(delta ** (2 - k) * np.where(xi >= 1.0, 0.0, np.where(xi >= XI_MIN, e, t))
-                 for k, (e, t) in enumerate(zip(exact, taylor)))
 
 
 def mollifier(y2, ops: Ops = UFL_OPS):

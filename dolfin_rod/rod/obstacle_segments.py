@@ -59,31 +59,16 @@ from typing import Sequence
 import numpy as np
 
 from .contact import ContactLaw
-from .contact import barrier_derivatives
-from .obstacle_shapes import Obstacle, unit
+from .barrier import barrier_derivatives
+from .obstacle_shapes import Obstacle, fixed_segments
 from .pair_contact import (BoundTerm, Centreline, NodeRates, PairTerms, StepTerm,
                            nodal_force_density, pair_energy)
 from .pair_friction import PairFriction
-from .segments import chord_reaches_edge, closest_points
+from .segments import closest_points
 from .smooth_pairs import Stencils, closest, counted, free, smooth_pair_energy
 
 ALL_PAIRS = 4096    # (cell, obstacle segment) pairs compared all, without a tree
 ROUND_OFF = 1e-9    # relative margin of the broad phase's bounds (triangle inequality)
-
-
-def fixed_segments(ob: Obstacle, reach: float, h: float):
-    """(q0 (m, 3), q1 (m, 3), radius (m,)) of the obstacle's fixed segments: a cylinder's
-    axis from lid to lid, a sphere's centre twice (radius R); a mesh's convex edges that
-    nodes h apart cannot hold a rod across, (h / 2) sin(phi / 2) >= reach = r + delta
-    (phi the angle between the faces' normals: a chord across the edge touches it while
-    its nodes are beyond the barrier's reach from both faces; radius 0)."""
-    if ob.shape == "mesh":
-        ends, turn = ob.surface.convex_edges()
-        sharp = chord_reaches_edge(h, turn, reach)
-        return ends[sharp, 0], ends[sharp, 1], np.zeros(int(sharp.sum()))
-    centre = np.asarray(ob.where, float)
-    half = 0.5 * ob.length * unit(ob.direction) if ob.shape == "cylinder" else 0.0 * centre
-    return (centre - half)[None], (centre + half)[None], np.array([ob.radius])
 
 
 class ObstacleSegments(NodeRates):

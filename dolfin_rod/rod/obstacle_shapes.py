@@ -13,6 +13,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from .segments import chord_reaches_edge
 from .triangle_mesh import Surface, placed_surface
 
 SHAPES = ("plane", "sphere", "cylinder", "mesh")
@@ -202,6 +203,21 @@ def gaps(poses: Sequence[Pose | MeshPose], points: np.ndarray, radius: float) ->
     """(points, obstacles) gaps d - r of the points (n, 3) of a centre line of radius r."""
     return np.stack([signed_distance(pose, points) - radius for pose in poses],
                     axis=-1).reshape(len(points), -1)
+
+
+def fixed_segments(ob: Obstacle, reach: float, h: float):
+    """(q0 (m, 3), q1 (m, 3), radius (m,)) of the obstacle's fixed segments: a cylinder's
+    axis from lid to lid, a sphere's centre twice (radius R); a mesh's convex edges that
+    nodes h apart cannot hold a rod across, (h / 2) sin(phi / 2) >= reach = r + delta
+    (phi the angle between the faces' normals: a chord across the edge touches it while
+    its nodes are beyond the barrier's reach from both faces; radius 0)."""
+    if ob.shape == "mesh":
+        ends, turn = ob.surface.convex_edges()
+        sharp = chord_reaches_edge(h, turn, reach)
+        return ends[sharp, 0], ends[sharp, 1], np.zeros(int(sharp.sum()))
+    centre = np.asarray(ob.where, float)
+    half = 0.5 * ob.length * unit(ob.direction) if ob.shape == "cylinder" else 0.0 * centre
+    return (centre - half)[None], (centre + half)[None], np.array([ob.radius])
 
 
 def sweep_entry(poses: Sequence[Pose | MeshPose], A0: np.ndarray, A1: np.ndarray,

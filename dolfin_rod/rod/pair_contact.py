@@ -41,7 +41,7 @@ from typing import NamedTuple
 import numpy as np
 from petsc4py import PETSc
 
-from .contact import XI_MIN, barrier_derivatives
+from .barrier import XI_MIN, barrier_derivatives
 from .pair_friction import PairFriction
 from .segments import PairOverlap, closest_points, exclusion, joint_distances, near_pairs
 from .smooth_pairs import LIPSCHITZ, Stencils, closest, counted, free, smooth_pair_energy

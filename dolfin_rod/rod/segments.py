@@ -108,7 +108,7 @@ def on_segments(contact: str, shape: str, radius: float, reach: float, h: float,
 def chord_reaches_edge(h, turn, reach: float):
     """The same for a convex edge whose faces' normals turn by ``turn``: the chord across
     it makes the angle turn / 2 with each face, its ends (h / 2) sin(turn / 2) from them
-    (obstacle_segments.fixed_segments)."""
+    (obstacle_shapes.fixed_segments)."""
     return 0.5 * np.asarray(h) * np.sin(np.asarray(turn) / 2) >= reach
 
 

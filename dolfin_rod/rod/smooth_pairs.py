@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .contact import barrier_derivatives
+from .barrier import barrier_derivatives
 
 TIE = 1e-9          # a minimiser within this of a shared node (in u) goes to the pair after it
 NEWTON = 30         # projected Newton iterations of the closest points (from P1's)

@@ -83,10 +83,10 @@ def check_contact_keys(scene: Scene, rotations: str) -> None:
 def check_initial_contact(scene: Scene, start) -> None:
     """Contact at t = 0 on the rods' centre lines ``start`` (builders.StartLines, placed
     in numpy), the model's own checks before any model: self-contact whose neighbour
-    exclusion covers a rod (contact.radius), a node within its radius of an obstacle
-    (obstacles[k]), two segments' capsules overlapping (contact.self or
-    contact.between_rods).  A start settled in equilibrium first (``start.settled``)
-    and smooth pairs' curves (contact.pair_curve = "smooth") are left to run."""
+    exclusion covers a rod (contact.radius), a node within its radius of an obstacle or
+    a cell within reach of a thin one (obstacles[k]), two segments' capsules overlapping
+    (contact.self or contact.between_rods).  A start settled in equilibrium first
+    (``start.settled``) is left to run."""
     c = scene["contact"]
     radius = c["radius"]
     gap = c["gap"] or radius / 10
@@ -100,8 +100,44 @@ def check_initial_contact(scene: Scene, start) -> None:
     if start.settled:
         return
     _check_obstacle_overlap(scene, start.lines, radius, gap)
-    if segment_pairs(scene) and c["pair_curve"] == "segments":
-        _check_pair_overlap(scene, start, radius, gap, h)
+    cells = StartSegments(start)
+    _check_segment_obstacles(scene, cells, radius, gap, h)
+    if segment_pairs(scene):
+        _check_pair_overlap(scene, start, cells, radius, gap, h)
+
+
+class StartSegments:
+    """The cells of the rods at t = 0 (builders.StartLines) as segments, the pieces laid
+    on one parameter line as the model's layout lays them (a gap of the longest between
+    them: layout.RodLayout.starts): their nodes' positions P, the segments' ``ends``
+    (global nodes), ``piece``, parameter ``mid_s`` and own arc length ``own_s``; the
+    parameter ``a`` where each piece starts; ``deviation``: how far each segment's C^1
+    curve (smooth_pairs.Stencils, the model's curves) may lie from its chord."""
+
+    def __init__(self, start):
+        from ..rod.smooth_pairs import Stencils
+        lines = start.lines
+        spacing = max(line.length for line in lines)
+        self.a = np.concatenate([[0.0], np.cumsum([line.length + spacing
+                                                   for line in lines])[:-1]])
+        nodes = np.concatenate([[0], np.cumsum([len(line.s) for line in lines])])
+        self.P = np.vstack([line.points for line in lines])
+        self.ends = np.vstack([nodes[k] + np.column_stack([np.arange(len(line.s) - 1),
+                                                           np.arange(1, len(line.s))])
+                               for k, line in enumerate(lines)])
+        self.piece = np.concatenate([np.full(len(line.s) - 1, k)
+                                     for k, line in enumerate(lines)])
+        self.own_s = np.concatenate([0.5 * (line.s[1:] + line.s[:-1]) for line in lines])
+        self.mid_s = self.a[self.piece] + self.own_s - np.concatenate(
+            [np.full(len(line.s) - 1, line.s[0]) for line in lines])
+        self.deviation = Stencils(self.ends, self.piece).deviation(self.P)
+        self.rods = [line.rod for line in lines]
+
+    def name(self, m: int) -> str:
+        """Segment m as the model names it (pair_contact.segment_name), by its rod's own
+        arc length."""
+        rod = self.rods[self.piece[m]]
+        return f"{'the rod' if rod is None else f'rod {rod}'} at s = {self.own_s[m]:.4g}"
 
 
 def longest_cell(start) -> float:
@@ -128,51 +164,79 @@ def _check_obstacle_overlap(scene: Scene, lines: list, radius: float, gap: float
             "centre line", s, g, k, gap, scene["obstacles"][k]["shape"], rod)))
 
 
-def _check_pair_overlap(scene: Scene, start, radius: float, gap: float, h: float) -> None:
+def _check_pair_overlap(scene: Scene, start, cells: StartSegments, radius: float,
+                        gap: float, h: float) -> None:
     """Two segments of the rods that make a pair (pair_contact.SegmentContact.allowed:
     of one piece farther apart in s than the exclusion with contact.self, of two with
     contact.between_rods, not neighbours through a joint) whose capsules overlap at
-    t = 0: the error naming contact.self or contact.between_rods run gives.  The pieces
-    are laid on one parameter line as the model's layout lays them (a gap of the longest
-    between them: layout.RodLayout.starts)."""
-    from ..rod.segments import (PairOverlap, closest_points, exclusion, joint_distances,
-                                near_pairs)
-    lines, c = start.lines, scene["contact"]
-    spacing = max(line.length for line in lines)
-    a = np.concatenate([[0.0], np.cumsum([line.length + spacing for line in lines])[:-1]])
-    nodes = np.concatenate([[0], np.cumsum([len(line.s) for line in lines])])
-    P = np.vstack([line.points for line in lines])
-    ends = np.vstack([nodes[k] + np.column_stack([np.arange(len(line.s) - 1),
-                                                  np.arange(1, len(line.s))])
-                      for k, line in enumerate(lines)])
-    piece = np.concatenate([np.full(len(line.s) - 1, k) for k, line in enumerate(lines)])
-    local = np.concatenate([0.5 * (line.s[1:] + line.s[:-1]) - line.s[0] for line in lines])
-    mid_s = a[piece] + local
-    own_s = np.concatenate([0.5 * (line.s[1:] + line.s[:-1]) for line in lines])
+    t = 0: the error naming contact.self or contact.between_rods run gives.  On smooth
+    curves (contact.pair_curve = "smooth") the curves' distance is at most the chords'
+    plus the two deviations: a pair that overlaps by that bound overlaps (exact for
+    straight cells; a closer call is left to the model)."""
+    from ..rod.segments import PairOverlap, closest_points, exclusion, joint_distances, \
+        near_pairs
+    c, lines, P, ends = scene["contact"], start.lines, cells.P, cells.ends
+    smooth = c["pair_curve"] == "smooth"
     reach, excluded = 2 * radius + gap, exclusion(radius, gap, h)
-    pairs = near_pairs(P[ends[:, 0]], P[ends[:, 1]], mid_s, reach, 0.0,
+    pairs = near_pairs(P[ends[:, 0]], P[ends[:, 1]], cells.mid_s,
+                       reach + 2 * cells.deviation.max() * smooth, 0.0,
                        tree=len(ends) > FEW_SEGMENTS)
     i, j = pairs[:, 0], pairs[:, 1]
-    same = piece[i] == piece[j]
-    keep = (same & c["self"] & (np.abs(mid_s[i] - mid_s[j]) >= excluded)) | \
+    same = cells.piece[i] == cells.piece[j]
+    keep = (same & c["self"] & (np.abs(cells.mid_s[i] - cells.mid_s[j]) >= excluded)) | \
         (~same & c["between_rods"])
-    joints = [(a[p] + m * lines[p].length / (len(lines[p].s) - 1),
-               a[q] + n * lines[q].length / (len(lines[q].s) - 1))
-              for p, m, q, n in start.joints]
-    for near in joint_distances(mid_s, joints):        # neighbours through a joint
+    joints = [tuple(cells.a[p] + node * lines[p].length / (len(lines[p].s) - 1)
+                    for p, node in ((p, m), (q, n))) for p, m, q, n in start.joints]
+    for near in joint_distances(cells.mid_s, joints):      # neighbours through a joint
         keep &= near[i] + near[j] >= excluded
     i, j = i[keep], j[keep]
     X = [P[ends[i, 0]], P[ends[i, 1]], P[ends[j, 0]], P[ends[j, 1]]]
     u, v, d = closest_points(*X)
+    if smooth:
+        d = d + cells.deviation[i] + cells.deviation[j]
     if not len(d) or d.min() - 2 * radius > 0:
         return
     k = int(np.argmin(d))
     point = 0.5 * (X[0][k] + u[k] * (X[1][k] - X[0][k]) + X[2][k] + v[k] * (X[3][k] - X[2][k]))
-    names = tuple(("the rod" if lines[piece[m]].rod is None else
-                   f"rod {lines[piece[m]].rod}") + f" at s = {own_s[m]:.4g}" for m in (i[k], j[k]))
-    err = PairOverlap.at(names, point, float(d[k] - 2 * radius), radius,
-                         lines[piece[i[k]]].rod == lines[piece[j[k]]].rod)
+    err = PairOverlap.at((cells.name(i[k]), cells.name(j[k])), point,
+                         float(d[k] - 2 * radius), radius,
+                         lines[cells.piece[i[k]]].rod == lines[cells.piece[j[k]]].rod)
     raise scene.error(err.key, str(err))
+
+
+def _check_segment_obstacles(scene: Scene, cells: StartSegments, radius: float,
+                             gap: float, h: float) -> None:
+    """A cell within R + r of an obstacle that acts on the segments (a thin sphere or
+    cylinder, a mesh's sharp edges: segments.on_segments with the longest cell h, as the
+    model decides; rod/obstacle_shapes.fixed_segments) at t = 0: the error naming
+    obstacles[k] the model gives.  On smooth curves (contact.obstacle_curve = "smooth",
+    the default) the curve's distance is at most the chord's plus its deviation: a cell
+    that overlaps by that bound overlaps (exact for straight cells)."""
+    from ..rod.obstacle_shapes import InitialOverlap, fixed_segments
+    from ..rod.segments import closest_points, on_segments
+    c, P, ends = scene["contact"], cells.P, cells.ends
+    nearest = []
+    for k, ob in enumerate(scene["obstacles"]):
+        body = obstacle(scene, ob)
+        turn = body.surface.convex_edges()[1] if ob["shape"] == "mesh" else ()
+        if not on_segments(ob["contact"], ob["shape"], ob["radius"] or 0.0, radius + gap,
+                           h, turn):
+            continue
+        q0, q1, R = fixed_segments(body, radius + gap, h)
+        if not len(R):
+            continue
+        cell, q = (v.ravel() for v in np.indices((len(ends), len(R))))
+        d = closest_points(P[ends[cell, 0]], P[ends[cell, 1]], q0[q], q1[q])[2]
+        g = d - R[q] - radius + cells.deviation[cell] * (c["obstacle_curve"] == "smooth")
+        m = int(np.argmin(g))
+        nearest.append((float(g[m]), int(cell[m]), k))
+    if not nearest:
+        return
+    g, m, k = min(nearest)
+    if g <= 0:
+        raise scene.error(f"obstacles[{k}]", str(InitialOverlap.at(
+            "segment", cells.own_s[m], g, k, gap, scene["obstacles"][k]["shape"],
+            cells.rods[cells.piece[m]])))
 
 
 def _check_segments(scene: Scene, k: int) -> None:
@@ -236,7 +300,7 @@ def mesh_file(scene: Scene, ob: dict) -> str | None:
 def contact_lines(scene: Scene, start) -> list[str]:
     """``check``'s line per obstacle: where its barrier acts, nodes or segments
     (rod/segments.on_segments with the longest cell h; a mesh's sharp edges,
-    rod/obstacle_segments.fixed_segments); then ``pair_lines`` (``start``: the rods at
+    rod/obstacle_shapes.fixed_segments); then ``pair_lines`` (``start``: the rods at
     t = 0, builders.StartLines)."""
     from ..rod.segments import chord_reaches_edge
     lines = []
