@@ -31,6 +31,7 @@ scores dolfin_rod next to PyElastica and MuJoCo.  How a scenario is mapped:
   scenario's ``self_contact`` as the law's (the pile's rope, the twist's rods); the
   rods' ``friction`` as the pairs' Coulomb coefficient; the same barrier gap radius /
   10 and stiffness rule as for obstacles (a rod's weight per length as the pressure);
+  the rods' starting chords at least the gap apart (``apart``);
 - with any contact: generalized-alpha with rho_inf = 0 (a barrier's impacts damped,
   docs/contact.md), Newton to rtol 1e-8, with friction a backtracking line search
   (scenes/contact.py's choices) and FRICTION_STEPS times more steps; a quasi-static
@@ -204,11 +205,12 @@ def rod_data(scenario: Scenario, rod: Rod, n_elements: int, name: str = "rod"):
     return data
 
 
-def starting_state(rod: Rod, n_elements: int, params, pressed=None):
-    """The rod's StartingState: its centre line at the n_elements + 1 nodes (Rod.nodes),
-    the nodes moved by ``pressed(nodes, params)`` (``barrier_start``) with obstacles."""
+def starting_state(rod: Rod, n_elements: int, params, pressed=None, nodes=None):
+    """The rod's StartingState: its centre line at the n_elements + 1 nodes (Rod.nodes,
+    or ``nodes``), the nodes moved by ``pressed(nodes, params)`` (``barrier_start``) with
+    obstacles."""
     from ..rod import Polyline, StartingState
-    nodes = rod.nodes(n_elements)
+    nodes = rod.nodes(n_elements) if nodes is None else nodes
     if pressed is not None:
         nodes = pressed(nodes, params)
     return StartingState(shape=Polyline(tuple(map(tuple, nodes)),
@@ -358,8 +360,48 @@ def system_model(scenario: Scenario, n_elements: int, dt: float):
     params = [d.params for d in data]
     touches, pressed = contact(scenario, scenario.rods, params, n_elements, dt)
     model = RodSystem(data, model="hyperelastic", **touches)
-    return model, {d.name: starting_state(rod, n_elements, d.params, pressed)
-                   for d, rod in zip(data, scenario.rods)}
+    nodes = apart([rod.nodes(n_elements) for rod in scenario.rods], touches["contact"])
+    return model, {d.name: starting_state(rod, n_elements, d.params, pressed, start)
+                   for d, rod, start in zip(data, scenario.rods, nodes)}
+
+
+APART_PASSES = 20           # passes of ``apart`` (the crossing at 13 elements: one moves
+                            # its middle chords 1.58 mm each, the next finds none near)
+
+
+def apart(nodes: list[np.ndarray], law) -> list[np.ndarray]:
+    """The rods' starting ``nodes`` with the chords of different rods at least the
+    barrier's gap delta apart (surface to surface), so that they start outside each
+    other's barrier (the crossing at 13 elements: its ropes' middle chords, coarse chords
+    of sagging curves that touch, overlapped by 2.66 mm, and the model refused the start,
+    PairOverlap): the two segments of each pair nearer than that moved apart along
+    their closest points' line by half the deficit each, their rods' end nodes kept
+    (held by the ends' conditions), until no pair is (RuntimeError after
+    APART_PASSES passes)."""
+    from ..rod.segments import closest_points
+    nodes = [np.array(n, float) for n in nodes]
+    least = 2 * law.radius + law.gap
+    for _ in range(APART_PASSES):
+        moved = False
+        for a in range(len(nodes)):
+            for b in range(a + 1, len(nodes)):
+                i, j = (m.ravel() for m in np.meshgrid(np.arange(len(nodes[a]) - 1),
+                                                        np.arange(len(nodes[b]) - 1)))
+                p, q = nodes[a], nodes[b]
+                s, t, d = closest_points(p[i], p[i + 1], q[j], q[j + 1])
+                near = d < least * (1 - 1e-9)
+                for k in np.flatnonzero(near):
+                    x = p[i[k]] + s[k] * (p[i[k] + 1] - p[i[k]])
+                    y = q[j[k]] + t[k] * (q[j[k] + 1] - q[j[k]])
+                    shift = (least - d[k]) / 2 * (x - y) / d[k]
+                    for rod, first, sign in ((p, i[k], 1.0), (q, j[k], -1.0)):
+                        inner = [m for m in (first, first + 1) if 0 < m < len(rod) - 1]
+                        rod[inner] += sign * shift
+                moved = moved or bool(near.any())
+        if not moved:
+            return nodes
+    raise RuntimeError(f"the rods' starting chords stay nearer than the barrier's gap "
+                       f"after {APART_PASSES} passes (dolfin_rod adapter: apart)")
 
 
 def contact(scenario: Scenario, rods, params, n_elements: int, dt: float):
