@@ -163,6 +163,27 @@ def test_a_painter_given_no_pictures_ends():
         os.waitpid(pid, 0)
 
 
+def test_a_painter_killed_with_the_run_is_a_failed_picture_not_an_abort(tmp_path):
+    """A painter killed before the run sends it the pictures (`pkill -f` of the run's
+    command line kills both): with PETSc initialised (its signal handler catches
+    SIGPIPE and aborts) the send sees a broken pipe and collect reports the painter's
+    end, so the run can keep its rows and exit with its own status."""
+    script = ("import os, signal, time, functools; from petsc4py import PETSc; "
+              "from dolfin_rod.output.drawing import painting\n"
+              "with painting(True) as p:\n"
+              "    os.kill(p.pid, signal.SIGKILL); time.sleep(0.5)\n"
+              "    assert p.send([('a.png', functools.partial(print, 'x'))], None)\n"
+              "    try:\n"
+              "        p.collect(['a.png'])\n"
+              "    except RuntimeError as e:\n"
+              "        print('reported:', e)\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          cwd=ROOT, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "reported: drawing the pictures failed in their process (exit status -9" in \
+        done.stdout
+
+
 def test_a_run_does_not_import_matplotlib(tmp_path):
     """`dolfin-rod run` draws its pictures in the painter: matplotlib (0.4 s) is imported
     there, while the run imports DOLFINx; the pictures are complete."""

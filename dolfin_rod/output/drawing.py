@@ -249,6 +249,12 @@ class Painter:
 
 
 def _write_all(fd: int, data: bytes) -> None:
+    """All of ``data`` to the pipe ``fd``; BrokenPipeError if its reader ended.  SIGPIPE
+    is ignored first (Python's own setting, which PETSc's signal handler replaces when it
+    initialises: a painter killed with the run's other processes then ended the run
+    through PETSc's abort, MPI_ABORT, instead of this error)."""
+    if hasattr(signal, "SIGPIPE"):
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)
     view = memoryview(data)
     while view:
         view = view[os.write(fd, view):]
