@@ -205,3 +205,17 @@ def test_a_torsion_state_does_not_start_a_rod(saved_rod_run, capsys):
     assert main(["run", str(ROD), "--quiet", "--set", f"initial.from_run={folder / 'torsion'}",
                  "--out", str(folder / "bad-model")]) == 2
     assert "another model ('torsion' there, 'rod' here)" in capsys.readouterr().err
+
+
+def test_check_names_the_state_or_the_difference(saved_rod_run, capsys):
+    """``dolfin-rod check`` reads the saved state as a run would (no model built): the
+    state it starts from, a folder not there yet (a second stage before its first), or
+    exit 2 naming the difference."""
+    good = ["check", str(ROD), "--set", "geometry.n_cells=4"]
+    assert main(good + ["--set", f"initial.from_run={saved_rod_run / 'A'}"]) == 0
+    out = capsys.readouterr().out
+    assert f"starts from: {saved_rod_run / 'A'}, its state at t = 0.1 (step 2)" in out
+    assert main(good + ["--set", f"initial.from_run={saved_rod_run / 'later'}"]) == 0
+    assert "not there yet: run the scene that writes it first" in capsys.readouterr().out
+    assert main(["check", str(ROD), "--set", f"initial.from_run={saved_rod_run / 'A'}"]) == 2
+    assert "another geometry.n_cells (4 there, 8 here)" in capsys.readouterr().err

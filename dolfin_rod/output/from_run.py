@@ -71,13 +71,17 @@ def structure(scene: Scene, model: str) -> dict:
     return json.loads(json.dumps(data, default=list))
 
 
-def previous_state(scene: Scene, model: str, comm) -> PreviousState | None:
-    """Collective: the checkpoint ``[initial] from_run`` names (None without it), checked
-    against ``scene`` run by ``model`` (module docstring); reads only."""
+def previous_state(scene: Scene, model: str, comm,
+                   missing_ok: bool = False) -> PreviousState | None:
+    """Collective: the checkpoint ``[initial] from_run`` names (None without it, or if
+    ``missing_ok`` and no such folder exists yet: ``dolfin-rod check`` of a second
+    stage), checked against ``scene`` run by ``model`` (module docstring); reads only."""
     ini = scene["initial"]
     if ini["from_run"] is None:
         return None
     run = Path(ini["from_run"])
+    if missing_ok and not comm.bcast(run.exists() if comm.rank == 0 else None, root=0):
+        return None
     found = None
     if comm.rank == 0:
         try:
