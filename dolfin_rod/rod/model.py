@@ -701,6 +701,13 @@ class RodModel(FEModel):
             if contact:
                 contact.commit()
 
+    def hold_ends(self) -> None:
+        """After the state was replaced by a saved one (a run starting from another's,
+        output/from_run.py): the ends' supports, prescribed motions and springs start
+        where the state has its ends; the contacts' path checks start from it."""
+        initial_state.hold_ends(self)
+        self.restore_state({"rotations_committed_at": None})
+
     def stress_free(self, s):
         """(r, q) of the initial stress-free configuration at parameter values s."""
         return initial_state.stress_free(self, s)
