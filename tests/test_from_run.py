@@ -1,0 +1,221 @@
+"""A scene that starts from a previous run's saved state (``[initial] from_run``,
+output/from_run.py): creep under a load (run A), then recovery without it (run B from A's
+state) against the paper's closed forms and against the one run whose load is removed;
+the same on two ranks, a state written on two ranks read by one and the reverse; the
+errors that name initial.from_run before any model is built."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from dolfin_rod import run
+from dolfin_rod.cli import main
+from dolfin_rod.torsion.closed_forms import creep, creep_exponential
+
+ROOT = Path(__file__).resolve().parents[1]
+TORSION = ROOT / "scenes" / "torsion_creep.toml"       # alpha 2, alpha_d 1, mu 0.2, mu_d 0.5
+ROD = ROOT / "scenes" / "cantilever_creep.toml"        # end force 0.1 e1, dt 0.05
+QUIET = {"outputs.plots": False, "outputs.fields": False, "outputs.animation": False,
+         "outputs.progress": False}
+COMM = MPI.COMM_WORLD
+
+
+def shared(tmp_path) -> Path:
+    return Path(COMM.bcast(str(tmp_path), root=0))
+
+
+def creep_then_recovery(folder: Path, scene: Path, t1: float, unloaded: dict,
+                        comm=None, **overrides) -> tuple:
+    """Run A (the scene's load to t1, its end state saved), then run B from A's state
+    with the ``unloaded`` loads for another t1."""
+    common = {**QUIET, **overrides, "time.t_end": t1}
+    a = run(scene, {**common, "outputs.final_checkpoint": True}, out=folder / "A",
+            comm=comm, quiet=True)
+    b = run(scene, {**common, **unloaded, "initial.from_run": str(folder / "A")},
+            out=folder / "B", comm=comm, quiet=True)
+    return a, b
+
+
+def test_recovery_from_a_creep_run_is_the_closed_form(tmp_path):
+    """Creep under m0 = 1 to t1 = 0.5 (run A), then the load removed (run B from A's
+    state): eqs. twist, nattwist without a load give (u, u_d)(t1 + t) = exp(-tA) (u,
+    u_d)(t1), from the closed-form creep state at t1 (closed_forms.creep,
+    creep_exponential; docs/corrections.md item 2).  B starts exactly at A's end state,
+    and its error against the closed form falls with dt as BDF2's, order 2 with its
+    backward-Euler startup step: the ratio for a halved dt tends to 4 (measured 2.8 from
+    dt = 0.02 to 0.01, 3.3 from 0.01 to 0.005, as dt times the fast rate 14.6 of A
+    shrinks); first order, as the one run through the load's jump is, gives 2."""
+    errors = []
+    for dt in (0.02, 0.01):
+        folder = tmp_path / f"dt{dt}"
+        a, b = creep_then_recovery(folder, TORSION, 0.5,
+                                   {"loads.end_torsion": {"type": "constant", "value": 0.0}},
+                                   **{"scene.model": "torsion", "geometry.n_cells": 2,
+                                      "time.dt": dt})
+        assert b.summary["from_run"] == {"folder": str(folder / "A"), "time": 0.5,
+                                         "step": round(0.5 / dt), "continued": False}
+        for key in ("end_rotation", "mean_natural_twist"):
+            assert b.series[key][0] == a.series[key][-1]
+        t = np.array(b.series["time"])
+        state = creep_exponential(t, 2.0, 1.0, 0.2, 0.5) @ np.array(creep(0.5, 1.0, 2.0, 1.0,
+                                                                          0.2, 0.5))
+        computed = np.array([b.series["end_rotation"], b.series["mean_natural_twist"]]).T
+        errors.append(np.abs(computed - state).max())
+    assert errors[1] < 0.01 * np.abs(state).max()
+    assert errors[0] / errors[1] > 2.5, errors
+
+
+@pytest.mark.parametrize("case", ["rod", "uniform_torsion"])
+def test_continued_integration_is_the_run_whose_load_is_removed(tmp_path, case):
+    """With continue_integration, A then B is the one run C whose load is removed in the
+    step after t1 (a table to 0 at t1 + dt/2: the steps sample it at t1 and t1 + dt
+    only): the same operations on the same state, equal to round-off (1e-13 of the O(1)
+    tip position and twist).  A 3-D quasi-static rod (quaternions, BDF2) and the
+    uniform torsion model (its global natural twist on a real space)."""
+    if case == "rod":
+        scene, dt, key, value = ROD, 0.05, "loads.end_force", [0.1, 0.0, 0.0]
+        overrides, columns = {"geometry.n_cells": 4}, ("tip_position_x", "tip_position_z",
+                                                       "free_energy")
+        zero = [0.0, 0.0, 0.0]
+    else:
+        scene, dt, key, value = TORSION, 0.02, "loads.end_torsion", 1.0
+        overrides = {"scene.model": "torsion", "material.variant": "uniform",
+                     "geometry.n_cells": 2, "time.dt": dt}
+        columns, zero = ("end_rotation", "mean_natural_twist"), 0.0
+    t1 = 4 * dt
+    a, b = creep_then_recovery(tmp_path, scene, t1, {key: {"type": "constant", "value": zero},
+                                                     "initial.continue_integration": True},
+                               **overrides)
+    assert b.summary["from_run"]["continued"]
+    c = run(scene, {**QUIET, **overrides, "time.t_end": 2 * t1, key: {
+        "type": "table", "times": [0.0, t1, t1 + dt / 2], "values": [value, value, zero]}},
+        out=tmp_path / "C", quiet=True)
+    for column in columns:
+        np.testing.assert_allclose(b.series[column], c.series[column][4:], rtol=0, atol=1e-13,
+                                   err_msg=column)
+        assert abs(c.series[column][4] - a.series[column][0]) > 1e-4   # the load acted
+
+
+def test_from_time_picks_a_kept_state(tmp_path):
+    """keep_checkpoints keeps every state: from_time = 0.1 starts at A's row at 0.1, the
+    default at its last one (0.2)."""
+    common = {**QUIET, "geometry.n_cells": 4, "time.t_end": 0.2}
+    a = run(ROD, {**common, "outputs.checkpoint_every": 2, "outputs.keep_checkpoints": True},
+            out=tmp_path / "A", quiet=True)
+    for at, row in ((0.1, 2), (None, 4)):
+        given = {} if at is None else {"initial.from_time": at}
+        b = run(ROD, {**common, "time.t_end": 0.05, "initial.from_run": str(tmp_path / "A"),
+                      **given}, out=tmp_path / f"B{at}", quiet=True)
+        assert b.summary["from_run"]["step"] == row
+        for column in ("tip_position_x", "tip_position_z"):
+            assert b.series[column][0] == a.series[column][row]
+
+
+UNLOADED = {"loads.end_force": {"type": "constant", "value": [0.0, 0.0, 0.0]},
+            "initial.continue_integration": True}
+SMALL = {**QUIET, "geometry.n_cells": 4, "time.t_end": 0.2}
+
+
+def serial_recovery(folder: str, source: str, out: str) -> list[float]:
+    """(On one process, serial_reference) run A into folder/source unless it is there,
+    then B from it into folder/out; B's tip positions."""
+    folder_path = Path(folder)
+    if not (folder_path / source).exists():
+        run(ROD, {**SMALL, "outputs.final_checkpoint": True}, out=folder_path / source,
+            quiet=True)
+    b = run(ROD, {**SMALL, **UNLOADED, "initial.from_run": str(folder_path / source)},
+            out=folder_path / out, quiet=True)
+    return b.series["tip_position_x"]
+
+
+@pytest.mark.mpi
+def test_a_state_saved_on_two_ranks_starts_a_serial_run_and_the_reverse(tmp_path):
+    """Creep then recovery on two ranks = on one process (1e-10: another summation
+    order); a state written on two ranks read by one process, and one written by one
+    process (the serial A) read by two ranks, give the same B."""
+    from serial_reference import on_one_process
+    folder = shared(tmp_path)
+    _, b = creep_then_recovery(folder / "parallel", ROD, 0.2, UNLOADED,
+                               **{"geometry.n_cells": 4})
+    serial = parallel_read = None
+    if COMM.rank == 0:
+        serial = on_one_process("test_from_run.serial_recovery", str(folder), "serial/A",
+                                "serial/B")
+        parallel_read = on_one_process("test_from_run.serial_recovery", str(folder),
+                                       "parallel/A", "B_serial_from_parallel")
+    COMM.barrier()
+    reverse = run(ROD, {**SMALL, **UNLOADED, "initial.from_run": str(folder / "serial" / "A")},
+                  out=folder / "B_parallel_from_serial", quiet=True)
+    if COMM.rank == 0:
+        for other in (serial, parallel_read, reverse.series["tip_position_x"]):
+            np.testing.assert_allclose(other, b.series["tip_position_x"], rtol=1e-10,
+                                       atol=1e-14)
+
+
+@pytest.fixture(scope="module")
+def saved_rod_run(tmp_path_factory) -> Path:
+    """A short creep run of the cantilever with its end state saved, and a run without."""
+    folder = Path(COMM.bcast(str(tmp_path_factory.mktemp("from_run")), root=0))
+    common = {**QUIET, "geometry.n_cells": 4, "time.t_end": 0.1}
+    run(ROD, {**common, "outputs.final_checkpoint": True}, out=folder / "A", quiet=True)
+    run(ROD, common, out=folder / "unsaved", quiet=True)
+    return folder
+
+
+@pytest.mark.parametrize("sets, key, words", [
+    (["initial.from_run=nowhere"], "initial.from_run", "nowhere: not a run folder"),
+    (["initial.from_run={A}", "geometry.n_cells=8"], "initial.from_run",
+     "another geometry.n_cells (4 there, 8 here)"),
+    (["initial.from_run={A}", "material.variant=uniform", "geometry.n_cells=4"],
+     "initial.from_run", "another material.variant ('local' there, 'uniform' here)"),
+    (["initial.from_run={unsaved}", "geometry.n_cells=4"], "initial.from_run",
+     "the run saved no state"),
+    (["initial.from_run={A}", "geometry.n_cells=4", "initial.from_time=0.05"],
+     "initial.from_time", "saved no state at t = 0.05 (it has t = 0.1"),
+    (["initial.from_run={A}", "geometry.n_cells=4", "time.dt=0.025",
+      "initial.continue_integration=true"], "initial.continue_integration",
+     "time.dt = 0.05, this scene has 0.025"),
+    (["initial.from_run={A}", "initial.natural_curvature=[0, 0, 0]"],
+     "initial.natural_curvature", "not with initial.from_run"),
+    (["initial.from_time=0.1"], "initial.from_time", "give initial.from_run too"),
+])
+def test_a_bad_start_names_its_key_and_exits_2(saved_rod_run, capsys, sets, key, words):
+    """Exit 2 with one line naming the key and what differs, before any model is built
+    (no run folder is left)."""
+    out = saved_rod_run / f"bad-{abs(hash(tuple(sets)))}"
+    argv = ["run", str(ROD), "--out", str(out), "--quiet"]
+    for item in sets:
+        argv += ["--set", item.format(A=saved_rod_run / "A", unsaved=saved_rod_run / "unsaved")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    if COMM.rank == 0:
+        assert len(err.splitlines()) == 1 and f"[{key}]" in err and words in err, err
+        assert not out.exists()
+
+
+def test_a_torsion_state_does_not_start_a_rod(saved_rod_run, capsys):
+    """Another model kind: a torsion run's state offered to a 3-D rod scene."""
+    folder = saved_rod_run
+    run(TORSION, {**QUIET, "scene.model": "torsion", "geometry.n_cells": 2, "time.t_end": 0.02,
+                  "outputs.final_checkpoint": True}, out=folder / "torsion", quiet=True)
+    assert main(["run", str(ROD), "--quiet", "--set", f"initial.from_run={folder / 'torsion'}",
+                 "--out", str(folder / "bad-model")]) == 2
+    assert "another model ('torsion' there, 'rod' here)" in capsys.readouterr().err
+
+
+def test_check_names_the_state_or_the_difference(saved_rod_run, capsys):
+    """``dolfin-rod check`` reads the saved state as a run would (no model built): the
+    state it starts from, a folder not there yet (a second stage before its first), or
+    exit 2 naming the difference."""
+    good = ["check", str(ROD), "--set", "geometry.n_cells=4"]
+    assert main(good + ["--set", f"initial.from_run={saved_rod_run / 'A'}"]) == 0
+    out = capsys.readouterr().out
+    assert f"starts from: {saved_rod_run / 'A'}, its state at t = 0.1 (step 2)" in out
+    assert main(good + ["--set", f"initial.from_run={saved_rod_run / 'later'}"]) == 0
+    assert "not there yet: run the scene that writes it first" in capsys.readouterr().out
+    assert main(["check", str(ROD), "--set", f"initial.from_run={saved_rod_run / 'A'}"]) == 2
+    assert "another geometry.n_cells (4 there, 8 here)" in capsys.readouterr().err
