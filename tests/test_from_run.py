@@ -219,3 +219,17 @@ def test_check_names_the_state_or_the_difference(saved_rod_run, capsys):
     assert "not there yet: run the scene that writes it first" in capsys.readouterr().out
     assert main(["check", str(ROD), "--set", f"initial.from_run={saved_rod_run / 'A'}"]) == 2
     assert "another geometry.n_cells (4 there, 8 here)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("key", ["outputs.final_checkpoint", "outputs.checkpoint_every",
+                                 "initial.from_run"])
+def test_the_ode_model_saves_and_reads_no_state(tmp_path, capsys, key):
+    """The homogeneous-torsion ODE is solved as a whole: a checkpoint of it (an
+    IndexError of the checkpoint writer before) or a start from a state is exit 2 naming
+    the key and the way out (scene.model = "torsion")."""
+    value = {"outputs.final_checkpoint": "true", "outputs.checkpoint_every": "2",
+             "initial.from_run": str(tmp_path)}[key]
+    assert main(["run", str(TORSION), "--quiet", "--set", f"{key}={value}", "--out",
+                 str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert f"[{key}]: the 'ode' model" in err and 'scene.model = "torsion"' in err

@@ -101,10 +101,6 @@ def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
 
     def problem(reason: str) -> SceneError:
         return SceneError(scene.source, KEY, f"{run}: {reason}")
-    if model == "ode":
-        raise problem("the 'ode' model (homogeneous torsion in closed form) has no saved "
-                      "state to start from: set scene.model = \"torsion\" here and in the "
-                      "previous run")
     if not (run / "scene.toml").is_file():
         raise problem("not a run folder (no such folder)" if not run.is_dir() else
                       "not a run folder of dolfin-rod (it has no scene.toml)")
