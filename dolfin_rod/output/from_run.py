@@ -50,15 +50,18 @@ class PreviousState:
 def structure(scene: Scene, model: str) -> dict:
     """What a saved state must share with the scene that starts from it: the model, and
     for the FE models the discretisation and the kind of unknowns (JSON data)."""
+    def geometry(entry: Scene) -> dict:     # the rotations chosen are compared instead
+        return {k: v for k, v in entry.physics()["geometry"].items() if k != "rotations"}
+
     def rod(entry: Scene) -> dict:
         mat = entry["material"]
-        return {"geometry": entry.physics()["geometry"],
+        return {"geometry": geometry(entry),
                 "material.model": mat["model"], "material.variant": mat["variant"],
                 "material.constraints": mat["constraints"],
                 "inertia": bool(mat["dynamic"])}
     if model != "rod":
         mat = scene["material"]
-        return {"model": model, "geometry": scene.physics()["geometry"],
+        return {"model": model, "geometry": geometry(scene),
                 "material.variant": mat["variant"], "inertia": mat["nu"].constant != 0.0
                 if mat["nu"].is_constant else True}
     from ..scenes.rules import rod_rotations
@@ -140,8 +143,10 @@ def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
     diffs = differences(before, structure(scene, model))
     if diffs:
         path, a, b = diffs[0]
-        raise problem(f"it has another {path} ({_shown(a)} there, {_shown(b)} here); a "
-                      "state starts only a scene of the same rods, discretisation and model")
+        hint = (f": set geometry.rotations = {a!r}, 'auto' chooses by the supports and "
+                "loads" if path == "rotations" else "")
+        raise problem(f"it has another {path} ({_shown(a)} there, {_shown(b)} here{hint}); "
+                      "a state starts only a scene of the same rods, discretisation and model")
     dt = (meta.get("integrator") or {}).get("dt")
     if scene["initial"]["continue_integration"] and dt != scene["time"]["dt"]:
         raise SceneError(scene.source, "initial.continue_integration", (
