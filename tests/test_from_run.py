@@ -94,18 +94,26 @@ def test_a_twisted_rod_released_springs_back_to_its_natural_twist(tmp_path):
     assert errors[1] < 5e-4 and errors[0] / errors[1] > 3.0, errors
 
 
-@pytest.mark.parametrize("case", ["rod", "uniform_torsion"])
+@pytest.mark.parametrize("case", ["rod", "dynamic_rod", "uniform_torsion"])
 def test_continued_integration_is_the_run_whose_load_is_removed(tmp_path, case):
     """With continue_integration, A then B is the one run C whose load is removed in the
     step after t1 (a table to 0 at t1 + dt/2: the steps sample it at t1 and t1 + dt
     only): the same operations on the same state, equal to round-off (1e-13 of the O(1)
-    tip position and twist).  A 3-D quasi-static rod (quaternions, BDF2) and the
-    uniform torsion model (its global natural twist on a real space)."""
+    tip position, energies and twist).  A 3-D quasi-static rod (quaternions, BDF2), the
+    dynamic gravity cantilever (rotation vectors, generalized-alpha: its algorithmic
+    accelerations carried on, no new start) and the uniform torsion model (its global
+    natural twist on a real space)."""
+    zero = [0.0, 0.0, 0.0]
     if case == "rod":
         scene, dt, key, value = ROD, 0.05, "loads.end_force", [0.1, 0.0, 0.0]
         overrides, columns = {"geometry.n_cells": 4}, ("tip_position_x", "tip_position_z",
                                                        "free_energy")
-        zero = [0.0, 0.0, 0.0]
+    elif case == "dynamic_rod":     # its weight rho A g as a distributed force
+        scene, dt = ROOT / "scenes" / "gravity_cantilever.toml", 0.01
+        key, value = "loads.distributed_force", [-1000.0 * np.pi * 0.025**2 * 9.81, 0.0, 0.0]
+        overrides = {"geometry.n_cells": 4, "loads.gravity": zero,
+                     key: {"type": "constant", "value": value}}
+        columns = ("tip_position_x", "kinetic_energy", "free_energy")
     else:
         scene, dt, key, value = TORSION, 0.02, "loads.end_torsion", 1.0
         overrides = {"scene.model": "torsion", "material.variant": "uniform",
