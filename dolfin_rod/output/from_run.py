@@ -28,7 +28,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..scenes.scene import Scene, SceneError
-from .checkpoints import content_problem, differences, integrity_problem, read_functions
+from .checkpoints import (content_problem, differences, global_size, integrity_problem,
+                          read_functions)
 
 KEY = "initial.from_run"
 
@@ -98,8 +99,8 @@ def previous_state(scene: Scene, model: str, comm,
 
 
 def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
-    """Rank 0: (checkpoint folder, meta) of ``run`` at time ``at`` (None: the last), or a
-    SceneError (its reason is the message)."""
+    """Rank 0: [checkpoint folder, meta] of ``run`` at time ``at`` (None: the last), or
+    a SceneError naming the key (previous_state raises it on every rank)."""
     from ..scenes import parse_scene
 
     def problem(reason: str) -> SceneError:
@@ -174,7 +175,7 @@ def start_from(sim, previous: PreviousState, scene: Scene) -> bool:
     named = sim.restart_functions(continues)
     sizes = meta["fingerprint"].get("dofs", {})
     for name, f in named.items():
-        mine = f.function_space.dofmap.index_map.size_global * f.function_space.dofmap.index_map_bs
+        mine = global_size(f)
         if sizes.get(name) != mine:
             raise scene.error(KEY, f"{previous.run}: its state has {sizes.get(name)} values "
                                    f"of {name}, this model {mine}")
