@@ -266,3 +266,40 @@ def test_the_ode_model_saves_and_reads_no_state(tmp_path, capsys, key):
                  str(tmp_path / "run")]) == 2
     err = capsys.readouterr().err
     assert f"[{key}]: the 'ode' model" in err and 'scene.model = "torsion"' in err
+
+
+PULLED = """
+[scene]
+name = "pulled"
+[geometry]
+n_cells = 4
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0] }
+[boundary]
+start = "clamped"
+end = "free"
+end_displacement = { type = "ramp", value = [0.3, 0.0, -0.1], duration = 0.2 }
+[time]
+t_end = 0.2
+dt = 0.05
+"""
+
+
+def test_a_support_holds_the_end_where_the_state_has_it(tmp_path):
+    """Pre-stress: run A pulls the free end of a clamped elastic rod to (0.3, 0, 0.9)
+    (end_displacement), then B from its state pins that end (boundary.end = "pinned", no
+    displacement): the pin holds the end where A left it, so the equilibrium stays
+    (1e-9: Newton's tolerance on an O(1) state); a support at the stress-free end would
+    pull the end back by 0.32."""
+    scene = tmp_path / "pulled.toml"
+    scene.write_text(PULLED)
+    a = run(scene, {**QUIET, "outputs.final_checkpoint": True}, out=tmp_path / "A",
+            quiet=True)
+    b = run(scene, {**QUIET, "boundary.end": "pinned", "boundary.end_displacement": None,
+                    "initial.from_run": str(tmp_path / "A")}, out=tmp_path / "B", quiet=True)
+    for column, value in (("tip_position_x", 0.3), ("tip_position_z", 0.9)):
+        assert a.series[column][-1] == pytest.approx(value, abs=1e-12)
+        np.testing.assert_allclose(b.series[column], value, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(b.series["free_energy"], a.series["free_energy"][-1],
+                               rtol=1e-9)
