@@ -58,6 +58,7 @@ def test_recovery_from_a_creep_run_is_the_closed_form(tmp_path):
                                       "time.dt": dt})
         assert b.summary["from_run"] == {"folder": str(folder / "A"), "time": 0.5,
                                          "step": round(0.5 / dt), "continued": False}
+        assert b.summary["end_torsion_impulse_at_0"] is None      # not a start from rest
         for key in ("end_rotation", "mean_natural_twist"):
             assert b.series[key][0] == a.series[key][-1]
         t = np.array(b.series["time"])
