@@ -272,6 +272,8 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
             sim = build(scene, choice.model, comm)
             impulse = sim.start()
             continued = None if previous is None else start_from(sim, previous, scene)
+            if previous is not None:     # the impulse of a step at t = 0 from rest: not
+                impulse = None           # this start's (a saved state, not rest)
         except BaseException:
             if made and comm.rank == 0:          # nothing half-written: no empty folder
                 _remove_if_empty(folder)

@@ -28,7 +28,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..scenes.scene import Scene, SceneError
-from .checkpoints import content_problem, differences, integrity_problem, read_functions
+from .checkpoints import (content_problem, differences, global_size, integrity_problem,
+                          read_functions)
 
 KEY = "initial.from_run"
 
@@ -50,15 +51,18 @@ class PreviousState:
 def structure(scene: Scene, model: str) -> dict:
     """What a saved state must share with the scene that starts from it: the model, and
     for the FE models the discretisation and the kind of unknowns (JSON data)."""
+    def geometry(entry: Scene) -> dict:     # the rotations chosen are compared instead
+        return {k: v for k, v in entry.physics()["geometry"].items() if k != "rotations"}
+
     def rod(entry: Scene) -> dict:
         mat = entry["material"]
-        return {"geometry": entry.physics()["geometry"],
+        return {"geometry": geometry(entry),
                 "material.model": mat["model"], "material.variant": mat["variant"],
                 "material.constraints": mat["constraints"],
                 "inertia": bool(mat["dynamic"])}
     if model != "rod":
         mat = scene["material"]
-        return {"model": model, "geometry": scene.physics()["geometry"],
+        return {"model": model, "geometry": geometry(scene),
                 "material.variant": mat["variant"], "inertia": mat["nu"].constant != 0.0
                 if mat["nu"].is_constant else True}
     from ..scenes.rules import rod_rotations
@@ -95,16 +99,12 @@ def previous_state(scene: Scene, model: str, comm,
 
 
 def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
-    """Rank 0: (checkpoint folder, meta) of ``run`` at time ``at`` (None: the last), or a
-    SceneError (its reason is the message)."""
+    """Rank 0: [checkpoint folder, meta] of ``run`` at time ``at`` (None: the last), or
+    a SceneError naming the key (previous_state raises it on every rank)."""
     from ..scenes import parse_scene
 
     def problem(reason: str) -> SceneError:
         return SceneError(scene.source, KEY, f"{run}: {reason}")
-    if model == "ode":
-        raise problem("the 'ode' model (homogeneous torsion in closed form) has no saved "
-                      "state to start from: set scene.model = \"torsion\" here and in the "
-                      "previous run")
     if not (run / "scene.toml").is_file():
         raise problem("not a run folder (no such folder)" if not run.is_dir() else
                       "not a run folder of dolfin-rod (it has no scene.toml)")
@@ -144,8 +144,10 @@ def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
     diffs = differences(before, structure(scene, model))
     if diffs:
         path, a, b = diffs[0]
-        raise problem(f"it has another {path} ({_shown(a)} there, {_shown(b)} here); a "
-                      "state starts only a scene of the same rods, discretisation and model")
+        hint = (f": set geometry.rotations = {a!r}, 'auto' chooses by the supports and "
+                "loads" if path == "rotations" else "")
+        raise problem(f"it has another {path} ({_shown(a)} there, {_shown(b)} here{hint}); "
+                      "a state starts only a scene of the same rods, discretisation and model")
     dt = (meta.get("integrator") or {}).get("dt")
     if scene["initial"]["continue_integration"] and dt != scene["time"]["dt"]:
         raise SceneError(scene.source, "initial.continue_integration", (
@@ -173,7 +175,7 @@ def start_from(sim, previous: PreviousState, scene: Scene) -> bool:
     named = sim.restart_functions(continues)
     sizes = meta["fingerprint"].get("dofs", {})
     for name, f in named.items():
-        mine = f.function_space.dofmap.index_map.size_global * f.function_space.dofmap.index_map_bs
+        mine = global_size(f)
         if sizes.get(name) != mine:
             raise scene.error(KEY, f"{previous.run}: its state has {sizes.get(name)} values "
                                    f"of {name}, this model {mine}")
