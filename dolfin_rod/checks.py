@@ -281,3 +281,16 @@ def polyline_problem(points, rest_arc_length, normal, length: float) -> tuple[st
         return "normal", "parallel to the first segment (it gives d1, perpendicular to the rod)"
     return None
 
+
+def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:
+    """Both ends pinned, no end rotation, turn or spring: turning every section by one
+    angle about its director d3 (the rigid rotation about the axis of a straight rod)
+    costs no energy, a null mode of a quasi-static rod's tangent (issue 27 item 3; with
+    inertia it is a motion, left alone).  EndSupports (rod/boundary_conditions.py) then
+    holds the spin about d3 at s = 0 (rotation vectors: theta_3 = 0 there), which adds no
+    couple where that mode has zero energy (the reaction is the residual along it, 0);
+    where it has energy (anisotropic sections, a natural curvature) it is a torsional
+    support at s = 0.  Quaternions: the twist of the start's rotation relative to its
+    stress-free one r held (``spin_normal``)."""
+    return tuple(ends) == ("pinned", "pinned") and not (end_rotation or end_turn
+                                                          or end_springs)
