@@ -339,7 +339,7 @@ class RodModel(FEModel):
         friction_dissipation = (self.contact.add_to(F, unk.t["displacement"])
                                 if self.contact else 0)
         residual.zero_diagonals(F, unk, disc, zero)
-        power = external_forces.apply_loads(F, unk, disc, loads)
+        power = external_forces.apply_loads(F, unk, disc, loads, (resp.u, resp.u_t))
         springs, variations = self._spring_terms(disc)
         return Terms(resp, F, n, natural_pairs, (drag_dissipation, friction_dissipation),
                      power, springs, variations)
