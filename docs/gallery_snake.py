@@ -1,6 +1,6 @@
 """The picture of docs/gallery.md's continuum snake: scenes/continuum_snake.toml run for
 PyElastica's 11 periods (or a run folder of it given as the argument, such as
-benchmarks/snake_peer.py's), drawn from above: the centre line every half period, its
+benchmarks/snake_peer.py's), drawn from above: the centre line every two periods, its
 centre of mass's path, and the centre of mass's forward position against time beside
 the straight line of PyElastica's average speed (results/bench/snake_peer*.json, when
 one holds PyElastica's run).
@@ -45,10 +45,10 @@ def main() -> None:
     steps = read_pvd(folder / "rod.pvd")
     t = np.array([s["time"] for s in steps])
     com = np.array([centre(s["points"]) for s in steps])
-    fig, (top, forward) = plt.subplots(1, 2, figsize=(12, 4.2),
-                                       gridspec_kw={"width_ratios": [2.2, 1]})
-    shown = [int(np.argmin(np.abs(t - k * PERIOD / 2)))
-             for k in range(int(t[-1] / (PERIOD / 2)) + 1)]
+    fig, (top, forward) = plt.subplots(1, 2, figsize=(12, 3.4),
+                                       gridspec_kw={"width_ratios": [2.6, 1]})
+    shown = [int(np.argmin(np.abs(t - k * 2 * PERIOD)))
+             for k in range(int(t[-1] / (2 * PERIOD)) + 1)]
     colours = plt.cm.viridis(np.linspace(0, 1, len(shown)))
     for i, c in zip(shown, colours):
         top.plot(steps[i]["points"][:, 2], steps[i]["points"][:, 0], color=c, lw=1.5)
@@ -57,7 +57,7 @@ def main() -> None:
     top.set_aspect("equal")
     top.set_xlabel("z [m] (forward)")
     top.set_ylabel("x [m]")
-    top.set_title("from above, every T/2 = 1 s (dot: the head, s = L)")
+    top.set_title("from above, every 2 T = 4 s (dot: the head, s = L)")
     top.legend(loc="lower right", fontsize=8)
     forward.plot(t, com[:, 2] - com[0, 2], label="dolfin_rod")
     runs = [r for peer in sorted((ROOT / "results" / "bench").glob("snake_peer*.json"))

@@ -12,7 +12,6 @@ torsion/ode.py.  The integrator of an FE model is picked in integrators/choice.p
 
 from __future__ import annotations
 
-from dataclasses import asdict
 from pathlib import Path
 from typing import Callable, NamedTuple, Protocol
 
@@ -508,7 +507,7 @@ def rod_loads(scene: Scene) -> tuple[list, list]:
     if lds["gravity"] is not None:
         distributed.append(DistributedLoad("force", _profiled(lds["gravity"], mat["density"])))
     if lds["muscle"] is not None:
-        distributed += TravellingWave(**asdict(lds["muscle"])).loads(
+        distributed += TravellingWave(**lds["muscle"]).loads(
             scene["geometry"]["length"])
     return end_loads, distributed
 

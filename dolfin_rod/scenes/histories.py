@@ -4,8 +4,8 @@ duration, follower, profile}`` -> :class:`HistorySpec`, which builds the
 :mod:`dolfin_rod.loads` history the models evaluate.  ``follower`` is for rod loads,
 ``profile`` (a function of s) for distributed loads only, ``s`` (where) for point loads.
 A muscle's travelling wave of active moment, ``loads.muscle = {axis, amplitude, period,
-wave_length, phase, ramp, origin, follower}`` -> :class:`MuscleSpec` (the keys of
-rod/external_forces.TravellingWave).
+wave_length, phase, ramp, origin, follower}`` -> the keywords of
+rod/external_forces.TravellingWave (``muscle``).
 """
 
 from __future__ import annotations
@@ -194,30 +194,11 @@ def _new_form(old: dict) -> dict:
     return new
 
 
-@dataclass(frozen=True)
-class MuscleSpec:
-    """loads.muscle as written: rod/external_forces.TravellingWave's keys (numbers only:
-    the scene layer loads no DOLFINx)."""
-
-    axis: tuple[float, float, float]
-    amplitude: float | tuple[float, ...]
-    period: float
-    wave_length: float
-    phase: float = 0.0
-    ramp: float = 0.0
-    origin: str = "start"
-    follower: bool = False
-
-    @property
-    def peak(self) -> float:
-        """The largest |amplitude| (a B-spline lies within its control values)."""
-        return float(np.max(np.abs(np.atleast_1d(self.amplitude))))
-
-
-def muscle(v):
+def muscle(v) -> dict:
     """{axis, amplitude, period, wave_length, phase, ramp, origin, follower}: axis a
     non-zero 3-vector, amplitude a number or >= 4 B-spline control values, period and
-    wave_length > 0, ramp >= 0, origin "start" | "end"."""
+    wave_length > 0, ramp >= 0, origin "start" | "end": the checked keyword arguments of
+    rod/external_forces.TravellingWave (numbers only: the scene layer loads no DOLFINx)."""
     if not isinstance(v, dict):
         raise BadValue(f"must be a table {{axis, amplitude, period, wave_length, ...}}, got "
                        f"{type_name(v)}")
@@ -236,7 +217,7 @@ def muscle(v):
                 raise BadValue(bad.reason, key) from None
     if not np.linalg.norm(out["axis"]) > 0:
         raise BadValue("must not be the zero vector", "axis")
-    return MuscleSpec(**out)
+    return out
 
 
 def _amplitude(v):
