@@ -44,6 +44,7 @@ _WHERE = {
     # what a run writes: fields along the rod (ParaView, animation), versions
     "FieldOutputs": "output.field_outputs", "read_vtx": "output.vtx", "versions": "output.writer",
     "read_pvd": "output.vtk_xml", "redraw": "output.redraw",
+    "load_state": "output.from_run",    # a model put in a run's saved state (docs/scenes.md)
     # fitting parameters to measured time series (docs/fitting.md)
     "fit_scene": "fit.least_squares", "FitResult": "fit.least_squares",
     "prepare_fit": "fit.least_squares", "run_fit": "fit.least_squares",

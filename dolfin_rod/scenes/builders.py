@@ -95,6 +95,7 @@ class FESimulation:
         self.comm = self.problem.comm
         self.fields = list(self.problem.fields)
         self._initial_state = initial_state
+        self.continued = False      # the integrator continues a saved history (restart)
         lie = isinstance(self.problem, SecondOrderProblem)   # rotation vectors (rules.py)
         options = solver_options(scene, second_order=lie)
         if tim["integrator"] == "ts":
@@ -178,9 +179,21 @@ class FESimulation:
 
     def begin(self, t0: float) -> None:
         """The integrator's start before the first row: the rotation-group integrator's
-        consistent state at t0 (a quasi-static rod in equilibrium with its loads)."""
-        if self.ts is None and hasattr(self.stepper, "initial_accelerations"):
+        consistent state at t0 (a quasi-static rod in equilibrium with its loads), unless
+        it continues a saved history (``restart``)."""
+        if self.ts is None and hasattr(self.stepper, "initial_accelerations") \
+                and not self.continued:
             self.stepper.initial_accelerations(t0)
+
+    def restart(self, state: dict | None) -> None:
+        """After a saved state was read into the model (output/from_run.py): its ends held
+        where the state has them (a rod's ``hold_ends``), and the integrator's history continued from
+        the checkpoint's ``state``, its clock moved to t = 0, or (None) started afresh."""
+        if hasattr(self.model, "hold_ends"):
+            self.model.hold_ends()
+        if state is not None:
+            self.stepper.restore_state({**state, "end_time": 0.0})
+        self.continued = state is not None
 
     def advance(self, t: float, t_next: float) -> None:
         self.stepper.run(t, t_next, t_next - t)
