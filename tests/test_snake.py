@@ -182,7 +182,7 @@ def test_the_continuum_snake_slithers_at_pyelastica_speed(tmp_path):
     its centre of mass's average forward speed over [2 T, 4 T] against PyElastica's
     run of its own example with the same parameters over the same window (converged in
     dt: 0.2 % between 1e-4 and 5e-5).  Measured 0.027751 m/s, 0.29 % below; it moves
-    by 7e-5 relative with eps = 3e-4 instead of 1e-3 and by DT_SHIFT with dt = 1e-3:
+    by 7e-5 relative with eps = 3e-4 instead of 1e-3 and by 3e-5 with dt = 1e-3:
     the rest is the codes' different discrete laws of the same friction (PyElastica's
     on its elements with a linear contact spring, this one's on the nodes with the
     barrier's normal force).  Asserted to 1 %, three times that difference."""
