@@ -272,6 +272,8 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
             sim = build(scene, choice.model, comm)
             impulse = sim.start()
             continued = None if previous is None else start_from(sim, previous, scene)
+            if previous is not None:     # the impulse of a step at t = 0 from rest: not
+                impulse = None           # this start's (a saved state, not rest)
         except BaseException:
             if made and comm.rank == 0:          # nothing half-written: no empty folder
                 _remove_if_empty(folder)
@@ -464,8 +466,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
         progress["t"] = t_k
         if k % outs["every"] == 0 or k == n_steps:
             writer.write_fields(t_k)
-        if (outs["checkpoint_every"] and k % outs["checkpoint_every"] == 0) \
-                or (outs["final_checkpoint"] and k == n_steps):
+        if _checkpoint_due(outs, k):
             writer.checkpoint(k, t_k)
         if bar is not None:
             bar.update(1)
@@ -480,6 +481,8 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
         stopped = march(sim, tim, after_step, done, stop_after)
         if stopped is not None:
             status, message = "stopped", f"stopped after step {stopped} (stop_after)"
+        elif outs["final_checkpoint"] and not _checkpoint_due(outs, progress["k"]):
+            writer.checkpoint(progress["k"], progress["t"])    # the end state (from_run)
     except KeyboardInterrupt:
         status, message = "interrupted", f"interrupted at t = {progress['t']:g}"
     except (IntegrationError, SolverError, OutputError) as err:   # keep what was computed
@@ -494,6 +497,11 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
         if bar is not None:
             bar.close()
     return status, message, progress["t"], fault
+
+
+def _checkpoint_due(outputs: dict, k: int) -> bool:
+    """A checkpoint after step k (outputs.checkpoint_every)."""
+    return bool(outputs["checkpoint_every"]) and k % outputs["checkpoint_every"] == 0
 
 
 def _report_stability_changes(sim, comm) -> bool:

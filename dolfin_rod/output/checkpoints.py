@@ -59,8 +59,7 @@ class Checkpoints:
     def fingerprint(self) -> dict:
         """What a checkpoint must match: the scene's physics, the model, the dofs."""
         named, _ = self._named_functions()
-        dofs = {name: f.function_space.dofmap.index_map.size_global
-                * f.function_space.dofmap.index_map_bs for name, f in named.items()}
+        dofs = {name: global_size(f) for name, f in named.items()}
         data = {"scene": self.scene.physics(), "model": self.sim.name, "dofs": dofs}
         data = json.loads(json.dumps(data))          # tuples -> lists, as read back
         digest = hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
@@ -123,6 +122,11 @@ class Checkpoints:
         self.sim.restore(meta["sim"])
         self.own = [Path(meta["folder"])]            # replaced by this run's next one
         return meta["balance"]
+
+
+def global_size(f) -> int:
+    """The number of values of the function ``f`` over all ranks (its fingerprint's dofs)."""
+    return f.function_space.dofmap.index_map.size_global * f.function_space.dofmap.index_map_bs
 
 
 def read_functions(folder: Path, meta: dict, named: dict) -> None:
