@@ -294,3 +294,24 @@ def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:
     stress-free one r held (``spin_normal``)."""
     return tuple(ends) == ("pinned", "pinned") and not (end_rotation or end_turn
                                                           or end_springs)
+
+
+def welded_spin_end(rods, joint_kinds) -> tuple[int, str] | None:
+    """Where a system's free spin is held (rod index, end), or None: rods joined by
+    rigid joints only (``joint_kinds``; a rod split at its kinks: its corners) move as
+    one body, so with exactly two pinned ends among them, every other end free, and no
+    end rotation, turn or spring, turning the whole about the line through the pins
+    costs no energy, as spin_free's single rod (a welded column pinned at both ends):
+    the spin about d3 at the first pinned end is held (EndSupports, rod/
+    boundary_conditions.py).  ``rods``: each with ends, end_rotation, end_turn,
+    end_springs (rods.Rod)."""
+    if len(rods) < 2 or any(kind != "rigid" for kind in joint_kinds):
+        return None
+    if any(rod.end_rotation or rod.end_turn or rod.end_springs for rod in rods):
+        return None
+    ends = [(k, end, kind) for k, rod in enumerate(rods)
+            for end, kind in zip(("start", "end"), rod.ends)]
+    pinned = [(k, end) for k, end, kind in ends if kind == "pinned"]
+    if len(pinned) != 2 or any(kind not in ("pinned", "free") for _, _, kind in ends):
+        return None
+    return pinned[0]
