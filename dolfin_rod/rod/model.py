@@ -206,7 +206,7 @@ class RodModel(FEModel):
                 for end, motion in (getattr(rod, name) or {}).items()}
         self.problem.structure = text
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
-        self._diagnostics(disc, nodes)
+        self._diagnostics(disc, nodes, contact)
 
     def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
                            constraint: str | None, joints: Sequence[Joint], comm) -> list[Joint]:
@@ -454,9 +454,10 @@ class RodModel(FEModel):
         return per_rod, {block: ufl.derivative(springs, unk.f[block], unk.t[block])
                          for block in ("displacement", unk.rotation)}
 
-    def _diagnostics(self, disc, joint_nodes) -> None:
+    def _diagnostics(self, disc, joint_nodes, law) -> None:
         """Tips, the energy forms (diagnostics.py) and the check that the rod does not
-        pass through itself (segments joined at ``joint_nodes`` are neighbours)."""
+        pass through itself (segments joined at ``joint_nodes`` are neighbours; pairs
+        that the contact ``law`` keeps apart are left to it)."""
         unk, c, layout = self.unknowns, self.coefficients, self.layout
         self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(self.rods))]
         points = [dict.fromkeys((layout.starts[k], layout.lengths[k] / layout.n_cells[k],
@@ -494,10 +495,11 @@ class RodModel(FEModel):
         self.pass_through = PassThroughCheck(
             unk.f["displacement"], distance=h, exclusion=3 * h,
             hint="self-contact is off: set contact.self = true (contact.between_rods for "
-                 "rods of a system; docs/contact.md)" if layout.single else
+                 "rods of a system; docs/contact.md)" if len(layout.rods) == 1 else
                  "contact between rods is off: set contact.between_rods = true "
                  "(contact.self for a rod through itself; docs/contact.md)", layout=layout,
-            names=self.rod_names, joints=joint_nodes)
+            names=self.rod_names, joints=joint_nodes,
+            covered=(bool(law and law.self), bool(law and law.between_rods)))
 
     def _segment_contact(self, law, layout, joint_nodes) -> SegmentContact | None:
         """The segment pairs' contact (pair_contact.py) if the law asks for it; the
@@ -505,16 +507,18 @@ class RodModel(FEModel):
         if law is None or not (law.self or law.between_rods):
             return None
         h = max(length / n for length, n in zip(layout.lengths, layout.n_cells))
-        problem = exclusion_problem(law.radius, law.gap, h, min(layout.lengths))
+        problem = exclusion_problem(law.radius, law.gap, h, min(
+            float(rod.params.length) for rod in self.user_rods))   # a kinked rod: all of it
         if law.self and problem:
             raise ValueError(problem)
         check_contact([], law)
         self._check_pair_friction(law)
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
                                  law.self, law.between_rods, joint_nodes,
-                                 velocity=self.unknowns.V if self.dynamic else None)
+                                 velocity=self.unknowns.V if self.dynamic else None,
+                                 along=layout.along)
         contact.block = list(self.names).index("displacement")
-        contact.rod_names, contact.rod_starts = layout.names, layout.starts
+        contact.rod_names = layout.rods
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
         self.pair_force = fem.Function(P1, name="pair_contact_force")
         return contact
@@ -702,6 +706,13 @@ class RodModel(FEModel):
         for contact in (self.contact, *self.segment_terms):
             if contact:
                 contact.commit()
+
+    def hold_ends(self) -> None:
+        """After the state was replaced by a saved one (a run starting from another's,
+        output/from_run.py): the ends' supports, prescribed motions and springs start
+        where the state has its ends; the contacts' path checks start from it."""
+        initial_state.hold_ends(self)
+        self.restore_state({"rotations_committed_at": None})
 
     def stress_free(self, s):
         """(r, q) of the initial stress-free configuration at parameter values s."""

@@ -96,6 +96,7 @@ class FESimulation:
         self.comm = self.problem.comm
         self.fields = list(self.problem.fields)
         self._initial_state = initial_state
+        self.continued = False      # the integrator continues a saved history (restart)
         lie = isinstance(self.problem, SecondOrderProblem)   # rotation vectors (rules.py)
         options = solver_options(scene, second_order=lie)
         if tim["integrator"] == "ts":
@@ -179,9 +180,33 @@ class FESimulation:
 
     def begin(self, t0: float) -> None:
         """The integrator's start before the first row: the rotation-group integrator's
-        consistent state at t0 (a quasi-static rod in equilibrium with its loads)."""
-        if self.ts is None and hasattr(self.stepper, "initial_accelerations"):
+        consistent state at t0 (a quasi-static rod in equilibrium with its loads), unless
+        it continues a saved history (``restart``)."""
+        if self.ts is None and hasattr(self.stepper, "initial_accelerations") \
+                and not self.continued:
             self.stepper.initial_accelerations(t0)
+
+    def restart_functions(self, continues: bool) -> dict:
+        """The functions by checkpoint name that a run starting from a saved state reads
+        (output/from_run.py): the unknowns, the model's (stored rotations), the
+        integrator's rates (velocities) and, if it ``continues`` that run's history, the
+        rest of the integrator's."""
+        named = {f"field_{i}": f for i, f in enumerate(self.fields)}
+        named |= getattr(self.model, "checkpoint_state", dict)().get("functions", {})
+        if self.stepper is not None:
+            named |= {name: f for name, f in self.stepper.checkpoint_state()["functions"]
+                      .items() if continues or name.startswith("rate_")}
+        return named
+
+    def restart(self, state: dict | None) -> None:
+        """After ``restart_functions`` were read: the model's ends held where the state
+        has them (a rod's ``hold_ends``), and the integrator's history continued from
+        the checkpoint's ``state``, its clock moved to t = 0, or (None) started afresh."""
+        if hasattr(self.model, "hold_ends"):
+            self.model.hold_ends()
+        if state is not None:
+            self.stepper.restore_state({**state, "end_time": 0.0})
+        self.continued = state is not None
 
     def advance(self, t: float, t_next: float) -> None:
         self.stepper.run(t, t_next, t_next - t)

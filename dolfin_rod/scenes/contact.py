@@ -93,8 +93,10 @@ def check_initial_contact(scene: Scene, start) -> None:
     h = longest_cell(start)
     if c["self"]:
         from ..rod.segments import exclusion_problem
-        problem = exclusion_problem(radius, gap, h,
-                                    min(line.length for line in start.lines))
+        lengths: dict = {}              # each rod's length (a kinked rod: its pieces')
+        for line in start.lines:
+            lengths[line.rod] = lengths.get(line.rod, 0.0) + line.length
+        problem = exclusion_problem(radius, gap, h, min(lengths.values()))
         if problem:
             raise scene.error("contact.radius", problem)
     if start.settled:
@@ -167,8 +169,9 @@ def _check_obstacle_overlap(scene: Scene, lines: list, radius: float, gap: float
 def _check_pair_overlap(scene: Scene, start, cells: StartSegments, radius: float,
                         gap: float, h: float) -> None:
     """Two segments of the rods that make a pair (pair_contact.SegmentContact.allowed:
-    of one piece farther apart in s than the exclusion with contact.self, of two with
-    contact.between_rods, not neighbours through a joint) whose capsules overlap at
+    of one rod (any of its pieces: a rod split at its kinks) farther apart along it than
+    the exclusion with contact.self, of two with contact.between_rods, not neighbours
+    through a joint) whose capsules overlap at
     t = 0: the error naming contact.self or contact.between_rods run gives.  On smooth
     curves (contact.pair_curve = "smooth") the curves' distance is at most the chords'
     plus the two deviations: a pair that overlaps by that bound overlaps (exact for
@@ -182,8 +185,9 @@ def _check_pair_overlap(scene: Scene, start, cells: StartSegments, radius: float
                        reach + 2 * cells.deviation.max() * smooth, 0.0,
                        tree=len(ends) > FEW_SEGMENTS)
     i, j = pairs[:, 0], pairs[:, 1]
-    same = cells.piece[i] == cells.piece[j]
-    keep = (same & c["self"] & (np.abs(cells.mid_s[i] - cells.mid_s[j]) >= excluded)) | \
+    rod = np.array([cells.rods.index(name) for name in cells.rods])[cells.piece]
+    same = rod[i] == rod[j]
+    keep = (same & c["self"] & (np.abs(cells.own_s[i] - cells.own_s[j]) >= excluded)) | \
         (~same & c["between_rods"])
     joints = [tuple(cells.a[p] + node * lines[p].length / (len(lines[p].s) - 1)
                     for p, node in ((p, m), (q, n))) for p, m, q, n in start.joints]
@@ -200,7 +204,7 @@ def _check_pair_overlap(scene: Scene, start, cells: StartSegments, radius: float
     point = 0.5 * (X[0][k] + u[k] * (X[1][k] - X[0][k]) + X[2][k] + v[k] * (X[3][k] - X[2][k]))
     err = PairOverlap.at((cells.name(i[k]), cells.name(j[k])), point,
                          float(d[k] - 2 * radius), radius,
-                         lines[cells.piece[i[k]]].rod == lines[cells.piece[j[k]]].rod)
+                         bool(same[keep][k]))
     raise scene.error(err.key, str(err))
 
 

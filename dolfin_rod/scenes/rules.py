@@ -68,6 +68,7 @@ def check_combinations(scene: Scene) -> None:
                 "material.stiffness, viscosity for a rod)") if not rod else (
                 "applies to the torsion model only; this scene has a 3-D rod material"))
     _check_time(scene)
+    _check_from_run(scene)
     if rod:
         _check_rod_material(scene)
         _check_rod_ends(scene)
@@ -170,6 +171,8 @@ def _check_time(scene: Scene) -> None:
     for key in ("ts_rtol", "ts_atol"):
         if key in given and not tim["adaptive"]:
             raise err(f"time.{key}", "an error tolerance of adaptive TS: set adaptive = true")
+    if scene["outputs"]["final_checkpoint"] and ts:
+        raise err("outputs.final_checkpoint", "checkpoints need integrator = \"stepper\"")
     if scene["outputs"]["checkpoint_every"] and ts:
         raise err("outputs.checkpoint_every", "checkpoints (and --resume) need integrator = "
                                               "\"stepper\": PETSc TS runs the whole interval "
@@ -179,6 +182,21 @@ def _check_time(scene: Scene) -> None:
     if tim["t_end"] / tim["dt"] > 1e7:
         raise err("time.dt", f"t_end/dt = {tim['t_end'] / tim['dt']:.3g} steps is more than "
                              "10^7")
+
+
+def _check_from_run(scene: Scene) -> None:
+    """A saved state (initial.from_run) is the whole starting state: no other [initial]
+    key; from_time picks one of its states.  The run folder itself is checked when the
+    scene runs (output/from_run.py)."""
+    ini, given, err = scene["initial"], scene.given["initial"], scene.error
+    if ini["from_run"] is None:
+        for key in sorted(given & {"from_time", "continue_integration"}):
+            raise err(f"initial.{key}", "applies to a start from a saved state: give "
+                                        "initial.from_run too")
+        return
+    for key in sorted(given - {"from_run", "from_time", "continue_integration"}):
+        raise err(f"initial.{key}", "not with initial.from_run: the starting state, natural "
+                                    "strains included, is the previous run's")
 
 
 def _check_torsion(scene: Scene) -> None:

@@ -300,6 +300,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
                            "rotations in static equilibrium with the loads at t = 0 from "
                            "the starting shape before the dynamics (quasi-static "
                            "pre-loading; natural strains kept)"),
+        "from_run": Key(path_text, None, "start from the state a previous run saved (its "
+                        "run folder, with outputs.final_checkpoint or checkpoint_every): positions, "
+                        "rotations, velocities, natural strains (docs/scenes.md, \"Starting "
+                        "from a previous run\"); the same rods, n_cells, degree, model and "
+                        "rotations; loads, supports, time and outputs are this scene's, its "
+                        "time starts at 0; no other [initial] key"),
+        "from_time": Key(real(0.0), None, "with from_run: the saved state at this time of "
+                         "the previous run (default: its last one; outputs.keep_checkpoints "
+                         "keeps them all)"),
+        "continue_integration": Key(boolean, False, "with from_run: continue the previous "
+                                    "run's time integration (its multistep history, "
+                                    "generalized-alpha's accelerations; the same integrator, "
+                                    "scheme and dt): the two runs are then the one run whose "
+                                    "loads change in the step after the saved state, to "
+                                    "round-off (default: a new start from the state, as "
+                                    "any run starts)"),
     },
     "boundary": {
         "start": Key(choice(*ROD_ENDS), "clamped", "s = 0: clamped | pinned | free "
@@ -474,6 +490,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      "panels from " + ", ".join(PANELS) + " (docs/outputs.md)"),
         "checkpoint_every": Key(integer(0), 0, "adios4dolfinx checkpoint every N steps (0: off; "
                                                "integrator = \"stepper\" only)"),
+        "final_checkpoint": Key(boolean, False, "a checkpoint after the last step too: the "
+                                "end state a later run starts from (initial.from_run; "
+                                "integrator = \"stepper\" only)"),
+        "keep_checkpoints": Key(boolean, False, "keep every checkpoint, not only the last "
+                                "(initial.from_time of a later run picks one)"),
         "progress": Key(boolean, True, "tqdm progress bar (rank 0, TTY, not CI)"),
     },
     "contact": {
