@@ -946,6 +946,8 @@ def test_a_lock_left_by_a_killed_compile_is_removed_once_it_is_stale(tmp_path):
         assert done.stdout.count("total 0.3125") == (2 if launcher else 1), done.stdout
         assert f"removed {lock}" in done.stderr, done.stderr
         assert lock.with_suffix(".c.cached").is_file()
-    lock = _kill_mid_compile(tmp_path, age=0.0)
+    # a lock written 60 s after now: younger than the wait however long the process takes
+    # to reach its compile (with age 0, over JIT_WAIT = 2 s at load 10, it was removed)
+    lock = _kill_mid_compile(tmp_path, age=-60.0)
     waited = run()
     assert waited.returncode != 0 and "TimeoutError" in waited.stderr and lock.is_file()

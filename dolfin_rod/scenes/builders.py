@@ -499,8 +499,9 @@ def rod_parameters(scene: Scene):
 
 def rod_loads(scene: Scene) -> tuple[list, list]:
     """EndLoads (start_/end_force/couple) and DistributedLoads (distributed_force/couple,
-    gravity as density g) of a rod scene."""
+    gravity as density g, the muscle's active moment) of a rod scene."""
     from ..rod import DistributedLoad, EndLoad
+    from ..rod.external_forces import TravellingWave
     lds, mat = scene["loads"], scene["material"]
     end_loads = []
     for end in ENDS:
@@ -518,6 +519,9 @@ def rod_loads(scene: Scene) -> tuple[list, list]:
                 spec.follower))
     if lds["gravity"] is not None:
         distributed.append(DistributedLoad("force", _profiled(lds["gravity"], mat["density"])))
+    if lds["muscle"] is not None:
+        distributed += TravellingWave(**lds["muscle"]).loads(
+            scene["geometry"]["length"])
     return end_loads, distributed
 
 

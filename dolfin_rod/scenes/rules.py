@@ -44,7 +44,7 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
     ("loads", "start_couple"), ("loads", "point_force"), ("loads", "point_couple"),
-    ("obstacles", "shape")} | {
+    ("loads", "muscle"), ("obstacles", "shape")} | {
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
                              "between_rods", "self_friction", "between_rods_friction",
                              "pair_curve", "obstacle_curve")} | {
