@@ -245,6 +245,9 @@ EQUILIBRIUM_NEEDS = ("the static problem needs an end whose rotation is held (cl
 LENGTH_RTOL = 1e-6
 
 
+FOLD = 1e-4            # rad: a polyline turning by more than pi - FOLD folds back
+
+
 def polyline_problem(points, rest_arc_length, normal, length: float) -> tuple[str, str] | None:
     """(key, reason) for a starting polyline (rod/start.Polyline) that does not fit a rod
     of ``length``, key one of "points", "rest_arc_length", "normal"; else None."""
@@ -255,6 +258,13 @@ def polyline_problem(points, rest_arc_length, normal, length: float) -> tuple[st
     chords = np.diff(points, axis=0)
     if np.any(np.linalg.norm(chords, axis=1) == 0):
         return "points", "two consecutive points coincide"
+    unit = chords / np.linalg.norm(chords, axis=1)[:, None]
+    back = np.flatnonzero(1.0 + np.einsum("ij,ij->i", unit[:-1], unit[1:]) <= FOLD ** 2 / 2)
+    if len(back):       # parallel transport (start.py) divides by 1 + cos(turn) there
+        return "points", (f"turns back on itself at point {back[0] + 1} "
+                          f"({', '.join(f'{v:g}' for v in points[back[0] + 1])}: by 180 degrees, within {FOLD:g} "
+                          "rad): the frame carried across the fold is undefined; a "
+                          "hairpin needs a segment across its bend")
     if rest_arc_length is None:
         key, what = "points", "polyline's length"
         arc = np.concatenate(([0.0], np.cumsum(np.linalg.norm(chords, axis=1))))
@@ -274,3 +284,16 @@ def polyline_problem(points, rest_arc_length, normal, length: float) -> tuple[st
         return "normal", "parallel to the first segment (it gives d1, perpendicular to the rod)"
     return None
 
+
+def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:
+    """Both ends pinned, no end rotation, turn or spring: turning every section by one
+    angle about its director d3 (the rigid rotation about the axis of a straight rod)
+    costs no energy, a null mode of a quasi-static rod's tangent (issue 27 item 3; with
+    inertia it is a motion, left alone).  EndSupports (rod/boundary_conditions.py) then
+    holds the spin about d3 at s = 0 (rotation vectors: theta_3 = 0 there), which adds no
+    couple where that mode has zero energy (the reaction is the residual along it, 0);
+    where it has energy (anisotropic sections, a natural curvature) it is a torsional
+    support at s = 0.  Quaternions: the twist of the start's rotation relative to its
+    stress-free one r held (``spin_normal``)."""
+    return tuple(ends) == ("pinned", "pinned") and not (end_rotation or end_turn
+                                                          or end_springs)

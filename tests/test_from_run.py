@@ -304,3 +304,45 @@ def test_a_support_holds_the_end_where_the_state_has_it(tmp_path):
         np.testing.assert_allclose(b.series[column], value, rtol=0, atol=1e-9)
     np.testing.assert_allclose(b.series["free_energy"], a.series["free_energy"][-1],
                                rtol=1e-9)
+
+
+def test_load_state_puts_a_model_built_in_python_in_a_saved_state(saved_rod_run):
+    """dolfin_rod.load_state (the Python API of a model without a scene run): the
+    cantilever's model built from its scene without the load, put in A's saved end
+    state, has A's last row; stepped by TimeStepper without the load it moves back
+    towards the straight rod (as B of the scene would); a folder without a state, a
+    model of another layout: ValueError."""
+    from dolfin_rod import TimeStepper, build, load_scene, load_state
+    scene = load_scene(ROD, {**QUIET, "geometry.n_cells": 4, "loads.end_force": None})
+    sim = build(scene, "rod")
+    sim.start()
+    model = sim.model
+    assert load_state(model, saved_rod_run / "A") == pytest.approx(0.1)
+    a = np.genfromtxt(saved_rod_run / "A" / "timeseries.csv", delimiter=",", names=True)
+    start = model.diagnostics(0.0)
+    for column in ("tip_position_x", "tip_position_z", "free_energy"):
+        assert start[column] == pytest.approx(a[column][-1], rel=1e-14, abs=1e-15)
+    TimeStepper(model.problem, scheme="bdf2").run(0.0, 0.1, 0.05)
+    assert 0.0 < model.diagnostics(0.1)["tip_position_x"] < start["tip_position_x"]
+    with pytest.raises(ValueError, match="the run saved no state"):
+        load_state(model, saved_rod_run / "unsaved")
+    other = build(load_scene(ROD, {**QUIET, "geometry.n_cells": 6}), "rod")
+    other.start()
+    with pytest.raises(ValueError, match="its state has .* values of field_0, this model"):
+        load_state(other.model, saved_rod_run / "A")
+
+
+def test_a_run_started_from_a_state_resumes_as_it_began(saved_rod_run):
+    """A run from a saved state, stopped and resumed (--resume), is the uninterrupted
+    one (1e-12, resume's round-off) and its summary still says where it started (the
+    checkpoint keeps it)."""
+    common = {**QUIET, "geometry.n_cells": 4, "time.t_end": 0.25, "loads.end_force": None,
+              "initial.from_run": str(saved_rod_run / "A"), "outputs.checkpoint_every": 2}
+    full = run(ROD, common, out=saved_rod_run / "resumed-full", quiet=True)
+    part = run(ROD, common, out=saved_rod_run / "resumed", quiet=True, stop_after=3)
+    assert part.status == "stopped"
+    resumed = run(ROD, common, out=saved_rod_run / "resumed", quiet=True, resume=True)
+    assert resumed.summary["from_run"] == full.summary["from_run"] == {
+        "folder": str(saved_rod_run / "A"), "time": 0.1, "step": 2, "continued": False}
+    np.testing.assert_allclose(resumed.series["tip_position_x"], full.series["tip_position_x"],
+                               rtol=0, atol=1e-12)

@@ -86,25 +86,42 @@ def previous_state(scene: Scene, model: str, comm,
     run = Path(ini["from_run"])
     if missing_ok and not comm.bcast(run.exists() if comm.rank == 0 else None, root=0):
         return None
-    found = None
+    try:
+        folder, meta = _on_root(comm, lambda: _saved_state(scene, model, run,
+                                                           ini["from_time"]))
+    except StateProblem as err:
+        raise scene.error(err.key, err.reason) from None
+    return PreviousState(folder, meta, run)
+
+
+def _on_root(comm, read):
+    """``read()`` on rank 0, its result on every rank; its StateProblem raised on every
+    rank."""
+    result, problem = None, None
     if comm.rank == 0:
         try:
-            found = _saved_state(scene, model, run, ini["from_time"])
-        except SceneError as err:
-            found = (err.key, err.reason)
-    found = comm.bcast(found, root=0)
-    if isinstance(found, tuple):
-        raise scene.error(*found)
-    return PreviousState(Path(found[0]), found[1], run)
+            result = read()
+        except StateProblem as err:
+            problem = (err.key, err.reason)
+    result, problem = comm.bcast((result, problem), root=0)
+    if problem is not None:
+        raise StateProblem(*problem)
+    return result
 
 
-def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
-    """Rank 0: [checkpoint folder, meta] of ``run`` at time ``at`` (None: the last), or
-    a SceneError naming the key (previous_state raises it on every rank)."""
-    from ..scenes import parse_scene
+class StateProblem(ValueError):
+    """Why a run folder's saved state cannot be used: ``key`` the scene key it is about."""
 
-    def problem(reason: str) -> SceneError:
-        return SceneError(scene.source, KEY, f"{run}: {reason}")
+    def __init__(self, key: str, reason: str):
+        self.key, self.reason = key, reason
+        super().__init__(reason)
+
+
+def _checkpoint(run: Path, at: float | None) -> tuple[Path, dict]:
+    """Rank 0: the checkpoint folder of ``run`` at time ``at`` (None: the last) and its
+    meta.json, intact (checksums, content); StateProblem otherwise."""
+    def problem(reason: str) -> StateProblem:
+        return StateProblem(KEY, f"{run}: {reason}")
     if not (run / "scene.toml").is_file():
         raise problem("not a run folder (no such folder)" if not run.is_dir() else
                       "not a run folder of dolfin-rod (it has no scene.toml)")
@@ -129,31 +146,40 @@ def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
                 and math.isclose(t, at, rel_tol=1e-9, abs_tol=1e-12)]
         if not near:
             listed = ", ".join(f"{t:g}" for t in times if isinstance(t, (int, float)))
-            raise SceneError(scene.source, "initial.from_time", (
+            raise StateProblem("initial.from_time", (
                 f"{run} saved no state at t = {at:g} (it has t = {listed}; "
                 "outputs.keep_checkpoints = true keeps every checkpoint)"))
         folder, meta = metas[near[0]]
     broken = integrity_problem(folder, meta) or content_problem(meta)
     if broken:
         raise problem(f"its checkpoint {folder.name} cannot be used: {broken}")
+    return folder, meta
+
+
+def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
+    """Rank 0: (checkpoint folder, meta) of ``run`` at time ``at`` (None: the last),
+    checked against ``scene`` run by ``model``; StateProblem naming the key otherwise
+    (previous_state raises it on every rank as a SceneError)."""
+    from ..scenes import parse_scene
+    folder, meta = _checkpoint(run, at)
     try:
         theirs = parse_scene((run / "scene.toml").read_text(), str(run / "scene.toml"))
     except (OSError, SceneError) as err:
-        raise problem(f"its scene.toml is not a valid scene ({err})") from None
-    before = structure(theirs, meta["model"])
-    diffs = differences(before, structure(scene, model))
+        raise StateProblem(KEY, f"{run}: its scene.toml is not a valid scene ({err})") from None
+    diffs = differences(structure(theirs, meta["model"]), structure(scene, model))
     if diffs:
         path, a, b = diffs[0]
         hint = (f": set geometry.rotations = {a!r}, 'auto' chooses by the supports and "
                 "loads" if path == "rotations" else "")
-        raise problem(f"it has another {path} ({_shown(a)} there, {_shown(b)} here{hint}); "
-                      "a state starts only a scene of the same rods, discretisation and model")
+        raise StateProblem(KEY, f"{run}: it has another {path} ({_shown(a)} there, "
+                                f"{_shown(b)} here{hint}); a state starts only a scene of "
+                                "the same rods, discretisation and model")
     dt = (meta.get("integrator") or {}).get("dt")
     if scene["initial"]["continue_integration"] and dt != scene["time"]["dt"]:
-        raise SceneError(scene.source, "initial.continue_integration", (
+        raise StateProblem("initial.continue_integration", (
             f"{run} was integrated with time.dt = {_shown(dt)}, this scene has "
             f"{scene['time']['dt']:g}: a continued integration keeps the step"))
-    return [str(folder), meta]
+    return folder, meta
 
 
 def _shown(value) -> str:
@@ -172,13 +198,52 @@ def start_from(sim, previous: PreviousState, scene: Scene) -> bool:
         raise scene.error("initial.continue_integration", (
             f"{previous.run} was integrated by {_shown(method)}, this scene by "
             f"{sim.describe()!r}: only the same integrator and scheme continue"))
-    named = sim.restart_functions(continues)
-    sizes = meta["fingerprint"].get("dofs", {})
-    for name, f in named.items():
-        mine = global_size(f)
-        if sizes.get(name) != mine:
-            raise scene.error(KEY, f"{previous.run}: its state has {sizes.get(name)} values "
-                                   f"of {name}, this model {mine}")
-    read_functions(previous.folder, meta, named)
+    named = model_functions(sim.model)
+    if continues:     # the integrator's history besides the rates
+        named |= sim.stepper.checkpoint_state()["functions"]
+    try:
+        _read(previous.folder, meta, named, previous.run)
+    except StateProblem as err:
+        raise scene.error(err.key, err.reason) from None
     sim.restart(meta["sim"] if continues else None)
     return continues
+
+
+def model_functions(model) -> dict:
+    """A model's state by checkpoint name: its unknowns (``field_i``), its own functions
+    (rotation vectors' stored rotations) and their rates (``rate_i``, the integrators'
+    name for them)."""
+    problem = model.problem
+    return ({f"field_{i}": f for i, f in enumerate(problem.fields)}
+            | getattr(model, "checkpoint_state", dict)().get("functions", {})
+            | {f"rate_{i}": r for i, r in enumerate(problem.rates)})
+
+
+def _read(folder: Path, meta: dict, named: dict, run: Path) -> None:
+    """Collective: ``named`` from the checkpoint, after its sizes were compared (a state
+    of another layout is a StateProblem)."""
+    sizes = meta["fingerprint"].get("dofs", {})
+    for name, f in named.items():
+        if sizes.get(name) != global_size(f):
+            raise StateProblem(KEY, f"{run}: its state has {sizes.get(name)} values of "
+                                    f"{name}, this model {global_size(f)}")
+    read_functions(folder, meta, named)
+
+
+def load_state(model, run: str | Path, time: float | None = None) -> float:
+    """Collective: a model built in Python (RodModel, RodSystem, TorsionModel, after its
+    ``set_initial_state``) put in the state the run in folder ``run`` saved at ``time``
+    (default its last; module docstring): its unknowns, stored rotations and rates; a
+    rod's ends held there (``hold_ends``).  An integrator made after this starts from
+    it, as a scene's ``[initial] from_run`` does; returns the saved state's time.  A
+    folder without such a state, or a state of another layout, is a ValueError (no
+    check of the scene: the model is the caller's)."""
+    run = Path(run)
+    try:
+        folder, meta = _on_root(model.problem.comm, lambda: _checkpoint(run, time))
+        _read(folder, meta, model_functions(model), run)
+    except StateProblem as err:
+        raise ValueError(err.reason) from None
+    if hasattr(model, "hold_ends"):
+        model.hold_ends()
+    return float(meta["time"])

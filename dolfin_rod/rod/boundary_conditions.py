@@ -51,7 +51,7 @@ import numpy as np
 import ufl
 
 from .. import loads
-from ..checks import is_coordinate_axis, slide_axis_problem
+from ..checks import is_coordinate_axis, slide_axis_problem, spin_free
 from ..fem import form_cache
 from ..fem.fe_model import ENDS, NodeValues, compiled_near_nodes, nodal_residual
 from ..fem.multipoint import NodeLine, NodePlane
@@ -159,20 +159,6 @@ def linked_axes(end_slide, end_turn, end_frames: dict) -> dict:
         if not (is_coordinate_axis(a) and np.allclose(material, a, rtol=0, atol=1e-12)):
             linked["rotation_increment", end] = material
     return linked
-
-
-def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:
-    """Both ends pinned, no end rotation, turn or spring: turning every section by one
-    angle about its director d3 (the rigid rotation about the axis of a straight rod)
-    costs no energy, a null mode of a quasi-static rod's tangent (issue 27 item 3; with
-    inertia it is a motion, left alone).  EndSupports then
-    holds the spin about d3 at s = 0 (rotation vectors: theta_3 = 0 there), which adds no
-    couple where that mode has zero energy (the reaction is the residual along it, 0);
-    where it has energy (anisotropic sections, a natural curvature) it is a torsional
-    support at s = 0.  Quaternions: the twist of the start's rotation relative to its
-    stress-free one r held (``spin_normal``)."""
-    return tuple(ends) == ("pinned", "pinned") and not (end_rotation or end_turn
-                                                          or end_springs)
 
 
 def spin_normal(r: np.ndarray) -> np.ndarray:

@@ -341,7 +341,7 @@ class RodModel(FEModel):
         friction_dissipation = (self.contact.add_to(F, unk.t["displacement"])
                                 if self.contact else 0)
         residual.zero_diagonals(F, unk, disc, zero)
-        power = external_forces.apply_loads(F, unk, disc, loads)
+        power = external_forces.apply_loads(F, unk, disc, loads, (resp.u, resp.u_t))
         springs, variations = self._spring_terms(disc)
         return Terms(resp, F, n, natural_pairs, (drag_dissipation, friction_dissipation),
                      power, springs, variations)
@@ -648,13 +648,10 @@ class RodModel(FEModel):
         no sign flips), in [0, 2 pi]; the same answer on every rank.  Called after every
         step, where the turns are far below the limit: a rank whose cells all pass the
         bound _safely_within (a dot product per cell) computes no turn."""
-        chart = self.unknowns.chart
-        q = chart.q_n if chart is not None else self.unknowns.f["quaternion"]
-        nodes = q.x.array.reshape(-1, 4)
-        if self._cell_nodes is None:    # (numpy's index type: int32 costs a conversion)
-            cells = q.function_space.dofmap.list
-            self._cell_nodes = cells[:, 0].astype(np.intp), cells[:, 1].astype(np.intp)
-        a, b = nodes[self._cell_nodes[0]], nodes[self._cell_nodes[1]]
+        if self._cell_nodes is None:
+            self._cell_nodes = self._cell_node_rows()
+        nodes, first, second = self._cell_nodes
+        a, b = nodes[first], nodes[second]
         local = 0.0
         if not _safely_within(a, b):
             p = np_qmul(a * _CONJUGATE, b)
@@ -672,6 +669,20 @@ class RodModel(FEModel):
             f"take n_cells >= {math.floor(cells_now * largest / MAX_CELL_TURN) + 1} for the "
             f"turn so far ([geometry.n_cells]; now {cells_now}; more for a larger turn), "
             "or turn it less (loads.end_couple, boundary.end_rotation)", t)
+
+    def _cell_node_rows(self) -> tuple:
+        """(the nodal quaternions' rows, a view of the array the steps update in place;
+        each cell's first nodes' rows, its second nodes'): slices where cell k joins
+        nodes k and k + 1 (one rod's dofs in order: no copy, no index conversion), else
+        indices in numpy's own type (int32 costs a conversion at each use)."""
+        chart = self.unknowns.chart
+        q = chart.q_n if chart is not None else self.unknowns.f["quaternion"]
+        cells = q.function_space.dofmap.list
+        first, second = cells[:, 0].astype(np.intp), cells[:, 1].astype(np.intp)
+        n = len(first)
+        if np.array_equal(first, np.arange(n)) and np.array_equal(second, first + 1):
+            first, second = slice(0, n), slice(1, n + 1)
+        return q.x.array.reshape(-1, 4), first, second
 
     def check_step(self) -> str | None:
         """A reason to redo a converged step (rotation vectors: a rotation by more than

@@ -186,21 +186,9 @@ class FESimulation:
                 and not self.continued:
             self.stepper.initial_accelerations(t0)
 
-    def restart_functions(self, continues: bool) -> dict:
-        """The functions by checkpoint name that a run starting from a saved state reads
-        (output/from_run.py): the unknowns, the model's (stored rotations), the
-        integrator's rates (velocities) and, if it ``continues`` that run's history, the
-        rest of the integrator's."""
-        named = {f"field_{i}": f for i, f in enumerate(self.fields)}
-        named |= getattr(self.model, "checkpoint_state", dict)().get("functions", {})
-        if self.stepper is not None:
-            named |= {name: f for name, f in self.stepper.checkpoint_state()["functions"]
-                      .items() if continues or name.startswith("rate_")}
-        return named
-
     def restart(self, state: dict | None) -> None:
-        """After ``restart_functions`` were read: the model's ends held where the state
-        has them (a rod's ``hold_ends``), and the integrator's history continued from
+        """After a saved state was read into the model (output/from_run.py): its ends held
+        where the state has them (a rod's ``hold_ends``), and the integrator's history continued from
         the checkpoint's ``state``, its clock moved to t = 0, or (None) started afresh."""
         if hasattr(self.model, "hold_ends"):
             self.model.hold_ends()
@@ -513,8 +501,9 @@ def rod_parameters(scene: Scene):
 
 def rod_loads(scene: Scene) -> tuple[list, list]:
     """EndLoads (start_/end_force/couple) and DistributedLoads (distributed_force/couple,
-    gravity as density g) of a rod scene."""
+    gravity as density g, the muscle's active moment) of a rod scene."""
     from ..rod import DistributedLoad, EndLoad
+    from ..rod.external_forces import TravellingWave
     lds, mat = scene["loads"], scene["material"]
     end_loads = []
     for end in ENDS:
@@ -532,6 +521,9 @@ def rod_loads(scene: Scene) -> tuple[list, list]:
                 spec.follower))
     if lds["gravity"] is not None:
         distributed.append(DistributedLoad("force", _profiled(lds["gravity"], mat["density"])))
+    if lds["muscle"] is not None:
+        distributed += TravellingWave(**lds["muscle"]).loads(
+            scene["geometry"]["length"])
     return end_loads, distributed
 
 

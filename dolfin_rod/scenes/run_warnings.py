@@ -114,6 +114,8 @@ def residual_scale(scene: Scene) -> float:
                 shape = 1.0 if spec.profile is None else float(
                     np.max(np.abs(spec.profile.values(sample_points(length)))))
                 scale = max(scale, _peak(spec) * shape * length)
+        if lds["muscle"] is not None:       # a B-spline lies within its control values
+            scale = max(scale, float(np.max(np.abs(lds["muscle"]["amplitude"]))))
         if lds["gravity"] is not None and mat["density"] is not None:
             weight = np.max(np.abs(mat["density"].values(sample_points(length))))
             scale = max(scale, float(np.linalg.norm(lds["gravity"])) * weight * length)

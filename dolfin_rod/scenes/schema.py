@@ -34,11 +34,12 @@ from ..rod.rotation_choice import ROTATIONS
 from ..rod.sections import SHAPES as SECTION_SHAPES
 from .builders import initial_centre_lines
 from .contact import check_initial_contact, touching
-from .histories import HistorySpec, distributed, history
+from .histories import HistorySpec, distributed, history, muscle
 from .rules import check_combinations
 from .scene import Scene, SceneError
 from .systems import validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
+                     friction_coefficients,
                      names_or_boolean, damping_tensor, entry_point, integer,
                      load_entry_point, path_problem, path_text,
                      petsc_table, points3, index_triples, positive_pair, real, run_name, safe_name, scheme_name,
@@ -378,6 +379,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
                            "nodes shared by the two nearest as the P1 hat functions there)"),
         "point_couple": Key(history(True, True, point=True), None, R + "a concentrated "
                             "couple at the point s (as point_force)"),
+        "muscle": Key(muscle, None, R + "an active bending moment travelling along the rod "
+                      "(PyElastica's MuscleTorques): {axis = [x, y, z], amplitude, period, "
+                      "wave_length, phase = 0, ramp = 0, origin = \"start\", follower = "
+                      "false} is M(s, t) = min(1, t / ramp) beta(sigma) sin(2 pi (t / period "
+                      "- sigma / wave_length) + phase) axis, sigma the arc length from the "
+                      "end origin (the wave runs away from it), beta the amplitude (N m) or "
+                      "a clamped cubic B-spline of its control values over sigma / L; axis "
+                      "spatial, or material with follower = true; a rod at rest under it "
+                      "has m = M (docs/gallery.md, \"Coming from PyElastica\")"),
     },
     "time": {
         "t_end": Key(real(0.0, True), REQUIRED, "final time"),
@@ -553,8 +563,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "axis": Key(vector3(), None, "cylinder: the axis direction"),
         "radius": Key(real(0.0, True), None, "sphere, cylinder: the radius"),
         "length": Key(real(0.0, True), None, "cylinder: the length along the axis"),
-        "friction": Key(real(0.0), 0.0, "Coulomb friction coefficient mu >= 0 (needs "
-                        "density > 0)"),
+        "friction": Key(friction_coefficients, 0.0, "Coulomb friction coefficient mu >= 0, "
+                        "or {forward, backward, lateral}: directional coefficients relative "
+                        "to the rod's axis on the surface (forward: slipping towards the "
+                        "rod's end s = L; PyElastica's AnisotropicFrictionalPlane; on the "
+                        "nodes) (needs density > 0)"),
         "contact": Key(choice("auto", "nodes", "segments"), "auto", "where the barrier "
                        "acts: nodes (the centre line's nodes) | segments (a sphere's or "
                        "cylinder's: a thin obstacle between two nodes holds the segment; a "
