@@ -307,8 +307,9 @@ PETSC_ZERO_PIVOT = 100 * np.finfo(float).eps
 def zero_pivot(A) -> float:
     """The zero-pivot tolerance of an LU of A: PETSC_ZERO_PIVOT times its smallest nonzero
     diagonal entry's magnitude where that is below 1 (e.g. 6e-18 for a 100 nm rod's
-    couple rows in SI, whose every pivot PETSc's default would call zero), else PETSc's
-    own: the same factorizations for every matrix of entries >= 1, and unit-free below."""
+    couple rows in SI, 8e-18 for a hair's rotary inertia, whose every pivot PETSc's
+    default would call zero), else PETSc's own: the same factorizations for every matrix
+    of entries >= 1, and unit-free below."""
     diagonal = np.abs(A.getDiagonal().getArray(readonly=True))
     local = float(diagonal[diagonal > 0].min(initial=np.inf))
     smallest = A.getComm().tompi4py().allreduce(local, op=MPI.MIN)
@@ -413,6 +414,7 @@ class BlockSNES:
         # and PETSc reports every option left unread ("WARNING! There are options you set
         # that were not used!") for a solver that never solved
         weakref.finalize(self, _forget_options, self.prefix, list(settings))
+        self._settings = settings
         self._last_norm = np.inf
         self._x_at_residual, self._r = self.x.duplicate(), self.system.b.duplicate()
         self._start = self.x.duplicate() if self.fallback is not None else None
@@ -453,12 +455,25 @@ class BlockSNES:
         changes = self.system.pattern_changes
         self.system.jacobian(self.system.A)
         if not self.counts["jacobian"]:         # the first: the matrix's scale
-            self._ksp.getPC().setFactorPivot(zeropivot=zero_pivot(self.system.A))
+            self._scale_zero_pivot()
         if self.system.pattern_changes != changes:    # a new factorisation, symbolic too
             self._ksp.getPC().reset()       # (which drops the operators: set again, as
             self._ksp.setOperators(self.system.A, self.system.A)    # SNES does after this)
         self.timings["jacobian"] += time.perf_counter() - t0
         self.counts["jacobian"] += 1
+
+    def _scale_zero_pivot(self) -> None:
+        """The LU's zero-pivot tolerance from the first Jacobian (zero_pivot), unless the
+        options give one: the PC's, or block Jacobi's and ASM's sub-solvers' (through the
+        options database: they read it at their set-up, in the first solve)."""
+        if any(k.endswith("pc_factor_zeropivot") for k in self._settings):
+            return
+        value, pc = zero_pivot(self.system.A), self._ksp.getPC()
+        if pc.getType() in ("bjacobi", "asm"):
+            PETSc.Options()[f"{self.prefix}sub_pc_factor_zeropivot"] = value
+            weakref.finalize(self, _forget_options, self.prefix, ["sub_pc_factor_zeropivot"])
+        else:
+            pc.setFactorPivot(zeropivot=value)
 
     def _new_jacobian_needed(self, it: int, norm: float) -> bool:
         """jacobian_reuse_ratio: a new Jacobian at the first iteration (``it`` 0) of a
