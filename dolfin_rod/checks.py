@@ -140,8 +140,11 @@ PREDICTOR = "linear"        # time.predictor: TimeStepper, SchemeStepper
 SCHEME = "bdf2"             # time.scheme: SchemeStepper (a first-order form: the quaternion
                             #   rod, torsion) when none is named, OdeTime
 NEWTON_RTOL = 1e-10         # time.rtol: BlockSNES's snes_rtol
-NEWTON_ATOL = 1e-10         # time.atol: BlockSNES's snes_atol (above the residual's
-                            #   round-off floor: ~1e-12 fails at 64 cells)
+NEWTON_ATOL = 1e-10         # BlockSNES's snes_atol for a problem without a force scale
+                            #   (the torsion model; above its residual's round-off floor)
+                            #   and OdeTime's solve_ivp atol (time.atol not given)
+NEWTON_FORCE_TOL = 1e-10    # time.atol not given: a rod's snes_atol is this times its
+                            #   force scale at the solve's time (rod/force_scale.py)
 TS_RTOL, TS_ATOL = 1e-6, 1e-8   # time.ts_rtol, time.ts_atol: TSIntegrator
 ODE_SOLUTION = "exact"      # time.ode_solution: OdeTime
 

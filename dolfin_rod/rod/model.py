@@ -43,6 +43,7 @@ from .constitutive import check_model, energy_function, section_response
 from .contact import ContactLaw, InitialOverlap, Obstacle, ObstacleContact, Spin, check_contact
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
+from .force_scale import ForceScale
 from .joint_points import Joint, check_joints, check_joints_at_start
 from .joints import JointReactions, joint_nodes, node_links
 from .kinks import attach, piece_starts, split_at_kinks, system_starts
@@ -184,6 +185,7 @@ class RodModel(FEModel):
             [(k, load) for k, rod in enumerate(self.rods) for load in rod.distributed_loads],
             [(k, load) for k, rod in enumerate(self.rods) for load in rod.point_loads])
         self._end_supports()
+        self.force_scale = ForceScale(self.rods, loads, self.end_supports)
         self._made_terms, self._xi = None, None
         self._cell_nodes = None     # each cell's two nodes (check_cell_turns)
         self._make_terms = lambda: self._balance(disc, zero, loads, response)
@@ -591,11 +593,11 @@ class RodModel(FEModel):
         terms = list(self.segment_terms)
         if self.contact and self.contact.term:     # a mesh obstacle's features
             terms.append(self.contact.term)
-        where = self.where_failed
+        where, scale = self.where_failed, self.force_scale_now
         if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step, terms=terms,
-                                       where_failed=where, links=links)
+                                       where_failed=where, links=links, force_scale=scale)
         rates_used = set(form_cache.registry(forms))
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
@@ -604,7 +606,11 @@ class RodModel(FEModel):
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
             links=links, terms=terms, scale_motions=self.scale_motions,
-            motion_turn=self.motion_turn, where_failed=where)
+            motion_turn=self.motion_turn, where_failed=where, force_scale=scale)
+
+    def force_scale_now(self) -> float:
+        """The size of the forces (force_scale.py) at the time of the supports' values."""
+        return self.force_scale(self.end_supports[0].time_set)
 
     def where_failed(self) -> str | None:
         """Where a step that finally failed went wrong (step_control.step_failure): the
