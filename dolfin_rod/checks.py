@@ -140,8 +140,11 @@ PREDICTOR = "linear"        # time.predictor: TimeStepper, SchemeStepper
 SCHEME = "bdf2"             # time.scheme: SchemeStepper (a first-order form: the quaternion
                             #   rod, torsion) when none is named, OdeTime
 NEWTON_RTOL = 1e-10         # time.rtol: BlockSNES's snes_rtol
-NEWTON_ATOL = 1e-10         # time.atol: BlockSNES's snes_atol (above the residual's
-                            #   round-off floor: ~1e-12 fails at 64 cells)
+NEWTON_ATOL = 1e-10         # BlockSNES's snes_atol for a problem without a force scale
+                            #   (the torsion model; above its residual's round-off floor)
+                            #   and OdeTime's solve_ivp atol (time.atol not given)
+NEWTON_FORCE_TOL = 1e-10    # time.atol not given: a rod's snes_atol is this times its
+                            #   force scale at the solve's time (rod/force_scale.py)
 TS_RTOL, TS_ATOL = 1e-6, 1e-8   # time.ts_rtol, time.ts_atol: TSIntegrator
 ODE_SOLUTION = "exact"      # time.ode_solution: OdeTime
 
@@ -294,3 +297,24 @@ def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:
     stress-free one r held (``spin_normal``)."""
     return tuple(ends) == ("pinned", "pinned") and not (end_rotation or end_turn
                                                           or end_springs)
+
+
+def welded_spin_end(rods, joint_kinds) -> tuple[int, str] | None:
+    """Where a system's free spin is held (rod index, end), or None: rods joined by
+    rigid joints only (``joint_kinds``; a rod split at its kinks: its corners) move as
+    one body, so with exactly two pinned ends among them, every other end free, and no
+    end rotation, turn or spring, turning the whole about the line through the pins
+    costs no energy, as spin_free's single rod (a welded column pinned at both ends):
+    the spin about d3 at the first pinned end is held (EndSupports, rod/
+    boundary_conditions.py).  ``rods``: each with ends, end_rotation, end_turn,
+    end_springs (rods.Rod)."""
+    if len(rods) < 2 or any(kind != "rigid" for kind in joint_kinds):
+        return None
+    if any(rod.end_rotation or rod.end_turn or rod.end_springs for rod in rods):
+        return None
+    ends = [(k, end, kind) for k, rod in enumerate(rods)
+            for end, kind in zip(("start", "end"), rod.ends)]
+    pinned = [(k, end) for k, end, kind in ends if kind == "pinned"]
+    if len(pinned) != 2 or any(kind not in ("pinned", "free") for _, _, kind in ends):
+        return None
+    return pinned[0]
