@@ -21,7 +21,7 @@ from .run import RunResult, analyse, run, run_scene  # noqa: E402
 _WHERE = {
     # models and their data
     "RodModel": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
-    "PointLoad": "rod",
+    "PointLoad": "rod", "TravellingWave": "rod",    # a muscle's active moment
     "StartingState": "rod", "Straight": "rod", "Arc": "rod", "Helix": "rod", "Polyline": "rod",
     "EndSpring": "rod",
     "RodSystem": "rod", "Rod": "rod", "Joint": "rod",   # rod systems (docs/systems.md)

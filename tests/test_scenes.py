@@ -90,7 +90,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "buckled_column.toml": "rod", "snap_through_arch.toml": "rod",
                   "beck_column.toml": "rod", "deep_arch.toml": "rod",
                   "lee_frame.toml": "rod", "plectoneme_setting.toml": "rod",
-                  "rope_over_boulder.toml": "rod", "rope_over_thin_bar.toml": "rod"}
+                  "rope_over_boulder.toml": "rod", "rope_over_thin_bar.toml": "rod",
+                  "continuum_snake.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .scene import Scene
+from .values import largest_friction
 
 # per shape the pose keys it needs and those it may have (every other one is an error)
 POSE_KEYS = {"plane": ("point", "normal"), "sphere": ("centre", "radius"),
@@ -33,6 +34,10 @@ def check_contact_keys(scene: Scene, rotations: str) -> None:
             raise err(f"contact.{sorted(given)[0]}", "applies to rods with [[obstacles]], "
                                                      "contact.self or contact.between_rods")
         return
+    if contact["between_rods"] and not (scene.rods or scene.in_system):
+        raise err("contact.between_rods", "applies to the rods of a [[rods]] system; this "
+                                          "scene has one rod (a rod split at its corners "
+                                          "too): its own segments repel with contact.self")
     if contact["radius"] is None:
         contact["radius"] = section_radius(scene)
     if contact["radius"] is None:
@@ -56,11 +61,17 @@ def check_contact_keys(scene: Scene, rotations: str) -> None:
         for key in DIRECTIONS:
             if ob[key] is not None and not np.linalg.norm(ob[key]) > 0:
                 raise err(f"{name}.{key}", "must not be the zero vector")
-        if ob["friction"] > 0 and not scene["material"]["dynamic"]:
+        mu = largest_friction(ob["friction"])
+        if mu > 0 and not scene["material"]["dynamic"]:
             raise err(f"{name}.friction", "friction depends on the velocity: it needs a "
                                           "dynamic rod (material.density > 0)")
         _check_segments(scene, k)
-        if ob["friction"] > 0 and acts_on_segments(scene, k)[0]:
+        if isinstance(ob["friction"], tuple) and acts_on_segments(scene, k)[0]:
+            raise err(f"{name}.friction", "directional friction acts on the nodes; this "
+                                          "obstacle acts on the segments (docs/contact.md, "
+                                          "\"Thin obstacles\"): contact = \"nodes\" or one "
+                                          "coefficient")
+        if mu > 0 and acts_on_segments(scene, k)[0]:
             if rotations != "rotation_vector":
                 raise err(f"{name}.friction", "this obstacle acts on the segments (a "
                                               "sphere or cylinder thinner than the cells "
@@ -280,9 +291,11 @@ def obstacle(scene: Scene, ob: dict):
              if ob[key] is not None}           # the shape's keys only (checked above)
     if ob["file"] is not None:
         given["file"] = mesh_file(scene, ob)
+    mu = ob["friction"]
+    directional = {"directional_friction": mu} if isinstance(mu, tuple) else {
+        "friction": mu}
     return Obstacle(ob["shape"], radius=ob["radius"] or 0.0, length=ob["length"] or 0.0,
-                    friction=ob["friction"], scale=ob["scale"] or 1.0,
-                    contact=ob["contact"], **given)
+                    scale=ob["scale"] or 1.0, contact=ob["contact"], **directional, **given)
 
 
 def mesh_surface(scene: Scene, ob: dict):
@@ -408,7 +421,8 @@ def contact_solver_options(scene: Scene) -> dict:
         return {}
     options = {} if "rtol" in scene.given["time"] else {"snes_rtol": 1e-8}
     c = scene["contact"]
-    if any(ob["friction"] > 0 for ob in scene["obstacles"]) or c["self_friction"] > 0 \
+    if any(largest_friction(ob["friction"]) > 0 for ob in scene["obstacles"]) \
+            or c["self_friction"] > 0 \
             or c["between_rods_friction"] > 0:
         options["snes_linesearch_type"] = "bt"
         # bt stalls where a prescribed motion starts a sticking rod sliding within a step
