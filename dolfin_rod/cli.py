@@ -237,6 +237,10 @@ def main(argv: list[str] | None = None) -> int:
         print_on_root(comm, f"error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:                      # Ctrl-C before the run loop
+        if alone(guard):    # the signal reached the other ranks in a collective, or not
+            print(f"interrupted (rank {comm.rank}; the other ranks were not, or were "
+                  "waiting for it)", file=sys.stderr, flush=True)
+            leave(130)      # (a return would wait for them in MPI_Finalize for ever)
         print_on_root(comm, "interrupted", file=sys.stderr)
         return 130
     except Exception:

@@ -280,6 +280,9 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
             raise
         clock["setup"] = time.perf_counter() - clock["start"]
         writer = RunWriter(folder, scene, choice, sim, comm, resume=resume)
+        started = previous.summary(continued) if previous is not None else (
+            meta.get("from_run") if meta is not None else None)   # a resume: as it began
+        writer.checkpoints.started_from = started
         writer.painter = painter
         if meta is not None:
             writer.restore_checkpoint(meta)
@@ -305,8 +308,8 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
         clock["integration"] = time.perf_counter() - t_run
         summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse,
                            seen)
-        if previous is not None:
-            summary["from_run"] = previous.summary(continued)
+        if started is not None:
+            summary["from_run"] = started
         if analysis is not None and status.startswith("completed"):
             t_analysis = time.perf_counter()
             summary.update(analysis(sim, t, folder))

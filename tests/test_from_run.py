@@ -330,3 +330,19 @@ def test_load_state_puts_a_model_built_in_python_in_a_saved_state(saved_rod_run)
     other.start()
     with pytest.raises(ValueError, match="its state has .* values of field_0, this model"):
         load_state(other.model, saved_rod_run / "A")
+
+
+def test_a_run_started_from_a_state_resumes_as_it_began(saved_rod_run):
+    """A run from a saved state, stopped and resumed (--resume), is the uninterrupted
+    one (1e-12, resume's round-off) and its summary still says where it started (the
+    checkpoint keeps it)."""
+    common = {**QUIET, "geometry.n_cells": 4, "time.t_end": 0.25, "loads.end_force": None,
+              "initial.from_run": str(saved_rod_run / "A"), "outputs.checkpoint_every": 2}
+    full = run(ROD, common, out=saved_rod_run / "resumed-full", quiet=True)
+    part = run(ROD, common, out=saved_rod_run / "resumed", quiet=True, stop_after=3)
+    assert part.status == "stopped"
+    resumed = run(ROD, common, out=saved_rod_run / "resumed", quiet=True, resume=True)
+    assert resumed.summary["from_run"] == full.summary["from_run"] == {
+        "folder": str(saved_rod_run / "A"), "time": 0.1, "step": 2, "continued": False}
+    np.testing.assert_allclose(resumed.series["tip_position_x"], full.series["tip_position_x"],
+                               rtol=0, atol=1e-12)

@@ -228,7 +228,8 @@ class LieGeneralizedAlpha:
                                                  direct=bool(problem.terms))
         self.solver = BlockSNES(F, y, problem.bcs, options, cache=(self.structure_key, objects),
                                 step_scale=problem.configuration_norm(),
-                                links=problem.links, terms=problem.terms)
+                                links=problem.links, terms=problem.terms,
+                                force_scale=problem.force_scale)
         self._arrays = self._views()
         self._matrices = {}
         self.stats = StepStats()
@@ -333,7 +334,8 @@ class LieGeneralizedAlpha:
                                              self.options, cache=(key, self._model_objects),
                                              step_scale=self.problem.configuration_norm(),
                                              links=self.problem.links,
-                                             terms=self.problem.terms)
+                                             terms=self.problem.terms,
+                                             force_scale=self.problem.force_scale)
 
     def initial_accelerations(self, t0: float) -> None:
         """Solve the residual at t0 for the accelerations (second order) and rates (first
@@ -409,7 +411,7 @@ class LieGeneralizedAlpha:
         solver = BlockSNES(None if form_cache.lookup(key) else p.residual, unknowns, p.bcs,
                            self.options, cache=(key, self._model_objects),
                            step_scale=p.configuration_norm(), links=p.links,
-                           terms=p.terms)
+                           terms=p.terms, force_scale=p.force_scale)
         initial = [f.x.array.copy() for f in p.fields]
         try:
             if p.scale_motions is None:

@@ -35,6 +35,7 @@ class Checkpoints:
     def __init__(self, folder: Path, scene, sim, comm):
         self.folder, self.scene, self.sim, self.comm = Path(folder), scene, sim, comm
         self.own: list[Path] = []     # checkpoints of this run: the only ones removed
+        self.started_from: dict | None = None   # where the run started (from_run.py)
         self.last_size = 0            # bytes of the last state.bp written (rank 0)
 
     def _size_estimate(self, named: dict) -> int:
@@ -95,7 +96,8 @@ class Checkpoints:
             raise OutputError(f"cannot write a checkpoint in {root}: {failure}")
         meta = {"step": step, "time": t, "model": self.sim.name, "sim": state, "real": real,
                 "balance": balance, "fingerprint": self.fingerprint(),
-                "integrator": {"method": self.sim.describe(), "dt": self.scene["time"]["dt"]}}
+                "integrator": {"method": self.sim.describe(), "dt": self.scene["time"]["dt"]},
+                "from_run": self.started_from}
 
         def publish():
             meta["state_sha256"] = file_digests(partial / "state.bp")

@@ -182,7 +182,8 @@ def settle(model, t: float) -> None:
     solver = BlockSNES([model.residual[n] for n in names], [unk.f[n] for n in names],
                        [bc for n in names for bc in model.bcs_of(n)],
                        {"snes_max_it": 50}, step_scale=problem.configuration_norm(),
-                       links=links, terms=problem.terms)      # segment contact's pairs
+                       links=links, terms=problem.terms,      # segment contact's pairs
+                       force_scale=problem.force_scale)
     try:
         solver.solve()
     except SolverError as err:

@@ -38,11 +38,12 @@ from ..mpi import largest_on_ranks
 from ..theory.rotations import np_qmul, np_rotation_matrix, rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
-from .boundary_conditions import EndSupports, linked_axes, spin_free
+from .boundary_conditions import EndSupports, linked_axes, spin_free, welded_spin_end
 from .constitutive import check_model, energy_function, section_response
 from .contact import ContactLaw, InitialOverlap, Obstacle, ObstacleContact, Spin, check_contact
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
+from .force_scale import ForceScale
 from .joint_points import Joint, check_joints, check_joints_at_start
 from .joints import JointReactions, joint_nodes, node_links
 from .kinks import attach, piece_starts, split_at_kinks, system_starts
@@ -163,6 +164,9 @@ class RodModel(FEModel):
         rod with corners in its stress-free polyline as the pieces between them, joined
         rigidly (kinks.py)."""
         joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
+        # rods welded into one body, pinned at two ends: its spin held (welded_spin_end)
+        self.welded_spin = None if self.dynamic else welded_spin_end(
+            self.rods, [joint.kind for joint in joints])
         self.rotations = self._rotation_unknowns(rotations, joints)
         disc = discretise(comm, self.layout, self.rotations)
         super().__init__(disc.mesh)
@@ -181,6 +185,7 @@ class RodModel(FEModel):
             [(k, load) for k, rod in enumerate(self.rods) for load in rod.distributed_loads],
             [(k, load) for k, rod in enumerate(self.rods) for load in rod.point_loads])
         self._end_supports()
+        self.force_scale = ForceScale(self.rods, loads, self.end_supports)
         self._made_terms, self._xi = None, None
         self._cell_nodes = None     # each cell's two nodes (check_cell_turns)
         self._make_terms = lambda: self._balance(disc, zero, loads, response)
@@ -251,12 +256,12 @@ class RodModel(FEModel):
             rotary_inertia=not any(any(map(is_zero, p.section_inertia)) for p in all_params),
             rate_dependent=not all(is_zero(v) for p in all_params for v in (
                 p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
-            rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
-                              or spin_free(rod.ends, rod.end_rotation, rod.end_turn,
-                                           rod.end_springs)
-                              or any(np.all(spring.stiffness("rotational"))
-                                     for spring in (rod.end_springs or {}).values())
-                              for rod in rods))
+            rotation_held=self.welded_spin is not None or any(
+                "clamped" in rod.ends or bool(rod.end_rotation)
+                or spin_free(rod.ends, rod.end_rotation, rod.end_turn, rod.end_springs)
+                or any(np.all(spring.stiffness("rotational"))
+                       for spring in (rod.end_springs or {}).values())
+                for rod in rods))
         # an oblique slide is a line of the position (and velocity) with any unknowns; an
         # oblique turn a line of the rotation increment: rotation vectors only (with
         # quaternions it holds q in a plane, span(q_0, q_0 (0, a)), not a line)
@@ -434,9 +439,11 @@ class RodModel(FEModel):
 
     def _end_supports(self) -> None:
         """Every rod's end supports (their Dirichlet conditions and Constants)."""
+        held = self.welded_spin
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
-                                         rod.end_springs, rod.end_turn, end_frames(rod))
+                                         rod.end_springs, rod.end_turn, end_frames(rod),
+                                         spin_at=held[1] if held and held[0] == k else None)
                              for k, rod in enumerate(self.rods)]
 
     def _spring_terms(self, disc):
@@ -586,11 +593,11 @@ class RodModel(FEModel):
         terms = list(self.segment_terms)
         if self.contact and self.contact.term:     # a mesh obstacle's features
             terms.append(self.contact.term)
-        where = self.where_failed
+        where, scale = self.where_failed, self.force_scale_now
         if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step, terms=terms,
-                                       where_failed=where, links=links)
+                                       where_failed=where, links=links, force_scale=scale)
         rates_used = set(form_cache.registry(forms))
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
@@ -599,7 +606,11 @@ class RodModel(FEModel):
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
             links=links, terms=terms, scale_motions=self.scale_motions,
-            motion_turn=self.motion_turn, where_failed=where)
+            motion_turn=self.motion_turn, where_failed=where, force_scale=scale)
+
+    def force_scale_now(self) -> float:
+        """The size of the forces (force_scale.py) at the time of the supports' values."""
+        return self.force_scale(self.end_supports[0].time_set)
 
     def where_failed(self) -> str | None:
         """Where a step that finally failed went wrong (step_control.step_failure): the

@@ -17,7 +17,7 @@ from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
-from ..checks import ENDS
+from ..checks import ENDS, NEWTON_ATOL
 from ..rod.start import curve
 from .contact import (contact_law, contact_solver_options, obstacles, segment_pairs,
                       touching)
@@ -74,7 +74,8 @@ def build_ode(scene: Scene, comm=None):
     end = EndCondition(rotation) if spec is None else EndCondition(
         rotation, spec.build(), spec.value if spec.jumps_at_start else None,
         spec.breakpoints())
-    time = OdeTime(tim["t_end"], tim["dt"], tim["rtol"], tim["atol"], tim["ode_solution"],
+    atol = NEWTON_ATOL if tim["atol"] is None else tim["atol"]    # (the twist, in rad)
+    time = OdeTime(tim["t_end"], tim["dt"], tim["rtol"], atol, tim["ode_solution"],
                    tim["scheme"])
     return OdeTorsion(*(mat[k].constant for k in ("alpha", "alpha_d", "mu", "mu_d")), end,
                       time, scene["initial"]["natural_twist"] or 0.0, comm)
@@ -235,15 +236,16 @@ class FESimulation:
 
 
 def solver_options(scene: Scene, second_order: bool = False) -> dict:
-    """PETSc options of a scene: tolerances of [time] (given ones only for a rod with
-    rotation vectors, whose integrator has its own defaults, lie_alpha.default_options),
-    the [solver] preset, its options."""
+    """PETSc options of a scene: tolerances of [time] (rtol given only for a rod with
+    rotation vectors, whose integrator has its own defaults, lie_alpha.default_options;
+    atol given only: else the solvers scale it, solvers.ScaledAtol), the [solver]
+    preset, its options."""
     from ..fem import solvers
     tim, sol = scene["time"], scene["solver"]
     preset = {"default": {}, "native_lu": solvers.NATIVE_LU,
               "jacobian_reuse": solvers.JACOBIAN_REUSE}[sol["preset"]]
     tolerances = {f"snes_{k}": tim[k] for k in ("rtol", "atol")
-                  if not second_order or k in scene.given["time"]}
+                  if k in scene.given["time"] or (k == "rtol" and not second_order)}
     return {**contact_solver_options(scene), **tolerances, **preset, **(sol["options"] or {})}
 
 

@@ -34,6 +34,10 @@ def check_contact_keys(scene: Scene, rotations: str) -> None:
             raise err(f"contact.{sorted(given)[0]}", "applies to rods with [[obstacles]], "
                                                      "contact.self or contact.between_rods")
         return
+    if contact["between_rods"] and not (scene.rods or scene.in_system):
+        raise err("contact.between_rods", "applies to the rods of a [[rods]] system; this "
+                                          "scene has one rod (a rod split at its corners "
+                                          "too): its own segments repel with contact.self")
     if contact["radius"] is None:
         contact["radius"] = section_radius(scene)
     if contact["radius"] is None:

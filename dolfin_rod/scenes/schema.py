@@ -26,9 +26,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..checks import (DEGREE, MAX_STEP_CUTS, MIN_LENGTH, N_CELLS, NEWTON_ATOL, NEWTON_RTOL,
-                      ODE_SOLUTION, PREDICTOR, ROD_MODEL, ROTATION_UNKNOWNS, SCENE_BYTES,
-                      SCHEME, TS_ATOL, TS_RTOL, VARIANT, read_regular_file)
+from ..checks import (DEGREE, MAX_STEP_CUTS, MIN_LENGTH, N_CELLS, NEWTON_ATOL,
+                      NEWTON_FORCE_TOL, NEWTON_RTOL, ODE_SOLUTION, PREDICTOR, ROD_MODEL,
+                      ROTATION_UNKNOWNS, SCENE_BYTES, SCHEME, TS_ATOL, TS_RTOL, VARIANT,
+                      read_regular_file)
 from ..rod.rotation_choice import ROTATIONS
 from ..rod.sections import SHAPES as SECTION_SHAPES
 from .builders import initial_centre_lines
@@ -414,11 +415,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "guess: \"linear\" (y_n + dt dy/dt_n, extrapolated) | "
                          "\"constant\" (the last state y_n)"),
         "rtol": Key(real(0.0, True, 1.0), NEWTON_RTOL, "relative tolerance (SNES / solve_ivp)"),
-        "atol": Key(real(0.0, True, 1.0), NEWTON_ATOL,
-                    "absolute tolerance (SNES residual / solve_ivp); keep it above the "
-                    "round-off floor of the residual (~1e-12 fails at 64 cells) and, 3-D "
-                    "rod, below 1e-6 of the scene's forces (a thin fibre in SI units: "
-                    "`check` warns, Newton would pass its first guess unchanged)"),
+        "atol": Key(real(0.0, True, 1.0), None,
+                    "absolute tolerance of Newton's residual, in the scene's units of "
+                    "forces and couples (and solve_ivp's); not given: unit-free, "
+                    f"{NEWTON_FORCE_TOL:g} times the 3-D rod's force scale at each step's "
+                    "time (its largest load, at least the force max |A| / L^2 that bends "
+                    "it by a radian; docs/rod.md), else (torsion) "
+                    f"{NEWTON_ATOL:g}; given: exactly that, above the residual's round-off "
+                    "floor (~1e-12 fails at 64 cells) and, 3-D rod, below 1e-6 of the "
+                    "scene's forces (`check` warns: Newton would pass its first guess "
+                    "unchanged)"),
         "max_step_cuts": Key(integer(0, 30), MAX_STEP_CUTS, "step halvings before giving up"),
         "ode_solution": Key(choice("exact", "scheme"), ODE_SOLUTION,
                             "ODE model: closed form/solve_ivp, or the FE model's scheme"),
