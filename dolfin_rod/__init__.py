@@ -21,7 +21,7 @@ from .run import RunResult, analyse, run, run_scene  # noqa: E402
 _WHERE = {
     # models and their data
     "RodModel": "rod", "RodParameters": "rod", "EndLoad": "rod", "DistributedLoad": "rod",
-    "PointLoad": "rod",
+    "PointLoad": "rod", "TravellingWave": "rod",    # a muscle's active moment
     "StartingState": "rod", "Straight": "rod", "Arc": "rod", "Helix": "rod", "Polyline": "rod",
     "EndSpring": "rod",
     "RodSystem": "rod", "Rod": "rod", "Joint": "rod",   # rod systems (docs/systems.md)
@@ -44,6 +44,7 @@ _WHERE = {
     # what a run writes: fields along the rod (ParaView, animation), versions
     "FieldOutputs": "output.field_outputs", "read_vtx": "output.vtx", "versions": "output.writer",
     "read_pvd": "output.vtk_xml", "redraw": "output.redraw",
+    "load_state": "output.from_run",    # a model put in a run's saved state (docs/scenes.md)
     # fitting parameters to measured time series (docs/fitting.md)
     "fit_scene": "fit.least_squares", "FitResult": "fit.least_squares",
     "prepare_fit": "fit.least_squares", "run_fit": "fit.least_squares",

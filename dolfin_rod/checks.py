@@ -140,8 +140,11 @@ PREDICTOR = "linear"        # time.predictor: TimeStepper, SchemeStepper
 SCHEME = "bdf2"             # time.scheme: SchemeStepper (a first-order form: the quaternion
                             #   rod, torsion) when none is named, OdeTime
 NEWTON_RTOL = 1e-10         # time.rtol: BlockSNES's snes_rtol
-NEWTON_ATOL = 1e-10         # time.atol: BlockSNES's snes_atol (above the residual's
-                            #   round-off floor: ~1e-12 fails at 64 cells)
+NEWTON_ATOL = 1e-10         # BlockSNES's snes_atol for a problem without a force scale
+                            #   (the torsion model; above its residual's round-off floor)
+                            #   and OdeTime's solve_ivp atol (time.atol not given)
+NEWTON_FORCE_TOL = 1e-10    # time.atol not given: a rod's snes_atol is this times its
+                            #   force scale at the solve's time (rod/force_scale.py)
 TS_RTOL, TS_ATOL = 1e-6, 1e-8   # time.ts_rtol, time.ts_atol: TSIntegrator
 ODE_SOLUTION = "exact"      # time.ode_solution: OdeTime
 
@@ -254,6 +257,9 @@ def one_of(name: str, value, options: tuple) -> None:
 LENGTH_RTOL = 1e-6
 
 
+FOLD = 1e-4            # rad: a polyline turning by more than pi - FOLD folds back
+
+
 def polyline_problem(points, rest_arc_length, normal, length: float) -> tuple[str, str] | None:
     """(key, reason) for a starting polyline (rod/start.Polyline) that does not fit a rod
     of ``length``, key one of "points", "rest_arc_length", "normal"; else None."""
@@ -264,6 +270,13 @@ def polyline_problem(points, rest_arc_length, normal, length: float) -> tuple[st
     chords = np.diff(points, axis=0)
     if np.any(np.linalg.norm(chords, axis=1) == 0):
         return "points", "two consecutive points coincide"
+    unit = chords / np.linalg.norm(chords, axis=1)[:, None]
+    back = np.flatnonzero(1.0 + np.einsum("ij,ij->i", unit[:-1], unit[1:]) <= FOLD ** 2 / 2)
+    if len(back):       # parallel transport (start.py) divides by 1 + cos(turn) there
+        return "points", (f"turns back on itself at point {back[0] + 1} "
+                          f"({', '.join(f'{v:g}' for v in points[back[0] + 1])}: by 180 degrees, within {FOLD:g} "
+                          "rad): the frame carried across the fold is undefined; a "
+                          "hairpin needs a segment across its bend")
     if rest_arc_length is None:
         key, what = "points", "polyline's length"
         arc = np.concatenate(([0.0], np.cumsum(np.linalg.norm(chords, axis=1))))
@@ -283,3 +296,37 @@ def polyline_problem(points, rest_arc_length, normal, length: float) -> tuple[st
         return "normal", "parallel to the first segment (it gives d1, perpendicular to the rod)"
     return None
 
+
+def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:
+    """Both ends pinned, no end rotation, turn or spring: turning every section by one
+    angle about its director d3 (the rigid rotation about the axis of a straight rod)
+    costs no energy, a null mode of a quasi-static rod's tangent (issue 27 item 3; with
+    inertia it is a motion, left alone).  EndSupports (rod/boundary_conditions.py) then
+    holds the spin about d3 at s = 0 (rotation vectors: theta_3 = 0 there), which adds no
+    couple where that mode has zero energy (the reaction is the residual along it, 0);
+    where it has energy (anisotropic sections, a natural curvature) it is a torsional
+    support at s = 0.  Quaternions: the twist of the start's rotation relative to its
+    stress-free one r held (``spin_normal``)."""
+    return tuple(ends) == ("pinned", "pinned") and not (end_rotation or end_turn
+                                                          or end_springs)
+
+
+def welded_spin_end(rods, joint_kinds) -> tuple[int, str] | None:
+    """Where a system's free spin is held (rod index, end), or None: rods joined by
+    rigid joints only (``joint_kinds``; a rod split at its kinks: its corners) move as
+    one body, so with exactly two pinned ends among them, every other end free, and no
+    end rotation, turn or spring, turning the whole about the line through the pins
+    costs no energy, as spin_free's single rod (a welded column pinned at both ends):
+    the spin about d3 at the first pinned end is held (EndSupports, rod/
+    boundary_conditions.py).  ``rods``: each with ends, end_rotation, end_turn,
+    end_springs (rods.Rod)."""
+    if len(rods) < 2 or any(kind != "rigid" for kind in joint_kinds):
+        return None
+    if any(rod.end_rotation or rod.end_turn or rod.end_springs for rod in rods):
+        return None
+    ends = [(k, end, kind) for k, rod in enumerate(rods)
+            for end, kind in zip(("start", "end"), rod.ends)]
+    pinned = [(k, end) for k, end, kind in ends if kind == "pinned"]
+    if len(pinned) != 2 or any(kind not in ("pinned", "free") for _, _, kind in ends):
+        return None
+    return pinned[0]

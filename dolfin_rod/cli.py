@@ -154,8 +154,17 @@ def schema_markdown() -> str:
 def _check(scene: Scene, out: Path | None, comm) -> None:
     """``dolfin-rod check``: the scene, its model and the output location; "OK" only when
     every rank found the scene fine (mpi.agree)."""
+    from .output.from_run import previous_state
     from .output.run_folders import OutputError, folder_problem
     lines = agree(comm, lambda: _check_lines(scene, comm.size), (SceneError,))
+    previous = previous_state(scene, choose_model(scene, comm.size).model, comm,
+                              missing_ok=True)
+    if previous is not None:                 # [initial] from_run: the state it starts from
+        lines.append(f"starts from: {previous.run}, its state at t = "
+                     f"{previous.meta['time']:g} (step {previous.meta['step']})")
+    elif scene["initial"]["from_run"] is not None:
+        lines.append(f"starts from: {scene['initial']['from_run']}, not there yet: run the "
+                     "scene that writes it first")
     target = out if out is not None else Path(scene["outputs"]["directory"])
     problem = folder_problem(target) if comm.rank == 0 else None
     problem = comm.bcast(problem, root=0)
@@ -228,6 +237,10 @@ def main(argv: list[str] | None = None) -> int:
         print_on_root(comm, f"error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:                      # Ctrl-C before the run loop
+        if alone(guard):    # the signal reached the other ranks in a collective, or not
+            print(f"interrupted (rank {comm.rank}; the other ranks were not, or were "
+                  "waiting for it)", file=sys.stderr, flush=True)
+            leave(130)      # (a return would wait for them in MPI_Finalize for ever)
         print_on_root(comm, "interrupted", file=sys.stderr)
         return 130
     except Exception:

@@ -245,6 +245,7 @@ def import_finite_elements(checkpoints: bool) -> None:
 def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, quiet: bool,
          stop_after: int | None, analysis: Callable | None = None) -> RunResult:
     from .output.checkpoints import read_checkpoint_meta
+    from .output.from_run import previous_state, start_from
     from .output.writer import RunWriter
     from .scenes import build
     clock = {"start": time.perf_counter()}
@@ -255,6 +256,7 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
         raise scene.error("continuation.method", "resume/stop_after need method = "
                                                  "\"load_steps\"")
     meta = read_checkpoint_meta(out, comm, scene) if resume else None
+    previous = previous_state(scene, choice.model, comm) if meta is None else None
     made = not resume and (out is None or not os.path.exists(out))   # (False on errors)
     folder = _run_folder(scene, out, comm, resume, overwrite)
     if not quiet:
@@ -264,15 +266,23 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
     from .output.notices import noticed
     with painting(draws_alone(scene, comm)) as painter, noticed(comm) as seen:
         try:
-            import_finite_elements(resume or bool(scene["outputs"]["checkpoint_every"]))
+            outs = scene["outputs"]
+            import_finite_elements(resume or previous is not None or bool(
+                outs["checkpoint_every"] or outs["final_checkpoint"]))
             sim = build(scene, choice.model, comm)
             impulse = sim.start()
+            continued = None if previous is None else start_from(sim, previous, scene)
+            if previous is not None:     # the impulse of a step at t = 0 from rest: not
+                impulse = None           # this start's (a saved state, not rest)
         except BaseException:
             if made and comm.rank == 0:          # nothing half-written: no empty folder
                 _remove_if_empty(folder)
             raise
         clock["setup"] = time.perf_counter() - clock["start"]
         writer = RunWriter(folder, scene, choice, sim, comm, resume=resume)
+        started = previous.summary(continued) if previous is not None else (
+            meta.get("from_run") if meta is not None else None)   # a resume: as it began
+        writer.checkpoints.started_from = started
         writer.painter = painter
         if meta is not None:
             writer.restore_checkpoint(meta)
@@ -281,6 +291,10 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
                 print_on_root(comm, f"resumed at step {meta['step']}, t = {meta['time']:g}")
         else:
             writer.open()
+            if previous is not None and not quiet:
+                print_on_root(comm, f"started from {previous.run} at its t = "
+                                    f"{previous.meta['time']:g} (step {previous.meta['step']})"
+                                    + (", continuing its time integration" if continued else ""))
         t_run = time.perf_counter()
         def provisional(t: float) -> None:     # at a signal: mpirun may end the ranks soon
             writer.provisional_summary(_summary(
@@ -294,6 +308,8 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
         clock["integration"] = time.perf_counter() - t_run
         summary = _summary(scene, choice, sim, writer, comm, status, message, t, impulse,
                            seen)
+        if started is not None:
+            summary["from_run"] = started
         if analysis is not None and status.startswith("completed"):
             t_analysis = time.perf_counter()
             summary.update(analysis(sim, t, folder))
@@ -453,7 +469,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
         progress["t"] = t_k
         if k % outs["every"] == 0 or k == n_steps:
             writer.write_fields(t_k)
-        if outs["checkpoint_every"] and k % outs["checkpoint_every"] == 0:
+        if _checkpoint_due(outs, k):
             writer.checkpoint(k, t_k)
         if bar is not None:
             bar.update(1)
@@ -468,6 +484,8 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
         stopped = march(sim, tim, after_step, done, stop_after)
         if stopped is not None:
             status, message = "stopped", f"stopped after step {stopped} (stop_after)"
+        elif outs["final_checkpoint"] and not _checkpoint_due(outs, progress["k"]):
+            writer.checkpoint(progress["k"], progress["t"])    # the end state (from_run)
     except KeyboardInterrupt:
         status, message = "interrupted", f"interrupted at t = {progress['t']:g}"
     except (IntegrationError, SolverError, OutputError) as err:   # keep what was computed
@@ -482,6 +500,11 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
         if bar is not None:
             bar.close()
     return status, message, progress["t"], fault
+
+
+def _checkpoint_due(outputs: dict, k: int) -> bool:
+    """A checkpoint after step k (outputs.checkpoint_every)."""
+    return bool(outputs["checkpoint_every"]) and k % outputs["checkpoint_every"] == 0
 
 
 def _report_stability_changes(sim, comm) -> bool:

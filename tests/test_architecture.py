@@ -240,6 +240,7 @@ def test_one_default_per_scene_key():
                             TSIntegrator)
     from dolfin_rod import FieldOutputs, choose_integrator
     from dolfin_rod.analysis.stability import StabilityMonitor
+    from dolfin_rod.checks import NEWTON_ATOL
     from dolfin_rod.fem.solvers import DEFAULT_OPTIONS
     from dolfin_rod.integrators.lie_alpha import LieGeneralizedAlpha
     from dolfin_rod.integrators.stepper import SchemeStepper
@@ -289,9 +290,11 @@ def test_one_default_per_scene_key():
             (SCHEMA["boundary"]["start"].default, SCHEMA["boundary"]["end"].default)
     assert SCHEMA["material"]["constraints"].default == "none" and \
         default(RodModel.__init__, "constraints") is None
-    # the Newton tolerances time.rtol, time.atol; the scheme of a first-order form
-    assert (DEFAULT_OPTIONS["snes_rtol"], DEFAULT_OPTIONS["snes_atol"]) == \
-        (SCHEMA["time"]["rtol"].default, SCHEMA["time"]["atol"].default)
+    # the Newton tolerances: time.rtol; time.atol not given is the API's default too,
+    # scaled by the problem's forces (solvers.ForceScale), absolute without a scale;
+    # the scheme of a first-order form
+    assert DEFAULT_OPTIONS["snes_rtol"] == SCHEMA["time"]["rtol"].default
+    assert SCHEMA["time"]["atol"].default is None and DEFAULT_OPTIONS["snes_atol"] == NEWTON_ATOL
     torsion = TorsionModel(TorsionParameters(), n_cells=4, end_torsion=loads.step(1.0))
     assert TimeStepper(torsion.problem).integrator.scheme.name == SCHEMA["time"]["scheme"].default
 

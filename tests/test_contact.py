@@ -268,6 +268,8 @@ def _error(text: str) -> SceneError:
 
 @pytest.mark.parametrize("change, key, also", [
     (("radius = 0.01", "radius = 0.01\ngap = 0.02"), "contact.gap", None),
+    # one rod: between_rods paired nothing, silently (its own segments: contact.self)
+    (("radius = 0.01", "radius = 0.01\nbetween_rods = true"), "contact.between_rods", None),
     (("friction = 0.3", "friction = -0.1"), "obstacles[0].friction", None),
     (("point = [-0.0105, 0.0, 0.0]", "point = [-0.005, 0.0, 0.0]"), "obstacles[0]", None),
     (("radius = 0.01\n", ""), "contact.radius", None),

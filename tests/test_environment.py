@@ -132,3 +132,32 @@ def test_environment_has_the_requested_dolfinx():
     assert (0, 9) <= version < (0, 12)
     if "DOLFINX" in os.environ:          # set by ./rodenv inside its Debian roots
         assert version == tuple(int(x) for x in os.environ["DOLFINX"].split("."))
+
+
+def test_two_mpi_test_jobs_from_one_worktree_keep_their_own_logs(tmp_path):
+    """tests/mpi_pytest.sh on a rank > 0 of two jobs started from one folder: the job
+    that fails prints its own rank's log, not the other job's (before, both wrote
+    results/pytest-rank1.log: the second job truncated it and the failing job printed
+    the other's tests with its own report's tail); the passing job leaves no log."""
+    import subprocess
+    import time
+    (tmp_path / "test_slow_failure.py").write_text(
+        "import time\n\ndef test_fails_late():\n    time.sleep(3)\n    assert False\n")
+    (tmp_path / "test_quick_pass.py").write_text("def test_passes():\n    pass\n")
+    env = {**os.environ, "OMPI_COMM_WORLD_RANK": "1"}
+    script = str(ROOT / "tests" / "mpi_pytest.sh")
+
+    def job(name: str) -> subprocess.Popen:
+        return subprocess.Popen([script, "-p", "no:cacheprovider", name], cwd=tmp_path,
+                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+    failing = job("test_slow_failure.py")
+    time.sleep(1.0)                         # the failing job's pytest has started its log
+    passing = job("test_quick_pass.py")
+    assert passing.wait(timeout=120) == 0
+    _, said = failing.communicate(timeout=120)
+    assert failing.returncode == 1
+    assert "test_fails_late" in said and "test_quick_pass" not in said, said
+    assert [p.name for p in (tmp_path / "results").iterdir()] == \
+        [p.name for p in (tmp_path / "results").glob("pytest-rank1.*.log")]
+    assert len(list((tmp_path / "results").iterdir())) == 1      # the failing job's

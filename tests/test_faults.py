@@ -144,8 +144,10 @@ def test_resume_refuses_a_checkpoint_of_another_scene(tmp_path, capsys):
         assert err.startswith("error: cannot resume from") and "time.dt: 0.01 in the " \
             "checkpoint, 0.02 now" in err and "nothing was changed" in err, err
         assert snapshot(run) == before
-    # the same physics run by another model (forced ODE): refused by the model check
-    ode = write(folder / "ode.toml", CREEP.replace('model = "torsion"', 'model = "ode"'))
+    # the same physics run by another model (forced ODE, which writes no checkpoints of
+    # its own: outputs.checkpoint_every would be refused): refused by the model check
+    ode = write(folder / "ode.toml", CREEP.replace('model = "torsion"', 'model = "ode"')
+                .replace("checkpoint_every = 3", ""))
     code, _, err = run_main(capsys, "run", ode, "--out", run, "--resume")
     assert code == 2
     if COMM.rank == 0:
@@ -944,6 +946,8 @@ def test_a_lock_left_by_a_killed_compile_is_removed_once_it_is_stale(tmp_path):
         assert done.stdout.count("total 0.3125") == (2 if launcher else 1), done.stdout
         assert f"removed {lock}" in done.stderr, done.stderr
         assert lock.with_suffix(".c.cached").is_file()
-    lock = _kill_mid_compile(tmp_path, age=0.0)
+    # a lock written 60 s after now: younger than the wait however long the process takes
+    # to reach its compile (with age 0, over JIT_WAIT = 2 s at load 10, it was removed)
+    lock = _kill_mid_compile(tmp_path, age=-60.0)
     waited = run()
     assert waited.returncode != 0 and "TimeoutError" in waited.stderr and lock.is_file()

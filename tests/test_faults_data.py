@@ -460,6 +460,41 @@ def test_signal_to_the_ranks_under_mpirun_stops_like_ctrl_c(tmp_path, sig):
     _assert_interrupted(run, err)
 
 
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own mpirun -n 2")
+def test_a_signal_to_one_rank_during_start_up_ends_the_job(tmp_path):
+    """SIGTERM to one rank of `mpirun -n 2 dolfin-rod run` while the model is built (a
+    user's kill of one process; ./rodenv's forwarded Ctrl-C reaching the ranks at
+    different points: one inside a collective call): exit 130 within the timeout.  Before,
+    the signalled rank printed "interrupted" and waited in MPI_Finalize, the other in the
+    set-up's next collective call, both for ever (measured: 12 min, both spinning)."""
+    scene = write(tmp_path / "long.toml", LONG)
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith(("OMPI_COMM_WORLD", "PMIX_", "OMPI_MCA_ess", "PMI_"))}
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    proc = subprocess.Popen([shutil.which("mpirun") or "mpirun", "-n", "2", sys.executable,
+                             "-m", "dolfin_rod", "run", str(scene), "--out",
+                             str(tmp_path / "run")], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    ranks: list[int] = []
+    try:
+        line = proc.stdout.readline()       # "model: ..." is printed before the build
+        assert line.startswith("model: torsion"), line
+        ranks = _ranks(proc.pid)
+        assert len(ranks) == 2, ranks
+        os.kill(min(ranks), signal.SIGTERM)
+        _, err = proc.communicate(timeout=MPI_TIMEOUT)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            for rank in ranks:              # (a hang: mpirun killed leaves its ranks)
+                try:
+                    os.kill(rank, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "Traceback" not in err, err
+
+
 # --- item 5: jumps and motions faster than dt, at every time, scenes and API ------------
 
 # dynamic torsion (nu > 0), the end rotation prescribed; dt = 0.01

@@ -18,7 +18,7 @@ import pytest
 from dolfin_rod import closed_forms
 from dolfin_rod.fit.least_squares import FitError, fit_scene
 from dolfin_rod.fit.inputs import FitInputError, MeasuredSeries, check_series, read_series
-from dolfin_rod.scenes import load_scene
+from dolfin_rod.scenes import SceneError, load_scene
 from test_cli import ROOT, cli
 
 EXAMPLES = ROOT / "examples" / "fit"
@@ -300,6 +300,15 @@ def test_bad_parameter_is_refused_before_any_model_runs(params, message):
     scene = load_scene(EXAMPLES / "creep.toml")
     with pytest.raises(FitInputError, match=message.replace("[", r"\[")):
         fit_scene(scene, creep_data(grid(1.0, 0.1), 0), params)
+
+
+def test_a_fit_does_not_start_from_a_saved_state():
+    """Each trial must run from the scene's own start: [initial] from_run is refused
+    naming the key, before any model runs (the folder is not even read)."""
+    scene = load_scene(EXAMPLES / "creep.toml", {"scene.model": "torsion",
+                                                 "initial.from_run": "results/nowhere"})
+    with pytest.raises(SceneError, match=r"\[initial.from_run\]: a fit runs its trials"):
+        fit_scene(scene, creep_data(grid(1.0, 0.05), seed=5), "alpha_d,mu_d")
 
 
 def test_rod_parameter_naming():

@@ -257,6 +257,8 @@ def test_a_kinked_rod_starts_on_a_polyline():
 @pytest.mark.parametrize("params, message", [
     (dict(length=1.5, reference_shape=Polyline(((0, 0, 0), (0, 0, 1), (1, 0, 1)))),
      "reference_shape.points: the polyline's length 2 differs"),
+    (dict(length=2.0, reference_shape=Polyline(((0, 0, 0), (0, 0, 1), (1e-5, 0, 0)))),
+     "reference_shape.points: turns back on itself at point 1"),     # by pi - 1e-5 rad
     (dict(reference_shape=Arc(-1.0)), "reference_shape.radius: must be > 0"),
     (dict(reference_shape=Arc(1.0), reference_curvature=(0, 1, 0)),
      "reference_shape: the stress-free shape is a curve or"),

@@ -69,6 +69,9 @@ def shared_folder(tmp_path) -> Path:
 # the least model of each bundled scene, by reading it: homogeneous quasi-static torsion
 # with an end load or rotation -> ode; a 3-D material -> rod (a new scene needs its entry)
 BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
+                  "torsion_creep_loaded.toml": "torsion",         # scene.model: its state
+                  "torsion_creep_recovery.toml": "torsion",       # is saved, then read
+
                   "cantilever_creep.toml": "rod", "gravity_cantilever.toml": "rod",
                   "twisted_rod_relaxation.toml": "rod", "flexible_pendulum.toml": "rod",
                   "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
@@ -87,7 +90,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "buckled_column.toml": "rod", "snap_through_arch.toml": "rod",
                   "beck_column.toml": "rod", "deep_arch.toml": "rod",
                   "lee_frame.toml": "rod", "plectoneme_setting.toml": "rod",
-                  "rope_over_boulder.toml": "rod", "rope_over_thin_bar.toml": "rod"}
+                  "rope_over_boulder.toml": "rod", "rope_over_thin_bar.toml": "rod",
+                  "continuum_snake.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
@@ -734,9 +738,17 @@ def test_bundled_scene_runs(path, tmp_path):
     mpirun: the scenes that no other test runs on two ranks (ON_TWO_RANKS_ELSEWHERE)."""
     from quick_scenes import quick_scene
     import tomllib
-    n = tomllib.loads(path.read_text()).get("geometry", {}).get("n_cells", 32)
-    scene = quick_scene(path, 3, geometry__n_cells=min(n, 8))
+    data = tomllib.loads(path.read_text())
+    n = data.get("geometry", {}).get("n_cells", 32)
     folder = shared_folder(tmp_path) / "run"
+    first = data.get("initial", {}).get("from_run")
+    starts = {}
+    if first:      # a second stage: first its first stage, the scene its run folder names
+        stage = quick_scene(ROOT / "scenes" / f"{Path(first).name}.toml", 3,
+                            geometry__n_cells=min(n, 8))
+        assert run_scene(stage, folder.with_name("first"), quiet=True)["status"] == "completed"
+        starts["initial__from_run"] = str(folder.with_name("first"))
+    scene = quick_scene(path, 3, geometry__n_cells=min(n, 8), **starts)
     summary = run_scene(scene, folder, quiet=True)
     assert summary["status"] == "completed", summary["message"]
     if MPI.COMM_WORLD.rank == 0:

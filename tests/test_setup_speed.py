@@ -306,3 +306,34 @@ def test_an_interrupt_during_a_compile_waits_for_its_end():
             finished.append(sum(range(10**5)))     # Python code after the signal
     assert finished == [sum(range(10**5))]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_cached_kernel_is_found_without_listing_ffcx_s_cache(tmp_path, monkeypatch):
+    """FFCx 0.9-0.11 list their whole cache directory at every cache hit (FFCx issue
+    886); the package's compiles find the module by its path: a form compiled into a
+    fresh cache, then compiled again, loads the same module with no listing of that
+    directory, and a kernel whose compile never finished (.c without .c.cached) still
+    times out with FFCx's message naming the .c file (jit_form's stale-lock removal reads
+    it)."""
+    import posix                        # importlib's FileFinder lists through posix
+
+    import dolfinx.mesh
+    from ffcx.codegeneration import jit
+    mesh = dolfinx.mesh.create_unit_interval(MPI.COMM_SELF, 2)
+    form = fem.Constant(mesh, 1.7) * ufl.dx(domain=mesh)
+    options = {"cache_dir": str(tmp_path), "timeout": 1}
+    with form_cache.modules_found_by_path():
+        first = fem.form(form, jit_options=options)             # compiles
+        listed = []
+        real_listdir = posix.listdir
+        monkeypatch.setattr(posix, "listdir", lambda path=".": listed.append(str(path))
+                            or real_listdir(path))
+        again = fem.form(form, jit_options=options)             # a cache hit
+        monkeypatch.undo()
+    assert str(tmp_path) not in listed, listed
+    assert jit.get_cached_module is not form_cache.cached_module     # restored
+    assert fem.assemble_scalar(again) == pytest.approx(fem.assemble_scalar(first))
+    assert fem.assemble_scalar(again) == pytest.approx(1.7, rel=1e-14)
+    (tmp_path / "libffcx_forms_unfinished.c").write_text("")
+    with pytest.raises(TimeoutError, match=r"remove .*libffcx_forms_unfinished\.c\)"):
+        form_cache.cached_module("libffcx_forms_unfinished", [], tmp_path, 1)

@@ -70,9 +70,10 @@ def non_conservative(model) -> bool:
     """Whether a rod's loads make K non-symmetric: follower loads, and couples of any
     kind (a dead couple, fixed spatial components, does path-dependent work on finite
     3-D rotations: not conservative, Ziegler; Argyris 1982, "An excursion into large
-    rotations"; its load stiffness is skew, docs/stability.md "Couples")."""
+    rotations"; its load stiffness is skew, docs/stability.md "Couples"), and active
+    moments (M . delta u with M fixed: not the variation of an energy)."""
     loads = [*model.end_loads, *model.distributed_loads, *model.point_loads]
-    return any(load.follower or load.kind == "couple" for load in loads)
+    return any(load.follower or load.kind != "force" for load in loads)
 
 
 def symmetric_part(A: PETSc.Mat, fixed: PETSc.IS, diagonal: float) -> PETSc.Mat:

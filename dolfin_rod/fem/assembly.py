@@ -228,9 +228,21 @@ class MonolithicSystem(_System):
             forms = form_cache.bind(entry, objects, W, mesh)
             self.F = [f for f in forms if f.rank == 1]
             self.J = [f for f in forms if f.rank == 2]
-        self.x = compat.vector(self.F[0])
-        self.b = compat.vector(self.F[0])
-        self.A = fem_petsc.create_matrix(self.J[0])
+        # the vectors and the Jacobian's pattern: duplicates of those of the first system of
+        # this key on the space (its matrix once assembled: a DOLFINx matrix has no pattern
+        # before), without DOLFINx's index maps and sparsity pattern, which make MPI calls
+        # even on one rank (docs/performance.md, twelfth round)
+        self._layout = layout = shared_mesh.space(mesh, ("system layout", key, id(W)),
+                                                  dict) if key else {}
+        if "x" not in layout:
+            layout["x"] = compat.vector(self.F[0])
+        self.x, self.b = layout["x"].duplicate(), layout["x"].duplicate()
+        if "A" in layout:
+            self.A = layout["A"].duplicate(copy=False)     # the pattern, zero values
+            self.A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)  # (as
+        else:                                                   # create_matrix sets it)
+            self.A = fem_petsc.create_matrix(self.J[0])
+        self._keep_pattern = bool(key) and "A" not in layout    # (jacobian)
         self._setup_bc_rows(bcs, lambda j, dofs: self._maps[j][dofs])
         # collective, so that no rank waits for one that raised (seen with < 2 cells a rank)
         if self.W.mesh.comm.allreduce(int(np.any(self.bc_rows >= self._n_owned))):
@@ -307,6 +319,11 @@ class MonolithicSystem(_System):
         self._add_terms_to_jacobian(A)
         A.assemble()
         self._identity_bc_rows(A)
+        if self._keep_pattern and A is self.A:
+            self._keep_pattern = False
+            if "A" not in self._layout and not any(hasattr(term, "add_jacobian")
+                                                   for term in self.terms):
+                self._layout["A"] = A.duplicate(copy=False)     # the forms' pattern alone
 
 
 class BlockedSystem(_System):

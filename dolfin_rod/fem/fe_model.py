@@ -15,7 +15,7 @@ import ufl
 from mpi4py import MPI
 
 from ..checks import ENDS
-from . import form_cache
+from . import form_cache, shared_mesh
 
 _TAGS = {"start": 1, "end": 2}
 
@@ -32,6 +32,21 @@ def at_node(mesh, s_node: float):
     x = np.unique(mesh.geometry.x[:, 0])
     tol = 1e-6 * (np.min(np.diff(x)) if len(x) > 1 else 1.0)
     return lambda p: np.abs(p[0] - s_node) <= tol
+
+
+def node_dofs(space, s_node: float, component: int | None = None) -> np.ndarray:
+    """The dofs of ``space`` (of its ``component``, numbered in ``space``) at the node
+    s = s_node (at_node), located once per space of a kept mesh (shared_mesh: the
+    entry holds the space, so its id names no other; a second model's supports skip the
+    geometric search and the sub-space's collapse)."""
+    def locate():
+        at = at_node(space.mesh, s_node)
+        if component is None:
+            return space, fem.locate_dofs_geometrical(space, at)
+        sub = space.sub(component)
+        return space, fem.locate_dofs_geometrical((sub, sub.collapse()[0]), at)[0]
+    return shared_mesh.space(space.mesh, ("node dofs", id(space), s_node, component),
+                             locate)[1]
 
 
 def end_measures(mesh, length: float) -> dict[str, ufl.Measure]:
@@ -65,7 +80,7 @@ class NodeValues:
         self.bs, self.comm = space.dofmap.index_map_bs, space.mesh.comm
         owned = space.dofmap.index_map.size_local
         self.rows = [(k, d) for k, s_node in enumerate(s_nodes)
-                     for d in fem.locate_dofs_geometrical(space, at_node(space.mesh, s_node))
+                     for d in node_dofs(space, s_node)
                      if d < owned]
         self.shape = (len(s_nodes), self.bs)
 
@@ -190,14 +205,8 @@ class FEModel:
     def dirichlet_at(self, block: str, space, s_end: float, value,
                      component: int | None = None) -> fem.DirichletBC:
         """``dirichlet`` at the node s = s_end (e.g. an end of one rod of several)."""
-        at_end = at_node(space.mesh, s_end)
-        if component is None:
-            dofs = fem.locate_dofs_geometrical(space, at_end)
-            bc = fem.dirichletbc(value, dofs, space)
-        else:
-            sub = space.sub(component)
-            dofs = fem.locate_dofs_geometrical((sub, sub.collapse()[0]), at_end)[0]
-            bc = fem.dirichletbc(value, dofs, sub)
+        dofs = node_dofs(space, s_end, component)
+        bc = fem.dirichletbc(value, dofs, space if component is None else space.sub(component))
         self.bcs.append(bc)
         self.block_bcs.setdefault(block, []).append(bc)
         return bc

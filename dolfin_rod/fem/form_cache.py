@@ -32,6 +32,7 @@ their reads) and then deadlock in the collective JIT of the ones that missed.
 from __future__ import annotations
 
 import hashlib
+import importlib.machinery
 import importlib.util
 import json
 import os
@@ -139,12 +140,61 @@ def jit_form(forms, flags: list[str] | None = None):
     that time) is removed once, with a warning naming it, and the compile redone."""
     options = {"timeout": JIT_WAIT} | ({"cffi_extra_compile_args": flags} if flags else {})
     began = time.time()
+    with modules_found_by_path():
+        try:
+            return fem.form(forms, jit_options=options)
+        except Exception as err:
+            if not _removed_stale_lock(err, forms, began - JIT_WAIT):
+                raise
+            return fem.form(forms, jit_options=options)
+
+
+@contextmanager
+def modules_found_by_path():
+    """FFCx's cache look-up (``get_cached_module``) with the compiled module found by its
+    path.  FFCx 0.9 to 0.11 find it with an importlib FileFinder whose cache they first
+    invalidate, so every hit lists FFCx's whole cache directory: four files per kernel
+    ever compiled (17,500 on the project's machine: 60 ms a hit at load 12, 38 % of
+    tests/test_rod.py's time).  FFCx issue 886, fixed upstream by PR 887 ("locate cached
+    modules by path"), which this follows while the package's forms are compiled."""
+    from ffcx.codegeneration import jit
+    own = jit.get_cached_module
+    jit.get_cached_module = cached_module
     try:
-        return fem.form(forms, jit_options=options)
-    except Exception as err:
-        if not _removed_stale_lock(err, forms, began - JIT_WAIT):
-            raise
-        return fem.form(forms, jit_options=options)
+        yield
+    finally:
+        jit.get_cached_module = own
+
+
+def cached_module(module_name: str, object_names: list[str], cache_dir, timeout: int):
+    """As FFCx's get_cached_module: None, None after creating ``module_name``.c (this
+    process compiles it); else, once its ``.c.cached`` marks it compiled (waiting up to
+    ``timeout`` s), the module's objects and the module, loaded from the file
+    ``module_name`` + an extension suffix (the names FileFinder tries, in its order)."""
+    cache_dir = Path(cache_dir)
+    c_file = cache_dir.joinpath(module_name).with_suffix(".c")
+    ready = c_file.with_suffix(".c.cached")
+    cache_dir.mkdir(exist_ok=True, parents=True)
+    try:
+        with open(c_file, "x"):
+            return None, None
+    except FileExistsError:
+        pass
+    for _ in range(timeout):
+        if ready.exists():
+            path = next((p for p in (cache_dir / (module_name + suffix) for suffix
+                                     in importlib.machinery.EXTENSION_SUFFIXES)
+                         if p.is_file()), None)
+            if path is None:
+                raise ModuleNotFoundError("Unable to find JIT module.")
+            spec = importlib.util.spec_from_file_location(module_name, path)
+            module = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(module)
+            return [getattr(module.lib, name) for name in object_names], module
+        time.sleep(1)
+    raise TimeoutError("JIT compilation timed out, probably due to a failed previous "
+                       f"compile. Try cleaning cache (e.g. remove {c_file}) or increase "
+                       "timeout option.")
 
 
 _LOCK_IN_MESSAGE = re.compile(r"remove (.+\.c)\)")

@@ -62,6 +62,10 @@ class SemiDiscreteProblem:
     where_failed: a description of where a step that finally failed went wrong (a rod's
                  segment pair nearest to touching), or None; added to the integrators'
                  IntegrationError.
+    force_scale: the size of the residual's forces at the time of the last set_bcs, in
+                 its units (a rod's: rod/force_scale.py), 0 if unknown: Newton's absolute
+                 tolerance is checks.NEWTON_FORCE_TOL times it unless snes_atol is given
+                 (solvers.BlockSNES); 0: snes_atol's default, checks.NEWTON_ATOL.
     """
 
     fields: list[fem.Function]
@@ -78,6 +82,7 @@ class SemiDiscreteProblem:
     structure: str | None = None
     terms: list = field(default_factory=list)
     where_failed: Callable[[], str | None] = lambda: None
+    force_scale: Callable[[], float] = lambda: 0.0
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):

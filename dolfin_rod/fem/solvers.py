@@ -11,6 +11,7 @@ import itertools
 import math
 import time
 import weakref
+from typing import Callable
 
 import dolfinx.fem as fem
 import numpy as np
@@ -18,7 +19,7 @@ import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..checks import NEWTON_ATOL, NEWTON_RTOL
+from ..checks import NEWTON_ATOL, NEWTON_FORCE_TOL, NEWTON_RTOL
 from . import compat
 from .assembly import block_system
 from .multipoint import ConstrainedSystem
@@ -176,16 +177,20 @@ def _forget_options(prefix: str, keys: list[str]) -> None:
         opts.delValue(prefix + k)
 
 
-def default_test(snes, it: int, norms, fnorm0: float, step_scale: float = 0.0) -> int:
+def default_test(snes, it: int, norms, fnorm0: float, step_scale: float = 0.0,
+                 force_scale: float = 0.0) -> int:
     """PETSc's default test (SNESConvergedDefault: NaN, atol, rtol, step, divergence;
-    snes_max_it is PETSc's own check) with |y| + step_scale in the step test; ``fnorm0``
-    the solve's initial residual norm."""
+    snes_max_it is PETSc's own check) with |y| + step_scale in the step test and
+    max(fnorm0, force_scale) in the divergence test |F| > snes_divergence_tolerance
+    max(...) (a small first residual, a load increment, against the residual's rows of
+    the problem's size: ForceScale); ``fnorm0`` the solve's initial residual norm."""
     xnorm, ynorm, fnorm = norms
-    return newton_test(snes, it, fnorm, fnorm0, lambda: (xnorm, ynorm), step_scale)
+    return newton_test(snes, it, fnorm, fnorm0, lambda: (xnorm, ynorm), step_scale,
+                       force_scale)
 
 
 def newton_test(snes, it: int, fnorm: float, fnorm0: float, step_norms,
-                step_scale: float = 0.0) -> int:
+                step_scale: float = 0.0, force_scale: float = 0.0) -> int:
     """default_test with the step test's norms (|y|, |dy|) from ``step_norms()``, called
     only when that test is reached (BlockSNES's own Newton loop computes them then)."""
     rtol, atol, stol, _ = snes.getTolerances()
@@ -202,7 +207,7 @@ def newton_test(snes, it: int, fnorm: float, fnorm0: float, step_norms,
     if ynorm < stol * (xnorm + step_scale):
         return reasons.CONVERGED_SNORM_RELATIVE
     divtol = snes.getDivergenceTolerance()
-    if divtol > 0 and fnorm > divtol * fnorm0:
+    if divtol > 0 and fnorm > divtol * max(fnorm0, force_scale):
         return reasons.DIVERGED_DTOL
     return reasons.ITERATING
 
@@ -224,6 +229,26 @@ def residual_problem(snes, reason: int, norm: float, initial: float,
             "or snes_rtol times the initial norm; check the solver options)")
 
 
+class ForceScale:
+    """A solve's force scale: the problem's ``force_scale()`` (the size of the residual's
+    forces at the time the problem was last set to, in its units: fem/problem.py; a
+    rod's rod/force_scale.py), taken at each solve's start (``start``).  Newton's
+    absolute test is then unit-free, snes_atol = NEWTON_FORCE_TOL times it (NEWTON_ATOL
+    where it is 0: unknown), unless the PETSc ``options`` give snes_atol (then exactly
+    that); the divergence test compares with max(the initial norm, it) (newton_test)."""
+
+    def __init__(self, force_scale: Callable[[], float], options: dict | None):
+        self.force_scale = force_scale
+        self.atol_given = "snes_atol" in (options or {})
+        self.value = 0.0
+
+    def start(self, snes) -> None:
+        self.value = self.force_scale()
+        if not self.atol_given:
+            snes.setTolerances(atol=NEWTON_FORCE_TOL * self.value if self.value > 0.0
+                               else NEWTON_ATOL)
+
+
 # SNES types that stop without a convergence test (their last monitor call has the
 # residual at the solution)
 UNTESTED_TYPES = ("ksponly", "ksptransposeonly")
@@ -237,23 +262,31 @@ class CheckedSNES:
     ``failure`` keeps the last such message.  The convergence test is PETSc's default
     (default_test) plus the check, also under snes_convergence_test options; types
     without a test (UNTESTED_TYPES) are checked at their last monitor call.  The
-    residual norm is the one SNES computed at the iterate: no extra assembly."""
+    residual norm is the one SNES computed at the iterate: no extra assembly.
+    ``scale``: the problem's ForceScale, taken at each stage solve's start."""
 
-    def __init__(self, snes):
+    def __init__(self, snes, scale: ForceScale | None = None):
         self.snes, self.failure, self._initial = snes, None, np.inf
+        self.scale = scale
         snes.setConvergenceTest(self._converged)
         snes.setMonitor(self._monitor)
 
+    def _start(self, snes, fnorm: float) -> None:
+        self._initial = fnorm
+        if self.scale is not None:
+            self.scale.start(snes)
+
     def _monitor(self, snes, it: int, fnorm: float) -> None:
         if it == 0:
-            self._initial = fnorm
+            self._start(snes, fnorm)
         elif snes.getType() in UNTESTED_TYPES:
             snes.setConvergedReason(self._checked(snes.getConvergedReason(), fnorm))
 
     def _converged(self, snes, it: int, norms) -> int:
         if it == 0:
-            self._initial = norms[2]
-        reason = default_test(snes, it, norms, self._initial)
+            self._start(snes, norms[2])
+        reason = default_test(snes, it, norms, self._initial,
+                              force_scale=self.scale.value if self.scale else 0.0)
         return self._checked(reason, norms[2]) if reason > 0 else reason
 
     def _checked(self, reason: int, norm: float) -> int:
@@ -264,6 +297,23 @@ class CheckedSNES:
             return reason
         self.failure = problem
         return PETSc.SNES.ConvergedReason.DIVERGED_DTOL
+
+
+# PETSc's own LU declares a pivot below 100 machine epsilons zero, whatever the matrix's
+# units (PCFactorSetZeroPivot); zero_pivot scales it down with a small matrix
+PETSC_ZERO_PIVOT = 100 * np.finfo(float).eps
+
+
+def zero_pivot(A) -> float:
+    """The zero-pivot tolerance of an LU of A: PETSC_ZERO_PIVOT times its smallest nonzero
+    diagonal entry's magnitude where that is below 1 (e.g. 6e-18 for a 100 nm rod's
+    couple rows in SI, 8e-18 for a hair's rotary inertia, whose every pivot PETSc's
+    default would call zero), else PETSc's own: the same factorizations for every matrix
+    of entries >= 1, and unit-free below."""
+    diagonal = np.abs(A.getDiagonal().getArray(readonly=True))
+    local = float(diagonal[diagonal > 0].min(initial=np.inf))
+    smallest = A.getComm().tompi4py().allreduce(local, op=MPI.MIN)
+    return PETSC_ZERO_PIVOT * min(1.0, smallest)
 
 
 class SolverError(RuntimeError):
@@ -284,6 +334,10 @@ class BlockSNES:
     ``terms``: residual and Jacobian terms that are not forms (assembly's add_terms);
     a term's ``limit_step(x, y)`` may shorten each Newton update (a pre-check of the line
     search: segment contact keeps pairs from passing through each other).
+    ``force_scale``: the problem's (fem/problem.py), taken at each solve's start
+    (ForceScale): without snes_atol in ``options`` snes_atol is NEWTON_FORCE_TOL times
+    it (unit-free; a given snes_atol is used as it is), and the divergence test compares
+    with max(initial norm, it).
     ``step_scale``: for unknowns without a size of their own (a rod's displacements and
     rotation increments: 0 at rest) the norm of a configuration of the problem's size,
     added to |y| in the step test |dy| < snes_stol (|y| + step_scale) (_converged; 0:
@@ -322,8 +376,9 @@ class BlockSNES:
 
     def __init__(self, F: list[ufl.Form] | None, y: list[fem.Function], bcs=(), options=None,
                  prefix: str | None = None, cache=None, step_scale: float = 0.0, links=(),
-                 terms=()):
+                 terms=(), force_scale: Callable[[], float] | None = None):
         self.y = y
+        self.scale = ForceScale(force_scale, options) if force_scale is not None else None
         settings = petsc_options(y[0].function_space.mesh.comm, options)
         lagged = any(k.startswith("snes_lag_") for k in options or {})
         self.reuse_ratio = settings.pop("jacobian_reuse_ratio",
@@ -352,13 +407,14 @@ class BlockSNES:
             self._ksp.setOperators(self.system.A, self.system.A)
         self._update = None       # _plain_newton's update, made at its first solve
         self.step_scale = step_scale
-        if step_scale > 0.0:
+        if step_scale > 0.0 or self.scale is not None:
             self.snes.setConvergenceTest(self._converged)
         # the options go with the solver (also at exit, before PETSc's own finalisation):
         # the sub-solver options of block Jacobi (MPI) are read at the first solve only,
         # and PETSc reports every option left unread ("WARNING! There are options you set
         # that were not used!") for a solver that never solved
         weakref.finalize(self, _forget_options, self.prefix, list(settings))
+        self._settings = settings
         self._last_norm = np.inf
         self._x_at_residual, self._r = self.x.duplicate(), self.system.b.duplicate()
         self._start = self.x.duplicate() if self.fallback is not None else None
@@ -398,11 +454,26 @@ class BlockSNES:
         t0 = time.perf_counter()
         changes = self.system.pattern_changes
         self.system.jacobian(self.system.A)
+        if not self.counts["jacobian"]:         # the first: the matrix's scale
+            self._scale_zero_pivot()
         if self.system.pattern_changes != changes:    # a new factorisation, symbolic too
             self._ksp.getPC().reset()       # (which drops the operators: set again, as
             self._ksp.setOperators(self.system.A, self.system.A)    # SNES does after this)
         self.timings["jacobian"] += time.perf_counter() - t0
         self.counts["jacobian"] += 1
+
+    def _scale_zero_pivot(self) -> None:
+        """The LU's zero-pivot tolerance from the first Jacobian (zero_pivot), unless the
+        options give one: the PC's, or block Jacobi's and ASM's sub-solvers' (through the
+        options database: they read it at their set-up, in the first solve)."""
+        if any(k.endswith("pc_factor_zeropivot") for k in self._settings):
+            return
+        value, pc = zero_pivot(self.system.A), self._ksp.getPC()
+        if pc.getType() in ("bjacobi", "asm"):
+            PETSc.Options()[f"{self.prefix}sub_pc_factor_zeropivot"] = value
+            weakref.finalize(self, _forget_options, self.prefix, ["sub_pc_factor_zeropivot"])
+        else:
+            pc.setFactorPivot(zeropivot=value)
 
     def _new_jacobian_needed(self, it: int, norm: float) -> bool:
         """jacobian_reuse_ratio: a new Jacobian at the first iteration (``it`` 0) of a
@@ -414,7 +485,12 @@ class BlockSNES:
     def _converged(self, snes, it: int, norms) -> int:
         if it == 0:
             self._fnorm0 = norms[2]
-        return default_test(snes, it, norms, self._fnorm0, self.step_scale)
+        return default_test(snes, it, norms, self._fnorm0, self.step_scale,
+                            self._force_scale())
+
+    def _force_scale(self) -> float:
+        """The solve's force scale (ForceScale), 0 without one."""
+        return self.scale.value if self.scale is not None else 0.0
 
     def _set_persists(self, flags) -> None:
         opts = PETSc.Options()
@@ -439,6 +515,8 @@ class BlockSNES:
         if fresh:  # (petsc4py 3.22 has no SNESSetLag*Persists: via the options database)
             self._set_persists((False, False))
         self.iterations = 0
+        if self.scale is not None:
+            self.scale.start(self.snes)
         try:
             for k in range(1, sub_solves + 1):
                 self._bc_values = start + (k / sub_solves) * (target - start)  # fixed in a solve
@@ -517,7 +595,8 @@ class BlockSNES:
         self._initial_norm = None
         self._residual(snes, x, b)
         fnorm0 = fnorm = self._residual_norm
-        it, reason = 0, newton_test(snes, 0, fnorm, fnorm0, None, self.step_scale)
+        force_scale = self._force_scale()
+        it, reason = 0, newton_test(snes, 0, fnorm, fnorm0, None, self.step_scale, force_scale)
         reasons = PETSc.SNES.ConvergedReason
         while not reason:
             if it == max_it:
@@ -539,7 +618,7 @@ class BlockSNES:
                 break
             it += 1
             reason = newton_test(snes, it, fnorm, fnorm0, lambda: (x.norm(), dx.norm()),
-                                 self.step_scale)
+                                 self.step_scale, force_scale)
         snes.setConvergedReason(reason)
         snes.setIterationNumber(it)
         snes.setFunctionNorm(fnorm)

@@ -273,6 +273,10 @@ def prepare_fit(scene: Scene, data: MeasuredSeries, params: list[str] | str,
     from mpi4py import MPI
     names = params.split(",") if isinstance(params, str) else list(params)
     choice = select_model(scene)
+    if scene["initial"]["from_run"] is not None:
+        raise scene.error("initial.from_run", "a fit runs its trials from the scene's own "
+                          "initial state; a saved state was computed with the saved run's "
+                          "parameters, not the trial's")
     parameters = parse_parameters(names, scene, raw_scene(scene))
     problem = FitProblem(scene, data, parameters, choice, comm or MPI.COMM_WORLD)
     for p in parameters:

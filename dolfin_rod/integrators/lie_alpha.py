@@ -228,7 +228,8 @@ class LieGeneralizedAlpha:
                                                  direct=bool(problem.terms))
         self.solver = BlockSNES(F, y, problem.bcs, options, cache=(self.structure_key, objects),
                                 step_scale=problem.configuration_norm(),
-                                links=problem.links, terms=problem.terms)
+                                links=problem.links, terms=problem.terms,
+                                force_scale=problem.force_scale)
         self._arrays = self._views()
         self._matrices = {}
         self.stats = StepStats()
@@ -333,7 +334,8 @@ class LieGeneralizedAlpha:
                                              self.options, cache=(key, self._model_objects),
                                              step_scale=self.problem.configuration_norm(),
                                              links=self.problem.links,
-                                             terms=self.problem.terms)
+                                             terms=self.problem.terms,
+                                             force_scale=self.problem.force_scale)
 
     def initial_accelerations(self, t0: float, first_step: float | None = None) -> None:
         """Solve the residual at t0 for the accelerations (second order) and rates (first
@@ -342,9 +344,10 @@ class LieGeneralizedAlpha:
         blocks (order 0) solved with them at their prescribed values (_start_algebraic
         then commits them); what starts at rest within a contact barrier is moved to
         where the barrier carries it, the accelerations solved again after each move
-        (problem.rest_in_contact, given _solve_from_rest).  Friction (problem.friction_lookahead) reads the slip the
-        ``first_step`` would make, v0 + h a0 (with None: v0, where the regularised law
-        exerts no force: a rod at rest then starts frictionless).  With
+        (problem.rest_in_contact, given _solve_from_rest).  Friction
+        (problem.friction_lookahead) reads the slip the ``first_step`` would make,
+        v0 + h a0 (with None: v0, where the regularised law exerts no force: a rod at rest
+        then starts frictionless).  With
         problem.starting_accelerations "zero" the second-order blocks' accelerations are
         then set to 0 (a state at rest; the first-order rates and algebraic blocks as
         solved).  A failed start (no step can be cut at t0) is an IntegrationError, the
@@ -434,7 +437,7 @@ class LieGeneralizedAlpha:
         solver = BlockSNES(None if form_cache.lookup(key) else p.residual, unknowns, p.bcs,
                            self.options, cache=(key, self._model_objects),
                            step_scale=p.configuration_norm(), links=p.links,
-                           terms=p.terms)
+                           terms=p.terms, force_scale=p.force_scale)
         initial = [f.x.array.copy() for f in p.fields]
         try:
             if p.scale_motions is None:
@@ -578,7 +581,9 @@ class LieGeneralizedAlpha:
         p = self.problem
         if not self._started:
             self.initial_accelerations(t, h)
-        self.dt.value = h
+        fresh, self._dt_last = h != self._dt_last, h
+        if fresh:           # (only this method sets it; a Constant's value costs ~3 us)
+            self.dt.value = h
         for i, (y, r, y_n, v_n, alg, acc, acc_n) in enumerate(self._arrays):
             y_n[:], v_n[:] = y, r
             if acc is not None:
@@ -588,7 +593,6 @@ class LieGeneralizedAlpha:
                   else h * alg if self.order[i] == 1 else h * v_n)
         p.set_loads(t + h)
         p.set_bcs(t + h)
-        fresh, self._dt_last = h != self._dt_last, h
         if p.terms:
             self._tell_rates(self._rate_maps(h))
         try:

@@ -75,7 +75,8 @@ class _StepResidual:
         terms = [term.for_step(stages, problem.fields, *history[:2]) for term in problem.terms]
         self.solver = BlockSNES(F, problem.fields, problem.bcs, options, cache=(key, objects),
                                 step_scale=problem.configuration_norm(),
-                                links=problem.links, terms=terms)
+                                links=problem.links, terms=terms,
+                                force_scale=problem.force_scale)
         self._dt_last = None
 
     def solve(self, t_n: float, dt: float, sub_solves: int = 1) -> int:

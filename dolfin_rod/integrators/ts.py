@@ -51,7 +51,7 @@ from petsc4py import PETSc
 from ..checks import TS_ATOL, TS_RTOL
 from ..fem.problem import SecondOrderProblem, SemiDiscreteProblem
 from ..fem.assembly import block_system
-from ..fem.solvers import CheckedSNES, petsc_options
+from ..fem.solvers import CheckedSNES, ForceScale, petsc_options
 from .step_control import (IntegrationError, StepStats, check_run, clip_to_end, grown,
                        nominal_steps, reached)
 
@@ -172,14 +172,16 @@ class TSIntegrator:
         self._x_prev = self.x.duplicate()
         self._create_ts(mesh.comm, {**solver_settings,
                                     "ts_adapt_type": "basic" if adaptive else "none",
-                                    **self.method.options, **(ts_options or {})}, rtol, atol)
+                                    **self.method.options, **(ts_options or {})}, rtol, atol,
+                        ForceScale(problem.force_scale, solver_options))
         self.stats = StepStats()
         self._observer = None
         self._stop = None
         self._t_accepted = None
         self._dt_nominal = None
 
-    def _create_ts(self, comm, settings: dict, rtol: float, atol: float) -> None:
+    def _create_ts(self, comm, settings: dict, rtol: float, atol: float,
+                   scale: ForceScale) -> None:
         """PETSc TS on the callbacks below, options under a private prefix."""
         self.ts = PETSc.TS().create(comm)
         self.prefix = f"dolfin_rod_ts_{next(_ids)}_"
@@ -205,7 +207,8 @@ class TSIntegrator:
         for k, v in settings.items():
             opts[self.prefix + k] = v
         self.ts.setFromOptions()
-        self.snes_check = CheckedSNES(self.ts.getSNES())   # after the options: theirs too
+        # after the options: theirs too; the force scale at each stage solve's time
+        self.snes_check = CheckedSNES(self.ts.getSNES(), scale)
         self.ts.setMonitor(self._monitor)
         self.ts.setPostStep(self._post_step)
 

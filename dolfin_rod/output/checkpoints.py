@@ -35,6 +35,7 @@ class Checkpoints:
     def __init__(self, folder: Path, scene, sim, comm):
         self.folder, self.scene, self.sim, self.comm = Path(folder), scene, sim, comm
         self.own: list[Path] = []     # checkpoints of this run: the only ones removed
+        self.started_from: dict | None = None   # where the run started (from_run.py)
         self.last_size = 0            # bytes of the last state.bp written (rank 0)
 
     def _size_estimate(self, named: dict) -> int:
@@ -59,8 +60,7 @@ class Checkpoints:
     def fingerprint(self) -> dict:
         """What a checkpoint must match: the scene's physics, the model, the dofs."""
         named, _ = self._named_functions()
-        dofs = {name: f.function_space.dofmap.index_map.size_global
-                * f.function_space.dofmap.index_map_bs for name, f in named.items()}
+        dofs = {name: global_size(f) for name, f in named.items()}
         data = {"scene": self.scene.physics(), "model": self.sim.name, "dofs": dofs}
         data = json.loads(json.dumps(data))          # tuples -> lists, as read back
         digest = hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
@@ -95,16 +95,19 @@ class Checkpoints:
                     f"cannot remove {partial}")
             raise OutputError(f"cannot write a checkpoint in {root}: {failure}")
         meta = {"step": step, "time": t, "model": self.sim.name, "sim": state, "real": real,
-                "balance": balance, "fingerprint": self.fingerprint()}
+                "balance": balance, "fingerprint": self.fingerprint(),
+                "integrator": {"method": self.sim.describe(), "dt": self.scene["time"]["dt"]},
+                "from_run": self.started_from}
 
         def publish():
             meta["state_sha256"] = file_digests(partial / "state.bp")
             write_checkpoint_meta(partial, {**meta, "sha256": meta_digest(meta)})
             partial.rename(final)
             self.last_size = sum(f.stat().st_size for f in (final / "state.bp").iterdir())
-            for old in self.own:
-                if old != final:
-                    remove_without_following(old)
+            if not self.scene["outputs"]["keep_checkpoints"]:
+                for old in self.own:
+                    if old != final:
+                        remove_without_following(old)
             self.own = [final]
         self.comm.barrier()                            # every rank's state.bp is written
         on_root(self.comm, publish, f"cannot write a checkpoint in {root}")
@@ -116,18 +119,29 @@ class Checkpoints:
         if meta["fingerprint"]["sha256"] != mine["sha256"]:
             raise OutputError(f"cannot resume from {meta['folder']}: "
                               + fingerprint_difference(meta["fingerprint"], mine))
-        import adios4dolfinx
         named, _ = self._named_functions()
-        for name, f in named.items():
-            if name in meta["real"]:
-                f.x.array[:] = meta["real"][name][0]   # one global value (owned + ghost)
-            else:
-                adios4dolfinx.read_function(Path(meta["folder"]) / "state.bp", f, time=0.0,
-                                            name=name)
-            f.x.scatter_forward()
+        read_functions(Path(meta["folder"]), meta, named)
         self.sim.restore(meta["sim"])
         self.own = [Path(meta["folder"])]            # replaced by this run's next one
         return meta["balance"]
+
+
+def global_size(f) -> int:
+    """The number of values of the function ``f`` over all ranks (its fingerprint's dofs)."""
+    return f.function_space.dofmap.index_map.size_global * f.function_space.dofmap.index_map_bs
+
+
+def read_functions(folder: Path, meta: dict, named: dict) -> None:
+    """Collective: the functions ``named`` (name -> Function) from the checkpoint in
+    ``folder`` (its state.bp, written on any number of ranks; those on a real space from
+    its meta.json ``meta``)."""
+    import adios4dolfinx
+    for name, f in named.items():
+        if name in meta["real"]:
+            f.x.array[:] = meta["real"][name][0]   # one global value (owned + ghost)
+        else:
+            adios4dolfinx.read_function(folder / "state.bp", f, time=0.0, name=name)
+        f.x.scatter_forward()
 
 
 def file_digests(folder: Path) -> dict[str, str]:
@@ -267,18 +281,20 @@ def read_checkpoint_meta(run: Path, comm, scene) -> dict:
     return meta
 
 
+def differences(theirs, mine, path: str = "") -> list[tuple[str, object, object]]:
+    """(dotted path, their value, mine) wherever two JSON-like tables differ, "model" and
+    "scene" first (the likely cause before the dofs), then by name."""
+    if not (isinstance(theirs, dict) and isinstance(mine, dict)):
+        return [] if theirs == mine else [(path, theirs, mine)]
+    first = ("model", "scene")
+    return [d for k in sorted(set(theirs) | set(mine), key=lambda k: (k not in first, k))
+            for d in differences(theirs.get(k), mine.get(k), f"{path}.{k}" if path else k)]
+
+
 def fingerprint_difference(theirs: dict, mine: dict) -> str:
     """The first entries where a checkpoint's fingerprint and this run's differ."""
-    diffs = []
-
-    def walk(a, b, path):
-        if isinstance(a, dict) and isinstance(b, dict):
-            first = ("model", "scene")                 # the likely cause before its dofs
-            for k in sorted(set(a) | set(b), key=lambda k: (k not in first, k)):
-                walk(a.get(k), b.get(k), f"{path}.{k}" if path else k)
-        elif a != b:
-            diffs.append(f"{path}: {a!r} in the checkpoint, {b!r} now")
-    walk(theirs, mine, "")
+    diffs = [f"{path}: {a!r} in the checkpoint, {b!r} now"
+             for path, a, b in differences(theirs, mine)]
     shown = "; ".join(d.removeprefix("scene.") for d in diffs[:4])
     return (f"it was written by a different run ({shown or 'unreadable fingerprint'}"
             f"{'; ...' if len(diffs) > 4 else ''}); nothing was changed")

@@ -7,7 +7,7 @@ from importlib import import_module
 _WHERE = {"RodModel": "model", "RodSystem": "system", "Rod": "rods", "Joint": "joint_points",
           "RodParameters": "material", "EndLoad": "external_forces",
           "DistributedLoad": "external_forces", "PointLoad": "external_forces",
-          "EndSpring": "boundary_conditions",
+          "TravellingWave": "external_forces", "EndSpring": "boundary_conditions",
           "MODELS": "constitutive", "END_TYPES": "boundary_conditions",
           "Obstacle": "contact", "ContactLaw": "contact", "StartingState": "start",
           "Straight": "start", "Arc": "start", "Helix": "start", "Polyline": "start"}

@@ -23,6 +23,13 @@ nodes: the trapezoidal rule, so every node carries its own contact force):
                rolls; twisting a rod on a floor meets friction).  The sections' tilt
                rates (W_1, W_2: bending and shear) are left out of the point's velocity,
                and the bending couple out of the couple (docs/contact.md, "Rolling").
+               Directional friction (an obstacle's ``directional_friction``, PyElastica's
+               AnisotropicFrictionalPlane): mu v_t becomes mu_a (v_t . a) a + mu_l
+               (v_t . b) b, a the rod's axis d_3 projected on the obstacle's tangent
+               plane and normalised, b = n x a, mu_l the lateral coefficient, mu_a the
+               forward one where the point slips along +a (towards the rod's end s = L),
+               the backward one along -a, blended by v_a / sqrt(v_a^2 + eps^2) (v_a =
+               v_t . a): equal coefficients give the isotropic law; f_t . v_t <= 0.
 
 The normal force enters the residual as the derivative of the contact energy (its
 Jacobian by UFL: consistent), the friction force and torque as the virtual work
@@ -58,6 +65,7 @@ BARRIER_CURVATURE = 2 * math.log(2) + 5.0   # b''(delta / 2) (dimensionless)
 
 
 PAIR_CURVES = ("segments", "smooth")     # pair_contact.py, smooth_pairs.py
+DIRECTIONS = ("forward", "backward", "lateral")     # an obstacle's directional friction
 
 
 @dataclass
@@ -127,6 +135,8 @@ def check_contact(obstacles: Sequence[Obstacle], law: ContactLaw) -> None:
             raise ValueError(f"{name}.shape must be one of {', '.join(SHAPES)}, got "
                              f"{ob.shape!r}")
         nonnegative(f"{name}.friction", ob.friction)
+        for side, mu in zip(DIRECTIONS, ob.directional_friction or ()):
+            nonnegative(f"{name}.friction.{side}", mu)
         check_contact_mode(name, ob)
         if ob.shape == "mesh":
             positive(f"{name}.scale", ob.scale)
@@ -304,6 +314,15 @@ class ObstacleContact:
                                   if on_segments(ob, law.radius, law.gap, h)]
         self.nodal = [k for k, ob in enumerate(obstacles)       # a mesh's faces: nodes
                       if k not in self.segment_obstacles or ob.shape == "mesh"]
+        directional = [k for k in self.segment_obstacles
+                       if obstacles[k].directional_friction is not None]
+        if directional:
+            raise ValueError(f"obstacles[{directional[0]}].friction: directional friction "
+                             "acts at the nodes; this obstacle acts on the segments "
+                             "(contact = \"nodes\" keeps it on the nodes)")
+        self.directional = {k: fem.Constant(self.mesh, np.asarray(ob.directional_friction))
+                            for k, ob in enumerate(obstacles)
+                            if ob.directional_friction is not None}
         self.V = V if any(obstacles[k].friction > 0 for k in self.nodal) else None
         self.spin = spin if self.V is not None else None
         if self.V is not None and spin is None:
@@ -368,9 +387,25 @@ class ObstacleContact:
                 c = -self.radius * n
                 v_c = v + self.spin.W[2] * ufl.cross(d3, c)
                 v_t = v_c - ufl.dot(v_c, n) * n
-                f_k = -pose.friction * lam * mollifier(ufl.dot(v_t, v_t) / eps**2) / eps * v_t
+                f_k = -lam * mollifier(ufl.dot(v_t, v_t) / eps**2) / eps * (
+                    self._resisted(k, v_t, n, d3) if k in self.directional
+                    else pose.friction * v_t)
                 f, torque = f + f_k, torque + ufl.dot(ufl.cross(c, f_k), d3)
         return f, torque
+
+    def _resisted(self, k, v_t, n, d3):
+        """mu v_t of directional friction (module docstring): the slip v_t split along the
+        rod's axis on the surface, a, and across it, b = n x a, each times its
+        coefficient; a rod standing on the surface (d_3 along n) has no axis there and
+        no friction."""
+        forward, backward, lateral = (self.directional[k][i] for i in range(3))
+        a = d3 - ufl.dot(d3, n) * n
+        a = a / ufl.sqrt(ufl.dot(a, a) + 1e-24)
+        b = ufl.cross(n, a)
+        v_a, v_b = ufl.dot(v_t, a), ufl.dot(v_t, b)
+        along = v_a / ufl.sqrt(v_a**2 + self.slip**2)      # the slip's sign along a, smoothed
+        mu_a = 0.5 * (forward + backward) + 0.5 * (forward - backward) * along
+        return mu_a * v_a * a + lateral * v_b * b
 
     def _friction(self, expr_of_force):
         """The trapezoidal integral of expr_of_force(f_friction, couple, v, *more) at the

@@ -22,6 +22,7 @@ where the P1 element's 6 strains are independent functions of its 6 deformation 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Callable
 
@@ -118,10 +119,13 @@ class Unknowns:
     acc (rotation vectors: displacement and rotation increment); the velocities V and
     material angular velocity W (fields of a dynamic quaternion rod; the rates otherwise:
     x_t and 2 vec(conj(q) q_t)/|q|^2, or the rotation increment's rate, which the
-    integrator treats as W); the rotation block's name, the rotation q at any point, the
-    material virtual rotation dTheta of the rotation block's test function; the chart
-    of the stored rotations (rotation vectors) or None; ``natural_field`` (the uniform
-    variant of several rods: each rod's global values on its cells, layout.py)."""
+    integrator treats as W); the rotation block's name, ``rotation_ufl`` making (q, dTheta),
+    the rotation q at any point and the material virtual rotation dTheta of the rotation
+    block's test function (UFL, made at the first read of ``q`` or ``dTheta``: a second
+    model of a structure, whose forms are compiled, reads neither; 0.5 ms of its
+    set-up, docs/performance.md); the chart of the stored rotations (rotation vectors)
+    or None; ``natural_field`` (the uniform variant of several rods: each rod's global
+    values on its cells, layout.py)."""
 
     spaces: dict
     f: dict
@@ -130,11 +134,22 @@ class Unknowns:
     V: ufl.core.expr.Expr
     W: ufl.core.expr.Expr
     rotation: str
-    q: ufl.core.expr.Expr
-    dTheta: ufl.core.expr.Expr
+    rotation_ufl: Callable[[], tuple]
     acc: dict
     chart: RotationVectorChart | None
     natural_field: Callable = lambda g: g     # a natural-strain block as a field along s
+
+    @functools.cached_property
+    def _rotation_expressions(self) -> tuple:
+        return self.rotation_ufl()
+
+    @property
+    def q(self) -> ufl.core.expr.Expr:
+        return self._rotation_expressions[0]
+
+    @property
+    def dTheta(self) -> ufl.core.expr.Expr:
+        return self._rotation_expressions[1]
 
     @property
     def names(self) -> list[str]:
@@ -154,11 +169,12 @@ def unknowns(spaces: dict, dynamic: bool, natural_field: Callable | None = None)
         chart = RotationVectorChart(spaces[name].mesh, f[name])
         acc = {n: fem.Function(spaces[n], name=f"{n}_acceleration")
                for n in ("displacement", name)} if dynamic else {}
-        return Unknowns(spaces, f, r, t, r["displacement"], r[name], name, chart.q,
-                        chart.virtual_rotation(t[name]), acc, chart,
+        return Unknowns(spaces, f, r, t, r["displacement"], r[name], name,
+                        lambda: (chart.q, chart.virtual_rotation(t[name])), acc, chart,
                         natural_field or (lambda g: g))
     q, qt = f["quaternion"], t["quaternion"]
     V = f["velocity"] if dynamic else r["displacement"]
     W = f["angular_velocity"] if dynamic else material_derivative_vector(q, r["quaternion"])
-    return Unknowns(spaces, f, r, t, V, W, "quaternion", q,
-                    material_derivative_vector(q, qt), {}, None, natural_field or (lambda g: g))
+    return Unknowns(spaces, f, r, t, V, W, "quaternion",
+                    lambda: (q, material_derivative_vector(q, qt)), {}, None,
+                    natural_field or (lambda g: g))

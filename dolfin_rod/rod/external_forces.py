@@ -1,8 +1,14 @@
 """Loads on the rod (PyElastica's ``external_forces``): end, distributed and point forces
-and couples, dead or follower, with their histories, and linear drag f = -c dr/dt.
+and couples, dead or follower, with their histories, active bending moments (a muscle's,
+PyElastica's MuscleTorques: ``TravellingWave``), and linear drag f = -c dr/dt.
 
 Their virtual work enters the balance blocks (balance.force_work, balance.couple_work);
-the same densities tested with the velocities (V, W) give the power of the loads.
+the same densities tested with the velocities (V, W) give the power of the loads.  An
+active moment M (per section, not per length: a distributed load of kind "moment") works
+as the sections' own moment does, with the opposite sign: -int M . delta u ds, M in
+material components (R^T M for a dead one), so that a rod at rest under it alone has
+m = M, i.e. its curvature u = u_ref + B^-1 M for the quadratic energy; its power is
+int M . u_t ds.
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 
+from .. import loads as load_histories
 from ..theory import balance
 from ..theory.rotations import rotation_matrix
 from ..checks import end_name
@@ -40,9 +47,10 @@ class EndLoad:
 
 @dataclass
 class DistributedLoad:
-    """A force or couple per unit reference length: value(s) * history(t)."""
+    """A force or couple per unit reference length, or an active bending moment of the
+    sections ("moment": module docstring): value(s) * history(t)."""
 
-    kind: str                        # "force" or "couple"
+    kind: str                        # "force", "couple" or "moment"
     value: Sequence[float] | Callable
     history: Callable = field(default=lambda t: 1.0)
     follower: bool = False
@@ -60,14 +68,122 @@ class PointLoad:
     follower: bool = False
 
 
+@dataclass
+class TravellingWave:
+    """A muscle's travelling wave of active bending moment (PyElastica's MuscleTorques):
+
+        M(s, t) = ramp(t) beta(sigma) sin(2 pi (t / period - sigma / wave_length) + phase) axis,
+
+    sigma the arc length from the end ``origin`` ("start": sigma = s, "end": sigma = L -
+    s), the wave running away from it; ramp(t) = min(1, t / ramp) (1 if ramp = 0);
+    beta a number (N m) or the control values of a clamped cubic B-spline over sigma / L
+    (uniform knots, PyElastica's b_coeff with with_spline); ``axis`` spatial (dead) or
+    material (``follower``).  ``loads(L)``: its two DistributedLoads of kind "moment",
+    sin(w t - k sigma + phase) = sin(w t) cos(k sigma - phase) - cos(w t) sin(k sigma -
+    phase), each a profile in s times a history in t."""
+
+    axis: Sequence[float]
+    amplitude: float | Sequence[float]
+    period: float
+    wave_length: float
+    phase: float = 0.0
+    ramp: float = 0.0
+    origin: str = "start"
+    follower: bool = False
+
+    def check(self) -> None:
+        for name in ("period", "wave_length"):
+            if not (np.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ValueError(f"TravellingWave {name} must be > 0, got "
+                                 f"{getattr(self, name)!r}")
+        if not (np.isfinite(self.ramp) and self.ramp >= 0):
+            raise ValueError(f"TravellingWave ramp must be >= 0, got {self.ramp!r}")
+        if self.origin not in ENDS:
+            raise ValueError(f"TravellingWave origin must be 'start' or 'end', got "
+                             f"{self.origin!r}")
+        if np.shape(self.axis) != (3,) or not np.linalg.norm(self.axis) > 0:
+            raise ValueError(f"TravellingWave axis must be a non-zero 3-vector, got "
+                             f"{self.axis!r}")
+        beta = np.atleast_1d(np.asarray(self.amplitude, float))
+        if beta.ndim != 1 or beta.size in (2, 3) or not np.all(np.isfinite(beta)):
+            raise ValueError("TravellingWave amplitude must be a number or at least 4 "
+                             f"B-spline control values, got {self.amplitude!r}")
+
+    def profile(self, sigma):
+        """beta(sigma) (sigma a number, numpy array or UFL expression, 0 <= sigma <= 1 the
+        fraction of the length from the origin): the number, or the cubic B-spline's
+        polynomial pieces on its knot intervals."""
+        beta = np.atleast_1d(np.asarray(self.amplitude, float))
+        if beta.size == 1:
+            return float(beta[0]) + 0.0 * sigma
+        from scipy.interpolate import BSpline, PPoly
+        inner = np.linspace(0.0, 1.0, beta.size - 2)
+        knots = np.concatenate([[0.0] * 3, inner, [1.0] * 3])
+        pieces = PPoly.from_spline(BSpline(knots, beta, 3))
+        breaks = [(x0, x1, pieces.c[:, i]) for i, (x0, x1) in
+                  enumerate(zip(pieces.x[:-1], pieces.x[1:])) if x1 > x0]
+
+        def poly(c, x):
+            out = 0.0 * x + float(c[0])
+            for ck in c[1:]:
+                out = out * x + float(ck)
+            return out
+        if not isinstance(sigma, ufl.core.expr.Expr):
+            sigma = np.asarray(sigma, float)
+            k = np.clip(np.searchsorted(inner, sigma, side="right") - 1, 0, len(breaks) - 1)
+            return np.choose(k, [poly(c, sigma - x0) for x0, _, c in breaks])
+        out = poly(breaks[-1][2], sigma - breaks[-1][0])
+        for x0, x1, c in reversed(breaks[:-1]):
+            out = ufl.conditional(ufl.lt(sigma, x1), poly(c, sigma - x0), out)
+        return out
+
+    def moment(self, s, t: float, length: float) -> np.ndarray:
+        """M(s, t) as numbers (s an array of arc lengths): (len(s), 3)."""
+        s = np.asarray(s, float)
+        sigma = s if self.origin == "start" else length - s
+        ramp = min(1.0, t / self.ramp) if self.ramp > 0 else 1.0
+        size = ramp * self.profile(sigma / length) * np.sin(
+            2 * np.pi * (t / self.period - sigma / self.wave_length) + self.phase)
+        return np.outer(size, self._unit())
+
+    def _unit(self) -> np.ndarray:
+        return np.asarray(self.axis, float) / np.linalg.norm(self.axis)
+
+    def loads(self, length: float) -> list:
+        """The two DistributedLoads of kind "moment" whose sum is M (class docstring)."""
+        self.check()
+        w, k = 2 * np.pi / self.period, 2 * np.pi / self.wave_length
+        axis, phase, ramp = self._unit(), self.phase, self.ramp
+
+        def in_time(trig):
+            def history(t):
+                t = np.asarray(t, float)
+                return (np.minimum(1.0, t / ramp) if ramp > 0 else 1.0) * trig(w * t)
+            return load_histories.from_callable(history)
+
+        def in_space(trig, sign):
+            def value(s):
+                sigma = s if self.origin == "start" else length - s
+                size = sign * self.profile(sigma / length) * trig(k * sigma - phase)
+                return [float(a) * size for a in axis]
+            return value
+        return [DistributedLoad("moment", in_space(ufl.cos, 1.0), in_time(np.sin),
+                                self.follower),
+                DistributedLoad("moment", in_space(ufl.sin, -1.0), in_time(np.cos),
+                                self.follower)]
+
+
 def check_loads(end_loads, distributed_loads, point_loads=(), length: float = np.inf) -> None:
     for load in point_loads:
         if not (np.isfinite(load.s) and 0.0 <= load.s <= length):
             raise ValueError(f"PointLoad s must be on the rod, 0 <= s <= L = {length:g}, "
                              f"got {load.s!r}")
     for load in list(end_loads) + list(distributed_loads) + list(point_loads):
-        if load.kind not in ("force", "couple"):
-            raise ValueError(f"load kind must be 'force' or 'couple', got {load.kind!r}")
+        kinds = ("force", "couple", "moment") if isinstance(load, DistributedLoad) else (
+            "force", "couple")
+        if load.kind not in kinds:
+            raise ValueError(f"{type(load).__name__} kind must be one of {', '.join(kinds)}, "
+                             f"got {load.kind!r}")
         if not callable(load.value) and np.shape(load.value) != (3,):
             raise ValueError(f"load value must be a 3-vector, got {load.value!r}")
         if not callable(load.value) and not np.all(np.isfinite(np.asarray(load.value,
@@ -145,9 +261,11 @@ def load_data(disc: Discretisation, end_loads, distributed_loads, point_loads=()
     return histories, data
 
 
-def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, loads: list[LoadData]):
+def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, loads: list[LoadData],
+                curvature=None):
     """Subtracts each load's virtual work from its balance block (``loads``: load_data);
-    returns the power of the loads (a UFL form, or 0)."""
+    returns the power of the loads (a UFL form, or 0).  ``curvature``: the sections'
+    (u, u_t) (constitutive.SectionResponse), for active moments."""
     q, dTheta = unk.q, unk.dTheta
     power = 0
     chi = disc.pieces.indicator
@@ -168,6 +286,12 @@ def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, loads: list[LoadDa
             F["displacement"] -= integral(balance.force_work(
                 val, q, unk.t["displacement"], load.follower))
             power += integral(balance.force_work(val, q, unk.V, load.follower))
+        elif load.kind == "moment":         # as the sections' moment (internal_work): dx_r
+            u, u_t = curvature
+            M = val if load.follower else ufl.dot(ufl.transpose(rotation_matrix(q)), val)
+            du = ufl.derivative(u, unk.f[unk.rotation], unk.t[unk.rotation])
+            F[unk.rotation] -= ufl.inner(M, du) * disc.dx_r
+            power += ufl.inner(M, u_t) * disc.dx_r
         else:
             F[unk.rotation] -= integral(balance.couple_work(val, q, dTheta, load.follower))
             power += integral(balance.couple_work(val, q, unk.W, load.follower))

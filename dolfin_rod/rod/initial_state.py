@@ -69,6 +69,22 @@ def set_initial_state(model, natural_curvature=None, natural_stretch=None,
         settle(model, 0.0)
 
 
+def hold_ends(model) -> None:
+    """Each end's initial (x, q), which its support holds and its prescribed motions and
+    springs start from, where the fields have it now (a run starting from a saved state,
+    output/from_run.py), and the supports' values at t = 0 from there.  Collective."""
+    from .diagnostics import Tip
+    for supports in model.end_supports:
+        supports.committed_time = None
+        for end in ENDS:
+            s = supports.s_ends[end]
+            tip = Tip(model.unknowns, s)()
+            x = np.array([tip[f"tip_position_{c}"] for c in "xyz"]) - np.array([0, 0, s])
+            supports.initial[end] = (x, np.array([tip[f"tip_quaternion_{i}"]
+                                                  for i in range(4)]))
+    model.set_supports(0.0)
+
+
 def _set_reference_strains(model) -> None:
     """u_ref, v_ref: the discrete strains of the stress-free configuration at the cell
     midpoints.  A single straight rod along e_3 (no placement) has q = (1, 0, 0, 0) and
@@ -166,7 +182,8 @@ def settle(model, t: float) -> None:
     solver = BlockSNES([model.residual[n] for n in names], [unk.f[n] for n in names],
                        [bc for n in names for bc in model.bcs_of(n)],
                        {"snes_max_it": 50}, step_scale=problem.configuration_norm(),
-                       links=links, terms=problem.terms)      # segment contact's pairs
+                       links=links, terms=problem.terms,      # segment contact's pairs
+                       force_scale=problem.force_scale)
     try:
         solver.solve()
     except SolverError as err:

@@ -76,6 +76,22 @@ class RodLayout:
             out[(s >= a - tol) & (s <= b + tol)] = k
         return out
 
+    @property
+    def rods(self) -> tuple[str, ...]:
+        """The user's rods' names: a rod split at its kinks is one rod (its pieces follow
+        its first, which has its name, at offsets > 0)."""
+        return tuple(name for k, name in enumerate(self.names)
+                     if not self.offsets or self.offsets[k] == 0.0)
+
+    def along(self, s) -> tuple[np.ndarray, np.ndarray]:
+        """The user's rod (an index into ``rods``) each parameter value s (not in a gap)
+        is on, and its arc length on that rod: a rod split at its kinks is one rod, its
+        pieces' s continued across the corners."""
+        k = self.rod_of(s)
+        offsets = np.asarray(self.offsets or (0.0,) * len(self.names))
+        owner = np.cumsum(offsets == 0.0) - 1
+        return owner[k], np.asarray(s, float) - np.asarray(self.starts)[k] + offsets[k]
+
     def rod_of_cells(self, mesh) -> np.ndarray:
         """Rod index of each local cell (owned, then ghosts)."""
         tdim = mesh.topology.dim

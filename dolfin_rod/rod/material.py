@@ -125,6 +125,12 @@ def _sample(name, value, length):
     return s, vals
 
 
+def largest_entry(value, length: float) -> float:
+    """The largest magnitude of a parameter's entries over s in [0, length] (a callable:
+    at the sample points); ValueError if it cannot be evaluated at floats."""
+    return max(float(np.abs(a).max()) for a in _sample("value", value, length)[1])
+
+
 def check_tensor(name: str, value, length: float, semidefinite: bool = False) -> None:
     """ValueError unless value is a symmetric positive (semi)definite tensor along s."""
     s, vals = _sample(name, value, length)

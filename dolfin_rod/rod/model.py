@@ -38,12 +38,13 @@ from ..mpi import largest_on_ranks
 from ..theory.rotations import np_qmul, np_rotation_matrix, rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
-from .boundary_conditions import EndSupports, linked_axes, spin_free
+from .boundary_conditions import EndSupports, linked_axes, spin_free, welded_spin_end
 from .constitutive import check_model, energy_function, section_response
 from .contact import (REST_PASSES, REST_TOLERANCE, ContactLaw, InitialOverlap, Obstacle,
                       ObstacleContact, Spin, check_contact)
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
+from .force_scale import ForceScale
 from .joint_points import Joint, check_joints, check_joints_at_start
 from .joints import JointReactions, joint_nodes, node_links
 from .kinks import attach, piece_starts, split_at_kinks, system_starts
@@ -164,6 +165,9 @@ class RodModel(FEModel):
         rod with corners in its stress-free polyline as the pieces between them, joined
         rigidly (kinks.py)."""
         joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
+        # rods welded into one body, pinned at two ends: its spin held (welded_spin_end)
+        self.welded_spin = None if self.dynamic else welded_spin_end(
+            self.rods, [joint.kind for joint in joints])
         self.rotations = self._rotation_unknowns(rotations, joints)
         disc = discretise(comm, self.layout, self.rotations)
         super().__init__(disc.mesh)
@@ -182,6 +186,7 @@ class RodModel(FEModel):
             [(k, load) for k, rod in enumerate(self.rods) for load in rod.distributed_loads],
             [(k, load) for k, rod in enumerate(self.rods) for load in rod.point_loads])
         self._end_supports()
+        self.force_scale = ForceScale(self.rods, loads, self.end_supports)
         self._made_terms, self._xi = None, None
         self._cell_nodes = None     # each cell's two nodes (check_cell_turns)
         self._make_terms = lambda: self._balance(disc, zero, loads, response)
@@ -205,7 +210,7 @@ class RodModel(FEModel):
                 for end, motion in (getattr(rod, name) or {}).items()}
         self.problem.structure = text
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
-        self._diagnostics(disc, nodes)
+        self._diagnostics(disc, nodes, contact)
 
     def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
                            constraint: str | None, joints: Sequence[Joint], comm) -> list[Joint]:
@@ -252,12 +257,12 @@ class RodModel(FEModel):
             rotary_inertia=not any(any(map(is_zero, p.section_inertia)) for p in all_params),
             rate_dependent=not all(is_zero(v) for p in all_params for v in (
                 p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
-            rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
-                              or spin_free(rod.ends, rod.end_rotation, rod.end_turn,
-                                           rod.end_springs)
-                              or any(np.all(spring.stiffness("rotational"))
-                                     for spring in (rod.end_springs or {}).values())
-                              for rod in rods))
+            rotation_held=self.welded_spin is not None or any(
+                "clamped" in rod.ends or bool(rod.end_rotation)
+                or spin_free(rod.ends, rod.end_rotation, rod.end_turn, rod.end_springs)
+                or any(np.all(spring.stiffness("rotational"))
+                       for spring in (rod.end_springs or {}).values())
+                for rod in rods))
         # an oblique slide is a line of the position (and velocity) with any unknowns; an
         # oblique turn a line of the rotation increment: rotation vectors only (with
         # quaternions it holds q in a plane, span(q_0, q_0 (0, a)), not a line)
@@ -340,7 +345,7 @@ class RodModel(FEModel):
         friction_dissipation = (self.contact.add_to(F, unk.t["displacement"])
                                 if self.contact else 0)
         residual.zero_diagonals(F, unk, disc, zero)
-        power = external_forces.apply_loads(F, unk, disc, loads)
+        power = external_forces.apply_loads(F, unk, disc, loads, (resp.u, resp.u_t))
         springs, variations = self._spring_terms(disc)
         return Terms(resp, F, n, natural_pairs, (drag_dissipation, friction_dissipation),
                      power, springs, variations)
@@ -435,9 +440,11 @@ class RodModel(FEModel):
 
     def _end_supports(self) -> None:
         """Every rod's end supports (their Dirichlet conditions and Constants)."""
+        held = self.welded_spin
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
-                                         rod.end_springs, rod.end_turn, end_frames(rod))
+                                         rod.end_springs, rod.end_turn, end_frames(rod),
+                                         spin_at=held[1] if held and held[0] == k else None)
                              for k, rod in enumerate(self.rods)]
 
     def _spring_terms(self, disc):
@@ -453,9 +460,10 @@ class RodModel(FEModel):
         return per_rod, {block: ufl.derivative(springs, unk.f[block], unk.t[block])
                          for block in ("displacement", unk.rotation)}
 
-    def _diagnostics(self, disc, joint_nodes) -> None:
+    def _diagnostics(self, disc, joint_nodes, law) -> None:
         """Tips, the energy forms (diagnostics.py) and the check that the rod does not
-        pass through itself (segments joined at ``joint_nodes`` are neighbours)."""
+        pass through itself (segments joined at ``joint_nodes`` are neighbours; pairs
+        that the contact ``law`` keeps apart are left to it)."""
         unk, c, layout = self.unknowns, self.coefficients, self.layout
         self.tips = [diagnostics.Tip(unk, layout.span(k)[1]) for k in range(len(self.rods))]
         points = [dict.fromkeys((layout.starts[k], layout.lengths[k] / layout.n_cells[k],
@@ -493,10 +501,11 @@ class RodModel(FEModel):
         self.pass_through = PassThroughCheck(
             unk.f["displacement"], distance=h, exclusion=3 * h,
             hint="self-contact is off: set contact.self = true (contact.between_rods for "
-                 "rods of a system; docs/contact.md)" if layout.single else
+                 "rods of a system; docs/contact.md)" if len(layout.rods) == 1 else
                  "contact between rods is off: set contact.between_rods = true "
                  "(contact.self for a rod through itself; docs/contact.md)", layout=layout,
-            names=self.rod_names, joints=joint_nodes)
+            names=self.rod_names, joints=joint_nodes,
+            covered=(bool(law and law.self), bool(law and law.between_rods)))
 
     def _segment_contact(self, law, layout, joint_nodes) -> SegmentContact | None:
         """The segment pairs' contact (pair_contact.py) if the law asks for it; the
@@ -504,16 +513,18 @@ class RodModel(FEModel):
         if law is None or not (law.self or law.between_rods):
             return None
         h = max(length / n for length, n in zip(layout.lengths, layout.n_cells))
-        problem = exclusion_problem(law.radius, law.gap, h, min(layout.lengths))
+        problem = exclusion_problem(law.radius, law.gap, h, min(
+            float(rod.params.length) for rod in self.user_rods))   # a kinked rod: all of it
         if law.self and problem:
             raise ValueError(problem)
         check_contact([], law)
         self._check_pair_friction(law)
         contact = SegmentContact(self.unknowns.f["displacement"], law, layout.rod_of,
                                  law.self, law.between_rods, joint_nodes,
-                                 velocity=self.unknowns.V if self.dynamic else None)
+                                 velocity=self.unknowns.V if self.dynamic else None,
+                                 along=layout.along)
         contact.block = list(self.names).index("displacement")
-        contact.rod_names, contact.rod_starts = layout.names, layout.starts
+        contact.rod_names = layout.rods
         P1 = fem.functionspace(self.mesh, ("Lagrange", 1, (3,)))
         self.pair_force = fem.Function(P1, name="pair_contact_force")
         return contact
@@ -585,11 +596,11 @@ class RodModel(FEModel):
         terms = list(self.segment_terms)
         if self.contact and self.contact.term:     # a mesh obstacle's features
             terms.append(self.contact.term)
-        where = self.where_failed
+        where, scale = self.where_failed, self.force_scale_now
         if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step, terms=terms,
-                                       where_failed=where, links=links)
+                                       where_failed=where, links=links, force_scale=scale)
         rates_used = set(form_cache.registry(forms))
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
@@ -598,10 +609,14 @@ class RodModel(FEModel):
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
             links=links, terms=terms, scale_motions=self.scale_motions,
-            motion_turn=self.motion_turn, where_failed=where,
+            motion_turn=self.motion_turn, where_failed=where, force_scale=scale,
             friction_lookahead=self.contact.lookahead if self.contact else None,
             rest_in_contact=self._rest_on_obstacles if self.contact and self.dynamic
             else None)
+
+    def force_scale_now(self) -> float:
+        """The size of the forces (force_scale.py) at the time of the supports' values."""
+        return self.force_scale(self.end_supports[0].time_set)
 
     def _rest_on_obstacles(self, solve) -> None:
         """The start's rest of nodes laid within an obstacle's barrier
@@ -680,13 +695,10 @@ class RodModel(FEModel):
         no sign flips), in [0, 2 pi]; the same answer on every rank.  Called after every
         step, where the turns are far below the limit: a rank whose cells all pass the
         bound _safely_within (a dot product per cell) computes no turn."""
-        chart = self.unknowns.chart
-        q = chart.q_n if chart is not None else self.unknowns.f["quaternion"]
-        nodes = q.x.array.reshape(-1, 4)
-        if self._cell_nodes is None:    # (numpy's index type: int32 costs a conversion)
-            cells = q.function_space.dofmap.list
-            self._cell_nodes = cells[:, 0].astype(np.intp), cells[:, 1].astype(np.intp)
-        a, b = nodes[self._cell_nodes[0]], nodes[self._cell_nodes[1]]
+        if self._cell_nodes is None:
+            self._cell_nodes = self._cell_node_rows()
+        nodes, first, second = self._cell_nodes
+        a, b = nodes[first], nodes[second]
         local = 0.0
         if not _safely_within(a, b):
             p = np_qmul(a * _CONJUGATE, b)
@@ -704,6 +716,20 @@ class RodModel(FEModel):
             f"take n_cells >= {math.floor(cells_now * largest / MAX_CELL_TURN) + 1} for the "
             f"turn so far ([geometry.n_cells]; now {cells_now}; more for a larger turn), "
             "or turn it less (loads.end_couple, boundary.end_rotation)", t)
+
+    def _cell_node_rows(self) -> tuple:
+        """(the nodal quaternions' rows, a view of the array the steps update in place;
+        each cell's first nodes' rows, its second nodes'): slices where cell k joins
+        nodes k and k + 1 (one rod's dofs in order: no copy, no index conversion), else
+        indices in numpy's own type (int32 costs a conversion at each use)."""
+        chart = self.unknowns.chart
+        q = chart.q_n if chart is not None else self.unknowns.f["quaternion"]
+        cells = q.function_space.dofmap.list
+        first, second = cells[:, 0].astype(np.intp), cells[:, 1].astype(np.intp)
+        n = len(first)
+        if np.array_equal(first, np.arange(n)) and np.array_equal(second, first + 1):
+            first, second = slice(0, n), slice(1, n + 1)
+        return q.x.array.reshape(-1, 4), first, second
 
     def check_step(self) -> str | None:
         """A reason to redo a converged step (rotation vectors: a rotation by more than
@@ -738,6 +764,13 @@ class RodModel(FEModel):
         for contact in (self.contact, *self.segment_terms):
             if contact:
                 contact.commit()
+
+    def hold_ends(self) -> None:
+        """After the state was replaced by a saved one (a run starting from another's,
+        output/from_run.py): the ends' supports, prescribed motions and springs start
+        where the state has its ends; the contacts' path checks start from it."""
+        initial_state.hold_ends(self)
+        self.restore_state({"rotations_committed_at": None})
 
     def stress_free(self, s):
         """(r, q) of the initial stress-free configuration at parameter values s."""

@@ -62,7 +62,10 @@ class Obstacle:
     around ``centre``) or "cylinder" (``radius``, ``length`` along ``axis`` through its
     ``centre``) or "mesh" (a triangle surface: ``file``, an STL or OBJ file, or
     ``vertices`` and ``triangles``, placed by x = centre + R(rotation) scale v, rotation a
-    rotation vector; triangle_mesh.py); ``friction`` the Coulomb coefficient mu >= 0;
+    rotation vector; triangle_mesh.py); ``friction`` the Coulomb coefficient mu >= 0, or
+    ``directional_friction`` (forward, backward, lateral): coefficients relative to the
+    rod's axis (PyElastica's AnisotropicFrictionalPlane; rod/contact.py), ``friction``
+    then their largest;
     ``contact`` where its barrier acts: "nodes" (this module), "segments" (a sphere's or
     cylinder's; a mesh's nodes and its sharp edges' segments: obstacle_segments.py) or
     "auto" (``on_segments``).
@@ -84,8 +87,18 @@ class Obstacle:
     rotation: Sequence[float] | None = None    # mesh: a rotation vector (radians)
     scale: float = 1.0                         # mesh: a factor on the vertices
     contact: str = "auto"                      # "nodes" | "segments" | "auto"
+    directional_friction: tuple[float, float, float] | None = None  # forward, backward,
+                                                                    # lateral
 
     def __post_init__(self):
+        if self.directional_friction is not None:
+            mu = tuple(float(c) for c in self.directional_friction)
+            if len(mu) != 3:
+                raise ValueError("Obstacle directional_friction must be (forward, backward, "
+                                 f"lateral), got {self.directional_friction!r}")
+            if self.friction not in (0.0, max(mu)):
+                raise TypeError("Obstacle: give friction or directional_friction, not both")
+            self.directional_friction, self.friction = mu, max(mu)
         old, new = ("axis", "normal") if self.shape == "plane" else ("point", "centre")
         if self.shape != "mesh" and getattr(self, old) is not None:
             if getattr(self, new) is not None:

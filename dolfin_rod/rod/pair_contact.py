@@ -185,12 +185,17 @@ class SegmentContact(NodeRates):
     the residual and Jacobian of the systems that hold x (``bind``); law: the contact
     law (radius, gap, stiffness; friction coefficients and slip tolerance: with
     ``velocity``, x's rate, the pairs' Coulomb friction, pair_friction.py); joints: the
-    nodes (s_a, s_b) of the rods' joints."""
+    nodes (s_a, s_b) of the rods' joints; ``along``: the user's rod and the arc length
+    on it of parameter values s (layout.RodLayout.along: the pieces of a rod split at
+    its kinks are one rod, whose self-contact pairs them; default: each rod of
+    ``rod_of`` its own, s its arc length)."""
 
     def __init__(self, x, law, rod_of, self_contact: bool, between_rods: bool,
-                 joints=(), velocity=None):
+                 joints=(), velocity=None, along=None):
         self.x, self.law = x, law
         self.line = Centreline(x, rod_of)
+        self.owner, self.arc = ((self.line.rod, self.line.mid_s) if along is None
+                                else along(self.line.mid_s))
         mu = (law.self_friction * self_contact, law.between_rods_friction * between_rods)
         # the pairs' curves: the segments, or the C^1 curves of smooth_pairs.py
         self.stencils = (Stencils(self.line.ends, self.line.rod)
@@ -200,11 +205,14 @@ class SegmentContact(NodeRates):
                              "segments yet: set contact.self_friction and "
                              "contact.between_rods_friction to 0 or pair_curve to "
                              "'segments'")
-        self.friction = (PairFriction(self.line, law, *mu)
+        self.friction = (PairFriction(self.line, law, *mu, owner=self.owner)
                          if velocity is not None and max(mu) > 0 else None)
         self.velocity_field, self.rates = velocity, None
         h = float(np.max(self.line.lengths))
         self.exclusion = exclusion(law.radius, law.gap, h)
+        # each segment's arc length on its rod, the rods laid apart by more than the
+        # exclusion: the broad phase's exclusion in s is then that of ``allowed``
+        self.apart = self.arc + self.owner * (self.arc.max(initial=0.0) + self.exclusion + 1.0)
         self.through_joints = self._joint_distances(joints)
         self.self_contact, self.between_rods = self_contact, between_rods
         self.reach = 2 * law.radius + law.gap       # pairs act below this distance
@@ -213,7 +221,7 @@ class SegmentContact(NodeRates):
         self._cache = (None, None)
         self.start = None                            # positions at the last commit
         self.block = 0          # the displacement's block in the problem (model sets it)
-        self.rod_names, self.rod_starts = ("rod",), (0.0,)  # the rods' (model sets them)
+        self.rod_names = ("rod",)   # the user's rods' (the model sets them: layout.rods)
 
     # -- pairs and their terms ----------------------------------------------------------
 
@@ -273,9 +281,9 @@ class SegmentContact(NodeRates):
             return pairs
         line = self.line
         reach = distance + self.skin
-        # the exclusion in s applies within a rod: other rods are placed a rod's length
-        # or more apart in s (layout.py), so the s test never removes them
-        pairs = near_pairs(P[line.ends[:, 0]], P[line.ends[:, 1]], line.mid_s, reach,
+        # the exclusion in s applies within a rod: other rods are laid farther apart
+        # (``apart``), so the s test never removes them
+        pairs = near_pairs(P[line.ends[:, 0]], P[line.ends[:, 1]], self.apart, reach,
                            self.exclusion)
         pairs = pairs[self.allowed(pairs[:, 0], pairs[:, 1])]
         pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
@@ -283,12 +291,12 @@ class SegmentContact(NodeRates):
         return pairs
 
     def allowed(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
-        """Whether segments i, j (>= 0) make a pair: of one rod and not neighbours (closer
-        in s than the exclusion) with self-contact, of different rods with between_rods,
-        and not neighbours through a joint."""
-        line = self.line
-        same = line.rod[i] == line.rod[j]
-        keep = (same & self.self_contact & (np.abs(line.mid_s[i] - line.mid_s[j])
+        """Whether segments i, j (>= 0) make a pair: of one rod (a rod split at its kinks:
+        any of its pieces) and not neighbours (closer along it than the exclusion) with
+        self-contact, of different rods with between_rods, and not neighbours through a
+        joint."""
+        same = self.owner[i] == self.owner[j]
+        keep = (same & self.self_contact & (np.abs(self.arc[i] - self.arc[j])
                                             >= self.exclusion)) | (~same & self.between_rods)
         for near in self.through_joints:        # neighbours through a joint
             keep &= near[i] + near[j] >= self.exclusion
@@ -444,7 +452,7 @@ class SegmentContact(NodeRates):
         k = int(np.argmin(gaps))
         names, point = self._named(pairs[k], P)
         return PairOverlap.at(names, point, float(gaps[k]), self.law.radius,
-                              self.line.rod[pairs[k][0]] == self.line.rod[pairs[k][1]])
+                              self.owner[pairs[k][0]] == self.owner[pairs[k][1]])
 
     def _where(self, pair, what: str, P: np.ndarray | None = None) -> str:
         """The pair's segments named by rod and arc length (their midpoints), the point
@@ -465,10 +473,9 @@ class SegmentContact(NodeRates):
 
     def segment_name(self, k: int) -> str:
         """'rod NAME at s = ...' of segment k (its midpoint's arc length on its rod)."""
-        rod = int(self.line.rod[k])
-        start, name = self.rod_starts[rod], self.rod_names[rod]
+        name = self.rod_names[int(self.owner[k])]
         return f"{'the rod' if len(self.rod_names) == 1 else f'rod {name}'} at s = " \
-               f"{self.line.mid_s[k] - start:.4g}"
+               f"{self.arc[k]:.4g}"
 
     def nearest_pair(self) -> str | None:
         """Where a failed solve was: the pair with the smallest gap at the last state

@@ -42,10 +42,12 @@ def mollifier_slope(y2):
 class PairFriction:
     """The friction of the segment pairs of ``line`` (pair_contact.Centreline) under the
     contact ``law`` (radius, gap, stiffness, slip tolerance); ``mu_self`` for pairs
-    within a rod, ``mu_between`` for pairs of different rods."""
+    within a rod, ``mu_between`` for pairs of different rods (``owner``: each segment's
+    rod, pair_contact.SegmentContact.owner; default the line's)."""
 
-    def __init__(self, line, law, mu_self: float, mu_between: float):
+    def __init__(self, line, law, mu_self: float, mu_between: float, owner=None):
         self.line, self.law = line, law
+        self.owner = line.rod if owner is None else owner
         self.mu = (mu_self, mu_between)
         self.pairs = np.zeros((0, 2), dtype=np.int64)     # the frozen pairs' segments
         self.nodes = np.zeros((0, 4), dtype=np.int64)
@@ -63,7 +65,7 @@ class PairFriction:
         s, t, d = closest_points(X[:, 0], X[:, 1], X[:, 2], X[:, 3])
         weights = 0.5 * (self.line.lengths[pairs[:, 0]] + self.line.lengths[pairs[:, 1]])
         lam = -law.stiffness * weights * barrier_derivatives(d - 2 * law.radius, law.gap)[1]
-        same = self.line.rod[pairs[:, 0]] == self.line.rod[pairs[:, 1]]
+        same = self.owner[pairs[:, 0]] == self.owner[pairs[:, 1]]
         bound = np.where(same, self.mu[0], self.mu[1]) * lam
         keep = bound > 0
         s, t, X = s[keep], t[keep], X[keep]

@@ -29,6 +29,8 @@ velocities W: q_a c(eta_a) with eta = 0 a fixed zero field and d/d eta in the di
 
 from __future__ import annotations
 
+import functools
+
 import dolfinx.fem as fem
 import numpy as np
 import ufl
@@ -142,11 +144,15 @@ class RotationVectorChart:
         self.node_s = Q.tabulate_dof_coordinates()[:, 0]
         self.q_n = fem.Function(Q, name="stored_rotation")
         self.eta = fem.Function(theta.function_space, name="body_rate_perturbation")
-        self.q = qmul(self.q_n, cayley(theta))          # q at any point (loads, tip, R)
         # views of the arrays commit() updates after every step (fetched once)
         self._theta_nodes = theta.x.array.reshape(-1, 3)
         self._q_nodes = self.q_n.x.array.reshape(-1, 4)
         self._k = np.full((len(self._theta_nodes), 4), 2.0)
+
+    @functools.cached_property
+    def q(self):
+        """q at any point (loads, tip, R): UFL, made at the first read."""
+        return qmul(self.q_n, cayley(self.theta))
 
     def strains(self, x, body_rates: bool = False):
         """(u, v) at the cell midpoint from the nodal q_a = q_n,a c(theta_a) (c(eta_a))."""

@@ -174,10 +174,13 @@ class PassThroughCheck:
     with several rods (``layout``, a RodLayout; ``names``: each of its rods' name, a
     rod split at its kinks named as the user's rod) the rods and s on each).  Cost: one gather of the centre line, one midpoint tree (none for
     one rod while every segment points within 60 degrees of the mean direction: such a
-    line cannot meet itself; two rods can, crossing at 90 degrees)."""
+    line cannot meet itself; two rods can, crossing at 90 degrees).  Pairs that segment
+    contact keeps apart (``covered``: (contact.self, contact.between_rods)) are left to
+    it: its steps cannot cross them, and two parallel segments in contact have no
+    crossing side to follow."""
 
     def __init__(self, x, distance: float, exclusion: float, hint: str, layout=None,
-                 names=(), joints=()):
+                 names=(), joints=(), covered=(False, False)):
         space = x.function_space
         self.x, self.comm, self.hint = x, space.mesh.comm, hint
         self.layout = None if layout is None or layout.single else layout
@@ -192,22 +195,29 @@ class PassThroughCheck:
         self.nodes = self.x.x.array.reshape(-1, 3)      # a view
         self.previous: dict | None = None
         self.warned = False
+        self.covered = covered
+        self.owner = (np.zeros(len(self.mid_s), int) if self.layout is None
+                      else self.layout.along(self.mid_s)[0])
+        one_rod = self.layout is None or len(self.layout.rods) == 1
+        self.needed = not (covered[0] and (one_rod or covered[1]))   # same on every rank
 
     def _segments(self):
-        """(p0, p1, s of the midpoints) of every cell, on rank 0 (None elsewhere)."""
+        """(p0, p1, s of the midpoints, rod) of every cell, on rank 0 (None elsewhere)."""
         p0, p1 = (self.nodes[d] + X for d, X in zip(self.ends, self.reference))
         if self.comm.size == 1:
-            return p0, p1, self.mid_s
-        gathered = self.comm.gather((p0, p1, self.mid_s), root=0)
+            return p0, p1, self.mid_s, self.owner
+        gathered = self.comm.gather((p0, p1, self.mid_s, self.owner), root=0)
         if gathered is None:
             return None
-        return tuple(np.concatenate([g[k] for g in gathered]) for k in range(3))
+        return tuple(np.concatenate([g[k] for g in gathered]) for k in range(4))
 
     def __call__(self, t: float) -> None:
+        if not self.needed:
+            return
         segments = self._segments()
         if segments is None or self.warned:
             return
-        p0, p1, mid_s = segments
+        p0, p1, mid_s, owner = segments
         tangents = p1 - p0
         mean = tangents.sum(axis=0)
         cosines = (tangents @ mean) ** 2 / np.einsum("ij,ij->i", tangents, tangents)
@@ -219,6 +229,9 @@ class PassThroughCheck:
                            tree=len(mid_s) > FEW)
         for near in joint_distances(mid_s, self.joints):    # neighbours through a joint
             pairs = pairs[near[pairs[:, 0]] + near[pairs[:, 1]] >= self.exclusion]
+        if any(self.covered):
+            same = owner[pairs[:, 0]] == owner[pairs[:, 1]]
+            pairs = pairs[~((same & self.covered[0]) | (~same & self.covered[1]))]
         sides = dict(zip(map(tuple, pairs), crossing_sides(p0, p1, pairs)))
         passed = [pair for pair, side in sides.items() if self.previous is not None
                   and self.previous.get(pair, side) * side < 0]

@@ -17,7 +17,7 @@ from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
-from ..checks import ENDS
+from ..checks import ENDS, NEWTON_ATOL
 from ..rod.start import curve
 from .contact import (contact_law, contact_solver_options, obstacles, segment_pairs,
                       touching)
@@ -74,7 +74,8 @@ def build_ode(scene: Scene, comm=None):
     end = EndCondition(rotation) if spec is None else EndCondition(
         rotation, spec.build(), spec.value if spec.jumps_at_start else None,
         spec.breakpoints())
-    time = OdeTime(tim["t_end"], tim["dt"], tim["rtol"], tim["atol"], tim["ode_solution"],
+    atol = NEWTON_ATOL if tim["atol"] is None else tim["atol"]    # (the twist, in rad)
+    time = OdeTime(tim["t_end"], tim["dt"], tim["rtol"], atol, tim["ode_solution"],
                    tim["scheme"])
     return OdeTorsion(*(mat[k].constant for k in ("alpha", "alpha_d", "mu", "mu_d")), end,
                       time, scene["initial"]["natural_twist"] or 0.0, comm)
@@ -95,6 +96,7 @@ class FESimulation:
         self.comm = self.problem.comm
         self.fields = list(self.problem.fields)
         self._initial_state = initial_state
+        self.continued = False      # the integrator continues a saved history (restart)
         lie = isinstance(self.problem, SecondOrderProblem)   # rotation vectors (rules.py)
         options = solver_options(scene, second_order=lie)
         if tim["integrator"] == "ts":
@@ -178,9 +180,21 @@ class FESimulation:
 
     def begin(self, t0: float) -> None:
         """The integrator's start before the first row: the rotation-group integrator's
-        consistent state at t0 (a quasi-static rod in equilibrium with its loads)."""
-        if self.ts is None and hasattr(self.stepper, "initial_accelerations"):
+        consistent state at t0 (a quasi-static rod in equilibrium with its loads), unless
+        it continues a saved history (``restart``)."""
+        if self.ts is None and hasattr(self.stepper, "initial_accelerations") \
+                and not self.continued:
             self.stepper.initial_accelerations(t0)
+
+    def restart(self, state: dict | None) -> None:
+        """After a saved state was read into the model (output/from_run.py): its ends held
+        where the state has them (a rod's ``hold_ends``), and the integrator's history continued from
+        the checkpoint's ``state``, its clock moved to t = 0, or (None) started afresh."""
+        if hasattr(self.model, "hold_ends"):
+            self.model.hold_ends()
+        if state is not None:
+            self.stepper.restore_state({**state, "end_time": 0.0})
+        self.continued = state is not None
 
     def advance(self, t: float, t_next: float) -> None:
         self.stepper.run(t, t_next, t_next - t)
@@ -222,15 +236,16 @@ class FESimulation:
 
 
 def solver_options(scene: Scene, second_order: bool = False) -> dict:
-    """PETSc options of a scene: tolerances of [time] (given ones only for a rod with
-    rotation vectors, whose integrator has its own defaults, lie_alpha.default_options),
-    the [solver] preset, its options."""
+    """PETSc options of a scene: tolerances of [time] (rtol given only for a rod with
+    rotation vectors, whose integrator has its own defaults, lie_alpha.default_options;
+    atol given only: else the solvers scale it, solvers.ScaledAtol), the [solver]
+    preset, its options."""
     from ..fem import solvers
     tim, sol = scene["time"], scene["solver"]
     preset = {"default": {}, "native_lu": solvers.NATIVE_LU,
               "jacobian_reuse": solvers.JACOBIAN_REUSE}[sol["preset"]]
     tolerances = {f"snes_{k}": tim[k] for k in ("rtol", "atol")
-                  if not second_order or k in scene.given["time"]}
+                  if k in scene.given["time"] or (k == "rtol" and not second_order)}
     return {**contact_solver_options(scene), **tolerances, **preset, **(sol["options"] or {})}
 
 
@@ -487,8 +502,9 @@ def rod_parameters(scene: Scene):
 
 def rod_loads(scene: Scene) -> tuple[list, list]:
     """EndLoads (start_/end_force/couple) and DistributedLoads (distributed_force/couple,
-    gravity as density g) of a rod scene."""
+    gravity as density g, the muscle's active moment) of a rod scene."""
     from ..rod import DistributedLoad, EndLoad
+    from ..rod.external_forces import TravellingWave
     lds, mat = scene["loads"], scene["material"]
     end_loads = []
     for end in ENDS:
@@ -506,6 +522,9 @@ def rod_loads(scene: Scene) -> tuple[list, list]:
                 spec.follower))
     if lds["gravity"] is not None:
         distributed.append(DistributedLoad("force", _profiled(lds["gravity"], mat["density"])))
+    if lds["muscle"] is not None:
+        distributed += TravellingWave(**lds["muscle"]).loads(
+            scene["geometry"]["length"])
     return end_loads, distributed
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .scene import Scene
+from .values import largest_friction
 
 # per shape the pose keys it needs and those it may have (every other one is an error)
 POSE_KEYS = {"plane": ("point", "normal"), "sphere": ("centre", "radius"),
@@ -33,6 +34,10 @@ def check_contact_keys(scene: Scene, rotations: str) -> None:
             raise err(f"contact.{sorted(given)[0]}", "applies to rods with [[obstacles]], "
                                                      "contact.self or contact.between_rods")
         return
+    if contact["between_rods"] and not (scene.rods or scene.in_system):
+        raise err("contact.between_rods", "applies to the rods of a [[rods]] system; this "
+                                          "scene has one rod (a rod split at its corners "
+                                          "too): its own segments repel with contact.self")
     if contact["radius"] is None:
         contact["radius"] = section_radius(scene)
     if contact["radius"] is None:
@@ -56,11 +61,17 @@ def check_contact_keys(scene: Scene, rotations: str) -> None:
         for key in DIRECTIONS:
             if ob[key] is not None and not np.linalg.norm(ob[key]) > 0:
                 raise err(f"{name}.{key}", "must not be the zero vector")
-        if ob["friction"] > 0 and not scene["material"]["dynamic"]:
+        mu = largest_friction(ob["friction"])
+        if mu > 0 and not scene["material"]["dynamic"]:
             raise err(f"{name}.friction", "friction depends on the velocity: it needs a "
                                           "dynamic rod (material.density > 0)")
         _check_segments(scene, k)
-        if ob["friction"] > 0 and acts_on_segments(scene, k)[0]:
+        if isinstance(ob["friction"], tuple) and acts_on_segments(scene, k)[0]:
+            raise err(f"{name}.friction", "directional friction acts on the nodes; this "
+                                          "obstacle acts on the segments (docs/contact.md, "
+                                          "\"Thin obstacles\"): contact = \"nodes\" or one "
+                                          "coefficient")
+        if mu > 0 and acts_on_segments(scene, k)[0]:
             if rotations != "rotation_vector":
                 raise err(f"{name}.friction", "this obstacle acts on the segments (a "
                                               "sphere or cylinder thinner than the cells "
@@ -93,8 +104,10 @@ def check_initial_contact(scene: Scene, start) -> None:
     h = longest_cell(start)
     if c["self"]:
         from ..rod.segments import exclusion_problem
-        problem = exclusion_problem(radius, gap, h,
-                                    min(line.length for line in start.lines))
+        lengths: dict = {}              # each rod's length (a kinked rod: its pieces')
+        for line in start.lines:
+            lengths[line.rod] = lengths.get(line.rod, 0.0) + line.length
+        problem = exclusion_problem(radius, gap, h, min(lengths.values()))
         if problem:
             raise scene.error("contact.radius", problem)
     if start.settled:
@@ -167,8 +180,9 @@ def _check_obstacle_overlap(scene: Scene, lines: list, radius: float, gap: float
 def _check_pair_overlap(scene: Scene, start, cells: StartSegments, radius: float,
                         gap: float, h: float) -> None:
     """Two segments of the rods that make a pair (pair_contact.SegmentContact.allowed:
-    of one piece farther apart in s than the exclusion with contact.self, of two with
-    contact.between_rods, not neighbours through a joint) whose capsules overlap at
+    of one rod (any of its pieces: a rod split at its kinks) farther apart along it than
+    the exclusion with contact.self, of two with contact.between_rods, not neighbours
+    through a joint) whose capsules overlap at
     t = 0: the error naming contact.self or contact.between_rods run gives.  On smooth
     curves (contact.pair_curve = "smooth") the curves' distance is at most the chords'
     plus the two deviations: a pair that overlaps by that bound overlaps (exact for
@@ -182,8 +196,9 @@ def _check_pair_overlap(scene: Scene, start, cells: StartSegments, radius: float
                        reach + 2 * cells.deviation.max() * smooth, 0.0,
                        tree=len(ends) > FEW_SEGMENTS)
     i, j = pairs[:, 0], pairs[:, 1]
-    same = cells.piece[i] == cells.piece[j]
-    keep = (same & c["self"] & (np.abs(cells.mid_s[i] - cells.mid_s[j]) >= excluded)) | \
+    rod = np.array([cells.rods.index(name) for name in cells.rods])[cells.piece]
+    same = rod[i] == rod[j]
+    keep = (same & c["self"] & (np.abs(cells.own_s[i] - cells.own_s[j]) >= excluded)) | \
         (~same & c["between_rods"])
     joints = [tuple(cells.a[p] + node * lines[p].length / (len(lines[p].s) - 1)
                     for p, node in ((p, m), (q, n))) for p, m, q, n in start.joints]
@@ -200,7 +215,7 @@ def _check_pair_overlap(scene: Scene, start, cells: StartSegments, radius: float
     point = 0.5 * (X[0][k] + u[k] * (X[1][k] - X[0][k]) + X[2][k] + v[k] * (X[3][k] - X[2][k]))
     err = PairOverlap.at((cells.name(i[k]), cells.name(j[k])), point,
                          float(d[k] - 2 * radius), radius,
-                         lines[cells.piece[i[k]]].rod == lines[cells.piece[j[k]]].rod)
+                         bool(same[keep][k]))
     raise scene.error(err.key, str(err))
 
 
@@ -276,9 +291,11 @@ def obstacle(scene: Scene, ob: dict):
              if ob[key] is not None}           # the shape's keys only (checked above)
     if ob["file"] is not None:
         given["file"] = mesh_file(scene, ob)
+    mu = ob["friction"]
+    directional = {"directional_friction": mu} if isinstance(mu, tuple) else {
+        "friction": mu}
     return Obstacle(ob["shape"], radius=ob["radius"] or 0.0, length=ob["length"] or 0.0,
-                    friction=ob["friction"], scale=ob["scale"] or 1.0,
-                    contact=ob["contact"], **given)
+                    scale=ob["scale"] or 1.0, contact=ob["contact"], **directional, **given)
 
 
 def mesh_surface(scene: Scene, ob: dict):
@@ -404,7 +421,8 @@ def contact_solver_options(scene: Scene) -> dict:
         return {}
     options = {} if "rtol" in scene.given["time"] else {"snes_rtol": 1e-8}
     c = scene["contact"]
-    if any(ob["friction"] > 0 for ob in scene["obstacles"]) or c["self_friction"] > 0 \
+    if any(largest_friction(ob["friction"]) > 0 for ob in scene["obstacles"]) \
+            or c["self_friction"] > 0 \
             or c["between_rods_friction"] > 0:
         options["snes_linesearch_type"] = "bt"
         # bt stalls where a prescribed motion starts a sticking rod sliding within a step

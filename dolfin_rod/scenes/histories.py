@@ -3,6 +3,9 @@ item 6): ``{type = "step" | "ramp" | "smooth_step" | "table" | "constant", value
 duration, follower, profile}`` -> :class:`HistorySpec`, which builds the
 :mod:`dolfin_rod.loads` history the models evaluate.  ``follower`` is for rod loads,
 ``profile`` (a function of s) for distributed loads only, ``s`` (where) for point loads.
+A muscle's travelling wave of active moment, ``loads.muscle = {axis, amplitude, period,
+wave_length, phase, ramp, origin, follower}`` -> the keywords of
+rod/external_forces.TravellingWave (``muscle``).
 """
 
 from __future__ import annotations
@@ -189,3 +192,38 @@ def _new_form(old: dict) -> dict:
         new["values"] = [times_scale(x) for x in h["values"]]
     new.update({k: old[k] for k in ("follower", "profile") if k in old})
     return new
+
+
+def muscle(v) -> dict:
+    """{axis, amplitude, period, wave_length, phase, ramp, origin, follower}: axis a
+    non-zero 3-vector, amplitude a number or >= 4 B-spline control values, period and
+    wave_length > 0, ramp >= 0, origin "start" | "end": the checked keyword arguments of
+    rod/external_forces.TravellingWave (numbers only: the scene layer loads no DOLFINx)."""
+    if not isinstance(v, dict):
+        raise BadValue(f"must be a table {{axis, amplitude, period, wave_length, ...}}, got "
+                       f"{type_name(v)}")
+    checkers = {"axis": vector3(), "amplitude": _amplitude, "period": real(0.0, True),
+                "wave_length": real(0.0, True), "phase": number, "ramp": real(0.0),
+                "origin": choice("start", "end"), "follower": boolean}
+    refuse_unknown(v, set(checkers))
+    out = {}
+    for key, checker in checkers.items():
+        if key in ("axis", "amplitude", "period", "wave_length") and key not in v:
+            raise BadValue("missing required key", key)
+        if key in v:
+            try:
+                out[key] = checker(v[key])
+            except BadValue as bad:
+                raise BadValue(bad.reason, key) from None
+    if not np.linalg.norm(out["axis"]) > 0:
+        raise BadValue("must not be the zero vector", "axis")
+    return out
+
+
+def _amplitude(v):
+    """A number (N m) or the B-spline's control values (at least 4 numbers)."""
+    if not isinstance(v, list):
+        return number(v)
+    if len(v) < 4:
+        raise BadValue(f"a B-spline's control values: at least 4 numbers, got {len(v)}")
+    return tuple(number(x) for x in v)

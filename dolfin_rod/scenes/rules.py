@@ -16,7 +16,7 @@ from ..theory.quaternions import np_quaternion_from_rotation_vector, np_rotation
 from ..rod.rotation_choice import (choose_rotations, rotation_vector_obstacle,
                                    rotations_reason)
 from ..checks import (EQUILIBRIUM_NEEDS, MAX_CELL_TURN, is_coordinate_axis,
-                      polyline_problem, sample_points, slide_axis_problem)
+                      polyline_problem, sample_points, slide_axis_problem, spin_free)
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene, SceneError
@@ -44,7 +44,7 @@ ROD_ONLY = {("material", k) for k in ROD_KEYS + ("model", "energy", "constraints
     ("loads", "distributed_force"), ("loads", "gravity"),
     ("loads", "end_force"), ("loads", "end_couple"), ("loads", "start_force"),
     ("loads", "start_couple"), ("loads", "point_force"), ("loads", "point_couple"),
-    ("obstacles", "shape")} | {
+    ("loads", "muscle"), ("obstacles", "shape")} | {
     ("contact", k) for k in ("radius", "gap", "stiffness", "slip_tolerance", "self",
                              "between_rods", "self_friction", "between_rods_friction",
                              "pair_curve", "obstacle_curve")} | {
@@ -68,6 +68,7 @@ def check_combinations(scene: Scene) -> None:
                 "material.stiffness, viscosity for a rod)") if not rod else (
                 "applies to the torsion model only; this scene has a 3-D rod material"))
     _check_time(scene)
+    _check_from_run(scene)
     if rod:
         _check_rod_material(scene)
         _check_rod_ends(scene)
@@ -170,6 +171,8 @@ def _check_time(scene: Scene) -> None:
     for key in ("ts_rtol", "ts_atol"):
         if key in given and not tim["adaptive"]:
             raise err(f"time.{key}", "an error tolerance of adaptive TS: set adaptive = true")
+    if scene["outputs"]["final_checkpoint"] and ts:
+        raise err("outputs.final_checkpoint", "checkpoints need integrator = \"stepper\"")
     if scene["outputs"]["checkpoint_every"] and ts:
         raise err("outputs.checkpoint_every", "checkpoints (and --resume) need integrator = "
                                               "\"stepper\": PETSc TS runs the whole interval "
@@ -179,6 +182,21 @@ def _check_time(scene: Scene) -> None:
     if tim["t_end"] / tim["dt"] > 1e7:
         raise err("time.dt", f"t_end/dt = {tim['t_end'] / tim['dt']:.3g} steps is more than "
                              "10^7")
+
+
+def _check_from_run(scene: Scene) -> None:
+    """A saved state (initial.from_run) is the whole starting state: no other [initial]
+    key; from_time picks one of its states.  The run folder itself is checked when the
+    scene runs (output/from_run.py)."""
+    ini, given, err = scene["initial"], scene.given["initial"], scene.error
+    if ini["from_run"] is None:
+        for key in sorted(given & {"from_time", "continue_integration"}):
+            raise err(f"initial.{key}", "applies to a start from a saved state: give "
+                                        "initial.from_run too")
+        return
+    for key in sorted(given - {"from_run", "from_time", "continue_integration"}):
+        raise err(f"initial.{key}", "not with initial.from_run: the starting state, natural "
+                                    "strains included, is the previous run's")
 
 
 def _check_torsion(scene: Scene) -> None:
@@ -600,14 +618,22 @@ def _rigid_motions_held(scene: Scene, held: list) -> bool:
     a rod whose start shape is its stress-free helix of reference strains (straight by
     default): an end at x moves by c + w x x, so the six columns (c, w) must have rank 6
     (a simply supported beam: a hinge at the start, a roller sliding along the axis at
-    the end).  Other start shapes: False (the supports must then hold one end fully)."""
-    geo = scene["geometry"]
+    the end).  A rod pinned at both ends with no end rotation, turn or spring has its
+    spin about d3 held at s = 0 by the model (rod/boundary_conditions.spin_free: the
+    pinned-pinned column).  Other start shapes: False (the supports must then hold one
+    end fully)."""
+    geo, bnd = scene["geometry"], scene["boundary"]
     if "shape" in scene.given["initial"] or geo["reference_shape"] is not None:
         return False
     r, _ = placement.helix(np.array([0.0, geo["length"]]), geo["reference_curvature"],
                            geo["reference_stretch"])
     turn = np_rotation_matrix(np_quaternion_from_rotation_vector(
         np.asarray(scene["initial"]["orientation"] or (0.0, 0.0, 0.0), float)))
+    if spin_free((bnd["start"], bnd["end"]), *(
+            {end: bnd[f"{end}_{key}"] for end in ("start", "end") if bnd[f"{end}_{key}"]}
+            for key in ("rotation", "turn", "spring"))):
+        d3 = turn[:, 2]                 # the start's d3 (the helix starts with R = I)
+        held = [(held[0][0], held[0][1] + np.outer(d3, d3)), held[1]]
     rows = []          # x in units of the length: the columns of w scaled as those of c
     for (position, rotation), x in zip(held, (np.zeros(3), turn @ r[-1] / geo["length"])):
         w_cross_x = np.cross(np.eye(3), x).T          # column j: e_j x x
@@ -697,6 +723,16 @@ LOAD_KEYS = ("end_force", "end_couple", "start_force", "start_couple", "distribu
 MOTION_KEYS = ("end_rotation", "start_rotation", "end_displacement", "start_displacement")
 
 
+def _changes_at_the_end(spec, t: float) -> bool:
+    """Whether a load or motion history changes over the step before t that buckling
+    takes for the loads' rate (analysis/buckling.py: a backward difference over
+    RELATIVE_STEP t)."""
+    from ..analysis.buckling import RELATIVE_STEP
+    histories = [spec.build(i) for i in range(3)] if spec.is_vector else [spec.build()]
+    return any(np.any(np.asarray(h(t)) != np.asarray(h(t - RELATIVE_STEP * t)))
+               for h in histories)
+
+
 def analysis_problem(scene: Scene, kind: str) -> None:
     """Refuse (SceneError naming the key) a scene that ``dolfin-rod buckle`` ("buckle")
     or ``modes`` ("modes") cannot analyse, before any work: a 3-D rod (or rods with
@@ -713,11 +749,17 @@ def analysis_problem(scene: Scene, kind: str) -> None:
         if mat["dynamic"]:
             raise scene.error("material.density", "buckle: a quasi-static rod (no "
                                                    "density); for a dynamic one: modes")
-        if not any(any(part["loads"][k] is not None for k in LOAD_KEYS) or any(
-                part["boundary"][k] is not None for k in MOTION_KEYS)
-                for part in [scene, *(rod.scene for rod in scene.rods)]):
+        specs = [part[table][k] for part in [scene, *(rod.scene for rod in scene.rods)]
+                 for table, keys in (("loads", LOAD_KEYS), ("boundary", MOTION_KEYS))
+                 for k in keys if part[table][k] is not None]
+        if not specs:
             raise scene.error("loads", "buckle: a load (loads.end_force, ...) or an end "
                                        "motion (boundary.end_rotation, ...) to scale")
+        if not any(map(_changes_at_the_end, specs, [scene["time"]["t_end"]] * len(specs))):
+            raise scene.error("loads", "buckle: the loads and prescribed motions do not "
+                                       f"change at time.t_end = {scene['time']['t_end']:g} "
+                                       "(nothing to scale: ramp them, e.g. type = \"ramp\" "
+                                       "up to t_end)")
         if mat["constraints"] != "none":
             raise scene.error("material.constraints", "buckle: a rod without constraints "
                                                       "(their multipliers' rates are not "

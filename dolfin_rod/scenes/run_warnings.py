@@ -1,8 +1,8 @@
 """Warnings about a valid scene before its run: explicit Euler above its stability limit
 (torsion/stability.py, docs/stability.md); a [section] not small against the rod's length
-(a dimension given in mm instead of m); a Newton tolerance time.atol not small against the
-scene's forces (a thin fibre in SI units: Newton accepts its first guess); a load or end
-motion that starts only at or after time.t_end."""
+(a dimension given in mm instead of m); a given Newton tolerance time.atol not small
+against the scene's forces (a thin fibre in SI units: Newton accepts its first guess); a
+load or end motion that starts only at or after time.t_end."""
 
 from __future__ import annotations
 
@@ -114,6 +114,8 @@ def residual_scale(scene: Scene) -> float:
                 shape = 1.0 if spec.profile is None else float(
                     np.max(np.abs(spec.profile.values(sample_points(length)))))
                 scale = max(scale, _peak(spec) * shape * length)
+        if lds["muscle"] is not None:       # a B-spline lies within its control values
+            scale = max(scale, float(np.max(np.abs(lds["muscle"]["amplitude"]))))
         if lds["gravity"] is not None and mat["density"] is not None:
             weight = np.max(np.abs(mat["density"].values(sample_points(length))))
             scale = max(scale, float(np.linalg.norm(lds["gravity"])) * weight * length)
@@ -128,13 +130,14 @@ def residual_scale(scene: Scene) -> float:
 
 
 def tolerance_warning(scene: Scene) -> str | None:
-    """A warning if time.atol is not small against the 3-D rod's residual_scale, for a
-    rod whose state moves at fixed loads (natural strains evolving, viscosity, inertia):
-    there a step's first guess can be within atol of the residual's zero.  A quasi-static
+    """A warning if a given time.atol is not small against the 3-D rod's residual_scale,
+    for a rod whose state moves at fixed loads (natural strains evolving, viscosity,
+    inertia): there a step's first guess can be within atol of the residual's zero (not
+    given, atol follows the rod's forces: rod/force_scale.py).  A quasi-static
     elastic rod is not warned of: each load step changes its residual by the load's
     increment, and Newton converges quadratically from there (measured: a 1e-6 N tip
     force on a 0.5 mm steel wire, atol 1e-10, 1e-12, 1e-14: the same deflection)."""
-    if not scene.is_rod_material:
+    if not scene.is_rod_material or "atol" not in scene.given["time"]:
         return None
     mat = scene["material"]
     if mat["model"] == "hyperelastic" and not mat["dynamic"]:
@@ -145,8 +148,8 @@ def tolerance_warning(scene: Scene) -> str | None:
     return (f"{scene.source}: [time.atol]: {atol:g} is not small against the scene's forces "
             f"(largest load, or stiffness times a prescribed strain: {scale:.3g}): Newton's "
             "absolute test may pass a step's first guess unchanged (a creep that does not "
-            f"creep); take time.atol <= {ATOL_FRACTION * scale:.3g}, or units in which the "
-            "forces are not small (docs/scenes.md, [time])")
+            f"creep); take time.atol <= {ATOL_FRACTION * scale:.3g}, or leave it out (Newton's "
+            "tolerance then follows the scene's forces; docs/scenes.md, [time])")
 
 
 def _first_change(spec) -> tuple[float, str] | None:

@@ -26,19 +26,21 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..checks import (DEGREE, MAX_STEP_CUTS, MIN_LENGTH, N_CELLS, NEWTON_ATOL, NEWTON_RTOL,
-                      ODE_SOLUTION, PREDICTOR, ROD_MODEL, ROTATION_UNKNOWNS, SCENE_BYTES,
-                      SCHEME, STARTING_ACCELERATIONS, TS_ATOL, TS_RTOL, VARIANT,
+from ..checks import (DEGREE, MAX_STEP_CUTS, MIN_LENGTH, N_CELLS, NEWTON_ATOL,
+                      NEWTON_FORCE_TOL, NEWTON_RTOL, ODE_SOLUTION, PREDICTOR, ROD_MODEL,
+                      ROTATION_UNKNOWNS, SCENE_BYTES, SCHEME, STARTING_ACCELERATIONS, TS_ATOL,
+                      TS_RTOL, VARIANT,
                       read_regular_file)
 from ..rod.rotation_choice import ROTATIONS
 from ..rod.sections import SHAPES as SECTION_SHAPES
 from .builders import initial_centre_lines
 from .contact import check_initial_contact, touching
-from .histories import HistorySpec, distributed, history
+from .histories import HistorySpec, distributed, history, muscle
 from .rules import check_combinations
 from .scene import Scene, SceneError
 from .systems import validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
+                     friction_coefficients,
                      names_or_boolean, damping_tensor, entry_point, integer,
                      load_entry_point, path_problem, path_text,
                      petsc_table, points3, index_triples, positive_pair, real, run_name, safe_name, scheme_name,
@@ -308,6 +310,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
                             "at Coulomb's force) | zero (a state known to be at rest whose "
                             "discrete balance is not exactly met: its imbalance is not "
                             "carried into the first steps' velocities; docs/contact.md)"),
+        "from_run": Key(path_text, None, "start from the state a previous run saved (its "
+                        "run folder, with outputs.final_checkpoint or checkpoint_every): positions, "
+                        "rotations, velocities, natural strains (docs/scenes.md, \"Starting "
+                        "from a previous run\"); the same rods, n_cells, degree, model and "
+                        "rotations; loads, supports, time and outputs are this scene's, its "
+                        "time starts at 0; no other [initial] key"),
+        "from_time": Key(real(0.0), None, "with from_run: the saved state at this time of "
+                         "the previous run (default: its last one; outputs.keep_checkpoints "
+                         "keeps them all)"),
+        "continue_integration": Key(boolean, False, "with from_run: continue the previous "
+                                    "run's time integration (its multistep history, "
+                                    "generalized-alpha's accelerations; the same integrator, "
+                                    "scheme and dt): the two runs are then the one run whose "
+                                    "loads change in the step after the saved state, to "
+                                    "round-off (default: a new start from the state, as "
+                                    "any run starts)"),
     },
     "boundary": {
         "start": Key(choice(*ROD_ENDS), "clamped", "s = 0: clamped | pinned | free "
@@ -370,6 +388,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
                            "nodes shared by the two nearest as the P1 hat functions there)"),
         "point_couple": Key(history(True, True, point=True), None, R + "a concentrated "
                             "couple at the point s (as point_force)"),
+        "muscle": Key(muscle, None, R + "an active bending moment travelling along the rod "
+                      "(PyElastica's MuscleTorques): {axis = [x, y, z], amplitude, period, "
+                      "wave_length, phase = 0, ramp = 0, origin = \"start\", follower = "
+                      "false} is M(s, t) = min(1, t / ramp) beta(sigma) sin(2 pi (t / period "
+                      "- sigma / wave_length) + phase) axis, sigma the arc length from the "
+                      "end origin (the wave runs away from it), beta the amplitude (N m) or "
+                      "a clamped cubic B-spline of its control values over sigma / L; axis "
+                      "spatial, or material with follower = true; a rod at rest under it "
+                      "has m = M (docs/gallery.md, \"Coming from PyElastica\")"),
     },
     "time": {
         "t_end": Key(real(0.0, True), REQUIRED, "final time"),
@@ -397,11 +424,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "guess: \"linear\" (y_n + dt dy/dt_n, extrapolated) | "
                          "\"constant\" (the last state y_n)"),
         "rtol": Key(real(0.0, True, 1.0), NEWTON_RTOL, "relative tolerance (SNES / solve_ivp)"),
-        "atol": Key(real(0.0, True, 1.0), NEWTON_ATOL,
-                    "absolute tolerance (SNES residual / solve_ivp); keep it above the "
-                    "round-off floor of the residual (~1e-12 fails at 64 cells) and, 3-D "
-                    "rod, below 1e-6 of the scene's forces (a thin fibre in SI units: "
-                    "`check` warns, Newton would pass its first guess unchanged)"),
+        "atol": Key(real(0.0, True, 1.0), None,
+                    "absolute tolerance of Newton's residual, in the scene's units of "
+                    "forces and couples (and solve_ivp's); not given: unit-free, "
+                    f"{NEWTON_FORCE_TOL:g} times the 3-D rod's force scale at each step's "
+                    "time (its largest load, at least the force max |A| / L^2 that bends "
+                    "it by a radian; docs/rod.md), else (torsion) "
+                    f"{NEWTON_ATOL:g}; given: exactly that, above the residual's round-off "
+                    "floor (~1e-12 fails at 64 cells) and, 3-D rod, below 1e-6 of the "
+                    "scene's forces (`check` warns: Newton would pass its first guess "
+                    "unchanged)"),
         "max_step_cuts": Key(integer(0, 30), MAX_STEP_CUTS, "step halvings before giving up"),
         "ode_solution": Key(choice("exact", "scheme"), ODE_SOLUTION,
                             "ODE model: closed form/solve_ivp, or the FE model's scheme"),
@@ -477,6 +509,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      "panels from " + ", ".join(PANELS) + " (docs/outputs.md)"),
         "checkpoint_every": Key(integer(0), 0, "adios4dolfinx checkpoint every N steps (0: off; "
                                                "integrator = \"stepper\" only)"),
+        "final_checkpoint": Key(boolean, False, "a checkpoint after the last step too: the "
+                                "end state a later run starts from (initial.from_run; "
+                                "integrator = \"stepper\" only)"),
+        "keep_checkpoints": Key(boolean, False, "keep every checkpoint, not only the last "
+                                "(initial.from_time of a later run picks one)"),
         "progress": Key(boolean, True, "tqdm progress bar (rank 0, TTY, not CI)"),
     },
     "contact": {
@@ -535,8 +572,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "axis": Key(vector3(), None, "cylinder: the axis direction"),
         "radius": Key(real(0.0, True), None, "sphere, cylinder: the radius"),
         "length": Key(real(0.0, True), None, "cylinder: the length along the axis"),
-        "friction": Key(real(0.0), 0.0, "Coulomb friction coefficient mu >= 0 (needs "
-                        "density > 0)"),
+        "friction": Key(friction_coefficients, 0.0, "Coulomb friction coefficient mu >= 0, "
+                        "or {forward, backward, lateral}: directional coefficients relative "
+                        "to the rod's axis on the surface (forward: slipping towards the "
+                        "rod's end s = L; PyElastica's AnisotropicFrictionalPlane; on the "
+                        "nodes) (needs density > 0)"),
         "contact": Key(choice("auto", "nodes", "segments"), "auto", "where the barrier "
                        "acts: nodes (the centre line's nodes) | segments (a sphere's or "
                        "cylinder's: a thin obstacle between two nodes holds the segment; a "

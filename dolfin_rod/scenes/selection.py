@@ -77,8 +77,15 @@ def select_model(scene: Scene) -> Choice:
 def _ode_time_keys(scene: Scene) -> str:
     """The ODE model has no PETSc TS path and uses time.scheme only with ode_solution =
     "scheme": integrator = "ts", or a scheme with an explicit ode_solution = "exact", is
-    an error; a scheme kept for a forced PDE run is named as unused in the reason."""
+    an error; a scheme kept for a forced PDE run is named as unused in the reason.  Nor
+    does it save a state: checkpoints and a start from a saved state are errors too."""
     tim, given = scene["time"], scene.given["time"]
+    for table, key in (("outputs", "checkpoint_every"), ("outputs", "final_checkpoint"),
+                       ("initial", "from_run")):
+        if scene[table][key]:      # the ODE is solved as a whole: no state between steps
+            raise scene.error(f"{table}.{key}", "the 'ode' model (chosen: quasi-static "
+                              "homogeneous torsion, solved as a whole) has no saved state: "
+                              "set scene.model = \"torsion\" (the same equations as a PDE)")
     if tim["integrator"] == "ts":
         raise scene.error("time.integrator", "the 'ode' model (chosen: quasi-static "
                           "homogeneous torsion) has no PETSc TS path: drop integrator = "

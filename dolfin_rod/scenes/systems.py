@@ -38,7 +38,10 @@ SHARED = {("geometry", "rotations"): "the rotation unknowns",
           ("material", "model"): "the constitutive model",
           ("material", "variant"): "the evolution variant",
           ("material", "constraints"): "the constraint",
-          ("material", "energy"): "the energy function"}
+          ("material", "energy"): "the energy function",
+          ("initial", "from_run"): "the run whose saved state starts the scene",
+          ("initial", "from_time"): "the time of the saved state",
+          ("initial", "continue_integration"): "continuing the saved time integration"}
 JOINT_KEYS = ("kind", "rods", "point", "name", "axis")
 
 

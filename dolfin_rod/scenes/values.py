@@ -386,6 +386,33 @@ def toml_value(v) -> str:
     return "{ " + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + " }"
 
 
+FRICTION_DIRECTIONS = ("forward", "backward", "lateral")
+
+
+def friction_coefficients(v):
+    """Coulomb's mu >= 0, or {forward, backward, lateral} (each >= 0): coefficients
+    relative to the rod's axis, a tuple in that order (rod/contact.py)."""
+    if not isinstance(v, dict):
+        return real(0.0)(v)
+    refuse_unknown(v, set(FRICTION_DIRECTIONS))
+    for key in FRICTION_DIRECTIONS:
+        if key not in v:
+            raise BadValue("missing required key (directional friction: forward, backward, "
+                           "lateral)", key)
+    out = []
+    for key in FRICTION_DIRECTIONS:
+        try:
+            out.append(real(0.0)(v[key]))
+        except BadValue as bad:
+            raise BadValue(bad.reason, key) from None
+    return tuple(out)
+
+
+def largest_friction(mu) -> float:
+    """The largest coefficient of an obstacle's friction (friction_coefficients)."""
+    return max(mu) if isinstance(mu, tuple) else mu
+
+
 def refuse_unknown(table: dict, known: set[str], also=()) -> None:
     """BadValue naming the first key not in ``known`` (the message lists ``also``, keys
     checked before, as known too)."""
