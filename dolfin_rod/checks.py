@@ -241,6 +241,18 @@ def is_coordinate_axis(axis) -> bool:
 EQUILIBRIUM_NEEDS = ("the static problem needs an end whose rotation is held (clamped, or "
                      "a prescribed end rotation): otherwise the sections turn about their "
                      "tangents for free")
+# How a dynamic rod's accelerations start (initial.acceleration, StartingState.acceleration,
+# SecondOrderProblem.starting_accelerations): solved from the balance laws at t0 (friction
+# read at the first step's slip), or zero (a state known to be at rest).
+STARTING_ACCELERATIONS = ("balance", "zero")
+
+
+def one_of(name: str, value, options: tuple) -> None:
+    """ValueError naming ``name`` unless ``value`` is one of ``options``."""
+    if value not in options:
+        raise ValueError(f"{name} must be one of {', '.join(options)}, got {value!r}")
+
+
 # A starting polyline's length against the rod's (rod/start.py; a rod of 1 m: 1 um).
 LENGTH_RTOL = 1e-6
 
