@@ -250,6 +250,7 @@ def test_a_given_snes_atol_is_used_exactly_and_the_default_follows_the_forces():
     assert stepper.integrator.solver.snes.getTolerances()[1] == 1e-30
 
 
+@pytest.mark.mpi
 def test_a_hook_pushed_onto_its_column_in_large_load_steps_reaches_its_equilibrium(tmp_path):
     """Quasi-static self-contact (tests/test_kinked_contact.py's hook) in load steps of
     0.05 (to 0.4 N): the step on which the arm reaches the column starts with a segment
