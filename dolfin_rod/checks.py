@@ -241,6 +241,18 @@ def is_coordinate_axis(axis) -> bool:
 EQUILIBRIUM_NEEDS = ("the static problem needs an end whose rotation is held (clamped, or "
                      "a prescribed end rotation): otherwise the sections turn about their "
                      "tangents for free")
+# How a dynamic rod's accelerations start (initial.acceleration, StartingState.acceleration,
+# SecondOrderProblem.starting_accelerations): solved from the balance laws at t0 (friction
+# read at the first step's slip), or zero (a state known to be at rest).
+STARTING_ACCELERATIONS = ("balance", "zero")
+
+
+def one_of(name: str, value, options: tuple) -> None:
+    """ValueError naming ``name`` unless ``value`` is one of ``options``."""
+    if value not in options:
+        raise ValueError(f"{name} must be one of {', '.join(options)}, got {value!r}")
+
+
 # A starting polyline's length against the rod's (rod/start.py; a rod of 1 m: 1 um).
 LENGTH_RTOL = 1e-6
 
@@ -297,3 +309,24 @@ def spin_free(ends, end_rotation, end_turn, end_springs) -> bool:
     stress-free one r held (``spin_normal``)."""
     return tuple(ends) == ("pinned", "pinned") and not (end_rotation or end_turn
                                                           or end_springs)
+
+
+def welded_spin_end(rods, joint_kinds) -> tuple[int, str] | None:
+    """Where a system's free spin is held (rod index, end), or None: rods joined by
+    rigid joints only (``joint_kinds``; a rod split at its kinks: its corners) move as
+    one body, so with exactly two pinned ends among them, every other end free, and no
+    end rotation, turn or spring, turning the whole about the line through the pins
+    costs no energy, as spin_free's single rod (a welded column pinned at both ends):
+    the spin about d3 at the first pinned end is held (EndSupports, rod/
+    boundary_conditions.py).  ``rods``: each with ends, end_rotation, end_turn,
+    end_springs (rods.Rod)."""
+    if len(rods) < 2 or any(kind != "rigid" for kind in joint_kinds):
+        return None
+    if any(rod.end_rotation or rod.end_turn or rod.end_springs for rod in rods):
+        return None
+    ends = [(k, end, kind) for k, rod in enumerate(rods)
+            for end, kind in zip(("start", "end"), rod.ends)]
+    pinned = [(k, end) for k, end, kind in ends if kind == "pinned"]
+    if len(pinned) != 2 or any(kind not in ("pinned", "free") for _, _, kind in ends):
+        return None
+    return pinned[0]

@@ -111,7 +111,7 @@ def test_capstan_threshold_within_two_percent(mu):
 def test_capstan_holds_at_four_times_the_time_step(mu):
     """cosseratbench's variant time_step_scale = 4 of its capstan (overhang 0.8 h2*, the
     default; dt = 0.017 s, 0.020 s): the rope held at rest from its start
-    (adapters/cosseratbench.start_at_rest) holds, slide < 2e-3 L (measured 3.9e-4 m,
+    (adapters/cosseratbench.held_at_rest: zero starting accelerations) holds, slide < 2e-3 L (measured 3.9e-4 m,
     1.07e-3 m; L = 0.70, 1.37 m).  From the frictionless initial acceleration the rope
     at mu = 0.3 slid 8.2 mm in its first 0.2 s (1.2e-2 L) and at mu = 0.6 the first
     step failed after 7 cuts."""

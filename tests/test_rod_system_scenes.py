@@ -67,6 +67,10 @@ def test_frame_scene_is_the_api_frame():
     (("boundary = { start = \"free\" }", "boundary = { start = \"free\" }\n"
       "material = { model = \"evolving\" }"), "rods[1].material.model"),
     (("name = \"beam\"", "name = \"column\""), "rods[1].name"),
+    # the column pinned at the floor: no rotation held anywhere (check said OK, run
+    # refused it naming scene.model: "joints need rotation-vector unknowns ...")
+    (("boundary = { start = \"clamped\" }", "boundary = { start = \"pinned\" }"),
+     "rods[0].boundary.start"),
 ])
 def test_bad_system_keys_are_named(change, key):
     with pytest.raises(SceneError) as err:

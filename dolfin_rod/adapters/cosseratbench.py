@@ -37,7 +37,8 @@ scores dolfin_rod next to PyElastica and MuJoCo.  How a scenario is mapped:
   (scenes/contact.py's choices) and FRICTION_STEPS times more steps; a quasi-static
   rod that starts on an obstacle with friction (the capstan's rope), or rods that start
   within reach of each other (the crossing's), start with zero accelerations
-  (``held_at_rest``, ``start_at_rest``);
+  (``held_at_rest``: the starting state's ``acceleration = "zero"``, a scene's
+  ``initial.acceleration``);
 - a driven end's Motion (piecewise linear) turns at a step's end, never inside a step
   (``pieces``: the pile's feeding clamp stopping);
 - dynamics: generalized-alpha on the rotation group (dolfin_rod's default), at most
@@ -55,6 +56,7 @@ contact law per model).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from cosseratbench.scenario import End, EndCondition, Motion, Rod, Scenario
@@ -438,10 +440,10 @@ def run_model(scenario: Scenario, built, times: np.ndarray, dt: float) -> list:
     from ..integrators.choice import TimeStepper
     model, start = built
     model.set_initial_state(start=start)
+    if held_at_rest(scenario, model):
+        model.set_initial_state(start=at_rest(start))
     scheme = "generalized_alpha:0.0" if in_contact(scenario) else None
     stepper = TimeStepper(model.problem, scheme, solver_options(scenario))
-    if held_at_rest(scenario, model):
-        start_at_rest(stepper, float(times[0]))
     frames = [frame(model)]
     knots = motion_knots(scenario)
     try:
@@ -496,18 +498,20 @@ def held_at_rest(scenario: Scenario, model) -> bool:
     return model.diagnostics(0.0)["min_gap"] < model.contact.law.gap
 
 
-def start_at_rest(stepper, t0: float) -> None:
-    """The integrator started at t0 with zero accelerations (a rod ``held_at_rest``).
-    The smoothed friction law carries no force at zero slip, so the accelerations solved
-    at t0 are the frictionless ones (the capstan's heavy side falling at ~g (h2 - h1) /
-    L); generalized-alpha (rho_inf = 0) carries them into the first steps' velocities,
-    which friction reads as slip: the rope at mu = 0.3, 0.8 h2* slid 8.2 mm at
-    cosseratbench's time_step_scale 4 (0.39 mm from rest), at mu = 0.6 the first step
-    failed (docs/contact.md), and every capstan run cut its first steps 3-11 times."""
-    stepper.initial_accelerations(t0)
-    for name, f in stepper.checkpoint_state()["functions"].items():
-        if name.startswith(("acceleration_", "algorithmic_")):
-            f.x.array[:] = 0.0
+def at_rest(start):
+    """The starting state(s) ``start`` (a StartingState, or {rod name: StartingState})
+    with zero accelerations (a rod ``held_at_rest``).  Solved from the balance laws, the
+    starting accelerations are those of a start that is not the discrete equilibrium
+    (the capstan's hanging rope starts unstretched, the crossing's ropes
+    2.2e6 rad/s^2 and 583 m/s^2 at 27 elements); generalized-alpha (rho_inf = 0) carries
+    them into the first steps' velocities, which friction reads as slip: the rope at
+    mu = 0.3, 0.8 h2* slid 8.2 mm at cosseratbench's time_step_scale 4 (7.1 mm with
+    friction read at the first step's slip, the default start; 0.39 mm from rest), at
+    mu = 0.6 the first step failed (docs/contact.md), and every capstan run cut its first
+    steps 3-11 times."""
+    if isinstance(start, dict):
+        return {name: replace(one, acceleration="zero") for name, one in start.items()}
+    return replace(start, acceleration="zero")
 
 
 def frame(model) -> list[tuple[np.ndarray, np.ndarray]]:

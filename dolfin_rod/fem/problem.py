@@ -16,6 +16,8 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
+from ..checks import STARTING_ACCELERATIONS, one_of
+
 
 @dataclass
 class TimeDependentValue:
@@ -123,6 +125,21 @@ class SecondOrderProblem(SemiDiscreteProblem):
                    Dirichlet values.
     motion_turn:   t -> the largest angle (rad) by which the prescribed motions turn an
                    end at t (the number of the consistent start's parts grows with it).
+    starting_accelerations: how the integrator starts the second-order blocks:
+                   "balance" (solved from the residual at t0) or "zero" (the state given
+                   is at rest: zero accelerations; STARTING_ACCELERATIONS).
+    friction_lookahead: a Constant tau (0) in the residual, or None: friction reads the
+                   velocity v + tau a there.  The regularised friction law exerts no force
+                   at zero slip, so the accelerations solved at t0 from a state at rest
+                   would be frictionless; the rotation-group integrator sets tau to the
+                   first step while it solves them (friction then reads the slip that
+                   the first step would make: a rod held by friction starts held, one
+                   sliding starts at Coulomb's force), and back to 0.
+    rest_in_contact: solve -> None, called after the starting accelerations are solved:
+                   moves what starts at rest within a contact barrier to where the barrier
+                   carries it (a rod's ObstacleContact.rest_on_barriers), calling
+                   ``solve()`` (the integrator's: the accelerations solved again at the
+                   moved state) after each move; None: nothing to move.
     """
 
     accelerations: list[fem.Function] = field(default_factory=list)
@@ -131,9 +148,13 @@ class SecondOrderProblem(SemiDiscreteProblem):
     error_scales: list[float] = field(default_factory=list)
     scale_motions: Callable[[float], None] | None = None
     motion_turn: Callable[[float], float] | None = None
+    starting_accelerations: str = "balance"
+    friction_lookahead: fem.Constant | None = None
+    rest_in_contact: Callable[[Callable[[], None]], None] | None = None
 
     def __post_init__(self):
         super().__post_init__()
+        one_of("starting_accelerations", self.starting_accelerations, STARTING_ACCELERATIONS)
         for name in ("accelerations", "time_orders", "error_scales"):
             given = getattr(self, name)
             if given and len(given) != len(self.fields):

@@ -337,13 +337,21 @@ class LieGeneralizedAlpha:
                                              terms=self.problem.terms,
                                              force_scale=self.problem.force_scale)
 
-    def initial_accelerations(self, t0: float) -> None:
+    def initial_accelerations(self, t0: float, first_step: float | None = None) -> None:
         """Solve the residual at t0 for the accelerations (second order) and rates (first
         order), zero at the Dirichlet dofs (the rod starts at rest,
         rod/boundary_conditions.py), with the differential state fixed and the algebraic
         blocks (order 0) solved with them at their prescribed values (_start_algebraic
-        then commits them).  A failed start (no step can be cut at t0) is an
-        IntegrationError, the fields as they were given."""
+        then commits them); what starts at rest within a contact barrier is moved to
+        where the barrier carries it, the accelerations solved again after each move
+        (problem.rest_in_contact, given _solve_from_rest).  Friction
+        (problem.friction_lookahead) reads the slip the ``first_step`` would make,
+        v0 + h a0 (with None: v0, where the regularised law exerts no force: a rod at rest
+        then starts frictionless).  With
+        problem.starting_accelerations "zero" the second-order blocks' accelerations are
+        then set to 0 (a state at rest; the first-order rates and algebraic blocks as
+        solved).  A failed start (no step can be cut at t0) is an IntegrationError, the
+        fields as they were given."""
         p = self.problem
         p.set_loads(t0)
         p.set_bcs(t0)
@@ -357,8 +365,13 @@ class LieGeneralizedAlpha:
         initial = [f.x.array.copy() for f in p.fields]
         for bc in zeroed:
             bc.g.value[...] = 0.0
+        lookahead = p.friction_lookahead if first_step is not None else None
+        if lookahead is not None:
+            lookahead.value = first_step
         try:
             self._initial_solver.solve()
+            if p.rest_in_contact is not None:
+                p.rest_in_contact(self._solve_from_rest)
             if 0 in self.order:
                 self._start_algebraic(t0)
         except (SolverError, IntegrationError) as err:
@@ -373,10 +386,23 @@ class LieGeneralizedAlpha:
         finally:
             for bc, value in zip(zeroed, values):
                 bc.g.value[...] = value
+            if lookahead is not None:
+                lookahead.value = 0.0
         for i, a in enumerate(self._unknowns_at_start()):
+            if self.order[i] == 2 and p.starting_accelerations == "zero":
+                a.x.array[:] = 0.0
             if self.order[i]:
                 self.alg_n[i].x.array[:] = a.x.array
         self._started = True
+
+    def _solve_from_rest(self) -> None:
+        """The start's accelerations solved again (problem.rest_in_contact moved the
+        state), Newton from zero accelerations as the first solve (friction's sticking
+        branch: from the last, sliding, answer it stalls)."""
+        for a, k in zip(self._unknowns_at_start(), self.order):
+            if k == 2:
+                a.x.array[:] = 0.0
+        self._initial_solver.solve()
 
     def _displaced(self) -> bool:
         """Whether a Dirichlet value of a second-order block at the time set differs from
@@ -483,13 +509,14 @@ class LieGeneralizedAlpha:
         most ``max_cuts`` times in a row.  IntegrationError when that is exhausted, the
         last accepted state kept."""
         check_run(t0, t_end, dt, self.problem, adaptive=self.control is not None)
+        first = (self.control.limited(self.next_dt or dt) if self.control is not None
+                 else (t_end - t0) / nominal_steps(t0, t_end, dt))
         if not self._started:
-            self.initial_accelerations(t0)
+            self.initial_accelerations(t0, min(first, t_end - t0))
         if observer:
             observer(t0, self)
         if self.control is not None:
-            return self._run_adaptive(t0, t_end, self.control.limited(self.next_dt or dt),
-                                      observer)
+            return self._run_adaptive(t0, t_end, first, observer)
         n = nominal_steps(t0, t_end, dt)
         h = (t_end - t0) / n
         for k in range(n):
@@ -553,7 +580,7 @@ class LieGeneralizedAlpha:
         """One step from t to t + h; raises SolverError (state restored)."""
         p = self.problem
         if not self._started:
-            self.initial_accelerations(t)
+            self.initial_accelerations(t, h)
         fresh, self._dt_last = h != self._dt_last, h
         if fresh:           # (only this method sets it; a Constant's value costs ~3 us)
             self.dt.value = h

@@ -51,7 +51,7 @@ import numpy as np
 import ufl
 
 from .. import loads
-from ..checks import is_coordinate_axis, slide_axis_problem, spin_free
+from ..checks import is_coordinate_axis, slide_axis_problem, spin_free, welded_spin_end
 from ..fem import form_cache
 from ..fem.fe_model import ENDS, NodeValues, compiled_near_nodes, nodal_residual
 from ..fem.multipoint import NodeLine, NodePlane
@@ -189,11 +189,13 @@ class EndSupports:
     Rotation vectors (discretisation.py): a clamped or rotated end holds theta_end =
     c^-1(conj(q_n,end) q_end(t)), with q_n,end = q_end(t_n) the end's rotation at the
     last accepted step t_n (``commit``; before the first, its initial rotation: a motion
-    may jump at t0 in a quasi-static rod), so that q_n,end c(theta_end) = q_end(t)."""
+    may jump at t0 in a quasi-static rod), so that q_n,end c(theta_end) = q_end(t).
+    A free spin (spin_free: both ends pinned; ``spin_at``: the end of a rod of a welded
+    system pinned at two ends, checks.welded_spin_end) is held about d3 at that end."""
 
     def __init__(self, model, ends, end_displacement, end_rotation, end_slide,
                  span: tuple[float, float], end_springs=None, end_turn=None,
-                 end_frames: dict | None = None):
+                 end_frames: dict | None = None, spin_at: str | None = None):
         self.ends = tuple(ends)
         self.turn = {end: np.asarray(a, float) for end, a in (end_turn or {}).items()}
         self.linked = linked_axes(end_slide, end_turn, end_frames or {})
@@ -243,12 +245,15 @@ class EndSupports:
                 model.dirichlet_at(block, spaces[block], self.s_ends[end], const)
         self.spin_plane = None      # quaternions: the start's twist held (``links``)
         if not model.dynamic and spin_free(ends, self.rotation, self.turn, self.springs):
+            spin_at = "start"
+        self.spin_at = spin_at
+        if spin_at is not None:
             if "rotation_increment" in spaces:      # quasi-static: a null mode
-                model.dirichlet_at(self.block, spaces[self.block], self.s_ends["start"],
+                model.dirichlet_at(self.block, spaces[self.block], self.s_ends[spin_at],
                                    fem.Constant(mesh, 0.0), component=2)
             else:
                 self.spin_plane = spin_normal(np.asarray((end_frames or {}).get(
-                    "start", _IDENTITY), float))
+                    spin_at, _IDENTITY), float))
         unk = model.unknowns     # a turning end's rotation (reactions): nodal values
         self._rotations = unk.f["quaternion"] if unk.chart is None else unk.chart.q_n
         self._turned = {end: NodeValues(self._rotations.function_space, [self.s_ends[end]])
@@ -276,7 +281,7 @@ class EndSupports:
                  for (block, end), axis in self.linked.items()]
         if self.spin_plane is None:
             return lines
-        return lines + [NodePlane(blocks.index("quaternion"), self.s_ends["start"],
+        return lines + [NodePlane(blocks.index("quaternion"), self.s_ends[self.spin_at],
                                   tuple(self.spin_plane.tolist()))]
 
     def _end_rotation(self, end: str, t: float) -> np.ndarray:

@@ -247,6 +247,22 @@ def barrier(g, delta):
                                       ufl.conditional(ufl.ge(xi, XI_MIN), exact, taylor))
 
 
+REST_TOLERANCE = 1e-6     # rest_on_barriers: a move below 1e-6 delta is none
+REST_PASSES = 40          # ... at most (each halves the imbalance of a rod lying flat)
+
+
+def carrying_gap(load, delta: float) -> np.ndarray:
+    """The gaps g in (XI_MIN delta, delta) at which the barrier's force per length per
+    stiffness, -b'(g), is ``load`` (> 0; numpy): -b' decreases from XI_MIN delta to 0 at
+    delta, so bisection on xi = g / delta (60 halvings: to round-off)."""
+    lo, hi = np.full(np.shape(load), XI_MIN), np.ones(np.shape(load))
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        above = -barrier_derivatives(mid * delta, delta)[1] > load
+        lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
+    return 0.5 * (lo + hi) * delta
+
+
 def mollifier(y2, ops: Ops = UFL_OPS):
     """phi(y) / y of the friction law at y^2 = (|v_t| / eps)^2: 3/2 - y^2/2 for y < 1, 1/y
     beyond (only y^2 enters below 1: smooth at rest); UFL, or numpy with NP_OPS (segment
@@ -259,12 +275,16 @@ class ObstacleContact:
 
     disc: the rod's discretisation (1-point rule dx_r), x: the displacement (P1), xt its
     test function, V the centre line's velocity (P1; None: quasi-static, no friction),
-    spin the rotation's terms (Spin; with V).
+    spin the rotation's terms (Spin; with V), ``accelerations`` those of V and of the
+    spin's W (rotation vectors) or None: with friction, the friction then reads the
+    velocities V + tau dV/dt, W + tau dW/dt, tau the Constant ``lookahead`` (0; the
+    integrator's first step while it solves for the starting accelerations:
+    fem/problem.SecondOrderProblem.friction_lookahead).
     The barrier of the obstacles ``on_segments`` (``segment_obstacles``) acts on the
     segments (obstacle_segments.py), not in these forms; the checks cover every one."""
 
     def __init__(self, obstacles: Sequence[Obstacle], law: ContactLaw, disc, x, V,
-                 spin: Spin | None = None):
+                 spin: Spin | None = None, accelerations: tuple | None = None):
         check_contact(obstacles, law)
         self.obstacles, self.law, self.x = list(obstacles), law, x
         self.mesh, self.dx_r = disc.mesh, disc.dx_r
@@ -308,6 +328,14 @@ class ObstacleContact:
         if self.V is not None and spin is None:
             raise ValueError("obstacle friction acts at the rod's surface: it needs the "
                              "rotation's terms (spin)")
+        self.lookahead = None
+        self.velocity, self.acceleration = V, None if accelerations is None else \
+            accelerations[0]                # (the start's rest_on_barriers)
+        if self.V is not None and accelerations is not None:
+            self.lookahead = tau = fem.Constant(self.mesh, 0.0)
+            A, alpha = accelerations
+            self.V = self.V + tau * A
+            self.spin = Spin(spin.q, spin.W + tau * alpha, spin.dTheta, spin.block)
         # the P1 data of the rotation's terms, at the nodes as the fields are (_nodal)
         self._spin_fields = [] if self.spin is None else [
             f for f in extract_coefficients(
@@ -477,6 +505,55 @@ class ObstacleContact:
         if g <= 0:
             raise InitialOverlap.at("centre line", s, g, k, self.law.gap,
                                     self.obstacles[k].shape)
+
+    def rest_on_barriers(self, mass: np.ndarray) -> tuple[float, float]:
+        """One pass of the start's rest on the barriers, its accelerations solved: each
+        owned node at rest within the barrier of a nodal obstacle (0 < g < delta; the
+        nearest one) moved along the obstacle's normal n towards the gap at which the
+        barrier carries what presses the node there, so that a rod laid at rest anywhere
+        within the barrier rests on it instead of being thrown off (the default
+        stiffness follows 1 / dt^2: at dt = 1e-3 the barrier at delta / 2 pushes with 19
+        times the weight; docs/contact.md).  The barrier's force per length
+        lambda = -kappa b'(g) is corrected by half the node's normal imbalance,
+        lambda - rho_A (a . n) / 2 (``mass``: rho_A at the owned nodes; half: the
+        consistent mass answers a node's own force by up to 3 times the lumped mass's
+        acceleration), and the gap follows it (-b' decreases on (0, delta)); a node that
+        nothing presses in (lambda <= 0) goes to delta, out of reach; one the barrier
+        cannot carry above XI_MIN delta stays.  (The largest move / delta, the largest
+        normal imbalance rho_A |a . n| of those nodes), over all ranks."""
+        move = imbalance = 0.0
+        if self.nodal and self.acceleration is not None:
+            points, delta, kappa = self._positions(), self.law.gap, self.law.stiffness
+            nodal = [self.numbers[k] for k in self.nodal]
+            g = obstacle_gaps(nodal, points, self.law.radius)
+            k = np.argmin(g, axis=1)
+            gap = g[np.arange(len(k)), k]
+            n = self._normals(nodal, points, k)
+            owned = 3 * self._owned
+            a = self.acceleration.x.array[:owned].reshape(-1, 3)
+            v = self.velocity.x.array[:owned].reshape(-1, 3)
+            a_n = np.einsum("ij,ij->i", a, n)
+            lam = kappa * -barrier_derivatives(gap, delta)[1] - 0.5 * mass * a_n
+            most = kappa * -barrier_derivatives(XI_MIN * delta, delta)[1]
+            rest = (gap > 0) & (gap < delta) & ~np.any(v, axis=1) & (a_n != 0) & (lam < most)
+            target = np.where(lam > 0, carrying_gap(np.maximum(lam, 0.0) / kappa, delta),
+                              delta)
+            step = np.where(rest, target - gap, 0.0)
+            self.x.x.array[:owned] += (step[:, None] * n).ravel()
+            self.x.x.scatter_forward()
+            move = float(np.max(np.abs(step), initial=0.0)) / delta
+            imbalance = float(np.max(np.where(rest, np.abs(mass * a_n), 0.0), initial=0.0))
+        comm = self.mesh.comm
+        return comm.allreduce(move, op=MPI.MAX), comm.allreduce(imbalance, op=MPI.MAX)
+
+    def _normals(self, poses, points: np.ndarray, nearest: np.ndarray) -> np.ndarray:
+        """(nodes, 3) the outward normal of obstacle poses[nearest[i]] at points[i]: the
+        gradient of its signed distance (central differences, a 1e-7 r step)."""
+        step = 1e-7 * self.law.radius
+        rows = np.arange(len(points))
+        return np.stack([(obstacle_gaps(poses, points + step * e, 0.0)[rows, nearest]
+                          - obstacle_gaps(poses, points - step * e, 0.0)[rows, nearest])
+                         / (2 * step) for e in np.eye(3)], axis=1)
 
     def check_state(self, prescribed: dict[float, str] | None = None) -> str | None:
         """A reason to reject a converged step: a node at or inside an obstacle, or a

@@ -38,9 +38,10 @@ from ..mpi import largest_on_ranks
 from ..theory.rotations import np_qmul, np_rotation_matrix, rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
 from . import diagnostics, external_forces, initial_state, residual
-from .boundary_conditions import EndSupports, linked_axes, spin_free
+from .boundary_conditions import EndSupports, linked_axes, spin_free, welded_spin_end
 from .constitutive import check_model, energy_function, section_response
-from .contact import ContactLaw, InitialOverlap, Obstacle, ObstacleContact, Spin, check_contact
+from .contact import (REST_PASSES, REST_TOLERANCE, ContactLaw, InitialOverlap, Obstacle,
+                      ObstacleContact, Spin, check_contact)
 from .discretisation import discretise, function_spaces, unknowns
 from .external_forces import DistributedLoad, EndLoad, PointLoad
 from .force_scale import ForceScale
@@ -164,6 +165,9 @@ class RodModel(FEModel):
         rod with corners in its stress-free polyline as the pieces between them, joined
         rigidly (kinks.py)."""
         joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
+        # rods welded into one body, pinned at two ends: its spin held (welded_spin_end)
+        self.welded_spin = None if self.dynamic else welded_spin_end(
+            self.rods, [joint.kind for joint in joints])
         self.rotations = self._rotation_unknowns(rotations, joints)
         disc = discretise(comm, self.layout, self.rotations)
         super().__init__(disc.mesh)
@@ -253,12 +257,12 @@ class RodModel(FEModel):
             rotary_inertia=not any(any(map(is_zero, p.section_inertia)) for p in all_params),
             rate_dependent=not all(is_zero(v) for p in all_params for v in (
                 p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
-            rotation_held=any("clamped" in rod.ends or bool(rod.end_rotation)
-                              or spin_free(rod.ends, rod.end_rotation, rod.end_turn,
-                                           rod.end_springs)
-                              or any(np.all(spring.stiffness("rotational"))
-                                     for spring in (rod.end_springs or {}).values())
-                              for rod in rods))
+            rotation_held=self.welded_spin is not None or any(
+                "clamped" in rod.ends or bool(rod.end_rotation)
+                or spin_free(rod.ends, rod.end_rotation, rod.end_turn, rod.end_springs)
+                or any(np.all(spring.stiffness("rotational"))
+                       for spring in (rod.end_springs or {}).values())
+                for rod in rods))
         # an oblique slide is a line of the position (and velocity) with any unknowns; an
         # oblique turn a line of the rotation increment: rotation vectors only (with
         # quaternions it holds q in a plane, span(q_0, q_0 (0, a)), not a line)
@@ -436,9 +440,11 @@ class RodModel(FEModel):
 
     def _end_supports(self) -> None:
         """Every rod's end supports (their Dirichlet conditions and Constants)."""
+        held = self.welded_spin
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
-                                         rod.end_springs, rod.end_turn, end_frames(rod))
+                                         rod.end_springs, rod.end_turn, end_frames(rod),
+                                         spin_at=held[1] if held and held[0] == k else None)
                              for k, rod in enumerate(self.rods)]
 
     def _spring_terms(self, disc):
@@ -569,7 +575,9 @@ class RodModel(FEModel):
         return ObstacleContact(obstacles, law, disc, unk.f["displacement"],
                                unk.V if self.dynamic else None,
                                Spin(unk.q, unk.W, unk.dTheta, unk.rotation)
-                               if self.dynamic else None)
+                               if self.dynamic else None,
+                               (unk.acc["displacement"], unk.acc[unk.rotation])
+                               if unk.acc else None)
 
     @property
     def supports(self) -> EndSupports:
@@ -601,11 +609,50 @@ class RodModel(FEModel):
                          for n in self.names], lie_group=True,
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
             links=links, terms=terms, scale_motions=self.scale_motions,
-            motion_turn=self.motion_turn, where_failed=where, force_scale=scale)
+            motion_turn=self.motion_turn, where_failed=where, force_scale=scale,
+            friction_lookahead=self.contact.lookahead if self.contact else None,
+            rest_in_contact=self._rest_on_obstacles if self.contact and self.dynamic
+            else None)
 
     def force_scale_now(self) -> float:
         """The size of the forces (force_scale.py) at the time of the supports' values."""
         return self.force_scale(self.end_supports[0].time_set)
+
+    def _rest_on_obstacles(self, solve) -> None:
+        """The start's rest of nodes laid within an obstacle's barrier
+        (SecondOrderProblem.rest_in_contact): passes of ObstacleContact.rest_on_barriers
+        (rho_A at the owned nodes), the starting accelerations solved again by ``solve``
+        after each, until no node moves by REST_TOLERANCE delta.  Where the passes do not
+        settle it (the imbalance grows: a node held near a support, whose bending answers
+        a move more stiffly than the barrier; or REST_PASSES run out) the rod starts where
+        it was given.  The friction's lagged normal forces and the path check's points
+        follow the state."""
+        x = self.unknowns.f["displacement"]
+        owned = x.function_space.dofmap.index_map.size_local
+        s = x.function_space.tabulate_dof_coordinates()[:owned, 0]
+        rod_of, mass = self.layout.rod_of(s), np.zeros(len(s))
+        for k, rod in enumerate(self.rods):
+            on = rod_of == k
+            rho = rod.params.density
+            mass[on] = rho(s[on] - self.layout.starts[k]) if callable(rho) else rho
+        given, before = x.x.array.copy(), math.inf
+        for _ in range(REST_PASSES):
+            move, imbalance = self.contact.rest_on_barriers(mass)
+            if move <= REST_TOLERANCE or not imbalance <= before:
+                break
+            before = imbalance
+            self._contact_state_moved()
+            solve()
+        else:
+            move = math.inf
+        if move > REST_TOLERANCE:       # not settled: the start as given
+            x.x.array[:] = given
+            self._contact_state_moved()
+            solve()
+
+    def _contact_state_moved(self) -> None:
+        self.contact.update_normal_forces()
+        self.contact.commit()
 
     def where_failed(self) -> str | None:
         """Where a step that finally failed went wrong (step_control.step_failure): the
@@ -759,6 +806,7 @@ class RodModel(FEModel):
             start = system_starts(start, self.splits)
             check_joints_at_start(self.rods, self.joints, start)
             start = RodStarts(start, self.rods, self.layout)
+        self._starting_accelerations("balance" if start is None else start.acceleration)
         initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
         self.problem.unset_state = ""
         if self.contact:
@@ -776,6 +824,16 @@ class RodModel(FEModel):
             if overlap:
                 raise overlap
             self.segment_contact.commit()
+
+    def _starting_accelerations(self, how: str) -> None:
+        """The integrator's start (StartingState.acceleration) on the problem; "zero"
+        needs accelerations (rotation vectors: generalized-alpha starts from them)."""
+        if isinstance(self.problem, SecondOrderProblem):
+            self.problem.starting_accelerations = how
+        elif how != "balance":
+            raise ValueError(f"start.acceleration = {how!r}: a rod with quaternion unknowns "
+                             "has no starting accelerations (its schemes start from the "
+                             "state alone); use rotation vectors (rotations='auto')")
 
     def diagnostics(self, t: float) -> dict[str, float]:
         """MPI-reduced scalars at time t: tip position and quaternion, tip rotation angle

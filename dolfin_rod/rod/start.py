@@ -26,7 +26,16 @@ dynamics, the positions and rotations are solved for static equilibrium with the
 loads at t = 0 (natural strains kept), from the starting shape (quasi-static
 pre-loading); a rod with a clamped end or a prescribed end rotation only (with pinned
 or free ends alone the sections turn about their tangents for free).
+
+``acceleration`` (dynamic rods with rotation vectors, advanced by generalized-alpha,
+which starts from the accelerations at t = 0): "balance" (the default) solves them from
+the balance laws at t = 0, friction read at the slip velocity v + h a that the first
+step h would reach (the regularised law exerts no force at rest: read at rest, a rod
+held by friction would start frictionless); "zero" starts them at 0, for a state known
+to be at rest although its discrete balance is not exactly met (a rope laid over others
+at rest: its start's imbalance is not carried into the first steps' velocities).
 """
+
 
 from __future__ import annotations
 
@@ -35,7 +44,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..checks import EQUILIBRIUM_NEEDS, polyline_problem
+from ..checks import EQUILIBRIUM_NEEDS, STARTING_ACCELERATIONS, one_of, polyline_problem
 from ..theory.quaternions import (np_qmul, np_quaternion_from_matrix,
                                   np_quaternion_from_rotation_vector, np_rotation_matrix)
 from .placement import helix, place, shape as stress_free_shape
@@ -171,6 +180,7 @@ class StartingState:
     angular_velocity: Field = (0.0, 0.0, 0.0)
     rotation_centre: tuple | None = None
     equilibrium: bool = False
+    acceleration: str = "balance"
 
     @property
     def moving(self) -> bool:
@@ -208,6 +218,9 @@ class RodStarts:
         self.starts, self.rods, self.layout = dict(starts), list(rods), layout
         self.moving = any(start.moving for start in self.starts.values())
         self.equilibrium = any(start.equilibrium for start in self.starts.values())
+        # one way for the system (check_rod_starts refuses starts that differ)
+        self.acceleration = ("zero" if any(start.acceleration == "zero"
+                                           for start in self.starts.values()) else "balance")
 
     def rod_state(self, rod, own) -> tuple[np.ndarray, ...]:
         """(r, q, v, w) of ``rod`` (rods.Rod) at its own nodes' arc lengths ``own``."""
@@ -252,6 +265,11 @@ def check_rod_starts(starts: dict, rods, dynamic: bool, rotation_held: bool) -> 
             check_start(starts.get(rod.name), rod.params.length, dynamic, rotation_held)
         except ValueError as err:
             raise ValueError(f"start[{rod.name!r}]" + str(err).removeprefix("start")) from err
+    asked = {name: start.acceleration for name, start in starts.items()}
+    if len(set(asked.values())) > 1:
+        name = next(n for n, a in asked.items() if a != next(iter(asked.values())))
+        raise ValueError(f"start[{name!r}].acceleration: the rods of a system start their "
+                         f"accelerations one way (one integrator), got {asked}")
 
 
 def _field(value: Field, s) -> np.ndarray:
@@ -268,12 +286,14 @@ def check_start(start: StartingState | None, length: float, dynamic: bool,
         return
     if start.equilibrium and not rotation_held:
         raise ValueError(f"start.equilibrium: {EQUILIBRIUM_NEEDS}")
+    one_of("start.acceleration", start.acceleration, STARTING_ACCELERATIONS)
     for name in ("position", "orientation"):
         _vector(f"start.{name}", getattr(start, name))
     if start.rotation_centre is not None:
         _vector("start.rotation_centre", start.rotation_centre)
-    if not dynamic and (start.moving or start.equilibrium):
-        name = "equilibrium" if start.equilibrium else "velocity"
+    if not dynamic and (start.moving or start.equilibrium or start.acceleration == "zero"):
+        name = ("equilibrium" if start.equilibrium else "velocity" if start.moving
+                else "acceleration")
         raise ValueError(f"start.{name}: the rod is quasi-static (density = 0): it has no "
                          "velocities and is in equilibrium at every step")
     problem = shape_problem(start.shape, length)

@@ -357,7 +357,8 @@ def starting_state(scene: Scene):
         shape=curve(ini["shape"]), position=ini["position"] or zero,
         orientation=ini["orientation"] or zero, velocity=ini["velocity"] or zero,
         angular_velocity=ini["angular_velocity"] or zero,
-        rotation_centre=ini["rotation_centre"], equilibrium=ini["equilibrium"])
+        rotation_centre=ini["rotation_centre"], equilibrium=ini["equilibrium"],
+        acceleration=ini["acceleration"])
 
 
 def rod_arguments(scene: Scene) -> dict:

@@ -24,7 +24,7 @@ from .values import BadValue, Coefficient, load_entry_point
 
 # the rod's starting state (rod/start.py) in [initial]
 START_KEYS = ("position", "orientation", "shape", "velocity", "angular_velocity",
-              "rotation_centre", "equilibrium")
+              "rotation_centre", "equilibrium", "acceleration")
 TORSION_KEYS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 # keys of one model family only: (table, key) -> the family that reads it
 TORSION_ONLY = {("material", k) for k in TORSION_KEYS} | {
@@ -411,6 +411,12 @@ def _check_rod_start(scene: Scene) -> None:
             if ini[k]:
                 raise err(f"initial.{k}", "a quasi-static rod (density 0) has no velocities "
                                           "and is in equilibrium at every step")
+    if ini["acceleration"] != "balance" and (not scene["material"]["dynamic"]
+                                             or rod_rotations(scene) != "rotation_vector"):
+        raise err("initial.acceleration", "applies to dynamic rods with rotation-vector "
+                                          "unknowns (generalized-alpha starts from the "
+                                          "accelerations; quasi-static rods and quaternions' "
+                                          "schemes start from the state alone)")
     bnd = scene["boundary"]
     if ini["equilibrium"] and not any(bnd[end] == "clamped" or bnd[f"{end}_rotation"]
                                       for end in ("start", "end")):

@@ -28,7 +28,8 @@ from typing import Any, Callable
 
 from ..checks import (DEGREE, MAX_STEP_CUTS, MIN_LENGTH, N_CELLS, NEWTON_ATOL,
                       NEWTON_FORCE_TOL, NEWTON_RTOL, ODE_SOLUTION, PREDICTOR, ROD_MODEL,
-                      ROTATION_UNKNOWNS, SCENE_BYTES, SCHEME, TS_ATOL, TS_RTOL, VARIANT,
+                      ROTATION_UNKNOWNS, SCENE_BYTES, SCHEME, STARTING_ACCELERATIONS, TS_ATOL,
+                      TS_RTOL, VARIANT,
                       read_regular_file)
 from ..rod.rotation_choice import ROTATIONS
 from ..rod.sections import SHAPES as SECTION_SHAPES
@@ -301,6 +302,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
                            "rotations in static equilibrium with the loads at t = 0 from "
                            "the starting shape before the dynamics (quasi-static "
                            "pre-loading; natural strains kept)"),
+        "acceleration": Key(choice(*STARTING_ACCELERATIONS), "balance",
+                            R + "dynamic rods with rotation vectors: the accelerations the "
+                            "first step starts from: balance (solved from the balance laws "
+                            "at t = 0, friction read at the slip the first step would make: "
+                            "a rod at rest held by friction starts held, one sliding starts "
+                            "at Coulomb's force) | zero (a state known to be at rest whose "
+                            "discrete balance is not exactly met: its imbalance is not "
+                            "carried into the first steps' velocities; docs/contact.md)"),
         "from_run": Key(path_text, None, "start from the state a previous run saved (its "
                         "run folder, with outputs.final_checkpoint or checkpoint_every): positions, "
                         "rotations, velocities, natural strains (docs/scenes.md, \"Starting "

@@ -29,6 +29,8 @@ import copy
 from dataclasses import dataclass
 from typing import Any, Callable
 
+import numpy as np
+
 from .scene import Scene, SceneError
 from .values import BadValue, choice, run_name, string, type_name, vector3
 
@@ -88,7 +90,41 @@ def validate_system(raw: dict, source: str, default_name: str,
     scene.rods, scene.joints = rods, joint_entries
     _check_continuation(scene)
     _check_joint_points(scene)
+    _check_rotation_held(scene)
     return scene
+
+
+def _check_rotation_held(scene: Scene) -> None:
+    """A quasi-static system with joints holds a rotation somewhere, as the model needs
+    (rod/model.py: joints take rotation-vector unknowns, whose quasi-static rod needs an
+    end holding its rotation, a pinned-pinned rod's spin or a welded body's,
+    checks.spin_free, welded_spin_end): else run refused it after check said OK."""
+    from types import SimpleNamespace
+
+    from ..checks import spin_free, welded_spin_end
+    if not scene.joints or scene["material"]["dynamic"]:
+        return
+    rods = []
+    for entry in scene.rods:
+        bnd = entry.scene["boundary"]
+        given = [{end: bnd[f"{end}_{key}"] for end in ("start", "end") if bnd[f"{end}_{key}"]}
+                 for key in ("rotation", "turn", "spring")]
+        springs = [np.broadcast_to(spring.get("rotational", 0.0), 3)
+                   for spring in given[2].values()]
+        rods.append(SimpleNamespace(ends=(bnd["start"], bnd["end"]), end_rotation=given[0],
+                                    end_turn=given[1], end_springs=given[2],
+                                    held="clamped" in (bnd["start"], bnd["end"]) or bool(
+                                        given[0]) or spin_free((bnd["start"], bnd["end"]),
+                                                               *given)
+                                    or any(np.all(k) for k in springs)))
+    if any(rod.held for rod in rods) or welded_spin_end(
+            rods, [joint.kind for joint in scene.joints]) is not None:
+        return
+    raise SceneError(scene.source, "rods[0].boundary.start", "a quasi-static system with "
+                     "joints needs a rotation held somewhere: a clamped end, an end "
+                     "rotation or rotational spring, a rod pinned at both ends, or rods "
+                     "welded by rigid joints pinned at two ends (its joints' rotation-"
+                     "vector unknowns have a free rotation otherwise)")
 
 
 def _check_continuation(scene: Scene) -> None:
