@@ -483,8 +483,10 @@ def test_a_barrier_that_yields_fails_the_run_naming_the_obstacle(tmp_path):
     from mpi4py import MPI
 
     from dolfin_rod import run_scene
+    # no pictures or fields: the test reads the summary and the rows
     scene = parse_scene(SCENE.replace("radius = 0.01", "radius = 0.01\nstiffness = 1e-3")
-                        .replace("t_end = 0.1", "t_end = 0.5"))
+                        .replace("t_end = 0.1", "t_end = 0.5")
+                        + "[outputs]\nfields = false\nanimation = false\nplots = false\n")
     folder = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0)) / "run"
     summary = run_scene(scene, folder, quiet=True)
     assert summary["status"] == "failed"

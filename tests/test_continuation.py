@@ -115,8 +115,8 @@ def test_snap_through_scene(tmp_path):
     from mpi4py import MPI
     out = MPI.COMM_WORLD.bcast(str(tmp_path / "arch"))
     result = dolfin_rod.run(ROOT / "scenes" / "snap_through_arch.toml",
-                            {"outputs.fields": False, "outputs.animation": False},
-                            out=out, quiet=True)
+                            {"outputs.fields": False, "outputs.animation": False,
+                             "outputs.plots": False}, out=out, quiet=True)
     assert result.status == "completed"
     lam = np.array(result.series["time"])
     count = np.array(result.series["negative_eigenvalues"])

@@ -62,6 +62,10 @@ plots = false
 checkpoint_every = 3
 """
 
+# CREEP without its spacetime.png, for tests that read numbers and checkpoints only (the
+# picture took 2-5 s a run at load 14; under mpirun rank 0 draws it while rank 1 waits)
+QUIET_CREEP = CREEP.replace("plots = false", "plots = false\nanimation = false")
+
 # issue 13 item 2: explicit Euler on dynamic torsion, dt = 0.05 far above its limit
 DIVERGING = """
 [geometry]
@@ -129,7 +133,7 @@ def assert_same_rows(a: list[dict], b: list[dict]) -> None:
 @pytest.mark.mpi
 def test_resume_refuses_a_checkpoint_of_another_scene(tmp_path, capsys):
     folder = shared(tmp_path)
-    scene_file = write(folder / "creep.toml", CREEP)
+    scene_file = write(folder / "creep.toml", QUIET_CREEP)
     run = folder / "run"
     code, _, _ = run_main(capsys, "run", scene_file, "--out", run, "--quiet")
     assert code == 0
@@ -137,7 +141,7 @@ def test_resume_refuses_a_checkpoint_of_another_scene(tmp_path, capsys):
                         overwrite=True)
     assert partial["status"] == "stopped"
     before = snapshot(run) if COMM.rank == 0 else None
-    changed = write(folder / "changed.toml", CREEP.replace("dt = 0.01", "dt = 0.02"))
+    changed = write(folder / "changed.toml", QUIET_CREEP.replace("dt = 0.01", "dt = 0.02"))
     code, out, err = run_main(capsys, "run", changed, "--out", run, "--resume")
     if COMM.rank == 0:
         assert code == 2 and out == ""
@@ -146,7 +150,7 @@ def test_resume_refuses_a_checkpoint_of_another_scene(tmp_path, capsys):
         assert snapshot(run) == before
     # the same physics run by another model (forced ODE, which writes no checkpoints of
     # its own: outputs.checkpoint_every would be refused): refused by the model check
-    ode = write(folder / "ode.toml", CREEP.replace('model = "torsion"', 'model = "ode"')
+    ode = write(folder / "ode.toml", QUIET_CREEP.replace('model = "torsion"', 'model = "ode"')
                 .replace("checkpoint_every = 3", ""))
     code, _, err = run_main(capsys, "run", ode, "--out", run, "--resume")
     assert code == 2
@@ -160,7 +164,7 @@ def test_resume_refuses_a_checkpoint_of_another_scene(tmp_path, capsys):
     assert code == 0
     if COMM.rank == 0:
         assert_same_rows(read_csv(full / "timeseries.csv"), read_csv(run / "timeseries.csv"))
-        assert (run / "scene.toml").read_text() == CREEP
+        assert (run / "scene.toml").read_text() == QUIET_CREEP
 
 
 def test_resume_needs_a_checkpoint_and_time_left(tmp_path, capsys):
@@ -183,7 +187,7 @@ def test_resume_needs_a_checkpoint_and_time_left(tmp_path, capsys):
 def test_crash_between_checkpoint_files_resumes_from_the_last_complete_one(
         tmp_path, monkeypatch):
     folder = shared(tmp_path)
-    scene = parse_scene(CREEP, "creep.toml")
+    scene = parse_scene(QUIET_CREEP, "creep.toml")
     full = run_scene(scene, folder / "full", quiet=True)
     calls = {"n": 0}
     real_write = checkpoints.write_checkpoint_meta

@@ -308,6 +308,37 @@ def test_an_interrupt_during_a_compile_waits_for_its_end():
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+@pytest.mark.mpi
+def test_a_second_stepper_duplicates_the_first_ones_matrix_and_vectors():
+    """fem/assembly.py: a second model of a structure and layout (other material numbers)
+    makes its step solver's vectors and Jacobian without DOLFINx's create_vector and
+    create_matrix (duplicates of the first system's, its matrix once assembled), and
+    reads neither its rotation's UFL (rotation_ufl); its assembled Jacobian is, entry for
+    entry, the one DOLFINx assembles into a matrix of its own sparsity pattern."""
+    import dolfinx.fem.petsc as fem_petsc
+    from dolfin_rod import TimeStepper
+
+    case = "dynamic, rotation vectors"
+    first = make(case, VALUES[0], n_cells=4)
+    first.set_initial_state()
+    TimeStepper(first.problem).run(0.0, 0.02, 0.01)
+    with mock.patch.object(fem_petsc, "create_matrix", wraps=fem_petsc.create_matrix) \
+            as matrices, mock.patch.object(compat, "vector", wraps=compat.vector) as vectors:
+        second = make(case, VALUES[1], n_cells=4)
+        second.set_initial_state()
+        stepper = TimeStepper(second.problem)
+        stepper.run(0.0, 0.02, 0.01)
+        assert matrices.call_count == 0 and vectors.call_count == 0
+    assert "_rotation_expressions" not in vars(second.unknowns)
+    assert "q" not in vars(second.unknowns.chart)
+    system = stepper.integrator.solver.system
+    reference = fem_petsc.create_matrix(system.J[0])
+    system.jacobian(reference)
+    system.jacobian(system.A)
+    for ours, theirs in zip(system.A.getValuesCSR(), reference.getValuesCSR()):
+        assert np.array_equal(ours, theirs)
+
+
 def test_a_cached_kernel_is_found_without_listing_ffcx_s_cache(tmp_path, monkeypatch):
     """FFCx 0.9-0.11 list their whole cache directory at every cache hit (FFCx issue
     886); the package's compiles find the module by its path: a form compiled into a
