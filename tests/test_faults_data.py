@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mpi4py import MPI
-from test_faults import (CREEP, MPI_TIMEOUT, ROOT, _start, _wait_for, assert_same_rows,
-                         read_csv, run_main, shared, snapshot, write)
+from test_faults import (CREEP, MPI_TIMEOUT, QUIET_CREEP, ROOT, _start, _wait_for,
+                         assert_same_rows, read_csv, run_main, shared, snapshot, write)
 
 from dolfin_rod.output import writer as output
 from dolfin_rod import run_scene
@@ -36,9 +36,10 @@ from dolfin_rod.scenes import load_scene
 COMM = MPI.COMM_WORLD
 
 
-def _stopped_run(folder, text: str = CREEP, steps: int = 5):
+def _stopped_run(folder, text: str = QUIET_CREEP, steps: int = 5):
     """A run of ``text`` stopped after ``steps`` steps (a checkpoint at step 3), as an
-    interrupted run leaves it; returns (scene file, run folder)."""
+    interrupted run leaves it; returns (scene file, run folder).  No pictures by default:
+    its tests read rows and checkpoints."""
     scene_file = write(folder / "creep.toml", text)
     run = folder / "run"
     summary = run_scene(load_scene(scene_file), run, stop_after=steps, quiet=True)

@@ -71,6 +71,9 @@ def test_frame_scene_is_the_api_frame():
     # refused it naming scene.model: "joints need rotation-vector unknowns ...")
     (("boundary = { start = \"clamped\" }", "boundary = { start = \"pinned\" }"),
      "rods[0].boundary.start"),
+    # drag on a quasi-static frame: no rotation-vector unknowns, which joints need (the
+    # same: check said OK, run refused it naming scene.model)
+    (("model = \"hyperelastic\"", "model = \"hyperelastic\"\ndrag = 0.5"), "material.drag"),
 ])
 def test_bad_system_keys_are_named(change, key):
     with pytest.raises(SceneError) as err:

@@ -492,22 +492,33 @@ def _rotations(scene: Scene, choose) -> str:
     lie = tim["integrator"] == "stepper" and (
         not mat["dynamic"] or "scheme" not in scene.given["time"]
         or tim["scheme"].startswith("generalized_alpha"))
-    constraint = None if mat["constraints"] == "none" else mat["constraints"]
-    visc = mat["viscosity"] or {}
-    rate_dependent = any(k in visc and not visc[k].is_zero for k in ("M", "N")) or not (
-        mat["drag"] is None or (mat["drag"].is_constant and mat["drag"].constant == 0.0)) \
-        or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
     motions = [scene["boundary"][f"{end}_rotation"] for end in ("start", "end")]
     rotation_jumps = not mat["dynamic"] and any(spec is not None and spec.is_vector and any(
         load_histories.jumps(spec.build(i)) for i in range(3)) for spec in motions)
-    obstacle = rotation_vector_obstacle(mat["dynamic"], mat["variant"], constraint,
-                                        rate_dependent=rate_dependent)
+    obstacle = rotation_obstacle(scene)[0]
     try:
         return choose(scene["geometry"]["rotations"], obstacle, lie_integrator=lie,
                       rotation_jumps=rotation_jumps)
     except ValueError as err:
         key = "geometry.rotations" if obstacle else "time.scheme"
         raise scene.error(key, str(err)) from err
+
+
+def rotation_obstacle(scene: Scene) -> tuple[str | None, str]:
+    """Why the rod of ``scene`` cannot have rotation-vector unknowns (rotation_choice.
+    rotation_vector_obstacle of its material; None if it can) and the key that says so."""
+    mat = scene["material"]
+    constraint = None if mat["constraints"] == "none" else mat["constraints"]
+    visc = mat["viscosity"] or {}
+    viscous = any(k in visc and not visc[k].is_zero for k in ("M", "N"))
+    drag = not (mat["drag"] is None or (mat["drag"].is_constant
+                                        and mat["drag"].constant == 0.0)) \
+        or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
+    why = rotation_vector_obstacle(mat["dynamic"], mat["variant"], constraint,
+                                   rate_dependent=viscous or drag)
+    key = ("material.variant" if mat["variant"] != "local" else "material.constraints"
+           if constraint else "material.viscosity" if viscous else "material.drag")
+    return why, key
 
 
 def _check_turns_resolved(scene: Scene) -> None:

@@ -102,7 +102,17 @@ def _check_rotation_held(scene: Scene) -> None:
     from types import SimpleNamespace
 
     from ..checks import spin_free, welded_spin_end
-    if not scene.joints or scene["material"]["dynamic"]:
+    from .rules import rotation_obstacle
+    if not scene.joints:
+        return
+    for k, entry in enumerate(scene.rods):       # what else keeps rotation vectors out
+        why, key = rotation_obstacle(entry.scene)
+        if why:
+            own = key.split(".")[1] in entry.scene.given.get("material", {}) and k > 0
+            raise SceneError(scene.source, f"rods[{k}].{key}" if own else key,
+                             f"joints need rotation-vector unknowns, which rod "
+                             f"{entry.name!r} cannot have: {why}")
+    if scene["material"]["dynamic"]:
         return
     rods = []
     for entry in scene.rods:
