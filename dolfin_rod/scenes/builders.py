@@ -325,6 +325,11 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
         except PairOverlap as err:
             raise scene.error(err.key, str(err)) from None
+        except ValueError as err:   # a start the model refused (start.<field>: [initial])
+            field, colon, reason = str(err).partition(": ")
+            if not (colon and field.startswith("start.")):
+                raise
+            raise scene.error(f"initial.{field.removeprefix('start.')}", reason) from None
     return FESimulation("rod", model, scene, initial_state)
 
 
