@@ -130,8 +130,11 @@ def test_a_hook_on_its_column_serial_equals_two_ranks(tmp_path):
     """The kinked hook of the test above, 16 steps (the arm on the column from step 14),
     on the ranks of the run and serially: the same time series to 1e-10 relative
     (quick_scenes.assert_serial_run_equal; the pairs are searched on every rank's
-    gathered line), 1e-9 N absolute: the corners' reactions across the push are 0 up to
-    the converged Newton residual, and differ by it (measured 1.7e-10 N)."""
+    gathered line), 1e-7 N absolute (2e-7 of the 0.5 N push): the corners' reactions
+    across the push are 0 up to the converged Newton residual, and the two runs' differ
+    by it (Newton's absolute tolerance since the force scale, checks.NEWTON_FORCE_TOL
+    times max |A| / L^2 = 2 N: measured up to 1.3e-8 N apart; 1.7e-10 N with the fixed
+    1e-10 before)."""
     from mpi4py import MPI
     from quick_scenes import assert_serial_run_equal, quick_scene
 
@@ -149,7 +152,7 @@ def test_a_hook_on_its_column_serial_equals_two_ranks(tmp_path):
         series = np.genfromtxt(folder / "run" / "timeseries.csv", delimiter=",", names=True)
         assert series["contact_pairs"][-1] >= 1
     if comm.size > 1 and comm.rank == 0:
-        assert_serial_run_equal(path, folder, 16, atol=1e-9, **quiet)
+        assert_serial_run_equal(path, folder, 16, atol=1e-7, **quiet)
 
 
 def test_check_sees_the_pieces_of_a_kinked_rod(tmp_path):
