@@ -32,7 +32,7 @@ import pytest
 from mpi4py import MPI
 
 from dolfin_rod import RodModel, RodParameters, TimeStepper
-from dolfin_rod.checks import NEWTON_FORCE_TOL
+from dolfin_rod.checks import NEWTON_ATOL, NEWTON_FORCE_TOL
 from dolfin_rod.scenes import build, parse_scene
 
 # (force, length, time) units in SI
@@ -235,7 +235,7 @@ def test_a_quasi_static_bend_in_three_systems_of_units_through_the_api():
 @pytest.mark.mpi
 def test_a_given_snes_atol_is_used_exactly_and_the_default_follows_the_forces():
     """A given snes_atol is SNES's, exactly; without one, snes_atol is NEWTON_FORCE_TOL
-    times the rod's force scale at the step's time: at t = 1 the turn's couple
+    times the rod's force scale at the step's time (at most NEWTON_ATOL): at t = 1 the turn's couple
     F* L pi/2 (F* = max |A| / L^2) in SI and mm-N-ms (L < 1: the scale of the couple rows, the
     smaller ones, in N m and N mm), over L in pN-nm-ns (L = 100 > 1: of the force rows,
     in pN)."""
@@ -244,7 +244,7 @@ def test_a_given_snes_atol_is_used_exactly_and_the_default_follows_the_forces():
                          ("pN-nm-ns", A / L**2 / 1e-12)):
         model, stepper = bend(units)
         atol = stepper.integrator.solver.snes.getTolerances()[1]
-        assert atol == NEWTON_FORCE_TOL * model.force_scale_now()
+        assert atol == min(NEWTON_FORCE_TOL * model.force_scale_now(), NEWTON_ATOL)
         assert model.force_scale_now() == pytest.approx(scale * np.pi / 2, rel=1e-12)
     _, stepper = bend("SI", {"snes_atol": 1e-30})
     assert stepper.integrator.solver.snes.getTolerances()[1] == 1e-30

@@ -245,9 +245,13 @@ class ForceScale:
     """A solve's force scale: the problem's ``force_scale()`` (the size of the residual's
     forces at the time the problem was last set to, in its units: fem/problem.py; a
     rod's rod/force_scale.py), taken at each solve's start (``start``).  Newton's
-    absolute test is then unit-free, snes_atol = NEWTON_FORCE_TOL times it (NEWTON_ATOL
-    where it is 0: unknown), unless the PETSc ``options`` give snes_atol (then exactly
-    that); the divergence test compares with max(the initial norm, it) (newton_test)."""
+    absolute test then follows the forces, snes_atol = NEWTON_FORCE_TOL times it, at
+    most NEWTON_ATOL (also where it is 0: unknown), unless the PETSc ``options`` give
+    snes_atol (then exactly that); the divergence test compares with max(the initial
+    norm, it) (newton_test).  At most NEWTON_ATOL: the scale's floor, the stiffness force
+    F*, can lie far above the loads (an L-frame of EI ~ 1e3 under 1e-6 N: 1e-7 would
+    leave its knee force 1e-10 off, 1e-4 of the load: tests/test_joints.py); above
+    NEWTON_ATOL Newton stops by the relative or the step test (unit-free) as before."""
 
     def __init__(self, force_scale: Callable[[], float], options: dict | None):
         self.force_scale = force_scale
@@ -257,8 +261,8 @@ class ForceScale:
     def start(self, snes) -> None:
         self.value = self.force_scale()
         if not self.atol_given:
-            snes.setTolerances(atol=NEWTON_FORCE_TOL * self.value if self.value > 0.0
-                               else NEWTON_ATOL)
+            snes.setTolerances(atol=min(NEWTON_FORCE_TOL * self.value, NEWTON_ATOL)
+                               if self.value > 0.0 else NEWTON_ATOL)
 
 
 # SNES types that stop without a convergence test (their last monitor call has the
