@@ -70,8 +70,10 @@ def test_jointed_cantilever_resting_on_a_rod():
     deflection equal to 1e-8 relative (Newton to 1e-12 and a step test at 1e-15: the
     two solve the same discrete equations; measured: all printed digits equal; with
     the default step test 1e-8 they differed by 4e-7); the vertical reactions of A's
-    clamp and B's two clamps balance P (measured 1e-9 P, asserted 1e-8: Newton's
-    residual); two pairs (A's node over B is shared by two segments), the same as the
+    clamp and B's two clamps balance P to Newton's residual (every step stops by its
+    step test at a residual of 2.6e-9..3.6e-9 N, measured: the round-off floor of the
+    barrier's forces, far below snes_atol's 1e-14 reach; the sum is off by 1.8e-9 N:
+    asserted abs 1e-8 N = 2e-7 P); two pairs (A's node over B is shared by two segments), the same as the
     single rod's: the joint's own segments, touching at the joint, are no pair."""
     joined, single = _system(True), _system(False)
     dj, ds = joined.diagnostics(1.0), single.diagnostics(1.0)
@@ -81,7 +83,7 @@ def test_jointed_cantilever_resting_on_a_rod():
     assert dj["A2.tip_position_z"] == pytest.approx(ds["A.tip_position_z"], rel=1e-8)
     vertical = dj["A1.reaction_force_start_z"] + dj["B.reaction_force_start_z"] + \
         dj["B.reaction_force_end_z"]
-    assert vertical == pytest.approx(P, rel=1e-8)
+    assert vertical == pytest.approx(P, abs=1e-8)
 
 
 @pytest.mark.mpi
