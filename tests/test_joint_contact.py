@@ -72,7 +72,7 @@ def test_jointed_cantilever_resting_on_a_rod():
     the default step test 1e-8 they differed by 4e-7); the vertical reactions of A's
     clamp and B's two clamps balance P to Newton's residual (every step stops by its
     step test at a residual of 2.6e-9..3.6e-9 N, measured: the round-off floor of the
-    barrier's forces, far below snes_atol's 1e-14 reach; the sum is off by 1.8e-9 N:
+    barrier's forces, far above snes_atol's 1e-14; the sum is off by 1.8e-9 N:
     asserted abs 1e-8 N = 2e-7 P); two pairs (A's node over B is shared by two segments), the same as the
     single rod's: the joint's own segments, touching at the joint, are no pair."""
     joined, single = _system(True), _system(False)
