@@ -248,28 +248,3 @@ def test_a_given_snes_atol_is_used_exactly_and_the_default_follows_the_forces():
         assert model.force_scale_now() == pytest.approx(scale * np.pi / 2, rel=1e-12)
     _, stepper = bend("SI", {"snes_atol": 1e-30})
     assert stepper.integrator.solver.snes.getTolerances()[1] == 1e-30
-
-
-@pytest.mark.mpi
-def test_a_hook_pushed_onto_its_column_in_large_load_steps_reaches_its_equilibrium(tmp_path):
-    """Quasi-static self-contact (tests/test_kinked_contact.py's hook) in load steps of
-    0.05 (to 0.4 N): the step on which the arm reaches the column starts with a segment
-    pair deep in its barrier (first residual 4.8e8), and the relative test, rtol 1e-8 of
-    it, accepted 0.76 N before, more than the load: the arm was left 4 mm off the column
-    (no pair), its tip moved against the load.  Relative to at most the force scale
-    (solvers.relative_reference) it reaches the equilibrium of the run in steps of 0.025
-    (the same equations at the same load: the same state to Newton's tolerance,
-    measured 1.6e-12 of the arm's travel, tolerance 1e-8), resting on the column."""
-    from test_kinked_contact import KINKED, POINTS, QUIET
-
-    from dolfin_rod import run
-    (tmp_path / "hook.toml").write_text(KINKED)
-    tips = []
-    for dt in (0.05, 0.025):
-        result = run(tmp_path / "hook.toml", {**QUIET, "time.dt": dt, "time.t_end": 0.4},
-                     out=tmp_path / f"dt{dt}", quiet=True)
-        assert result.status == "completed"
-        assert result.series["contact_pairs"][-1] >= 1
-        tips.append(np.array([result.series[f"tip_position_{c}"][-1] for c in "xyz"]))
-    travel = np.linalg.norm(tips[1] - POINTS[4])
-    assert np.linalg.norm(tips[0] - tips[1]) <= 1e-8 * travel

@@ -180,29 +180,19 @@ def _forget_options(prefix: str, keys: list[str]) -> None:
 def default_test(snes, it: int, norms, fnorm0: float, step_scale: float = 0.0,
                  force_scale: float = 0.0) -> int:
     """PETSc's default test (SNESConvergedDefault: NaN, atol, rtol, step, divergence;
-    snes_max_it is PETSc's own check) with |y| + step_scale in the step test, the
-    relative test |F| <= snes_rtol min(fnorm0, force_scale) (relative_reference) and
-    the divergence test |F| > snes_divergence_tolerance max(fnorm0, force_scale) (a
-    small first residual, a load increment, against the residual's rows of the
-    problem's size: ForceScale); ``fnorm0`` the solve's initial residual norm."""
+    snes_max_it is PETSc's own check) with |y| + step_scale in the step test and
+    max(fnorm0, force_scale) in the divergence test |F| > snes_divergence_tolerance
+    max(...) (a small first residual, a load increment, against the residual's rows of
+    the problem's size: ForceScale); ``fnorm0`` the solve's initial residual norm."""
     xnorm, ynorm, fnorm = norms
     return newton_test(snes, it, fnorm, fnorm0, lambda: (xnorm, ynorm), step_scale,
                        force_scale)
 
 
-def relative_reference(fnorm0: float, force_scale: float) -> float:
-    """What snes_rtol is relative to: the first residual norm, at most the problem's
-    force scale (0: unknown).  A first residual far above the forces (a segment pair
-    deep in its barrier at the predictor: 4.8e8 against a 0.4 N load) made rtol 1e-8
-    accept 0.76 N, a state off equilibrium by more than the load."""
-    return min(fnorm0, force_scale) if force_scale > 0.0 else fnorm0
-
-
 def newton_test(snes, it: int, fnorm: float, fnorm0: float, step_norms,
                 step_scale: float = 0.0, force_scale: float = 0.0) -> int:
     """default_test with the step test's norms (|y|, |dy|) from ``step_norms()``, called
-    only when that test is reached (BlockSNES's own Newton loop computes them then); the
-    relative test against relative_reference."""
+    only when that test is reached (BlockSNES's own Newton loop computes them then)."""
     rtol, atol, stol, _ = snes.getTolerances()
     reasons = PETSc.SNES.ConvergedReason
     if not math.isfinite(fnorm):      # (a float: math's test, 1 us less than numpy's)
@@ -211,7 +201,7 @@ def newton_test(snes, it: int, fnorm: float, fnorm0: float, step_norms,
         return reasons.CONVERGED_FNORM_ABS
     if it == 0:
         return reasons.ITERATING
-    if fnorm <= rtol * relative_reference(fnorm0, force_scale):
+    if fnorm <= rtol * fnorm0:
         return reasons.CONVERGED_FNORM_RELATIVE
     xnorm, ynorm = step_norms()
     if ynorm < stol * (xnorm + step_scale):
@@ -223,22 +213,20 @@ def newton_test(snes, it: int, fnorm: float, fnorm0: float, step_norms,
 
 
 def residual_problem(snes, reason: int, norm: float, initial: float,
-                     floor: float = 0.0, force_scale: float = 0.0) -> str | None:
+                     floor: float = 0.0) -> str | None:
     """Why a solve SNES reports as converged (``reason``) is not one, or None: the
     residual ``norm`` at the solution must meet snes_atol or snes_rtol times the
-    ``initial`` norm (at most ``force_scale``: relative_reference); after the step test
-    it must not have grown (or be at most the round-off ``floor``: Newton stopped moving
-    there)."""
+    ``initial`` norm; after the step test it must not have grown (or be at most the
+    round-off ``floor``: Newton stopped moving there)."""
     rtol, atol, _, _ = snes.getTolerances()
-    tolerance = max(atol, rtol * relative_reference(initial, force_scale))
-    if norm <= tolerance:
+    if norm <= max(atol, rtol * initial):
         return None
     if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and \
             norm <= max(initial, floor):
         return None
     return (f"{_REASONS.get(reason, reason)} but the residual norm at the solution is "
-            f"{norm:.3g}, above the tolerance {tolerance:.3g} (snes_atol, or snes_rtol "
-            "times the initial norm, at most the force scale; check the solver options)")
+            f"{norm:.3g}, above the tolerance {max(atol, rtol * initial):.3g} (snes_atol, "
+            "or snes_rtol times the initial norm; check the solver options)")
 
 
 class ForceScale:
@@ -308,8 +296,7 @@ class CheckedSNES:
     def _checked(self, reason: int, norm: float) -> int:
         if reason <= 0:
             return reason
-        problem = residual_problem(self.snes, reason, norm, self._initial,
-                                   force_scale=self.scale.value if self.scale else 0.0)
+        problem = residual_problem(self.snes, reason, norm, self._initial)
         if problem is None:
             return reason
         self.failure = problem
@@ -680,7 +667,6 @@ class BlockSNES:
         norm, initial = self._residual_norm, self._initial_norm
         floor = self.round_off_floor() if norm > initial and \
             reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE else 0.0
-        problem = residual_problem(self.snes, reason, norm, initial, floor,
-                                   self._force_scale())
+        problem = residual_problem(self.snes, reason, norm, initial, floor)
         if problem is not None:
             raise SolverError(problem + ",", self.iterations)
