@@ -620,11 +620,8 @@ fields = false
     # the same column as two rods of 8 cells welded at its middle (a rigid joint): its
     # spin about the axis held at the first pin (checks.welded_spin_end; refused before:
     # "joints need rotation-vector unknowns, which this system cannot have"), the same
-    # equations: the same critical load to the load factor's own accuracy, the central
-    # difference's O(delta^2) = 1e-8 (analysis/buckling.py, delta = 1e-4 t) on states that
-    # Newton leaves at different points (measured 1.1e-8 here with the relative test
-    # against min(first residual, force scale), below 1e-8 before; asserted 5e-8; a steel tube
-    # 4 m, 2 x 16 cells against 32: 1e-7; serial = 2 ranks: 8e-13)
+    # equations: the same critical load to 1e-8 here (a steel tube 4 m, 2 x 16 cells
+    # against 32: 1e-7; serial = 2 ranks: 8e-13)
     text = path.read_text()
     head, loads = text.split("[boundary]")[0], text.split("[loads]\n")[1].split("\n")[0]
     welded = tmp_path / "welded.toml"
@@ -647,4 +644,4 @@ point = [0.0, 0.0, 0.5]
 """ + "[time]" + text.split("[time]")[1])
     two = analyse(welded, "buckle", count=2, out=tmp_path / "welded", quiet=True)
     assert two.summary["buckle"]["modes"][0]["load_factor"] == pytest.approx(factors[0],
-                                                                             rel=5e-8)
+                                                                             rel=1e-8)
