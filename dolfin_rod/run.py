@@ -245,7 +245,7 @@ def import_finite_elements(checkpoints: bool) -> None:
 def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, quiet: bool,
          stop_after: int | None, analysis: Callable | None = None) -> RunResult:
     from .output.checkpoints import read_checkpoint_meta
-    from .output.from_run import previous_state, start_from
+    from .output.from_run import check_out, previous_state, start_from
     from .output.writer import RunWriter
     from .scenes import build
     clock = {"start": time.perf_counter()}
@@ -257,6 +257,7 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
                                                  "\"load_steps\"")
     meta = read_checkpoint_meta(out, comm, scene) if resume else None
     previous = previous_state(scene, choice.model, comm) if meta is None else None
+    check_out(scene, previous, out)
     made = not resume and (out is None or not os.path.exists(out))   # (False on errors)
     folder = _run_folder(scene, out, comm, resume, overwrite)
     if not quiet:

@@ -231,6 +231,22 @@ def test_a_bad_start_names_its_key_and_exits_2(saved_rod_run, capsys, sets, key,
         assert not out.exists()
 
 
+def test_out_that_holds_the_saved_state_is_refused_and_the_state_kept(saved_rod_run, capsys):
+    """--out the previous run's folder (or its parent) with --overwrite: exit 2 naming
+    initial.from_run before the folder is prepared; the saved state is still there (it
+    was deleted, and the run failed with a traceback reading it)."""
+    source = saved_rod_run / "A"
+    before = sorted(p.name for p in source.iterdir()) if COMM.rank == 0 else None
+    for out in (source, saved_rod_run):
+        assert main(["run", str(ROD), "--quiet", "--overwrite", "--out", str(out),
+                     "--set", f"initial.from_run={source}",
+                     "--set", "geometry.n_cells=4"]) == 2
+        err = capsys.readouterr().err
+        if COMM.rank == 0:
+            assert "[initial.from_run]" in err and "another folder" in err, err
+            assert sorted(p.name for p in source.iterdir()) == before
+
+
 def test_a_torsion_state_does_not_start_a_rod(saved_rod_run, capsys):
     """Another model kind: a torsion run's state offered to a 3-D rod scene."""
     folder = saved_rod_run

@@ -94,6 +94,17 @@ def previous_state(scene: Scene, model: str, comm,
     return PreviousState(folder, meta, run)
 
 
+def check_out(scene: Scene, previous: PreviousState | None, out: Path | None) -> None:
+    """Refuse an ``--out`` folder that is the previous run's or holds it: preparing it
+    (--overwrite) would delete the saved state the run starts from."""
+    if previous is None or out is None:
+        return
+    run, folder = previous.run.resolve(), Path(out).resolve()
+    if run == folder or folder in run.parents:
+        raise scene.error(KEY, f"{previous.run} is inside --out {out}, which this run "
+                               "replaces: write the new run to another folder")
+
+
 def _on_root(comm, read):
     """``read()`` on rank 0, its result on every rank; its StateProblem raised on every
     rank."""
