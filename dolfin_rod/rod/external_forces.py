@@ -1,6 +1,7 @@
 """Loads on the rod (PyElastica's ``external_forces``): end, distributed and point forces
 and couples, dead or follower, with their histories, active bending moments (a muscle's,
-PyElastica's MuscleTorques: ``TravellingWave``), and linear drag f = -c dr/dt.
+PyElastica's MuscleTorques: ``TravellingWave``), and linear drag: f = -c dr/dt, or anisotropic
+f = -R C R^T dr/dt (a fluid's resistive force, PyElastica's SlenderBodyTheory).
 
 Their virtual work enters the balance blocks (balance.force_work, balance.couple_work);
 the same densities tested with the velocities (V, W) give the power of the loads.  An
@@ -27,7 +28,7 @@ from ..checks import end_name
 from ..fem.fe_model import ENDS
 from ..fem.problem import TimeDependentValue
 from .discretisation import Discretisation, Unknowns
-from .material import DAMPING, is_zero
+from .material import DAMPING, DRAG_TENSOR, is_zero, scalars
 
 
 @dataclass
@@ -299,14 +300,22 @@ def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, loads: list[LoadDa
 
 
 def drag(F: dict, unk: Unknowns, c: dict, params: list, disc: Discretisation):
-    """Linear drag f = -c V in the displacement block and rotational damping, the couple
+    """Linear drag in the displacement block: isotropic f = -c V (a scalar ``drag``) or
+    anisotropic f = -R C R^T V (a drag tensor C in the directors' frame: resistive-force
+    or slender-body theory, material.slender_body_drag); rotational damping, the couple
     per length -C W (material: ``rotational_drag``) or -C_s w (spatial, w = R W:
     ``spatial_rotational_drag``, i.e. C = R^T C_s R) in the rotation block; returns
-    their dissipation c V.V + W.C W integrated (0 without any on every rod)."""
+    their dissipation c V.V + V.R C R^T V + W.C W integrated (0 without any on every
+    rod)."""
     dissipation = []
-    if not all(is_zero(p.drag) for p in params):
+    if not all(is_zero(scalars(p)["drag"]) for p in params):
         F["displacement"] += c["drag"] * ufl.inner(unk.V, unk.t["displacement"]) * disc.dx
         dissipation.append(c["drag"] * ufl.inner(unk.V, unk.V) * disc.dx)
+    if DRAG_TENSOR in c:
+        R = rotation_matrix(unk.q)
+        f = ufl.dot(R, ufl.dot(c[DRAG_TENSOR], ufl.dot(ufl.transpose(R), unk.V)))
+        F["displacement"] += ufl.inner(f, unk.t["displacement"]) * disc.dx
+        dissipation.append(ufl.inner(f, unk.V) * disc.dx)
     for name in DAMPING:
         if name in c:
             C = c[name]

@@ -368,7 +368,7 @@ def _check_rod_inertia(scene: Scene) -> None:
     mat, lds, err = scene["material"], scene["loads"], scene.error
     L = scene["geometry"]["length"]
     for k in ("density", "drag"):
-        c = mat[k]
+        c = mat[k] if isinstance(mat[k], Coefficient) else None    # a drag Tensor: checked
         samples = _sampled(c, L) if c is not None else []
         if _not_finite(samples, L):
             raise err(f"material.{k}", _not_finite(samples, L))
@@ -511,8 +511,7 @@ def rotation_obstacle(scene: Scene) -> tuple[str | None, str]:
     constraint = None if mat["constraints"] == "none" else mat["constraints"]
     visc = mat["viscosity"] or {}
     viscous = any(k in visc and not visc[k].is_zero for k in ("M", "N"))
-    drag = not (mat["drag"] is None or (mat["drag"].is_constant
-                                        and mat["drag"].constant == 0.0)) \
+    drag = not (mat["drag"] is None or mat["drag"].is_zero) \
         or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
     why = rotation_vector_obstacle(mat["dynamic"], mat["variant"], constraint,
                                    rate_dependent=viscous or drag)
