@@ -37,10 +37,10 @@ PERIOD, LENGTH, G = 2.0, 0.35, 9.80665
 SPLINE = np.array([3.4e-3, 3.3e-3, 4.2e-3, 2.6e-3, 3.6e-3, 3.5e-3])
 
 
-def speeds(t: np.ndarray, com: np.ndarray, t_end: float) -> dict:
-    """Average speed of the centre of mass over [2 T, the last whole period <= t_end]:
-    its size, forward (+z) and lateral (x) parts."""
-    t0, t1 = 2 * PERIOD, PERIOD * np.floor(t_end / PERIOD + 1e-9)
+def speeds(t: np.ndarray, com: np.ndarray, t_end: float, period: float = PERIOD) -> dict:
+    """Average speed of the centre of mass over [2 T, the last whole period <= t_end] (T
+    the wave's ``period``): its size, forward (+z) and lateral (x) parts."""
+    t0, t1 = 2 * period, period * np.floor(t_end / period + 1e-9)
     a, b = (int(np.argmin(np.abs(t - s))) for s in (t0, t1))
     shift = (com[b] - com[a]) / (t[b] - t[a])
     return {"speed": float(np.linalg.norm(shift[[0, 2]])), "forward": float(shift[2]),
@@ -95,27 +95,32 @@ def pyelastica(dt: float, t_end: float) -> dict:
 
 
 def dolfin_rod(dt: float, t_end: float, eps: float, out: Path) -> dict:
-    """scenes/continuum_snake.toml at dt, slip tolerance eps; the centre of mass from
-    rod.pvd (the trapezoidal rule of the P1 centre line: exact)."""
+    """scenes/continuum_snake.toml at dt, slip tolerance eps."""
+    return {"code": "dolfin_rod", "dt": dt, "eps": eps, **scene_speeds(
+        SCENE, {"time.dt": dt, "contact.slip_tolerance": eps}, t_end, PERIOD, out)}
+
+
+def scene_speeds(scene: Path, overrides: dict, t_end: float, period: float,
+                 out: Path) -> dict:
+    """A scene's run to t_end (``overrides``: more keys) and its speeds (the centre of
+    mass every 0.01 s from rod.pvd, the trapezoidal rule of the P1 centre line: exact)
+    and the wall time of its time loop; its status and message if it did not complete."""
     from dolfin_rod import read_pvd, run
-    every = max(1, int(round(0.01 / dt)))
-    result = run(str(SCENE), {"time.t_end": t_end, "time.dt": dt,
-                              "contact.slip_tolerance": eps, "outputs.every": every,
+    every = max(1, int(round(0.01 / overrides["time.dt"])))
+    result = run(str(scene), {"time.t_end": t_end, **overrides, "outputs.every": every,
                               "outputs.animation": False, "outputs.plots": False,
                               "outputs.directory": str(out), "outputs.progress": False},
                  quiet=True)
     if result.status != "completed":
-        return {"code": "dolfin_rod", "dt": dt, "eps": eps, "status": result.status,
-                "message": result.summary.get("message")}
+        return {"status": result.status, "message": result.summary.get("message")}
     steps = read_pvd(result.folder / "rod.pvd")
     t = np.array([s["time"] for s in steps])
-    com = np.array([_centre(s["points"]) for s in steps])
+    com = np.array([centre(s["points"]) for s in steps])
     wall = json.loads((result.folder / "timings.json").read_text())["integration"]
-    return {"code": "dolfin_rod", "dt": dt, "eps": eps, "wall_s": wall,
-            **speeds(t, com, t_end)}
+    return {"wall_s": wall, **speeds(t, com, t_end, period)}
 
 
-def _centre(points: np.ndarray) -> np.ndarray:
+def centre(points: np.ndarray) -> np.ndarray:
     """The mean of the P1 centre line over its length (nodes equally spaced along s)."""
     w = np.ones(len(points))
     w[[0, -1]] = 0.5
