@@ -16,8 +16,9 @@ and lateral (x) parts.  Each code at two time steps, to show its speed converged
     dolfin_rod      scenes/continuum_flagella.toml (50 cells, generalized-alpha on the
                     rotation group), dt = 4e-3 and 2e-3
 
-``--periods N`` (default 10.01, PyElastica's); ``--quick``: 4 periods.  Prints the JSON
-and writes results/bench/flagella_peer.json.
+``--periods N`` (default 10.01, PyElastica's); ``--quick``: 4 periods; ``--cells N``
+(default 50, the example's) for both; ``--dt``, ``--peer-dt`` the time steps.  Prints the
+JSON and writes results/bench/flagella_peer.json (``--out`` another name).
 """
 
 from __future__ import annotations
@@ -37,9 +38,9 @@ PERIOD, LENGTH, RADIUS, WAVE_LENGTH = 1.0, 1.0, 0.025, 0.38
 SPLINE = np.array([0.0, 17.4, 48.5, 5.4, 14.7, 0.0])
 
 
-def pyelastica(dt: float, t_end: float) -> dict:
-    """PyElastica's continuum flagella, the example's parameters; the centre of mass every
-    0.01 s."""
+def pyelastica(dt: float, t_end: float, cells: int = 50) -> dict:
+    """PyElastica's continuum flagella, the example's parameters (``cells`` elements); the
+    centre of mass every 0.01 s."""
     import elastica as ea
 
     class Flagella(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping,
@@ -48,7 +49,7 @@ def pyelastica(dt: float, t_end: float) -> dict:
 
     sim = Flagella()
     E = 1e7
-    rod = ea.CosseratRod.straight_rod(50, np.zeros(3), np.array([0.0, 0.0, 1.0]),
+    rod = ea.CosseratRod.straight_rod(cells, np.zeros(3), np.array([0.0, 0.0, 1.0]),
                                       np.array([0.0, 1.0, 0.0]), LENGTH, RADIUS, 1000.0,
                                       youngs_modulus=E, shear_modulus=E / 1.5)
     sim.append(rod)
@@ -74,14 +75,14 @@ def pyelastica(dt: float, t_end: float) -> dict:
     ea.integrate(ea.PositionVerlet(), sim, t_end, int(round(t_end / dt)), progress_bar=False)
     wall = perf_counter() - start
     t, com = np.array(record["time"]), np.array(record["com"])
-    return {"code": "PyElastica", "dt": dt, "wall_s": wall,
+    return {"code": "PyElastica", "dt": dt, "cells": cells, "wall_s": wall,
             **speeds(t, com, t_end, PERIOD)}
 
 
-def dolfin_rod(dt: float, t_end: float, out: Path) -> dict:
-    """scenes/continuum_flagella.toml at dt."""
-    return {"code": "dolfin_rod", "dt": dt,
-            **scene_speeds(SCENE, {"time.dt": dt}, t_end, PERIOD, out)}
+def dolfin_rod(dt: float, t_end: float, out: Path, cells: int = 50) -> dict:
+    """scenes/continuum_flagella.toml at dt on ``cells`` cells."""
+    return {"code": "dolfin_rod", "dt": dt, "cells": cells, **scene_speeds(
+        SCENE, {"time.dt": dt, "geometry.n_cells": cells}, t_end, PERIOD, out)}
 
 
 def main() -> None:
@@ -92,6 +93,7 @@ def main() -> None:
                         help="dolfin_rod's time steps")
     parser.add_argument("--peer-dt", type=float, nargs="*", default=[1e-4, 5e-5],
                         help="PyElastica's time steps")
+    parser.add_argument("--cells", type=int, default=50, help="elements or cells (both)")
     parser.add_argument("--codes", nargs="*", default=["pyelastica", "dolfin_rod"])
     parser.add_argument("--out", default="flagella_peer")
     args = parser.parse_args()
@@ -100,9 +102,10 @@ def main() -> None:
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
     if "pyelastica" in args.codes:
-        rows += [pyelastica(dt, t_end) for dt in args.peer_dt]
+        rows += [pyelastica(dt, t_end, args.cells) for dt in args.peer_dt]
     if "dolfin_rod" in args.codes:
-        rows += [dolfin_rod(dt, t_end, folder / "flagella_runs") for dt in args.dt]
+        rows += [dolfin_rod(dt, t_end, folder / "flagella_runs", args.cells)
+                 for dt in args.dt]
     report = {"t_end": t_end, "runs": rows}
     peers = [r for r in rows if r["code"] == "PyElastica"]
     ours = [r for r in rows if r["code"] == "dolfin_rod" and "speed" in r]

@@ -1,7 +1,8 @@
 """Loads on the rod (PyElastica's ``external_forces``): end, distributed and point forces
 and couples, dead or follower, with their histories, active bending moments (a muscle's,
 PyElastica's MuscleTorques: ``TravellingWave``), and linear drag: f = -c dr/dt, or anisotropic
-f = -R C R^T dr/dt (a fluid's resistive force, PyElastica's SlenderBodyTheory).
+f = -R C R^T dr/dt (a fluid's resistive force, PyElastica's SlenderBodyTheory; C turned
+onto the centre line's tangent and per current length: _fluid_force).
 
 Their virtual work enters the balance blocks (balance.force_work, balance.couple_work);
 the same densities tested with the velocities (V, W) give the power of the loads.  An
@@ -299,21 +300,38 @@ def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, loads: list[LoadDa
     return power
 
 
+def _fluid_force(C, unk: Unknowns):
+    """The anisotropic drag's force per reference length (minus): |r_s| Q R C R^T Q^T V,
+    C in the directors' frame turned onto the centre line (Q the least rotation taking
+    d_3 = R e_3 to the unit tangent t = r_s / |r_s|: Q = I + K + K^2 / (1 + d_3.t), K
+    the cross product with d_3 x t), per current length (|r_s|: the stretch).  For
+    C = (c_n, c_n, c_t) it is |r_s| (c_n (I - t t^T) + c_t t t^T) V, slender-body
+    theory's force on the centre line whatever the shear; an unshearable, inextensible
+    rod has Q = I, |r_s| = 1: R C R^T V."""
+    R = rotation_matrix(unk.q)
+    r_s = ufl.as_vector((0.0, 0.0, 1.0)) + unk.f["displacement"].dx(0)
+    stretch = ufl.sqrt(ufl.dot(r_s, r_s))
+    d3, t = R[:, 2], r_s / stretch
+    k = ufl.cross(d3, t)
+    K = ufl.as_matrix([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    QR = ufl.dot(ufl.Identity(3) + K + ufl.dot(K, K) / (1.0 + ufl.dot(d3, t)), R)
+    return stretch * ufl.dot(QR, ufl.dot(C, ufl.dot(ufl.transpose(QR), unk.V)))
+
+
 def drag(F: dict, unk: Unknowns, c: dict, params: list, disc: Discretisation):
     """Linear drag in the displacement block: isotropic f = -c V (a scalar ``drag``) or
-    anisotropic f = -R C R^T V (a drag tensor C in the directors' frame: resistive-force
-    or slender-body theory, material.slender_body_drag); rotational damping, the couple
+    anisotropic f = -|r_s| Q R C R^T Q^T V (a drag tensor C in the directors' frame
+    turned onto the centre line: _fluid_force; resistive-force or slender-body theory,
+    sections.slender_body_drag); rotational damping, the couple
     per length -C W (material: ``rotational_drag``) or -C_s w (spatial, w = R W:
     ``spatial_rotational_drag``, i.e. C = R^T C_s R) in the rotation block; returns
-    their dissipation c V.V + V.R C R^T V + W.C W integrated (0 without any on every
-    rod)."""
+    their dissipation c V.V + V.f + W.C W integrated (0 without any on every rod)."""
     dissipation = []
     if not all(is_zero(scalars(p)["drag"]) for p in params):
         F["displacement"] += c["drag"] * ufl.inner(unk.V, unk.t["displacement"]) * disc.dx
         dissipation.append(c["drag"] * ufl.inner(unk.V, unk.V) * disc.dx)
     if DRAG_TENSOR in c:
-        R = rotation_matrix(unk.q)
-        f = ufl.dot(R, ufl.dot(c[DRAG_TENSOR], ufl.dot(ufl.transpose(R), unk.V)))
+        f = _fluid_force(c[DRAG_TENSOR], unk)
         F["displacement"] += ufl.inner(f, unk.t["displacement"]) * disc.dx
         dissipation.append(ufl.inner(f, unk.V) * disc.dx)
     for name in DAMPING:
