@@ -300,29 +300,31 @@ def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, loads: list[LoadDa
     return power
 
 
-def _fluid_force(C, unk: Unknowns):
-    """The anisotropic drag's force per reference length (minus): |r_s| Q R C R^T Q^T V,
-    C in the directors' frame turned onto the centre line (Q the least rotation taking
-    d_3 = R e_3 to the unit tangent t = r_s / |r_s|: Q = I + K + K^2 / (1 + d_3.t), K
-    the cross product with d_3 x t), per current length (|r_s|: the stretch).  For
-    C = (c_n, c_n, c_t) it is |r_s| (c_n (I - t t^T) + c_t t t^T) V, slender-body
-    theory's force on the centre line whatever the shear; an unshearable, inextensible
-    rod has Q = I, |r_s| = 1: R C R^T V."""
+def _fluid_force(C, unk: Unknowns, v):
+    """The anisotropic drag's force per reference length (minus): |v| R Q C Q^T R^T V,
+    C in the directors' frame turned onto the centre line and per current length: Q
+    the least rotation taking e_3 to the unit strain v / |v| (v = R^T r_s, the section's
+    shear and stretch: Q = I + K + K^2 / (1 + v_3 / |v|), K the cross product with
+    e_3 x v / |v|), so that the force's axis R Q e_3 is the centre line's tangent
+    r_s / |r_s| where v is taken (the cell's midpoint) and turns with the directors
+    along the cell, and |v| = |r_s| the stretch.  For C = (c_n, c_n, c_t) it is
+    |r_s| (c_n (I - t t^T) + c_t t t^T) V, t that axis: slender-body theory's force on
+    the centre line whatever the shear; an unshearable, inextensible rod (v = e_3) has
+    R C R^T V."""
     R = rotation_matrix(unk.q)
-    r_s = ufl.as_vector((0.0, 0.0, 1.0)) + unk.f["displacement"].dx(0)
-    stretch = ufl.sqrt(ufl.dot(r_s, r_s))
-    d3, t = R[:, 2], r_s / stretch
-    k = ufl.cross(d3, t)
+    stretch = ufl.sqrt(ufl.dot(v, v))
+    k = ufl.as_vector((-v[1], v[0], 0.0)) / stretch           # e_3 x v / |v|
     K = ufl.as_matrix([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    QR = ufl.dot(ufl.Identity(3) + K + ufl.dot(K, K) / (1.0 + ufl.dot(d3, t)), R)
-    return stretch * ufl.dot(QR, ufl.dot(C, ufl.dot(ufl.transpose(QR), unk.V)))
+    RQ = ufl.dot(R, ufl.Identity(3) + K + ufl.dot(K, K) / (1.0 + v[2] / stretch))
+    return stretch * ufl.dot(RQ, ufl.dot(C, ufl.dot(ufl.transpose(RQ), unk.V)))
 
 
-def drag(F: dict, unk: Unknowns, c: dict, params: list, disc: Discretisation):
+def drag(F: dict, unk: Unknowns, c: dict, params: list, disc: Discretisation, v=None):
     """Linear drag in the displacement block: isotropic f = -c V (a scalar ``drag``) or
-    anisotropic f = -|r_s| Q R C R^T Q^T V (a drag tensor C in the directors' frame
-    turned onto the centre line: _fluid_force; resistive-force or slender-body theory,
-    sections.slender_body_drag); rotational damping, the couple
+    anisotropic f = -|v| R Q C Q^T R^T V (a drag tensor C in the directors' frame
+    turned onto the centre line, ``v`` the section's strain R^T r_s: _fluid_force;
+    resistive-force or slender-body theory, sections.slender_body_drag); rotational
+    damping, the couple
     per length -C W (material: ``rotational_drag``) or -C_s w (spatial, w = R W:
     ``spatial_rotational_drag``, i.e. C = R^T C_s R) in the rotation block; returns
     their dissipation c V.V + V.f + W.C W integrated (0 without any on every rod)."""
@@ -331,7 +333,7 @@ def drag(F: dict, unk: Unknowns, c: dict, params: list, disc: Discretisation):
         F["displacement"] += c["drag"] * ufl.inner(unk.V, unk.t["displacement"]) * disc.dx
         dissipation.append(c["drag"] * ufl.inner(unk.V, unk.V) * disc.dx)
     if DRAG_TENSOR in c:
-        f = _fluid_force(c[DRAG_TENSOR], unk)
+        f = _fluid_force(c[DRAG_TENSOR], unk, v)
         F["displacement"] += ufl.inner(f, unk.t["displacement"]) * disc.dx
         dissipation.append(ufl.inner(f, unk.V) * disc.dx)
     for name in DAMPING:

@@ -335,7 +335,8 @@ class RodModel(FEModel):
                                             disc) if self.evolving else [])
         if self.dynamic:
             residual.inertia(F, unk, c, disc)
-        drag_dissipation = external_forces.drag(F, unk, c, [rod.params for rod in rods], disc)
+        drag_dissipation = external_forces.drag(F, unk, c, [rod.params for rod in rods], disc,
+                                                 resp.v)
         return resp, F, n, natural_pairs, drag_dissipation
 
     def _balance(self, disc, zero, loads, response: tuple | None = None) -> Terms:
