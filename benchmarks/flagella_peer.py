@@ -23,14 +23,11 @@ JSON and writes results/bench/flagella_peer.json (``--out`` another name).
 
 from __future__ import annotations
 
-import argparse
-import json
-from time import perf_counter
 from pathlib import Path
 
 import numpy as np
 
-from snake_peer import scene_speeds, speeds
+from snake_peer import bench_folder, peer_parser, pyelastica_speeds, scene_speeds, write_report
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "continuum_flagella.toml"
@@ -60,23 +57,8 @@ def pyelastica(dt: float, t_end: float, cells: int = 50) -> dict:
     viscosity = LENGTH**2 / (PERIOD * 1e-4)       # fluid density 1, Reynolds number 1e-4
     sim.add_forcing_to(rod).using(ea.SlenderBodyTheory, dynamic_viscosity=viscosity)
     sim.dampen(rod).using(ea.AnalyticalLinearDamper, damping_constant=0.625, time_step=dt)
-    record: dict = {"time": [], "com": []}
-    every = max(1, int(round(0.01 / dt)))
-
-    class Record(ea.CallBackBaseClass):
-        def make_callback(self, system, time, current_step):
-            if current_step % every == 0:
-                record["time"].append(time)
-                record["com"].append(system.compute_position_center_of_mass().copy())
-
-    sim.collect_diagnostics(rod).using(Record)
-    sim.finalize()
-    start = perf_counter()
-    ea.integrate(ea.PositionVerlet(), sim, t_end, int(round(t_end / dt)), progress_bar=False)
-    wall = perf_counter() - start
-    t, com = np.array(record["time"]), np.array(record["com"])
-    return {"code": "PyElastica", "dt": dt, "cells": cells, "wall_s": wall,
-            **speeds(t, com, t_end, PERIOD)}
+    return {"code": "PyElastica", "dt": dt, "cells": cells,
+            **pyelastica_speeds(sim, rod, dt, t_end, PERIOD)}
 
 
 def dolfin_rod(dt: float, t_end: float, out: Path, cells: int = 50) -> dict:
@@ -86,34 +68,20 @@ def dolfin_rod(dt: float, t_end: float, out: Path, cells: int = 50) -> dict:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--periods", type=float, default=10.01)
-    parser.add_argument("--quick", action="store_true", help="4 periods")
+    parser = peer_parser(__doc__, 10.01, "flagella_peer")
     parser.add_argument("--dt", type=float, nargs="*", default=[4e-3, 2e-3],
                         help="dolfin_rod's time steps")
     parser.add_argument("--peer-dt", type=float, nargs="*", default=[1e-4, 5e-5],
                         help="PyElastica's time steps")
     parser.add_argument("--cells", type=int, default=50, help="elements or cells (both)")
-    parser.add_argument("--codes", nargs="*", default=["pyelastica", "dolfin_rod"])
-    parser.add_argument("--out", default="flagella_peer")
     args = parser.parse_args()
-    t_end = PERIOD * (4.01 if args.quick else args.periods)
-    folder = ROOT / "results" / "bench"
-    folder.mkdir(parents=True, exist_ok=True)
-    rows = []
+    t_end, folder, rows = PERIOD * (4.01 if args.quick else args.periods), bench_folder(), []
     if "pyelastica" in args.codes:
         rows += [pyelastica(dt, t_end, args.cells) for dt in args.peer_dt]
     if "dolfin_rod" in args.codes:
         rows += [dolfin_rod(dt, t_end, folder / "flagella_runs", args.cells)
                  for dt in args.dt]
-    report = {"t_end": t_end, "runs": rows}
-    peers = [r for r in rows if r["code"] == "PyElastica"]
-    ours = [r for r in rows if r["code"] == "dolfin_rod" and "speed" in r]
-    if peers and ours:
-        report["ratio_forward"] = ours[-1]["forward"] / peers[-1]["forward"]
-    text = json.dumps(report, indent=1)
-    print(text)
-    (folder / f"{args.out}.json").write_text(text + "\n")
+    write_report(rows, t_end, folder / f"{args.out}.json")
 
 
 if __name__ == "__main__":

@@ -76,6 +76,13 @@ def pyelastica(dt: float, t_end: float) -> dict:
         slip_velocity_tol=1e-8, static_mu_array=np.zeros(3),
         kinetic_mu_array=np.array([mu, 1.5 * mu, 2.0 * mu]))
     sim.dampen(rod).using(ea.AnalyticalLinearDamper, damping_constant=2e-3, time_step=dt)
+    return {"code": "PyElastica", "dt": dt, **pyelastica_speeds(sim, rod, dt, t_end, PERIOD)}
+
+
+def pyelastica_speeds(sim, rod, dt: float, t_end: float, period: float) -> dict:
+    """PyElastica's ``sim`` run to t_end by PositionVerlet, the centre of mass of ``rod``
+    recorded every 0.01 s: the time loop's wall time and the speeds."""
+    import elastica as ea
     record: dict = {"time": [], "com": []}
     every = max(1, int(round(0.01 / dt)))
 
@@ -91,7 +98,7 @@ def pyelastica(dt: float, t_end: float) -> dict:
     ea.integrate(ea.PositionVerlet(), sim, t_end, int(round(t_end / dt)), progress_bar=False)
     wall = perf_counter() - start
     t, com = np.array(record["time"]), np.array(record["com"])
-    return {"code": "PyElastica", "dt": dt, "wall_s": wall, **speeds(t, com, t_end)}
+    return {"wall_s": wall, **speeds(t, com, t_end, period)}
 
 
 def dolfin_rod(dt: float, t_end: float, eps: float, out: Path) -> dict:
@@ -127,23 +134,40 @@ def centre(points: np.ndarray) -> np.ndarray:
     return w @ points / w.sum()
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--periods", type=float, default=11.01)
+def peer_parser(doc: str, periods: float, out: str) -> argparse.ArgumentParser:
+    """The peer benchmarks' common options: --periods, --quick (4 periods), --codes,
+    --out (the JSON's name in results/bench/)."""
+    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    parser.add_argument("--periods", type=float, default=periods)
     parser.add_argument("--quick", action="store_true", help="4 periods")
-    parser.add_argument("--eps", type=float, nargs="*", default=[1e-3])
     parser.add_argument("--codes", nargs="*", default=["pyelastica", "dolfin_rod"])
-    parser.add_argument("--out", default="snake_peer")
+    parser.add_argument("--out", default=out)
+    return parser
+
+
+def main() -> None:
+    parser = peer_parser(__doc__, 11.01, "snake_peer")
+    parser.add_argument("--eps", type=float, nargs="*", default=[1e-3])
     args = parser.parse_args()
-    t_end = PERIOD * (4.01 if args.quick else args.periods)
-    folder = ROOT / "results" / "bench"
-    folder.mkdir(parents=True, exist_ok=True)
-    rows = []
+    t_end, folder, rows = PERIOD * (4.01 if args.quick else args.periods), bench_folder(), []
     if "pyelastica" in args.codes:
         rows += [pyelastica(dt, t_end) for dt in (1e-4, 5e-5)]
     if "dolfin_rod" in args.codes:
         rows += [dolfin_rod(dt, t_end, eps, folder / "snake_runs")
                  for eps in args.eps for dt in (2e-3, 1e-3)]
+    write_report(rows, t_end, folder / f"{args.out}.json")
+
+
+def bench_folder() -> Path:
+    """results/bench/, made if missing."""
+    folder = ROOT / "results" / "bench"
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def write_report(rows: list, t_end: float, path: Path) -> None:
+    """The runs as JSON, printed and written to ``path``, with the ratio of the forward
+    speeds of the last dolfin_rod run that completed and the last PyElastica run."""
     report = {"t_end": t_end, "runs": rows}
     peers = [r for r in rows if r["code"] == "PyElastica"]
     ours = [r for r in rows if r["code"] == "dolfin_rod" and "speed" in r]
@@ -151,7 +175,7 @@ def main() -> None:
         report["ratio_forward"] = ours[-1]["forward"] / peers[-1]["forward"]
     text = json.dumps(report, indent=1)
     print(text)
-    (folder / f"{args.out}.json").write_text(text + "\n")
+    path.write_text(text + "\n")
 
 
 if __name__ == "__main__":
