@@ -133,9 +133,12 @@ class FESimulation:
         """Branch switching at bifurcations (analysis/branches.py): quasi-static rods
         without constraints whose stability is checked, unless stability.at_bifurcation
         = "stay"; not with segment contact (the descent's steps have no check that
-        segments pass through each other: the count is reported, the path stays)."""
+        segments pass through each other: the count is reported, the path stays), nor
+        with Kelvin-Voigt viscosity or drag (the positions move at a viscous rate: the
+        rod creeps away from an unstable equilibrium, it does not jump; the count is
+        reported, the path stays)."""
         if self.stability is None or self.scene["stability"]["at_bifurcation"] != "switch" \
-                or segment_pairs(self.scene):
+                or segment_pairs(self.scene) or self.model.rate_dependent:
             return None
         from ..analysis.branches import BranchSwitching
         try:
