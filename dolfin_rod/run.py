@@ -27,6 +27,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -463,7 +464,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     def after_step(t_k: float) -> None:
         diag = sim.diagnostics(t_k)
         # a continuation's steps are not a motion: its power balance does not hold
-        bound.check(diag, jump=_report_stability_changes(sim, comm)
+        bound.check(diag, jump=_report_stability_changes(sim)
                     or getattr(sim, "continuation", None) is not None)
         k = progress["k"] = progress["k"] + 1
         writer.record(k, t_k, diag)
@@ -508,10 +509,10 @@ def _checkpoint_due(outputs: dict, k: int) -> bool:
     return bool(outputs["checkpoint_every"]) and k % outputs["checkpoint_every"] == 0
 
 
-def _report_stability_changes(sim, comm) -> bool:
+def _report_stability_changes(sim) -> bool:
     """A warning for each branch switch and each change of the tangent's negative
-    eigenvalues not yet shown; whether the state switched branches since the last
-    call."""
+    eigenvalues not yet shown (a run's warnings: on rank 0's stderr and in summary.json,
+    output/notices.py); whether the state switched branches since the last call."""
     branches = getattr(sim, "branches", None)
     monitor = getattr(sim, "stability", None)
     switched = False
@@ -520,14 +521,15 @@ def _report_stability_changes(sim, comm) -> bool:
         branches.reported += 1
         switched = switched or switch.after is not None
         text = _switch_text(switch, monitor is None or monitor.conservative)
-        print_on_root(comm, f"warning: t = {switch.t:g}: {text}", file=sys.stderr)
+        warnings.warn(f"t = {switch.t:g}: {text}", RuntimeWarning, stacklevel=2)
     while monitor is not None and len(monitor.changes) > monitor.reported:
         t, before, after = monitor.changes[monitor.reported]
         monitor.reported += 1
         state = "unstable" if after else "stable again"
-        print_on_root(comm, f"warning: t = {t:g}: the equilibrium is {state}: {after} "
-                            f"negative eigenvalue(s) of the tangent stiffness (was {before}; "
-                            f"docs/stability.md){_energy_criterion(monitor)}", file=sys.stderr)
+        warnings.warn(f"t = {t:g}: the equilibrium is {state}: {after} negative "
+                      f"eigenvalue(s) of the tangent stiffness (was {before}; "
+                      f"docs/stability.md){_energy_criterion(monitor)}", RuntimeWarning,
+                      stacklevel=2)
     return switched
 
 

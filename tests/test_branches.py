@@ -99,6 +99,9 @@ def test_post_buckled_elastica_by_branch_switching(tmp_path, capfd, factor, step
     if rank() == 0:                                        # (rank 0 warns)
         assert err.count("switched to a stable branch") == 1, err
         assert f"t = {t_switch:g}: a bifurcation" in err, err
+    # and summary.json keeps the warning (it was only printed)
+    switches = [w for w in result.summary["warnings"] if "switched to a stable branch" in w]
+    assert len(switches) == 1 and switches[0].startswith(f"t = {t_switch:g}: a bifurcation")
     series = result.series
     assert series["negative_eigenvalues"][-1] == 0
     deflection, axial = elastica(p)
