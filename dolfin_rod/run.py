@@ -129,10 +129,24 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
 ANALYSES = {"buckle": 4, "modes": 6}        # the analyses of an end state, default counts
 
 
+class AnalysisError(RuntimeError):
+    """The analysis of a run's end state found fewer modes than asked (the run's files
+    are kept: status "failed")."""
+
+
 def _modes_of(scene: Scene, kind: str, count: int, comm, quiet: bool, note: str | None):
     """The analysis of a run's end state: (sim, t, folder) -> its summary entry (with
     ``note``, how the scene was changed for the analysis: scenes.selection.at_rest)."""
     def analysis(sim, t: float, folder: Path) -> dict:
+        from .analysis.eigen import EigenError
+        try:
+            return end_state_modes(sim, t, folder)
+        except EigenError as err:
+            raise AnalysisError(
+                f"{kind} at t = {t:g}: {err} (--count {count}: a rod has at most one mode "
+                "per unknown its supports leave free; ask for fewer)") from None
+
+    def end_state_modes(sim, t: float, folder: Path) -> dict:
         from .output.modes import table, write_modes
         model = sim.model
         if kind == "buckle":
@@ -314,7 +328,11 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
             summary["from_run"] = started
         if analysis is not None and status.startswith("completed"):
             t_analysis = time.perf_counter()
-            summary.update(analysis(sim, t, folder))
+            try:
+                summary.update(analysis(sim, t, folder))
+            except AnalysisError as err:    # the run's files kept and closed, its summary
+                status, message = "failed", str(err)
+                summary.update(status=status, message=message)
             clock["analysis"] = time.perf_counter() - t_analysis
         clock["total"] = time.perf_counter() - clock["start"]
         writer.finish(summary, {k: v for k, v in clock.items() if k != "start"})
