@@ -105,7 +105,7 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
     analysis cannot take raises SceneError naming the key, before any work."""
     from mpi4py import MPI
 
-    from .scenes.rules import analysis_problem
+    from .scenes.rules import analysis_problem, rate_force_key
     from .scenes.selection import at_rest
     if kind not in ANALYSES:
         raise ValueError(f"kind: one of {', '.join(ANALYSES)}, got {kind!r}")
@@ -116,14 +116,18 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
     given = scene
     scene = agree(comm, lambda: _scene(given, overrides), (SceneError,))
     rest = agree(comm, lambda: at_rest(scene) if kind == "buckle" else None, (SceneError,))
+    note = None if rest is None else rest[1]
     if rest is not None:
         scene = agree(comm, lambda: _scene(scene, rest[0]), (SceneError,))
-        if not quiet:
-            print_on_root(comm, f"{kind}: {rest[1]}")
     agree(comm, lambda: analysis_problem(scene, kind), (SceneError,))
+    damping = rate_force_key(scene) if kind == "modes" else None
+    if damping is not None:
+        note = (f"undamped: the modes leave out the rod's {damping} (K phi = omega^2 M "
+                "phi: the natural frequencies of the rod without it; docs/stability.md)")
+    if note is not None and not quiet:
+        print_on_root(comm, f"{kind}: {note}")
     return _run(scene, None if out is None else Path(out), comm, False, overwrite, quiet,
-                None, _modes_of(scene, kind, int(count), comm, quiet,
-                                None if rest is None else rest[1]))
+                None, _modes_of(scene, kind, int(count), comm, quiet, note))
 
 
 ANALYSES = {"buckle": 4, "modes": 6}        # the analyses of an end state, default counts
