@@ -188,8 +188,10 @@ def settle(model, t: float) -> None:
         solver.solve()
     except SolverError as err:
         raise ValueError(f"start.equilibrium: no static equilibrium found from the starting "
-                         f"shape at t = {t:g} ({err}); is the rod supported against rigid "
-                         "motions?") from err
+                         f"shape at t = {t:g} ({err}): Newton did not reach it under the "
+                         "whole load at once (a large deflection); start nearer to it "
+                         "(initial.shape), or let the rod settle in time without "
+                         "equilibrium (with material.drag)") from err
     finally:
         for g, array in zip(moving, saved):
             g.x.array[:] = array

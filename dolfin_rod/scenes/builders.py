@@ -316,8 +316,14 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     initial = scene["initial"]
 
     def initial_state():
-        model.set_initial_state(**natural_strains(scene),
-                                start=rod_starts(scene) if scene.rods else starting_state(scene))
+        try:
+            model.set_initial_state(**natural_strains(scene), start=rod_starts(scene)
+                                    if scene.rods else starting_state(scene))
+        except ValueError as err:   # a start the model refused (start.<field>: [initial]),
+            field, colon, reason = str(err).partition(": ")   # e.g. no equilibrium found
+            if not (colon and field.startswith("start.")):
+                raise
+            raise scene.error(f"initial.{field.removeprefix('start.')}", reason) from None
 
     if touching(scene):    # an obstacle or a segment cutting the rod at t = 0: no solve
         from ..rod.obstacle_shapes import InitialOverlap
@@ -328,11 +334,6 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
         except PairOverlap as err:
             raise scene.error(err.key, str(err)) from None
-        except ValueError as err:   # a start the model refused (start.<field>: [initial])
-            field, colon, reason = str(err).partition(": ")
-            if not (colon and field.startswith("start.")):
-                raise
-            raise scene.error(f"initial.{field.removeprefix('start.')}", reason) from None
     return FESimulation("rod", model, scene, initial_state)
 
 
