@@ -36,17 +36,17 @@ def ring(n_cells: int, link: float = 0.0, comm=MPI.COMM_WORLD, stiff: float = ST
 
 
 def ring_fields(model) -> dict:
-    """Energy, the weld's reactions and the cells' internal force and couple (spatial;
-    rank 0's sample, None elsewhere)."""
+    """Energy, the weld's reactions, the nodes and the cells' internal force and couple
+    (spatial), on every rank."""
     d = model.diagnostics(0.0)
     sample = LineSampler(model.mesh, model.observables(), point=("centre_line",)).sample()
-    out = {"free_energy": d["free_energy"],
-           "weld_force": [d[f"reaction_force_start_{c}"] for c in "xyz"],
-           "weld_couple": [d[f"reaction_couple_start_{c}"] for c in "xyz"]}
-    if sample is not None:
-        out.update(n=sample.cell["n_spatial"].tolist(), m=sample.cell["m_spatial"].tolist(),
-                   centre=sample.point["centre_line"].tolist())
-    return out
+    fields = None if sample is None else dict(
+        n=sample.cell["n_spatial"].tolist(), m=sample.cell["m_spatial"].tolist(),
+        centre=sample.point["centre_line"].tolist())
+    return {"free_energy": d["free_energy"],
+            "weld_force": [d[f"reaction_force_start_{c}"] for c in "xyz"],
+            "weld_couple": [d[f"reaction_couple_start_{c}"] for c in "xyz"],
+            **model.mesh.comm.bcast(fields)}
 
 
 def michell_count(n_cells: int, link: float, comm=MPI.COMM_WORLD) -> int:
