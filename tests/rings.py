@@ -49,20 +49,21 @@ def ring_fields(model) -> dict:
             **model.mesh.comm.bcast(fields)}
 
 
-def michell_count(n_cells: int, link: float, comm=MPI.COMM_WORLD) -> int:
+def michell_count(n_cells: int, link: float, comm=MPI.COMM_WORLD, stiff: float = STIFF) -> int:
     """The negative eigenvalues of the tangent stiffness of the settled ring (round-off
     zeros counted as zero: the isotropic ring's spin about its centre line is neutral)."""
-    return StabilityMonitor(ring(n_cells, link, comm)).count(0.0)
+    return StabilityMonitor(ring(n_cells, link, comm, stiff)).count(0.0)
 
 
-def critical_link(n_cells: int, halvings: int = 16) -> float:
+def critical_link(n_cells: int, halvings: int = 16, stiff: float = STIFF) -> float:
     """The twist (turns) at which the count leaves 0, by bisection in [0.7, 1.3] x
     Michell's (2.7e-5 of it at 16 halvings)."""
+    count = lambda link: michell_count(n_cells, link, stiff=stiff)    # noqa: E731
     lo, hi = 0.7 * MICHELL, 1.3 * MICHELL
-    assert michell_count(n_cells, lo) == 0 and michell_count(n_cells, hi) > 0
+    assert count(lo) == 0 and count(hi) > 0
     for _ in range(halvings):
         mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if michell_count(n_cells, mid) else (mid, hi)
+        lo, hi = (lo, mid) if count(mid) else (mid, hi)
     return 0.5 * (lo + hi)
 
 

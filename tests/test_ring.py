@@ -113,13 +113,16 @@ def test_michell_counts_below_and_above_the_critical_twist():
 
 @pytest.mark.slow
 def test_michell_critical_twist_converges_at_second_order():
-    """The twist at which the count leaves 0 (bisection, 16 halvings: 2.7e-5 of it):
-    relative to Michell's sqrt(3) A/C = 2.2517 turns 1.81e-2, 5.17e-3, 1.33e-3 at 16,
-    32, 64 cells (orders 1.81, 1.96; 128 cells: 3.3e-4, order 2.03).  Tolerances: the
-    64-cell error below 2e-3, the last order within 0.1 of 2."""
-    errors = [abs(critical_link(n) / MICHELL - 1) for n in CELLS]
+    """The twist at which the count leaves 0 (bisection, 16 halvings: 2.7e-5 of it),
+    with B = 1e6 (the shearable rod's own shift O(A/(B R^2)) = 4e-5; with B = 1e5 it is
+    4e-4, which bends the 64-cell order to 2.47: errors 1.76e-2, 4.68e-3, 8.5e-4):
+    relative to Michell's sqrt(3) A/C = 2.2517 turns 1.81e-2, 5.13e-3, 1.30e-3 at 16,
+    32, 64 cells (orders 1.82, 1.99; the 16-cell mesh, a 22-degree cell turn, is
+    pre-asymptotic: 128 cells give 2.03 at B = 1e5, L = 2 pi).  Tolerances: the 64-cell
+    error below 2e-3, the last order within 0.05 of 2, the first above 1.75."""
+    errors = [abs(critical_link(n, stiff=1e6) / MICHELL - 1) for n in CELLS]
     assert errors[2] < 2e-3, errors
-    assert abs(orders(errors)[-1] - 2) < 0.1, errors
+    assert abs(orders(errors)[1] - 2) < 0.05 and orders(errors)[0] > 1.75, errors
 
 
 @pytest.mark.mpi
