@@ -206,7 +206,7 @@ def settle(model, t: float) -> None:
                        {"snes_max_it": 50}, step_scale=problem.configuration_norm(),
                        links=links,
                        terms=[*problem.terms, *(term for term in (tether, keeper) if term)],
-                       force_scale=problem.force_scale)
+                       force_scale=problem.force_scale, static=True)
     given = [f.x.array.copy() for f in fields]
     try:
         try:
