@@ -606,7 +606,8 @@ class RodModel(FEModel):
         if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step, terms=terms,
-                                       where_failed=where, links=links, force_scale=scale)
+                                       where_failed=where, links=links, force_scale=scale,
+                                       inertia=self.dynamic)
         rates_used = set(form_cache.registry(forms))
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
@@ -616,6 +617,7 @@ class RodModel(FEModel):
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
             links=links, terms=terms, scale_motions=self.scale_motions,
             motion_turn=self.motion_turn, where_failed=where, force_scale=scale,
+            inertia=self.dynamic,
             friction_lookahead=self.contact.lookahead if self.contact else None,
             rest_in_contact=self._rest_on_obstacles if self.contact and self.dynamic
             else None)
@@ -801,14 +803,13 @@ class RodModel(FEModel):
             {piece.name: given[rod] for piece, rod in zip(self.rods, self.rod_names)
              if rod in given} if isinstance(given, dict) else given     # a rod's: its pieces'
             for given in (natural_curvature, natural_stretch))
-        held = any("clamped" in supports.ends or bool(supports.rotation)
-                   for supports in self.end_supports)
+        held = initial_state.rotation_held(self) or self.contact is not None
         if len(self.splits) == 1:
-            check_start(start, self.length, self.dynamic, rotation_held=held)
+            check_start(start, self.length, self.dynamic, supported=held)
         if len(self.splits) == 1 and self.kinked and start is not None:
             start = RodStarts(piece_starts(start, self.splits[0]), self.rods, self.layout)
         elif start is not None and len(self.splits) > 1:     # pieces: each its share
-            check_rod_starts(start, self.user_rods, self.dynamic, rotation_held=held)
+            check_rod_starts(start, self.user_rods, self.dynamic, supported=held)
             start = system_starts(start, self.splits)
             check_joints_at_start(self.rods, self.joints, start)
             start = RodStarts(start, self.rods, self.layout)
