@@ -109,8 +109,9 @@ def oblique_supports(rod: Rod) -> list[tuple[str, str]]:
     """(end_slide or end_turn, end) of a rod's supports on a one-node link
     (boundary_conditions.linked_axes)."""
     names = {"displacement": "end_slide", "rotation_increment": "end_turn"}
+    frames = end_frames(rod) if rod.end_turn else {}    # (read for end_turn only)
     return [(names[block], end) for block, end in
-            linked_axes(rod.end_slide, rod.end_turn, end_frames(rod))]
+            linked_axes(rod.end_slide, rod.end_turn, frames)]
 
 
 class RodModel(FEModel):
@@ -448,9 +449,14 @@ class RodModel(FEModel):
     def _end_supports(self) -> None:
         """Every rod's end supports (their Dirichlet conditions and Constants)."""
         held = self.welded_spin
+        # the stress-free end frames (~40 us a rod): read for an end_turn's axis, and with
+        # quaternions for a free spin's plane (EndSupports)
+        quaternions = "rotation_increment" not in self.unknowns.spaces
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
-                                         rod.end_springs, rod.end_turn, end_frames(rod),
+                                         rod.end_springs, rod.end_turn,
+                                         end_frames(rod) if rod.end_turn or quaternions
+                                         else None,
                                          spin_at=held[1] if held and held[0] == k else None)
                              for k, rod in enumerate(self.rods)]
 
