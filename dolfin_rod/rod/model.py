@@ -109,8 +109,9 @@ def oblique_supports(rod: Rod) -> list[tuple[str, str]]:
     """(end_slide or end_turn, end) of a rod's supports on a one-node link
     (boundary_conditions.linked_axes)."""
     names = {"displacement": "end_slide", "rotation_increment": "end_turn"}
+    frames = end_frames(rod) if rod.end_turn else {}    # (read for end_turn only)
     return [(names[block], end) for block, end in
-            linked_axes(rod.end_slide, rod.end_turn, end_frames(rod))]
+            linked_axes(rod.end_slide, rod.end_turn, frames)]
 
 
 class RodModel(FEModel):
@@ -441,9 +442,14 @@ class RodModel(FEModel):
     def _end_supports(self) -> None:
         """Every rod's end supports (their Dirichlet conditions and Constants)."""
         held = self.welded_spin
+        # the stress-free end frames (~40 us a rod): read for an end_turn's axis, and with
+        # quaternions for a free spin's plane (EndSupports)
+        quaternions = "rotation_increment" not in self.unknowns.spaces
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
-                                         rod.end_springs, rod.end_turn, end_frames(rod),
+                                         rod.end_springs, rod.end_turn,
+                                         end_frames(rod) if rod.end_turn or quaternions
+                                         else None,
                                          spin_at=held[1] if held and held[0] == k else None)
                              for k, rod in enumerate(self.rods)]
 
@@ -797,14 +803,13 @@ class RodModel(FEModel):
             {piece.name: given[rod] for piece, rod in zip(self.rods, self.rod_names)
              if rod in given} if isinstance(given, dict) else given     # a rod's: its pieces'
             for given in (natural_curvature, natural_stretch))
-        held = any("clamped" in supports.ends or bool(supports.rotation)
-                   for supports in self.end_supports)
+        held = initial_state.rotation_held(self) or self.contact is not None
         if len(self.splits) == 1:
-            check_start(start, self.length, self.dynamic, rotation_held=held)
+            check_start(start, self.length, self.dynamic, supported=held)
         if len(self.splits) == 1 and self.kinked and start is not None:
             start = RodStarts(piece_starts(start, self.splits[0]), self.rods, self.layout)
         elif start is not None and len(self.splits) > 1:     # pieces: each its share
-            check_rod_starts(start, self.user_rods, self.dynamic, rotation_held=held)
+            check_rod_starts(start, self.user_rods, self.dynamic, supported=held)
             start = system_starts(start, self.splits)
             check_joints_at_start(self.rods, self.joints, start)
             start = RodStarts(start, self.rods, self.layout)
