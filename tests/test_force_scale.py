@@ -187,8 +187,9 @@ def test_a_pendulum_swinging_in_gravity_in_three_systems_of_units():
     of Newton's stops).  The scene gives time.rtol = 1e-14, so that each step stops by
     the tests under scrutiny, the absolute test (unit-free now) and the step test: the
     dynamic integrator's default rtol 1e-4 compares with a residual that weighs force
-    rows against couple rows as the units do, and stops this stiff pendulum early in
-    every system (tip x/L -0.52, -0.75, -0.62 against -0.90; docs/rod.md)."""
+    rows against couple rows as the units do, and stopped this stiff pendulum early in
+    every system (tip x/L -0.52, -0.75, -0.62 against -0.90) until the relative test was
+    capped by the force scale (the next test; docs/rod.md)."""
     results = {}
     for units in UNITS:
         d = run_scene(hair(units), *convert([0.04, 0.002], units, time=1))
