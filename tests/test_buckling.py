@@ -343,6 +343,32 @@ def test_analysis_commands_refuse_scenes_they_cannot_take(tmp_path, capsys, kind
         assert not Path(out).exists()
 
 
+@pytest.mark.mpi
+@pytest.mark.parametrize("kind, scene", [("modes", "string_modes.toml"),
+                                         ("buckle", "column_buckling_modes.toml")])
+def test_more_modes_than_the_rod_has_fail_with_the_run_kept(tmp_path, kind, scene):
+    """``--count 1000`` of a rod of 4 cells (30 unknowns): SLEPc finds fewer; that ended
+    in a traceback (exit 1) after the run, with no summary.json and rod.bp unclosed
+    ("BP4 Writer ... Destroyed without a prior Close()").  Now the run's files are kept
+    and closed, status "failed" naming --count, exit 3."""
+    import json
+    from pathlib import Path
+
+    from mpi4py import MPI
+
+    from dolfin_rod import read_vtx
+    text = (Path(__file__).parents[1] / "scenes" / scene).read_text()
+    code, out = _cli(tmp_path, text.replace("n_cells = 16", "n_cells = 4"),
+                     [kind, "--count", "1000"])
+    assert code == 3
+    if MPI.COMM_WORLD.rank != 0:
+        return
+    summary = json.loads((Path(out) / "summary.json").read_text())
+    assert summary["status"] == "failed"
+    assert f"{kind} at t = " in summary["message"] and "--count 1000" in summary["message"]
+    assert [s["time"] for s in read_vtx(Path(out) / "rod.bp")][-1] == summary["t_end_reached"]
+
+
 @pytest.mark.parametrize("material", [
     'model = "kelvin_voigt"\nviscosity = { M = [0.1, 0.1, 0.1], N = [1.0, 1.0, 1.0] }',
     'model = "hyperelastic"\ndrag = 0.5'])

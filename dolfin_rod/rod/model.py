@@ -252,6 +252,11 @@ class RodModel(FEModel):
         self.length = length
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(rods[0].params.density)
+        # forces of the rates of positions and rotations (Kelvin-Voigt viscosity, drag):
+        # a quasi-static rod's positions then move at a viscous rate, they cannot jump
+        self.rate_dependent = not all(is_zero(v) for rod in rods for v in (
+            rod.params.M, rod.params.N, rod.params.drag, rod.params.rotational_drag,
+            rod.params.spatial_rotational_drag))
         return joints
 
     def _rotation_unknowns(self, rotations: str, joints: Sequence[Joint]) -> str:
@@ -261,8 +266,7 @@ class RodModel(FEModel):
         obstacle = rotation_vector_obstacle(
             self.dynamic, self.variant, self.constraint,
             rotary_inertia=not any(any(map(is_zero, p.section_inertia)) for p in all_params),
-            rate_dependent=not all(is_zero(v) for p in all_params for v in (
-                p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
+            rate_dependent=self.rate_dependent,
             rotation_held=self.welded_spin is not None or any(
                 "clamped" in rod.ends or bool(rod.end_rotation)
                 or spin_free(rod.ends, rod.end_rotation, rod.end_turn, rod.end_springs)

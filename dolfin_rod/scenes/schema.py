@@ -498,7 +498,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                               "count rises), switch to a stable equilibrium at the same "
                               "loads, down the energy from the unstable one perturbed along "
                               "the critical mode (a warning says so) | stay on the computed "
-                              "path (docs/stability.md)"),
+                              "path (docs/stability.md); a rod with Kelvin-Voigt viscosity or "
+                              "drag stays: it creeps away from an unstable equilibrium at its "
+                              "viscous rate, it does not jump"),
         "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
                                               "> 0) is a result: status \"completed\", exit 0 "
                                               "(default: \"completed (unstable equilibrium)\", "
