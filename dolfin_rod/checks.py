@@ -145,6 +145,9 @@ NEWTON_ATOL = 1e-10         # BlockSNES's snes_atol for a problem without a forc
                             #   and OdeTime's solve_ivp atol (time.atol not given)
 NEWTON_FORCE_TOL = 1e-10    # time.atol not given: a rod's snes_atol is this times its
                             #   force scale at the solve's time (rod/force_scale.py)
+NEWTON_FORCE_CAP = 1e-3     # Newton's relative test accepts no residual above this times
+                            #   the force scale (solvers.relative_tolerance: a dynamic
+                            #   step's first residual dominated by stiff rows or a barrier)
 TS_RTOL, TS_ATOL = 1e-6, 1e-8   # time.ts_rtol, time.ts_atol: TSIntegrator
 ODE_SOLUTION = "exact"      # time.ode_solution: OdeTime
 
@@ -237,10 +240,11 @@ def is_coordinate_axis(axis) -> bool:
     return int(np.count_nonzero(np.asarray(axis, dtype=float))) == 1
 
 
-# A start in static equilibrium (rod/start.py) with only pinned or free ends is singular.
+# A start in static equilibrium (rod/start.py) with only pinned or free ends is singular,
+# unless it rests on obstacles (rod/initial_state.py settles it in pseudo-time).
 EQUILIBRIUM_NEEDS = ("the static problem needs an end whose rotation is held (clamped, or "
-                     "a prescribed end rotation): otherwise the sections turn about their "
-                     "tangents for free")
+                     "a prescribed end rotation), or obstacles to rest on: otherwise the "
+                     "sections turn about their tangents for free")
 # How a dynamic rod's accelerations start (initial.acceleration, StartingState.acceleration,
 # SecondOrderProblem.starting_accelerations): solved from the balance laws at t0 (friction
 # read at the first step's slip), or zero (a state known to be at rest).

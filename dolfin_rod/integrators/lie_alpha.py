@@ -59,7 +59,9 @@ def default_options(comm, second_order: bool = True, direct: bool = False) -> di
     block (the predictor's residual is O(dt^3) small already, so 1e-4 of it is far below
     the step's truncation error: the peer benchmark's tip errors are those of rtol 1e-6
     to 3 digits at every mesh, with 2.44 instead of 3.64 Newton iterations per step at
-    8 cells, soft scene), else BlockSNES's 1e-10 (a quasi-static step's first
+    8 cells, soft scene; at most checks.NEWTON_FORCE_CAP of the force scale, where the
+    first residual is dominated by stiff rows: solvers.relative_tolerance), else
+    BlockSNES's 1e-10 (a quasi-static step's first
     residual is the load increment); each step's Newton starts with a new Jacobian and
     LU and keeps them while every iteration reduces the residual 10-fold (BlockSNES's
     default, solvers.REUSE_RATIO): 1.0-1.5 Jacobians per step on the benchmark scenes
@@ -229,7 +231,8 @@ class LieGeneralizedAlpha:
         self.solver = BlockSNES(F, y, problem.bcs, options, cache=(self.structure_key, objects),
                                 step_scale=problem.configuration_norm(),
                                 links=problem.links, terms=problem.terms,
-                                force_scale=problem.force_scale)
+                                force_scale=problem.force_scale,
+                                static=not problem.inertia)
         self._arrays = self._views()
         self._matrices = {}
         self.stats = StepStats()
@@ -335,7 +338,8 @@ class LieGeneralizedAlpha:
                                              step_scale=self.problem.configuration_norm(),
                                              links=self.problem.links,
                                              terms=self.problem.terms,
-                                             force_scale=self.problem.force_scale)
+                                             force_scale=self.problem.force_scale,
+                                             static=not self.problem.inertia)
 
     def initial_accelerations(self, t0: float, first_step: float | None = None) -> None:
         """Solve the residual at t0 for the accelerations (second order) and rates (first
@@ -437,7 +441,8 @@ class LieGeneralizedAlpha:
         solver = BlockSNES(None if form_cache.lookup(key) else p.residual, unknowns, p.bcs,
                            self.options, cache=(key, self._model_objects),
                            step_scale=p.configuration_norm(), links=p.links,
-                           terms=p.terms, force_scale=p.force_scale)
+                           terms=p.terms, force_scale=p.force_scale,
+                           static=not p.inertia)
         initial = [f.x.array.copy() for f in p.fields]
         try:
             if p.scale_motions is None:
