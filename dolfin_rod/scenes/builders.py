@@ -372,7 +372,9 @@ def rod_arguments(scene: Scene) -> dict:
     from ..rod import EndSpring
     boundary, motions = scene["boundary"], end_motions(scene)
     end_loads, distributed_loads = rod_loads(scene)
-    return dict(n_cells=scene["geometry"]["n_cells"], start=boundary["start"], end=boundary["end"],
+    geo = scene["geometry"]
+    return dict(n_cells=geo["n_cells"], start=boundary["start"], end=boundary["end"],
+                closed=geo["closed"], excess_link=geo["excess_link"],
                 end_loads=end_loads, distributed_loads=distributed_loads,
                 point_loads=rod_point_loads(scene),
                 end_displacement=motions["displacement"], end_rotation=motions["rotation"],

@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
-from ..rod import placement
+from ..rod import placement, ring
 from ..theory.quaternions import np_quaternion_from_rotation_vector, np_rotation_matrix
 from ..rod.rotation_choice import (choose_rotations, rotation_vector_obstacle,
                                    rotations_reason)
@@ -71,6 +72,7 @@ def check_combinations(scene: Scene) -> None:
     _check_from_run(scene)
     if rod:
         _check_rod_material(scene)
+        _check_closed(scene)
         _check_rod_ends(scene)
         check_contact_keys(scene, rod_rotations(scene))
         _check_continuation(scene)
@@ -401,6 +403,34 @@ def _check_rod_inertia(scene: Scene) -> None:
                                  "differential-algebraic (its quaternion gauge; quasi-static: "
                                  "also its positions and rotations): use an implicit scheme")
     rod_rotations(scene)
+
+
+def _check_closed(scene: Scene) -> None:
+    """A closed rod (geometry.closed, rod/ring.py): its rules, each error naming the
+    scene key; one rod only; its start is its ring (no initial.shape)."""
+    geo, bnd = scene["geometry"], scene["boundary"]
+    if not (geo["closed"] or "excess_link" in scene.given["geometry"]):
+        return
+    if geo["closed"] and scene.in_system:
+        raise scene.error("geometry.closed", "a closed rod is the only rod of its scene "
+                                             "(rings in [[rods]]: not yet)")
+    if geo["closed"] and "shape" in scene.given["initial"]:
+        raise scene.error("initial.shape", "a closed rod starts as its ring (geometry."
+                                           "closed, excess_link); give no starting curve")
+    motions = {key: {"end": bnd[f"end_{name}"]} if bnd[f"end_{name}"] is not None else None
+               for key, name in (("end_displacement", "displacement"),
+                                 ("end_rotation", "rotation"), ("end_slide", "slide"),
+                                 ("end_springs", "spring"), ("end_turn", "turn"))}
+    rod = SimpleNamespace(
+        name="rod", closed=geo["closed"], excess_link=geo["excess_link"],
+        start=bnd["start"], end=bnd["end"], n_cells=geo["n_cells"], **motions,
+        params=placement.Geometry(geo["length"], geo["reference_curvature"],
+                                  geo["reference_stretch"], geo["reference_shape"]))
+    try:
+        ring.check_closed([rod], dynamic=scene["material"]["dynamic"])
+    except ValueError as err:
+        word = str(err).replace(":", " ").split()[0]
+        raise scene.error(ring.KEYS[word], str(err).removeprefix(word).lstrip(": ")) from err
 
 
 def _check_rod_start(scene: Scene) -> None:

@@ -186,6 +186,19 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                "rigidly, its n_cells shared in proportion to their "
                                "lengths; `dolfin-rod check` says how), or an arc or helix "
                                "(as initial.shape)"),
+        "closed": Key(boolean, False, R + "a closed rod (ring): its end welded to its start "
+                      "(the support boundary.start: clamped, the weld point held, or free, a "
+                      "free ring of a dynamic rod); it starts as the circle of circumference "
+                      "length in the (d1, d3) plane of its start, bending towards d1 (placed "
+                      "by initial.position, orientation; no initial.shape), its stress-free "
+                      "shape geometry.reference_curvature's (straight by default: bent to "
+                      "EI/R); one rod only (docs/systems.md, \"Closed rods\")"),
+        "excess_link": Key(real(), 0.0, R + "a closed rod's linking number beyond its "
+                           "natural twist, in turns: it starts planar (writhe 0) with this "
+                           "much more twist than reference_curvature's third component "
+                           "gives, and the weld keeps it (Lk = Tw + Wr); a DNA minicircle's "
+                           "Delta Lk; above Michell's sqrt(3) A_1/A_3 turns (isotropic "
+                           "bending) the planar ring is unstable and writhes"),
         "rotations": Key(choice(*ROTATIONS), ROTATION_UNKNOWNS,
                          R + "rotation unknowns: auto = rotation_vector (6 unknowns per "
                          "node; the fast default) for the local variant, no constraint and "
