@@ -602,8 +602,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "friction": Key(friction_coefficients, 0.0, "Coulomb friction coefficient mu >= 0, "
                         "or {forward, backward, lateral}: directional coefficients relative "
                         "to the rod's axis on the surface (forward: slipping towards the "
-                        "rod's end s = L; PyElastica's AnisotropicFrictionalPlane; on the "
-                        "nodes) (needs density > 0)"),
+                        "rod's end s = L; PyElastica's AnisotropicFrictionalPlane) "
+                        "(needs density > 0)"),
         "contact": Key(choice("auto", "nodes", "segments"), "auto", "where the barrier "
                        "acts: nodes (the centre line's nodes) | segments (a sphere's or "
                        "cylinder's: a thin obstacle between two nodes holds the segment; a "
