@@ -83,6 +83,8 @@ def choose_panels(scene, columns) -> list[str]:
     if not panels and "tip_quaternion_0" in cols and (
             loads.get("end_couple") is not None or loads.get("distributed_couple") is not None):
         panels.append("tip_rotation")       # a rod turned by couples (spin_up)
+    if not panels and scene["geometry"]["closed"] and "writhe" in cols:
+        panels.append("twist")      # a ring: Tw, Wr and its link (rod/ring.py)
     tip_moves = boundary["end"] == "free" or boundary.get("end_displacement") is not None \
         or boundary.get("end_slide") is not None
     if not panels and tip_moves and any(c.endswith("tip_position_x") for c in cols):
