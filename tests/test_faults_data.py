@@ -154,6 +154,22 @@ def test_resume_killed_while_rewriting_the_time_series_keeps_every_row(tmp_path,
 
 
 @pytest.mark.mpi
+def test_a_resumed_runs_summary_counts_the_whole_run(tmp_path):
+    """A second user trial: a resumed run's summary said "steps 75, Newton iterations
+    187" where the uninterrupted run did 298 iterations (they were counted only since the
+    resume).  The checkpoint keeps the counters: the resumed run reports the
+    uninterrupted run's counts exactly (the same steps from the same doubles)."""
+    folder = shared(tmp_path)
+    scene_file, run = _stopped_run(folder)
+    full = run_scene(load_scene(scene_file), folder / "full", quiet=True)
+    resumed = run_scene(load_scene(scene_file), run, resume=True, quiet=True)
+    assert resumed["status"] == full["status"] == "completed"
+    for count in ("steps", "newton_iterations", "rejected_steps"):
+        assert resumed[count] == full[count], count
+    assert full["newton_iterations"] >= 8     # t_end 0.08 in 8 steps of 0.01
+
+
+@pytest.mark.mpi
 def test_resume_refuses_a_time_series_with_missing_rows(tmp_path, capsys):
     """What the killed rewrite used to leave (rows cut after step 1): resume refuses it
     instead of reporting a complete run with a hole."""

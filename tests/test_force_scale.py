@@ -27,6 +27,8 @@ below a first guess left unchanged (an O(1) error) or a step's truncation error 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -248,3 +250,45 @@ def test_a_given_snes_atol_is_used_exactly_and_the_default_follows_the_forces():
         assert model.force_scale_now() == pytest.approx(scale * np.pi / 2, rel=1e-12)
     _, stepper = bend("SI", {"snes_atol": 1e-30})
     assert stepper.integrator.solver.snes.getTolerances()[1] == 1e-30
+
+
+@pytest.mark.mpi
+def test_a_hook_pushed_onto_its_column_in_large_load_steps_reaches_its_equilibrium(tmp_path):
+    """Quasi-static self-contact (tests/test_kinked_contact.py's hook, pushed by 0.4 N) in
+    load steps of 0.05: the step on which the arm reaches the column starts (linear
+    predictor) with a segment pair deep in its barrier, a first residual of 4.8e8, and
+    the relative test, snes_rtol 1e-8 of it, accepted 0.76 N before, more than the load:
+    the arm was left 4 mm off the column (no pair), the run "completed".  A static step's
+    relative test is now against at most the force scale (solvers.relative_reference,
+    196 N here).  References: (1) the run in load steps of 0.025, which meets no barrier
+    at its predictor (the same equations at the same load: the same state to Newton's
+    tolerance, measured 3e-12 of the arm's travel, asserted 1e-8); (2) statics, which
+    no run enters: the clamp's reaction balances the push, force and moment about the
+    clamp (the pairs' forces are internal).  Newton's accepted residual is at most
+    snes_rtol 1e-8 x 196 N = 2e-6 N, moments of it at most that times the hook's size
+    (< 1.2 m): asserted 1e-5 N and N m (measured 1.2e-11 N, 1.5e-14 N m); the wrong state
+    was off by 7.4e-4 N and 0.21 N m."""
+    from test_kinked_contact import KINKED, POINTS, QUIET
+
+    from dolfin_rod import run
+    comm = MPI.COMM_WORLD
+    folder = Path(comm.bcast(str(tmp_path), root=0))
+    if comm.rank == 0:
+        (folder / "hook.toml").write_text(KINKED)
+    comm.barrier()
+    push = np.array([0.0, -0.4, 0.0])           # the ramp's value at t = 0.4
+    tips = []
+    for dt in (0.05, 0.025):
+        result = run(folder / "hook.toml", {**QUIET, "time.dt": dt, "time.t_end": 0.4},
+                     out=folder / f"dt{dt}", quiet=True)
+        series = result.series
+        assert result.status == "completed"
+        assert series["contact_pairs"][-1] >= 1            # the arm rests on the column
+        tip = np.array([series[f"tip_position_{c}"][-1] for c in "xyz"])
+        force = np.array([series[f"reaction_force_start_{c}"][-1] for c in "xyz"])
+        couple = np.array([series[f"reaction_couple_start_{c}"][-1] for c in "xyz"])
+        assert np.linalg.norm(force + push) < 1e-5
+        assert np.linalg.norm(couple + np.cross(tip, push)) < 1e-5   # clamp at the origin
+        tips.append(tip)
+    travel = np.linalg.norm(tips[1] - POINTS[4])
+    assert np.linalg.norm(tips[0] - tips[1]) <= 1e-8 * travel

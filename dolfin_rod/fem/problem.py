@@ -66,6 +66,10 @@ class SemiDiscreteProblem:
                  its units (a rod's: rod/force_scale.py), 0 if unknown: Newton's absolute
                  tolerance is checks.NEWTON_FORCE_TOL times it unless snes_atol is given
                  (solvers.BlockSNES); 0: snes_atol's default, checks.NEWTON_ATOL.
+    inertia:     the residual has a mass term (a dynamic body; the default).  False (a
+                 quasi-static rod): the step's Newton is static, snes_rtol relative to
+                 at most force_scale (solvers.relative_reference: a first residual
+                 dominated by a contact barrier cannot accept a state off equilibrium).
     """
 
     fields: list[fem.Function]
@@ -83,6 +87,7 @@ class SemiDiscreteProblem:
     terms: list = field(default_factory=list)
     where_failed: Callable[[], str | None] = lambda: None
     force_scale: Callable[[], float] = lambda: 0.0
+    inertia: bool = True
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):

@@ -200,6 +200,11 @@ def _parameter(name: str, scene: Scene, raw: dict) -> Parameter:
     indices = tuple(int(i) for i in _INDEX.findall(name))
     keys = tuple(_long_form(head, scene).split("."))
     value = _value_at(raw, keys, indices, scene)
+    if value is None and keys[-1] in (scene["material"].get("derived") or {}):
+        raise FitInputError(f"parameter {name!r}: {'.'.join(keys)} is derived from this "
+                            "scene's physical input (material.youngs_modulus and the "
+                            "[section], or material.density): fit a key the scene gives, "
+                            "e.g. material.youngs_modulus")
     if value is None:
         raise FitInputError(f"parameter {name!r}: {'.'.join(keys)} is not a key of this "
                             f"{'rod' if scene.is_rod_material else 'torsion'} scene "

@@ -229,7 +229,8 @@ class LieGeneralizedAlpha:
         self.solver = BlockSNES(F, y, problem.bcs, options, cache=(self.structure_key, objects),
                                 step_scale=problem.configuration_norm(),
                                 links=problem.links, terms=problem.terms,
-                                force_scale=problem.force_scale)
+                                force_scale=problem.force_scale,
+                                static=not problem.inertia)
         self._arrays = self._views()
         self._matrices = {}
         self.stats = StepStats()
@@ -335,7 +336,8 @@ class LieGeneralizedAlpha:
                                              step_scale=self.problem.configuration_norm(),
                                              links=self.problem.links,
                                              terms=self.problem.terms,
-                                             force_scale=self.problem.force_scale)
+                                             force_scale=self.problem.force_scale,
+                                             static=not self.problem.inertia)
 
     def initial_accelerations(self, t0: float, first_step: float | None = None) -> None:
         """Solve the residual at t0 for the accelerations (second order) and rates (first
@@ -437,7 +439,8 @@ class LieGeneralizedAlpha:
         solver = BlockSNES(None if form_cache.lookup(key) else p.residual, unknowns, p.bcs,
                            self.options, cache=(key, self._model_objects),
                            step_scale=p.configuration_norm(), links=p.links,
-                           terms=p.terms, force_scale=p.force_scale)
+                           terms=p.terms, force_scale=p.force_scale,
+                           static=not p.inertia)
         initial = [f.x.array.copy() for f in p.fields]
         try:
             if p.scale_motions is None:

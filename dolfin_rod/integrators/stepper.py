@@ -76,7 +76,8 @@ class _StepResidual:
         self.solver = BlockSNES(F, problem.fields, problem.bcs, options, cache=(key, objects),
                                 step_scale=problem.configuration_norm(),
                                 links=problem.links, terms=terms,
-                                force_scale=problem.force_scale)
+                                force_scale=problem.force_scale,
+                                static=not problem.inertia)
         self._dt_last = None
 
     def solve(self, t_n: float, dt: float, sub_solves: int = 1) -> int:

@@ -173,7 +173,8 @@ class TSIntegrator:
         self._create_ts(mesh.comm, {**solver_settings,
                                     "ts_adapt_type": "basic" if adaptive else "none",
                                     **self.method.options, **(ts_options or {})}, rtol, atol,
-                        ForceScale(problem.force_scale, solver_options))
+                        ForceScale(problem.force_scale, solver_options,
+                                   static=not problem.inertia))
         self.stats = StepStats()
         self._observer = None
         self._stop = None

@@ -97,7 +97,7 @@ class Checkpoints:
         meta = {"step": step, "time": t, "model": self.sim.name, "sim": state, "real": real,
                 "balance": balance, "fingerprint": self.fingerprint(),
                 "integrator": {"method": self.sim.describe(), "dt": self.scene["time"]["dt"]},
-                "from_run": self.started_from}
+                "from_run": self.started_from, "counters": self._counters()}
 
         def publish():
             meta["state_sha256"] = file_digests(partial / "state.bp")
@@ -122,8 +122,17 @@ class Checkpoints:
         named, _ = self._named_functions()
         read_functions(Path(meta["folder"]), meta, named)
         self.sim.restore(meta["sim"])
+        stats = getattr(self.sim, "stats", None)
+        for name, count in meta.get("counters", {}).items():   # the summary counts the
+            setattr(stats, name, count)                        # whole run, not the resume
         self.own = [Path(meta["folder"])]            # replaced by this run's next one
         return meta["balance"]
+
+    def _counters(self) -> dict:
+        """The integrator's step counters (StepStats) so far, as numbers."""
+        stats = getattr(self.sim, "stats", None)
+        return {} if stats is None else {name: int(count) for name, count in
+                                         vars(stats).items()}
 
 
 def global_size(f) -> int:

@@ -183,7 +183,7 @@ def settle(model, t: float) -> None:
                        [bc for n in names for bc in model.bcs_of(n)],
                        {"snes_max_it": 50}, step_scale=problem.configuration_norm(),
                        links=links, terms=problem.terms,      # segment contact's pairs
-                       force_scale=problem.force_scale)
+                       force_scale=problem.force_scale, static=True)
     try:
         solver.solve()
     except SolverError as err:

@@ -600,7 +600,8 @@ class RodModel(FEModel):
         if unk.chart is None:           # links: oblique slides (no joints: refused)
             return SemiDiscreteProblem(*blocks, after_step=self.commit_rotations,
                                        check_step=self.check_step, terms=terms,
-                                       where_failed=where, links=links, force_scale=scale)
+                                       where_failed=where, links=links, force_scale=scale,
+                                       inertia=self.dynamic)
         rates_used = set(form_cache.registry(forms))
         return SecondOrderProblem(
             *blocks, accelerations=[unk.acc.get(n) for n in self.names],
@@ -610,6 +611,7 @@ class RodModel(FEModel):
             error_scales=[1.0 if n == unk.rotation else self.length for n in self.names],
             links=links, terms=terms, scale_motions=self.scale_motions,
             motion_turn=self.motion_turn, where_failed=where, force_scale=scale,
+            inertia=self.dynamic,
             friction_lookahead=self.contact.lookahead if self.contact else None,
             rest_in_contact=self._rest_on_obstacles if self.contact and self.dynamic
             else None)
