@@ -237,10 +237,11 @@ def is_coordinate_axis(axis) -> bool:
     return int(np.count_nonzero(np.asarray(axis, dtype=float))) == 1
 
 
-# A start in static equilibrium (rod/start.py) with only pinned or free ends is singular.
+# A start in static equilibrium (rod/start.py) with only pinned or free ends is singular,
+# unless it rests on obstacles (rod/initial_state.py settles it in pseudo-time).
 EQUILIBRIUM_NEEDS = ("the static problem needs an end whose rotation is held (clamped, or "
-                     "a prescribed end rotation): otherwise the sections turn about their "
-                     "tangents for free")
+                     "a prescribed end rotation), or obstacles to rest on: otherwise the "
+                     "sections turn about their tangents for free")
 # How a dynamic rod's accelerations start (initial.acceleration, StartingState.acceleration,
 # SecondOrderProblem.starting_accelerations): solved from the balance laws at t0 (friction
 # read at the first step's slip), or zero (a state known to be at rest).

@@ -50,3 +50,21 @@ def spun_pendulum(comm=MPI.COMM_WORLD) -> dict[str, float]:
     model = spun(comm=comm)
     TimeStepper(model.problem).run(0.0, 0.02, 2e-3)
     return model.diagnostics(0.02)
+
+
+def ring_fields(n_cells: int, link: float, comm=MPI.COMM_WORLD) -> dict:
+    """A settled ring's energy, weld reactions and fields (tests/test_ring.py)."""
+    from rings import ring, ring_fields as fields
+    return fields(ring(n_cells, link, comm))
+
+
+def michell_counts(n_cells: int, links: list, comm=MPI.COMM_WORLD) -> list[int]:
+    """The twisted rings' counts of negative eigenvalues (tests/test_ring.py)."""
+    from rings import michell_count
+    return [michell_count(n_cells, link, comm) for link in links]
+
+
+def free_ring(n_cells: int, link: float, push: float, comm=MPI.COMM_WORLD) -> dict:
+    """A free dynamic ring after 20 steps (tests/test_ring.py)."""
+    from rings import free_ring as run
+    return run(n_cells, link, comm, push)

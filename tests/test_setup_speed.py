@@ -292,6 +292,28 @@ def test_models_of_one_layout_share_their_mesh_and_spaces():
     assert spaces[0] is spaces[1]
 
 
+@pytest.mark.mpi
+def test_a_second_model_copies_the_cell_midpoints():
+    """rod/rotation_vector.py: a second model of a layout takes the cell midpoints s of
+    the first (no interpolation of its own); they are, cell for cell (ghosts too), the
+    means of the cells' two vertex coordinates, and a Function of the second model."""
+    case = "dynamic, rotation vectors"
+    first = make(case, VALUES[0], n_cells=5)
+    with mock.patch.object(fem.Function, "interpolate") as interpolate:
+        second = make(case, VALUES[1], n_cells=5)
+        assert interpolate.call_count == 0
+    mesh = second.mesh
+    cells = mesh.topology.index_map(1)
+    vertices = compat.geometry_dofmap(mesh)[:cells.size_local + cells.num_ghosts]
+    s = mesh.geometry.x[:, 0]
+    dofs = second.unknowns.chart.s_mid.function_space.dofmap.list[:, 0]
+    expected = np.empty(len(dofs))
+    expected[dofs] = 0.5 * (s[vertices[:, 0]] + s[vertices[:, 1]])
+    for model in (first, second):
+        assert np.array_equal(model.unknowns.chart.s_mid.x.array, expected)
+    assert second.unknowns.chart.s_mid is not first.unknowns.chart.s_mid
+
+
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="signals one process")
 def test_an_interrupt_during_a_compile_waits_for_its_end():
     """FFCx cleans up a failed compile after an Exception only: a KeyboardInterrupt in it

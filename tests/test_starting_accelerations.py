@@ -180,20 +180,3 @@ def test_zero_starting_accelerations_need_a_dynamic_rod_with_rotation_vectors(ch
                   FALLING + '[initial]\nacceleration = "rest"\n'):
         with pytest.raises(SceneError, match=r"initial\.acceleration"):
             parse_scene(scene)
-
-
-def test_a_start_in_contact_without_equilibrium_names_initial_equilibrium():
-    """initial.equilibrium = true for a cantilever whose free deflection (0.25 m) reaches
-    far past a plane 0.1 m below it: the static solve from the straight start does not
-    converge (Newton's first full step lands deep in the barrier; docs/contact.md,
-    "Starting accelerations"), and the scene is refused naming initial.equilibrium (it
-    named scene.model and the API's start.equilibrium)."""
-    text = (FALLING.replace("A = [1e-2, 1e-2, 1e-2], B = [10.0, 10.0, 10.0]",
-                            "A = [5.0, 5.0, 5.0], B = [1e4, 1e4, 1e4]")
-            .replace('start = "free"', 'start = "clamped"')
-            + '[contact]\nradius = 0.01\n[[obstacles]]\nshape = "plane"\n'
-              'point = [-0.1, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\nfriction = 0.3\n'
-              '[initial]\nequilibrium = true\n')
-    from dolfin_rod.scenes import build
-    with pytest.raises(SceneError, match=r"\[initial\.equilibrium\]: no static equilibrium"):
-        build(parse_scene(text), "rod")

@@ -624,6 +624,12 @@ class ObstacleContact:
         for pose in self.meshes:
             pose.locate(points)
 
+    def gap_keeping(self) -> "GapKeeping":
+        """The term (fem/assembly add_terms) that shortens Newton's updates so that no
+        node comes closer to a nodal obstacle than a share of its gap (a settle in
+        contact, rod/initial_state.py)."""
+        return GapKeeping(self)
+
     @property
     def term(self) -> "FeatureTerm | None":
         """With mesh obstacles: the term (fem/assembly add_terms) that locates the
@@ -674,3 +680,48 @@ class BoundFeatures:
 
     def prepare(self, x_owned: np.ndarray) -> None:
         self.contact.locate(None if self.rows is None else x_owned[self.rows])
+
+
+KEPT_GAP = 0.1      # GapKeeping: an update keeps every node's gap above this share of it
+
+
+class GapKeeping:
+    """Newton's updates shortened so that every node keeps KEPT_GAP of its gap to each
+    nodal obstacle, or loses at most (1 - KEPT_GAP) XI_MIN delta of a gap already in the
+    barrier's Taylor range (as segment pairs' step_fraction, pair_contact.py): a node
+    approaches an obstacle in steps that shrink with its gap, so Newton's iterates never
+    reach deep into the barrier, where its Taylor polynomial lets them through.  Off
+    (``active`` False) it leaves every update as it is.  A term of fem/assembly
+    add_terms; ``step_factor`` is collective (the same factor on every rank)."""
+
+    def __init__(self, contact: ObstacleContact):
+        self.contact, self.active = contact, False
+
+    def bind(self, system) -> "GapKeeping":
+        held = [k for k, y in enumerate(system.groups[0]) if y is self.contact.x]
+        self.rows = system.rows_of(held[0], np.arange(3 * self.contact._owned))
+        return self
+
+    def limit_step(self, x_owned: np.ndarray, y_owned: np.ndarray) -> None:
+        """Newton's update x - y (PETSc's sign) scaled down in place (step_factor)."""
+        alpha = self.step_factor(x_owned, y_owned)
+        if alpha < 1.0:
+            y_owned *= alpha
+
+    def step_factor(self, x_owned: np.ndarray, y_owned: np.ndarray) -> float:
+        """The largest 2^-k (k < 60) by which the update x - y keeps the nodes' gaps
+        (class docstring); 1 when off."""
+        c = self.contact
+        if not self.active or not c.nodal:
+            return 1.0
+        nodal = [c.numbers[k] for k in c.nodal]
+        s_e3 = np.outer(c._nodes, (0.0, 0.0, 1.0))
+        u, du = x_owned[self.rows].reshape(-1, 3), y_owned[self.rows].reshape(-1, 3)
+        g0 = obstacle_gaps(nodal, u + s_e3, c.law.radius)
+        floor = np.minimum(KEPT_GAP * g0, g0 - (1 - KEPT_GAP) * XI_MIN * c.law.gap)
+        alpha = 1.0
+        for _ in range(60):
+            if np.all(obstacle_gaps(nodal, u - alpha * du + s_e3, c.law.radius) >= floor):
+                break
+            alpha *= 0.5
+        return c.mesh.comm.allreduce(alpha, op=MPI.MIN)

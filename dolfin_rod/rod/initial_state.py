@@ -7,16 +7,19 @@ state (rod/start.py: placed, another centre line, velocities, static equilibrium
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import dolfinx.fem as fem
 import numpy as np
 import ufl
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from ..fem import compat, form_cache
 from ..fem.fe_model import ENDS
 from ..fem.solvers import BlockSNES, SolverError
+from ..mpi import largest_on_ranks
 from ..theory.rotations import np_qmul
 from .placement import placed_shape, shape
 
@@ -161,13 +164,24 @@ def _set_velocities(model, start) -> None:
 
 BALANCE = ("displacement", "quaternion", "rotation_increment", "gauge_multiplier",
            "constraint_multiplier")
+# A settle in contact that one Newton solve does not reach (_settle_in_pseudo_time)
+SETTLE_STEPS = 200        # pseudo-time steps at most
+TETHER_RELEASE = 8.0      # the tether's stiffness divided by this after an accepted step
+TETHER_HOLD = 4.0         # ... multiplied by this after a failed one
+SETTLE_FAILURES = 12      # failed steps in a row before the settle gives up
+SETTLE_TRAVEL = 100.0     # ... or when a node moved by this many rod lengths
+NO_SETTLE = "start.equilibrium: no static equilibrium found"
+TETHER_FLOOR = 1e-12      # unconverged with the tether released below this share of its
+                          # first stiffness: the loads move the rod without bound
 
 
 def settle(model, t: float) -> None:
     """Static equilibrium of the positions and rotations (the blocks of BALANCE; natural
     strains fixed) with the loads and supports at t, from the current state, rates and
     accelerations held at zero meanwhile; rotation vectors: committed to the stored
-    rotations.  ValueError if Newton finds none."""
+    rotations.  With contact (obstacles, segment pairs), where one Newton solve from the
+    start fails or ends inside an obstacle, in pseudo-time (_settle_in_pseudo_time).
+    ValueError if none is found."""
     unk, problem = model.unknowns, model.problem
     names = [n for n in model.names if n in BALANCE]
     moving = [g for g in [*unk.r.values(), *unk.acc.values()] + [
@@ -179,22 +193,177 @@ def settle(model, t: float) -> None:
     problem.set_bcs(t)
     links = [replace(link, block=names.index(model.names[link.block]))    # joints
              for link in problem.links]
-    solver = BlockSNES([model.residual[n] for n in names], [unk.f[n] for n in names],
+    fields = [unk.f[n] for n in names]
+    law = (model.contact.law if model.contact else
+           model.segment_terms[0].law if model.segment_terms else None)
+    tether = keeper = None
+    if law is not None:
+        h = model.length / sum(model.layout.n_cells)
+        tether = Tether([(unk.f["displacement"], 1.0), (unk.f[unk.rotation], h * h)])
+        keeper = model.contact.gap_keeping() if model.contact else None
+    solver = BlockSNES([model.residual[n] for n in names], fields,
                        [bc for n in names for bc in model.bcs_of(n)],
                        {"snes_max_it": 50}, step_scale=problem.configuration_norm(),
-                       links=links, terms=problem.terms,      # segment contact's pairs
+                       links=links,
+                       terms=[*problem.terms, *(term for term in (tether, keeper) if term)],
                        force_scale=problem.force_scale, static=True)
+    given = [f.x.array.copy() for f in fields]
     try:
-        solver.solve()
+        try:
+            if not rotation_held(model):    # (resting on an obstacle: singular at first)
+                raise SolverError("no end holds the rod", 0)
+            solver.solve()
+            reason = problem.check_step() if law is not None else None
+            if reason:
+                raise SolverError(reason, solver.iterations)
+        except SolverError:
+            if law is None:
+                raise
+            for f, array in zip(fields, given):
+                f.x.array[:] = array
+            _settle_in_pseudo_time(model, solver, tether, keeper, fields, law.gap, t)
     except SolverError as err:
-        raise ValueError(f"start.equilibrium: no static equilibrium found from the starting "
-                         f"shape at t = {t:g} ({err}); is the rod supported against rigid "
-                         "motions?") from err
+        raise ValueError(f"{NO_SETTLE} from the starting shape at t = {t:g} ({err}): Newton "
+                         "did not reach it under the whole load at once (a large "
+                         "deflection); start nearer to it (initial.shape), or let the rod "
+                         "settle in time without equilibrium (with material.drag)") from err
     finally:
         for g, array in zip(moving, saved):
             g.x.array[:] = array
     if unk.chart is not None:
         model.commit_rotations()
+
+
+def rotation_held(model) -> bool:
+    """Whether an end of a rod holds its rotation (clamped, or a prescribed rotation)."""
+    return any("clamped" in supports.ends or bool(supports.rotation)
+               for supports in model.end_supports)
+
+
+def _settle_in_pseudo_time(model, solver, tether, keeper, fields, gap: float,
+                           t: float) -> None:
+    """The static equilibrium in contact by pseudo-time continuation: each step solves
+    R(y) + k W (y - y_0) = 0 from the last accepted state y_0 (Tether: a spring of
+    stiffness k per node tying each node to where it was, W weighting the rotations by
+    the cell length squared), its Newton updates shortened so that no node comes near an
+    obstacle faster than its gap allows (ObstacleContact.gap_keeping; segment pairs and
+    segment obstacles limit theirs always); an accepted step (converged, checked:
+    problem.check_step) is committed and k released by TETHER_RELEASE, a failed one is
+    undone and k raised by TETHER_HOLD.  The rod so travels to an obstacle it has to
+    reach, the barrier taking over gradually, and the tether, whose force is the rest of
+    the residual, k |W (y - y_0)|, fades; converged when that is below Newton's absolute
+    tolerance.  The tether also holds what nothing else holds (a free rod lying on a
+    frictionless floor: sliding along it, turning about its axis), where it is never
+    stretched.  k starts at S / (nodes delta): the force scale S (force_scale.py)
+    moves a node by about the barrier's gap delta.  ValueError (start.equilibrium) when
+    SETTLE_FAILURES steps in a row fail, or when it has not converged as k falls below
+    TETHER_FLOOR of its start, a node has moved by SETTLE_TRAVEL rod lengths or
+    SETTLE_STEPS are done (a rod nothing holds against its loads keeps moving: friction
+    has no force at rest)."""
+    problem = model.problem
+    nodes = fields[0].function_space.dofmap.index_map.size_global
+    tether.stiffness = first = problem.force_scale() / (nodes * gap)
+    if keeper is not None:
+        keeper.active = True
+    problem.after_step()            # the contacts' path checks start here
+    failures, reason, force, travel = 0, "", math.inf, 0.0
+    x = model.unknowns.f["displacement"]
+    given = x.x.array.copy()
+    try:
+        for _ in range(SETTLE_STEPS):
+            start = [f.x.array.copy() for f in fields]
+            tether.restart()
+            try:
+                solver.solve()
+                reason = problem.check_step()
+            except SolverError as err:
+                reason = str(err)
+            if reason:
+                for f, array in zip(fields, start):
+                    f.x.array[:] = array
+                failures += 1
+                if failures > SETTLE_FAILURES:
+                    where = model.where_failed()
+                    raise ValueError(f"{NO_SETTLE} at t = {t:g}: {failures} pseudo-time "
+                                     f"steps in a row failed, the last: {reason}"
+                                     + (f" ({where})" if where else ""))
+                tether.stiffness *= TETHER_HOLD
+                continue
+            failures, force = 0, tether.force()
+            problem.after_step()
+            if force <= solver.snes.getTolerances()[1]:
+                return
+            travel = largest_on_ranks(problem.comm, float(np.max(np.linalg.norm(
+                (x.x.array - given).reshape(-1, 3), axis=1), initial=0.0)))
+            if tether.stiffness < TETHER_FLOOR * first or travel > SETTLE_TRAVEL * model.length:
+                break
+            tether.stiffness /= TETHER_RELEASE
+    finally:
+        tether.stiffness = 0.0
+        if keeper is not None:
+            keeper.active = False
+    raise ValueError(f"{NO_SETTLE} at t = {t:g}: the loads still move the rod (unbalanced "
+                     f"force {force:.3g} after it moved by up to {travel:.3g}): nothing holds it "
+                     "against them (friction has no force in a static settle: a rod on a "
+                     "slope slides off)")
+
+
+class Tether:
+    """The pseudo-time term of a settle in contact (fem/assembly add_terms): k w (y - y_0)
+    on the owned rows of the ``fields`` [(Function, weight w)], y_0 the state at the
+    first residual after ``restart`` (a solve's start); k = ``stiffness`` (0: no term,
+    bit for bit)."""
+
+    def __init__(self, fields: list):
+        self.fields, self.stiffness, self.bound = fields, 0.0, []
+
+    def bind(self, system) -> "_BoundTether":
+        bound = _BoundTether(self, system)
+        self.bound.append(bound)
+        return bound
+
+    def restart(self) -> None:
+        for bound in self.bound:
+            bound.anchor = None
+
+    def force(self) -> float:
+        """|k w (y - y_0)| at the last residual, over all ranks."""
+        local = sum(bound.squared for bound in self.bound)
+        comm = self.fields[0][0].function_space.mesh.comm
+        return math.sqrt(comm.allreduce(local, op=MPI.SUM))
+
+
+class _BoundTether:
+    def __init__(self, tether: Tether, system):
+        rows, weights = [], []
+        for k, y in enumerate(system.groups[0]):
+            for f, w in tether.fields:
+                if y is f:
+                    index_map = f.function_space.dofmap.index_map
+                    n = index_map.size_local * f.function_space.dofmap.index_map_bs
+                    rows.append(system.rows_of(k, np.arange(n)))
+                    weights.append(np.full(n, w))
+        self.tether, self.rows = tether, np.concatenate(rows).astype(np.intp)
+        self.weights = np.concatenate(weights)
+        first = system.x.getOwnershipRange()[0]
+        self.global_rows = (self.rows + first).astype(PETSc.IntType).reshape(-1, 1)
+        self.anchor, self.squared = None, 0.0
+
+    def add_residual(self, x_owned: np.ndarray, b_owned: np.ndarray) -> None:
+        y = x_owned[self.rows]
+        if self.anchor is None:
+            self.anchor = y.copy()
+        force = self.tether.stiffness * self.weights * (y - self.anchor)
+        b_owned[self.rows] += force
+        self.squared = float(force @ force)
+
+    def missing_entries(self):
+        return None         # the diagonal is in every block's pattern
+
+    def add_jacobian(self, A) -> None:
+        A.setValuesRCV(self.global_rows, self.global_rows,
+                       (self.tether.stiffness * self.weights).reshape(-1, 1, 1),
+                       addv=PETSc.InsertMode.ADD_VALUES)
 
 
 def _means(model, field) -> np.ndarray:

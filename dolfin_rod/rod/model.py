@@ -37,7 +37,7 @@ from ..integrators.step_control import IntegrationError
 from ..mpi import largest_on_ranks
 from ..theory.rotations import np_qmul, np_rotation_matrix, rotation_matrix
 from .rotation_choice import choose_rotations, rotation_vector_obstacle
-from . import diagnostics, external_forces, initial_state, residual
+from . import diagnostics, external_forces, initial_state, residual, ring
 from .boundary_conditions import EndSupports, linked_axes, spin_free, welded_spin_end
 from .constitutive import check_model, energy_function, section_response
 from .contact import (REST_PASSES, REST_TOLERANCE, ContactLaw, InitialOverlap, Obstacle,
@@ -109,8 +109,9 @@ def oblique_supports(rod: Rod) -> list[tuple[str, str]]:
     """(end_slide or end_turn, end) of a rod's supports on a one-node link
     (boundary_conditions.linked_axes)."""
     names = {"displacement": "end_slide", "rotation_increment": "end_turn"}
+    frames = end_frames(rod) if rod.end_turn else {}    # (read for end_turn only)
     return [(names[block], end) for block, end in
-            linked_axes(rod.end_slide, rod.end_turn, end_frames(rod))]
+            linked_axes(rod.end_slide, rod.end_turn, frames)]
 
 
 class RodModel(FEModel):
@@ -148,13 +149,14 @@ class RodModel(FEModel):
                  end_slide: dict | None = None, obstacles: Sequence[Obstacle] = (),
                  contact: ContactLaw | None = None, end_springs: dict | None = None,
                  end_turn: dict | None = None, end: str = "free",
-                 point_loads: Sequence[PointLoad] = ()):
+                 point_loads: Sequence[PointLoad] = (), closed: bool = False,
+                 excess_link: float = 0.0):
         start, end = positional_ends("RodModel", start, end, stacklevel=5)
         keyed = end_keyed("RodModel", dict(    # "left", "right": deprecated (the caller's line)
             end_displacement=end_displacement, end_rotation=end_rotation, end_slide=end_slide,
             end_springs=end_springs, end_turn=end_turn), stacklevel=3)
         rod = Rod(params, n_cells, start, end_loads, distributed_loads, point_loads=point_loads,
-                  end=end, **keyed)
+                  end=end, closed=closed, excess_link=excess_link, **keyed)
         self._build([rod], model, variant, constraints, rotations, comm, obstacles=obstacles,
                     contact=contact)
 
@@ -195,11 +197,14 @@ class RodModel(FEModel):
         forms = self._residual_forms(disc, text, self._data_roles(zero, loads))
         self.joints = list(joints)
         nodes = joint_nodes(self, self.joints)
-        self.segment_contact = self._segment_contact(contact, self.layout, nodes)
+        # segments joined at a joint or a ring's weld are neighbours
+        neighbours = nodes + ring.weld_nodes(self)
+        self.segment_contact = self._segment_contact(contact, self.layout, neighbours)
         self.obstacle_segments = self._obstacle_segments(obstacles, contact, self.layout)
         # the terms of segment contact that fem/assembly adds (pair_contact.BoundTerm)
         self.segment_terms = [t for t in (self.segment_contact, self.obstacle_segments) if t]
-        self.problem = self._problem(forms, node_links(self, self.joints, nodes) + [
+        self.problem = self._problem(forms, node_links(self, self.joints, nodes)
+                                     + ring.weld_links(self) + [
             line for supports in self.end_supports for line in supports.links(self.names)])
         self.problem.unset_state = "model.set_initial_state()"     # zero quaternions
         if self.dynamic:       # the steps must resolve them (integrators' check_run)
@@ -210,7 +215,7 @@ class RodModel(FEModel):
                 for end, motion in (getattr(rod, name) or {}).items()}
         self.problem.structure = text
         self.joint_reactions = JointReactions(self, self.joints, nodes) if joints else None
-        self._diagnostics(disc, nodes, contact)
+        self._diagnostics(disc, neighbours, contact)
 
     def _check_and_lay_out(self, rods: list[Rod], model: str, variant: str,
                            constraint: str | None, joints: Sequence[Joint], comm) -> list[Joint]:
@@ -222,7 +227,8 @@ class RodModel(FEModel):
         constraints.check_constraint(constraint, dynamic=not is_zero(rods[0].params.density))
         check_rods(rods, model, variant)
         check_joints(list(joints), rods)
-        self.splits = splits = [split_at_kinks(rod) for rod in rods]
+        ring.check_closed(rods, dynamic=not is_zero(rods[0].params.density))
+        self.splits = splits = [split_at_kinks(ring.welded_ends(rod)) for rod in rods]
         self.kinked = any(len(split.rods) > 1 for split in splits)
         self.user_rods = rods
         length = max(float(rod.params.length) for rod in rods)
@@ -246,6 +252,11 @@ class RodModel(FEModel):
         self.length = length
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(rods[0].params.density)
+        # forces of the rates of positions and rotations (Kelvin-Voigt viscosity, drag):
+        # a quasi-static rod's positions then move at a viscous rate, they cannot jump
+        self.rate_dependent = not all(is_zero(v) for rod in rods for v in (
+            rod.params.M, rod.params.N, rod.params.drag, rod.params.rotational_drag,
+            rod.params.spatial_rotational_drag))
         return joints
 
     def _rotation_unknowns(self, rotations: str, joints: Sequence[Joint]) -> str:
@@ -255,8 +266,7 @@ class RodModel(FEModel):
         obstacle = rotation_vector_obstacle(
             self.dynamic, self.variant, self.constraint,
             rotary_inertia=not any(any(map(is_zero, p.section_inertia)) for p in all_params),
-            rate_dependent=not all(is_zero(v) for p in all_params for v in (
-                p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
+            rate_dependent=self.rate_dependent,
             rotation_held=self.welded_spin is not None or any(
                 "clamped" in rod.ends or bool(rod.end_rotation)
                 or spin_free(rod.ends, rod.end_rotation, rod.end_turn, rod.end_springs)
@@ -272,6 +282,8 @@ class RodModel(FEModel):
         what = ("joints need" if len(joints) > sum(len(split.joints) for split in self.splits)
                 else "a stress-free polyline with corners (split there into pieces joined "
                      "rigidly, rod/kinks.py) needs")
+        if any(rod.closed and rod.start == "free" for rod in rods):   # ring.weld_links
+            joints, what = [*joints, "weld"], "a free ring's weld (closed, start 'free') needs"
         if joints and obstacle:
             raise ValueError(f"{what} rotation-vector unknowns, which this "
                              f"{'system' if len(self.splits) > 1 else 'rod'} cannot have: "
@@ -441,9 +453,14 @@ class RodModel(FEModel):
     def _end_supports(self) -> None:
         """Every rod's end supports (their Dirichlet conditions and Constants)."""
         held = self.welded_spin
+        # the stress-free end frames (~40 us a rod): read for an end_turn's axis, and with
+        # quaternions for a free spin's plane (EndSupports)
+        quaternions = "rotation_increment" not in self.unknowns.spaces
         self.end_supports = [EndSupports(self, rod.ends, rod.end_displacement,
                                          rod.end_rotation, rod.end_slide, self.layout.span(k),
-                                         rod.end_springs, rod.end_turn, end_frames(rod),
+                                         rod.end_springs, rod.end_turn,
+                                         end_frames(rod) if rod.end_turn or quaternions
+                                         else None,
                                          spin_at=held[1] if held and held[0] == k else None)
                              for k, rod in enumerate(self.rods)]
 
@@ -797,14 +814,15 @@ class RodModel(FEModel):
             {piece.name: given[rod] for piece, rod in zip(self.rods, self.rod_names)
              if rod in given} if isinstance(given, dict) else given     # a rod's: its pieces'
             for given in (natural_curvature, natural_stretch))
-        held = any("clamped" in supports.ends or bool(supports.rotation)
-                   for supports in self.end_supports)
+        held = initial_state.rotation_held(self) or self.contact is not None
         if len(self.splits) == 1:
-            check_start(start, self.length, self.dynamic, rotation_held=held)
+            check_start(start, self.length, self.dynamic, supported=held)
+            if self.rods[0].closed:
+                start = ring.closed_start(self.rods[0], start)
         if len(self.splits) == 1 and self.kinked and start is not None:
             start = RodStarts(piece_starts(start, self.splits[0]), self.rods, self.layout)
         elif start is not None and len(self.splits) > 1:     # pieces: each its share
-            check_rod_starts(start, self.user_rods, self.dynamic, rotation_held=held)
+            check_rod_starts(start, self.user_rods, self.dynamic, supported=held)
             start = system_starts(start, self.splits)
             check_joints_at_start(self.rods, self.joints, start)
             start = RodStarts(start, self.rods, self.layout)

@@ -44,6 +44,8 @@ class Rod:
     end_turn: dict | None = None         # {end: axis}: a clamped end turning freely
     end: str = "free"                    # the support at s = L: clamped | pinned | free
     point_loads: Sequence[PointLoad] = ()   # at points s of its own arc length
+    closed: bool = False                 # a ring: its end welded to its start (ring.py)
+    excess_link: float = 0.0             # a ring's turns of twist beyond its natural twist
 
     def __post_init__(self):
         self.end_loads, self.distributed_loads = list(self.end_loads), list(self.distributed_loads)

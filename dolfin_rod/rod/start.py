@@ -254,7 +254,7 @@ class RodStarts:
         return v, w
 
 
-def check_rod_starts(starts: dict, rods, dynamic: bool, rotation_held: bool) -> None:
+def check_rod_starts(starts: dict, rods, dynamic: bool, supported: bool) -> None:
     """check_start of each rod's start, a ValueError naming ``start['<rod>']``."""
     names = [rod.name for rod in rods]
     if not isinstance(starts, dict) or any(name not in names for name in starts):
@@ -262,7 +262,7 @@ def check_rod_starts(starts: dict, rods, dynamic: bool, rotation_held: bool) -> 
                          f" of its rods {names}, got {starts!r}")
     for rod in rods:
         try:
-            check_start(starts.get(rod.name), rod.params.length, dynamic, rotation_held)
+            check_start(starts.get(rod.name), rod.params.length, dynamic, supported)
         except ValueError as err:
             raise ValueError(f"start[{rod.name!r}]" + str(err).removeprefix("start")) from err
     asked = {name: start.acceleration for name, start in starts.items()}
@@ -279,12 +279,13 @@ def _field(value: Field, s) -> np.ndarray:
 
 
 def check_start(start: StartingState | None, length: float, dynamic: bool,
-                rotation_held: bool) -> None:
+                supported: bool) -> None:
     """ValueError naming the parameter (start.<field>) for a starting state that does not
-    fit the rod (``rotation_held``: a clamped end or a prescribed end rotation)."""
+    fit the rod (``supported``: a clamped end, a prescribed end rotation or obstacles to
+    rest on: the static problem of ``equilibrium`` is not singular)."""
     if start is None:
         return
-    if start.equilibrium and not rotation_held:
+    if start.equilibrium and not supported:
         raise ValueError(f"start.equilibrium: {EQUILIBRIUM_NEEDS}")
     one_of("start.acceleration", start.acceleration, STARTING_ACCELERATIONS)
     for name in ("position", "orientation"):

@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
 from .. import loads as load_histories
 from ..integrators.schemes import get_scheme
-from ..rod import placement
+from ..rod import placement, ring
 from ..theory.quaternions import np_quaternion_from_rotation_vector, np_rotation_matrix
 from ..rod.rotation_choice import (choose_rotations, rotation_vector_obstacle,
                                    rotations_reason)
@@ -71,9 +72,11 @@ def check_combinations(scene: Scene) -> None:
     _check_from_run(scene)
     if rod:
         _check_rod_material(scene)
+        _check_closed(scene)
         _check_rod_ends(scene)
         check_contact_keys(scene, rod_rotations(scene))
         _check_continuation(scene)
+        _check_branch_switching(scene)
     else:
         _check_torsion(scene)
     _check_solver_options(scene)
@@ -118,6 +121,22 @@ def time_stepping(scene: Scene) -> str:
     return f"stepper, fixed steps dt = {tim['dt']:g}" + (
         " (time.adaptive is false; setting it true would choose the steps by an error "
         "estimate)" if lie else "")
+
+
+def _check_branch_switching(scene: Scene) -> None:
+    """stability.at_bifurcation = "switch" given for a quasi-static rod with Kelvin-Voigt
+    viscosity or drag: its positions move at a viscous rate, so it cannot jump to another
+    branch (it creeps away from an unstable equilibrium; by default its path stays)."""
+    if "at_bifurcation" not in scene.given["stability"] \
+            or scene["stability"]["at_bifurcation"] != "switch" or scene["material"]["dynamic"]:
+        return
+    key = rate_force_key(scene)
+    if key is not None:
+        raise scene.error("stability.at_bifurcation", (
+            f"\"switch\" jumps to another equilibrium, which a quasi-static rod with "
+            f"Kelvin-Voigt viscosity or drag ({key}) cannot do: its positions move at a "
+            "viscous rate and creep away from an unstable equilibrium (the time steps "
+            "follow that); use \"stay\" or leave the key out"))
 
 
 def _check_continuation(scene: Scene) -> None:
@@ -403,6 +422,34 @@ def _check_rod_inertia(scene: Scene) -> None:
     rod_rotations(scene)
 
 
+def _check_closed(scene: Scene) -> None:
+    """A closed rod (geometry.closed, rod/ring.py): its rules, each error naming the
+    scene key; one rod only; its start is its ring (no initial.shape)."""
+    geo, bnd = scene["geometry"], scene["boundary"]
+    if not (geo["closed"] or "excess_link" in scene.given["geometry"]):
+        return
+    if geo["closed"] and scene.in_system:
+        raise scene.error("geometry.closed", "a closed rod is the only rod of its scene "
+                                             "(rings in [[rods]]: not yet)")
+    if geo["closed"] and "shape" in scene.given["initial"]:
+        raise scene.error("initial.shape", "a closed rod starts as its ring (geometry."
+                                           "closed, excess_link); give no starting curve")
+    motions = {key: {"end": bnd[f"end_{name}"]} if bnd[f"end_{name}"] is not None else None
+               for key, name in (("end_displacement", "displacement"),
+                                 ("end_rotation", "rotation"), ("end_slide", "slide"),
+                                 ("end_springs", "spring"), ("end_turn", "turn"))}
+    rod = SimpleNamespace(
+        name="rod", closed=geo["closed"], excess_link=geo["excess_link"],
+        start=bnd["start"], end=bnd["end"], n_cells=geo["n_cells"], **motions,
+        params=placement.Geometry(geo["length"], geo["reference_curvature"],
+                                  geo["reference_stretch"], geo["reference_shape"]))
+    try:
+        ring.check_closed([rod], dynamic=scene["material"]["dynamic"])
+    except ValueError as err:
+        word = str(err).replace(":", " ").split()[0]
+        raise scene.error(ring.KEYS[word], str(err).removeprefix(word).lstrip(": ")) from err
+
+
 def _check_rod_start(scene: Scene) -> None:
     """The starting state ([initial] START_KEYS) against the rod."""
     ini, err = scene["initial"], scene.error
@@ -418,8 +465,8 @@ def _check_rod_start(scene: Scene) -> None:
                                           "accelerations; quasi-static rods and quaternions' "
                                           "schemes start from the state alone)")
     bnd = scene["boundary"]
-    if ini["equilibrium"] and not any(bnd[end] == "clamped" or bnd[f"{end}_rotation"]
-                                      for end in ("start", "end")):
+    if ini["equilibrium"] and not scene["obstacles"] and not any(
+            bnd[end] == "clamped" or bnd[f"{end}_rotation"] for end in ("start", "end")):
         raise err("initial.equilibrium", EQUILIBRIUM_NEEDS)
     if ini["rotation_centre"] is not None and ini["angular_velocity"] is None:
         raise err("initial.rotation_centre", "needs initial.angular_velocity (the rigid "
@@ -509,16 +556,25 @@ def rotation_obstacle(scene: Scene) -> tuple[str | None, str]:
     rotation_vector_obstacle of its material; None if it can) and the key that says so."""
     mat = scene["material"]
     constraint = None if mat["constraints"] == "none" else mat["constraints"]
+    rates = rate_force_key(scene)
+    why = rotation_vector_obstacle(mat["dynamic"], mat["variant"], constraint,
+                                   rate_dependent=rates is not None)
+    key = ("material.variant" if mat["variant"] != "local" else "material.constraints"
+           if constraint else rates)
+    return why, key
+
+
+def rate_force_key(scene: Scene) -> str | None:
+    """The key of the scene's forces of the rates of positions and rotations (Kelvin-Voigt
+    viscosity M, N: "material.viscosity"; drag: "material.drag"), None if it has none."""
+    mat = scene["material"]
     visc = mat["viscosity"] or {}
-    viscous = any(k in visc and not visc[k].is_zero for k in ("M", "N"))
+    if any(k in visc and not visc[k].is_zero for k in ("M", "N")):
+        return "material.viscosity"
     drag = not (mat["drag"] is None or (mat["drag"].is_constant
                                         and mat["drag"].constant == 0.0)) \
         or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
-    why = rotation_vector_obstacle(mat["dynamic"], mat["variant"], constraint,
-                                   rate_dependent=viscous or drag)
-    key = ("material.variant" if mat["variant"] != "local" else "material.constraints"
-           if constraint else "material.viscosity" if viscous else "material.drag")
-    return why, key
+    return "material.drag" if drag else None
 
 
 def _check_turns_resolved(scene: Scene) -> None:

@@ -186,6 +186,19 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                "rigidly, its n_cells shared in proportion to their "
                                "lengths; `dolfin-rod check` says how), or an arc or helix "
                                "(as initial.shape)"),
+        "closed": Key(boolean, False, R + "a closed rod (ring): its end welded to its start "
+                      "(the support boundary.start: clamped, the weld point held, or free, a "
+                      "free ring of a dynamic rod); it starts as the circle of circumference "
+                      "length in the (d1, d3) plane of its start, bending towards d1 (placed "
+                      "by initial.position, orientation; no initial.shape), its stress-free "
+                      "shape geometry.reference_curvature's (straight by default: bent to "
+                      "EI/R); one rod only (docs/systems.md, \"Closed rods\")"),
+        "excess_link": Key(real(), 0.0, R + "a closed rod's linking number beyond its "
+                           "natural twist, in turns: it starts planar (writhe 0) with this "
+                           "much more twist than reference_curvature's third component "
+                           "gives, and the weld keeps it (Lk = Tw + Wr); a DNA minicircle's "
+                           "Delta Lk; above Michell's sqrt(3) A_1/A_3 turns (isotropic "
+                           "bending) the planar ring is unstable and writhes"),
         "rotations": Key(choice(*ROTATIONS), ROTATION_UNKNOWNS,
                          R + "rotation unknowns: auto = rotation_vector (6 unknowns per "
                          "node; the fast default) for the local variant, no constraint and "
@@ -301,7 +314,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "equilibrium": Key(boolean, False, R + "dynamic rods: settle the positions and "
                            "rotations in static equilibrium with the loads at t = 0 from "
                            "the starting shape before the dynamics (quasi-static "
-                           "pre-loading; natural strains kept)"),
+                           "pre-loading; natural strains kept); needs an end holding its "
+                           "rotation, or obstacles, which the rod reaches in pseudo-time "
+                           "(docs/contact.md)"),
         "acceleration": Key(choice(*STARTING_ACCELERATIONS), "balance",
                             R + "dynamic rods with rotation vectors: the accelerations the "
                             "first step starts from: balance (solved from the balance laws "
@@ -483,7 +498,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                               "count rises), switch to a stable equilibrium at the same "
                               "loads, down the energy from the unstable one perturbed along "
                               "the critical mode (a warning says so) | stay on the computed "
-                              "path (docs/stability.md)"),
+                              "path (docs/stability.md); a rod with Kelvin-Voigt viscosity or "
+                              "drag stays: it creeps away from an unstable equilibrium at its "
+                              "viscous rate, it does not jump"),
         "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
                                               "> 0) is a result: status \"completed\", exit 0 "
                                               "(default: \"completed (unstable equilibrium)\", "

@@ -1,0 +1,201 @@
+"""Closed rods (rings): a rod whose end is welded to its own start.
+
+    RodModel(params, n_cells, closed=True, excess_link=0.0, start="clamped" | "free")
+
+(scene: ``geometry.closed = true``, ``geometry.excess_link``).  A closed rod starts as
+the circle of circumference L (radius L/(2 pi)) in the (d1, d3) plane of its start,
+bending towards d1 (``Arc(L/(2 pi))`` closed on itself), its sections turned about the
+tangent by the angle phi(s) = (u_ref,3 + 2 pi excess_link / L) s: its natural twist
+(the third reference curvature) and ``excess_link`` turns more.  Started planar
+(writhe 0), its linking number beyond the natural one is excess_link, Lk = Tw + Wr,
+and the weld keeps it: a twisted ring may writhe out of its plane but not untwist
+(Michell's instability, docs/stability.md).  Its stress-free shape is its own
+(straight by default: the ring is bent, M = EI/R).
+
+The weld is the start's support: the rod's two end nodes are the same material point,
+
+* ``start = "free"`` (a free ring, dynamic rods): the end node's displacement and
+  rotation increments follow the start node's (fem/multipoint.NodeLink, as a rigid
+  joint, rod/joints.py): x_L = x_0 + (0 - L) e_3 (the same point r = s e_3 + x) and
+  theta_L = R_rel^T theta_0, R_rel = R(q(0))^T R(q(L)) of the ring at t = 0, the turn
+  by phi(L) about d3; this keeps q(L) = q(0) R_rel exactly, no penalty;
+* ``start = "clamped"`` (the weld point held, quasi-static or dynamic): both end nodes
+  are held where the ring starts, the same point and frame up to R_rel; no link is
+  needed.  Held at one point, a ring keeps the stability of the free ring: any motion
+  is one with the weld point at rest plus a rigid motion, which costs no energy.
+
+A closed rod is the only rod of its model, its end is free (the weld is its support),
+its ends have no prescribed motion, slide, turn or spring, and its stress-free shape
+has no corners; a quasi-static closed rod is clamped at its weld (a free ring is not
+held against rigid motions); it starts as its ring (a starting state's position,
+orientation, velocities apply; a ``shape`` is refused).  Every error names the key.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..checks import MAX_CELL_TURN
+from ..theory.quaternions import CONJ, np_qmul, np_quaternion_from_rotation_vector, \
+    np_rotation_matrix
+from .start import StartingState
+
+WELD_SUPPORTS = ("clamped", "free")
+# the scene key of each of check_closed's errors, by the message's first word
+KEYS = {"closed": "geometry.closed", "excess_link": "geometry.excess_link",
+        "start": "boundary.start", "end": "boundary.end",
+        "end_displacement": "boundary.end_displacement",
+        "end_rotation": "boundary.end_rotation", "end_slide": "boundary.end_slide",
+        "end_springs": "boundary.end_spring", "end_turn": "boundary.end_turn",
+        "reference_shape": "geometry.reference_shape"}
+
+
+@dataclass(frozen=True)
+class Ring:
+    """The starting curve of a closed rod of length L and n cells: its nodes at the
+    angles 2 pi s/L on the circle bending towards d1 whose inscribed n-gon has sides h =
+    L/n (radius L/(2 n sin(pi/n)) -> L/(2 pi): unstretched cells), its sections turned
+    about the tangent by ``twist`` s (twist: rad per length).  The nodal frames are
+    those of the n-gon's symmetry, q_i = Z^i q_t T^i (Z the turn by 2 pi/n about the
+    ring's axis, T the turn by twist h about d3), with q_t the small tilt of the start
+    frame (0 untwisted; O(h^2 twist/R) otherwise) that puts d3 of every cell's midpoint
+    (the geodesic between its nodes' frames: the 1-point rule's) along its chord: no
+    shear in the cells (d3 at the nodes exactly tangent would leave a twisted cell a
+    shear h^2 twist/(8 R), which B turns into large forces)."""
+
+    twist: float
+
+    def frames(self, s, length: float, n_cells: int):
+        i = np.rint(np.asarray(s, float) * n_cells / length)
+        angle, turn = 2.0 * np.pi / n_cells, self.twist * length / n_cells
+        radius = (length / (2.0 * n_cells)) / np.sin(np.pi / n_cells)
+        r = radius * np.stack([1.0 - np.cos(i * angle), 0.0 * i, np.sin(i * angle)], axis=1)
+        tilt = _tilt(angle, turn) if turn else np.array([1.0, 0.0, 0.0, 0.0])
+        Z = np_quaternion_from_rotation_vector(np.outer(i * angle, E2))
+        T = np_quaternion_from_rotation_vector(np.outer(i * turn, E3))
+        return r, np_qmul(np_qmul(Z, tilt), T)
+
+
+E2, E3 = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
+
+
+def _tilt(angle: float, turn: float) -> np.ndarray:
+    """The start frame's tilt q_t (see Ring): Newton on the rotation vector (a, b, 0)
+    for d3 of the geodesic midpoint of q_t and Z q_t T along the chord of the first
+    cell, whose direction is (sin(angle/2), 0, cos(angle/2))."""
+    chord = np.array([np.sin(angle / 2), 0.0, np.cos(angle / 2)])
+    Z = np_quaternion_from_rotation_vector(angle * E2)
+    T = np_quaternion_from_rotation_vector(turn * E3)
+
+    def misfit(x):
+        q = np_quaternion_from_rotation_vector(np.array([x[0], x[1], 0.0]))
+        mid = q + np_qmul(np_qmul(Z, q), T)
+        d3 = np_rotation_matrix(mid)[:, 2]
+        return np.array([d3[1], np.cross(chord, d3)[1]])   # off the plane, in it
+
+    x = np.zeros(2)
+    for _ in range(50):
+        f = misfit(x)
+        if np.abs(f).max() < 1e-15:
+            break
+        step = 1e-7
+        J = np.column_stack([(misfit(x + step * e) - f) / step for e in np.eye(2)])
+        x = x - np.linalg.solve(J, f)
+    return np_quaternion_from_rotation_vector(np.array([x[0], x[1], 0.0]))
+
+
+def ring_of(rod) -> Ring:
+    """The starting curve of a closed rod (rods.Rod): its natural twist and excess link."""
+    length = float(rod.params.length)
+    return Ring(float(np.asarray(rod.params.reference_curvature, float)[2])
+                + 2.0 * np.pi * float(rod.excess_link) / length)
+
+
+def check_closed(rods: list, dynamic: bool) -> None:
+    """The rules of closed rods (see module): a ValueError naming the key (its first
+    word: KEYS).  The rods: rods.Rod or any object with its attributes (the scene's
+    rules: scenes/rules.py)."""
+    for rod in rods:
+        if not np.isfinite(float(rod.excess_link)):
+            raise ValueError(f"excess_link must be a finite number of turns, got "
+                             f"{rod.excess_link!r}")
+        if not rod.closed:
+            if rod.excess_link:
+                raise ValueError("excess_link: the turns a ring is closed with; the rod is "
+                                 "not closed (closed = true)")
+            continue
+        if len(rods) > 1:
+            raise ValueError(f"closed: rod {rod.name!r} of a system: a closed rod is the "
+                             "only rod of its model (RodModel; rings in systems: not yet)")
+        if rod.start not in WELD_SUPPORTS:
+            raise ValueError(f"start: a closed rod's start is its weld: {' or '.join(WELD_SUPPORTS)}"
+                             f" (the weld point held or a free ring), got {rod.start!r}")
+        if rod.end != "free":
+            raise ValueError(f"end: a closed rod's end is welded to its start, whose support "
+                             f"it shares: leave end 'free', got {rod.end!r}")
+        if not dynamic and rod.start != "clamped":
+            raise ValueError("start: a quasi-static closed rod is clamped at its weld "
+                             "(start = 'clamped'): a free ring is not held against rigid "
+                             "motions, its equilibrium is not unique")
+        for name in ("end_displacement", "end_rotation", "end_slide", "end_springs",
+                     "end_turn"):
+            if getattr(rod, name):
+                raise ValueError(f"{name}: a closed rod's ends are its weld, held by "
+                                 "start = 'clamped' or free; they take no motion, slide, "
+                                 "turn or spring")
+        twist = ring_of(rod).twist * float(rod.params.length)     # rad over the ring
+        if np.hypot(2.0 * np.pi, twist) / rod.n_cells >= MAX_CELL_TURN:
+            raise ValueError(f"excess_link: a ring of {rod.n_cells} cells closed with "
+                             f"{twist / (2 * np.pi):.6g} turns of twist turns each cell's "
+                             f"frame by {np.hypot(2 * np.pi, twist) / rod.n_cells:.3g} rad, "
+                             f"more than the {MAX_CELL_TURN:g} rad two nodes represent: take "
+                             f"n_cells > {np.hypot(2 * np.pi, twist) / MAX_CELL_TURN:.4g}")
+        if rod.params.reference_shape is not None:
+            raise ValueError("reference_shape: a closed rod's stress-free shape is that of "
+                             "its reference strains (reference_curvature), not a curve")
+
+
+def welded_ends(rod):
+    """The rod as the model holds it: a clamped ring's end clamped too (its weld)."""
+    return replace(rod, end=rod.start) if rod.closed and rod.start == "clamped" else rod
+
+
+def weld_nodes(model) -> list[tuple[float, float]]:
+    """(s of the start node, s of the end node) of each closed rod on the model's mesh:
+    neighbours through the weld (pass-through check, segment contact)."""
+    layout = model.layout
+    return [(layout.starts[k], layout.starts[k] + layout.lengths[k])
+            for k, rod in enumerate(model.rods) if rod.closed]
+
+
+def weld_links(model) -> list:
+    """The links of a free ring's weld (see module): the end node's displacement and
+    rotation increments follow the start node's (fem/multipoint.NodeLink; imported here:
+    the checks above, numpy only, serve ``dolfin-rod check`` without DOLFINx)."""
+    from ..fem.multipoint import NodeLink
+    blocks = model.names
+    links = []
+    for (s_a, s_b), rod in zip(weld_nodes(model), (r for r in model.rods if r.closed)):
+        if rod.start != "free":
+            continue
+        q_a, q_b = ring_of(rod).frames(np.array([0.0, float(rod.params.length)]),
+                                       float(rod.params.length), rod.n_cells)[1]
+        relative = np_rotation_matrix(np_qmul(q_a * CONJ, q_b))
+        links += [NodeLink(blocks.index("displacement"), s_a, s_b, tuple(map(tuple, np.eye(3)))),
+                  NodeLink(blocks.index(model.unknowns.rotation), s_a, s_b,
+                           tuple(map(tuple, relative.T)))]
+    return links
+
+
+def closed_start(rod, start):
+    """The starting state of a closed rod (rod/start.StartingState or None): its ring,
+    placed and moving as ``start`` says; a ValueError naming ``start.shape`` if it gives
+    a curve."""
+    if start is None:
+        return StartingState(shape=ring_of(rod))
+    if start.shape is not None:
+        raise ValueError("start.shape: a closed rod starts as its ring (closed = true, "
+                         "excess_link turns of twist); give no starting curve")
+    return replace(start, shape=ring_of(rod))

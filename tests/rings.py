@@ -1,0 +1,82 @@
+"""Closed rods (dolfin_rod/rod/ring.py) for tests/test_ring.py and its MPI cases: a ring
+of length 1 (radius R = 1/(2 pi)), bending stiffness A = 1, twist stiffness C = A/1.3
+(a round section of Poisson's ratio 0.3), shear and axial stiffness 1e5 (A/(B R^2) =
+4e-4: nearly Kirchhoff's inextensible, unshearable rod)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from mpi4py import MPI
+
+from dolfin_rod import RodModel, RodParameters, StartingState, TimeStepper
+from dolfin_rod.analysis.stability import StabilityMonitor
+from dolfin_rod.output.line_fields import LineSampler
+from dolfin_rod.rod.initial_state import settle
+
+LENGTH, BEND, TWIST, STIFF = 1.0, 1.0, 1.0 / 1.3, 1e5
+RADIUS = LENGTH / (2 * math.pi)
+MICHELL = math.sqrt(3.0) * BEND / TWIST      # critical twist, turns (Michell 1889)
+RING = RodParameters(length=LENGTH, A=(BEND, BEND, TWIST), B=(STIFF, STIFF, STIFF))
+
+
+def ring(n_cells: int, link: float = 0.0, comm=MPI.COMM_WORLD, stiff: float = STIFF) -> RodModel:
+    """The quasi-static ring clamped at its weld, closed with ``link`` turns of twist,
+    settled in equilibrium (initial_state.settle: the twisted ring's shear is not in
+    its start); ``stiff``: the shear and axial stiffness B."""
+    params = RING if stiff == STIFF else RodParameters(
+        length=LENGTH, A=(BEND, BEND, TWIST), B=(stiff, stiff, stiff))
+    model = RodModel(params, n_cells, model="hyperelastic", closed=True, excess_link=link,
+                     comm=comm)
+    model.set_initial_state()
+    if link:
+        settle(model, 0.0)
+    return model
+
+
+def ring_fields(model) -> dict:
+    """Energy, the weld's reactions, the nodes and the cells' internal force and couple
+    (spatial), on every rank."""
+    d = model.diagnostics(0.0)
+    sample = LineSampler(model.mesh, model.observables(), point=("centre_line",)).sample()
+    fields = None if sample is None else dict(
+        n=sample.cell["n_spatial"].tolist(), m=sample.cell["m_spatial"].tolist(),
+        centre=sample.point["centre_line"].tolist())
+    return {"free_energy": d["free_energy"],
+            "weld_force": [d[f"reaction_force_start_{c}"] for c in "xyz"],
+            "weld_couple": [d[f"reaction_couple_start_{c}"] for c in "xyz"],
+            **model.mesh.comm.bcast(fields)}
+
+
+def michell_count(n_cells: int, link: float, comm=MPI.COMM_WORLD, stiff: float = STIFF) -> int:
+    """The negative eigenvalues of the tangent stiffness of the settled ring (round-off
+    zeros counted as zero: the isotropic ring's spin about its centre line is neutral)."""
+    return StabilityMonitor(ring(n_cells, link, comm, stiff)).count(0.0)
+
+
+def critical_link(n_cells: int, halvings: int = 16, stiff: float = STIFF) -> float:
+    """The twist (turns) at which the count leaves 0, by bisection in [0.7, 1.3] x
+    Michell's (2.7e-5 of it at 16 halvings)."""
+    count = lambda link: michell_count(n_cells, link, stiff=stiff)    # noqa: E731
+    lo, hi = 0.7 * MICHELL, 1.3 * MICHELL
+    assert count(lo) == 0 and count(hi) > 0
+    for _ in range(halvings):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if count(mid) else (mid, hi)
+    return 0.5 * (lo + hi)
+
+
+def free_ring(n_cells: int, link: float, comm=MPI.COMM_WORLD, push: float = 0.0,
+              steps: int = 20, dt: float = 2e-3) -> dict:
+    """A free dynamic ring (rho A = 1, rho J = 1e-4 I) closed with ``link`` turns, its
+    nodes pushed along the ring's axis e_2 at ``push`` cos(2 phi) (phi = 2 pi s/L), run
+    ``steps`` steps of dt: the diagnostics."""
+    p = RodParameters(length=LENGTH, A=(BEND, BEND, TWIST), B=(1e4, 1e4, 1e4), density=1.0,
+                      section_inertia=1e-4)
+    model = RodModel(p, n_cells, model="hyperelastic", closed=True, excess_link=link,
+                     start="free", comm=comm)
+    model.set_initial_state(start=StartingState(velocity=lambda s: np.outer(
+        push * np.cos(4 * np.pi * s / LENGTH), (0.0, 1.0, 0.0))))
+    TimeStepper(model.problem).run(0.0, steps * dt, dt)
+    return model.diagnostics(steps * dt)
