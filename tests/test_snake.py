@@ -188,16 +188,16 @@ def test_bad_snake_keys_are_named(old, new, key):
     assert f"[{key}]" in str(err.value), str(err.value)
 
 
-def test_directional_friction_on_segments_is_refused():
-    """A sphere whose barrier acts on the segments (contact = "segments"): friction there
-    is isotropic only, a directional table is refused naming the key."""
+def test_directional_friction_on_segments_is_accepted():
+    """A sphere whose barrier acts on the segments (contact = "segments") takes a
+    directional table too (the segments' law: test_obstacle_segments.py
+    test_directional_friction_on_thin_bars; it was refused)."""
     text = SNAKE.replace('shape = "plane"                     # the ground',
                          'shape = "sphere"\ncentre = [0.0, -0.1, 0.1]\nradius = 0.05\n'
                          'contact = "segments"\n#')
     text = text.replace("point = [0.0, -0.0040425, 0.0]\nnormal = [0.0, 1.0, 0.0]\n", "")
-    with pytest.raises(SceneError) as err:
-        parse_scene(text)
-    assert "[obstacles[0].friction]" in str(err.value) and "segments" in str(err.value)
+    ob = parse_scene(text)["obstacles"][0]
+    assert ob["contact"] == "segments" and isinstance(ob["friction"], tuple)
 
 
 PYELASTICA_FORWARD = 0.027832    # m/s, benchmarks/snake_peer.py --quick: dt = 5e-5 (1e-4: 0.027782)

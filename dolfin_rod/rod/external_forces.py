@@ -1,6 +1,8 @@
 """Loads on the rod (PyElastica's ``external_forces``): end, distributed and point forces
 and couples, dead or follower, with their histories, active bending moments (a muscle's,
-PyElastica's MuscleTorques: ``TravellingWave``), and linear drag f = -c dr/dt.
+PyElastica's MuscleTorques: ``TravellingWave``), and linear drag: f = -c dr/dt, or anisotropic
+f = -R C R^T dr/dt (a fluid's resistive force, PyElastica's SlenderBodyTheory; C turned
+onto the centre line's tangent and per current length: _fluid_force).
 
 Their virtual work enters the balance blocks (balance.force_work, balance.couple_work);
 the same densities tested with the velocities (V, W) give the power of the loads.  An
@@ -27,7 +29,7 @@ from ..checks import end_name
 from ..fem.fe_model import ENDS
 from ..fem.problem import TimeDependentValue
 from .discretisation import Discretisation, Unknowns
-from .material import DAMPING, is_zero
+from .material import DAMPING, DRAG_TENSOR, is_zero, scalars
 
 
 @dataclass
@@ -370,15 +372,42 @@ def apply_loads(F: dict, unk: Unknowns, disc: Discretisation, loads: list[LoadDa
     return power
 
 
-def drag(F: dict, unk: Unknowns, c: dict, params: list, disc: Discretisation):
-    """Linear drag f = -c V in the displacement block and rotational damping, the couple
+def _fluid_force(C, unk: Unknowns, v):
+    """The anisotropic drag's force per reference length (minus): |v| R Q C Q^T R^T V,
+    C in the directors' frame turned onto the centre line and per current length: Q
+    the least rotation taking e_3 to the unit strain v / |v| (v = R^T r_s, the section's
+    shear and stretch: Q = I + K + K^2 / (1 + v_3 / |v|), K the cross product with
+    e_3 x v / |v|), so that the force's axis R Q e_3 is the centre line's tangent
+    r_s / |r_s| where v is taken (the cell's midpoint) and turns with the directors
+    along the cell, and |v| = |r_s| the stretch.  For C = (c_n, c_n, c_t) it is
+    |r_s| (c_n (I - t t^T) + c_t t t^T) V, t that axis: slender-body theory's force on
+    the centre line whatever the shear; an unshearable, inextensible rod (v = e_3) has
+    R C R^T V."""
+    R = rotation_matrix(unk.q)
+    stretch = ufl.sqrt(ufl.dot(v, v))
+    k = ufl.as_vector((-v[1], v[0], 0.0)) / stretch           # e_3 x v / |v|
+    K = ufl.as_matrix([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    RQ = ufl.dot(R, ufl.Identity(3) + K + ufl.dot(K, K) / (1.0 + v[2] / stretch))
+    return stretch * ufl.dot(RQ, ufl.dot(C, ufl.dot(ufl.transpose(RQ), unk.V)))
+
+
+def drag(F: dict, unk: Unknowns, c: dict, params: list, disc: Discretisation, v=None):
+    """Linear drag in the displacement block: isotropic f = -c V (a scalar ``drag``) or
+    anisotropic f = -|v| R Q C Q^T R^T V (a drag tensor C in the directors' frame
+    turned onto the centre line, ``v`` the section's strain R^T r_s: _fluid_force;
+    resistive-force or slender-body theory, sections.slender_body_drag); rotational
+    damping, the couple
     per length -C W (material: ``rotational_drag``) or -C_s w (spatial, w = R W:
     ``spatial_rotational_drag``, i.e. C = R^T C_s R) in the rotation block; returns
-    their dissipation c V.V + W.C W integrated (0 without any on every rod)."""
+    their dissipation c V.V + V.f + W.C W integrated (0 without any on every rod)."""
     dissipation = []
-    if not all(is_zero(p.drag) for p in params):
+    if not all(is_zero(scalars(p)["drag"]) for p in params):
         F["displacement"] += c["drag"] * ufl.inner(unk.V, unk.t["displacement"]) * disc.dx
         dissipation.append(c["drag"] * ufl.inner(unk.V, unk.V) * disc.dx)
+    if DRAG_TENSOR in c:
+        f = _fluid_force(c[DRAG_TENSOR], unk, v)
+        F["displacement"] += ufl.inner(f, unk.t["displacement"]) * disc.dx
+        dissipation.append(ufl.inner(f, unk.V) * disc.dx)
     for name in DAMPING:
         if name in c:
             C = c[name]

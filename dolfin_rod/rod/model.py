@@ -337,14 +337,18 @@ class RodModel(FEModel):
         here (layout.Pieces: indicators, lengths)."""
         unk, c, rods = self.unknowns, self.coefficients, self.rods
         psi_fn = energy_function(rods[0].params, c, self.evolving, *self.reference)
-        resp = section_response(unk, c, psi_fn, self.evolving, self.constraint, self.reference)
+        # an active moment's power M . u_t (external_forces.apply_loads) reads u_t
+        moments = any(load.kind == "moment" for load in self.distributed_loads)
+        resp = section_response(unk, c, psi_fn, self.evolving, self.constraint, self.reference,
+                                rates=moments)
         F, n = residual.internal_forces(unk, resp, self.constraint, disc)
         residual.gauge(F, unk, disc)
         natural_pairs = (residual.evolution(F, unk, resp, c, self.variant, self.constraint,
                                             disc) if self.evolving else [])
         if self.dynamic:
             residual.inertia(F, unk, c, disc)
-        drag_dissipation = external_forces.drag(F, unk, c, [rod.params for rod in rods], disc)
+        drag_dissipation = external_forces.drag(F, unk, c, [rod.params for rod in rods], disc,
+                                                 resp.v)
         return resp, F, n, natural_pairs, drag_dissipation
 
     def _balance(self, disc, zero, loads, response: tuple | None = None) -> Terms:

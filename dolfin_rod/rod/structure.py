@@ -25,7 +25,7 @@ import dataclasses
 import numpy as np
 
 from .external_forces import WaveProfile
-from .material import SCALAR_FIELDS, TENSORS, is_zero, scalars
+from .material import SCALAR_FIELDS, TENSORS, is_zero, scalars, tensors
 
 HISTORIES = ("history", "end_displacement", "end_rotation")   # fields holding histories
 
@@ -51,7 +51,7 @@ def structure(rods, model: str, variant: str, constraint: str | None, rotations:
 def _rod(rod) -> str:
     params = rod.params
     coefficients = []
-    for name, value in {**{n: getattr(params, n) for n in TENSORS}, **scalars(params)}.items():
+    for name, value in {**tensors(params), **scalars(params)}.items():
         if callable(value):
             raise _NotData(name)
         coefficients.append(f"{name}:" + ("0" if is_zero(value) else str(np.shape(value))))

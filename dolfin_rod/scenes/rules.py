@@ -387,7 +387,7 @@ def _check_rod_inertia(scene: Scene) -> None:
     mat, lds, err = scene["material"], scene["loads"], scene.error
     L = scene["geometry"]["length"]
     for k in ("density", "drag"):
-        c = mat[k]
+        c = mat[k] if isinstance(mat[k], Coefficient) else None    # a drag Tensor: checked
         samples = _sampled(c, L) if c is not None else []
         if _not_finite(samples, L):
             raise err(f"material.{k}", _not_finite(samples, L))
@@ -571,8 +571,7 @@ def rate_force_key(scene: Scene) -> str | None:
     visc = mat["viscosity"] or {}
     if any(k in visc and not visc[k].is_zero for k in ("M", "N")):
         return "material.viscosity"
-    drag = not (mat["drag"] is None or (mat["drag"].is_constant
-                                        and mat["drag"].constant == 0.0)) \
+    drag = not (mat["drag"] is None or mat["drag"].is_zero) \
         or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
     return "material.drag" if drag else None
 
