@@ -145,6 +145,9 @@ NEWTON_ATOL = 1e-10         # BlockSNES's snes_atol for a problem without a forc
                             #   and OdeTime's solve_ivp atol (time.atol not given)
 NEWTON_FORCE_TOL = 1e-10    # time.atol not given: a rod's snes_atol is this times its
                             #   force scale at the solve's time (rod/force_scale.py)
+NEWTON_FORCE_CAP = 1e-3     # Newton's relative test accepts no residual above this times
+                            #   the force scale (solvers.relative_tolerance: a dynamic
+                            #   step's first residual dominated by stiff rows or a barrier)
 TS_RTOL, TS_ATOL = 1e-6, 1e-8   # time.ts_rtol, time.ts_atol: TSIntegrator
 ODE_SOLUTION = "exact"      # time.ode_solution: OdeTime
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -104,7 +105,7 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
     analysis cannot take raises SceneError naming the key, before any work."""
     from mpi4py import MPI
 
-    from .scenes.rules import analysis_problem
+    from .scenes.rules import analysis_problem, rate_force_key
     from .scenes.selection import at_rest
     if kind not in ANALYSES:
         raise ValueError(f"kind: one of {', '.join(ANALYSES)}, got {kind!r}")
@@ -115,23 +116,41 @@ def analyse(scene: Scene | str | Path, kind: str, overrides: dict[str, Any] | No
     given = scene
     scene = agree(comm, lambda: _scene(given, overrides), (SceneError,))
     rest = agree(comm, lambda: at_rest(scene) if kind == "buckle" else None, (SceneError,))
+    note = None if rest is None else rest[1]
     if rest is not None:
         scene = agree(comm, lambda: _scene(scene, rest[0]), (SceneError,))
-        if not quiet:
-            print_on_root(comm, f"{kind}: {rest[1]}")
     agree(comm, lambda: analysis_problem(scene, kind), (SceneError,))
+    damping = rate_force_key(scene) if kind == "modes" else None
+    if damping is not None:
+        note = (f"undamped: the modes leave out the rod's {damping} (K phi = omega^2 M "
+                "phi: the natural frequencies of the rod without it; docs/stability.md)")
+    if note is not None and not quiet:
+        print_on_root(comm, f"{kind}: {note}")
     return _run(scene, None if out is None else Path(out), comm, False, overwrite, quiet,
-                None, _modes_of(scene, kind, int(count), comm, quiet,
-                                None if rest is None else rest[1]))
+                None, _modes_of(scene, kind, int(count), comm, quiet, note))
 
 
 ANALYSES = {"buckle": 4, "modes": 6}        # the analyses of an end state, default counts
+
+
+class AnalysisError(RuntimeError):
+    """The analysis of a run's end state found fewer modes than asked (the run's files
+    are kept: status "failed")."""
 
 
 def _modes_of(scene: Scene, kind: str, count: int, comm, quiet: bool, note: str | None):
     """The analysis of a run's end state: (sim, t, folder) -> its summary entry (with
     ``note``, how the scene was changed for the analysis: scenes.selection.at_rest)."""
     def analysis(sim, t: float, folder: Path) -> dict:
+        from .analysis.eigen import EigenError
+        try:
+            return end_state_modes(sim, t, folder)
+        except EigenError as err:
+            raise AnalysisError(
+                f"{kind} at t = {t:g}: {err} (--count {count}: a rod has at most one mode "
+                "per unknown its supports leave free; ask for fewer)") from None
+
+    def end_state_modes(sim, t: float, folder: Path) -> dict:
         from .output.modes import table, write_modes
         model = sim.model
         if kind == "buckle":
@@ -313,7 +332,11 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
             summary["from_run"] = started
         if analysis is not None and status.startswith("completed"):
             t_analysis = time.perf_counter()
-            summary.update(analysis(sim, t, folder))
+            try:
+                summary.update(analysis(sim, t, folder))
+            except AnalysisError as err:    # the run's files kept and closed, its summary
+                status, message = "failed", str(err)
+                summary.update(status=status, message=message)
             clock["analysis"] = time.perf_counter() - t_analysis
         clock["total"] = time.perf_counter() - clock["start"]
         writer.finish(summary, {k: v for k, v in clock.items() if k != "start"})
@@ -463,7 +486,7 @@ def _integrate(scene: Scene, sim, writer, comm, done: int, stop_after: int | Non
     def after_step(t_k: float) -> None:
         diag = sim.diagnostics(t_k)
         # a continuation's steps are not a motion: its power balance does not hold
-        bound.check(diag, jump=_report_stability_changes(sim, comm)
+        bound.check(diag, jump=_report_stability_changes(sim)
                     or getattr(sim, "continuation", None) is not None)
         k = progress["k"] = progress["k"] + 1
         writer.record(k, t_k, diag)
@@ -508,10 +531,10 @@ def _checkpoint_due(outputs: dict, k: int) -> bool:
     return bool(outputs["checkpoint_every"]) and k % outputs["checkpoint_every"] == 0
 
 
-def _report_stability_changes(sim, comm) -> bool:
+def _report_stability_changes(sim) -> bool:
     """A warning for each branch switch and each change of the tangent's negative
-    eigenvalues not yet shown; whether the state switched branches since the last
-    call."""
+    eigenvalues not yet shown (a run's warnings: on rank 0's stderr and in summary.json,
+    output/notices.py); whether the state switched branches since the last call."""
     branches = getattr(sim, "branches", None)
     monitor = getattr(sim, "stability", None)
     switched = False
@@ -520,14 +543,15 @@ def _report_stability_changes(sim, comm) -> bool:
         branches.reported += 1
         switched = switched or switch.after is not None
         text = _switch_text(switch, monitor is None or monitor.conservative)
-        print_on_root(comm, f"warning: t = {switch.t:g}: {text}", file=sys.stderr)
+        warnings.warn(f"t = {switch.t:g}: {text}", RuntimeWarning, stacklevel=2)
     while monitor is not None and len(monitor.changes) > monitor.reported:
         t, before, after = monitor.changes[monitor.reported]
         monitor.reported += 1
         state = "unstable" if after else "stable again"
-        print_on_root(comm, f"warning: t = {t:g}: the equilibrium is {state}: {after} "
-                            f"negative eigenvalue(s) of the tangent stiffness (was {before}; "
-                            f"docs/stability.md){_energy_criterion(monitor)}", file=sys.stderr)
+        warnings.warn(f"t = {t:g}: the equilibrium is {state}: {after} negative "
+                      f"eigenvalue(s) of the tangent stiffness (was {before}; "
+                      f"docs/stability.md){_energy_criterion(monitor)}", RuntimeWarning,
+                      stacklevel=2)
     return switched
 
 

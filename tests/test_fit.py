@@ -11,6 +11,7 @@ stated standard errors must match the scatter of the estimates over seeds.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -347,6 +348,23 @@ def test_bad_parameter_is_refused_before_any_model_runs(params, message):
     scene = load_scene(EXAMPLES / "creep.toml")
     with pytest.raises(FitInputError, match=message.replace("[", r"\[")):
         fit_scene(scene, creep_data(grid(1.0, 0.1), 0), params)
+
+
+@pytest.mark.parametrize("params, message", [
+    # were "material.stiffness.A_d is not a key of this rod scene", which it is
+    ("material.stiffness.A_d[5]", "'material.stiffness.A_d[5]': material.stiffness.A_d has "
+                                  "3 entries in this scene (indices 0 to 2), got [5]"),
+    ("A_d[1][0]", "'A_d[1][0]': material.stiffness.A_d[1] is a number in this scene, not "
+                  "an array: drop the index [0]"),
+    ("material.stiffness.A_q[0]", "material.stiffness.A_q is not a key of this rod scene"),
+])
+def test_bad_rod_parameter_index_is_named(params, message):
+    """cantilever_creep.toml gives A_d = [1, 1, 1] (diagonal): an index past its end or
+    one index too many is said as such, before any model runs."""
+    scene = load_scene(ROOT / "scenes" / "cantilever_creep.toml")
+    t = grid(1.0, 0.1)
+    with pytest.raises(FitInputError, match=re.escape(message)):
+        fit_scene(scene, MeasuredSeries(t, np.full_like(t, 0.1), 0.01 + 0.01 * t), params)
 
 
 def test_a_fit_does_not_start_from_a_saved_state():

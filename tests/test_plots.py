@@ -221,6 +221,18 @@ def test_supports_without_couples_and_rod_systems_draw(tmp_path, name, prefix, c
     assert any(line.startswith("K + Psi 2 J") for line in lines)
 
 
+def test_a_tip_displacement_is_said_once():
+    """buckled_column.toml's panels are force_extension and tip_deflection: the closing
+    lines said the tip's displacement twice ("end force ..., tip displacement [...]",
+    then "tip displacement [...]"); the end force's line says it."""
+    scene = load_scene(SCENES / "buckled_column.toml")
+    keys = [f"tip_position_{c}" for c in "xyz"]
+    rows = [{"time": t, **dict(zip(keys, (0.0, 0.1 * t, 1.0 - 0.2 * t)))} for t in (0.0, 1.0)]
+    lines = final_values(rows, scene)
+    assert sum("tip displacement" in line for line in lines) == 1, lines
+    assert lines[0] == "end force [0, 0.0003701, -3.701] N, tip displacement [0, 0.1, -0.2] m"
+
+
 def test_rates_are_labelled_as_powers():
     """Dissipation rates and powers are W (J/s), the integrated dissipation J; contact
     forces N, gaps m (the time-series columns of docs/outputs.md and docs/contact.md)."""

@@ -91,7 +91,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "beck_column.toml": "rod", "deep_arch.toml": "rod",
                   "lee_frame.toml": "rod", "plectoneme_setting.toml": "rod",
                   "rope_over_boulder.toml": "rod", "rope_over_thin_bar.toml": "rod",
-                  "continuum_snake.toml": "rod", "supercoiled_minicircle.toml": "rod"}
+                  "continuum_snake.toml": "rod", "supercoiled_minicircle.toml": "rod",
+                  "sedimenting_fibre.toml": "rod", "continuum_flagella.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])

@@ -200,6 +200,9 @@ def test_a_run_that_ends_unstable_says_so(tmp_path, capsys, follow):
     summary = json.loads(open(f"{folder}/summary.json").read())
     assert summary["status"] == ("completed" if follow else "completed (unstable equilibrium)")
     assert summary["stability_check_ms_per_step"] > 0
+    # the warning is kept with the run (docs/outputs.md): it was only printed
+    assert "t = 0.75: the equilibrium is unstable: 2 negative eigenvalue(s) of the tangent " \
+        "stiffness (was 0; docs/stability.md)" in summary["warnings"], summary["warnings"]
 
 
 @pytest.mark.mpi

@@ -304,6 +304,47 @@ def test_cli_starting_curve_of_wrong_length_exits_2(tmp_path):
                                  "length 1.5 differs from the rod's length 2"), out.stderr
 
 
+DROOPING = """
+[geometry]
+length = 1.0
+n_cells = 8
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 1.0], B = [1e4, 1e4, 1e4] }
+density = 1.0
+section_inertia = 0.001
+[boundary]
+start = "clamped"
+end = "free"
+[loads]
+gravity = [-60.0, 0.0, 0.0]
+[initial]
+equilibrium = true
+[time]
+t_end = 0.01
+dt = 0.01
+"""
+
+
+@pytest.mark.parametrize("ranks", [0, 2])
+def test_equilibrium_start_not_found_is_one_clear_error(tmp_path, ranks):
+    """A cantilever settled under its weight q L^3 / EI = 60 (it droops past vertical):
+    Newton from the straight start does not converge.  That was a ValueError traceback
+    (exit 1) asking "is the rod supported against rigid motions?" (it is clamped); now
+    one line naming [initial.equilibrium] and what to do, exit 2, nothing written; the
+    same under mpirun -n 2 (``ranks``)."""
+    from test_cli import cli
+    scene, out = tmp_path / "droop.toml", tmp_path / "out"
+    scene.write_text(DROOPING)
+    result = cli("run", scene, "--out", out, mpi=ranks)
+    assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+    assert result.stderr.startswith(
+        f"error: {scene}: [initial.equilibrium]: no static equilibrium found from the "
+        "starting shape at t = 0 ("), result.stderr
+    assert "start nearer to it (initial.shape)" in result.stderr
+    assert not out.exists()
+
+
 def test_polyline_rotations_keep_one_sign_near_a_half_turn():
     """A polyline along e1 with d1 = e3 (a rotation by ~pi from the reference frame, q0 ~ 0:
     cosseratbench's twist rods) with a small bend: the nodal quaternions keep one sign

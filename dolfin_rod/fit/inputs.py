@@ -199,7 +199,10 @@ def _parameter(name: str, scene: Scene, raw: dict) -> Parameter:
     head = name.split("[", 1)[0]
     indices = tuple(int(i) for i in _INDEX.findall(name))
     keys = tuple(_long_form(head, scene).split("."))
-    value = _value_at(raw, keys, indices, scene)
+    try:
+        value = _value_at(raw, keys, indices, scene)
+    except FitInputError as err:
+        raise FitInputError(f"parameter {name!r}: {err}") from None
     if value is None and keys[-1] in (scene["material"].get("derived") or {}):
         raise FitInputError(f"parameter {name!r}: {'.'.join(keys)} is derived from this "
                             "scene's physical input (material.youngs_modulus and the "
@@ -258,9 +261,16 @@ def _value_at(raw: dict, keys: tuple[str, ...], indices: tuple[int, ...], scene:
     if node is None and len(keys) == 2 and keys[0] == "material" and not indices \
             and keys[1] in TORSION_DEFAULTS and not scene.is_rod_material:
         return TORSION_DEFAULTS[keys[1]]                 # the schema's default
-    for i in indices:
-        if not isinstance(node, list) or i >= len(node):
+    for depth, i in enumerate(indices):
+        where = ".".join(keys) + "".join(f"[{j}]" for j in indices[:depth])
+        if node is None or isinstance(node, dict):
             return None
+        if not isinstance(node, list):
+            raise FitInputError(f"{where} is a number in this scene, not an array: drop "
+                                f"the index [{i}] (a diagonal tensor [a, b, c] takes one)")
+        if i >= len(node):
+            raise FitInputError(f"{where} has {len(node)} entries in this scene (indices "
+                                f"0 to {len(node) - 1}), got [{i}]")
         node = node[i]
     return node
 

@@ -59,7 +59,9 @@ def default_options(comm, second_order: bool = True, direct: bool = False) -> di
     block (the predictor's residual is O(dt^3) small already, so 1e-4 of it is far below
     the step's truncation error: the peer benchmark's tip errors are those of rtol 1e-6
     to 3 digits at every mesh, with 2.44 instead of 3.64 Newton iterations per step at
-    8 cells, soft scene), else BlockSNES's 1e-10 (a quasi-static step's first
+    8 cells, soft scene; at most checks.NEWTON_FORCE_CAP of the force scale, where the
+    first residual is dominated by stiff rows: solvers.relative_tolerance), else
+    BlockSNES's 1e-10 (a quasi-static step's first
     residual is the load increment); each step's Newton starts with a new Jacobian and
     LU and keeps them while every iteration reduces the residual 10-fold (BlockSNES's
     default, solvers.REUSE_RATIO): 1.0-1.5 Jacobians per step on the benchmark scenes

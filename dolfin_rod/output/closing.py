@@ -55,11 +55,14 @@ def final_values(rows: list[dict], scene) -> list[str]:
     u = lambda kind: "" if unit(kind, units) == "1" else " " + unit(kind, units)  # noqa: E731
     moved = lambda rod="": _text(_vector(last, f"{rod}tip_position")   # noqa: E731
                                  - _vector(first, f"{rod}tip_position"))
-    lines = []
-    for panel in choose_panels(scene, last):
+    lines, panels = [], choose_panels(scene, last)
+    # a tip whose displacement force_extension's line gives already (an end force's)
+    loaded = loaded_point(scene) if "force_extension" in panels else None
+    for panel in panels:
         if panel == "tip_deflection":
             lines += [f"{name}tip displacement {moved(rod)}{u('length')}"
-                      for rod, name in _rods(last, "tip_position_x")]
+                      for rod, name in _rods(last, "tip_position_x")
+                      if loaded is None or loaded[2] != f"{rod}tip"]
         elif panel == "tip_rotation" and "tip_quaternion_0" in last:
             q = np.array([[r[f"tip_quaternion_{i}"] for i in range(4)] for r in rows])
             theta, axis = unwrapped_angle(q)

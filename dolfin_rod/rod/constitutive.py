@@ -100,9 +100,11 @@ def _kinematics(unk, viscous: bool):
 
 
 def section_response(unk, c: dict, psi_fn, evolving: bool, constraint,
-                     reference) -> SectionResponse:
-    """Eqs. mfmeq, mfneq from the configuration (x, q) and its rates."""
-    u, v, u_t, v_t = _kinematics(unk, viscous="M" in c or "N" in c)
+                     reference, rates: bool = False) -> SectionResponse:
+    """Eqs. mfmeq, mfneq from the configuration (x, q) and its rates; ``rates``: the
+    strain rates are read beyond the Kelvin-Voigt moments (an active moment's power
+    M . u_t), so that rotation vectors need them too."""
+    u, v, u_t, v_t = _kinematics(unk, viscous=rates or "M" in c or "N" in c)
     v_eff = constraints.constrained_stretch(v, constraint)
     if v_eff is not None and v_eff is not v:
         v_t = constraints.constrained_stretch(v_t, constraint)

@@ -314,12 +314,6 @@ class ObstacleContact:
                                   if on_segments(ob, law.radius, law.gap, h)]
         self.nodal = [k for k, ob in enumerate(obstacles)       # a mesh's faces: nodes
                       if k not in self.segment_obstacles or ob.shape == "mesh"]
-        directional = [k for k in self.segment_obstacles
-                       if obstacles[k].directional_friction is not None]
-        if directional:
-            raise ValueError(f"obstacles[{directional[0]}].friction: directional friction "
-                             "acts at the nodes; this obstacle acts on the segments "
-                             "(contact = \"nodes\" keeps it on the nodes)")
         self.directional = {k: fem.Constant(self.mesh, np.asarray(ob.directional_friction))
                             for k, ob in enumerate(obstacles)
                             if ob.directional_friction is not None}

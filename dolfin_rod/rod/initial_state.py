@@ -223,8 +223,10 @@ def settle(model, t: float) -> None:
                 f.x.array[:] = array
             _settle_in_pseudo_time(model, solver, tether, keeper, fields, law.gap, t)
     except SolverError as err:
-        raise ValueError(f"{NO_SETTLE} from the starting shape at t = {t:g} ({err}); is "
-                         "the rod supported against rigid motions?") from err
+        raise ValueError(f"{NO_SETTLE} from the starting shape at t = {t:g} ({err}): Newton "
+                         "did not reach it under the whole load at once (a large "
+                         "deflection); start nearer to it (initial.shape), or let the rod "
+                         "settle in time without equilibrium (with material.drag)") from err
     finally:
         for g, array in zip(moving, saved):
             g.x.array[:] = array

@@ -1,7 +1,10 @@
 """Material data of the 3-D rod and their checks (Sections 2.2, 4.1, 4.2).
 
 Tensors are 3 diagonal entries, a 3x3 matrix, or a callable of s returning either
-(usable on floats and on UFL expressions); scalars are floats or callables of s.
+(usable on floats and on UFL expressions); scalars are floats or callables of s.  The
+drag is either: a scalar c (isotropic, f = -c dr/dt) or a tensor C in the directors'
+frame (anisotropic, f = -R C R^T dr/dt: resistive-force and slender-body theory,
+sections.slender_body_drag).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from ..checks import deprecated_names, old_keywords, rod_length, sample_points
 Tensor = Sequence | np.ndarray | Callable | None
 TENSORS = ("A", "B", "A_d", "B_d", "M", "N", "M_d", "N_d", "rotational_drag",
            "spatial_rotational_drag")
+DRAG_TENSOR = "drag_tensor"          # the symbol of an anisotropic drag in the forms
 DAMPING = ("rotational_drag", "spatial_rotational_drag")
 SCALARS = ("rho_A", "I11", "I22", "drag")    # the scalar coefficients' symbols in the forms
 SCALAR_FIELDS = ("density", "section_inertia", "drag")   # RodParameters' fields giving them
@@ -46,7 +50,10 @@ class RodParameters:
     section_inertia: float | Callable | Sequence = 0.0   # section mass moments rho I_11 =
                                      # rho I_22 (one value) or (rho I_11, rho I_22): rho J
                                      # of Section 2.2; stored as the pair
-    drag: float | Callable = 0.0     # linear drag f = -c dr/dt
+    drag: float | Callable | Tensor = 0.0   # linear drag: a scalar c, f = -c dr/dt, or a
+                                     # tensor C in the directors' frame, f = -R C R^T dr/dt
+                                     # (e.g. (c_n, c_n, c_t): sections.
+                                     # slender_body_drag)
     rotational_drag: Tensor = None   # couple -C W per length (material W, C); None: 0
     spatial_rotational_drag: Tensor = None   # couple -C w per length (spatial w = R W, C)
     energy: Callable | None = None   # psi(u_d, v_d, u, v); None: quadratic_energy
@@ -102,8 +109,27 @@ def inertia_pair(value) -> tuple:
 
 def scalars(params: RodParameters) -> dict:
     """The scalar coefficients by their symbols in the forms (SCALARS): rho A (density),
-    rho I_11, rho I_22 (section_inertia) and the drag c."""
-    return dict(zip(SCALARS, (params.density, *params.section_inertia, params.drag)))
+    rho I_11, rho I_22 (section_inertia) and the drag c (0 for a drag tensor)."""
+    drag = 0.0 if is_drag_tensor(params.drag) else params.drag
+    return dict(zip(SCALARS, (params.density, *params.section_inertia, drag)))
+
+
+def tensors(params: RodParameters) -> dict:
+    """The tensor parameters by their symbols in the forms: TENSORS and DRAG_TENSOR
+    (the drag if it is a tensor, else None)."""
+    drag = params.drag if is_drag_tensor(params.drag) else None
+    return {**{n: getattr(params, n) for n in TENSORS}, DRAG_TENSOR: drag}
+
+
+def is_drag_tensor(value) -> bool:
+    """Whether a drag is a tensor C (3 entries, 3x3, or a callable of s returning either)
+    rather than a scalar c."""
+    if callable(value):
+        try:
+            return np.ndim(value(0.0)) > 0
+        except Exception:  # noqa: BLE001 - reported by check_parameters with its name
+            return False
+    return value is not None and np.ndim(value) > 0
 
 
 def is_zero(value) -> bool:
@@ -176,6 +202,8 @@ def check_parameters(params: RodParameters, evolving: bool, viscous: bool,
     for name in DAMPING:
         if getattr(params, name) is not None:
             check_tensor(name, getattr(params, name), L, semidefinite=True)
+    if is_drag_tensor(params.drag):
+        check_tensor("drag", params.drag, L, semidefinite=True)
     for name, value in zip(("density", "section_inertia[0]", "section_inertia[1]", "drag"),
                            scalars(params).values()):
         check_scalar(name, value, L)
@@ -207,13 +235,14 @@ def coefficients(params: list[RodParameters], pieces) -> dict:
     DG0 field where every rod gives a constant, else sum_k chi_k value_k(s - a_k)."""
     if len(params) == 1:
         mesh, s = pieces.mesh, pieces.s
-        c = {n: ufl_tensor(getattr(params[0], n), mesh, s) for n in TENSORS
-             if not is_zero(getattr(params[0], n))}
+        c = {n: ufl_tensor(value, mesh, s) for n, value in tensors(params[0]).items()
+             if not is_zero(value)}
         for n, value in scalars(params[0]).items():
             c[n] = scalar_coefficient(value, mesh, s)
     else:
-        c = {n: _piecewise(n, [getattr(p, n) for p in params], pieces, (3, 3))
-             for n in TENSORS if not all(is_zero(getattr(p, n)) for p in params)}
+        values = [tensors(p) for p in params]
+        c = {n: _piecewise(n, [v[n] for v in values], pieces, (3, 3))
+             for n in values[0] if not all(is_zero(v[n]) for v in values)}
         c.update({n: _piecewise(n, [scalars(p)[n] for p in params], pieces, ())
                   for n in SCALARS})
     c["J"] = ufl.diag(ufl.as_vector((c["I22"], c["I11"], c["I11"] + c["I22"])))

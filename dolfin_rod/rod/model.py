@@ -252,6 +252,11 @@ class RodModel(FEModel):
         self.length = length
         self.evolving = model == "evolving"
         self.dynamic = not is_zero(rods[0].params.density)
+        # forces of the rates of positions and rotations (Kelvin-Voigt viscosity, drag):
+        # a quasi-static rod's positions then move at a viscous rate, they cannot jump
+        self.rate_dependent = not all(is_zero(v) for rod in rods for v in (
+            rod.params.M, rod.params.N, rod.params.drag, rod.params.rotational_drag,
+            rod.params.spatial_rotational_drag))
         return joints
 
     def _rotation_unknowns(self, rotations: str, joints: Sequence[Joint]) -> str:
@@ -261,8 +266,7 @@ class RodModel(FEModel):
         obstacle = rotation_vector_obstacle(
             self.dynamic, self.variant, self.constraint,
             rotary_inertia=not any(any(map(is_zero, p.section_inertia)) for p in all_params),
-            rate_dependent=not all(is_zero(v) for p in all_params for v in (
-                p.M, p.N, p.drag, p.rotational_drag, p.spatial_rotational_drag)),
+            rate_dependent=self.rate_dependent,
             rotation_held=self.welded_spin is not None or any(
                 "clamped" in rod.ends or bool(rod.end_rotation)
                 or spin_free(rod.ends, rod.end_rotation, rod.end_turn, rod.end_springs)
@@ -333,14 +337,18 @@ class RodModel(FEModel):
         here (layout.Pieces: indicators, lengths)."""
         unk, c, rods = self.unknowns, self.coefficients, self.rods
         psi_fn = energy_function(rods[0].params, c, self.evolving, *self.reference)
-        resp = section_response(unk, c, psi_fn, self.evolving, self.constraint, self.reference)
+        # an active moment's power M . u_t (external_forces.apply_loads) reads u_t
+        moments = any(load.kind == "moment" for load in self.distributed_loads)
+        resp = section_response(unk, c, psi_fn, self.evolving, self.constraint, self.reference,
+                                rates=moments)
         F, n = residual.internal_forces(unk, resp, self.constraint, disc)
         residual.gauge(F, unk, disc)
         natural_pairs = (residual.evolution(F, unk, resp, c, self.variant, self.constraint,
                                             disc) if self.evolving else [])
         if self.dynamic:
             residual.inertia(F, unk, c, disc)
-        drag_dissipation = external_forces.drag(F, unk, c, [rod.params for rod in rods], disc)
+        drag_dissipation = external_forces.drag(F, unk, c, [rod.params for rod in rods], disc,
+                                                 resp.v)
         return resp, F, n, natural_pairs, drag_dissipation
 
     def _balance(self, disc, zero, loads, response: tuple | None = None) -> Terms:

@@ -96,8 +96,12 @@ class ObstacleSegments(NodeRates):
         self.weight = 0.5 * line.lengths if self.stencils is None else rod_mean[line.rod]
         mu = np.concatenate([np.full(len(q[2]), ob.friction)
                              for (_, q), (_, ob) in zip(parts, obstacles)])
+        directional = np.concatenate([np.tile(
+            ob.directional_friction or (ob.friction,) * 3, (len(q[2]), 1))
+            for (_, q), (_, ob) in zip(parts, obstacles)]).reshape(-1, 3)
         self.velocity_field = velocity
-        self.friction = (ObstacleFriction(self, mu)
+        self.friction = (ObstacleFriction(self, mu, directional if any(
+            ob.directional_friction for _, ob in obstacles) else None)
                          if velocity is not None and mu.max(initial=0.0) > 0 else None)
         self._cache = (None, None)
         self.tree = len(self.line.ends) * len(self.index) > ALL_PAIRS   # the broad phase
@@ -381,11 +385,19 @@ class ObstacleSegments(NodeRates):
 class ObstacleFriction(PairFriction):
     """Coulomb friction of the segments on the obstacles of ``contact`` (an
     ObstacleSegments; mu per obstacle segment): pair_friction's law and its residual and
-    Jacobian per unit rate, with the obstacle at rest (module docstring)."""
+    Jacobian per unit rate, with the obstacle at rest (module docstring).
+    ``directional``: (forward, backward, lateral) per obstacle segment, or None (all
+    isotropic): the obstacles' directional friction (contact.py's law on the nodes): the
+    slip u split along the rod's axis at the contact point projected on the tangent
+    plane, a (towards s = L: forward), and across it, b = n x a, frozen with the
+    contact; F = -lambda m (mu_a(u_a) u_a a + mu_l u_b b), mu_a blended from backward to
+    forward by u_a / sqrt(u_a^2 + eps^2)."""
 
-    def __init__(self, contact: ObstacleSegments, mu: np.ndarray):
+    def __init__(self, contact: ObstacleSegments, mu: np.ndarray,
+                 directional: np.ndarray | None = None):
         super().__init__(contact.line, contact.law, 0.0, 0.0)
-        self.contact, self.mu_of = contact, mu
+        self.contact, self.mu_of, self.directional = contact, mu, directional
+        self.coefficients = self.axis = self.across = None     # per frozen contact
         self.nodes, self.w = np.zeros((0, 2), dtype=np.int64), np.zeros((0, 2))
         self.total = np.zeros(3)        # the force the last step applied (commit)
 
@@ -393,7 +405,7 @@ class ObstacleFriction(PairFriction):
         """The frozen segments' friction forces on the rod, summed, at the nodes'
         velocities V."""
         u, _, m = self.slip(V)
-        return -((self.bound * m)[:, None] * u).sum(axis=0)
+        return -((self.bound * m)[:, None] * self.resisted(u)[0]).sum(axis=0)
 
     def lag(self, P: np.ndarray) -> None:
         """Freeze the segments (or curves) within the barrier's reach of positions P
@@ -403,15 +415,18 @@ class ObstacleFriction(PairFriction):
         if c.stencils is None:
             cell, j, s, t, d = c.near(P, law.gap)
             nodes, w = self.line.ends[cell], np.stack([1 - s, s], axis=1)
+            slope = np.tile([-1.0, 1.0], (len(cell), 1))        # the segment's d/ds
             wq = np.stack([1 - t, t], axis=1)
             Q = np.stack([c.q0[j], c.q1[j]], axis=1)
         else:
             cell, j, (s, t, d, _) = c.curve_contacts(P, law.gap)
-            nodes, w = c.stencils.nodes[cell], c.stencils.weights(cell, s)[0]
+            nodes = c.stencils.nodes[cell]
+            w, slope = c.stencils.weights(cell, s)[:2]
             wq = c.curve_weights(cell)[1](None, t)[0]
             Q = c.curve_nodes(P, cell, j)[:, 4:]
         rubbing = self.mu_of[j] > 0
-        cell, j, d, nodes, w = cell[rubbing], j[rubbing], d[rubbing], nodes[rubbing], w[rubbing]
+        cell, j, d, nodes, w, slope = (cell[rubbing], j[rubbing], d[rubbing], nodes[rubbing],
+                                       w[rubbing], slope[rubbing])
         lam = -law.stiffness * c.weight[cell] * barrier_derivatives(
             d - c.contact_radius[j], law.gap)[1]
         n = (np.einsum("mk,mki->mi", w, P[nodes])
@@ -420,6 +435,28 @@ class ObstacleFriction(PairFriction):
         self.nodes, self.w = nodes, w
         self.T = np.eye(3)[None] - n[:, :, None] * n[:, None, :]
         self.bound = self.mu_of[j] * lam
+        if self.directional is not None:      # the rod's axis on the tangent plane
+            axis = np.einsum("mij,mj->mi", self.T,
+                             np.einsum("mk,mki->mi", slope, P[nodes]))
+            self.axis = axis / np.maximum(np.linalg.norm(axis, axis=1), 1e-300)[:, None]
+            self.across = np.cross(n, self.axis)
+            self.coefficients, self.bound = self.directional[j], lam
+
+    def resisted(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """PairFriction.resisted: isotropic, or the directional law's weighted slip
+        mu_a(u_a) u_a a + mu_l u_b b and its derivative (class docstring)."""
+        if self.coefficients is None:
+            return super().resisted(u)
+        a, b = self.axis, self.across
+        forward, backward, lateral = self.coefficients.T
+        u_a, u_b = np.einsum("mi,mi->m", u, a), np.einsum("mi,mi->m", u, b)
+        eps2 = self.law.slip_tolerance ** 2
+        root = np.sqrt(u_a**2 + eps2)
+        mu_a = 0.5 * (forward + backward) + 0.5 * (forward - backward) * u_a / root
+        slope = mu_a + 0.5 * (forward - backward) * eps2 * u_a / root**3   # d(mu_a u_a)/du_a
+        aa, bb = a[:, :, None] * a[:, None, :], b[:, :, None] * b[:, None, :]
+        return ((mu_a * u_a)[:, None] * a + (lateral * u_b)[:, None] * b,
+                slope[:, None, None] * aa + lateral[:, None, None] * bb)
 
 
 class BoundSegments(BoundTerm):

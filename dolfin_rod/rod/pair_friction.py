@@ -87,17 +87,25 @@ class PairFriction:
         y2 = np.einsum("mi,mi->m", u, u) / eps**2
         return u, y2, mollifier(y2, NP_OPS) / eps
 
+    def resisted(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(the slip that the friction resists, r(u) (m, 3), and dr/du on the tangent
+        plane (m, 3, 3)): the slip u itself, T (isotropic: F = -mu lambda m u); a
+        directional law weighs its parts (obstacle_segments.ObstacleFriction)."""
+        return u, self.T
+
     def residual(self, V: np.ndarray):
         """(pair nodes (m, 4), residual entries (m, 12) = -w_k F, Jacobian per unit rate
         (m, 12, 12) dR/dV) at the nodes' velocities V (nodes, 3); (m, 2), (m, 6),
-        (m, 6, 6) for segments on obstacles (obstacle_segments.ObstacleFriction)."""
+        (m, 6, 6) for segments on obstacles (obstacle_segments.ObstacleFriction).
+        F = -bound m(|u|^2 / eps^2) r(u) (``resisted``)."""
         u, y2, m = self.slip(V)
-        F = -(self.bound * m)[:, None] * u
+        r, dr = self.resisted(u)
+        F = -(self.bound * m)[:, None] * r
         k = 3 * self.w.shape[1]         # 12 for a pair, 6 for a segment on an obstacle
         G = -(self.w[:, :, None] * F[:, None, :]).reshape(-1, k)
         eps = self.law.slip_tolerance
-        C = m[:, None, None] * self.T + (2 * mollifier_slope(y2) / eps**3)[:, None, None] \
-            * u[:, :, None] * u[:, None, :]
+        C = m[:, None, None] * dr + (2 * mollifier_slope(y2) / eps**3)[:, None, None] \
+            * r[:, :, None] * u[:, None, :]
         K = self.bound[:, None, None] * np.einsum("mij,mjk->mik", C, self.T)
         ww = self.w[:, :, None] * self.w[:, None, :]
         H = np.einsum("mkl,mij->mkilj", ww, K).reshape(-1, k, k)
@@ -107,6 +115,6 @@ class PairFriction:
         """(dissipation rate mu lambda phi |u| summed over the pairs, the sum of the
         friction forces' magnitudes |F|) at the nodes' velocities V."""
         u, _, m = self.slip(V)
-        F = (self.bound * m)[:, None] * u
+        F = (self.bound * m)[:, None] * self.resisted(u)[0]
         return (float(np.einsum("mi,mi->", F, u)),
                 float(np.linalg.norm(F, axis=1).sum()))

@@ -20,6 +20,14 @@ the time constants of the natural strains at a held strain (eq. dotmfupeq: M_d u
 A (u - u_d) - A_d u_d, i.e. u_d relaxes at the rate (A + A_d)/M_d = 1/tau_u).  The
 uniform variant's law integrates over the rod (eq. unatevolunif: M_d u_d' = int_0^L ...),
 so the same tau_u needs M_d = tau_u L (A + A_d) (``uniform_length`` L; docs/rod.md).
+
+Fluid drag (``slender_body_drag``): a slender filament of length L and radius r in a
+Stokes fluid of viscosity mu feels, to leading order in 1 / ln(L/r), the force per length
+f = -(4 pi mu / ln(L/r)) (I - t t^T / 2) v (Cox 1970, J. Fluid Mech. 44, 791; the form of
+PyElastica's SlenderBodyTheory, Gazzola et al. 2018, R. Soc. open sci. 5, 171628, eq.
+4.13): in the directors' frame (t = d_3) the drag tensor (c_n, c_n, c_t) with c_n = 4 pi
+mu / ln(L/r) across the axis and c_t = c_n / 2 along it [N s/m^2]
+(RodParameters.drag).
 """
 
 from __future__ import annotations
@@ -173,3 +181,16 @@ def relaxation_viscosities(tensors: dict, relaxation_time: tuple[float, float],
     def total(k):
         return np.asarray(tensors[k], float) + np.asarray(tensors[k + "_d"], float)
     return {"M_d": tau_u * length * total("A"), "N_d": tau_v * length * total("B")}
+
+
+def slender_body_drag(viscosity: float, length: float, radius: float) -> tuple:
+    """The drag tensor (c_n, c_n, c_t) in the directors' frame of a filament of ``length``
+    L and ``radius`` r in a fluid of dynamic ``viscosity`` mu (module docstring): c_n =
+    4 pi mu / ln(L/r), c_t = c_n / 2."""
+    if not (np.isfinite(viscosity) and viscosity >= 0):
+        raise ValueError(f"the fluid's viscosity must be >= 0, got {viscosity!r}")
+    if not (radius > 0 and np.isfinite(length) and length > np.e * radius):
+        raise ValueError(f"slender-body drag needs a slender rod, length > e radius "
+                         f"(ln(L/r) > 1), got length {length!r}, radius {radius!r}")
+    c_n = 4 * np.pi * viscosity / np.log(length / radius)
+    return (c_n, c_n, c_n / 2)

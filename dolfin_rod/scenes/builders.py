@@ -133,9 +133,12 @@ class FESimulation:
         """Branch switching at bifurcations (analysis/branches.py): quasi-static rods
         without constraints whose stability is checked, unless stability.at_bifurcation
         = "stay"; not with segment contact (the descent's steps have no check that
-        segments pass through each other: the count is reported, the path stays)."""
+        segments pass through each other: the count is reported, the path stays), nor
+        with Kelvin-Voigt viscosity or drag (the positions move at a viscous rate: the
+        rod creeps away from an unstable equilibrium, it does not jump; the count is
+        reported, the path stays)."""
         if self.stability is None or self.scene["stability"]["at_bifurcation"] != "switch" \
-                or segment_pairs(self.scene):
+                or segment_pairs(self.scene) or self.model.rate_dependent:
             return None
         from ..analysis.branches import BranchSwitching
         try:
@@ -313,8 +316,14 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     initial = scene["initial"]
 
     def initial_state():
-        model.set_initial_state(**natural_strains(scene),
-                                start=rod_starts(scene) if scene.rods else starting_state(scene))
+        try:
+            model.set_initial_state(**natural_strains(scene), start=rod_starts(scene)
+                                    if scene.rods else starting_state(scene))
+        except ValueError as err:   # a start the model refused (start.<field>: [initial]),
+            field, colon, reason = str(err).partition(": ")   # e.g. no equilibrium found
+            if not (colon and field.startswith("start.")):
+                raise
+            raise scene.error(f"initial.{field.removeprefix('start.')}", reason) from None
 
     if touching(scene):    # an obstacle or a segment cutting the rod at t = 0: no solve
         from ..rod.obstacle_shapes import InitialOverlap
@@ -325,11 +334,6 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
         except PairOverlap as err:
             raise scene.error(err.key, str(err)) from None
-        except ValueError as err:   # a start the model refused (start.<field>: [initial])
-            field, colon, reason = str(err).partition(": ")
-            if not (colon and field.startswith("start.")):
-                raise
-            raise scene.error(f"initial.{field.removeprefix('start.')}", reason) from None
     return FESimulation("rod", model, scene, initial_state)
 
 

@@ -66,11 +66,6 @@ def check_contact_keys(scene: Scene, rotations: str) -> None:
             raise err(f"{name}.friction", "friction depends on the velocity: it needs a "
                                           "dynamic rod (material.density > 0)")
         _check_segments(scene, k)
-        if isinstance(ob["friction"], tuple) and acts_on_segments(scene, k)[0]:
-            raise err(f"{name}.friction", "directional friction acts on the nodes; this "
-                                          "obstacle acts on the segments (docs/contact.md, "
-                                          "\"Thin obstacles\"): contact = \"nodes\" or one "
-                                          "coefficient")
         if mu > 0 and acts_on_segments(scene, k)[0]:
             if rotations != "rotation_vector":
                 raise err(f"{name}.friction", "this obstacle acts on the segments (a "

@@ -1,6 +1,7 @@
 """A rod scene's physical input (issue 25 item 1): [section] shape and dimensions,
 material.youngs_modulus with shear_modulus or poisson_ratio, density in kg/m^3,
-natural_stiffness_ratio and relaxation_time -> the tensors the rod reads (rod/sections.py),
+natural_stiffness_ratio and relaxation_time, fluid_viscosity (slender-body drag) -> the
+tensors the rod reads (rod/sections.py),
 written into the scene's material table as if given, and recorded in
 ``scene["material"]["derived"]`` (printed by ``dolfin-rod check``, in summary.json).
 """
@@ -38,6 +39,8 @@ def apply_physical_input(scene: Scene) -> None:
         derived.update(_mass(scene, section))
     if mat["relaxation_time"] is not None:
         derived.update(_relaxation(scene))
+    if mat["fluid_viscosity"] is not None:
+        derived.update(_fluid_drag(scene))
     mat["derived"] = derived or None
 
 
@@ -147,6 +150,27 @@ def _relaxation(scene: Scene) -> dict:
     return out
 
 
+def _fluid_drag(scene: Scene) -> dict:
+    """material.drag = (c_n, c_n, c_t) of slender-body theory from fluid_viscosity, the
+    section's (outer) radius and the rod's length (sections.slender_body_drag)."""
+    mat, sec, err = scene["material"], scene["section"], scene.error
+    if "drag" in scene.given["material"]:
+        raise err("material.drag", "give either material.drag or material.fluid_viscosity "
+                                   "(slender-body drag), not both")
+    radius = {"circle": sec["radius"], "tube": sec["outer_radius"]}.get(sec["shape"])
+    if radius is None:
+        raise err("material.fluid_viscosity", "needs a circle or tube [section] (its radius "
+                                              f"r in c_n = 4 pi mu / ln(L/r)); shape is "
+                                              f"{sec['shape']!r}")
+    try:
+        c = sections.slender_body_drag(mat["fluid_viscosity"], scene["geometry"]["length"],
+                                       radius)
+    except ValueError as bad:
+        raise err("material.fluid_viscosity", str(bad)) from None
+    mat["drag"] = Tensor((np.diag(c),))
+    return {"drag": list(c)}
+
+
 def _sum_terms(p: tuple, q: tuple) -> tuple:
     """The terms of the polynomial tensor sum p(s) + q(s)."""
     n = max(len(p), len(q))
@@ -158,7 +182,7 @@ def _sum_terms(p: tuple, q: tuple) -> tuple:
 def describe(derived: dict) -> list[str]:
     """Lines for ``dolfin-rod check``: the derived tensors with their units."""
     units = {"A": "N m^2", "B": "N", "A_d": "N m^2", "B_d": "N", "M_d": "N m^2 s",
-             "N_d": "N s", "density": "kg/m (rho A)", "section_inertia": "kg m (rho I_11, "
+             "N_d": "N s", "drag": "N s/m^2 (c_n, c_n, c_t)", "density": "kg/m (rho A)", "section_inertia": "kg m (rho I_11, "
              "rho I_22)", "shear_modulus": "Pa", "poisson_ratio": "", "shear_factors": ""}
     lines = []
     if "section" in derived:

@@ -76,6 +76,7 @@ def check_combinations(scene: Scene) -> None:
         _check_rod_ends(scene)
         check_contact_keys(scene, rod_rotations(scene))
         _check_continuation(scene)
+        _check_branch_switching(scene)
     else:
         _check_torsion(scene)
     _check_solver_options(scene)
@@ -120,6 +121,22 @@ def time_stepping(scene: Scene) -> str:
     return f"stepper, fixed steps dt = {tim['dt']:g}" + (
         " (time.adaptive is false; setting it true would choose the steps by an error "
         "estimate)" if lie else "")
+
+
+def _check_branch_switching(scene: Scene) -> None:
+    """stability.at_bifurcation = "switch" given for a quasi-static rod with Kelvin-Voigt
+    viscosity or drag: its positions move at a viscous rate, so it cannot jump to another
+    branch (it creeps away from an unstable equilibrium; by default its path stays)."""
+    if "at_bifurcation" not in scene.given["stability"] \
+            or scene["stability"]["at_bifurcation"] != "switch" or scene["material"]["dynamic"]:
+        return
+    key = rate_force_key(scene)
+    if key is not None:
+        raise scene.error("stability.at_bifurcation", (
+            f"\"switch\" jumps to another equilibrium, which a quasi-static rod with "
+            f"Kelvin-Voigt viscosity or drag ({key}) cannot do: its positions move at a "
+            "viscous rate and creep away from an unstable equilibrium (the time steps "
+            "follow that); use \"stay\" or leave the key out"))
 
 
 def _check_continuation(scene: Scene) -> None:
@@ -370,7 +387,7 @@ def _check_rod_inertia(scene: Scene) -> None:
     mat, lds, err = scene["material"], scene["loads"], scene.error
     L = scene["geometry"]["length"]
     for k in ("density", "drag"):
-        c = mat[k]
+        c = mat[k] if isinstance(mat[k], Coefficient) else None    # a drag Tensor: checked
         samples = _sampled(c, L) if c is not None else []
         if _not_finite(samples, L):
             raise err(f"material.{k}", _not_finite(samples, L))
@@ -539,16 +556,24 @@ def rotation_obstacle(scene: Scene) -> tuple[str | None, str]:
     rotation_vector_obstacle of its material; None if it can) and the key that says so."""
     mat = scene["material"]
     constraint = None if mat["constraints"] == "none" else mat["constraints"]
-    visc = mat["viscosity"] or {}
-    viscous = any(k in visc and not visc[k].is_zero for k in ("M", "N"))
-    drag = not (mat["drag"] is None or (mat["drag"].is_constant
-                                        and mat["drag"].constant == 0.0)) \
-        or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
+    rates = rate_force_key(scene)
     why = rotation_vector_obstacle(mat["dynamic"], mat["variant"], constraint,
-                                   rate_dependent=viscous or drag)
+                                   rate_dependent=rates is not None)
     key = ("material.variant" if mat["variant"] != "local" else "material.constraints"
-           if constraint else "material.viscosity" if viscous else "material.drag")
+           if constraint else rates)
     return why, key
+
+
+def rate_force_key(scene: Scene) -> str | None:
+    """The key of the scene's forces of the rates of positions and rotations (Kelvin-Voigt
+    viscosity M, N: "material.viscosity"; drag: "material.drag"), None if it has none."""
+    mat = scene["material"]
+    visc = mat["viscosity"] or {}
+    if any(k in visc and not visc[k].is_zero for k in ("M", "N")):
+        return "material.viscosity"
+    drag = not (mat["drag"] is None or mat["drag"].is_zero) \
+        or not (mat["rotational_drag"] is None or mat["rotational_drag"].is_zero)
+    return "material.drag" if drag else None
 
 
 def _check_turns_resolved(scene: Scene) -> None:

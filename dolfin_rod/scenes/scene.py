@@ -11,7 +11,7 @@ import numpy as np
 # the material keys that make a scene a 3-D rod scene (RodModel)
 ROD_KEYS = ("stiffness", "viscosity", "density", "section_inertia", "drag", "youngs_modulus",
             "shear_modulus", "poisson_ratio", "natural_stiffness_ratio", "relaxation_time",
-            "rotational_drag")
+            "rotational_drag", "fluid_viscosity")
 
 
 class SceneError(ValueError):

@@ -41,7 +41,7 @@ from .scene import Scene, SceneError
 from .systems import validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
                      friction_coefficients,
-                     names_or_boolean, damping_tensor, entry_point, integer,
+                     names_or_boolean, damping_tensor, drag, entry_point, integer,
                      load_entry_point, path_problem, path_text,
                      petsc_table, points3, index_triples, positive_pair, real, run_name, safe_name, scheme_name,
                      section_inertia, spring_table, starting_shape, string, tensor_table,
@@ -120,7 +120,8 @@ value profile(s) history(t) per unit length, `s` (where, required) for point loa
 duration = 1.0 }`.  The old distributed form `{value, profile, history = {...}}` is an
 error that shows its new spelling.
 A torsion coefficient or a density/drag/profile is a number or `{polynomial = [c0, c1,
-...]}` in s.  A rod tensor (A, B, A_d, B_d, M, N, M_d, N_d) is `[a, b, c]` (diagonal),
+...]}` in s (a drag may instead be a tensor in the directors' frame, `[c_1, c_2, c_3]` or
+3x3: anisotropic).  A rod tensor (A, B, A_d, B_d, M, N, M_d, N_d) is `[a, b, c]` (diagonal),
 `[[..], [..], [..]]` (a full symmetric 3x3 matrix) or `{polynomial = [T0, T1, ...]}`
 (T(s) = T0 + T1 s + ..., each T_k diagonal or 3x3; s in [0, L]).  The uniform variant's
 law integrates over s (eq. unatevolunif), so its M_d carries a length factor:
@@ -268,7 +269,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
                        "dynamic, 0 (default): quasi-static"),
         "section_inertia": Key(section_inertia, None, R + "I_11 = I_22 (a number) or [I_11, I_22]: "
                                "section mass moments per length (rho J, Section 2.2)"),
-        "drag": Key(coefficient(False), None, R + "linear drag f = -c dr/dt (c per length)"),
+        "drag": Key(drag, None, R + "linear drag per length (N s/m^2): a number c or "
+                    "{polynomial} in s, f = -c dr/dt (isotropic), or [c_1, c_2, c_3] (or "
+                    "a 3x3 array) C in the directors' frame, f = -R C R^T dr/dt "
+                    "(anisotropic: a fluid's resistive force, e.g. [c_n, c_n, c_t]); its "
+                    "dissipation is in dissipation_rate"),
+        "fluid_viscosity": Key(real(0.0), None, R + "mu (Pa s) of a Stokes fluid around the "
+                               "rod, with a circle or tube [section]: material.drag = [c_n, "
+                               "c_n, c_t], c_n = 4 pi mu / ln(L/r), c_t = c_n / 2 (slender-"
+                               "body theory, PyElastica's SlenderBodyTheory; r the "
+                               "section's (outer) radius, L geometry.length)"),
         "rotational_drag": Key(damping_tensor, None, R + "rotational damping C (N m s per "
                                "length): the couple -C W per length, W the angular velocity "
                                "(a number c: C = c I; [c_1, c_2, c_3] or a tensor); its "
@@ -498,7 +508,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                               "count rises), switch to a stable equilibrium at the same "
                               "loads, down the energy from the unstable one perturbed along "
                               "the critical mode (a warning says so) | stay on the computed "
-                              "path (docs/stability.md)"),
+                              "path (docs/stability.md); a rod with Kelvin-Voigt viscosity or "
+                              "drag stays: it creeps away from an unstable equilibrium at its "
+                              "viscous rate, it does not jump"),
         "follow_unstable": Key(boolean, False, R + "an unstable end state (negative_eigenvalues "
                                               "> 0) is a result: status \"completed\", exit 0 "
                                               "(default: \"completed (unstable equilibrium)\", "
@@ -590,8 +602,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "friction": Key(friction_coefficients, 0.0, "Coulomb friction coefficient mu >= 0, "
                         "or {forward, backward, lateral}: directional coefficients relative "
                         "to the rod's axis on the surface (forward: slipping towards the "
-                        "rod's end s = L; PyElastica's AnisotropicFrictionalPlane; on the "
-                        "nodes) (needs density > 0)"),
+                        "rod's end s = L; PyElastica's AnisotropicFrictionalPlane) "
+                        "(needs density > 0)"),
         "contact": Key(choice("auto", "nodes", "segments"), "auto", "where the barrier "
                        "acts: nodes (the centre line's nodes) | segments (a sphere's or "
                        "cylinder's: a thin obstacle between two nodes holds the segment; a "

@@ -197,6 +197,10 @@ class Coefficient:
     def is_constant(self) -> bool:
         return self.constant is not None
 
+    @property
+    def is_zero(self) -> bool:
+        return not (self.constant if self.constant is not None else any(self.polynomial))
+
     def __call__(self, s):
         """Works on numpy arrays and on UFL expressions (Horner's rule)."""
         if self.constant is not None:
@@ -335,6 +339,13 @@ def damping_tensor(v) -> Tensor:
     if np.linalg.eigvalsh(t.terms[0]).min() < 0:
         raise BadValue(f"must be positive semidefinite, got {t.terms[0].tolist()}")
     return t
+
+
+def drag(v) -> Coefficient | Tensor:
+    """A number c or {polynomial = [c0, c1, ...]} (isotropic, f = -c v: a Coefficient), or
+    [c_1, c_2, c_3] or a symmetric 3x3 array in the directors' frame (f = -R C R^T v: a
+    Tensor), positive semidefinite."""
+    return damping_tensor(v) if isinstance(v, list) else coefficient(False)(v)
 
 
 def entry_point(v) -> str:
