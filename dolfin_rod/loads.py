@@ -95,6 +95,12 @@ class PiecewiseSmoothLoad:
         return float(out) if out.ndim == 0 else out
 
     def __call__(self, t: ArrayLike) -> FloatOrArray:
+        if isinstance(t, float):     # one time (an ODE's right-hand side): no array checks
+            if math.isnan(t):
+                raise ValueError("load time t must not be NaN")
+            value = np.asarray(self.values(np.asarray(t)), dtype=float)
+            if value.shape == ():
+                return float(value)
         times = _times(t)
         out = np.broadcast_to(np.asarray(self.values(times), dtype=float), times.shape).copy()
         return float(out) if out.ndim == 0 else out

@@ -68,3 +68,9 @@ def free_ring(n_cells: int, link: float, push: float, comm=MPI.COMM_WORLD) -> di
     """A free dynamic ring after 20 steps (tests/test_ring.py)."""
     from rings import free_ring as run
     return run(n_cells, link, comm, push)
+
+
+def writhing_ring(n_cells: int, link: float, comm=MPI.COMM_WORLD) -> list:
+    """A pushed free ring's (Tw, Wr) step by step (tests/test_ring.py)."""
+    from rings import writhing_ring as run
+    return run(n_cells, link, comm)

@@ -80,3 +80,26 @@ def free_ring(n_cells: int, link: float, comm=MPI.COMM_WORLD, push: float = 0.0,
         push * np.cos(4 * np.pi * s / LENGTH), (0.0, 1.0, 0.0))))
     TimeStepper(model.problem).run(0.0, steps * dt, dt)
     return model.diagnostics(steps * dt)
+
+
+def writhing_ring(n_cells: int, link: float, comm=MPI.COMM_WORLD, push: float = 2.0,
+                  steps: int = 20, dt: float = 2e-3) -> list[tuple[float, float]]:
+    """free_ring's ring with self-contact (radius 0.005: the twist and writhe columns,
+    rod/ring.ring_linking) pushed hard out of its plane: (Tw, Wr) at the start and after
+    each step."""
+    from dolfin_rod.rod.contact import ContactLaw
+    p = RodParameters(length=LENGTH, A=(BEND, BEND, TWIST), B=(1e4, 1e4, 1e4), density=1.0,
+                      section_inertia=1e-4)
+    model = RodModel(p, n_cells, model="hyperelastic", closed=True, excess_link=link,
+                     start="free", comm=comm,
+                     contact=ContactLaw(radius=0.005, gap=0.001, stiffness=1.0, self=True))
+    model.set_initial_state(start=StartingState(velocity=lambda s: np.outer(
+        push * np.cos(4 * np.pi * s / LENGTH), (0.0, 1.0, 0.0))))
+    out = []
+
+    def record(t, _):
+        d = model.diagnostics(t)
+        out.append((d["twist"], d["writhe"]))
+    record(0.0, None)
+    TimeStepper(model.problem).run(0.0, steps * dt, dt, record)
+    return out

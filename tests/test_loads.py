@@ -133,6 +133,7 @@ BAD_CALLS = [
     (lambda: loads.table([0.0, math.nan], [0.0, 1.0]), ValueError, r"^load table times and values must be finite"),
     (lambda: loads.table([[0.0, 1.0]], [[0.0, 1.0]]), ValueError, r"^load table times and values must be one-dimensional"),
     (lambda: loads.step(1.0)(np.array([0.0, math.nan])), ValueError, r"^load time t must not be NaN"),
+    (lambda: loads.step(1.0)(math.nan), ValueError, r"^load time t must not be NaN"),
     (lambda: loads.from_callable(3.0), TypeError, r"^f must be callable"),
     (lambda: loads.constant("1"), TypeError, r"^v must be a real number"),
 ]
@@ -142,6 +143,19 @@ BAD_CALLS = [
 def test_bad_input_names_the_parameter_and_the_rule(call, error, message):
     with pytest.raises(error, match=message):
         call()
+
+
+def test_a_time_as_a_number_gives_the_value_at_it_in_an_array():
+    """A history called with one time (a float: an ODE's right-hand side, 2e5 calls in a
+    fit) takes a path without array checks: its value is the array call's, bit for bit,
+    as a float."""
+    t = np.linspace(-1.0, 3.0, 81)
+    for h in (loads.step(2.0, 0.5), loads.ramp(1.5, 0.7, t0=0.2), loads.smooth_step(3.0, 1.0),
+              loads.table([0.0, 0.5, 2.0], [0.0, 1.0, -0.5]), loads.constant(0.25),
+              loads.from_callable(math.sin), loads.from_callable(np.cos)):
+        scalar = [h(float(x)) for x in t] + [h(x) for x in t]     # float and np.float64
+        assert all(type(v) is float for v in scalar)
+        assert scalar == [*h(t).tolist(), *h(t).tolist()], h
 
 
 def test_ramp_and_smooth_step_start_at_t0():

@@ -57,6 +57,14 @@ def test_a_plectoneme_shows_torque_link_and_contact():
     assert panels[:3] == ["end_torque", "twist", "contact"]
 
 
+def test_a_writhing_ring_shows_its_link_and_contact():
+    """A ring in self-contact (scenes/supercoiled_minicircle.toml): Tw, Wr and its Lk
+    (rod/ring.py) instead of a tip deflection, then the contact."""
+    columns = ROD_COLUMNS + ["twist", "writhe", "pair_contact_force", "min_pair_gap"]
+    panels = choose_panels(load_scene(SCENES / "supercoiled_minicircle.toml"), columns)
+    assert panels[:2] == ["twist", "contact"]
+
+
 def test_a_point_force_path_is_drawn_against_its_point():
     """The deep arch pushed at its crown (a point force in a table, arc length): by
     default its force against the crown's motion (the limit point shows there)."""

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 from rings import (BEND, LENGTH, MICHELL, RADIUS, RING, TWIST, critical_link, free_ring,
-                   michell_count, ring, ring_fields)
+                   michell_count, ring, ring_fields, writhing_ring)
 from serial_reference import serial
 
 from dolfin_rod import RodModel, RodParameters, Rod, RodSystem, StartingState
@@ -137,6 +137,23 @@ def test_free_ring_weld_holds_the_ring_at_rest():
     here = free_ring(16, 1.0, push=1e-3)
     for key in ("free_energy", "kinetic_energy", "tip_position_x", "tip_position_y"):
         assert here[key] == pytest.approx(reference[key], rel=1e-9, abs=1e-12), key
+
+
+@pytest.mark.mpi
+def test_writhing_ring_keeps_its_link():
+    """Calugareanu-White for the ring (rod/ring.ring_linking): a free ring closed with
+    Tw = 1.5 turns, pushed out of its plane (velocity 2 cos(2 phi) along its axis), 20
+    steps: its writhe grows from 0 to 2.9e-4 while Tw + Wr stays 1.5 to 8.5e-12 (the
+    discrete twist's parallel transport makes the identity exact for the polygon: the
+    weld keeps the link); at the start Tw = 1.5 to 1e-12, Wr = 0 (planar).  2 ranks =
+    serial to 1e-9."""
+    link = 1.5
+    pairs = writhing_ring(16, link)
+    assert pairs[0][0] == pytest.approx(link, abs=1e-12) and abs(pairs[0][1]) < 1e-12
+    assert abs(pairs[-1][1]) > 1e-4, pairs[-1]           # it writhes (measured 2.9e-4)
+    assert max(abs(tw + wr - link) for tw, wr in pairs) < 1e-10, pairs
+    reference = serial("writhing_ring", 16, link)
+    assert np.allclose(pairs, reference, rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("keywords, start, message", [

@@ -361,6 +361,39 @@ def test_a_second_stepper_duplicates_the_first_ones_matrix_and_vectors():
         assert np.array_equal(ours, theirs)
 
 
+@pytest.mark.mpi
+def test_a_second_model_with_a_real_space_unknown_binds_its_step_blocks(monkeypatch):
+    """The uniform variant's natural strains are real-space unknowns: its step system is
+    assembled in blocks (fem/assembly.BlockedSystem).  A second model of its structure
+    (other material numbers, another cell count) binds the first one's compiled blocks:
+    it takes no derivative of its step residual (jacobian_blocks, most of such a
+    stepper's set-up), and its state after two steps is the one it reaches with every
+    form compiled afresh (the form cache bypassed): bitwise in serial, to 1e-13 on two
+    ranks (a parallel solve's other rounding, as above)."""
+    from dolfin_rod import TimeStepper
+    from dolfin_rod.fem import assembly
+
+    def state(values: dict, n_cells: int) -> np.ndarray:
+        model = make("unshearable, uniform variant", values, n_cells=n_cells)
+        assert not assembly.monolithic_layout(model.problem.fields)
+        model.set_initial_state()
+        TimeStepper(model.problem).run(0.0, 0.02, 0.01)
+        return np.concatenate([f.x.array for f in model.problem.fields])
+
+    state(VALUES[0], 4)                              # the structure's blocks, remembered
+    derivatives = mock.patch.object(assembly, "jacobian_blocks",
+                                    wraps=assembly.jacobian_blocks)
+    with derivatives as bound_calls:
+        bound = state(VALUES[1], 6)
+    monkeypatch.setattr(form_cache, "lookup", lambda key: None)
+    with derivatives as fresh_calls:
+        fresh = state(VALUES[1], 6)
+    assert bound_calls.call_count == 0 < fresh_calls.call_count
+    if MPI.COMM_WORLD.size == 1:
+        assert np.array_equal(bound, fresh)
+    assert np.max(np.abs(bound - fresh)) <= 1e-13 * np.max(np.abs(fresh))
+
+
 def test_a_cached_kernel_is_found_without_listing_ffcx_s_cache(tmp_path, monkeypatch):
     """FFCx 0.9-0.11 list their whole cache directory at every cache hit (FFCx issue
     886); the package's compiles find the module by its path: a form compiled into a

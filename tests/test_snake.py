@@ -138,6 +138,34 @@ def test_a_muscle_wave_bends_a_rod_to_its_moment_over_the_stiffness(rotations):
         assert np.max(np.abs(u[:, 1:])) < 1e-8 * scale
 
 
+@pytest.mark.mpi
+def test_two_muscles_of_other_numbers_share_their_kernels():
+    """A muscle's numbers (spline control values, wave length, phase; the period and ramp
+    are its histories') are Constants of the model (external_forces.WaveProfile): a
+    second wave of other numbers gives a model of the same structure (rod/structure.py)
+    and the same UFL residual signatures, so it reuses the first one's compiled kernels
+    (a new muscle value compiled them anew: minutes on a loaded machine), and it bends the
+    rod to its own moment (u_1 = M_1 / EI_1 at t = 0.8 s, to 1e-8 of max |u_1| as
+    above)."""
+    other = TravellingWave(axis=(1.0, 0.0, 0.0), amplitude=[0.1, 0.6, 0.2, 0.3, 0.5, 0.15],
+                           period=1.5, wave_length=0.45, phase=-1.1, ramp=0.2, origin="end")
+    EI = (2.0, 3.0, 4.0)
+    rods = [RodModel(RodParameters(length=1.0, A=EI, B=(1e3, 1e3, 1e3)), n_cells=16,
+                     model="hyperelastic", start="clamped", end="free",
+                     distributed_loads=wave.loads(1.0)) for wave in (WAVE, other)]
+    assert rods[0].problem.structure is not None
+    assert rods[1].problem.structure == rods[0].problem.structure
+    assert [f.signature() for f in rods[1].problem.residual] == \
+        [f.signature() for f in rods[0].problem.residual]
+    rod = rods[1]
+    rod.set_initial_state()
+    TimeStepper(rod.problem).run(0.0, 0.8, 0.05)
+    s = rod.pointwise(ufl.SpatialCoordinate(rod.mesh)[0])[:, 0]
+    expected = other.moment(s, 0.8, 1.0)[:, 0] / EI[0]
+    assert np.max(np.abs(rod.pointwise(rod.u)[:, 0] - expected)) < 1e-8 * np.max(
+        np.abs(expected))
+
+
 SNAKE = (Path(__file__).resolve().parents[1] / "scenes" / "continuum_snake.toml").read_text()
 
 

@@ -32,7 +32,8 @@ import numpy as np
 import ufl
 from petsc4py import PETSc
 
-from ..fem.assembly import block_system
+from ..fem import form_cache
+from ..fem.assembly import block_system, monolithic_layout
 from ..fem.multipoint import ConstrainedSystem
 from ..theory.rotations import material_derivative_vector
 from .eigen import eigenpairs
@@ -99,16 +100,23 @@ def vibration_modes(model, t: float, count: int = 6) -> VibrationModes:
 
 def _mass(tangent: TangentStiffness) -> PETSc.Mat:
     """M = dR/d(accelerations) of the tangent's blocks, symmetric part, Dirichlet rows
-    and columns zero (multipliers: zero rows; joints: P^T M P)."""
+    and columns zero (multipliers: zero rows; joints: P^T M P).  Its kernels are
+    compiled once per structure (form_cache, as the tangent's): a search over loads
+    (Beck's column, tests/test_vibration.py) builds its forms once."""
     model = tangent.model
     accelerations, swap = _accelerations(model, tangent.names)
     at_rest = {f: g for f, g in at_rest_map(model).items()
                if not any(f is a for a in [*accelerations, *swap])}
-    forms = [ufl.replace(model.residual[n], {**at_rest, **swap}) for n in tangent.names]
+    residuals = [model.residual[n] for n in tangent.names]
     fields = [model.f[n] for n in tangent.names]
+    key = form_cache.structure_key(residuals, "mass", tangent.names) \
+        if monolithic_layout(fields) else None
+    forms = None if form_cache.lookup(key) else \
+        [ufl.replace(F, {**at_rest, **swap}) for F in residuals]
+    objects = [*form_cache.registry(residuals), *at_rest.values()]
     bcs = [bc for n in tangent.names for bc in model.bcs_of(n)]
     system = block_system(forms, [fields, accelerations], jacobian_terms=((1.0, 1),),
-                          bcs=bcs)
+                          bcs=bcs, cache=(key, objects))
     system.get(0, system.x)
     system.set(0, system.x)
     system.jacobian(system.A)

@@ -29,11 +29,13 @@ from ufl.algorithms import expand_derivatives
 from . import compat, form_cache, shared_mesh
 
 
-def jacobian_blocks(F: list[ufl.Form], y: list[fem.Function], wrt=None) -> list[list]:
+def jacobian_blocks(F: list[ufl.Form], y: list[fem.Function], wrt=None,
+                    zero: fem.Constant | None = None) -> list[list]:
     """dF_i/dy_j (or d/d wrt_j) as UFL forms; empty off-diagonal blocks are None.
 
-    Empty diagonal blocks stay as zero forms so that the block matrix has every diagonal
-    entry (identity rows of constrained dofs; explicit schemes' algebraic blocks).
+    Empty diagonal blocks stay as zero forms (``zero`` times the mass: a Constant 0,
+    made if not given) so that the block matrix has every diagonal entry (identity rows
+    of constrained dofs; explicit schemes' algebraic blocks).
     """
     wrt = y if wrt is None else wrt
     J = []
@@ -46,8 +48,8 @@ def jacobian_blocks(F: list[ufl.Form], y: list[fem.Function], wrt=None) -> list[
                 Jij = None
                 if i == j:
                     v = ufl.TestFunction(yj.function_space)
-                    zero = fem.Constant(yj.function_space.mesh, 0.0)
-                    Jij = zero * ufl.inner(du, v) * ufl.dx(domain=yj.function_space.mesh)
+                    c = zero if zero is not None else fem.Constant(yj.function_space.mesh, 0.0)
+                    Jij = c * ufl.inner(du, v) * ufl.dx(domain=yj.function_space.mesh)
             row.append(Jij)
         J.append(row)
     return J
@@ -326,15 +328,45 @@ class MonolithicSystem(_System):
                 self._layout["A"] = A.duplicate(copy=False)     # the forms' pattern alone
 
 
-class BlockedSystem(_System):
-    """DOLFINx blocked assembly (block vectors: the blocks' owned entries in turn)."""
+# the blocks (i, j) of the Jacobian that exist, per form_cache key of a blocked system
+_BLOCK_LAYOUTS: dict[str, list[tuple[int, int]]] = {}
 
-    def __init__(self, F, groups, jacobian_terms, bcs):
+
+class BlockedSystem(_System):
+    """DOLFINx blocked assembly (block vectors: the blocks' owned entries in turn).
+
+    cache: (key, objects) or None, as MonolithicSystem's (F may be None on a hit): the
+    compiled blocks are kept in this process only, with the layout of the Jacobian's
+    blocks; a second system of the key (a model of a real-space unknown: the uniform
+    variant, torsion with global unknowns) skips the derivatives and the compile.
+    """
+
+    def __init__(self, F, groups, jacobian_terms, bcs, cache=None):
         self.groups = groups
         y = groups[0]
-        terms = [(c, jacobian_blocks(F, y, wrt=groups[k])) for c, k in jacobian_terms]
-        J = [[_combine(terms, i, j) for j in range(len(y))] for i in range(len(y))]
-        self.F, self.J = form_cache.compile_forms(F), form_cache.compile_forms(J)
+        key, objects = cache if cache else (None, ())
+        zero = fem.Constant(y[0].function_space.mesh, 0.0)    # the empty diagonal blocks'
+        objects = [*objects, zero]
+        entry = form_cache.lookup(key) if key in _BLOCK_LAYOUTS else None
+        if entry is None:
+            terms = [(c, jacobian_blocks(F, y, wrt=groups[k], zero=zero))
+                     for c, k in jacobian_terms]
+            J = [[_combine(terms, i, j) for j in range(len(y))] for i in range(len(y))]
+            self.F, self.J = form_cache.compile_forms(F), form_cache.compile_forms(J)
+            if key:
+                layout = [(i, j) for i, row in enumerate(J) for j, form in enumerate(row)
+                          if form is not None]
+                form_cache.store(key, [*self.F, *(self.J[i][j] for i, j in layout)],
+                                 [*F, *(J[i][j] for i, j in layout)], objects, disk=False)
+                _BLOCK_LAYOUTS[key] = layout
+        else:
+            layout, V = _BLOCK_LAYOUTS[key], [f.function_space for f in y]
+            forms = form_cache.bind(entry, objects, [*([V[i]] for i in range(len(y))),
+                                                     *([V[i], V[j]] for i, j in layout)],
+                                    y[0].function_space.mesh)
+            self.F, self.J = forms[:len(y)], [[None] * len(y) for _ in y]
+            for (i, j), form in zip(layout, forms[len(y):]):
+                self.J[i][j] = form
         self.x = compat.block_vector(self.F)
         self.b = compat.block_vector(self.F)
         self.A = compat.block_matrix(self.J)
@@ -387,8 +419,8 @@ def _combine(terms, i, j):
 
 
 def monolithic_layout(fields) -> bool:
-    """Whether block_system assembles ``fields`` in one mixed element (no real space);
-    only that layout shares compiled forms (form_cache)."""
+    """Whether block_system assembles ``fields`` in one mixed element (no real space;
+    else in blocks: BlockedSystem)."""
     return not any(_is_real(f.function_space) for f in fields)
 
 
@@ -403,11 +435,11 @@ def block_system(F: list[ufl.Form] | None, groups: list[list[fem.Function]],
     jacobian_terms:  [(c, k)]: J = sum c dF/d(groups[k]) (c a float or fem.Constant).
     monolithic:      None: mixed element unless a block is a real space.
     cache:           (key, objects): compiled forms shared by systems of one structure
-                     (form_cache; mixed-element layout only; F may be None on a hit).
+                     (form_cache; F may be None on a hit: form_cache.lookup(key)).
     """
     if monolithic is None:
         monolithic = monolithic_layout(groups[0])
     groups = [list(g) for g in groups]
     if monolithic:
         return MonolithicSystem(F and list(F), groups, list(jacobian_terms), list(bcs), cache)
-    return BlockedSystem(list(F), groups, list(jacobian_terms), list(bcs))
+    return BlockedSystem(F and list(F), groups, list(jacobian_terms), list(bcs), cache)

@@ -306,10 +306,12 @@ def lookup(key: str | None):
 
 
 def store(key: str, compiled: list[fem.Form], ufl_forms: list[ufl.Form], objects,
-          tagged: bool = False) -> None:
+          tagged: bool = False, disk: bool = True) -> None:
     """Remember compiled forms with the registry positions of their data (skipped when a
     form integrates over tagged subdomains, whose tags are not in the registry, unless
-    ``tagged``: the caller gives their integration entities to ``bind``)."""
+    ``tagged``: the caller gives their integration entities to ``bind``); on disk too
+    (serial runs) unless not ``disk`` (an entry whose caller keeps more than the kernels,
+    such as a blocked system's layout of blocks, in this process only)."""
     if not tagged and any(itg.subdomain_data() is not None for form in ufl_forms
                           for itg in form.integrals()):
         return
@@ -324,23 +326,25 @@ def store(key: str, compiled: list[fem.Form], ufl_forms: list[ufl.Form], objects
                             tuple(t.name for t in form.integral_types), tuple(roles),
                             tuple(index[id(c)] for c in uform.constants())))
     _ENTRIES[key] = entry
-    if MPI.COMM_WORLD.size == 1:
+    if disk and MPI.COMM_WORLD.size == 1:
         _save(key, entry)
 
 
 def bind(entry, objects, space, mesh, subdomains=None) -> list[fem.Form]:
-    """The cached kernels with the data of ``objects``, arguments in ``space``;
+    """The cached kernels with the data of ``objects``, arguments in ``space`` (or, a
+    list, per kernel the list of its arguments' spaces: a blocked system's);
     ``subdomains``: {IntegralType: [(id, integration entities)]} of tagged integrals."""
+    spaces = space if isinstance(space, list) else [[space] * k.rank for k in entry]
     return [_bound_form(k, [objects[i] for i in k.roles], [objects[i] for i in k.const_roles],
-                        space, mesh, subdomains) for k in entry]
+                        arguments, mesh, subdomains) for k, arguments in zip(entry, spaces)]
 
 
-def _bound_form(k: Kernel, coefficients, constants, space, mesh, subdomains) -> fem.Form:
+def _bound_form(k: Kernel, coefficients, constants, spaces, mesh, subdomains) -> fem.Form:
     """A DOLFINx form from a compiled kernel with other data (the C++ constructor differs
     between DOLFINx 0.9 and 0.11: compat.cpp_form)."""
     pointer = k.module.ffi.cast("uintptr_t", k.module.ffi.addressof(k.ufcx))
     types = [getattr(IntegralType, name) for name in k.integral_types]
-    f = compat.cpp_form(form_cpp_class(np.dtype(k.dtype)), pointer, [space] * k.rank,
+    f = compat.cpp_form(form_cpp_class(np.dtype(k.dtype)), pointer, spaces,
                         coefficients, constants, types, mesh, subdomains)
     return fem.Form(f, k.ufcx, None, k.module)
 

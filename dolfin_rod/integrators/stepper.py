@@ -64,12 +64,12 @@ class _StepResidual:
         self.problem, self.scheme = problem, scheme
         self.stage_loads = stage_loads(problem, scheme)
         # the layout in the key: scifem's real space has DG0's UFL signature (DOLFINx 0.9)
-        shared = monolithic_layout(problem.fields)     # only that layout shares kernels
-        self.key = key = form_cache.structure_key(problem.residual, "step", scheme.name, shared,
+        mixed = monolithic_layout(problem.fields)
+        self.key = key = form_cache.structure_key(problem.residual, "step", scheme.name, mixed,
                                                        structure=problem.structure)
         objects = [*form_cache.registry(problem.residual), *(f for h in history for f in h), dt,
                    *(c for _, stage in self.stage_loads for c, _ in stage)]
-        F = None if shared and form_cache.lookup(key) else step_forms(
+        F = None if form_cache.lookup(key) else step_forms(
             problem, scheme, history, dt, self.stage_loads)[0]
         stages = [(st.w, st.a) for st in scheme.stages]      # terms: a rod's segment contact
         terms = [term.for_step(stages, problem.fields, *history[:2]) for term in problem.terms]

@@ -83,6 +83,8 @@ def choose_panels(scene, columns) -> list[str]:
     if not panels and "tip_quaternion_0" in cols and (
             loads.get("end_couple") is not None or loads.get("distributed_couple") is not None):
         panels.append("tip_rotation")       # a rod turned by couples (spin_up)
+    if not panels and scene["geometry"]["closed"] and "writhe" in cols:
+        panels.append("twist")      # a ring: Tw, Wr and its link (rod/ring.py)
     tip_moves = boundary["end"] == "free" or boundary.get("end_displacement") is not None \
         or boundary.get("end_slide") is not None
     if not panels and tip_moves and any(c.endswith("tip_position_x") for c in cols):
@@ -310,12 +312,18 @@ def _stability(ax, col, units, scene):
 
 
 def _link(ax, col, units, scene):
-    """Self-contact runs of a clamped rod: twist Tw, writhe Wr, their sum and the link
-    Lk = the end's turns (Calugareanu-White: Lk = Tw + Wr)."""
-    q = np.stack([col(f"tip_quaternion_{i}") for i in range(4)], axis=1)
+    """Self-contact runs of a clamped rod or a ring: twist Tw, writhe Wr, their sum and
+    the link Lk = the end's turns, a ring's its own (Calugareanu-White: Lk = Tw + Wr)."""
     tw, wr = col("twist"), col("writhe")
-    ax.plot(col.t, unwrapped_angle(q)[0] / (2 * np.pi), "k", lw=3, alpha=0.3,
-            label="Lk: end turns")
+    geo = scene["geometry"]
+    if geo["closed"]:       # a ring: its link, kept by the weld (rod/ring.py)
+        turns = geo["excess_link"] + geo["reference_curvature"][2] * geo["length"] / (2 * np.pi)
+        ax.plot(col.t, np.full(len(col.t), turns), "k", lw=3, alpha=0.3,
+                label="Lk: the ring's turns")
+    else:
+        q = np.stack([col(f"tip_quaternion_{i}") for i in range(4)], axis=1)
+        ax.plot(col.t, unwrapped_angle(q)[0] / (2 * np.pi), "k", lw=3, alpha=0.3,
+                label="Lk: end turns")
     ax.plot(col.t, tw + wr, "k--", label="Tw + Wr")
     ax.plot(col.t, tw, label="twist Tw")
     ax.plot(col.t, wr, label="writhe Wr")

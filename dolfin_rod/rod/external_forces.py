@@ -111,24 +111,46 @@ class TravellingWave:
             raise ValueError("TravellingWave amplitude must be a number or at least 4 "
                              f"B-spline control values, got {self.amplitude!r}")
 
-    def profile(self, sigma):
-        """beta(sigma) (sigma a number, numpy array or UFL expression, 0 <= sigma <= 1 the
-        fraction of the length from the origin): the number, or the cubic B-spline's
-        polynomial pieces on its knot intervals."""
+    def _pieces(self):
+        """The clamped cubic B-spline of the control values: its inner knots (uniform on
+        [0, 1]) and its polynomial pieces [(x0, x1, coefficients from the cubic's)] on
+        the knot intervals; None for a number."""
         beta = np.atleast_1d(np.asarray(self.amplitude, float))
         if beta.size == 1:
-            return float(beta[0]) + 0.0 * sigma
+            return None
         from scipy.interpolate import BSpline, PPoly
         inner = np.linspace(0.0, 1.0, beta.size - 2)
         knots = np.concatenate([[0.0] * 3, inner, [1.0] * 3])
         pieces = PPoly.from_spline(BSpline(knots, beta, 3))
-        breaks = [(x0, x1, pieces.c[:, i]) for i, (x0, x1) in
-                  enumerate(zip(pieces.x[:-1], pieces.x[1:])) if x1 > x0]
+        return inner, [(x0, x1, pieces.c[:, i]) for i, (x0, x1) in
+                       enumerate(zip(pieces.x[:-1], pieces.x[1:])) if x1 > x0]
+
+    def coefficients(self) -> np.ndarray:
+        """beta's numbers: the amplitude (shape ()), or the spline pieces' polynomial
+        coefficients (4, pieces), highest power first."""
+        spline = self._pieces()
+        if spline is None:
+            return np.asarray(float(np.atleast_1d(self.amplitude)[0]))
+        return np.stack([c for _, _, c in spline[1]], axis=1)
+
+    def profile(self, sigma, coefficients=None):
+        """beta(sigma) (sigma a number, numpy array or UFL expression, 0 <= sigma <= 1 the
+        fraction of the length from the origin): the number, or the cubic B-spline's
+        polynomial pieces on its knot intervals.  ``coefficients``: a UFL expression of
+        the shape of ``coefficients()`` (a model's Constant) in place of the numbers."""
+        spline = self._pieces()
+        if spline is None:
+            beta = float(np.atleast_1d(self.amplitude)[0])
+            return (beta if coefficients is None else coefficients) + 0.0 * sigma
+        inner, breaks = spline
+        if coefficients is not None:
+            breaks = [(x0, x1, [coefficients[j, i] for j in range(4)])
+                      for i, (x0, x1, _) in enumerate(breaks)]
 
         def poly(c, x):
-            out = 0.0 * x + float(c[0])
+            out = 0.0 * x + _number(c[0])
             for ck in c[1:]:
-                out = out * x + float(ck)
+                out = out * x + _number(ck)
             return out
         if not isinstance(sigma, ufl.core.expr.Expr):
             sigma = np.asarray(sigma, float)
@@ -146,33 +168,76 @@ class TravellingWave:
         ramp = min(1.0, t / self.ramp) if self.ramp > 0 else 1.0
         size = ramp * self.profile(sigma / length) * np.sin(
             2 * np.pi * (t / self.period - sigma / self.wave_length) + self.phase)
-        return np.outer(size, self._unit())
+        return np.outer(size, self.unit())
 
-    def _unit(self) -> np.ndarray:
+    def unit(self) -> np.ndarray:
+        """The axis made a unit vector."""
         return np.asarray(self.axis, float) / np.linalg.norm(self.axis)
 
     def loads(self, length: float) -> list:
-        """The two DistributedLoads of kind "moment" whose sum is M (class docstring)."""
+        """The two DistributedLoads of kind "moment" whose sum is M (class docstring): their
+        values WaveProfiles, their histories ramp(t) sin(w t) and ramp(t) cos(w t)."""
         self.check()
-        w, k = 2 * np.pi / self.period, 2 * np.pi / self.wave_length
-        axis, phase, ramp = self._unit(), self.phase, self.ramp
+        w, ramp = 2 * np.pi / self.period, self.ramp
 
         def in_time(trig):
             def history(t):
                 t = np.asarray(t, float)
                 return (np.minimum(1.0, t / ramp) if ramp > 0 else 1.0) * trig(w * t)
             return load_histories.from_callable(history)
+        return [DistributedLoad("moment", WaveProfile(self, length, "cos", 1.0),
+                                in_time(np.sin), self.follower),
+                DistributedLoad("moment", WaveProfile(self, length, "sin", -1.0),
+                                in_time(np.cos), self.follower)]
 
-        def in_space(trig, sign):
-            def value(s):
-                sigma = s if self.origin == "start" else length - s
-                size = sign * self.profile(sigma / length) * trig(k * sigma - phase)
-                return [float(a) * size for a in axis]
-            return value
-        return [DistributedLoad("moment", in_space(ufl.cos, 1.0), in_time(np.sin),
-                                self.follower),
-                DistributedLoad("moment", in_space(ufl.sin, -1.0), in_time(np.cos),
-                                self.follower)]
+
+def _number(c):
+    """A polynomial coefficient: a float, or as it is (a UFL expression)."""
+    return c if isinstance(c, ufl.core.expr.Expr) else float(c)
+
+
+@dataclass(frozen=True)
+class WaveProfile:
+    """One of a TravellingWave's two profiles in s (the rod's own arc length):
+
+        sign beta(sigma / L) trig(k sigma - phase) axis,    k = 2 pi / wave_length,
+
+    callable at numbers (the force scale, force_scale.py).  In a model its numbers are
+    fem.Constants (``constants``, made by external_forces.load_data; ``expression``), so
+    that its kernels depend only on ``structure()`` (rod/structure.py): two muscles of
+    other amplitudes, wave lengths, phases or rod lengths share compiled kernels."""
+
+    wave: TravellingWave
+    length: float
+    trig: str                         # "cos" or "sin"
+    sign: float
+
+    def __call__(self, s):
+        sigma = s if self.wave.origin == "start" else self.length - s
+        size = self.sign * self.wave.profile(sigma / self.length) * getattr(ufl, self.trig)(
+            2 * np.pi / self.wave.wave_length * sigma - self.wave.phase)
+        return [float(a) * size for a in self.wave.unit()]
+
+    def structure(self) -> str:
+        """What the compiled kernels depend on: the trigonometric function, sign, origin,
+        the spline's number of control values (its knots), the unit axis, follower."""
+        return (f"WaveProfile({self.trig},{self.sign!r},{self.wave.origin},"
+                f"{np.atleast_1d(self.wave.amplitude).size},{self.wave.unit().tolist()!r},"
+                f"{self.wave.follower!r})")
+
+    def constants(self, mesh) -> dict:
+        """Its numbers as Constants on ``mesh``: beta's coefficients, k, the phase, L."""
+        return {"beta": fem.Constant(mesh, self.wave.coefficients()),
+                "wave_number": fem.Constant(mesh, 2 * np.pi / self.wave.wave_length),
+                "phase": fem.Constant(mesh, float(self.wave.phase)),
+                "length": fem.Constant(mesh, float(self.length))}
+
+    def expression(self, s, constants: dict):
+        """The profile as UFL at the arc length ``s``, its numbers ``constants``."""
+        sigma = s if self.wave.origin == "start" else constants["length"] - s
+        size = self.sign * self.wave.profile(sigma / constants["length"], constants["beta"]) \
+            * getattr(ufl, self.trig)(constants["wave_number"] * sigma - constants["phase"])
+        return ufl.as_vector([float(a) * size for a in self.wave.unit()])
 
 
 def check_loads(end_loads, distributed_loads, point_loads=(), length: float = np.inf) -> None:
@@ -204,7 +269,8 @@ def check_loads(end_loads, distributed_loads, point_loads=(), length: float = np
 @dataclass
 class LoadData:
     """A load's Constants (load_data): its amplitude, its value (None: a profile value(s),
-    made with the terms) and, at a point, the cell size h and the point s_0."""
+    made with the terms), a WaveProfile's numbers and, at a point, the cell size h and
+    the point s_0."""
 
     rod: int
     load: object
@@ -212,16 +278,20 @@ class LoadData:
     amplitude: fem.Constant
     value: fem.Constant | None
     point: tuple = ()         # (h, s_0) of a point load
+    profile: dict = field(default_factory=dict)     # WaveProfile.constants
 
     def constants(self) -> dict:
         named = {"amplitude": self.amplitude, "value": self.value,
-                 **dict(zip(("h", "s0"), self.point))}
+                 **dict(zip(("h", "s0"), self.point)),
+                 **{f"profile_{name}": const for name, const in self.profile.items()}}
         return {name: const for name, const in named.items() if const is not None}
 
 
 def _load_value(data: LoadData, disc: Discretisation):
     """The load's vector (its Constant, or value(s) for a distributed profile, s the rod's
-    own arc length)."""
+    own arc length; a WaveProfile's of its Constants)."""
+    if isinstance(data.load.value, WaveProfile):
+        return data.load.value.expression(disc.pieces.local_s(data.rod), data.profile)
     if data.value is None:
         return ufl.as_vector(list(data.load.value(disc.pieces.local_s(data.rod))))
     return data.value
@@ -259,7 +329,9 @@ def load_data(disc: Discretisation, end_loads, distributed_loads, point_loads=()
         histories.append(TimeDependentValue(amp, load.history))
         value = None if callable(load.value) else fem.Constant(
             disc.mesh, np.asarray(load.value, float))
-        data.append(LoadData(rod, load, where, amp, value, point))
+        profile = (load.value.constants(disc.mesh) if isinstance(load.value, WaveProfile)
+                   else {})
+        data.append(LoadData(rod, load, where, amp, value, point, profile))
     return histories, data
 
 

@@ -904,13 +904,14 @@ class RodModel(FEModel):
                 d["friction_dissipation"] = d.get("friction_dissipation", 0.0) + friction
             d.update(pairs)
             self._update_field(self.pair_force, self.segment_contact)
-            if self.layout.single and self.supports.ends == ("clamped", "clamped") \
-                    and self.segment_contact.self_contact:
+            if self.layout.single and self.segment_contact.self_contact and (
+                    self.rods[0].closed or self.supports.ends == ("clamped", "clamped")):
                 d["twist"], d["writhe"] = self._twist_and_writhe()
 
     def _twist_and_writhe(self) -> tuple[float, float]:
-        """Tw of the rod's ribbon (d_1 at the nodes) and Wr of its centre line closed
-        along the clamped ends' tangents (linking.clamped_rod_linking)."""
+        """Tw of the rod's ribbon (d_1 at the nodes) and Wr of its centre line: a ring's
+        (ring.ring_linking), else closed along the clamped ends' tangents
+        (linking.clamped_rod_linking)."""
         line = self.segment_contact.line
         order = np.argsort(line.reference[:, 2])
         points = line.positions(self.segment_contact.owned_displacement())[order]
@@ -919,6 +920,8 @@ class RodModel(FEModel):
         q = line.gather(q_n.x.array.reshape(-1, 4)[: line.n_owned])[order]
         q /= np.linalg.norm(q, axis=1)[:, None]         # (quaternions: off the unit sphere)
         R = np.stack([np_rotation_matrix(qk) for qk in q])
+        if self.rods[0].closed:
+            return ring.ring_linking(points, R[:, :, 0])
         return clamped_rod_linking(points, R[:, :, 0], R[0, :, 2], R[-1, :, 2])
 
     @staticmethod

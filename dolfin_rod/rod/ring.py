@@ -40,6 +40,7 @@ import numpy as np
 from ..checks import MAX_CELL_TURN
 from ..theory.quaternions import CONJ, np_qmul, np_quaternion_from_rotation_vector, \
     np_rotation_matrix
+from .linking import twist, writhe
 from .start import StartingState
 
 WELD_SUPPORTS = ("clamped", "free")
@@ -199,3 +200,15 @@ def closed_start(rod, start):
         raise ValueError("start.shape: a closed rod starts as its ring (closed = true, "
                          "excess_link turns of twist); give no starting curve")
     return replace(start, shape=ring_of(rod))
+
+
+def ring_linking(points, normals) -> tuple[float, float]:
+    """(Tw, Wr) of a ring from its nodes 0..N (node N at node 0) and the normals (d1) at
+    them (rod/linking.py): Wr of the closed polygon of nodes 0..N-1; Tw of the ribbon
+    along the N segments and at every node, the weld's included, where node N's d1 is
+    carried on into segment 0 (the weld's own turn R_rel, a fixed jump, left out).
+    Tw + Wr is the twist the ring was closed with (Lk, Calugareanu-White): planar at
+    the start (Wr = 0), Tw = its natural turns plus excess_link; kept as it writhes."""
+    points, normals = np.asarray(points, float), np.asarray(normals, float)
+    weld = twist(points[[-2, -1, 1]], normals[[-1, -1, -1]])   # the junction at the weld
+    return twist(points, normals) + weld, writhe(points[:-1], closed=True)

@@ -11,10 +11,11 @@ of RodParameters given as numbers) enter by whether they are zero (which terms t
 residual has) and by shape; every other number enters with its value; a history of a
 load or an end motion enters as "history" (its values reach the residual only through
 Constants set at each time, and its jumps through the chosen rotation unknowns, which
-are part of the text); an energy function of this package (dolfin_rod.dna:psi) by its
-name; anything else that is not plain data (a coefficient, load or a user's energy given
-as a function, whose UFL may hold numbers) gives no text (None): such a model's key is
-computed from its signatures.
+are part of the text); a muscle's profile (external_forces.WaveProfile) by its
+structure, its numbers being Constants; an energy function of this package
+(dolfin_rod.dna:psi) by its name; anything else that is not plain data (a coefficient,
+load or a user's energy given as a function, whose UFL may hold numbers) gives no text
+(None): such a model's key is computed from its signatures.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import dataclasses
 
 import numpy as np
 
+from .external_forces import WaveProfile
 from .material import SCALAR_FIELDS, TENSORS, is_zero, scalars, tensors
 
 HISTORIES = ("history", "end_displacement", "end_rotation")   # fields holding histories
@@ -103,6 +105,8 @@ def _data(value) -> str:
     if isinstance(value, dict):
         return "{" + ",".join(f"{_data(k)}:{_data(v)}" for k, v in
                               sorted(value.items(), key=lambda kv: repr(kv[0]))) + "}"
+    if isinstance(value, WaveProfile):       # its numbers are Constants
+        return value.structure()
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return _record(value)
     raise _NotData(type(value).__name__)
