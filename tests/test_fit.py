@@ -230,8 +230,12 @@ def test_a_tensor_derived_from_the_physical_input_names_the_key_to_fit():
     noise = np.random.default_rng(1).normal(0, 1e-3, t.size)
     data = MeasuredSeries(t, np.full_like(t, F), delta * (1 + noise))
     with pytest.raises(FitInputError, match="derived from this scene's physical input.*"
-                                            "material.youngs_modulus"):
+                                            "fit material.youngs_modulus"):
         fit_scene(scene, data, "material.stiffness.A[0]")
+    sinking = parse_scene(STEEL_CANTILEVER.replace("[loads]", "fluid_viscosity = 1.0\n[loads]"),
+                          "sinking.toml")      # slender-body drag from the viscosity
+    with pytest.raises(FitInputError, match="fit material.fluid_viscosity"):
+        fit_scene(sinking, data, "material.drag[0]")
     result = fit_scene(scene, data, "material.youngs_modulus")
     assert result.status == "identified", result.message
     assert abs(result.values[0] - E) < 3 * result.std_errors[0]

@@ -47,6 +47,7 @@ import numpy as np
 
 from ..checks import DATA_BYTES, read_regular_file
 from ..scenes import Scene, validate
+from ..scenes.physical import SOURCES
 
 __all__ = ["FitInputError", "Parameter", "Experiment", "MeasuredSeries", "read_series",
            "parse_parameters", "experiment_of"]
@@ -204,10 +205,10 @@ def _parameter(name: str, scene: Scene, raw: dict) -> Parameter:
     except FitInputError as err:
         raise FitInputError(f"parameter {name!r}: {err}") from None
     if value is None and keys[-1] in (scene["material"].get("derived") or {}):
+        source = f"material.{SOURCES.get(keys[-1], 'youngs_modulus')}"
         raise FitInputError(f"parameter {name!r}: {'.'.join(keys)} is derived from this "
-                            "scene's physical input (material.youngs_modulus and the "
-                            "[section], or material.density): fit a key the scene gives, "
-                            "e.g. material.youngs_modulus")
+                            f"scene's physical input ({source} with the [section]): fit "
+                            f"{source} instead")
     if value is None:
         raise FitInputError(f"parameter {name!r}: {'.'.join(keys)} is not a key of this "
                             f"{'rod' if scene.is_rod_material else 'torsion'} scene "

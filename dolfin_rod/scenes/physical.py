@@ -17,6 +17,10 @@ from .values import Coefficient, Tensor
 SECTION_DIMENSIONS = {"circle": ("radius",), "ellipse": ("semi_axes",),
                       "rectangle": ("sides",), "tube": ("outer_radius", "inner_radius")}
 ELASTIC = ("youngs_modulus", "shear_modulus", "poisson_ratio", "natural_stiffness_ratio")
+# the physical key each derived tensor comes from (fit names it: fit/inputs.py)
+SOURCES = {"A": "youngs_modulus", "B": "youngs_modulus", "A_d": "youngs_modulus",
+           "B_d": "youngs_modulus", "section_inertia": "density", "M_d": "relaxation_time",
+           "N_d": "relaxation_time", "drag": "fluid_viscosity"}
 
 
 def apply_physical_input(scene: Scene) -> None:
