@@ -303,6 +303,12 @@ class ForceScale:
 UNTESTED_TYPES = ("ksponly", "ksptransposeonly")
 
 
+def scale_terms(scale: ForceScale | None) -> tuple[float, bool]:
+    """(force scale, static) of a solve for newton_test and residual_problem: (0, False)
+    without a ForceScale."""
+    return (scale.value, scale.static) if scale is not None else (0.0, False)
+
+
 class CheckedSNES:
     """The residual check of BlockSNES for a SNES driven by others (PETSc TS's stage
     solves): a solve it reports as converged whose residual at the solution misses the
@@ -334,18 +340,14 @@ class CheckedSNES:
     def _converged(self, snes, it: int, norms) -> int:
         if it == 0:
             self._start(snes, norms[2])
-        reason = default_test(snes, it, norms, self._initial, 0.0, *self._scale())
+        reason = default_test(snes, it, norms, self._initial, 0.0, *scale_terms(self.scale))
         return self._checked(reason, norms[2]) if reason > 0 else reason
-
-    def _scale(self) -> tuple[float, bool]:
-        """(force scale, static) of the solve: (0, False) without a ForceScale."""
-        return (self.scale.value, self.scale.static) if self.scale else (0.0, False)
 
     def _checked(self, reason: int, norm: float) -> int:
         if reason <= 0:
             return reason
         problem = residual_problem(self.snes, reason, norm, self._initial, 0.0,
-                                   *self._scale())
+                                   *scale_terms(self.scale))
         if problem is None:
             return reason
         self.failure = problem
@@ -545,12 +547,7 @@ class BlockSNES:
         if it == 0:
             self._fnorm0 = norms[2]
         return default_test(snes, it, norms, self._fnorm0, self.step_scale,
-                            *self._force_scale())
-
-    def _force_scale(self) -> tuple[float, bool]:
-        """(force scale, static) of the solve (ForceScale), (0, False) without one."""
-        return (self.scale.value, self.scale.static) if self.scale is not None \
-            else (0.0, False)
+                            *scale_terms(self.scale))
 
     def _set_persists(self, flags) -> None:
         opts = PETSc.Options()
@@ -661,7 +658,7 @@ class BlockSNES:
         self._initial_norm = None
         self._residual(snes, x, b)
         fnorm0 = fnorm = self._residual_norm
-        scale = self._force_scale()
+        scale = scale_terms(self.scale)
         it, reason = 0, newton_test(snes, 0, fnorm, fnorm0, None, self.step_scale, *scale)
         reasons = PETSc.SNES.ConvergedReason
         while not reason:
@@ -730,6 +727,6 @@ class BlockSNES:
         floor = self.round_off_floor() if norm > initial and \
             reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE else 0.0
         problem = residual_problem(self.snes, reason, norm, initial, floor,
-                                   *self._force_scale())
+                                   *scale_terms(self.scale))
         if problem is not None:
             raise SolverError(problem + ",", self.iterations)

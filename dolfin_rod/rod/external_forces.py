@@ -213,10 +213,7 @@ class WaveProfile:
     sign: float
 
     def __call__(self, s):
-        sigma = s if self.wave.origin == "start" else self.length - s
-        size = self.sign * self.wave.profile(sigma / self.length) * getattr(ufl, self.trig)(
-            2 * np.pi / self.wave.wave_length * sigma - self.wave.phase)
-        return [float(a) * size for a in self.wave.unit()]
+        return self._components(s, {**self._numbers(), "beta": None})
 
     def structure(self) -> str:
         """What the compiled kernels depend on: the trigonometric function, sign, origin,
@@ -225,19 +222,26 @@ class WaveProfile:
                 f"{np.atleast_1d(self.wave.amplitude).size},{self.wave.unit().tolist()!r},"
                 f"{self.wave.follower!r})")
 
+    def _numbers(self) -> dict:
+        """beta's coefficients, the wave number k, the phase, L."""
+        return {"beta": self.wave.coefficients(),
+                "wave_number": 2 * np.pi / self.wave.wave_length,
+                "phase": float(self.wave.phase), "length": float(self.length)}
+
     def constants(self, mesh) -> dict:
-        """Its numbers as Constants on ``mesh``: beta's coefficients, k, the phase, L."""
-        return {"beta": fem.Constant(mesh, self.wave.coefficients()),
-                "wave_number": fem.Constant(mesh, 2 * np.pi / self.wave.wave_length),
-                "phase": fem.Constant(mesh, float(self.wave.phase)),
-                "length": fem.Constant(mesh, float(self.length))}
+        """Its numbers as Constants on ``mesh``."""
+        return {name: fem.Constant(mesh, value) for name, value in self._numbers().items()}
 
     def expression(self, s, constants: dict):
         """The profile as UFL at the arc length ``s``, its numbers ``constants``."""
-        sigma = s if self.wave.origin == "start" else constants["length"] - s
-        size = self.sign * self.wave.profile(sigma / constants["length"], constants["beta"]) \
-            * getattr(ufl, self.trig)(constants["wave_number"] * sigma - constants["phase"])
-        return ufl.as_vector([float(a) * size for a in self.wave.unit()])
+        return ufl.as_vector(self._components(s, constants))
+
+    def _components(self, s, numbers: dict) -> list:
+        """The profile's components at ``s`` with ``numbers`` (beta None: the wave's)."""
+        sigma = s if self.wave.origin == "start" else numbers["length"] - s
+        size = self.sign * self.wave.profile(sigma / numbers["length"], numbers["beta"]) \
+            * getattr(ufl, self.trig)(numbers["wave_number"] * sigma - numbers["phase"])
+        return [float(a) * size for a in self.wave.unit()]
 
 
 def check_loads(end_loads, distributed_loads, point_loads=(), length: float = np.inf) -> None:
