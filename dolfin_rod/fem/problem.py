@@ -26,8 +26,16 @@ class TimeDependentValue:
     constant: fem.Constant
     history: Callable[[float], float | np.ndarray]
 
+    def __post_init__(self):
+        # the Constant's values, fetched once (its ``value`` property costs ~1.5 us)
+        self._values = self.constant.value
+
     def at(self, t: float) -> np.ndarray:
-        return np.asarray(self.history(t), dtype=float).reshape(self.constant.value.shape)
+        return np.asarray(self.history(t), dtype=float).reshape(self._values.shape)
+
+    def set(self, t: float) -> None:
+        """The constant's value at t."""
+        self._values[...] = self.at(t)
 
 
 @dataclass
@@ -104,7 +112,7 @@ class SemiDiscreteProblem:
 
     def set_loads(self, t: float) -> None:
         for load in self.loads:
-            load.constant.value[...] = load.at(t)
+            load.set(t)
 
 
 @dataclass

@@ -62,6 +62,7 @@ from .start import RodStarts, StartingState, check_rod_starts, check_start
 _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
 # cos(MAX_CELL_TURN / 2) raised by far more than round-off (1e-9 against ~1e-16)
 _COS_HALF_TURN_SAFE = math.cos(MAX_CELL_TURN / 2) * (1.0 + 1e-9)
+_COS_HALF_TURN_UNIT = _COS_HALF_TURN_SAFE * (1.0 + 1e-12)   # for rows of unit size
 _ONES_4 = np.ones(4)
 
 
@@ -75,6 +76,16 @@ def _safely_within(a: np.ndarray, b: np.ndarray) -> bool:
     dots = (a * b) @ _ONES_4
     sizes = np.sqrt(((a * a) @ _ONES_4) * ((b * b) @ _ONES_4))
     return bool((dots > _COS_HALF_TURN_SAFE * sizes).all())
+
+
+def _unit_within(a: np.ndarray, b: np.ndarray) -> bool:
+    """_safely_within for rows of unit size to round-off (|a| |b| <= 1 + 1e-12: a
+    normalised quaternion's size is 1 to a few 1e-16): min a.b > cos(MAX_CELL_TURN / 2)
+    (1 + 1e-9) (1 + 1e-12) >= cos(MAX_CELL_TURN / 2) (1 + 1e-9) |a| |b|: two numpy calls
+    instead of nine."""
+    return bool(np.einsum("ij,ij->i", a, b).min(initial=np.inf) > _COS_HALF_TURN_UNIT)
+
+
 # structures as data (rod/structure.py) whose residual, made on their first model, had the
 # Functions and Constants of its terms: later models make it only when it is read
 _DATA_OF_TERMS: set[str] = set()
@@ -707,9 +718,9 @@ class RodModel(FEModel):
             self.contact.commit()
         for contact in self.segment_terms:
             contact.commit()
-        self.check_cell_turns()
+        self.check_cell_turns(unit=self.unknowns.chart is not None)
 
-    def check_cell_turns(self) -> None:
+    def check_cell_turns(self, unit: bool = False) -> None:
         """IntegrationError when a cell's end node turned by more than checks.MAX_CELL_TURN
         against its start node (issue 28 item 4): beyond it the rotation interpolation
         between two nodes misrepresents the turn (a strain that blows up, or a wrap to a
@@ -717,13 +728,15 @@ class RodModel(FEModel):
         whirling).  The turn is that of the nodes' own quaternions (continuous in time:
         no sign flips), in [0, 2 pi]; the same answer on every rank.  Called after every
         step, where the turns are far below the limit: a rank whose cells all pass the
-        bound _safely_within (a dot product per cell) computes no turn."""
+        bound _safely_within (a dot product per cell) computes no turn.  ``unit``: the
+        quaternions are of unit size to round-off (a chart's, normalised by its commit),
+        and the bound needs no sizes (_unit_within)."""
         if self._cell_nodes is None:
             self._cell_nodes = self._cell_node_rows()
         nodes, first, second = self._cell_nodes
         a, b = nodes[first], nodes[second]
         local = 0.0
-        if not _safely_within(a, b):
+        if not (_unit_within(a, b) if unit else _safely_within(a, b)):
             p = np_qmul(a * _CONJUGATE, b)
             turns = 2.0 * np.arctan2(np.linalg.norm(p[:, 1:], axis=1), p[:, 0])
             local = float(turns.max(initial=0.0))

@@ -30,6 +30,7 @@ velocities W: q_a c(eta_a) with eta = 0 a fixed zero field and d/d eta in the di
 from __future__ import annotations
 
 import functools
+import math
 
 import dolfinx.fem as fem
 import numpy as np
@@ -45,6 +46,10 @@ from ..theory.rotations import conj, np_qmul, qmul, rotation_matrix, vec
 E3 = ufl.as_vector((0.0, 0.0, 1.0))
 GAUSS_2 = 0.5 / np.sqrt(3.0)     # the 2-point Gauss points: s_mid -+ GAUSS_2 h
 MAX_INCREMENT = 2.0              # |theta| of a rotation by pi/2 per step (check_increment)
+# max_i |theta_i| below which |theta| <= sqrt(3) max_i |theta_i| is below MAX_INCREMENT by
+# far more than round-off
+_INCREMENT_BOUND = MAX_INCREMENT * (1.0 - 1e-9) / math.sqrt(3.0)
+_INCREMENT_BOUND_SQUARED = (MAX_INCREMENT * (1.0 - 1e-9)) ** 2
 
 
 def cayley(theta):
@@ -155,7 +160,8 @@ class RotationVectorChart:
         self.q_n = fem.Function(Q, name="stored_rotation")
         self.eta = fem.Function(theta.function_space, name="body_rate_perturbation")
         # views of the arrays commit() updates after every step (fetched once)
-        self._theta_nodes = theta.x.array.reshape(-1, 3)
+        self._theta = theta.x.array
+        self._theta_nodes = self._theta.reshape(-1, 3)
         self._q_nodes = self.q_n.x.array.reshape(-1, 4)
         self._k = np.full((len(self._theta_nodes), 4), 2.0)
 
@@ -221,10 +227,12 @@ class RotationVectorChart:
         |theta| ~ 1e7 (angular velocity 5e8 rad/s) and went on from it.  A resolved
         step rotates far less (the benchmark scenes: < 0.8 rad)."""
         th = self._theta_nodes
-        # |theta| <= sqrt(3) max_i |theta_i|: a rank whose bound is below the limit by far
-        # more than round-off computes no norm (after every step; the same answers, NaN too)
+        # every node's |theta|^2 <= the sum over the nodes, and |theta| <= sqrt(3) max_i
+        # |theta_i|: a rank whose bound is below the limit by far more than round-off
+        # computes no norm (after every step; the same answers, NaN too)
         local = 0.0
-        if len(th) and not np.sqrt(3.0) * np.abs(th).max() <= MAX_INCREMENT * (1.0 - 1e-9):
+        if len(th) and not self._theta @ self._theta <= _INCREMENT_BOUND_SQUARED and \
+                not np.abs(th).max() <= _INCREMENT_BOUND:
             local = np.sqrt(np.max(np.einsum("ij,ij->i", th, th), initial=0.0))
         largest = largest_on_ranks(self.mesh.comm, local)
         if largest <= MAX_INCREMENT:
@@ -239,8 +247,8 @@ class RotationVectorChart:
         th, k = self._theta_nodes, self._k
         k[:, 1:] = th
         qn = np_qmul(self._q_nodes, k)
-        th[:] = 0.0
-        self.set_nodal_rotations(qn / np.sqrt(np.einsum("ij,ij->i", qn, qn))[:, None])
+        th.fill(0.0)
+        np.divide(qn, np.sqrt(np.einsum("ij,ij->i", qn, qn))[:, None], out=self._q_nodes)
 
     def set_nodal_rotations(self, q) -> None:
         """q_n := q (rows for local + ghost nodes, or a callable of the nodes' s)."""
