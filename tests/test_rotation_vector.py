@@ -219,6 +219,31 @@ def test_a_cell_turned_by_more_than_two_rad_is_refused_at_the_limit(turn, size):
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("turn", [0.1, 1.9, 2.0 - 1e-9, 2.0 + 1e-9, 2.5])
+def test_a_commit_refuses_a_cell_turned_by_more_than_two_rad(turn):
+    """After a step (problem.after_step: the chart's commit normalises the stored
+    rotations, then the cell-turn check on quaternions of unit size, whose bounds are the
+    sum of |q_b - q_a|^2 over the cells (0.1 rad a cell), then each cell's q_a . q_b
+    (1.9 rad), then the exact turn (1e-9 rad from the limit)): the same answers as
+    check_cell_turns above, for stored rotations of size 3 twisted by ``turn`` rad per
+    cell (closed form), on every rank."""
+    from dolfin_rod.integrators.step_control import IntegrationError
+    rod = _rod(n_cells=4)
+    rod.set_initial_state()
+    rod.problem.set_bcs(0.0)
+    k = turn * 4 / PARAMS.length
+    rod.unknowns.chart.set_nodal_rotations(lambda s: 3.0 * np.stack(
+        [np.cos(k * s / 2), 0 * s, 0 * s, np.sin(k * s / 2)], axis=1))
+    if turn <= 2.0:
+        rod.problem.after_step()
+        q = rod.unknowns.chart.q_n.x.array.reshape(-1, 4)
+        assert np.allclose(np.linalg.norm(q, axis=1), 1.0, rtol=0, atol=1e-15)
+        return
+    with pytest.raises(IntegrationError, match=f"turned by {turn:.4g} rad against its start"):
+        rod.problem.after_step()
+
+
+@pytest.mark.mpi
 def test_a_refused_step_is_redone_as_two_half_steps():
     """problem.check_step refusing the first attempt (as check_increment refuses a
     spurious root): the state is restored and the step done as two half steps, the same
