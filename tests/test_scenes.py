@@ -705,6 +705,7 @@ ON_TWO_RANKS_ELSEWHERE = {
     "deep_arch.toml": "test_continuation::test_deep_arch_scene",
     "dna_overstretching.toml": "test_dna::test_pull_scene_under_mpirun_matches_serial",
     "double_pendulum.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
+    "flying_beam.toml": "test_flying_beam::test_free_flying_beam_conserves_momentum_and_energy",
     "frame.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
     "gravity_cantilever.toml":
         "test_scenes::test_dynamic_rod_scene_runs_the_default_api_and_resumes_exactly",
