@@ -77,6 +77,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
                   "hanging_twist.toml": "rod", "inclined_clamp.toml": "rod",
                   "curling_pair.toml": "rod",
+                  "helical_spring.toml": "rod", "helix_wrench.toml": "rod",
+                  "flying_beam.toml": "rod", "pinched_ring.toml": "rod",
                   "spin_up.toml": "rod",
                   "sprung_cantilever.toml": "rod", "rod_on_incline.toml": "rod",
                   "rod_rolling_on_incline.toml": "rod",
@@ -718,6 +720,7 @@ ON_TWO_RANKS_ELSEWHERE = {
     "inclined_clamp.toml":
         "test_oblique_supports::test_inclined_clamp_scene_serially_and_on_two_ranks",
     "lee_frame.toml": "test_continuation::test_lee_frame_from_its_scene",
+    "pinched_ring.toml": "test_pinched_ring::test_pinched_ring_shortens_by_the_closed_form",
     "rope_over_thin_bar.toml":
         "test_obstacle_segments::test_rope_over_a_thin_bar_scene_rests_on_the_bar",
     "ropes_pulled_over_each_other.toml":   # its friction between rods and self-friction
