@@ -28,8 +28,8 @@
 #
 # Run: `./rodenv python3 demos/overhand_knot.py` (~5 min at load 15 on 2 cores), also
 # under `mpirun -n 2`.
-# Output: results/overhand_knot_tie/, results/overhand_knot/ (run folders), knot.csv
-# and overhand_knot.png in results/overhand_knot/.
+# Output: results/overhand_knot/: the run folders tie/ and pull/, knot.csv and
+# overhand_knot.png.
 
 from __future__ import annotations
 
@@ -40,13 +40,14 @@ from mpi4py import MPI
 
 from dolfin_rod import load_scene, read_pvd, run
 
-TIE, PULL = pathlib.Path("results/overhand_knot_tie"), pathlib.Path("results/overhand_knot")
+OUT = pathlib.Path("results/overhand_knot")
+TIE, PULL = OUT / "tie", OUT / "pull"
 
 
 def main() -> None:
     tie = run(load_scene("scenes/overhand_knot_tie.toml"), out=TIE, overwrite=True, quiet=True)
     assert tie.status == "completed", tie.summary["message"]
-    scene = load_scene("scenes/overhand_knot.toml")
+    scene = load_scene("scenes/overhand_knot.toml", {"initial.from_run": str(TIE)})
     pull = run(scene, out=PULL, overwrite=True, quiet=True)
     assert pull.status == "completed", pull.summary["message"]
     if MPI.COMM_WORLD.rank != 0:
@@ -61,7 +62,7 @@ def main() -> None:
     slope = np.polyfit(np.log(knot["R"]), np.log(knot["F"]), 1)[0]
     assert abs(slope + 2.0) < 0.3, slope
     slope_e = np.polyfit(np.log(knot["e"]), np.log(knot["F"]), 1)[0]
-    np.savetxt(PULL / "knot.csv", np.column_stack([knot[k] for k in COLUMNS] + [ratio]),
+    np.savetxt(OUT / "knot.csv", np.column_stack([knot[k] for k in COLUMNS] + [ratio]),
                delimiter=",", header=",".join(COLUMNS + ("FR2_over_B",)), comments="")
     plot(knot, h, B)
     print(f"F R^2 / B = {ratio.min():.3f} .. {ratio.max():.3f} (Audoly et al. 2007: 1/2) over "
@@ -70,7 +71,7 @@ def main() -> None:
           f"F ~ e^{slope_e:.2f}, F e^2 / B = {(knot['F'] * knot['e'] ** 2 / B).min():.1f} .. "
           f"{(knot['F'] * knot['e'] ** 2 / B).max():.1f}; "
           f"smallest pair gap {series['min_pair_gap'].min():.3g} m")
-    print(f"wrote {PULL}/knot.csv and {PULL}/overhand_knot.png")
+    print(f"wrote {OUT}/knot.csv and {OUT}/overhand_knot.png")
 
 
 COLUMNS = ("time", "F", "F_start", "F_end", "R", "e", "pairs")
@@ -122,7 +123,7 @@ def plot(knot: dict, h: float, B: float) -> None:
     ax.set_box_aspect((1, 1, 2))
     ax.legend()
     fig.tight_layout()
-    fig.savefig(PULL / "overhand_knot.png", dpi=120)
+    fig.savefig(OUT / "overhand_knot.png", dpi=120)
 
 
 if __name__ == "__main__":
