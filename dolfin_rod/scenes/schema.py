@@ -326,7 +326,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                            "the starting shape before the dynamics (quasi-static "
                            "pre-loading; natural strains kept); needs an end holding its "
                            "rotation, or obstacles, which the rod reaches in pseudo-time "
-                           "(docs/contact.md)"),
+                           "(docs/contact.md); a warning if the equilibrium it settles in "
+                           "is unstable (a column above its buckling load)"),
         "acceleration": Key(choice(*STARTING_ACCELERATIONS), "balance",
                             R + "dynamic rods with rotation vectors: the accelerations the "
                             "first step starts from: balance (solved from the balance laws "
