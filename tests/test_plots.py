@@ -257,3 +257,46 @@ def test_closing_values_of_a_self_contact_rod_give_twist_and_writhe():
     rows = [{"time": t, **dict.fromkeys(columns, t), "tip_quaternion_0": 1.0,
              "twist": 6.625, "writhe": 1.375} for t in (0.0, 1.0)]
     assert "twist Tw 6.625, writhe Wr 1.375, Tw + Wr 8 turns" in final_values(rows, scene)
+
+
+# a ring (L = 1, A = 1) clamped at its weld, an in-plane force at the opposite point
+CLAMPED_RING = """
+[scene]
+units = "SI"
+[geometry]
+length = 1.0
+n_cells = 12
+closed = true
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 0.77], B = [1e4, 1e4, 1e4] }
+[boundary]
+start = "clamped"
+[loads]
+point_force = { s = 0.5, type = "constant", value = [0.5, 0.0, 0.0] }
+[time]
+t_end = 1.0
+dt = 1.0
+[outputs]
+animation = false
+"""
+
+
+def test_a_clamped_ring_reports_its_welds_reaction(tmp_path):
+    """A ring clamped at its weld holds both end nodes (rod/ring.py): the weld's
+    reaction is their sum, by statics minus the applied force, -(0.5, 0, 0) N.  The
+    closing line gave the start node's alone, "reaction at s = 0: force [-0.25, ...]"
+    (half of it, plus the ring's internal force there), and a "tip displacement [0, 0,
+    0]" of the held weld; now the weld's sum and no tip line.  The run as the user ran
+    it (dolfin-rod run)."""
+    from test_cli import cli
+    scene, out = tmp_path / "ring.toml", tmp_path / "out"
+    scene.write_text(CLAMPED_RING)
+    result = cli("run", scene, "--out", out)
+    assert result.returncode == 0, result.stderr
+    line = next(x for x in result.stdout.splitlines() if "reaction" in x)
+    assert line.strip().startswith("reaction at the weld (s = 0 and L): force [-0.5, "), line
+    force = [float(v) for v in line.split("force [")[1].split("]")[0].split(",")]
+    # the summed residuals balance the load to Newton's tolerance (rtol 1e-10)
+    assert np.allclose(force, [-0.5, 0.0, 0.0], atol=1e-8), force
+    assert "tip displacement" not in result.stdout
