@@ -130,15 +130,22 @@ def unwrapped_angle(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.unwrap(2.0 * np.arctan2(v @ a, q[:, 0])), a
 
 
+# below this fraction of the energy per run time the balance's terms are round-off
+POWER_FLOOR = 1e-9
+
+
 def relative_power_residual(rows: list[dict]) -> np.ndarray:
     """|r_k| / S for k >= 1, r_k the power_residual column and S the power scale: the
     largest over the run of |d/dt(K + Psi + E_c)|, D and |P| (the terms of the balance;
-    the difference quotient of each interval for the first)."""
+    the difference quotient of each interval for the first), at least POWER_FLOOR
+    max |K + Psi + E_c| / (t_end - t_0): a rod at rest (every term round-off, ~1e-16 of
+    its energy a step) has no residual to speak of, not one of order 1."""
     e = np.array([r["free_energy"] + r["kinetic_energy"] + r.get("contact_energy", 0.0)
                   for r in rows])
     t = np.array([r["time"] for r in rows])
     rates = np.abs(np.diff(e) / np.diff(t))
-    scale = max(np.max(rates, initial=0.0),
+    floor = POWER_FLOOR * np.max(np.abs(e)) / (t[-1] - t[0]) if t[-1] > t[0] else 0.0
+    scale = max(np.max(rates, initial=0.0), floor,
                 max(abs(r["dissipation_rate"]) for r in rows),
                 max(abs(r["load_power"]) for r in rows))
     residual = np.abs(np.array([r["power_residual"] for r in rows[1:]], dtype=float))
