@@ -27,8 +27,9 @@ from the scene's supports and loads):
     energy           K + Psi and the dissipated energy int D dt
     power_residual   |d/dt(K + Psi + E_c) + D - P| / power scale (relative_power_residual)
 
-Units: ``scene.units`` ("SI", "pN-nm-s", "dimensionless") names the unit of every axis; a scene without it
-gets "scene units".
+Units: ``scene.units`` ("SI", "pN-nm-s", "pN-nm-ns", "mm-N-s", "mm-N-ms",
+"dimensionless": schema.UNITS) names the unit of every axis; a scene without it gets
+"scene units".
 """
 
 from __future__ import annotations
