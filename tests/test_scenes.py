@@ -77,6 +77,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
                   "hanging_twist.toml": "rod", "inclined_clamp.toml": "rod",
                   "curling_pair.toml": "rod",
+                  "helical_spring.toml": "rod", "helix_wrench.toml": "rod",
+                  "flying_beam.toml": "rod", "pinched_ring.toml": "rod",
                   "spin_up.toml": "rod",
                   "sprung_cantilever.toml": "rod", "rod_on_incline.toml": "rod",
                   "rod_rolling_on_incline.toml": "rod",
@@ -705,6 +707,7 @@ ON_TWO_RANKS_ELSEWHERE = {
     "deep_arch.toml": "test_continuation::test_deep_arch_scene",
     "dna_overstretching.toml": "test_dna::test_pull_scene_under_mpirun_matches_serial",
     "double_pendulum.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
+    "flying_beam.toml": "test_flying_beam::test_free_flying_beam_conserves_momentum_and_energy",
     "frame.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
     "gravity_cantilever.toml":
         "test_scenes::test_dynamic_rod_scene_runs_the_default_api_and_resumes_exactly",
@@ -717,6 +720,7 @@ ON_TWO_RANKS_ELSEWHERE = {
     "inclined_clamp.toml":
         "test_oblique_supports::test_inclined_clamp_scene_serially_and_on_two_ranks",
     "lee_frame.toml": "test_continuation::test_lee_frame_from_its_scene",
+    "pinched_ring.toml": "test_pinched_ring::test_pinched_ring_shortens_by_the_closed_form",
     "rope_over_thin_bar.toml":
         "test_obstacle_segments::test_rope_over_a_thin_bar_scene_rests_on_the_bar",
     "ropes_pulled_over_each_other.toml":   # its friction between rods and self-friction
