@@ -393,7 +393,6 @@ animation = false
 """
 
 
-@pytest.mark.mpi
 @pytest.mark.parametrize("ranks", [0, 2])
 @pytest.mark.parametrize("factor", [0.5, 1.5])
 def test_unstable_equilibrium_start_is_said(tmp_path, ranks, factor):
