@@ -77,6 +77,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "dna_overstretching.toml": "rod", "dna_twist_relaxation.toml": "rod",
                   "hanging_twist.toml": "rod", "inclined_clamp.toml": "rod",
                   "curling_pair.toml": "rod",
+                  "helical_spring.toml": "rod", "helix_wrench.toml": "rod",
+                  "flying_beam.toml": "rod", "pinched_ring.toml": "rod",
                   "spin_up.toml": "rod",
                   "sprung_cantilever.toml": "rod", "rod_on_incline.toml": "rod",
                   "rod_rolling_on_incline.toml": "rod",
@@ -92,7 +94,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "lee_frame.toml": "rod", "plectoneme_setting.toml": "rod",
                   "rope_over_boulder.toml": "rod", "rope_over_thin_bar.toml": "rod",
                   "continuum_snake.toml": "rod", "supercoiled_minicircle.toml": "rod",
-                  "sedimenting_fibre.toml": "rod", "continuum_flagella.toml": "rod"}
+                  "sedimenting_fibre.toml": "rod", "continuum_flagella.toml": "rod",
+                  "overhand_knot_tie.toml": "rod", "overhand_knot.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
@@ -705,6 +708,7 @@ ON_TWO_RANKS_ELSEWHERE = {
     "deep_arch.toml": "test_continuation::test_deep_arch_scene",
     "dna_overstretching.toml": "test_dna::test_pull_scene_under_mpirun_matches_serial",
     "double_pendulum.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
+    "flying_beam.toml": "test_flying_beam::test_free_flying_beam_conserves_momentum_and_energy",
     "frame.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
     "gravity_cantilever.toml":
         "test_scenes::test_dynamic_rod_scene_runs_the_default_api_and_resumes_exactly",
@@ -717,6 +721,7 @@ ON_TWO_RANKS_ELSEWHERE = {
     "inclined_clamp.toml":
         "test_oblique_supports::test_inclined_clamp_scene_serially_and_on_two_ranks",
     "lee_frame.toml": "test_continuation::test_lee_frame_from_its_scene",
+    "pinched_ring.toml": "test_pinched_ring::test_pinched_ring_shortens_by_the_closed_form",
     "rope_over_thin_bar.toml":
         "test_obstacle_segments::test_rope_over_a_thin_bar_scene_rests_on_the_bar",
     "ropes_pulled_over_each_other.toml":   # its friction between rods and self-friction
@@ -736,8 +741,10 @@ ON_TWO_RANKS_ELSEWHERE = {
 # Bundled coils whose few cells would turn by more than the 2 rad a cell represents
 # (the start stops naming n_cells), or, the held helix, whose start from its Kirchhoff
 # helix converges at its scene's 64 cells (not at 32 or fewer with the default Jacobian
-# reuse: docs/verification.md, "Helices").
-QUICK_CELLS = {"helical_spring.toml": 20, "helix_wrench.toml": 64}
+# reuse: docs/verification.md, "Helices"); a knot, whose polyline start on 8 cells is no
+# knot (its chords turn by more than 2 rad between nodes and cross).
+QUICK_CELLS = {"helical_spring.toml": 20, "helix_wrench.toml": 64,
+               "overhand_knot_tie.toml": 100, "overhand_knot.toml": 100}
 
 
 @pytest.mark.parametrize("path", [
