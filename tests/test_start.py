@@ -414,3 +414,27 @@ def test_unstable_equilibrium_start_is_said(tmp_path, ranks, factor):
         assert unstable == []
     else:
         assert len(unstable) == 1 and "(2 negative eigenvalues of the tangent" in unstable[0]
+
+
+def test_unstable_equilibrium_start_with_contact_is_said_once(tmp_path):
+    """scenes/supercoiled_minicircle.toml clamped at its weld and settled planar
+    (initial.equilibrium): twisted by Delta Lk = 2 turns, past Michell's sqrt(3) A/C =
+    0.87, the planar ring is unstable.  A scene with contact starts twice (the first
+    start looks for overlaps while the scene is built): the terminal said the warning
+    twice (summary.json once); now once."""
+    import json
+    from test_cli import cli
+    from quick_scenes import ROOT
+    text = (ROOT / "scenes" / "supercoiled_minicircle.toml").read_text()
+    scene, out = tmp_path / "minicircle.toml", tmp_path / "out"
+    scene.write_text(text.replace('start = "free"', 'start = "clamped"')
+                     .replace("n_cells = 48", "n_cells = 24")
+                     .replace("t_end = 3.0", "t_end = 0.005")
+                     .replace("[boundary]", "[initial]\nequilibrium = true\n[boundary]"))
+    result = cli("run", scene, "--out", out)
+    assert result.returncode == 0, result.stderr
+    said = (result.stdout + result.stderr).count("warning: initial.equilibrium: the settled")
+    assert said == 1, result.stdout + result.stderr
+    warnings = json.loads((out / "summary.json").read_text())["warnings"]
+    unstable = [w for w in warnings if w.startswith("initial.equilibrium")]
+    assert len(unstable) == 1 and "negative eigenvalues of the tangent" in unstable[0], warnings
