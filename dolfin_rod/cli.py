@@ -189,7 +189,8 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
             own = rod.scene if rod else scene
             label = f"rod {rod.name}: " if rod else ""
             lines += [f"derived: {label}{line}"
-                      for line in describe(own["material"]["derived"] or {})]
+                      for line in describe(own["material"]["derived"] or {},
+                                           scene["scene"]["units"])]
         lines += kink_lines(scene)
         lines += [f"joint: {j.kind} {j.rods[0]}-{j.rods[1]} at {list(j.point)}"
                   + (f" about {list(j.axis)}" if j.axis is not None else "")
