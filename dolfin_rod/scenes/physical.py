@@ -197,23 +197,22 @@ NOTES = {"drag": " (c_n, c_n, c_t)", "density": " (rho A)",
          "section_inertia": " (rho I_11, rho I_22)"}
 
 
-def _unit(key: str, units: str | None) -> str:
+def _unit(key: str, system: dict | None) -> str:
     """The unit of a derived quantity (a key of DERIVED_DIMENSIONS, or "L" for a
-    length) in the scene's unit system (SI without one; dimensionless: none)."""
+    length) in the unit ``system`` (schema.UNITS's; None: SI; dimensionless: none)."""
     si, dims = DERIVED_DIMENSIONS.get(key, ("m", key))
-    if units in (None, "SI") or not dims:
+    if system is None or not dims:
         return si
-    from .schema import UNITS
-    base = UNITS[units]
-    if base["length"] == "1":
+    if system["length"] == "1":
         return ""
-    return "".join(base[{"L": "length", "F": "force", "T": "time"}[c]]
+    return "".join(system[{"L": "length", "F": "force", "T": "time"}[c]]
                    if c in "LFT" else c for c in dims)
 
 
-def describe(derived: dict, units: str | None = None) -> list[str]:
+def describe(derived: dict, units: dict | None = None) -> list[str]:
     """Lines for ``dolfin-rod check``: the derived tensors with their units, in the
-    scene's unit system ``units`` (scene.units; SI without one)."""
+    scene's unit system ``units`` (its schema.UNITS entry; None: SI, the physical keys'
+    documented units)."""
     lines = []
     length = _unit("L", units)
     if "section" in derived:
