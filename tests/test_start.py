@@ -419,3 +419,27 @@ def test_unstable_equilibrium_start_with_contact_is_said_once(tmp_path):
     warnings = json.loads((out / "summary.json").read_text())["warnings"]
     unstable = [w for w in warnings if w.startswith("initial.equilibrium")]
     assert len(unstable) == 1 and "negative eigenvalues of the tangent" in unstable[0], warnings
+
+
+@pytest.mark.parametrize("curvature, warned", [([0.0, 1.0, 0.0], False),
+                                               ([1.0, 0.0, 0.0], True),
+                                               ([0.0, -1.0, 0.0], True)])
+def test_a_ring_whose_stress_free_circle_is_not_its_start_is_warned_of(
+        tmp_path, curvature, warned):
+    """scenes/pinched_ring.toml (R = 1) is stress-free with reference_curvature [0, 1,
+    0], the circle it starts as (bending towards d1: about d2).  Given [1, 0, 0] (about
+    d1) its stress-free ring is the start turned a quarter turn about the tangents and
+    its quasi-static start diverged (DIVERGED_DTOL) with no hint (found by published);
+    `check` and `run` now warn, naming geometry.reference_curvature, before any work;
+    [0, -1, 0] (inside out) too."""
+    from quick_scenes import ROOT
+    from test_cli import cli
+    text = (ROOT / "scenes" / "pinched_ring.toml").read_text()
+    scene = tmp_path / "ring.toml"
+    scene.write_text(text.replace("reference_curvature = [0.0, 1.0, 0.0]",
+                                  f"reference_curvature = {curvature}"))
+    out = cli("check", scene)
+    assert out.returncode == 0, out.stderr
+    said = f"warning: {scene}: [geometry.reference_curvature]: a closed rod starts as the " \
+        "circle bending towards d1, its curvature 1 about d2"
+    assert (said in out.stderr) == warned, out.stderr
