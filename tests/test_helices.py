@@ -134,13 +134,13 @@ def test_coil_spring_stiffness_is_the_open_coiled_closed_form(tmp_path):
 EI, GJ, EA = 1.0, 1 / 1.3, 4e4
 GA = 0.886 / 2.6 * EA
 HELIX_RADIUS, HELIX_PITCH = 0.1, 0.2
-# The two faults the held helix exposed (docs/verification.md, "Helices"), worked around
-# at every resolution alike: full Newton (the default Jacobian reuse diverges from the
-# Kirchhoff helix at 32 cells) and an absolute tolerance above the coil's residual
-# round-off floor (the default 1e-10 fails the step after the start at 40 and 128 cells),
-# 1e-9 of the wrench: at 64 cells, where the defaults run, the end is theirs to 1e-14
-# (Newton's last step is quadratic).
-WORKAROUNDS = dict(solver__options={"jacobian_reuse_ratio": 0}, time__atol=1e-8)
+# The fault the held helix exposed that is still open (docs/verification.md, "Helices"),
+# worked around at every resolution alike: full Newton (the default Jacobian reuse
+# diverges from the Kirchhoff helix at 32 cells).  The other, the step after the start
+# failing at 40 and 128 cells above Newton's estimate of the residual's round-off floor,
+# is fixed (fem/solvers.py round_off_floor: the coil's displacement unknowns' own
+# rounding); its workaround time.atol = 1e-8 is gone.
+WORKAROUNDS = dict(solver__options={"jacobian_reuse_ratio": 0})
 
 
 def held_helix() -> tuple[np.ndarray, np.ndarray, float]:
