@@ -149,6 +149,9 @@ NEWTON_FORCE_CAP = 1e-3     # Newton's relative test accepts no residual above t
                             #   the force scale (solvers.relative_tolerance: a dynamic
                             #   step's first residual dominated by stiff rows or a barrier)
 TS_RTOL, TS_ATOL = 1e-6, 1e-8   # time.ts_rtol, time.ts_atol: TSIntegrator
+# solver options read only when a solver is set up or solves (block Jacobi's sub-solvers,
+# the factorisation packages, viewers) and this package's own: not probed on PETSc
+LATE_OPTIONS = ("sub_", "mat_", "jacobian_reuse_ratio", "linesearch_fallback")
 ODE_SOLUTION = "exact"      # time.ode_solution: OdeTime
 
 # The largest rotation of a cell's end node against its start node that the rod's
@@ -334,3 +337,10 @@ def welded_spin_end(rods, joint_kinds) -> tuple[int, str] | None:
     if len(pinned) != 2 or any(kind not in ("pinned", "free") for _, _, kind in ends):
         return None
     return pinned[0]
+
+
+def probed_options(options: dict | None) -> dict:
+    """The solver options that fem/solvers.option_problem tries on a throwaway PETSc
+    solver: all but LATE_OPTIONS and viewers (none: ``dolfin-rod check`` loads no PETSc)."""
+    return {k: v for k, v in (options or {}).items()
+            if not (k.startswith(LATE_OPTIONS) or "_view" in k)}

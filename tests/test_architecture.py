@@ -163,10 +163,16 @@ def test_cheap_commands_load_no_dolfinx_petsc_or_ufl(tmp_path):
     """``dolfin-rod check`` of every bundled scene, ``schema`` and ``--help`` in a fresh
     interpreter work and never import DOLFINx, PETSc, UFL, Basix or FFCx (the DNA scenes'
     energy is checked by its derivatives in numpy, dna.py; a rod system's joints are
-    placed and checked in numpy, rod/joint_points.py)."""
+    placed and checked in numpy, rod/joint_points.py; solver options that only this
+    package reads, such as tests/test_helices.py's full Newton, are not probed on PETSc:
+    checks.probed_options)."""
     scenes = sorted((ROOT / "scenes").glob("*.toml"))
     assert any("\nenergy = " in s.read_text() for s in scenes)    # the DNA scenes are in
     assert sum("[[rods]]" in s.read_text() for s in scenes) >= 5   # and the rod systems
+    own_options = tmp_path / "own_solver_options.toml"
+    own_options.write_text((ROOT / "scenes/helix_wrench.toml").read_text() + "\n[solver]\n"
+                           "options = { jacobian_reuse_ratio = 0, linesearch_fallback = 'bt' }\n")
+    scenes.append(own_options)
     out = str(tmp_path / "out")
     argv = [["check", str(s), "--out", out] for s in scenes] + \
         [["schema"], ["--help"], ["run", "--help"], ["fit", "--help"]]

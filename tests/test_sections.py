@@ -373,3 +373,29 @@ dt = 0.5
                                                 "Newton's first guess"):
         sim.start()
         sim.advance(0.0, 0.5)
+
+
+def test_a_shear_soft_rod_is_pointed_to_the_tensors():
+    """PyElastica's Timoshenko beam (E 1e6, G = E/(1 + 99) = 1e4 Pa: a shear-soft rod,
+    not an isotropic solid) ported with material.shear_modulus: refused, naming the key,
+    with nu = 49 and nothing more; now the line also says how to give such a rod
+    (material.stiffness A, B)."""
+    text = """
+[geometry]
+length = 3.0
+[section]
+shape = "circle"
+radius = 0.25
+[material]
+model = "hyperelastic"
+youngs_modulus = 1e6
+shear_modulus = 1e4
+[time]
+t_end = 1.0
+dt = 1.0
+"""
+    with pytest.raises(SceneError) as info:
+        parse_scene(text, "timoshenko.toml", "timoshenko")
+    message = str(info.value)
+    assert "[material.shear_modulus]: Poisson's ratio must be in (-1, 0.5], got 49" in message
+    assert "gives material.stiffness instead: A = (E I_22, E I_11, G J)" in message

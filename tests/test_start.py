@@ -365,3 +365,52 @@ def test_polyline_rotations_keep_one_sign_near_a_half_turn():
     # a bent start of a straight rod between clamps is not in equilibrium: it moves,
     # by less than the bump
     assert 0 < largest_change(model, x0) < 1e-4
+
+
+# Euler's column, clamped-free, EI = 1, L = 1: P_cr = pi^2 EI / (4 L^2)
+EULER_COLUMN = """
+[geometry]
+length = 1.0
+n_cells = 8
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 1.0], B = [1e5, 1e5, 1e5] }
+density = 1.0
+section_inertia = 0.001
+[boundary]
+start = "clamped"
+end = "free"
+[loads]
+end_force = { type = "constant", value = [0.0, 0.0, -LOAD] }
+[initial]
+equilibrium = true
+[time]
+t_end = 0.02
+dt = 0.01
+[outputs]
+plots = false
+animation = false
+"""
+
+
+@pytest.mark.parametrize("ranks", [0, 2])
+@pytest.mark.parametrize("factor", [0.5, 1.5])
+def test_unstable_equilibrium_start_is_said(tmp_path, ranks, factor):
+    """A dynamic column settled straight (initial.equilibrium) under 1.5 Euler loads is
+    an unstable equilibrium whose perfect run stays straight to round-off: the run said
+    nothing ("completed", no warning).  Now a warning, kept in summary.json, with the
+    count of negative eigenvalues: 2 (the first mode in each bending plane of the round
+    section; the second is at 9 P_cr); at 0.5 P_cr none.  Serial and mpirun -n 2."""
+    import json
+    from test_cli import cli
+    load = factor * np.pi ** 2 / 4
+    scene, out = tmp_path / "column.toml", tmp_path / "out"
+    scene.write_text(EULER_COLUMN.replace("LOAD", repr(load)))
+    result = cli("run", scene, "--out", out, "--quiet", mpi=ranks)
+    assert result.returncode == 0, result.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    unstable = [w for w in summary["warnings"] if w.startswith("initial.equilibrium")]
+    if factor < 1:
+        assert unstable == []
+    else:
+        assert len(unstable) == 1 and "(2 negative eigenvalues of the tangent" in unstable[0]

@@ -19,7 +19,8 @@ import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..checks import NEWTON_ATOL, NEWTON_FORCE_CAP, NEWTON_FORCE_TOL, NEWTON_RTOL
+from ..checks import (NEWTON_ATOL, NEWTON_FORCE_CAP, NEWTON_FORCE_TOL, NEWTON_RTOL,
+                      probed_options)
 from . import compat
 from .assembly import block_system
 from .multipoint import ConstrainedSystem
@@ -102,16 +103,12 @@ def petsc_options(comm, options: dict | None) -> dict:
     return merged
 
 
-# options read only when a solver is set up or solves (block Jacobi's sub-solvers, the
-# factorisation packages, viewers) and this package's own: not probed by option_problem
-LATE_OPTIONS = ("sub_", "mat_", "jacobian_reuse_ratio", "linesearch_fallback")
-
-
 def option_problem(options: dict) -> tuple[str, str] | None:
     """(name, reason) of the first option PETSc rejects (a value or type it does not
     know) or never reads (a name no SNES, its line search, KSP or PC knows, nor a TS if
     ts_ options are given), tried on a throwaway solver of one rank; None if all are
-    fine.  Options read only later (LATE_OPTIONS, *_view*) are not judged."""
+    fine.  Options read only later (checks.LATE_OPTIONS, *_view*) are not judged
+    (checks.probed_options)."""
     def rejected(subset: dict) -> str | None:
         prefix = f"dolfin_rod_probe_{next(_ids)}_"
         opts = PETSc.Options()
@@ -131,8 +128,7 @@ def option_problem(options: dict) -> tuple[str, str] | None:
             _forget_options(prefix, list(subset))
         return UNREAD if unread else None
 
-    judged = {k: v for k, v in options.items()
-              if not (k.startswith(LATE_OPTIONS) or "_view" in k)}
+    judged = probed_options(options)
     if not judged or rejected(judged) is None:
         return None
     for k, v in judged.items():         # which one: each alone

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .plots import (choose_panels, loaded_point, point_label, relative_power_residual, unit,
-                    unwrapped_angle)
+from .plots import (choose_panels, loaded_point, point_label, relative_power_residual,
+                    support_name, support_reaction, unit, unwrapped_angle)
 
 FILES = {
     "scene.toml": "the scene, copied verbatim",
@@ -80,7 +80,7 @@ def final_values(rows: list[dict], scene) -> list[str]:
                          f"{point_label(rod, key, point)} displacement {_text(shift)}"
                          f"{u('length')}")
         elif panel == "reactions":
-            lines += [_reaction(last, rod, name, u)
+            lines += [_reaction(last, scene, rod, name, u)
                       for rod, name in _rods(last, "reaction_force_start_x")]
         elif panel == "twist" and "end_rotation" in last:
             lines.append(f"end rotation phi(1) {last['end_rotation']:.4g}, mean natural twist "
@@ -113,14 +113,16 @@ def power_line(largest: float) -> str:
     return line
 
 
-def _reaction(last: dict, rod: str, name: str, u) -> str:
-    """The reaction line of one rod's support at s = 0 (force, and couple if held)."""
-    force = _vector(last, f"{rod}reaction_force_start")
-    text = f"{name}reaction at s = 0: force {_text(force)}"
+def _reaction(last: dict, scene, rod: str, name: str, u) -> str:
+    """The reaction line of one rod's support at s = 0 (force, and couple if held; a
+    clamped ring's weld: its two end nodes' summed)."""
+    def reaction(kind: str) -> np.ndarray:
+        return np.array([support_reaction(last.__getitem__, scene, rod, kind, c)
+                         for c in "xyz"])
+    text = f"{name}reaction at {support_name(scene)}: force {_text(reaction('force'))}"
     if f"{rod}reaction_couple_start_x" not in last:
         return text + u("force")
-    return (f"{text}{u('force')}, couple "
-            f"{_text(_vector(last, f'{rod}reaction_couple_start'))}{u('moment')}")
+    return f"{text}{u('force')}, couple {_text(reaction('couple'))}{u('moment')}"
 
 
 def closing_lines(summary: dict, rows: list[dict], scene, wall: float,

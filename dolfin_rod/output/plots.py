@@ -27,8 +27,9 @@ from the scene's supports and loads):
     energy           K + Psi and the dissipated energy int D dt
     power_residual   |d/dt(K + Psi + E_c) + D - P| / power scale (relative_power_residual)
 
-Units: ``scene.units`` ("SI", "pN-nm-s", "dimensionless") names the unit of every axis; a scene without it
-gets "scene units".
+Units: ``scene.units`` ("SI", "pN-nm-s", "pN-nm-ns", "mm-N-s", "mm-N-ms",
+"dimensionless": schema.UNITS) names the unit of every axis; a scene without it gets
+"scene units".
 """
 
 from __future__ import annotations
@@ -85,8 +86,8 @@ def choose_panels(scene, columns) -> list[str]:
         panels.append("tip_rotation")       # a rod turned by couples (spin_up)
     if not panels and scene["geometry"]["closed"] and "writhe" in cols:
         panels.append("twist")      # a ring: Tw, Wr and its link (rod/ring.py)
-    tip_moves = boundary["end"] == "free" or boundary.get("end_displacement") is not None \
-        or boundary.get("end_slide") is not None
+    tip_moves = (boundary["end"] == "free" or boundary.get("end_displacement") is not None
+                 or boundary.get("end_slide") is not None) and not clamped_ring(scene)
     if not panels and tip_moves and any(c.endswith("tip_position_x") for c in cols):
         panels.append("tip_deflection")
     if any(c.endswith(("contact_force_x", "pair_contact_force")) for c in cols):
@@ -94,6 +95,25 @@ def choose_panels(scene, columns) -> list[str]:
     if any(c.endswith("reaction_force_start_x") for c in cols) and len(panels) < 2:
         panels.append("reactions")
     return panels + ["energy", "power_residual"]
+
+
+def clamped_ring(scene) -> bool:
+    """A closed rod clamped at its weld (rod/ring.py): its end nodes, s = 0 and s = L,
+    are the one weld point, both held; the weld's reaction is theirs summed (each alone
+    is the internal force and couple of the ring there, +-n, +-m, plus its share)."""
+    return bool(scene["geometry"]["closed"]) and scene["boundary"]["start"] == "clamped"
+
+
+def support_reaction(row, scene, rod: str, name: str, c: str):
+    """The reaction ``name`` (force, couple) component ``c`` of a rod's support at s = 0
+    from a row of the time series (a row or a column getter): a clamped ring's weld
+    sums its two end nodes'."""
+    value = row(f"{rod}reaction_{name}_start_{c}")
+    return value + row(f"{rod}reaction_{name}_end_{c}") if clamped_ring(scene) else value
+
+
+def support_name(scene) -> str:
+    return "the weld (s = 0 and L)" if clamped_ring(scene) else "s = 0"
 
 
 def unwrapped_angle(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -111,15 +131,22 @@ def unwrapped_angle(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.unwrap(2.0 * np.arctan2(v @ a, q[:, 0])), a
 
 
+# below this fraction of the energy per run time the balance's terms are round-off
+POWER_FLOOR = 1e-9
+
+
 def relative_power_residual(rows: list[dict]) -> np.ndarray:
     """|r_k| / S for k >= 1, r_k the power_residual column and S the power scale: the
     largest over the run of |d/dt(K + Psi + E_c)|, D and |P| (the terms of the balance;
-    the difference quotient of each interval for the first)."""
+    the difference quotient of each interval for the first), at least POWER_FLOOR
+    max |K + Psi + E_c| / (t_end - t_0): a rod at rest (every term round-off, ~1e-16 of
+    its energy a step) has no residual to speak of, not one of order 1."""
     e = np.array([r["free_energy"] + r["kinetic_energy"] + r.get("contact_energy", 0.0)
                   for r in rows])
     t = np.array([r["time"] for r in rows])
     rates = np.abs(np.diff(e) / np.diff(t))
-    scale = max(np.max(rates, initial=0.0),
+    floor = POWER_FLOOR * np.max(np.abs(e)) / (t[-1] - t[0]) if t[-1] > t[0] else 0.0
+    scale = max(np.max(rates, initial=0.0), floor,
                 max(abs(r["dissipation_rate"]) for r in rows),
                 max(abs(r["load_power"]) for r in rows))
     residual = np.abs(np.array([r["power_residual"] for r in rows[1:]], dtype=float))
@@ -253,7 +280,7 @@ def unloaded(reactions: dict, energy: float, length: float) -> bool:
 
 
 def _reactions(ax, col, units, scene):
-    raw = {f"{rod}{kind}_{c}": col(f"{rod}reaction_{name}_start_{c}")
+    raw = {f"{rod}{kind}_{c}": support_reaction(col, scene, rod, name, c)
            for rod in col.prefixes("reaction_force_start_x")
            for kind, name in (("F", "force"), ("M", "couple")) for c in "xyz"
            if f"{rod}reaction_{name}_start_{c}" in col.rows[0]}
@@ -265,14 +292,15 @@ def _reactions(ax, col, units, scene):
                 transform=ax.transAxes)
         ax.set_xticks([])
         ax.set_yticks([])
-        return "reactions of the support at s = 0", ""
+        return f"reactions of the support at {support_name(scene)}", ""
     series = _largest(_shown(raw), 3)
     is_force = {label: label.split(".")[-1][0] == "F" for label in series}
     if not any(is_force.values()):      # forces all round-off: the couples on the axis
         for label, x in series.items():
             ax.plot(col.t, x, "--", label=label)
         ax.legend(fontsize="small")
-        return "reactions of the support at s = 0", axis_label("couple (dashed)", "moment", units)
+        return (f"reactions of the support at {support_name(scene)}",
+                axis_label("couple (dashed)", "moment", units))
     twin = ax.twinx() if not all(is_force.values()) else None
     for label, x in series.items():
         (ax if is_force[label] else twin).plot(col.t, x, "-" if is_force[label] else "--",
@@ -282,7 +310,8 @@ def _reactions(ax, col, units, scene):
         twin.set_ylabel(axis_label("couple (dashed)", "moment", units))
         twin.legend(fontsize="small", loc="upper right")
     more = f" (the largest {len(series)} of {len(raw)})" if len(series) < len(_shown(raw)) else ""
-    return "reactions of the support at s = 0" + more, axis_label("force (solid)", "force", units)
+    return (f"reactions of the support at {support_name(scene)}" + more,
+            axis_label("force (solid)", "force", units))
 
 
 def _contact(ax, col, units, scene):

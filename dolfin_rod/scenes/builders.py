@@ -324,6 +324,7 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
             if not (colon and field.startswith("start.")):
                 raise
             raise scene.error(f"initial.{field.removeprefix('start.')}", reason) from None
+        warn_unstable_start(scene, model)
 
     if touching(scene):    # an obstacle or a segment cutting the rod at t = 0: no solve
         from ..rod.obstacle_shapes import InitialOverlap
@@ -335,6 +336,27 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
         except PairOverlap as err:
             raise scene.error(err.key, str(err)) from None
     return FESimulation("rod", model, scene, initial_state)
+
+
+def warn_unstable_start(scene: Scene, model) -> None:
+    """initial.equilibrium: a warning if the settled start is an unstable equilibrium
+    (negative eigenvalues of its tangent stiffness, analysis/stability.py; conservative
+    loads, whose stability the energy criterion decides).  A dynamic run stays on such a
+    start while nothing perturbs it (a column settled straight above Euler's load stays
+    straight to round-off), where any real rod leaves it."""
+    from ..analysis.stability import StabilityMonitor, non_conservative
+    entries = [rod.scene for rod in scene.rods] if scene.rods else [scene]
+    if not any(e["initial"]["equilibrium"] for e in entries) or non_conservative(model):
+        return
+    negative = StabilityMonitor(model).count(0.0)      # settled with the loads at t = 0
+    if negative:
+        import warnings
+        warnings.warn(f"initial.equilibrium: the settled start is an unstable equilibrium "
+                      f"({negative} negative eigenvalue{'s' * (negative > 1)} of the "
+                      "tangent stiffness, docs/stability.md): the run stays on it only "
+                      "while nothing perturbs it, a real rod leaves it (a column above "
+                      "its buckling load); start from a stable equilibrium, or add a "
+                      "small perturbing load to follow the rod away from it")
 
 
 def natural_strains(scene: Scene) -> dict:

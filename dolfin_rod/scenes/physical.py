@@ -99,7 +99,10 @@ def _elastic(scene: Scene, section) -> dict:
                                               mat["natural_stiffness_ratio"])
     except ValueError as bad:
         key = "poisson_ratio" if mat["poisson_ratio"] is not None else "shear_modulus"
-        raise err(f"material.{key}", str(bad)) from None
+        hint = ("; a rod whose shear stiffness is not an isotropic solid's (PyElastica's "
+                "Timoshenko beam: G = E/100) gives material.stiffness instead: A = (E I_22, "
+                "E I_11, G J), B = (k G a, k G a, E a)") if "Poisson" in str(bad) else ""
+        raise err(f"material.{key}", str(bad) + hint) from None
     E, G, nu = material.moduli()
     names = [k for k in ("A", "B", "A_d", "B_d") if k in tensors]
     mat["stiffness"] = {k: Tensor((np.diag(tensors[k]),)) for k in names}

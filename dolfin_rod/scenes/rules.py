@@ -17,7 +17,8 @@ from ..theory.quaternions import np_quaternion_from_rotation_vector, np_rotation
 from ..rod.rotation_choice import (choose_rotations, rotation_vector_obstacle,
                                    rotations_reason)
 from ..checks import (EQUILIBRIUM_NEEDS, MAX_CELL_TURN, is_coordinate_axis,
-                      polyline_problem, sample_points, slide_axis_problem, spin_free)
+                      polyline_problem, probed_options, sample_points, slide_axis_problem,
+                      spin_free)
 from .contact import check_contact_keys
 from .physical import apply_physical_input
 from .scene import ROD_KEYS, Scene, SceneError
@@ -90,8 +91,9 @@ def check_combinations(scene: Scene) -> None:
 
 def _check_solver_options(scene: Scene) -> None:
     """PETSc reads every option of solver.options and accepts its value (tried on a
-    throwaway solver: a bad one failed the run after check said OK)."""
-    if scene["solver"]["options"]:
+    throwaway solver: a bad one failed the run after check said OK); options only this
+    package or a later set-up reads (checks.probed_options) load no PETSc."""
+    if probed_options(scene["solver"]["options"]):
         from ..fem.solvers import option_problem
         problem = option_problem(scene["solver"]["options"])
         if problem:

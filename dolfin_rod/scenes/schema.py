@@ -72,6 +72,14 @@ UNITS = {
            "power": "W", "angle": "rad"},
     "pN-nm-s": {"length": "nm", "time": "s", "force": "pN", "moment": "pN nm",
                 "energy": "pN nm", "power": "pN nm/s", "angle": "rad"},
+    # molecular dynamics' nanoseconds (mass unit pN ns^2/nm = 1e-21 kg)
+    "pN-nm-ns": {"length": "nm", "time": "ns", "force": "pN", "moment": "pN nm",
+                 "energy": "pN nm", "power": "pN nm/ns", "angle": "rad"},
+    # engineering's millimetres (stress N/mm^2 = MPa; mass t, or g with ms)
+    "mm-N-s": {"length": "mm", "time": "s", "force": "N", "moment": "N mm",
+               "energy": "N mm", "power": "N mm/s", "angle": "rad"},
+    "mm-N-ms": {"length": "mm", "time": "ms", "force": "N", "moment": "N mm",
+                "energy": "N mm", "power": "N mm/ms", "angle": "rad"},
     "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy",
                                     "power"), "1")
     | {"angle": "rad"},       # the torsion scenes' Section 5.1 variables
@@ -165,7 +173,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "model": Key(choice(*MODEL_NAMES), "auto", "auto | ode | torsion | rod"),
         "units": Key(choice(*UNITS), None, " | ".join(UNITS) + ": the unit system the "
                      "scene's numbers are in, shown on the axes of the plots (default: "
-                     "\"scene units\")"),
+                     "\"scene units\"); the physical keys (youngs_modulus, density, "
+                     "fluid_viscosity: Pa, kg/m^3, Pa s in SI) then in its units (mm-N-s: "
+                     "MPa, t/mm^3, MPa s; mm-N-ms: MPa, g/mm^3, MPa ms)"),
     },
     "geometry": {
         "length": Key(real(MIN_LENGTH), 1.0, f"rod length L >= {MIN_LENGTH:g} (torsion: "
@@ -326,7 +336,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                            "the starting shape before the dynamics (quasi-static "
                            "pre-loading; natural strains kept); needs an end holding its "
                            "rotation, or obstacles, which the rod reaches in pseudo-time "
-                           "(docs/contact.md)"),
+                           "(docs/contact.md); a warning if the equilibrium it settles in "
+                           "is unstable (a column above its buckling load)"),
         "acceleration": Key(choice(*STARTING_ACCELERATIONS), "balance",
                             R + "dynamic rods with rotation vectors: the accelerations the "
                             "first step starts from: balance (solved from the balance laws "
