@@ -724,23 +724,37 @@ class BlockSNES:
         self._outcome(reason, at_solution=True)
 
     def round_off_floor(self) -> float:
-        """The order of the residual norm's round-off floor, eps || |J| h ||: a residual
-        entry sums terms of the size stiffness x strain-like quantity of order one (a unit
-        tangent, unit directors), which cancel to the (much smaller) load; the Jacobian's
-        entries are stiffness / h, so |J| times the cell size h (the change of a position
-        across a cell at unit strain) is the terms' size, row by row.  An upper estimate:
-        on the column of benchmarks/stability_check.py (B = 1e5..3e5, 32-256 cells) the
-        residual fluctuates at 1e-11..1e-10, 20-100x below it, above an snes_atol of 1e-11
-        (tests/test_solvers_floor.py).  Uses the last assembled Jacobian (its size, not
-        its exactness, matters); computed only when a step test's residual grew; 0
-        before any Jacobian."""
-        if not self.system.A.assembled:
+        """The order of the residual norm's round-off floor, eps || |J| (|y| + h) ||: a
+        residual entry sums terms of the size stiffness x strain-like quantity of order
+        one (a unit tangent, unit directors), which cancel to the (much smaller) load;
+        the Jacobian's entries are stiffness / h, so |J| times the cell size h (the change
+        of a position across a cell at unit strain) is the terms' size, row by row; and
+        the unknowns carry their own rounding, eps |y|, which |J| turns into the rows'
+        (a ring: displacements from the straight reference of the order of its length,
+        unit quaternions; its residual at an equilibrium is 1.0e-9 at 32 cells, 1.1e-8
+        at 128, above eps || |J| h || = 8.6e-10, 1.7e-9, and below this estimate,
+        1.1e-8, 8.5e-8; tests/test_ring.py).  An upper estimate: on the column of
+        benchmarks/stability_check.py (B = 1e5..3e5, 32-256 cells, |y| ~ 1e-6) the
+        residual fluctuates at 1e-11..1e-10, 20-100x below it, above an snes_atol of
+        1e-11 (tests/test_solvers_floor.py).  Uses the last assembled Jacobian (its
+        size, not its exactness, matters); computed only when a step test's residual
+        grew; 0 before any Jacobian."""
+        A = self.system.A
+        if not A.assembled:
             return 0.0
-        ai, _, values = self.system.A.getValuesCSR()     # owned rows
-        row_sums = self.system.b.duplicate()
-        row_sums.setArray(np.add.reduceat(np.abs(values), ai[:-1]) if len(values)
-                          else np.zeros(len(ai) - 1))
-        return float(np.finfo(float).eps * self._cell_size() * row_sums.norm())
+        rows, columns, values = A.getValuesCSR()        # owned rows, global columns
+        size = A.createVecRight()
+        self.x.copy(size)
+        size.abs()
+        size.shift(self._cell_size())
+        magnitudes = PETSc.Mat().createAIJ(A.getSizes(), csr=(rows, columns, np.abs(values)),
+                                           comm=A.getComm())
+        terms = A.createVecLeft()
+        magnitudes.mult(size, terms)
+        floor = float(np.finfo(float).eps * terms.norm())
+        for work in (magnitudes, size, terms):
+            work.destroy()
+        return floor
 
     def _cell_size(self) -> float:
         """The mesh's extent (bounding-box diagonal over all ranks) over its cells."""
