@@ -243,11 +243,11 @@ def is_coordinate_axis(axis) -> bool:
     return int(np.count_nonzero(np.asarray(axis, dtype=float))) == 1
 
 
-# A start in static equilibrium (rod/start.py) with only pinned or free ends is singular,
-# unless it rests on obstacles (rod/initial_state.py settles it in pseudo-time).
-EQUILIBRIUM_NEEDS = ("the static problem needs an end whose rotation is held (clamped, or "
-                     "a prescribed end rotation), or obstacles to rest on: otherwise the "
-                     "sections turn about their tangents for free")
+# A start in static equilibrium (rod/start.py) needs something that holds the rod against
+# rigid motions (rod/initial_state.py settles it, in pseudo-time where one solve fails).
+EQUILIBRIUM_NEEDS = ("the static problem needs a supported end (clamped, pinned, a "
+                     "prescribed end rotation or an end spring) or obstacles to rest on: "
+                     "nothing holds a free rod against its loads")
 # How a dynamic rod's accelerations start (initial.acceleration, StartingState.acceleration,
 # SecondOrderProblem.starting_accelerations): solved from the balance laws at t0 (friction
 # read at the first step's slip), or zero (a state known to be at rest).

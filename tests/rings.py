@@ -103,3 +103,40 @@ def writhing_ring(n_cells: int, link: float, comm=MPI.COMM_WORLD, push: float = 
     record(0.0, None)
     TimeStepper(model.problem).run(0.0, steps * dt, dt, record)
     return out
+
+
+def _diameter(model, n_cells: int) -> np.ndarray:
+    """From the weld (node 0) to the node at s = L/2, on every rank."""
+    centre = np.array(ring_fields(model)["centre"])
+    return centre[n_cells // 2] - centre[0]
+
+
+def pulled_ring(n_cells: int, pull: float, stiff: float = 1e7, steps: int = 4,
+                hold: int = 2) -> tuple[list[float], list[tuple[float, float]]]:
+    """The quasi-static ring clamped at its weld, pulled at s = L/2 along the diameter
+    from its weld by the dead force ``pull`` EI/R^2, ramped over t in [0, 1] in ``steps``
+    steps and held for ``hold`` more (each a step from an equilibrium); ``stiff``: B.
+    The diameter's change at the start and after each step, and after each step the
+    residual norm at its solution with Newton's estimate of its round-off floor
+    (BlockSNES.round_off_floor)."""
+    from dolfin_rod.rod import PointLoad
+    params = RodParameters(length=LENGTH, A=(BEND, BEND, TWIST), B=(stiff, stiff, stiff))
+    start = RodModel(params, n_cells, model="hyperelastic", closed=True)
+    start.set_initial_state()
+    diameter = _diameter(start, n_cells)
+    size = np.linalg.norm(diameter)
+    force = pull * BEND / RADIUS ** 2 * diameter / size
+    model = RodModel(params, n_cells, model="hyperelastic", closed=True, point_loads=[
+        PointLoad("force", tuple(force), 0.5 * LENGTH, lambda t: min(t, 1.0))])
+    model.set_initial_state()
+    stepper = TimeStepper(model.problem)
+    changes, floors = [], []
+
+    def record(t, _):
+        changes.append(float(_diameter(model, n_cells) @ diameter / size - size))
+        if t > 0:
+            floors.append((stepper.solver.snes.getFunctionNorm(),
+                           stepper.solver.round_off_floor()))
+    dt = 1.0 / steps
+    stepper.run(0.0, 1.0 + hold * dt, dt, record)
+    return changes, floors

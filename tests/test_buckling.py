@@ -241,6 +241,20 @@ def test_bad_requests_are_refused():
         buckling_modes(rod, 1.0)
 
 
+ALPHA = math.pi / 3          # the arch's half-angle
+
+
+def pressed_arch(n_cells: int, history) -> RodModel:
+    """test_hinged_arch_under_follower_pressure's arch under the pressure q_cr = pi^2 /
+    alpha^2 - 1 (EI = R = 1) times ``history``, pre-loaded to t = 1."""
+    from dolfin_rod.rod import DistributedLoad
+    arch = RodParameters(length=2 * ALPHA, A=(100.0, 1.0, 100.0), B=(1e6, 1e6, 1e6),
+                         reference_curvature=(0.0, 1.0, 0.0))
+    return preloaded(RodModel(arch, n_cells=n_cells, model="hyperelastic", start="pinned",
+                              end="pinned", distributed_loads=[DistributedLoad(
+                                  "force", (math.pi ** 2 / ALPHA ** 2 - 1, 0.0, 0.0),
+                                  history, follower=True)]), dt=0.5)
+
 
 @pytest.mark.mpi
 def test_hinged_arch_under_follower_pressure():
@@ -252,24 +266,39 @@ def test_hinged_arch_under_follower_pressure():
     follower loads' dK/dt.  Pre-loaded to half of it; measured relative errors at 16, 32
     cells: 2.85e-2, 6.99e-3 (order 2.03); the stability count of a pressure ramp flips
     between 1.00 and 1.05 q_cr at 32 cells."""
-    from dolfin_rod.rod import DistributedLoad
-    alpha = math.pi / 3
-    q_cr = math.pi ** 2 / alpha ** 2 - 1
-    arch = RodParameters(length=2 * alpha, A=(100.0, 1.0, 100.0), B=(1e6, 1e6, 1e6),
-                         reference_curvature=(0.0, 1.0, 0.0))
     errors = []
     for n in (16, 32):
-        rod = preloaded(RodModel(arch, n_cells=n, model="hyperelastic",
-                                 start="pinned", end="pinned", distributed_loads=[
-                                     DistributedLoad("force", (q_cr, 0.0, 0.0),
-                                                     lambda t: 0.5 * t, follower=True)]),
-                        dt=0.5)
+        rod = pressed_arch(n, lambda t: 0.5 * t)
         modes = buckling_modes(rod, 1.0, count=1)
         shape = modes.shapes[0]["displacement"].reshape(-1, 3)
         assert np.max(np.abs(shape[:, 1]), initial=0.0) < 1e-8      # in the arch's plane
         errors.append(0.5 * modes.load_factors[0] - 1)
     assert abs(order(errors) - 2) < 0.15, errors
     assert 0 < errors[1] < 8e-3, errors
+
+
+@pytest.mark.mpi
+def test_a_load_growing_as_t_squared_buckles_where_its_path_predicts():
+    """The loads' rate at t: a load P(t) = P_1 t^2 (P_1 = half the critical load) has the
+    rate 2 P_1 at t = 1, so the linearised path reaches the critical multiple lambda of
+    the linear ramp's analysis (the same state at t = 1) at t + tau = 1 + (lambda - 1) / 2.
+    The clamped-free column (dead load: dR/dt) and the follower-loaded arch of
+    test_hinged_arch_under_follower_pressure (dK/dt too), 16 cells.  Measured relative
+    errors of tau: 9e-12 and 1.5e-10 (the rates' second-order backward differences, exact
+    for a quadratic history, their round-off eps t / delta with delta = 1e-5 t); asserted
+    1e-9.  The first-order difference of before was 5.0e-5 off (delta / 2 t, delta =
+    1e-4 t)."""
+    p_cr = COLUMNS["clamped-free"][2]
+
+    def column(n_cells, history):
+        return preloaded(RodModel(STIFF, n_cells=n_cells, model="hyperelastic", end_loads=[
+            EndLoad("force", (0.0, 0.0, -p_cr), history)]))
+
+    for make in (column, pressed_arch):
+        linear, square = (buckling_modes(make(16, history), 1.0, 1).times[0] for history in
+                          (lambda t: 0.5 * t, lambda t: 0.5 * t * t))
+        assert square - 1 == pytest.approx((linear - 1) / 2, rel=1e-9), make.__name__
+
 
 def _cli(tmp_path, scene: str, args: list[str]) -> tuple[int, str]:
     """``dolfin-rod`` with the scene text written to a file (paths agreed by the ranks)."""
@@ -433,7 +462,10 @@ def test_quaternion_form_buckles_as_rotation_vectors():
     1.006448, 2 x 9.545129 P_cr at 8 cells; Euler's 1 and 9 with the 8-cell error) and
     Greenhill's twist (2 x 1.041693 of 2.8606 pi: the 8-cell error 4.17e-2 of
     test_greenhill_critical_twist_at_second_order).  Measured differences between the
-    forms: < 1e-8 (the difference quotients of K', delta = 1e-4 t)."""
+    forms: 2.6e-11 (column), 2.6e-8 (twist), the forms' own: not Newton's tolerance (the
+    same digits at snes_rtol 1e-10 and 1e-12), the stress rates exact; with their central
+    difference of before 1.3e-8 (its truncation on quaternions, O(delta^2): 1.3e-6 at
+    delta = 1e-3 t, cancelled part of it)."""
     vectors, quaternions = column_and_twist("rotation_vector"), column_and_twist("quaternion")
     for a, b in zip(vectors, quaternions):
         assert b == pytest.approx(a, rel=1e-7)
@@ -465,14 +497,14 @@ def test_jointed_column_buckles_as_one_column():
     """Buckling through the joint's constraint map (P^T K P, P^T K' P): the jointed
     column of 2 x 8 cells has the factors of the one column of 16 cells (A = (1, 2):
     the planes apart, 1.001596 and 2.003143 P_cr: Euler's 1 and 2 with the 16-cell
-    error 1.6e-3).  Measured: equal to 3e-8 (the pre-loads' Newton tolerance and K''s
-    difference quotients)."""
+    error 1.6e-3).  Equal to the pre-loads' Newton tolerance, 1e-8: measured 6.7e-11
+    (3e-8 with the stress rates' central difference of before, analysis/buckling.py)."""
     one = RodParameters(length=1.0, A=(1.0, 2.0, 1.0), B=(1e5, 1e5, 1e5))
     single = preloaded(RodModel(one, n_cells=16, model="hyperelastic", end_loads=[
         EndLoad("force", (0.0, 0.0, -math.pi ** 2 / 4), lambda t: 0.5 * t)]))
     joined = preloaded(jointed_column(8))
     factors = [0.5 * buckling_modes(rod, 1.0, 4).load_factors for rod in (single, joined)]
-    assert factors[1] == pytest.approx(factors[0], rel=1e-6)
+    assert factors[1] == pytest.approx(factors[0], rel=1e-8)
     assert factors[0][:2] == pytest.approx([1.0016, 2.0031], rel=1e-4)
 
 
@@ -646,14 +678,12 @@ fields = false
     # the same column as two rods of 8 cells welded at its middle (a rigid joint): its
     # spin about the axis held at the first pin (checks.welded_spin_end; refused before:
     # "joints need rotation-vector unknowns, which this system cannot have"), the same
-    # equations: the same critical load to 2e-8 here.  Not to round-off: the stress
-    # rates are a central difference at y +- delta y' (delta = buckling.RELATIVE_STEP
-    # = 1e-4), which divides the stresses' round-off (axial B = 1e5 times a strain's
-    # cancellation) by delta, differently in the two assemblies: measured 1.7e-10,
-    # 1.13e-8, 8.5e-8 apart at delta 1e-3, 1e-4, 1e-5.  Converged (time.rtol 1e-14, on
-    # the main before and after the static solves' relative test against the force
-    # scale) 1.13e-8; the 8.4e-9 of before came from a Newton that stopped earlier (a
-    # steel tube 4 m, 2 x 16 cells against 32: 1e-7; serial = 2 ranks: 8e-13)
+    # equations: the same critical load to 1e-8 here, the pre-loads' Newton tolerance
+    # (the two assemblies' states agree to it).  Measured 3.9e-12 serially, 9.1e-12 on 2
+    # ranks: the stress rates are exact (UFL's derivative, analysis/buckling.py); with
+    # their central difference at y +- delta y' the stresses' round-off (axial B = 1e5
+    # times a strain's cancellation) was divided by delta, differently in the two
+    # assemblies: 1.7e-10, 1.13e-8, 8.5e-8 apart at delta 1e-3, 1e-4, 1e-5 t
     text = path.read_text()
     head, loads = text.split("[boundary]")[0], text.split("[loads]\n")[1].split("\n")[0]
     welded = tmp_path / "welded.toml"
@@ -676,4 +706,4 @@ point = [0.0, 0.0, 0.5]
 """ + "[time]" + text.split("[time]")[1])
     two = analyse(welded, "buckle", count=2, out=tmp_path / "welded", quiet=True)
     assert two.summary["buckle"]["modes"][0]["load_factor"] == pytest.approx(factors[0],
-                                                                             rel=2e-8)
+                                                                             rel=1e-8)

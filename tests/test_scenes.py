@@ -94,7 +94,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "lee_frame.toml": "rod", "plectoneme_setting.toml": "rod",
                   "rope_over_boulder.toml": "rod", "rope_over_thin_bar.toml": "rod",
                   "continuum_snake.toml": "rod", "supercoiled_minicircle.toml": "rod",
-                  "sedimenting_fibre.toml": "rod", "continuum_flagella.toml": "rod"}
+                  "sedimenting_fibre.toml": "rod", "continuum_flagella.toml": "rod",
+                  "overhand_knot_tie.toml": "rod", "overhand_knot.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
@@ -740,8 +741,10 @@ ON_TWO_RANKS_ELSEWHERE = {
 # Bundled coils whose few cells would turn by more than the 2 rad a cell represents
 # (the start stops naming n_cells), or, the held helix, whose start from its Kirchhoff
 # helix converges at its scene's 64 cells (not at 32 or fewer with the default Jacobian
-# reuse: docs/verification.md, "Helices").
-QUICK_CELLS = {"helical_spring.toml": 20, "helix_wrench.toml": 64}
+# reuse: docs/verification.md, "Helices"); a knot, whose polyline start on 8 cells is no
+# knot (its chords turn by more than 2 rad between nodes and cross).
+QUICK_CELLS = {"helical_spring.toml": 20, "helix_wrench.toml": 64,
+               "overhand_knot_tie.toml": 100, "overhand_knot.toml": 100}
 
 
 @pytest.mark.parametrize("path", [

@@ -18,9 +18,21 @@ rows: the prescribed motion's rate), at the current geometry; dK/dt that of foll
 loads.  The critical points are the eigenpairs of K phi = tau (-K') phi
 (analysis/eigen.py; symmetric parts): the critical time t + tau and the load factor
 (t + tau) / t, the multiple of the current loads and motions when they grow in
-proportion to t (ramps from t = 0).  dR/dt, dK/dt: one-sided differences back in time
-(exact for loads linear in t; a ramp that ends at t counts with its rate before t);
-m', n': a central difference at y +- delta y' (error O(delta^2)); delta = 1e-4 t.
+proportion to t (ramps from t = 0).
+
+How each rate is formed.  m', n' (and the hinges' F'_i): exact, UFL's derivative of
+the stresses along y' (the carried forces' J P y'); before, a central difference at
+y +- delta y' divided the stresses' round-off (the axial and shear stiffness 1e5 times a
+strain's cancellation) by delta: a column and the same column as two welded rods were
+1.1e-8 apart at delta = 1e-4 t (8.5e-8 at 1e-5), now 4e-12.  dR/dt: a second-order
+backward difference in time (_backward_rate), one-sided so that a ramp that ends at t
+counts with its rate before t, exact for histories quadratic over [t - 2 delta, t];
+the internal forces, which do not change with t, cancel exactly in it.  dK/dt: K is
+affine in the loads' values, so the histories' rates (the same difference) give it
+exactly from K at c + t c' (_load_stiffness_rate).  delta = RELATIVE_STEP t = 1e-5 t
+balances the difference's truncation, (delta^2 / 3) f'''/f' (6.7e-7, 6.7e-9, 8e-11 of
+a cubic ramp's critical time at delta = 1e-3, 1e-4, 1e-5 t), against its round-off,
+eps / delta (9e-12 on a column, 1.5e-10 on a follower-loaded arch at 1e-5 t).
 
 Only K_sigma, not the full derivative of K along the path: on rotation vectors the
 unknowns are increments in a basis that turns with the rod, and the difference of two
@@ -43,6 +55,7 @@ import dolfinx.fem as fem
 import numpy as np
 import ufl
 from petsc4py import PETSc
+from ufl.algorithms import expand_derivatives
 
 from ..fem.assembly import block_system
 from ..fem.compat import interpolation_points
@@ -52,7 +65,7 @@ from .stability import TangentStiffness, at_rest_map, symmetric_part
 
 __all__ = ["BucklingModes", "buckling_modes"]
 
-RELATIVE_STEP = 1e-4
+RELATIVE_STEP = 1e-5       # delta / t of the rates in time (module docstring)
 
 
 @dataclass
@@ -106,27 +119,18 @@ def _pencil(tangent: TangentStiffness, state: PETSc.Vec, t: float,
         raise ValueError(f"buckling: the loads and prescribed motions do not change at "
                          f"t = {t:g} (nothing to scale: ramp them)")
     stress = _StressStiffness(tangent)
-    hinges = system.curved if isinstance(system, ConstrainedSystem) else []
-    carried = []        # the forces the hinges carry at y +- delta y' (their rate: F')
     try:
-        for sign in (1.0, -1.0):
-            x = state.copy()
-            x.axpy(sign * delta, rate)
-            system.set(0, x)
-            stress.add_stresses(sign * 0.5 / delta)
-            if hinges:
-                carried.append(system.carried(x))
+        tangent.set_direction(rate)
+        stress.take_direction()
         system.set(0, state)
+        stress.set_rates()
         dK = stress.matrix()
-        if hinges:
-            carried[0].axpy(-1.0, carried[1])
-            carried[0].scale(0.5 / delta)
-            system.add_map_forces(dK, hinges, carried[0])
+        if isinstance(system, ConstrainedSystem) and system.curved:
+            carried = system.carried_rate(state, rate)       # F' of the hinges
+            system.add_map_forces(dK, system.curved, carried)
+            carried.destroy()
         K = tangent.matrix(t)
-        earlier = tangent.matrix(t - delta)        # follower loads: dK/dt (else 0)
-        earlier.aypx(-1.0, K)
-        dK.axpy(1.0 / delta, earlier)
-        earlier.destroy()
+        dK.axpy(1.0, _load_stiffness_rate(tangent, K, t, delta))
     finally:
         system.set(0, state)
         problem.set_loads(t)
@@ -135,7 +139,8 @@ def _pencil(tangent: TangentStiffness, state: PETSc.Vec, t: float,
 
 class _StressStiffness:
     """K_sigma(m', n') of a rod (module docstring): m', n' DG0 (the one-point rule's
-    cell midpoints), summed from states by ``add_stresses``."""
+    cell midpoints), the derivatives of m, n along a direction of the fields
+    (``take_direction``), exact (UFL's derivative)."""
 
     def __init__(self, tangent: TangentStiffness):
         model = tangent.model
@@ -144,8 +149,11 @@ class _StressStiffness:
         S = fem.functionspace(model.mesh, ("DG", 0, (3,)))
         at_rest = at_rest_map(model)
         points = interpolation_points(S)
-        self.stresses = [fem.Expression(ufl.replace(f, at_rest), points)
-                         for f in (model.m, model.n)]
+        self.model, self.names = model, tangent.names
+        self.direction = {n: fem.Function(model.f[n].function_space) for n in tangent.names}
+        self.stress_rates = [fem.Expression(expand_derivatives(sum(
+            ufl.derivative(ufl.replace(f, at_rest), model.f[n], self.direction[n])
+            for n in tangent.names)), points) for f in (model.m, model.n)]
         self.rates = [fem.Function(S), fem.Function(S)]
         work = sum(ufl.inner(rate, strain) for rate, strain in
                    zip(self.rates, (model.u, model.v))) * model.dx_r
@@ -157,12 +165,15 @@ class _StressStiffness:
         self.joints = tangent.system.P if isinstance(tangent.system, ConstrainedSystem) \
             else None
 
-    def add_stresses(self, weight: float) -> None:
-        """m', n' += weight (m, n) of the state in the fields."""
-        scratch = fem.Function(self.rates[0].function_space)
-        for rate, stress in zip(self.rates, self.stresses):
-            scratch.interpolate(stress)
-            rate.x.array[:] += weight * scratch.x.array
+    def take_direction(self) -> None:
+        """The direction: the values in the model's fields (TangentStiffness.set_direction)."""
+        for n in self.names:
+            self.direction[n].x.array[:] = self.model.f[n].x.array
+
+    def set_rates(self) -> None:
+        """m', n' at the state in the fields along the direction."""
+        for rate, expression in zip(self.rates, self.stress_rates):
+            rate.interpolate(expression)
 
     def matrix(self) -> PETSc.Mat:
         """K_sigma, symmetric part, Dirichlet rows and columns zero."""
@@ -174,20 +185,47 @@ class _StressStiffness:
         return symmetric_part(A, self.fixed, 0.0)
 
 
+def _load_stiffness_rate(tangent: TangentStiffness, K: PETSc.Mat, t: float,
+                         delta: float) -> PETSc.Mat:
+    """dK/dt at the state (follower loads; 0 for dead ones), K the matrix at time t's
+    loads.  K is affine in the loads' values c (each load a Constant: its history's
+    value times a fixed vector, directors or profile), so dK/dt = (K(c + t c') - K(c)) / t
+    exactly, with c' the histories' rates (_backward_rate).  The two matrices differ by
+    t c', not by delta c': their common part (the elastic stiffness) cancels with a
+    round-off t / delta times smaller than in (K(t) - K(t - delta)) / delta (measured
+    on the follower-loaded arch of tests/test_buckling.py, whose shear stiffness 1e6
+    sits beside loads of 8: 4.5e-7 of the critical time at delta = 1e-4 t)."""
+    for load in tangent.model.problem.loads:
+        load.constant.value[...] = load.at(t) + t * _backward_rate(load.at, t, delta)
+    ahead = tangent.matrix(None)
+    ahead.axpy(-1.0, K)
+    ahead.scale(1.0 / t)
+    return ahead
+
+
+def _backward_rate(value, t: float, delta: float):
+    """The derivative at t of ``value(time)`` (numbers, or a PETSc Vec at the same
+    state), (3 f(t) - 4 f(t - delta) + f(t - 2 delta)) / (2 delta): exact for histories
+    quadratic on [t - 2 delta, t] and one-sided, so that a ramp ending at t counts with
+    its rate before t.  The differences of neighbours come first: what does not change
+    with time (the internal forces) cancels exactly there."""
+    now, before, earlier = (value(t - k * delta) for k in range(3))
+    return (1.5 * (now - before) - 0.5 * (before - earlier)) / delta
+
+
 def _path_rate(tangent: TangentStiffness, state: PETSc.Vec, t: float,
                delta: float) -> PETSc.Vec:
     """u' with K u' = -dR/dt at the state (Dirichlet rows: the motion's rate)."""
     system, problem = tangent.system, tangent.model.problem
-    residuals = []
-    for time in (t, t - delta):
+
+    def residual(time: float) -> PETSc.Vec:
         problem.set_loads(time)
         problem.set_bcs(time)
         b = system.b.duplicate()
         system.residual(state, b)
-        residuals.append(b)
-    dR = residuals[0]
-    dR.axpy(-1.0, residuals[1])
-    dR.scale(-1.0 / delta)                     # -dR/dt
+        return b
+
+    dR = -_backward_rate(residual, t, delta)  # -dR/dt
     problem.set_loads(t)
     problem.set_bcs(t)
     system.set(0, state)

@@ -156,7 +156,7 @@ class TangentStiffness:
         shapes = []
         try:
             for vector in vectors:
-                self._set_direction(vector)
+                self.set_direction(vector)
                 shape = {label[n]: model.f[n].x.array.copy() for n in self.names
                          if n in label}
                 if q is not None:
@@ -172,8 +172,9 @@ class TangentStiffness:
             system.set(0, state)
         return shapes
 
-    def _set_direction(self, vector: PETSc.Vec) -> None:
-        """A direction of K's layout into the fields: joints' P v (no offset)."""
+    def set_direction(self, vector: PETSc.Vec) -> None:
+        """A direction of K's layout into the fields (the state there overwritten: set
+        it back after reading them): joints' P v (no offset)."""
         system = self.system
         if not isinstance(system, ConstrainedSystem):
             system.set(0, vector)
@@ -182,19 +183,21 @@ class TangentStiffness:
         system.P.mult(vector, y)
         system.inner.set(0, y)
 
-    def matrix(self, t: float, symmetric: bool = True) -> PETSc.Mat:
-        """The symmetric part of K at time t's loads (``symmetric`` False: K itself,
-        non-symmetric with non-conservative loads), a new matrix, Dirichlet rows and
-        columns identity."""
+    def matrix(self, t: float | None, symmetric: bool = True) -> PETSc.Mat:
+        """The symmetric part of K at time t's loads (None: the loads' values as set in
+        the problem; ``symmetric`` False: K itself, non-symmetric with non-conservative
+        loads), a new matrix, Dirichlet rows and columns identity."""
         A = self._assemble(t)
         if not symmetric:
             A.zeroRowsColumns(self.fixed, diag=1.0)
             return A.copy()
         return symmetric_part(A, self.fixed, 1.0)
 
-    def _assemble(self, t: float) -> PETSc.Mat:
-        """K at the current state and time t's loads, in the system's own matrix."""
-        self.model.problem.set_loads(t)
+    def _assemble(self, t: float | None) -> PETSc.Mat:
+        """K at the current state and time t's loads (None: as set), in the system's own
+        matrix."""
+        if t is not None:
+            self.model.problem.set_loads(t)
         system = self.system
         system.get(0, system.x)
         system.set(0, system.x)

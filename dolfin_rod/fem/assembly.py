@@ -85,6 +85,7 @@ class _System:
     assembled outside the forms (``add_terms``)."""
 
     terms: tuple = ()
+    residual_terms = False  # whether a term adds to the residual (add_residual)
     pattern_changes = 0     # how often the terms grew the Jacobian's sparsity (grow_pattern)
 
     def _setup_bc_rows(self, bcs, rows_of):
@@ -130,6 +131,7 @@ class _System:
         before the forms are assembled at x (a mesh obstacle's features, rod/contact.py),
         and add nothing."""
         self.terms = tuple(term.bind(self) for term in terms)
+        self.residual_terms = any(hasattr(term, "add_residual") for term in self.terms)
         self._set_matrix_options(self.A)
 
     def _prepare_terms(self, x) -> None:
@@ -140,7 +142,7 @@ class _System:
                     term.prepare(xa)
 
     def _add_terms_to_residual(self, x, b) -> None:
-        if self.terms:
+        if self.residual_terms:
             xa, ba = x.getArray(readonly=True), b.getArray()
             for term in self.terms:
                 if hasattr(term, "add_residual"):
@@ -168,9 +170,13 @@ class _System:
 
     def _replace_bc_rows(self, x, b, bc_values) -> None:
         if len(self.bc_rows):
-            xa, rows = x.getArray(readonly=True), self._bc_index
-            values = self.bc_values() if bc_values is None else bc_values
-            b.array_w[rows] = xa[rows] - values
+            self._bc_rows_into(x, b.array_w, bc_values)
+
+    def _bc_rows_into(self, x, b_owned, bc_values) -> None:
+        """The Dirichlet rows of the residual's owned entries ``b_owned``: x - g."""
+        rows = self._bc_index
+        values = self.bc_values() if bc_values is None else bc_values
+        b_owned[rows] = x.getArray(readonly=True)[rows] - values
 
     def _identity_bc_rows(self, A) -> None:
         A.zeroRows(self._bc_global, diag=1.0)
@@ -306,10 +312,19 @@ class MonolithicSystem(_System):
     def residual(self, x, b, bc_values=None) -> None:
         """b = F(x), Dirichlet rows x - g (g: ``bc_values`` if given, else bc_values())."""
         self._prepare_terms(x)
+        # one rank (no ghosts to add to the owned rows) without terms' forces: the
+        # Dirichlet rows written into the forms' array at once (2-3 us a residual)
+        at_once = not (self._ghosted or self.residual_terms) and len(self.bc_rows)
         with b.localForm() as bl:       # (one local form for all forms: DOLFINx's
-            bl.set(0.0)                 # PETSc assemble_vector takes one per form; each
-            for form in self.F:         # array is released inside, which marks b changed)
-                fem.assemble_vector(bl.array_w, form)
+            bl.set(0.0)                 # PETSc assemble_vector takes one per form)
+            array = bl.array_w
+            for form in self.F:
+                fem.assemble_vector(array, form)
+            if at_once:
+                self._bc_rows_into(x, array, bc_values)
+            del array                   # (released inside the local form: b marked changed)
+        if at_once:
+            return
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         self._add_terms_to_residual(x, b)
         self._replace_bc_rows(x, b, bc_values)

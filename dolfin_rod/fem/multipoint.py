@@ -371,6 +371,18 @@ class ConstrainedSystem:
         self._forces_current = True
         return self._b.copy()
 
+    def carried_rate(self, z, dz) -> PETSc.Vec:
+        """The derivative of ``carried`` at z along dz, J(Phi(z) + c) P dz (a new vector;
+        after ``set`` with the same z): the forces the links carry change at this rate."""
+        self.carried(z).destroy()       # (the pairs' Hessians are those of the residual's state)
+        self.inner.jacobian(self.inner.A)
+        dy = self.P.createVecLeft()
+        self.P.mult(dz, dy)
+        rate = self._b.duplicate()
+        self.inner.A.mult(dy, rate)
+        dy.destroy()
+        return rate
+
     def _insert_product(self, A) -> None:
         """A = P^T J P formed anew and inserted: J's pattern may have grown (pairs)."""
         product = self.inner.A.PtAP(self.P)

@@ -106,6 +106,13 @@ class SemiDiscreteProblem:
         for load in self.loads:
             load.constant.value[...] = load.at(t)
 
+    def scale_loads(self, factor: float) -> None:
+        """The loads' values as set last (set_loads) times ``factor``: a part of them on
+        a load path (integrators/lie_alpha.py: a quasi-static start approached in
+        parts)."""
+        for load in self.loads:
+            load.constant.value[...] *= factor
+
 
 @dataclass
 class SecondOrderProblem(SemiDiscreteProblem):

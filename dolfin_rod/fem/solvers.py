@@ -62,7 +62,8 @@ JACOBIAN_REUSE = {
     "snes_lag_preconditioner_persists": True,
 }
 # BlockSNES's Jacobian rule (option jacobian_reuse_ratio): a new Jacobian and LU at each
-# solve's first iteration, kept while every iteration reduces the residual norm 10-fold.
+# solve's first iteration, kept while every iteration reduces the residual norm 10-fold
+# (a kept one's step that does not lower it is taken again with a new one).
 # Dynamic rods: 1.0-1.5 Jacobians per step instead of 1.9-2.6; quasi-static roll-up in
 # 10 load steps: 15-20 % less time than full Newton (docs/performance.md).
 REUSE_RATIO = 0.1
@@ -175,16 +176,11 @@ def _forget_options(prefix: str, keys: list[str]) -> None:
 
 def default_test(snes, it: int, norms, fnorm0: float, step_scale: float = 0.0,
                  force_scale: float = 0.0, static: bool = False) -> int:
-    """PETSc's default test (SNESConvergedDefault: NaN, atol, rtol, step, divergence;
-    snes_max_it is PETSc's own check) with |y| + step_scale in the step test,
-    max(fnorm0, force_scale) in the divergence test |F| > snes_divergence_tolerance
-    max(...) (a small first residual, a load increment, against the residual's rows of
-    the problem's size: ForceScale) and, for a ``static`` residual (no inertia), the
-    relative test against at most the force scale (relative_reference); ``fnorm0`` the
-    solve's initial residual norm."""
+    """PETSc's default test (NewtonTest) at SNES's ``norms`` (|y|, |dy|, |F|) of
+    iteration ``it``; ``fnorm0`` the solve's initial residual norm."""
     xnorm, ynorm, fnorm = norms
-    return newton_test(snes, it, fnorm, fnorm0, lambda: (xnorm, ynorm), step_scale,
-                       force_scale, static)
+    return NewtonTest(snes, fnorm0, step_scale, force_scale, static)(
+        it, fnorm, lambda: (xnorm, ynorm))
 
 
 def relative_reference(fnorm0: float, force_scale: float, static: bool) -> float:
@@ -219,28 +215,43 @@ def relative_tolerance(rtol: float, fnorm0: float, force_scale: float,
     return min(tolerance, NEWTON_FORCE_CAP * force_scale) if force_scale > 0.0 else tolerance
 
 
-def newton_test(snes, it: int, fnorm: float, fnorm0: float, step_norms,
-                step_scale: float = 0.0, force_scale: float = 0.0,
-                static: bool = False) -> int:
-    """default_test with the step test's norms (|y|, |dy|) from ``step_norms()``, called
-    only when that test is reached (BlockSNES's own Newton loop computes them then)."""
-    rtol, atol, stol, _ = snes.getTolerances()
-    reasons = PETSc.SNES.ConvergedReason
-    if not math.isfinite(fnorm):      # (a float: math's test, 1 us less than numpy's)
-        return compat.NONFINITE_NORM
-    if fnorm < atol:
-        return reasons.CONVERGED_FNORM_ABS
-    if it == 0:
+class NewtonTest:
+    """PETSc's default convergence test (SNESConvergedDefault: NaN, atol, rtol, step,
+    divergence; snes_max_it is the caller's check) of one solve, with |y| + step_scale
+    in the step test, max(fnorm0, force_scale) in the divergence test |F| >
+    snes_divergence_tolerance max(...) (a small first residual, a load increment, against
+    the residual's rows of the problem's size: ForceScale) and, for a ``static``
+    residual (no inertia), the relative test against at most the force scale
+    (relative_reference); ``fnorm0`` the solve's initial residual norm.  The tolerances
+    are read, and the relative and divergence thresholds computed, once per solve (at
+    its first residual: BlockSNES's own Newton loop tests every iteration with one
+    object); a call tests iteration ``it``'s residual norm ``fnorm`` and takes the step
+    test's norms (|y|, |dy|) from ``step_norms()`` only when that test is reached."""
+
+    def __init__(self, snes, fnorm0: float, step_scale: float = 0.0,
+                 force_scale: float = 0.0, static: bool = False):
+        rtol, self.atol, self.stol, self.max_it = snes.getTolerances()
+        self.relative = relative_tolerance(rtol, fnorm0, force_scale, static)
+        divtol = snes.getDivergenceTolerance()
+        self.divergence = divtol * max(fnorm0, force_scale) if divtol > 0 else math.inf
+        self.step_scale = step_scale
+
+    def __call__(self, it: int, fnorm: float, step_norms) -> int:
+        reasons = PETSc.SNES.ConvergedReason
+        if not math.isfinite(fnorm):      # (a float: math's test, 1 us less than numpy's)
+            return compat.NONFINITE_NORM
+        if fnorm < self.atol:
+            return reasons.CONVERGED_FNORM_ABS
+        if it == 0:
+            return reasons.ITERATING
+        if fnorm <= self.relative:
+            return reasons.CONVERGED_FNORM_RELATIVE
+        xnorm, ynorm = step_norms()
+        if ynorm < self.stol * (xnorm + self.step_scale):
+            return reasons.CONVERGED_SNORM_RELATIVE
+        if fnorm > self.divergence:       # (inf without a divergence tolerance)
+            return reasons.DIVERGED_DTOL
         return reasons.ITERATING
-    if fnorm <= relative_tolerance(rtol, fnorm0, force_scale, static):
-        return reasons.CONVERGED_FNORM_RELATIVE
-    xnorm, ynorm = step_norms()
-    if ynorm < stol * (xnorm + step_scale):
-        return reasons.CONVERGED_SNORM_RELATIVE
-    divtol = snes.getDivergenceTolerance()
-    if divtol > 0 and fnorm > divtol * max(fnorm0, force_scale):
-        return reasons.DIVERGED_DTOL
-    return reasons.ITERATING
 
 
 def residual_problem(snes, reason: int, norm: float, initial: float,
@@ -408,9 +419,15 @@ class BlockSNES:
     Option ``jacobian_reuse_ratio`` r (not a PETSc option; default REUSE_RATIO, 0: a new
     Jacobian every iteration): each solve starts with a new Jacobian and LU and keeps
     them while every Newton iteration reduces the residual norm by at least the factor
-    r; after a slower iteration the next one builds a new one.  A solve's result depends
-    on its start only (a resumed run equals an uninterrupted one).  Given PETSc
-    snes_lag_* options (e.g. JACOBIAN_REUSE) replace the rule.
+    r; after a slower iteration the next one builds a new one.  A step on a kept
+    Jacobian that does not lower the residual norm is taken back and taken again from
+    its start with a new Jacobian (in BlockSNES's own loop, _plain_newton: the default
+    options; under SNESSolve it stays): from a far start the kept Jacobian's second step
+    can leave the basin of convergence for good (Kirchhoff's helix held by a wrench at
+    32 cells, scenes/helix_wrench.toml: 256 -> 10.6 -> 719 and DIVERGED_MAX_IT after 25,
+    tests/test_helices.py).  A solve's result depends on its start only (a resumed run
+    equals an uninterrupted one).  Given PETSc snes_lag_* options (e.g. JACOBIAN_REUSE)
+    replace the rule.
 
     A solve SNES reports as converged is checked against the residual at the solution
     (_verify_residual): it must meet snes_atol or snes_rtol (times the initial norm),
@@ -449,7 +466,7 @@ class BlockSNES:
             self.system = ConstrainedSystem(self.system, y, list(links))
         self.x = self.system.x
         self.snes = PETSc.SNES().create(self.x.getComm())
-        self.snes.setFunction(self._residual, self.system.b)
+        self.snes.setFunction(self._snes_residual, self.system.b)
         self.snes.setJacobian(self._jacobian, self.system.A)
         self.prefix = prefix or f"dolfin_rod_{next(_ids)}_"
         self.snes.setOptionsPrefix(self.prefix)
@@ -477,17 +494,25 @@ class BlockSNES:
         self._start = self.x.duplicate() if self.fallback is not None else None
         self._residual_norm, self._initial_norm = np.inf, None
         self._bc_values = None
+        # (numpy indexes with its own integer type: int32 rows cost a conversion a solve)
+        self._bc_rows = np.asarray(self.system.bc_rows, dtype=np.intp)
         self._persists = tuple(str(settings.get(f"snes_lag_{k}_persists", False)).lower()
                                in ("true", "1", "yes") for k in ("jacobian", "preconditioner"))
         self.iterations = 0
         self.timings = {"residual": 0.0, "jacobian": 0.0}  # seconds spent in assembly
         self.counts = {"residual": 0, "jacobian": 0}      # assemblies
 
+    def _snes_residual(self, snes, x, b):
+        """SNES's function: _residual, and x kept (SNES also evaluates trial vectors;
+        _verify_residual: the norm at the solution)."""
+        self._residual(snes, x, b)
+        x.copy(self._x_at_residual)
+
     def _residual(self, snes, x, b):
+        """b = F(x) and its norm (_plain_newton's residual: always at its iterate)."""
         t0 = time.perf_counter()
         self.system.set(0, x, blocks=False)     # the block Functions: once solved
         self.system.residual(x, b, self._bc_values)
-        x.copy(self._x_at_residual)             # (_verify_residual: the norm at x)
         self._residual_norm = b.norm()
         if self._initial_norm is None:
             self._initial_norm = self._residual_norm
@@ -563,7 +588,7 @@ class BlockSNES:
         """
         self.system.get(0, self.x)
         target = self.system.bc_values()
-        start = self.x.getArray(readonly=True)[self.system.bc_rows]
+        start = self.x.getArray(readonly=True)[self._bc_rows]
         fresh = fresh_jacobian and any(self._persists)
         if fresh:  # (petsc4py 3.22 has no SNESSetLag*Persists: via the options database)
             self._set_persists((False, False))
@@ -571,8 +596,10 @@ class BlockSNES:
         if self.scale is not None:
             self.scale.start(self.snes)
         try:
-            for k in range(1, sub_solves + 1):
-                self._bc_values = start + (k / sub_solves) * (target - start)  # fixed in a solve
+            path = target - start
+            for k in range(1, sub_solves + 1):  # (fixed in a solve; the last factor, 1, exact)
+                self._bc_values = start + (path if k == sub_solves
+                                           else (k / sub_solves) * path)
                 self._solve_once()
         finally:
             if fresh:
@@ -624,9 +651,10 @@ class BlockSNES:
         self.snes.solve(None, self.x)
         self._outcome(self.snes.getConvergedReason())
 
-    def _outcome(self, reason: int) -> None:
+    def _outcome(self, reason: int, at_solution: bool = False) -> None:
         """The solve's iterations counted; SolverError unless it converged to a residual
-        that meets the tolerances (_verify_residual)."""
+        that meets the tolerances (_verify_residual; ``at_solution``: the last residual
+        was evaluated at the solution, as _plain_newton's always is)."""
         self.iterations += self.snes.getIterationNumber()
         if reason == PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE:
             # a failed factorisation (a zero pivot at one bad iterate) must not fail the
@@ -636,33 +664,41 @@ class BlockSNES:
             self._ksp.getPC().setFailedReason(PETSc.PC.FailedReason.NOERROR)
         if reason <= 0 or not math.isfinite(self.snes.getFunctionNorm()):
             raise SolverError(_REASONS.get(reason, str(reason)), self.iterations)
-        self._verify_residual(reason)
+        self._verify_residual(reason, at_solution)
 
     def _plain_newton(self) -> None:
         """SNESSolve_NEWTONLS with the basic line search (PETSc 3.22 and 3.25) without
         SNES: x <- x - J^-1 F(x) (J by the Jacobian rule, solved by SNES's KSP; the
         terms' update limit as the line search's pre-check) until the convergence test
-        (newton_test: PETSc's default with the step scale), snes_max_it
+        (NewtonTest: PETSc's default with the step scale), snes_max_it
         (DIVERGED_MAX_IT), a failed linear solve (DIVERGED_LINEAR_SOLVE) or a non-finite
         residual norm (compat.NONFINITE_NORM) stops it; SNES's reason, iteration count
-        and residual norm are then set as SNESSolve leaves them."""
+        and residual norm are then set as SNESSolve leaves them.  Unlike SNESSolve, a
+        step on a kept Jacobian that does not lower the residual norm is taken back and
+        taken again with a new Jacobian (not counted as an iteration; the Jacobian rule)."""
         snes, ksp, x, b = self.snes, self._ksp, self.x, self.system.b
         if self._update is None:
-            self._update = x.duplicate()
-        dx, limits = self._update, self._limits_step()
-        _, _, _, max_it = snes.getTolerances()
+            self._update, self._step_start = x.duplicate(), x.duplicate()
+        dx, start, limits = self._update, self._step_start, self._limits_step()
         self._initial_norm = None
         self._residual(snes, x, b)
-        fnorm0 = fnorm = self._residual_norm
-        scale = scale_terms(self.scale)
-        it, reason = 0, newton_test(snes, 0, fnorm, fnorm0, None, self.step_scale, *scale)
+        fnorm = self._residual_norm
+        test = NewtonTest(snes, fnorm, self.step_scale, *scale_terms(self.scale))
+
+        def step_norms():
+            return x.norm(), dx.norm()
+
+        it, reason, retake = 0, test(0, fnorm, step_norms), False
         reasons = PETSc.SNES.ConvergedReason
         while not reason:
-            if it == max_it:
+            if it == test.max_it:
                 reason = reasons.DIVERGED_MAX_IT
                 break
-            if self._new_jacobian_needed(it, fnorm):
+            fresh = self._new_jacobian_needed(it, fnorm) or retake
+            if fresh:
                 self._assemble_jacobian()
+            else:
+                x.copy(start)
             ksp.solve(b, dx)
             if ksp.getConvergedReason() < 0:
                 reason = reasons.DIVERGED_LINEAR_SOLVE
@@ -671,36 +707,54 @@ class BlockSNES:
                 self._limit_step(x, dx)
             x.axpy(-1.0, dx)
             self._residual(snes, x, b)
+            retake = not fresh and not self._residual_norm <= fnorm
+            if retake:      # a kept Jacobian's step that did not lower the residual norm:
+                start.copy(x)               # taken back, and taken again with a new one
+                self._residual(snes, x, b)  # (b and the forms' state at its start)
+                continue
             fnorm = self._residual_norm
             if not math.isfinite(fnorm):
                 reason = compat.NONFINITE_NORM
                 break
             it += 1
-            reason = newton_test(snes, it, fnorm, fnorm0, lambda: (x.norm(), dx.norm()),
-                                 self.step_scale, *scale)
+            reason = test(it, fnorm, step_norms)
         snes.setConvergedReason(reason)
         snes.setIterationNumber(it)
         snes.setFunctionNorm(fnorm)
-        self._outcome(reason)
+        self._outcome(reason, at_solution=True)
 
     def round_off_floor(self) -> float:
-        """The order of the residual norm's round-off floor, eps || |J| h ||: a residual
-        entry sums terms of the size stiffness x strain-like quantity of order one (a unit
-        tangent, unit directors), which cancel to the (much smaller) load; the Jacobian's
-        entries are stiffness / h, so |J| times the cell size h (the change of a position
-        across a cell at unit strain) is the terms' size, row by row.  An upper estimate:
-        on the column of benchmarks/stability_check.py (B = 1e5..3e5, 32-256 cells) the
-        residual fluctuates at 1e-11..1e-10, 20-100x below it, above an snes_atol of 1e-11
-        (tests/test_solvers_floor.py).  Uses the last assembled Jacobian (its size, not
-        its exactness, matters); computed only when a step test's residual grew; 0
-        before any Jacobian."""
-        if not self.system.A.assembled:
+        """The order of the residual norm's round-off floor, eps || |J| (|y| + h) ||: a
+        residual entry sums terms of the size stiffness x strain-like quantity of order
+        one (a unit tangent, unit directors), which cancel to the (much smaller) load;
+        the Jacobian's entries are stiffness / h, so |J| times the cell size h (the change
+        of a position across a cell at unit strain) is the terms' size, row by row; and
+        the unknowns carry their own rounding, eps |y|, which |J| turns into the rows'
+        (a ring: displacements from the straight reference of the order of its length,
+        unit quaternions; its residual at an equilibrium is 1.0e-9 at 32 cells, 1.1e-8
+        at 128, above eps || |J| h || = 8.6e-10, 1.7e-9, and below this estimate,
+        1.1e-8, 8.5e-8; tests/test_ring.py).  An upper estimate: on the column of
+        benchmarks/stability_check.py (B = 1e5..3e5, 32-256 cells, |y| ~ 1e-6) the
+        residual fluctuates at 1e-11..1e-10, 20-100x below it, above an snes_atol of
+        1e-11 (tests/test_solvers_floor.py).  Uses the last assembled Jacobian (its
+        size, not its exactness, matters); computed only when a step test's residual
+        grew; 0 before any Jacobian."""
+        A = self.system.A
+        if not A.assembled:
             return 0.0
-        ai, _, values = self.system.A.getValuesCSR()     # owned rows
-        row_sums = self.system.b.duplicate()
-        row_sums.setArray(np.add.reduceat(np.abs(values), ai[:-1]) if len(values)
-                          else np.zeros(len(ai) - 1))
-        return float(np.finfo(float).eps * self._cell_size() * row_sums.norm())
+        rows, columns, values = A.getValuesCSR()        # owned rows, global columns
+        size = A.createVecRight()
+        self.x.copy(size)
+        size.abs()
+        size.shift(self._cell_size())
+        magnitudes = PETSc.Mat().createAIJ(A.getSizes(), csr=(rows, columns, np.abs(values)),
+                                           comm=A.getComm())
+        terms = A.createVecLeft()
+        magnitudes.mult(size, terms)
+        floor = float(np.finfo(float).eps * terms.norm())
+        for work in (magnitudes, size, terms):
+            work.destroy()
+        return floor
 
     def _cell_size(self) -> float:
         """The mesh's extent (bounding-box diagonal over all ranks) over its cells."""
@@ -713,12 +767,14 @@ class BlockSNES:
         cells = mesh.topology.index_map(mesh.topology.dim).size_global
         return float(np.linalg.norm(high - low)) / cells
 
-    def _verify_residual(self, reason: int) -> None:
+    def _verify_residual(self, reason: int, at_solution: bool = False) -> None:
         """SNES reported convergence: the residual at the solution must meet the
         tolerances, whatever the options (ksponly, a loose linear solve, a convergence
-        test that trusts a small step); else SolverError with the norms."""
-        if not self.x.equal(self._x_at_residual):
-            self.snes.computeFunction(self.x, self._r)   # -> _residual at the solution
+        test that trusts a small step); else SolverError with the norms.  The residual
+        is evaluated at the solution first unless ``at_solution`` or the last one was
+        there."""
+        if not at_solution and not self.x.equal(self._x_at_residual):
+            self.snes.computeFunction(self.x, self._r)   # -> _snes_residual at the solution
         norm, initial = self._residual_norm, self._initial_norm
         floor = self.round_off_floor() if norm > initial and \
             reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE else 0.0

@@ -40,7 +40,7 @@ from ..fem.solvers import BlockSNES, SolverError
 from ..mpi import largest_on_ranks
 from .schemes import alpha_rho_inf
 from .step_control import (CUT_FACTOR, IntegrationError, StepControl, StepStats, check_run,
-                           march, nominal_steps, step_failure)
+                           load_path, march, nominal_steps, step_failure)
 
 
 def default_options(comm, second_order: bool = True, direct: bool = False) -> dict:
@@ -373,7 +373,7 @@ class LieGeneralizedAlpha:
         if lookahead is not None:
             lookahead.value = first_step
         try:
-            self._initial_solver.solve()
+            self._start_solve(t0)
             if p.rest_in_contact is not None:
                 p.rest_in_contact(self._solve_from_rest)
             if 0 in self.order:
@@ -383,9 +383,10 @@ class LieGeneralizedAlpha:
                 f.x.array[:] = array
             raise IntegrationError(f"the start at t = {t0:.6g}: {err}" + (
                 "; the start is the equilibrium with the loads and end motions at t0, "
-                "sought from the starting state: apply them gradually (a ramp or "
-                "smooth_step history), or start nearer to it (a quasi-static rod's "
-                "initial.shape is only Newton's first guess)" if 0 in self.order else ""),
+                "sought from the starting state (the loads approached in parts down to "
+                f"1/{2 ** (self.max_cuts + 1)} of them): apply the end motions gradually (a "
+                "ramp or smooth_step history), or start nearer to it (a quasi-static rod's "
+                "initial.shape is only Newton's first guess)" if not p.inertia else ""),
                 t0) from err
         finally:
             for bc, value in zip(zeroed, values):
@@ -398,6 +399,50 @@ class LieGeneralizedAlpha:
             if self.order[i]:
                 self.alg_n[i].x.array[:] = a.x.array
         self._started = True
+
+    def _start_solve(self, t0: float) -> None:
+        """The start's solve at t0; a quasi-static one (no inertia: the positions and
+        rotations are algebraic) whose Newton fails under its loads (not zero) is
+        approached on a load path (_loaded_in_parts)."""
+        p = self.problem
+        given = [a.x.array.copy() for a in self._unknowns_at_start()]
+        try:
+            self._initial_solver.solve()
+        except SolverError:
+            if p.inertia or not any(np.any(load.at(t0)) for load in p.loads):
+                raise
+            for a, array in zip(self._unknowns_at_start(), given):
+                a.x.array[:] = array
+            self._loaded_in_parts(t0)
+
+    def _loaded_in_parts(self, t0: float) -> None:
+        """The loads at t0 approached from none (the given state is unloaded; a load
+        constant in time puts all of it on the start, where cutting steps would not
+        lessen it) on a load path (step_control.load_path): each part solved, checked
+        and, below the whole load, committed (rotation vectors: a part turns a node by its
+        own increment, which the chart bounds by a quarter turn).  Then the loads are
+        whole."""
+        p = self.problem
+        unknowns = self._unknowns_at_start()
+
+        def part(factor: float) -> None:
+            p.set_loads(t0)
+            p.scale_loads(factor)
+            state = [a.x.array.copy() for a in unknowns]
+            try:
+                self._initial_solver.solve()
+                self._checked(p)
+            except SolverError:
+                for a, array in zip(unknowns, state):
+                    a.x.array[:] = array
+                raise
+            if factor < 1.0:
+                p.after_step()
+
+        try:
+            load_path(part, self.max_cuts)
+        finally:
+            p.set_loads(t0)
 
     def _solve_from_rest(self) -> None:
         """The start's accelerations solved again (problem.rest_in_contact moved the

@@ -32,6 +32,27 @@ class IntegrationError(RuntimeError):
         self.t = t
 
 
+def load_path(solve: Callable[[float], None], max_cuts: int) -> None:
+    """A static problem's loads approached on a load path, where Newton failed under all
+    of them at once and a smaller step would not lessen them (a load constant in time is
+    all on the start of a quasi-static run): ``solve(factor)`` solves with that part of
+    them (0 < factor <= 1) from the last part's state, or raises SolverError with its
+    state undone.  The first part is a half, the next twice as large after a success,
+    half as large after a failure; SolverError when a part would be halved below
+    1/2^(max_cuts + 1) of the loads."""
+    done, part = 0.0, 0.5
+    while done < 1.0:
+        factor = min(done + part, 1.0)
+        try:
+            solve(factor)
+        except SolverError:
+            part /= 2
+            if part < 0.5 ** (max_cuts + 1):
+                raise
+            continue
+        done, part = factor, 2 * part
+
+
 def step_failure(t: float, cuts: int, h: float, err: Exception, problem) -> IntegrationError:
     """The error of a step that still failed after ``cuts`` step cuts (last step h), with
     where the problem says it failed (``problem.where_failed``: e.g. a rod's segment pair

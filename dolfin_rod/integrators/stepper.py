@@ -21,7 +21,7 @@ from ..mpi import largest_on_ranks
 from .lie_alpha import solver_settings
 from .schemes import Scheme, get_scheme
 from .step_control import (CUT_FACTOR, ROUND_OFF, IntegrationError, StepStats, check_run,
-                           grown, march, nominal_steps, same_step, step_failure)
+                           grown, load_path, march, nominal_steps, same_step, step_failure)
 
 __all__ = ["SchemeStepper", "IntegrationError", "StepStats", "step_forms"]
 
@@ -80,10 +80,23 @@ class _StepResidual:
                                 static=not problem.inertia)
         self._dt_last = None
 
-    def solve(self, t_n: float, dt: float, sub_solves: int = 1) -> int:
+    def loads_change(self, t_n: float, dt: float, unloaded: bool) -> bool:
+        """Whether a stage's loads differ from a load path's start (solve)."""
+        return any(np.any(load.at(t_n + c * dt) != (0.0 if unloaded else load.at(t_n)))
+                   for c, loads in self.stage_loads for _, load in loads)
+
+    def solve(self, t_n: float, dt: float, sub_solves: int = 1, factor: float = 1.0,
+              unloaded: bool = False) -> int:
+        """The step from t_n; with ``factor`` < 1 a part of its loads on a load path:
+        L_0 + factor (L(t) - L_0) from L_0 = L(t_n), the last accepted state's loads, or
+        0 (``unloaded``: before the first step)."""
         for c, loads in self.stage_loads:
             for const, load in loads:
-                const.value[...] = load.at(t_n + c * dt)
+                value = load.at(t_n + c * dt)
+                if factor != 1.0:
+                    base = 0.0 if unloaded else load.at(t_n)
+                    value = base + factor * (value - base)
+                const.value[...] = value
         self.problem.set_bcs(t_n + dt)
         fresh, self._dt_last = dt != self._dt_last, dt  # a reused Jacobian holds the old dt
         return self.solver.solve(fresh_jacobian=fresh, sub_solves=sub_solves)
@@ -215,11 +228,15 @@ class SchemeStepper:
             if self.predictor == "linear":
                 f.x.array[:] += dt * r.x.array
         self.dt.value = dt
+        jump = False
         try:
             its = self._residual(scheme).solve(t, dt, self._sub_solves)
         except SolverError:
             self._restore()
-            raise
+            if self.problem.inertia or not self._residual(scheme).loads_change(
+                    t, dt, unloaded=self.stats.steps == 0):
+                raise
+            its, jump = self._on_load_path(scheme, t, dt), True
         if not all(np.isfinite(f.x.array).all() for f in self.problem.fields):
             self._restore()
             raise SolverError("non-finite solution", its)
@@ -232,11 +249,40 @@ class SchemeStepper:
             rate.x.array[:] = scheme.rate_after_step(f.x.array, fn.x.array, fnm1.x.array,
                                                      rate_n.x.array, dt)
             fnm1.x.array[:] = fn.x.array
+        if jump:    # a load the steps do not resolve: rates and history start after it
+            for rate in self.problem.rates:
+                rate.x.array[:] = 0.0
         self._after_step()
-        self.history_steps = min(self.history_steps + 1, 2)
+        self.history_steps = 0 if jump else min(self.history_steps + 1, 2)
         self._last_step = dt
         self.stats.steps += 1
         self.stats.newton_iterations += its
+
+    def _on_load_path(self, scheme: Scheme, t: float, dt: float) -> int:
+        """A static step (no inertia: a quasi-static rod) whose Newton failed under its
+        loads, which a smaller step would not lessen (a load constant in time is all on
+        the first step): the step's loads approached from the last accepted state's (none
+        before the first step: the given state is unloaded) on a load path
+        (step_control.load_path), each part solved from the last; SolverError (state
+        restored) if that fails.  The step then took a load it does not resolve (a jump):
+        step() starts the rates (0) and the history (the startup scheme) after it."""
+        residual, first, its = self._residual(scheme), self.stats.steps == 0, [0]
+
+        def part(factor: float) -> None:
+            state = self._state()
+            try:
+                its[0] += residual.solve(t, dt, self._sub_solves, factor, unloaded=first)
+            except SolverError:
+                for f, array in zip(self.problem.fields, state):
+                    f.x.array[:] = array
+                raise
+
+        try:
+            load_path(part, self.max_cuts)
+        except SolverError:
+            self._restore()
+            raise
+        return its[0]
 
     def _after_step(self) -> None:
         """problem.after_step, and the history moved with what it changes: a rotation

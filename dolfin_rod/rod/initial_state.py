@@ -164,7 +164,7 @@ def _set_velocities(model, start) -> None:
 
 BALANCE = ("displacement", "quaternion", "rotation_increment", "gauge_multiplier",
            "constraint_multiplier")
-# A settle in contact that one Newton solve does not reach (_settle_in_pseudo_time)
+# A settle that one Newton solve does not reach (_settle_in_pseudo_time)
 SETTLE_STEPS = 200        # pseudo-time steps at most
 TETHER_RELEASE = 8.0      # the tether's stiffness divided by this after an accepted step
 TETHER_HOLD = 4.0         # ... multiplied by this after a failed one
@@ -179,9 +179,11 @@ def settle(model, t: float) -> None:
     """Static equilibrium of the positions and rotations (the blocks of BALANCE; natural
     strains fixed) with the loads and supports at t, from the current state, rates and
     accelerations held at zero meanwhile; rotation vectors: committed to the stored
-    rotations.  With contact (obstacles, segment pairs), where one Newton solve from the
-    start fails or ends inside an obstacle, in pseudo-time (_settle_in_pseudo_time).
-    ValueError if none is found."""
+    rotations.  First one Newton solve from the current state (a rod an end holds; with
+    contact, its state checked: no node inside an obstacle); where that fails, or no end
+    holds the rod's rotation, in pseudo-time (_settle_in_pseudo_time: a large deflection,
+    a rod resting on obstacles, a pinned or jointed rod whose spin nothing holds).
+    ValueError (start.equilibrium) if none is found."""
     unk, problem = model.unknowns, model.problem
     names = [n for n in model.names if n in BALANCE]
     moving = [g for g in [*unk.r.values(), *unk.acc.values()] + [
@@ -196,32 +198,36 @@ def settle(model, t: float) -> None:
     fields = [unk.f[n] for n in names]
     law = (model.contact.law if model.contact else
            model.segment_terms[0].law if model.segment_terms else None)
-    tether = keeper = None
-    if law is not None:
-        h = model.length / sum(model.layout.n_cells)
-        tether = Tether([(unk.f["displacement"], 1.0), (unk.f[unk.rotation], h * h)])
-        keeper = model.contact.gap_keeping() if model.contact else None
-    solver = BlockSNES([model.residual[n] for n in names], fields,
-                       [bc for n in names for bc in model.bcs_of(n)],
-                       {"snes_max_it": 50}, step_scale=problem.configuration_norm(),
-                       links=links,
-                       terms=[*problem.terms, *(term for term in (tether, keeper) if term)],
-                       force_scale=problem.force_scale, static=True)
+    bcs = [bc for n in names for bc in model.bcs_of(n)]
+
+    def solver(*terms):
+        return BlockSNES([model.residual[n] for n in names], fields, bcs, {"snes_max_it": 50},
+                         step_scale=problem.configuration_norm(), links=links,
+                         terms=[*problem.terms, *terms], force_scale=problem.force_scale,
+                         static=True)
+
     given = [f.x.array.copy() for f in fields]
     try:
         try:
             if not rotation_held(model):    # (resting on an obstacle: singular at first)
                 raise SolverError("no end holds the rod", 0)
-            solver.solve()
-            reason = problem.check_step() if law is not None else None
+            one = solver()
+            one.solve()
+            reason = problem.check_step()
             if reason:
-                raise SolverError(reason, solver.iterations)
+                raise SolverError(reason, one.iterations)
         except SolverError:
-            if law is None:
-                raise
             for f, array in zip(fields, given):
                 f.x.array[:] = array
-            _settle_in_pseudo_time(model, solver, tether, keeper, fields, law.gap, t)
+            # a solver of its own (MUMPS, 2 ranks: a factorisation failed in the one
+            # solve failed the next solves of its solver); the tether's reach: a barrier's
+            # gap with contact (a node comes to rest within it), else a cell (a step of
+            # the large deflection the one solve missed)
+            h = model.length / sum(model.layout.n_cells)
+            tether = Tether([(unk.f["displacement"], 1.0), (unk.f[unk.rotation], h * h)])
+            keeper = model.contact.gap_keeping() if model.contact else None
+            _settle_in_pseudo_time(model, solver(*(term for term in (tether, keeper) if term)),
+                                   tether, keeper, fields, law.gap if law is not None else h, t)
     except SolverError as err:
         raise ValueError(f"{NO_SETTLE} from the starting shape at t = {t:g} ({err}): Newton "
                          "did not reach it under the whole load at once (a large "
@@ -234,35 +240,45 @@ def settle(model, t: float) -> None:
         model.commit_rotations()
 
 
+def supported(model) -> bool:
+    """Whether something holds the rod against rigid motions, as a static equilibrium
+    needs: an end support (clamped, pinned, a prescribed motion, a spring) or obstacles
+    to rest on (rod/start.py check_start's ``supported``)."""
+    return model.contact is not None or any(
+        bool(supports.values) or bool(supports.springs) for supports in model.end_supports)
+
+
 def rotation_held(model) -> bool:
     """Whether an end of a rod holds its rotation (clamped, or a prescribed rotation)."""
     return any("clamped" in supports.ends or bool(supports.rotation)
                for supports in model.end_supports)
 
 
-def _settle_in_pseudo_time(model, solver, tether, keeper, fields, gap: float,
+def _settle_in_pseudo_time(model, solver, tether, keeper, fields, reach: float,
                            t: float) -> None:
-    """The static equilibrium in contact by pseudo-time continuation: each step solves
+    """The static equilibrium by pseudo-time continuation: each step solves
     R(y) + k W (y - y_0) = 0 from the last accepted state y_0 (Tether: a spring of
     stiffness k per node tying each node to where it was, W weighting the rotations by
-    the cell length squared), its Newton updates shortened so that no node comes near an
-    obstacle faster than its gap allows (ObstacleContact.gap_keeping; segment pairs and
-    segment obstacles limit theirs always); an accepted step (converged, checked:
-    problem.check_step) is committed and k released by TETHER_RELEASE, a failed one is
-    undone and k raised by TETHER_HOLD.  The rod so travels to an obstacle it has to
-    reach, the barrier taking over gradually, and the tether, whose force is the rest of
-    the residual, k |W (y - y_0)|, fades; converged when that is below Newton's absolute
-    tolerance.  The tether also holds what nothing else holds (a free rod lying on a
-    frictionless floor: sliding along it, turning about its axis), where it is never
-    stretched.  k starts at S / (nodes delta): the force scale S (force_scale.py)
-    moves a node by about the barrier's gap delta.  ValueError (start.equilibrium) when
-    SETTLE_FAILURES steps in a row fail, or when it has not converged as k falls below
-    TETHER_FLOOR of its start, a node has moved by SETTLE_TRAVEL rod lengths or
-    SETTLE_STEPS are done (a rod nothing holds against its loads keeps moving: friction
-    has no force at rest)."""
+    the cell length squared: a proximal-point step, which descends to a stable
+    equilibrium), its Newton updates shortened so that no node comes near an obstacle
+    faster than its gap allows (ObstacleContact.gap_keeping; segment pairs and segment
+    obstacles limit theirs always); an accepted step (converged, checked:
+    problem.check_step, e.g. a rotation increment below a quarter turn) is committed and
+    k released by TETHER_RELEASE, a failed one is undone and k raised by TETHER_HOLD.
+    The rod so travels to an obstacle it has to reach, the barrier taking over
+    gradually, or bends through a large deflection in committed parts, and the tether,
+    whose force is the rest of the residual, k |W (y - y_0)|, fades; converged when that
+    is below Newton's absolute tolerance.  The tether also holds what nothing else holds
+    (a free rod lying on a frictionless floor: sliding along it, turning about its axis;
+    a pinned rod's spin), where it is never stretched.  k starts at S / (nodes reach):
+    the force scale S (force_scale.py) moves a node by about ``reach`` (a barrier's gap,
+    or a cell).  ValueError (start.equilibrium) when SETTLE_FAILURES steps in a row fail,
+    or when it has not converged as k falls below TETHER_FLOOR of its start, a node has
+    moved by SETTLE_TRAVEL rod lengths or SETTLE_STEPS are done (a rod nothing holds
+    against its loads keeps moving: friction has no force at rest)."""
     problem = model.problem
     nodes = fields[0].function_space.dofmap.index_map.size_global
-    tether.stiffness = first = problem.force_scale() / (nodes * gap)
+    tether.stiffness = first = problem.force_scale() / (nodes * reach)
     if keeper is not None:
         keeper.active = True
     problem.after_step()            # the contacts' path checks start here
@@ -309,7 +325,7 @@ def _settle_in_pseudo_time(model, solver, tether, keeper, fields, gap: float,
 
 
 class Tether:
-    """The pseudo-time term of a settle in contact (fem/assembly add_terms): k w (y - y_0)
+    """The pseudo-time term of a settle (fem/assembly add_terms): k w (y - y_0)
     on the owned rows of the ``fields`` [(Function, weight w)], y_0 the state at the
     first residual after ``restart`` (a solve's start); k = ``stiffness`` (0: no term,
     bit for bit)."""

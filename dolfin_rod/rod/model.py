@@ -818,7 +818,7 @@ class RodModel(FEModel):
             {piece.name: given[rod] for piece, rod in zip(self.rods, self.rod_names)
              if rod in given} if isinstance(given, dict) else given     # a rod's: its pieces'
             for given in (natural_curvature, natural_stretch))
-        held = initial_state.rotation_held(self) or self.contact is not None
+        held = initial_state.supported(self)
         if len(self.splits) == 1:
             check_start(start, self.length, self.dynamic, supported=held)
             if self.rods[0].closed:

@@ -468,7 +468,8 @@ def _check_rod_start(scene: Scene) -> None:
                                           "schemes start from the state alone)")
     bnd = scene["boundary"]
     if ini["equilibrium"] and not scene["obstacles"] and not any(
-            bnd[end] == "clamped" or bnd[f"{end}_rotation"] for end in ("start", "end")):
+            bnd[end] != "free" or bnd[f"{end}_rotation"] or bnd[f"{end}_spring"]
+            for end in ("start", "end")):
         raise err("initial.equilibrium", EQUILIBRIUM_NEEDS)
     if ini["rotation_centre"] is not None and ini["angular_velocity"] is None:
         raise err("initial.rotation_centre", "needs initial.angular_velocity (the rigid "

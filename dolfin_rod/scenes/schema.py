@@ -338,10 +338,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "equilibrium": Key(boolean, False, R + "dynamic rods: settle the positions and "
                            "rotations in static equilibrium with the loads at t = 0 from "
                            "the starting shape before the dynamics (quasi-static "
-                           "pre-loading; natural strains kept); needs an end holding its "
-                           "rotation, or obstacles, which the rod reaches in pseudo-time "
-                           "(docs/contact.md); a warning if the equilibrium it settles in "
-                           "is unstable (a column above its buckling load)"),
+                           "pre-loading; natural strains kept): one Newton solve, and "
+                           "where that fails (a large deflection) or no end holds the "
+                           "rotation, in pseudo-time (docs/rod.md); needs an end support "
+                           "(clamped, pinned, end rotation or spring) or obstacles to rest "
+                           "on (docs/contact.md); a warning if the equilibrium it settles "
+                           "in is unstable (a column above its buckling load)"),
         "acceleration": Key(choice(*STARTING_ACCELERATIONS), "balance",
                             R + "dynamic rods with rotation vectors: the accelerations the "
                             "first step starts from: balance (solved from the balance laws "
