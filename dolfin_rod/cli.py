@@ -185,11 +185,14 @@ def _check_lines(scene: Scene, ranks: int) -> list[str]:
         from .scenes.contact import contact_lines, touching
         from .scenes.physical import describe
         from .scenes.rules import rod_rotations_reason
+        from .scenes.schema import UNITS
+        system = None if scene["scene"]["units"] in (None, "SI") else \
+            UNITS[scene["scene"]["units"]]
         for rod in scene.rods or [None]:          # [[rods]]: each rod's derived tensors
             own = rod.scene if rod else scene
             label = f"rod {rod.name}: " if rod else ""
             lines += [f"derived: {label}{line}"
-                      for line in describe(own["material"]["derived"] or {})]
+                      for line in describe(own["material"]["derived"] or {}, system)]
         lines += kink_lines(scene)
         lines += [f"joint: {j.kind} {j.rods[0]}-{j.rods[1]} at {list(j.point)}"
                   + (f" about {list(j.axis)}" if j.axis is not None else "")

@@ -213,11 +213,14 @@ def choose_model(scene: Scene, ranks: int):
 def scene_warnings(scene: Scene, comm) -> None:
     """Warn (stderr, rank 0) before a run that explicit Euler would make diverge, of a
     section not small against the rod's length, of a Newton time.atol not small against
-    the forces, of a load that starts only after the run (scenes/run_warnings.py)."""
+    the forces, of a load that starts only after the run, of a ring whose stress-free
+    curvature is not its start's (scenes/run_warnings.py)."""
     from .scenes.run_warnings import (explicit_stability_warning, late_history_warnings,
-                                      slenderness_warnings, tolerance_warning)
+                                      ring_curvature_warning, slenderness_warnings,
+                                      tolerance_warning)
     for warning in [explicit_stability_warning(scene), *slenderness_warnings(scene),
-                    tolerance_warning(scene), *late_history_warnings(scene)]:
+                    tolerance_warning(scene), *late_history_warnings(scene),
+                    ring_curvature_warning(scene)]:
         if warning:
             print_on_root(comm, f"warning: {warning}", file=sys.stderr)
 

@@ -399,3 +399,45 @@ dt = 1.0
     message = str(info.value)
     assert "[material.shear_modulus]: Poisson's ratio must be in (-1, 0.5], got 49" in message
     assert "gives material.stiffness instead: A = (E I_22, E I_11, G J)" in message
+
+
+def test_check_gives_the_derived_tensors_in_the_scenes_units(tmp_path):
+    """`dolfin-rod check` of a scene in mm-N-s (a steel rod of radius 10 mm, E 2e5 MPa,
+    nu 0.3, rho 7.85e-9 t/mm^3) printed its derived quantities with SI's units ("area
+    314.159 m^2", "A = [1.5708e+09, ...] N m^2", "shear_modulus = 76923.1 Pa"): the
+    numbers are the scene's (mm, N), the labels were not.  Now in the scene's system;
+    SI (and a scene without units) as before."""
+    from test_cli import cli
+    text = """
+[scene]
+units = "UNITS"
+[geometry]
+length = 1000.0
+[section]
+shape = "circle"
+radius = 10.0
+[material]
+model = "hyperelastic"
+youngs_modulus = 2e5
+poisson_ratio = 0.3
+density = 7.85e-9
+[time]
+t_end = 1.0
+dt = 1.0
+"""
+    lines = {}
+    for units in ("mm-N-s", "SI"):
+        path = tmp_path / f"{units}.toml"
+        path.write_text(text.replace("UNITS", units))
+        out = cli("check", path)
+        assert out.returncode == 0, out.stderr
+        lines[units] = [x for x in out.stdout.splitlines() if x.startswith("derived:")]
+    assert lines["mm-N-s"][:3] == [
+        "derived: section: area 314.159 mm^2, I_11 7853.98 mm^4, I_22 7853.98 mm^4, "
+        "J 15708 mm^4",
+        "derived: A = [1.5708e+09, 1.5708e+09, 1.2083e+09] N mm^2",
+        "derived: B = [2.14199e+07, 2.14199e+07, 6.28319e+07] N"]
+    assert "derived: shear_modulus = 76923.1 N/mm^2" in lines["mm-N-s"]
+    assert "derived: density = 2.46615e-06 N s^2/mm^2 (rho A)" in lines["mm-N-s"]
+    assert "derived: A = [1.5708e+09, 1.5708e+09, 1.2083e+09] N m^2" in lines["SI"]
+    assert "derived: shear_modulus = 76923.1 Pa" in lines["SI"]

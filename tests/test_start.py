@@ -380,30 +380,11 @@ def test_polyline_rotations_keep_one_sign_near_a_half_turn():
     assert 0 < largest_change(model, x0) < 1e-4
 
 
-# Euler's column, clamped-free, EI = 1, L = 1: P_cr = pi^2 EI / (4 L^2)
-EULER_COLUMN = """
-[geometry]
-length = 1.0
-n_cells = 8
-[material]
-model = "hyperelastic"
-stiffness = { A = [1.0, 1.0, 1.0], B = [1e5, 1e5, 1e5] }
-density = 1.0
-section_inertia = 0.001
-[boundary]
-start = "clamped"
-end = "free"
-[loads]
-end_force = { type = "constant", value = [0.0, 0.0, -LOAD] }
-[initial]
-equilibrium = true
-[time]
-t_end = 0.02
-dt = 0.01
-[outputs]
-plots = false
-animation = false
-"""
+# Euler's column, clamped-free, EI = 1, L = 1: P_cr = pi^2 EI / (4 L^2) (the drooping
+# cantilever's rod under an end force along it)
+EULER_COLUMN = DROOPING.replace(
+    "gravity = [-60.0, 0.0, 0.0]", 'end_force = { type = "constant", value = [0.0, 0.0, '
+    '-LOAD] }') + "[outputs]\nplots = false\nanimation = false\n"
 
 
 @pytest.mark.parametrize("ranks", [0, 2])
@@ -427,3 +408,51 @@ def test_unstable_equilibrium_start_is_said(tmp_path, ranks, factor):
         assert unstable == []
     else:
         assert len(unstable) == 1 and "(2 negative eigenvalues of the tangent" in unstable[0]
+
+
+def test_unstable_equilibrium_start_with_contact_is_said_once(tmp_path):
+    """scenes/supercoiled_minicircle.toml clamped at its weld and settled planar
+    (initial.equilibrium): twisted by Delta Lk = 2 turns, past Michell's sqrt(3) A/C =
+    0.87, the planar ring is unstable.  A scene with contact starts twice (the first
+    start looks for overlaps while the scene is built): the terminal said the warning
+    twice (summary.json once); now once."""
+    import json
+    from test_cli import cli
+    from quick_scenes import ROOT
+    text = (ROOT / "scenes" / "supercoiled_minicircle.toml").read_text()
+    scene, out = tmp_path / "minicircle.toml", tmp_path / "out"
+    scene.write_text(text.replace('start = "free"', 'start = "clamped"')
+                     .replace("n_cells = 48", "n_cells = 24")
+                     .replace("t_end = 3.0", "t_end = 0.005")
+                     .replace("[boundary]", "[initial]\nequilibrium = true\n[boundary]"))
+    result = cli("run", scene, "--out", out)
+    assert result.returncode == 0, result.stderr
+    said = (result.stdout + result.stderr).count("warning: initial.equilibrium: the settled")
+    assert said == 1, result.stdout + result.stderr
+    warnings = json.loads((out / "summary.json").read_text())["warnings"]
+    unstable = [w for w in warnings if w.startswith("initial.equilibrium")]
+    assert len(unstable) == 1 and "negative eigenvalues of the tangent" in unstable[0], warnings
+
+
+@pytest.mark.parametrize("curvature, warned", [([0.0, 1.0, 0.0], False),
+                                               ([1.0, 0.0, 0.0], True),
+                                               ([0.0, -1.0, 0.0], True)])
+def test_a_ring_whose_stress_free_circle_is_not_its_start_is_warned_of(
+        tmp_path, curvature, warned):
+    """scenes/pinched_ring.toml (R = 1) is stress-free with reference_curvature [0, 1,
+    0], the circle it starts as (bending towards d1: about d2).  Given [1, 0, 0] (about
+    d1) its stress-free ring is the start turned a quarter turn about the tangents and
+    its quasi-static start diverged (DIVERGED_DTOL) with no hint (found by published);
+    `check` and `run` now warn, naming geometry.reference_curvature, before any work;
+    [0, -1, 0] (inside out) too."""
+    from quick_scenes import ROOT
+    from test_cli import cli
+    text = (ROOT / "scenes" / "pinched_ring.toml").read_text()
+    scene = tmp_path / "ring.toml"
+    scene.write_text(text.replace("reference_curvature = [0.0, 1.0, 0.0]",
+                                  f"reference_curvature = {curvature}"))
+    out = cli("check", scene)
+    assert out.returncode == 0, out.stderr
+    said = f"warning: {scene}: [geometry.reference_curvature]: a closed rod starts as the " \
+        "circle bending towards d1, its curvature 1 about d2"
+    assert (said in out.stderr) == warned, out.stderr

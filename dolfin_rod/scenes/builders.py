@@ -315,6 +315,8 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
         raise scene.error(key, f"the 'rod' model rejected the scene: {err}") from err
     initial = scene["initial"]
 
+    checked = []        # the start's stability: said once (a touching scene starts twice)
+
     def initial_state():
         try:
             model.set_initial_state(**natural_strains(scene), start=rod_starts(scene)
@@ -324,7 +326,9 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
             if not (colon and field.startswith("start.")):
                 raise
             raise scene.error(f"initial.{field.removeprefix('start.')}", reason) from None
-        warn_unstable_start(scene, model)
+        if not checked:
+            warn_unstable_start(scene, model)
+            checked.append(True)
 
     if touching(scene):    # an obstacle or a segment cutting the rod at t = 0: no solve
         from ..rod.obstacle_shapes import InitialOverlap

@@ -186,21 +186,46 @@ def _sum_terms(p: tuple, q: tuple) -> tuple:
                  for i in range(n))
 
 
-def describe(derived: dict) -> list[str]:
-    """Lines for ``dolfin-rod check``: the derived tensors with their units."""
-    units = {"A": "N m^2", "B": "N", "A_d": "N m^2", "B_d": "N", "M_d": "N m^2 s",
-             "N_d": "N s", "drag": "N s/m^2 (c_n, c_n, c_t)", "density": "kg/m (rho A)", "section_inertia": "kg m (rho I_11, "
-             "rho I_22)", "shear_modulus": "Pa", "poisson_ratio": "", "shear_factors": ""}
+# the derived quantities' units in SI (the physical keys' documented units) and, for
+# another unit system (schema.UNITS), the same dimensions in its length L, force F, time T
+DERIVED_DIMENSIONS = {
+    "A": ("N m^2", "F L^2"), "B": ("N", "F"), "A_d": ("N m^2", "F L^2"), "B_d": ("N", "F"),
+    "M_d": ("N m^2 s", "F L^2 T"), "N_d": ("N s", "F T"), "drag": ("N s/m^2", "F T/L^2"),
+    "density": ("kg/m", "F T^2/L^2"), "section_inertia": ("kg m", "F T^2"),
+    "shear_modulus": ("Pa", "F/L^2"), "poisson_ratio": ("", ""), "shear_factors": ("", "")}
+NOTES = {"drag": " (c_n, c_n, c_t)", "density": " (rho A)",
+         "section_inertia": " (rho I_11, rho I_22)"}
+
+
+def _unit(key: str, system: dict | None) -> str:
+    """The unit of a derived quantity (a key of DERIVED_DIMENSIONS, or "L" for a
+    length) in the unit ``system`` (schema.UNITS's; None: SI; dimensionless: none)."""
+    si, dims = DERIVED_DIMENSIONS.get(key, ("m", key))
+    if system is None or not dims:
+        return si
+    if system["length"] == "1":
+        return ""
+    return "".join(system[{"L": "length", "F": "force", "T": "time"}[c]]
+                   if c in "LFT" else c for c in dims)
+
+
+def describe(derived: dict, units: dict | None = None) -> list[str]:
+    """Lines for ``dolfin-rod check``: the derived tensors with their units, in the
+    scene's unit system ``units`` (its schema.UNITS entry; None: SI, the physical keys'
+    documented units)."""
     lines = []
+    length = _unit("L", units)
     if "section" in derived:
         s = derived["section"]
-        lines.append(f"section: area {s['area']:.6g} m^2, I_11 {s['I11']:.6g} m^4, I_22 "
-                     f"{s['I22']:.6g} m^4, J {s['J']:.6g} m^4")
-    for key, unit in units.items():
+        area, moment = (f" {length}^2", f" {length}^4") if length else ("", "")
+        lines.append(f"section: area {s['area']:.6g}{area}, I_11 {s['I11']:.6g}{moment}, "
+                     f"I_22 {s['I22']:.6g}{moment}, J {s['J']:.6g}{moment}")
+    for key in DERIVED_DIMENSIONS:
         if key in derived:
             value = derived[key]
             text = (f"{value:.6g}" if isinstance(value, float) else
                     "[" + ", ".join(f"{x:.6g}" for x in np.ravel(value)) + "]"
                     if not isinstance(value, str) else value)
-            lines.append(f"{key} = {text} {unit}".rstrip())
+            unit = (" " + _unit(key, units)).rstrip()
+            lines.append(f"{key} = {text}{unit}{NOTES.get(key, '')}")
     return lines

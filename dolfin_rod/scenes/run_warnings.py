@@ -2,7 +2,8 @@
 (torsion/stability.py, docs/stability.md); a [section] not small against the rod's length
 (a dimension given in mm instead of m); a given Newton tolerance time.atol not small
 against the scene's forces (a thin fibre in SI units: Newton accepts its first guess); a
-load or end motion that starts only at or after time.t_end."""
+load or end motion that starts only at or after time.t_end; a closed rod whose
+stress-free curvature is not the circle it starts as."""
 
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ from ..torsion.stability import euler_step_limit
 from .scene import Scene
 
 __all__ = ["explicit_stability_warning", "explicit_euler_limit", "slenderness_warnings",
-           "tolerance_warning", "residual_scale", "late_history_warnings"]
+           "tolerance_warning", "residual_scale", "late_history_warnings",
+           "ring_curvature_warning"]
 
 COEFFICIENTS = ("alpha", "alpha_d", "mu", "mu_d", "nu")
 # a rod's length over its section's largest dimension below which the scene is warned
@@ -88,6 +90,26 @@ def slenderness_warnings(scene: Scene) -> list[str]:
                        f"{length / d:.3g}): rod theory needs a slender body, L/d of 10 or "
                        "more; is a dimension in mm instead of m?")
     return out
+
+
+def ring_curvature_warning(scene: Scene) -> str | None:
+    """A closed rod (rod/ring.py) starts as the circle bending towards d1: curvature
+    2 pi / L about d2.  A warning if its reference (stress-free) curvature bends about
+    d1, or about d2 the other way: its stress-free ring is then the start turned about
+    the tangents (a quarter turn, or inside out), far from the start for Newton."""
+    geo = scene["geometry"]
+    if not geo.get("closed") or not scene.is_rod_material:
+        return None
+    u1, u2 = (float(u) for u in geo["reference_curvature"][:2])
+    if u1 == 0.0 and u2 >= 0.0:
+        return None
+    circle = 2 * np.pi / geo["length"]
+    return (f"{scene.source}: [geometry.reference_curvature]: a closed rod starts as the "
+            f"circle bending towards d1, its curvature {circle:.6g} about d2 (its "
+            f"stress-free ring: [0, {circle:.6g}, twist]); [{u1:g}, {u2:g}, ...] bends "
+            f"{'about d1' if u1 else 'the other way'}, a ring turned about its tangents "
+            "from the start: Newton may not reach the equilibrium from it (a quasi-static "
+            "start fails: DIVERGED_DTOL)")
 
 
 def _peak(spec) -> float:
