@@ -62,8 +62,7 @@ JACOBIAN_REUSE = {
     "snes_lag_preconditioner_persists": True,
 }
 # BlockSNES's Jacobian rule (option jacobian_reuse_ratio): a new Jacobian and LU at each
-# solve's first iteration, kept while every iteration reduces the residual norm 10-fold
-# (a kept one's step that does not lower it is taken again with a new one).
+# solve's first iteration, kept while every iteration reduces the residual norm 10-fold.
 # Dynamic rods: 1.0-1.5 Jacobians per step instead of 1.9-2.6; quasi-static roll-up in
 # 10 load steps: 15-20 % less time than full Newton (docs/performance.md).
 REUSE_RATIO = 0.1
@@ -419,15 +418,9 @@ class BlockSNES:
     Option ``jacobian_reuse_ratio`` r (not a PETSc option; default REUSE_RATIO, 0: a new
     Jacobian every iteration): each solve starts with a new Jacobian and LU and keeps
     them while every Newton iteration reduces the residual norm by at least the factor
-    r; after a slower iteration the next one builds a new one.  A step on a kept
-    Jacobian that does not lower the residual norm is taken back and taken again from
-    its start with a new Jacobian (in BlockSNES's own loop, _plain_newton: the default
-    options; under SNESSolve it stays): from a far start the kept Jacobian's second step
-    can leave the basin of convergence for good (Kirchhoff's helix held by a wrench at
-    32 cells, scenes/helix_wrench.toml: 256 -> 10.6 -> 719 and DIVERGED_MAX_IT after 25,
-    tests/test_helices.py).  A solve's result depends on its start only (a resumed run
-    equals an uninterrupted one).  Given PETSc snes_lag_* options (e.g. JACOBIAN_REUSE)
-    replace the rule.
+    r; after a slower iteration the next one builds a new one.  A solve's result depends
+    on its start only (a resumed run equals an uninterrupted one).  Given PETSc
+    snes_lag_* options (e.g. JACOBIAN_REUSE) replace the rule.
 
     A solve SNES reports as converged is checked against the residual at the solution
     (_verify_residual): it must meet snes_atol or snes_rtol (times the initial norm),
@@ -673,13 +666,11 @@ class BlockSNES:
         (NewtonTest: PETSc's default with the step scale), snes_max_it
         (DIVERGED_MAX_IT), a failed linear solve (DIVERGED_LINEAR_SOLVE) or a non-finite
         residual norm (compat.NONFINITE_NORM) stops it; SNES's reason, iteration count
-        and residual norm are then set as SNESSolve leaves them.  Unlike SNESSolve, a
-        step on a kept Jacobian that does not lower the residual norm is taken back and
-        taken again with a new Jacobian (not counted as an iteration; the Jacobian rule)."""
+        and residual norm are then set as SNESSolve leaves them."""
         snes, ksp, x, b = self.snes, self._ksp, self.x, self.system.b
         if self._update is None:
-            self._update, self._step_start = x.duplicate(), x.duplicate()
-        dx, start, limits = self._update, self._step_start, self._limits_step()
+            self._update = x.duplicate()
+        dx, limits = self._update, self._limits_step()
         self._initial_norm = None
         self._residual(snes, x, b)
         fnorm = self._residual_norm
@@ -688,17 +679,14 @@ class BlockSNES:
         def step_norms():
             return x.norm(), dx.norm()
 
-        it, reason, retake = 0, test(0, fnorm, step_norms), False
+        it, reason = 0, test(0, fnorm, step_norms)
         reasons = PETSc.SNES.ConvergedReason
         while not reason:
             if it == test.max_it:
                 reason = reasons.DIVERGED_MAX_IT
                 break
-            fresh = self._new_jacobian_needed(it, fnorm) or retake
-            if fresh:
+            if self._new_jacobian_needed(it, fnorm):
                 self._assemble_jacobian()
-            else:
-                x.copy(start)
             ksp.solve(b, dx)
             if ksp.getConvergedReason() < 0:
                 reason = reasons.DIVERGED_LINEAR_SOLVE
@@ -707,11 +695,6 @@ class BlockSNES:
                 self._limit_step(x, dx)
             x.axpy(-1.0, dx)
             self._residual(snes, x, b)
-            retake = not fresh and not self._residual_norm <= fnorm
-            if retake:      # a kept Jacobian's step that did not lower the residual norm:
-                start.copy(x)               # taken back, and taken again with a new one
-                self._residual(snes, x, b)  # (b and the forms' state at its start)
-                continue
             fnorm = self._residual_norm
             if not math.isfinite(fnorm):
                 reason = compat.NONFINITE_NORM
