@@ -12,6 +12,7 @@ from dolfin_rod import (Arc, Helix, Polyline, RodModel, RodParameters, StartingS
                         Straight, TimeStepper)
 from dolfin_rod.rod import EndLoad
 from dolfin_rod.theory.rotations import np_quaternion_from_rotation_vector, np_rotation_matrix
+from test_settle_contact import SLOPE
 
 EA, RHO_A, I11, I22 = 50.0, 2.0, 0.03, 0.02
 PLACE = {"position": (0.4, -1.0, 2.5), "orientation": (0.3, -0.7, 1.1)}
@@ -413,9 +414,10 @@ def test_unstable_equilibrium_start_is_said(tmp_path, ranks, factor):
 def test_unstable_equilibrium_start_with_contact_is_said_once(tmp_path):
     """scenes/supercoiled_minicircle.toml clamped at its weld and settled planar
     (initial.equilibrium): twisted by Delta Lk = 2 turns, past Michell's sqrt(3) A/C =
-    0.87, the planar ring is unstable.  A scene with contact starts twice (the first
-    start looks for overlaps while the scene is built): the terminal said the warning
-    twice (summary.json once); now once."""
+    0.87, the planar ring is unstable.  A scene with contact started twice (the first
+    start looked for overlaps while the scene was built): the terminal said the warning
+    twice (summary.json once); now once (the scene starts once:
+    test_a_scene_with_contact_starts_and_settles_once)."""
     import json
     from test_cli import cli
     from quick_scenes import ROOT
@@ -456,3 +458,43 @@ def test_a_ring_whose_stress_free_circle_is_not_its_start_is_warned_of(
     said = f"warning: {scene}: [geometry.reference_curvature]: a closed rod starts as the " \
         "circle bending towards d1, its curvature 1 about d2"
     assert (said in out.stderr) == warned, out.stderr
+
+
+# a free rod above a plane, its weight towards it, settled onto it (tests/test_settle_contact.py)
+RESTING = SLOPE.replace("gravity = [-8.5, 0.0, -4.9]", "gravity = [-9.81, 0.0, 0.0]")
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("given, settles", [("crossing_rods.toml", 0), (RESTING, 1)])
+def test_a_scene_with_contact_starts_and_settles_once(given, settles, tmp_path, monkeypatch):
+    """A scene with contact makes its start while it is built (a rod starting inside an
+    obstacle or another rod is refused before the integrator is compiled); the run then
+    made it again, and settled again where initial.equilibrium is set (found by a user
+    trial).  Counted through the model's set_initial_state and rod/initial_state.settle
+    over a whole run: scenes/crossing_rods.toml (two rods, contact between them) starts
+    once, a free rod settled on a plane below it (initial.equilibrium) starts and
+    settles once.  The run's numbers are the same as with the doubled start (bit for bit:
+    docs/contact.md, "A start in contact")."""
+    import dolfin_rod
+    from dolfin_rod.rod import initial_state
+    from dolfin_rod.scenes import parse_scene
+    from quick_scenes import ROOT, quick_scene
+    calls = {"start": 0, "settle": 0}
+
+    def counted(name, function):
+        def count(*args, **kwargs):
+            calls[name] += 1
+            return function(*args, **kwargs)
+        return count
+
+    monkeypatch.setattr(RodModel, "set_initial_state",
+                        counted("start", RodModel.set_initial_state))
+    monkeypatch.setattr(initial_state, "settle", counted("settle", initial_state.settle))
+    scene = quick_scene(ROOT / "scenes" / given, steps=1, outputs__fields=False,
+                        outputs__animation=False, outputs__plots=False) if given.endswith(".toml") \
+        else parse_scene(given)
+    from mpi4py import MPI
+    out = MPI.COMM_WORLD.bcast(str(tmp_path / "out"), root=0)
+    result = dolfin_rod.run(scene, out=out, quiet=True)
+    assert result.status == "completed", result.summary
+    assert calls == {"start": 1, "settle": settles}

@@ -87,7 +87,11 @@ def build_ode(scene: Scene, comm=None):
 class FESimulation:
     """A model with ``.problem`` advanced by TimeStepper (or the PETSc TS integrator)."""
 
-    def __init__(self, name: str, model, scene: Scene, initial_state: Callable[[], float]):
+    def __init__(self, name: str, model, scene: Scene, initial_state: Callable[[], float],
+                 started: bool = False):
+        """``started``: ``initial_state`` already ran (a scene with contact checks its start
+        for overlaps at build): the first ``start()`` keeps that state, without a second
+        start (and a second settle)."""
         from ..fem.problem import SecondOrderProblem
         from ..integrators.choice import choose_integrator
         tim = scene["time"]
@@ -96,6 +100,7 @@ class FESimulation:
         self.comm = self.problem.comm
         self.fields = list(self.problem.fields)
         self._initial_state = initial_state
+        self._started = started
         self.continued = False      # the integrator continues a saved history (restart)
         lie = isinstance(self.problem, SecondOrderProblem)   # rotation vectors (rules.py)
         options = solver_options(scene, second_order=lie)
@@ -179,6 +184,9 @@ class FESimulation:
         self.ts.run(t0, t_end, dt, observer=lambda t, _: on_step(t) if t > t0 else None)
 
     def start(self) -> float:
+        if self._started:           # made at build (a rod's start returns no impulse)
+            self._started = False
+            return 0.0
         return float(self._initial_state() or 0.0)
 
     def begin(self, t0: float) -> None:
@@ -313,10 +321,6 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
     except ValueError as err:
         key = "material.energy" if str(err).startswith("energy") else "scene.model"
         raise scene.error(key, f"the 'rod' model rejected the scene: {err}") from err
-    initial = scene["initial"]
-
-    checked = []        # the start's stability: said once (a touching scene starts twice)
-
     def initial_state():
         try:
             model.set_initial_state(**natural_strains(scene), start=rod_starts(scene)
@@ -326,11 +330,10 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
             if not (colon and field.startswith("start.")):
                 raise
             raise scene.error(f"initial.{field.removeprefix('start.')}", reason) from None
-        if not checked:
-            warn_unstable_start(scene, model)
-            checked.append(True)
+        warn_unstable_start(scene, model)
 
-    if touching(scene):    # an obstacle or a segment cutting the rod at t = 0: no solve
+    if touching(scene):    # an obstacle or a segment cutting the rod at t = 0: refused
+        # before the integrator is built; the start made here is the run's (started=True)
         from ..rod.obstacle_shapes import InitialOverlap
         from ..rod.segments import PairOverlap
         try:
@@ -339,7 +342,7 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
         except PairOverlap as err:
             raise scene.error(err.key, str(err)) from None
-    return FESimulation("rod", model, scene, initial_state)
+    return FESimulation("rod", model, scene, initial_state, started=touching(scene))
 
 
 def warn_unstable_start(scene: Scene, model) -> None:
