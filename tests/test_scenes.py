@@ -95,7 +95,8 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "rope_over_boulder.toml": "rod", "rope_over_thin_bar.toml": "rod",
                   "continuum_snake.toml": "rod", "supercoiled_minicircle.toml": "rod",
                   "sedimenting_fibre.toml": "rod", "continuum_flagella.toml": "rod",
-                  "overhand_knot_tie.toml": "rod", "overhand_knot.toml": "rod"}
+                  "overhand_knot_tie.toml": "rod", "overhand_knot.toml": "rod",
+                  "axial_stretching.toml": "rod", "butterfly.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
@@ -701,6 +702,10 @@ def test_adaptive_ts_scene(tmp_path):
 # the same reference): test_bundled_scene_runs runs them serially only (make test-mpi
 # takes 3-6 s a scene); every other scene also runs here under mpirun.
 ON_TWO_RANKS_ELSEWHERE = {
+    "axial_stretching.toml":
+        "test_peer_examples::test_axial_stretching_settles_at_the_closed_form",
+    "butterfly.toml":
+        "test_peer_examples::test_butterfly_keeps_its_centre_of_mass_and_energy",
     "beck_column.toml": "test_vibration::test_modes_command_reports_flutter",
     "bent_frame.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
     "cantilever_creep.toml": "test_scenes::test_quasi_static_rod_scene_resumes_exactly",
