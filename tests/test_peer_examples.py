@@ -5,7 +5,10 @@ each against the example's own reference:
   at F L / (E a - F) instead (its stress divided by the dilatation; its run of the
   example, below, 0.0536626 m: that value to 1e-9);
 - scenes/butterfly.toml (ButterflyCase): a free rod released from a V keeps its centre of
-  mass and its energy (elastic + kinetic), the latter to second order in dt.
+  mass and its energy (elastic + kinetic), the latter to second order in dt;
+- scenes/vibrating_cantilever.toml (DisMech's cantilever_case): a cantilever started in
+  its first bending mode (initial.velocity's profile) vibrates at Euler-Bernoulli's
+  frequency, less Timoshenko's correction of this shearable rod with rotary inertia.
 Marked mpi: the same numbers on 2 ranks, and the 2-rank run equals the serial one."""
 
 from __future__ import annotations
@@ -18,12 +21,14 @@ import pytest
 from mpi4py import MPI
 
 from dolfin_rod import read_pvd, run_scene
+from dolfin_rod.scenes import SceneError, load_scene, parse_scene
 from quick_scenes import ROOT, assert_serial_run_equal, quick_scene
 
 comm = MPI.COMM_WORLD
 QUIET = dict(outputs__animation=False, outputs__plots=False)
 AXIAL = ROOT / "scenes/axial_stretching.toml"
 BUTTERFLY = ROOT / "scenes/butterfly.toml"
+CANTILEVER = ROOT / "scenes/vibrating_cantilever.toml"
 E_A = 1e4 * math.pi * 0.025**2         # N: E a of axial_stretching.toml
 FORCE = 1.0                            # N, its end force
 PYELASTICA_TIP = 0.0536626             # m: PyElastica 0.3's run of its example to t = 20 s
@@ -98,3 +103,88 @@ def test_butterfly_keeps_its_centre_of_mass_and_energy(tmp_path):
         # (1e-12 of it) over dt = 0.02 s is 8e-9 W (measured 2.1e-10 W)
         assert_serial_run_equal(BUTTERFLY, folder / "0.02", 1, atol=1e-8, time__t_end=10.0,
                                 time__dt=0.02, outputs__every=1, **QUIET)
+
+
+# vibrating_cantilever.toml: beta_1 L (cos b cosh b = -1), sigma of the first mode
+BETA, SIGMA = 1.8751040687116975, 0.7340955137589128
+RADIUS, E, G, K_SHEAR = 0.02, 1e5, 1e5 / 3, 0.9      # m, Pa, Pa (Poisson 0.5), Cowper's
+OMEGA_EB = BETA**2 * math.sqrt(E * RADIUS**2 / 4 / 500.0)    # beta^2 sqrt(EI/(rho a)), L = 1
+V_TIP = 0.005                                                # m/s
+
+
+def _first_mode(x: np.ndarray) -> tuple[np.ndarray, ...]:
+    """phi(x) = cosh b x - cos b x - sigma (sinh b x - sin b x) (b = beta_1, L = 1) and its
+    first three derivatives."""
+    b = BETA * x
+    ch, c, sh, s = np.cosh(b), np.cos(b), np.sinh(b), np.sin(b)
+    return (ch - c - SIGMA * (sh - s), BETA * (sh + s - SIGMA * (ch - c)),
+            BETA**2 * (ch + c - SIGMA * (sh + s)), BETA**3 * (sh - s - SIGMA * (ch + c)))
+
+
+def _timoshenko_period() -> float:
+    """The first period with rotary inertia and shear to first order (Rayleigh's quotient
+    with the Euler-Bernoulli mode phi): omega_T / omega_EB = 1 - (1/2) (r_g^2 int phi_s^2 /
+    int phi^2 + EI / (k G a) int phi_sss^2 / int phi_ss^2), r_g^2 = I / a = r^2 / 4."""
+    x = np.linspace(0.0, 1.0, 200001)
+    phi, d1, d2, d3 = _first_mode(x)
+    rotary = RADIUS**2 / 4 * np.trapezoid(d1**2, x) / np.trapezoid(phi**2, x)
+    shear = E * RADIUS**2 / 4 / (K_SHEAR * G) * np.trapezoid(d3**2, x) / np.trapezoid(d2**2, x)
+    return 2 * math.pi / OMEGA_EB * (1 + 0.5 * (rotary + shear))
+
+
+def test_the_scene_s_velocity_is_the_first_mode():
+    """The scene's polynomial (the Taylor series of phi(s) / phi(L) to s^15) against the
+    mode: within 2e-11 (its remainder 1.2e-11); the periods: Euler-Bernoulli's 12.636 s,
+    Timoshenko's 12.649 s (rotary inertia 4.6e-4, shear 1.5e-3 in omega^2)."""
+    velocity = load_scene(CANTILEVER)["initial"]["velocity"]
+    s = np.linspace(0.0, 1.0, 101)
+    mode = _first_mode(s)[0] / _first_mode(np.ones(1))[0]
+    np.testing.assert_allclose(velocity(s)[:, 0], V_TIP * mode, rtol=0, atol=2e-11 * V_TIP)
+    assert not velocity(s)[:, 1:].any()
+    assert 2 * math.pi / OMEGA_EB == pytest.approx(12.636131, rel=1e-7)
+    assert _timoshenko_period() == pytest.approx(12.648856, rel=1e-6)
+
+
+@pytest.mark.parametrize("velocity, key", [
+    ("{ value = [1.0, 0.0], profile = 1.0 }", "initial.velocity.value"),
+    ("{ value = [1.0, 0.0, 0.0], profile = { polynomial = [] } }",
+     "initial.velocity.profile.polynomial"),
+    ("{ value = [1.0, 0.0, 0.0] }", "initial.velocity.profile"),
+    ("{ value = [1.0, 0.0, 0.0], profile = 1.0, shape = 2 }", "initial.velocity.shape")])
+def test_a_bad_velocity_profile_is_named(velocity, key):
+    """A wrong velocity profile: one SceneError naming the key."""
+    text = CANTILEVER.read_text()
+    start = text.index("velocity = {")
+    text = text[:start] + f"velocity = {velocity}" + text[text.index("\n", start):]
+    with pytest.raises(SceneError) as err:
+        parse_scene(text)
+    assert f"[{key}]" in str(err.value), str(err.value)
+
+
+@pytest.mark.mpi
+def test_the_cantilever_vibrates_at_timoshenko_s_frequency(tmp_path):
+    """scenes/vibrating_cantilever.toml (50 cells, dt = 0.05 s, as bundled) over its
+    first period: the tip's up-crossing of zero at 12.64899 s, the period of the
+    Timoshenko-corrected mode 12.64886 s (above) 1.0e-5 apart (asserted 2e-4: halving dt
+    moves it by 3.3e-5, doubling the cells by 3.6e-5); DisMech's reference,
+    Euler-Bernoulli's 12.63613 s, is 1.0e-3 shorter (asserted 8e-4 to 1.2e-3: Timoshenko's
+    correction).  The tip's largest excursion 10.0570 mm against v_tip / omega_1 =
+    10.0555 mm (asserted 1e-3: the start is the Euler-Bernoulli mode without its angular
+    velocity, of other frequencies by 1e-3; measured 1.5e-4)."""
+    folder = Path(comm.bcast(str(tmp_path), root=0))
+    run = folder / "run"
+    summary = run_scene(quick_scene(CANTILEVER, 1, time__t_end=13.0, outputs__every=1,
+                                    **QUIET), run, quiet=True)
+    assert summary["status"] == "completed", summary["message"]
+    rows = _rows(run)
+    t, x = rows["time"], rows["tip_position_x"]
+    up = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))
+    assert len(up) == 1
+    i = up[0]
+    period = t[i] - x[i] * (t[i + 1] - t[i]) / (x[i + 1] - x[i])
+    assert period == pytest.approx(_timoshenko_period(), rel=2e-4)
+    assert 8e-4 < period * OMEGA_EB / (2 * math.pi) - 1 < 1.2e-3
+    assert x.max() == pytest.approx(V_TIP / OMEGA_EB, rel=1e-3)
+    if comm.size > 1 and comm.rank == 0:
+        assert_serial_run_equal(CANTILEVER, folder, 1, time__t_end=13.0, outputs__every=1,
+                                **QUIET)

@@ -47,7 +47,7 @@ from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient
                      section_inertia, spring_table, starting_shape, string, tensor_table,
                      toml_value,
                      ts_type_name,
-                     type_name, vector3)
+                     type_name, vector3, velocity_field)
 
 __all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "Tensor", "load_scene",
            "parse_scene", "load_entry_point", "SCHEMA", "SCHEMA_NOTES", "MODEL_NAMES",
@@ -324,8 +324,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      "L] (default: the polyline's own arc length, which must be L), normal = "
                      "[1, 0, 0] (gives d1)}; stretch, rest_arc_length: a pre-stretched start "
                      "(default: the stress-free shape)"),
-        "velocity": Key(vector3(), None, R + "velocity at t = 0 (length/time; dynamic rods; "
-                        "held ends stay at rest)"),
+        "velocity": Key(velocity_field, None, R + "velocity at t = 0 (length/time; dynamic "
+                        "rods; held ends stay at rest): [x, y, z], or along the rod {value = "
+                        "[x, y, z], profile = {polynomial = [c0, c1, ...]}} (value times "
+                        "c0 + c1 s + ..., s the arc length from the start: a mode shape)"),
         "angular_velocity": Key(vector3(), None, R + "spatial angular velocity w at t = 0 "
                                 "(rad/time; dynamic rods)"),
         "rotation_centre": Key(vector3(), None, R + "with angular_velocity: the rod starts "
