@@ -97,7 +97,7 @@ BUNDLED_MODELS = {"torsion_relaxation.toml": "ode", "torsion_creep.toml": "ode",
                   "sedimenting_fibre.toml": "rod", "continuum_flagella.toml": "rod",
                   "overhand_knot_tie.toml": "rod", "overhand_knot.toml": "rod",
                   "axial_stretching.toml": "rod", "butterfly.toml": "rod",
-                  "vibrating_cantilever.toml": "rod"}
+                  "vibrating_cantilever.toml": "rod", "hanging_ring.toml": "rod"}
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
@@ -709,6 +709,8 @@ ON_TWO_RANKS_ELSEWHERE = {
         "test_peer_examples::test_butterfly_keeps_its_centre_of_mass_and_energy",
     "vibrating_cantilever.toml":
         "test_peer_examples::test_the_cantilever_vibrates_at_timoshenko_s_frequency",
+    "hanging_ring.toml":
+        "test_peer_examples::test_a_ring_hanging_from_a_point_sags_by_the_closed_form",
     "beck_column.toml": "test_vibration::test_modes_command_reports_flutter",
     "bent_frame.toml": "test_rod_system_scenes::test_system_scenes_serial_equals_two_ranks",
     "cantilever_creep.toml": "test_scenes::test_quasi_static_rod_scene_resumes_exactly",
