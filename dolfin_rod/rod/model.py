@@ -884,7 +884,8 @@ class RodModel(FEModel):
         point loads (point{j}_position_{xyz}), free and kinetic energy, dissipation rate
         (incl. drag), power of the applied loads and of the reactions at ends with a
         prescribed motion (load_power; the latter also alone as reaction_power),
-        reactions at supported ends."""
+        reactions at supported ends; dynamic: momentum_{xyz}, angular_momentum_{xyz}
+        (diagnostics.momentum_forms)."""
         d = self.assembled_diagnostics(t)
         d.update(self.tips[-1]())        # a rod split at its kinks: of its last piece
         d.update(self.point_positions())

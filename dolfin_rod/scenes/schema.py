@@ -67,21 +67,25 @@ PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "re
           "contact", "stability", "twist", "energy", "power_residual")
 
 # quantity kind -> unit per unit system
-UNITS = {
+UNITS = {       # momentum: force x time; angular momentum: moment x time
     "SI": {"length": "m", "time": "s", "force": "N", "moment": "N m", "energy": "J",
-           "power": "W", "angle": "rad"},
+           "power": "W", "angle": "rad", "momentum": "N s", "angular_momentum": "N m s"},
     "pN-nm-s": {"length": "nm", "time": "s", "force": "pN", "moment": "pN nm",
-                "energy": "pN nm", "power": "pN nm/s", "angle": "rad"},
+                "energy": "pN nm", "power": "pN nm/s", "angle": "rad",
+                "momentum": "pN s", "angular_momentum": "pN nm s"},
     # molecular dynamics' nanoseconds (mass unit pN ns^2/nm = 1e-21 kg)
     "pN-nm-ns": {"length": "nm", "time": "ns", "force": "pN", "moment": "pN nm",
-                 "energy": "pN nm", "power": "pN nm/ns", "angle": "rad"},
+                 "energy": "pN nm", "power": "pN nm/ns", "angle": "rad",
+                 "momentum": "pN ns", "angular_momentum": "pN nm ns"},
     # engineering's millimetres (stress N/mm^2 = MPa; mass t, or g with ms)
     "mm-N-s": {"length": "mm", "time": "s", "force": "N", "moment": "N mm",
-               "energy": "N mm", "power": "N mm/s", "angle": "rad"},
+               "energy": "N mm", "power": "N mm/s", "angle": "rad",
+               "momentum": "N s", "angular_momentum": "N mm s"},
     "mm-N-ms": {"length": "mm", "time": "ms", "force": "N", "moment": "N mm",
-                "energy": "N mm", "power": "N mm/ms", "angle": "rad"},
+                "energy": "N mm", "power": "N mm/ms", "angle": "rad",
+                "momentum": "N ms", "angular_momentum": "N mm ms"},
     "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy",
-                                    "power"), "1")
+                                    "power", "momentum", "angular_momentum"), "1")
     | {"angle": "rad"},       # the torsion scenes' Section 5.1 variables
 }
 
