@@ -456,7 +456,7 @@ def _check_rod_start(scene: Scene) -> None:
     """The starting state ([initial] START_KEYS) against the rod."""
     ini, err = scene["initial"], scene.error
     if not scene["material"]["dynamic"]:
-        for k in ("velocity", "angular_velocity", "equilibrium"):
+        for k in ("velocity", "angular_velocity"):
             if ini[k]:
                 raise err(f"initial.{k}", "a quasi-static rod (density 0) has no velocities "
                                           "and is in equilibrium at every step")
