@@ -351,9 +351,11 @@ def warn_unstable_start(scene: Scene, model) -> None:
     loads, whose stability the energy criterion decides).  A dynamic run stays on such a
     start while nothing perturbs it (a column settled straight above Euler's load stays
     straight to round-off), where any real rod leaves it."""
-    from ..analysis.stability import StabilityMonitor, non_conservative
     entries = [rod.scene for rod in scene.rods] if scene.rods else [scene]
-    if not any(e["initial"]["equilibrium"] for e in entries) or non_conservative(model):
+    if not any(e["initial"]["equilibrium"] for e in entries):
+        return               # (before the import: the check's scipy, 0.13 s of CPU)
+    from ..analysis.stability import StabilityMonitor, non_conservative
+    if non_conservative(model):
         return
     negative = StabilityMonitor(model).count(0.0)      # settled with the loads at t = 0
     if negative:
