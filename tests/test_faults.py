@@ -955,3 +955,64 @@ def test_a_lock_left_by_a_killed_compile_is_removed_once_it_is_stale(tmp_path):
     lock = _kill_mid_compile(tmp_path, age=-60.0)
     waited = run()
     assert waited.returncode != 0 and "TimeoutError" in waited.stderr and lock.is_file()
+
+
+# --- fifth user trial ---------------------------------------------------------------------
+
+# two rods, the second welded to the first's tip (quasi-static, 2 steps)
+JOINED = """
+[scene]
+name = "joined"
+[material]
+model = "hyperelastic"
+stiffness = {{ A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0] }}
+[boundary]
+end = "free"
+[[rods]]
+name = "a"
+geometry = {{ length = 1.0, n_cells = 4 }}
+boundary = {{ start = "clamped" }}
+[[rods]]
+name = "b"
+position = [0.0, 0.0, 1.0]
+orientation = [0.0, 1.5707963267948966, 0.0]
+geometry = {{ length = 1.0, n_cells = 4 }}
+boundary = {{ start = "free" }}
+loads = {{ end_force = {{ type = "ramp", value = [0.0, 0.0, -0.5], duration = 1.0 }} }}
+{joints}
+[time]
+t_end = 0.5
+dt = 0.25
+[outputs]
+plots = false
+animation = false
+fields = false
+final_checkpoint = true
+"""
+WELD = '[[joints]]\nkind = "rigid"\nrods = ["a", "b"]\npoint = [0.0, 0.0, 1.0]\n'
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("joints, words", [
+    (WELD.replace('"rigid"', '"ball"'), "joints[0].kind ('rigid' there, 'ball' here)"),
+    ("", "joints[0] ({'kind': 'rigid'"),        # b then clamped where the joint was
+])
+def test_a_state_starts_no_scene_whose_joints_differ(tmp_path, capsys, joints, words):
+    """Fifth trial, fault 1: a double pendulum's state (ball joint at the elbow) started
+    a scene whose elbow was welded (rigid): the rigid joint's relative rotation is taken
+    at the placement (joints.node_links), not at the state, so the rods kept turning
+    against each other (rel. rotation's 13 entry -0.171 -> 0.035 in 0.1 s) and exit 0.
+    A joint added where the state's rods are apart would snap them together; one removed
+    or changed is another model.  Now check and run refuse it naming the joint."""
+    folder = shared(tmp_path)
+    first = write(folder / "first.toml", JOINED.format(joints=WELD))
+    assert run_main(capsys, "run", first, "--out", folder / "first", "--quiet")[0] == 0
+    second = write(folder / "second.toml", JOINED.format(joints=joints).replace(
+        "[time]", f'[initial]\nfrom_run = "{folder / "first"}"\n[time]').replace(
+        '{ start = "free" }', '{ start = "free" }' if joints else '{ start = "clamped" }'))
+    for command in ("check", "run"):
+        code, _, err = run_main(capsys, command, second, "--out", folder / "second")
+        assert code == 2 and "initial.from_run" in err and words in err, err
+    same = write(folder / "same.toml", JOINED.format(joints=WELD).replace(
+        "[time]", f'[initial]\nfrom_run = "{folder / "first"}"\n[time]'))
+    assert run_main(capsys, "check", same)[0] == 0

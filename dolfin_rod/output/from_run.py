@@ -7,7 +7,9 @@ one for ``from_time``).  :func:`previous_state` picks it and checks it before an
 built (rank 0 reads, every rank raises the same SceneError naming initial.from_run): the
 folder, its scene.toml and checkpoint exist and are intact, and the previous scene has
 this scene's discretisation and model (:func:`structure`: the model, the rods and their
-names, geometry, material model and variant, constraints, rotation unknowns, inertia).
+names, their joints, geometry, material model and variant, constraints, rotation
+unknowns, inertia: a rigid joint keeps the angle its rods have at the placement, and a
+joint's node links snap a state whose rods were not joined there).
 :func:`start_from` reads it into the built model (any number of ranks, either way):
 the unknowns (positions, rotations, velocities, natural strains, a uniform model's
 global unknowns), the stored rotations of rotation vectors and the integrator's rates;
@@ -71,7 +73,10 @@ def structure(scene: Scene, model: str) -> dict:
         return {**data, **rod(scene)}
     rods = {r.name: {**rod(r.scene), "position": r.position, "orientation": r.orientation}
             for r in scene.rods}
-    data |= {"rods": list(rods), **{f"rods.{name}": value for name, value in rods.items()}}
+    joints = {f"joints[{k}]": {"kind": j.kind, "rods": list(j.rods), "point": j.point,
+                               "axis": j.axis} for k, j in enumerate(scene.joints)}
+    data |= {"rods": list(rods), **{f"rods.{name}": value for name, value in rods.items()},
+             **joints}
     return json.loads(json.dumps(data, default=list))
 
 
@@ -184,7 +189,7 @@ def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
                 "loads" if path == "rotations" else "")
         raise StateProblem(KEY, f"{run}: it has another {path} ({_shown(a)} there, "
                                 f"{_shown(b)} here{hint}); a state starts only a scene of "
-                                "the same rods, discretisation and model")
+                                "the same rods, joints, discretisation and model")
     dt = (meta.get("integrator") or {}).get("dt")
     if scene["initial"]["continue_integration"] and dt != scene["time"]["dt"]:
         raise StateProblem("initial.continue_integration", (
