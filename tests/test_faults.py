@@ -19,6 +19,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -1016,3 +1017,29 @@ def test_a_state_starts_no_scene_whose_joints_differ(tmp_path, capsys, joints, w
     same = write(folder / "same.toml", JOINED.format(joints=WELD).replace(
         "[time]", f'[initial]\nfrom_run = "{folder / "first"}"\n[time]'))
     assert run_main(capsys, "check", same)[0] == 0
+
+
+@pytest.mark.parametrize("name, words", [
+    ("geometry.n_cells", "would not reach rods[0].geometry.n_cells"),
+    ("boundary.start", "would not reach rods[0].boundary.start"),
+    ("section.radius", "would not reach rods[1].section"),     # a section of its own shape
+    ("rods[1].geometry.n_cells", "cannot index an array of tables"),
+    ("joints[0].kind", "cannot index an array of tables"),
+])
+def test_an_override_that_a_rod_would_shadow_is_refused(name, words):
+    """Fifth trial, faults 2 and 3: `--set geometry.n_cells=4` on
+    scenes/double_pendulum.toml (each rod gives its own n_cells = 8) was accepted and
+    changed nothing (a convergence study by --set gave the same numbers at every "n");
+    `--set rods[1].geometry.n_cells=4` was refused as "[rods[1]]: (rod 0) unknown table".
+    Keys no rod gives (material.density) still reach every rod."""
+    text = (ROOT / "scenes" / "double_pendulum.toml").read_text().replace(
+        'geometry = { length = 0.7, n_cells = 8 }',
+        'geometry = { length = 0.7, n_cells = 8 }\n'
+        'section = { shape = "circle", radius = 0.004 }')
+    value = {"geometry.n_cells": 4, "boundary.start": "clamped"}.get(name.split("[")[0], 4)
+    with pytest.raises(SceneError, match=re.escape(words)) as err:
+        parse_scene(text, overrides={name: value})
+    assert err.value.key == name
+    scene = parse_scene(text, overrides={"material.density": 1000.0})
+    assert [r.scene["material"]["density"].constant for r in scene.rods] == pytest.approx(
+        [1000.0 * math.pi * 0.005 ** 2, 1000.0 * math.pi * 0.004 ** 2], rel=1e-15)

@@ -38,7 +38,7 @@ from .contact import check_initial_contact, touching
 from .histories import HistorySpec, distributed, history, muscle
 from .rules import check_combinations
 from .scene import Scene, SceneError
-from .systems import validate_system
+from .systems import shadowing_rod, validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
                      friction_coefficients,
                      names_or_boolean, damping_tensor, drag, entry_point, integer,
@@ -688,6 +688,14 @@ def _override(raw: dict, name: str, value: Any, source: str) -> None:
     if not path or not all(path):
         raise SceneError(source, name, "an override is named \"table.key\" (or "
                                        "\"table.key.subkey\")")
+    if "[" in table:
+        raise SceneError(source, name, f"override {name!r}: an override cannot index an "
+                                       "array of tables ([[rods]], [[joints]], "
+                                       "[[obstacles]]): edit the scene file")
+    shadow = shadowing_rod(raw, table, path[0])
+    if shadow is not None and value is not None:
+        raise SceneError(source, name, f"override {name!r} would not reach {shadow}, "
+                                       "which gives its own value: edit the scene file")
     if value is None and table not in raw:
         return
     section, where = raw.setdefault(table, {}), table

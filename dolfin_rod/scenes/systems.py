@@ -94,6 +94,20 @@ def validate_system(raw: dict, source: str, default_name: str,
     return scene
 
 
+def shadowing_rod(raw: dict, table: str, key: str) -> str | None:
+    """The first key of a [[rods]] table in ``raw`` that gives its own ``table.key`` (a
+    rod's section with a shape: every section key), over which the scene's value of it
+    is not used; None if no rod does."""
+    rods = raw.get("rods")
+    if table not in ROD_TABLES or not isinstance(rods, list):
+        return None
+    for k, entry in enumerate(rods):
+        own = entry.get(table) if isinstance(entry, dict) else None
+        if isinstance(own, dict) and (key in own or (table == "section" and "shape" in own)):
+            return f"rods[{k}].{table}" + (f".{key}" if key in own else "")
+    return None
+
+
 def _check_rotation_held(scene: Scene) -> None:
     """A quasi-static system with joints holds a rotation somewhere, as the model needs
     (rod/model.py: joints take rotation-vector unknowns, whose quasi-static rod needs an
