@@ -599,7 +599,8 @@ def _summary(scene, choice, sim, writer, comm, status, message, t, impulse,
              seen: list[str]) -> dict:
     from .output.notices import listed
     summary = {
-        "scene": scene.name, "source": scene.source, "model": choice.model,
+        "scene": scene.name, "source": scene.source,
+        "scene_folder": str((scene.folder or Path()).resolve()), "model": choice.model,
         "reason": choice.reason, "method": getattr(sim, "describe", lambda: "")(),
         "status": status, "message": message, "t_end_reached": t,
         "steps": len(writer.rows) - 1 if comm.rank == 0 else None,

@@ -1043,3 +1043,65 @@ def test_an_override_that_a_rod_would_shadow_is_refused(name, words):
     scene = parse_scene(text, overrides={"material.density": 1000.0})
     assert [r.scene["material"]["density"].constant for r in scene.rods] == pytest.approx(
         [1000.0 * math.pi * 0.005 ** 2, 1000.0 * math.pi * 0.004 ** 2], rel=1e-15)
+
+
+# a quasi-static cantilever beside a tetrahedron read from a file next to the scene
+MESHED = """
+[scene]
+name = "meshed"
+[geometry]
+n_cells = 4
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0] }
+[boundary]
+start = "clamped"
+[loads]
+end_force = { type = "ramp", value = [0.01, 0.0, 0.0], duration = 1.0 }
+[contact]
+radius = 0.01
+[[obstacles]]
+shape = "mesh"
+file = "shapes/tetrahedron.stl"
+centre = [2.0, 0.0, 0.5]
+[time]
+t_end = 0.5
+dt = 0.25
+[outputs]
+animation = false
+final_checkpoint = true
+"""
+TETRAHEDRON = [(0, 0, 0), (0.1, 0, 0), (0, 0.1, 0), (0, 0, 0.1)]
+
+
+def _stl(vertices, faces) -> str:
+    rows = []
+    for face in faces:
+        a, b, c = (np.array(vertices[i], float) for i in face)
+        n = np.cross(b - a, c - a)
+        rows += [f"facet normal {' '.join(map(str, n / np.linalg.norm(n)))}", "outer loop",
+                 *(f"vertex {' '.join(map(str, v))}" for v in (a, b, c)), "endloop",
+                 "endfacet"]
+    return "solid t\n" + "\n".join(rows) + "\nendsolid t\n"
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="the plot is drawn by one process")
+def test_a_run_of_a_scene_with_a_mesh_file_is_plotted_and_started_from(tmp_path, capsys):
+    """Fifth trial, fault 4: scene.toml in a run folder names a mesh obstacle's file
+    relative to the scene's folder, so `dolfin-rod plot RUN` ("its scene.toml cannot be
+    read: ... RUN/meshes/boulder.stl: No such file") and `[initial] from_run = RUN`
+    ("its scene.toml is not a valid scene") failed for every run of
+    scenes/rope_over_boulder.toml.  summary.json's scene_folder names the folder."""
+    scenes = tmp_path / "scenes"
+    (scenes / "shapes").mkdir(parents=True)
+    (scenes / "shapes" / "tetrahedron.stl").write_text(
+        _stl(TETRAHEDRON, [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]))
+    (scenes / "first.toml").write_text(MESHED)
+    (scenes / "second.toml").write_text(MESHED.replace(
+        "[time]", f'[initial]\nfrom_run = "{tmp_path / "first"}"\n[time]'))
+    assert run_main(capsys, "run", scenes / "first.toml", "--out", tmp_path / "first",
+                    "--quiet")[0] == 0
+    code, out, err = run_main(capsys, "check", scenes / "second.toml")
+    assert code == 0 and "starts from" in out, err
+    code, out, err = run_main(capsys, "plot", tmp_path / "first")
+    assert code == 0 and "histories.png" in out, err

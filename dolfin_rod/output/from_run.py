@@ -32,6 +32,7 @@ from pathlib import Path
 from ..scenes.scene import Scene, SceneError
 from .checkpoints import (content_problem, differences, global_size, integrity_problem,
                           read_functions)
+from .run_folders import scene_folder
 
 KEY = "initial.from_run"
 
@@ -179,7 +180,8 @@ def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
     from ..scenes import parse_scene
     folder, meta = _checkpoint(run, at)
     try:
-        theirs = parse_scene((run / "scene.toml").read_text(), str(run / "scene.toml"))
+        theirs = parse_scene((run / "scene.toml").read_text(), str(run / "scene.toml"),
+                             files=scene_folder(run))
     except (OSError, SceneError) as err:
         raise StateProblem(KEY, f"{run}: its scene.toml is not a valid scene ({err})") from None
     diffs = differences(structure(theirs, meta["model"]), structure(scene, model))

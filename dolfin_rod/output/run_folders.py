@@ -1,6 +1,6 @@
 """Run folders: where a run may write (``folder_problem``), a fresh or resumed results
 folder (``prepare_run_folder``, ``new_run_folder``), the files it holds (``files_in``),
-and file-system errors raised on every rank (``on_root``, :class:`OutputError`), so no
+the folder of the files its scene.toml names (``scene_folder``), and file-system errors raised on every rank (``on_root``, :class:`OutputError`), so no
 rank waits in a collective call for one that failed.
 
 Every folder made here carries the marker file ``.dolfin-rod-run``; ``--overwrite``
@@ -167,3 +167,14 @@ def files_in(folder: Path) -> list[str]:
         elif path.is_file():
             out.add(str(rel))
     return sorted(out)
+
+
+def scene_folder(run: Path) -> str | None:
+    """The folder of the files that ``run``'s scene.toml names by relative paths (a mesh
+    obstacle's file, an energy module): summary.json's ``scene_folder``, the scene's
+    folder when it ran (None: no summary, or that folder is gone; then the run folder)."""
+    try:
+        folder = json.loads((Path(run) / "summary.json").read_bytes()).get("scene_folder")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return folder if isinstance(folder, str) and Path(folder).is_dir() else None

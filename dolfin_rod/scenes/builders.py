@@ -12,7 +12,6 @@ torsion/ode.py.  The integrator of an FE model is picked in integrators/choice.p
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
@@ -529,8 +528,7 @@ def rod_parameters(scene: Scene):
     scalars = {k: mat[k].value() for k in ("density", "drag") if mat[k] is not None}
     energy = None
     if mat["energy"] is not None:
-        folder = Path(scene.source).parent if Path(scene.source).is_file() else None
-        energy = load_entry_point(mat["energy"], folder)
+        energy = load_entry_point(mat["energy"], scene.folder)
     if mat["rotational_drag"] is not None:
         frame = "" if mat["rotational_drag_frame"] == "material" else "spatial_"
         tensors[frame + "rotational_drag"] = mat["rotational_drag"].value()

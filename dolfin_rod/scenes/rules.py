@@ -5,7 +5,6 @@ options, torsion boundary conditions, 3-D rod material, inertia and ends."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -348,9 +347,8 @@ def _check_rod_material(scene: Scene) -> None:
     _check_rod_inertia(scene)
     _check_rod_start(scene)
     if mat["energy"] is not None:
-        folder = Path(scene.source).parent if Path(scene.source).is_file() else None
         try:
-            psi = load_entry_point(mat["energy"], folder)
+            psi = load_entry_point(mat["energy"], scene.folder)
         except BadValue as bad:
             raise err("material.energy", bad.reason) from None
         problem = _start_state_problem(scene, psi)

@@ -21,6 +21,7 @@ across keys in ``scenes/rules.py``; this module holds the table and the entry po
 
 from __future__ import annotations
 
+import functools
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -642,11 +643,14 @@ RENAMED = {("geometry", "reference_twist"): "initial.natural_twist (u_d at t = 0
                                             "initial natural strain, not a reference shape)"}
 
 
-def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
+def load_scene(path: str | Path, overrides: dict[str, Any] | None = None,
+               files: str | None = None) -> Scene:
     """Read and validate a scene file; every failure is a SceneError.  ``overrides``
     {"table.key": value} (None: remove the key; "table.key.subkey" a key of an inline
     table such as loads.end_force.value) change the file's values first, e.g.
-    ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``."""
+    ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``.
+    ``files``: the folder of the files the scene names (mesh files, energy modules),
+    default the scene file's (a run folder's scene.toml: its scene's, scene_folder)."""
     path = Path(path)
     try:
         raw = read_regular_file(path, SCENE_BYTES)
@@ -657,11 +661,12 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
         text = raw.decode("utf-8-sig")   # a UTF-8 byte-order mark is allowed
     except UnicodeDecodeError as err:
         raise SceneError(str(path), "", f"not UTF-8 text: {err.reason} at byte {err.start}") from None
-    return parse_scene(text, source=str(path), default_name=path.stem, overrides=overrides)
+    return parse_scene(text, source=str(path), default_name=path.stem, overrides=overrides,
+                       files=files)
 
 
 def parse_scene(text: str, source: str = "<string>", default_name: str = "scene",
-                overrides: dict[str, Any] | None = None) -> Scene:
+                overrides: dict[str, Any] | None = None, files: str | None = None) -> Scene:
     """Parse and validate TOML text (with ``overrides``, see load_scene); every failure
     is a SceneError.  ``scene.text`` is the scene as run (the overridden values in)."""
     try:
@@ -674,7 +679,7 @@ def parse_scene(text: str, source: str = "<string>", default_name: str = "scene"
         for name, value in overrides.items():
             _override(raw, name, value, source)
         text = f"# {source} with overrides {overrides}\n" + to_toml(raw)
-    scene = validate(raw, source, default_name)
+    scene = validate(raw, source, default_name, files)
     scene.text = text
     return scene
 
@@ -729,24 +734,26 @@ def to_toml(raw: dict) -> str:
     return "\n".join(out)
 
 
-def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> Scene:
+def validate(raw: Any, source: str = "<dict>", default_name: str = "scene",
+             files: str | None = None) -> Scene:
     """Validate an already-parsed scene dict; every failure is a SceneError.  A scene
     with ``[[rods]]`` is a rod system (scenes/systems.py)."""
     if not isinstance(raw, dict):
         raise SceneError(source, "", f"a scene must be a table, got {type_name(raw)}")
     if "rods" in raw:
-        scene = validate_system(dict(raw), source, default_name, _validate_tables)
+        scene = validate_system(dict(raw), source, default_name,
+                                functools.partial(_validate_tables, files=files))
     elif "joints" in raw:
         raise SceneError(source, "joints", "joints join the rods of [[rods]] tables")
     else:
-        scene = _validate_tables(raw, source, default_name)
+        scene = _validate_tables(raw, source, default_name, files=files)
     if scene.is_rod_material and touching(scene):    # contact at t = 0: the rods placed
         check_initial_contact(scene, initial_centre_lines(scene))
     return scene
 
 
 def _validate_tables(raw: dict, source: str, default_name: str,
-                     joined: bool | None = None) -> Scene:
+                     joined: bool | None = None, files: str | None = None) -> Scene:
     """The tables of one scene (of one rod; ``joined``: of a rod of [[rods]], None for
     a scene of one rod, whether a joint holds it)."""
     for table in raw:
@@ -775,7 +782,7 @@ def _validate_tables(raw: dict, source: str, default_name: str,
     if data["scene"]["name"] is None:
         data["scene"]["name"] = safe_name(default_name)
     scene = Scene(data, source, given=given, joined=bool(joined),
-                  in_system=joined is not None)
+                  in_system=joined is not None, files=files)
     check_combinations(scene)
     return scene
 
