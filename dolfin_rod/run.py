@@ -286,7 +286,7 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
         print_on_root(comm, f"model: {choice.model} ({choice.reason})")
     scene_warnings(scene, comm)
     from .output.drawing import painting
-    from .output.notices import noticed
+    from .output.notices import listed, noticed
     with painting(draws_alone(scene, comm)) as painter, noticed(comm) as seen:
         try:
             outs = scene["outputs"]
@@ -337,6 +337,7 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
             t_analysis = time.perf_counter()
             try:
                 summary.update(analysis(sim, t, folder))
+                summary["warnings"] = listed(seen)      # with the analysis's
             except AnalysisError as err:    # the run's files kept and closed, its summary
                 status, message = "failed", str(err)
                 summary.update(status=status, message=message)

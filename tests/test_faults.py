@@ -964,6 +964,7 @@ def test_a_lock_left_by_a_killed_compile_is_removed_once_it_is_stale(tmp_path):
 JOINED = """
 [scene]
 name = "joined"
+units = "SI"
 [material]
 model = "hyperelastic"
 stiffness = {{ A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0] }}
@@ -994,23 +995,28 @@ WELD = '[[joints]]\nkind = "rigid"\nrods = ["a", "b"]\npoint = [0.0, 0.0, 1.0]\n
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("joints, words", [
-    (WELD.replace('"rigid"', '"ball"'), "joints[0].kind ('rigid' there, 'ball' here)"),
-    ("", "joints[0] ({'kind': 'rigid'"),        # b then clamped where the joint was
+@pytest.mark.parametrize("joints, units, words", [
+    (WELD.replace('"rigid"', '"ball"'), "SI", "joints[0].kind ('rigid' there, 'ball' here)"),
+    ("", "SI", "joints[0] ({'kind': 'rigid'"),        # b then clamped where the joint was
+    (WELD, "mm-N-s", "its numbers are in SI, this scene's in mm-N-s"),
 ])
-def test_a_state_starts_no_scene_whose_joints_differ(tmp_path, capsys, joints, words):
+def test_a_state_starts_no_scene_whose_joints_or_units_differ(tmp_path, capsys, joints,
+                                                               units, words):
     """Fifth trial, fault 1: a double pendulum's state (ball joint at the elbow) started
     a scene whose elbow was welded (rigid): the rigid joint's relative rotation is taken
     at the placement (joints.node_links), not at the state, so the rods kept turning
     against each other (rel. rotation's 13 entry -0.171 -> 0.035 in 0.1 s) and exit 0.
     A joint added where the state's rods are apart would snap them together; one removed
-    or changed is another model.  Now check and run refuse it naming the joint."""
+    or changed is another model.  Now check and run refuse it naming the joint.  Fault 6:
+    a state saved in SI started a scene in mm-N-s (a 1 m rod read as 1 mm, its length
+    left at 1.0), silently; another scene.units is now refused too."""
     folder = shared(tmp_path)
     first = write(folder / "first.toml", JOINED.format(joints=WELD))
     assert run_main(capsys, "run", first, "--out", folder / "first", "--quiet")[0] == 0
     second = write(folder / "second.toml", JOINED.format(joints=joints).replace(
         "[time]", f'[initial]\nfrom_run = "{folder / "first"}"\n[time]').replace(
-        '{ start = "free" }', '{ start = "free" }' if joints else '{ start = "clamped" }'))
+        '{ start = "free" }', '{ start = "free" }' if joints else '{ start = "clamped" }')
+        .replace('"SI"', f'"{units}"'))
     for command in ("check", "run"):
         code, _, err = run_main(capsys, command, second, "--out", folder / "second")
         assert code == 2 and "initial.from_run" in err and words in err, err
@@ -1105,3 +1111,54 @@ def test_a_run_of_a_scene_with_a_mesh_file_is_plotted_and_started_from(tmp_path,
     assert code == 0 and "starts from" in out, err
     code, out, err = run_main(capsys, "plot", tmp_path / "first")
     assert code == 0 and "histories.png" in out, err
+
+
+def _double_pendulum(hanging: bool) -> str:
+    """scenes/double_pendulum.toml (released 0.6 and 1.1 rad off the vertical) or its
+    rods hanging straight down, at rest (an equilibrium), for two steps."""
+    text = (ROOT / "scenes" / "double_pendulum.toml").read_text()
+    if hanging:
+        for old in ("[0.0, 2.541592653589793, 0.0]", "[0.0, 2.041592653589793, 0.0]"):
+            text = text.replace(old, f"[0.0, {math.pi!r}, 0.0]")
+        text = text.replace("[0.5646424733950354, 0.0, -0.8253356149096783]",
+                            "[0.0, 0.0, -1.0]")
+    return text.replace("t_end = 1.5 ", "t_end = 0.004 ").replace(
+        "[outputs]", "[outputs]\nplots = false\nanimation = false\nfields = false")
+
+
+@pytest.mark.mpi
+def test_modes_about_a_state_out_of_equilibrium_warn(tmp_path, capsys):
+    """Fifth trial, fault 5: `dolfin-rod modes scenes/double_pendulum.toml` (released 0.6
+    rad off the vertical, analysed at t = 0.004) printed six "natural frequencies" and
+    "completed" without a word that the state is no equilibrium (its forces at rest out
+    of balance by 0.70 N): the linearisation about a moving state has no modes.  The
+    same pendulum hanging straight down from a stress-free start is no equilibrium
+    either (the rods' tension under their weight is not there yet, 0.57 N out of
+    balance): its swing frequencies came out 2.053, 5.476 rad/s against the compound
+    double pendulum's 2.912, 7.577 (uniform rods of mass m_i, length L_i, pinned and
+    ball-jointed: M = [[(m1/3 + m2) L1^2, m2 L1 L2/2], [m2 L1 L2/2, m2 L2^2/3]], K = g
+    diag((m1/2 + m2) L1, m2 L2/2)), 30 % off.  Both now warn (stderr, summary.json); the
+    string of scenes/string_modes.toml, in equilibrium at rest, does not."""
+    folder = shared(tmp_path)
+    rho_a = 7850.0 * math.pi * 0.005 ** 2
+    (m1, l1), (m2, l2), g = (rho_a * 1.0, 1.0), (rho_a * 0.7, 0.7), 9.81
+    mass = np.array([[(m1 / 3 + m2) * l1 ** 2, m2 * l1 * l2 / 2],
+                     [m2 * l1 * l2 / 2, m2 * l2 ** 2 / 3]])
+    stiffness = g * np.diag([(m1 / 2 + m2) * l1, m2 * l2 / 2])
+    swing = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(mass, stiffness)).real))
+    string = ROOT / "scenes" / "string_modes.toml"
+    for name, scene, warns in [
+            ("released", write(folder / "released.toml", _double_pendulum(False)), True),
+            ("hanging", write(folder / "hanging.toml", _double_pendulum(True)), True),
+            ("string", string, False)]:
+        code, _, err = run_main(capsys, "modes", scene, "--out", folder / name, "--quiet")
+        assert code == 0, err
+        summary = json.loads((folder / name / "summary.json").read_text())
+        unbalanced = [w for w in summary["warnings"] if "not an equilibrium" in w]
+        assert bool(unbalanced) == warns, summary["warnings"]
+        assert ("not an equilibrium" in err) == warns, err
+    omega = [row["omega"] for row in summary["modes"]["modes"]]
+    assert omega[0] == 0.0 and omega[1] > 0.0        # the string: its spin, then tension's
+    hanging = json.loads((folder / "hanging" / "summary.json").read_text())
+    omega = np.array([row["omega"] for row in hanging["modes"]["modes"]])
+    assert np.all(np.abs(omega[2::2] / swing - 1) > 0.25), (omega, swing)

@@ -192,6 +192,11 @@ def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
         raise StateProblem(KEY, f"{run}: it has another {path} ({_shown(a)} there, "
                                 f"{_shown(b)} here{hint}); a state starts only a scene of "
                                 "the same rods, joints, discretisation and model")
+    units = (theirs["scene"]["units"], scene["scene"]["units"])
+    if None not in units and units[0] != units[1]:
+        raise StateProblem(KEY, f"{run}: its numbers are in {units[0]}, this scene's in "
+                                f"{units[1]} (scene.units): a state is read as it was "
+                                "saved, so a scene starting from it keeps its units")
     dt = (meta.get("integrator") or {}).get("dt")
     if scene["initial"]["continue_integration"] and dt != scene["time"]["dt"]:
         raise StateProblem("initial.continue_integration", (
