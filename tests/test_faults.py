@@ -1162,3 +1162,19 @@ def test_modes_about_a_state_out_of_equilibrium_warn(tmp_path, capsys):
     hanging = json.loads((folder / "hanging" / "summary.json").read_text())
     omega = np.array([row["omega"] for row in hanging["modes"]["modes"]])
     assert np.all(np.abs(omega[2::2] / swing - 1) > 0.25), (omega, swing)
+
+
+def test_fit_refuses_a_scene_of_several_rods(tmp_path, capsys):
+    """Fifth trial, fault 7: `dolfin-rod fit` of a [[rods]] scene ended in a traceback
+    (KeyError: 'tip_position_x', after building the model: two cantilevers, one loaded)
+    or in an error about another rod (scenes/crossing_rods.toml: "(rod 1) acts where the
+    position is prescribed", the data's load written where every rod inherits it).  Now
+    exit 2 naming [rods] before any model."""
+    scene = (ROOT / "scenes" / "crossing_rods.toml")
+    data = tmp_path / "data.csv"
+    data.write_text("time,load,response\n" + "".join(f"{t},50.0,{0.01 * t}\n"
+                                                     for t in (0.0, 0.25, 0.5, 0.75, 1.0)))
+    code, _, err = run_main(capsys, "fit", scene, data, "--params",
+                            "material.youngs_modulus", "--out", tmp_path / "fit")
+    assert code == 2 and "[rods]: a fit drives one rod" in err, err
+    assert not (tmp_path / "fit").exists()
