@@ -162,6 +162,8 @@ def _check(scene: Scene, out: Path | None, comm) -> None:
     if previous is not None:                 # [initial] from_run: the state it starts from
         lines.append(f"starts from: {previous.run}, its state at t = "
                      f"{previous.meta['time']:g} (step {previous.meta['step']})")
+        if previous.unfinished:
+            lines.append(f"warning: {previous.unfinished}")
     elif scene["initial"]["from_run"] is not None:
         lines.append(f"starts from: {scene['initial']['from_run']}, not there yet: run the "
                      "scene that writes it first")

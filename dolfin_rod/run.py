@@ -297,6 +297,8 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
             continued = None if previous is None else start_from(sim, previous, scene)
             if previous is not None:     # the impulse of a step at t = 0 from rest: not
                 impulse = None           # this start's (a saved state, not rest)
+                if previous.unfinished:
+                    warnings.warn(previous.unfinished, stacklevel=1)
         except BaseException:
             if made and comm.rank == 0:          # nothing half-written: no empty folder
                 _remove_if_empty(folder)

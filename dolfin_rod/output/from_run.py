@@ -44,6 +44,19 @@ class PreviousState:
     folder: Path
     meta: dict
     run: Path
+    t_end: float | None = None     # the previous scene's, if the state was not picked
+
+    @property
+    def unfinished(self) -> str | None:
+        """Why the state is not the previous run's end state (its last saved one, taken
+        by default, lies before its t_end: the run was interrupted, stopped or failed, or
+        saved no state at its end), None if it is or ``from_time`` picked it."""
+        if self.t_end is None or self.meta["time"] >= self.t_end * (1 - 1e-12):
+            return None
+        return (f"the last state {self.run} saved, at t = {self.meta['time']:g}, is not its "
+                f"end state (t_end = {self.t_end:g}: the run was interrupted, stopped or "
+                "failed, or saved no state at its end, outputs.final_checkpoint); "
+                "initial.from_time picks a state without this warning")
 
     def summary(self, continued: bool) -> dict:
         """summary.json's ``from_run`` entry."""
@@ -93,11 +106,11 @@ def previous_state(scene: Scene, model: str, comm,
     if missing_ok and not comm.bcast(run.exists() if comm.rank == 0 else None, root=0):
         return None
     try:
-        folder, meta = _on_root(comm, lambda: _saved_state(scene, model, run,
-                                                           ini["from_time"]))
+        folder, meta, t_end = _on_root(comm, lambda: _saved_state(scene, model, run,
+                                                                  ini["from_time"]))
     except StateProblem as err:
         raise scene.error(err.key, err.reason) from None
-    return PreviousState(folder, meta, run)
+    return PreviousState(folder, meta, run, t_end if ini["from_time"] is None else None)
 
 
 def check_out(scene: Scene, previous: PreviousState | None, out: Path | None) -> None:
@@ -174,7 +187,8 @@ def _checkpoint(run: Path, at: float | None) -> tuple[Path, dict]:
 
 
 def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
-    """Rank 0: (checkpoint folder, meta) of ``run`` at time ``at`` (None: the last),
+    """Rank 0: (checkpoint folder, meta, its scene's t_end) of ``run`` at time ``at``
+    (None: the last),
     checked against ``scene`` run by ``model``; StateProblem naming the key otherwise
     (previous_state raises it on every rank as a SceneError)."""
     from ..scenes import parse_scene
@@ -202,7 +216,7 @@ def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
         raise StateProblem("initial.continue_integration", (
             f"{run} was integrated with time.dt = {_shown(dt)}, this scene has "
             f"{scene['time']['dt']:g}: a continued integration keeps the step"))
-    return folder, meta
+    return folder, meta, theirs["time"]["t_end"]
 
 
 def _shown(value) -> str:
