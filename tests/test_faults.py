@@ -1203,3 +1203,23 @@ def test_a_start_from_a_run_that_did_not_end_warns(tmp_path, capsys):
         summary = run_scene(load_scene(scene), folder / f"B_{previous}", quiet=True)
         assert summary["from_run"]["time"] == pytest.approx(0.03 if warns else 0.08)
         assert any("is not its end state" in w for w in summary["warnings"]) == warns
+
+
+@pytest.mark.parametrize("row, words", [
+    ("0.5,1,1,000.5", "row 4 has 4 values, the header 3: a thousands separator"),
+    ("0.5,1", "row 4 has 2 values, the header 3: a value is missing"),
+])
+def test_fit_data_with_a_row_of_another_length_is_refused(tmp_path, row, words):
+    """Fifth trial, fault 9: numpy reads the named columns only, so a row with a value
+    more than the header ("0.5,1,1,000.5": response 1000.5 with a thousands separator)
+    was read as response 1 and fitted, silently.  Blank lines, a trailing comma on every
+    row and quoted values still read."""
+    from dolfin_rod.fit.inputs import FitInputError, read_series
+    rows = ["time,load,response", "0,1,0", "0.25,1,0.5", row, "0.75,1,0.8"]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(rows) + "\n")
+    with pytest.raises(FitInputError, match=re.escape(words)):
+        read_series(bad)
+    good = tmp_path / "good.csv"
+    good.write_text('time,load,response,\n0,1,0,\n\n"0.25",1,0.5,\n0.5,1,0.7,\n')
+    assert list(read_series(good).response) == [0.0, 0.5, 0.7]
