@@ -464,11 +464,8 @@ def _check_rod_start(scene: Scene) -> None:
                                           "unknowns (generalized-alpha starts from the "
                                           "accelerations; quasi-static rods and quaternions' "
                                           "schemes start from the state alone)")
-    bnd = scene["boundary"]
-    if ini["equilibrium"] and not scene["obstacles"] and not any(
-            bnd[end] != "free" or bnd[f"{end}_rotation"] or bnd[f"{end}_spring"]
-            for end in ("start", "end")):
-        raise err("initial.equilibrium", EQUILIBRIUM_NEEDS)
+    if ini["equilibrium"] and not scene.joined and not held_at_rest(scene):
+        raise err("initial.equilibrium", EQUILIBRIUM_NEEDS)   # a joined rod: its system's
     if ini["rotation_centre"] is not None and ini["angular_velocity"] is None:
         raise err("initial.rotation_centre", "needs initial.angular_velocity (the rigid "
                                              "rotation about it)")
@@ -508,6 +505,16 @@ def _check_kinked_start(scene: Scene) -> None:
         except ValueError as bad:
             raise scene.error("initial.shape", str(bad).removeprefix("start.shape: ")) \
                 from None
+
+
+def held_at_rest(scene: Scene) -> bool:
+    """Whether something holds the rod of ``scene`` against rigid motions, as its static
+    equilibrium (initial.equilibrium) needs: an end support, rotation or spring, or
+    obstacles to rest on (the model's rod/initial_state.supported)."""
+    bnd = scene["boundary"]
+    return bool(scene["obstacles"]) or any(
+        bnd[end] != "free" or bnd[f"{end}_rotation"] or bnd[f"{end}_spring"]
+        for end in ("start", "end"))
 
 
 def _check_curve(scene: Scene, key: str, shape: dict | None) -> None:

@@ -91,7 +91,19 @@ def validate_system(raw: dict, source: str, default_name: str,
     _check_continuation(scene)
     _check_joint_points(scene)
     _check_rotation_held(scene)
+    _check_equilibrium_held(scene)
     return scene
+
+
+def _check_equilibrium_held(scene: Scene) -> None:
+    """A system started in static equilibrium (initial.equilibrium) is held somewhere, as
+    the model's static problem needs (rod/initial_state.supported); a rod held by joints
+    only needs no support of its own (rules: each unjoined rod is checked alone)."""
+    from ..checks import EQUILIBRIUM_NEEDS
+    from .rules import held_at_rest
+    settled = any(r.scene["initial"]["equilibrium"] for r in scene.rods)
+    if settled and not any(held_at_rest(r.scene) for r in scene.rods):
+        raise scene.error("initial.equilibrium", EQUILIBRIUM_NEEDS)
 
 
 def shadowing_rod(raw: dict, table: str, key: str) -> str | None:
