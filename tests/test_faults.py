@@ -1245,3 +1245,56 @@ def test_a_system_settled_in_equilibrium_needs_a_support_somewhere():
         parse_scene(_double_pendulum(True, settled=True).replace(
             'boundary = { start = "pinned" }', 'boundary = { start = "free" }'))
     assert err.value.key == "initial.equilibrium"
+
+
+# a cantilever bent towards -x by a tip force (quasi-static; its end at x = -0.31)
+BENT = """
+[scene]
+name = "bent"
+[geometry]
+n_cells = 8
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0] }
+[boundary]
+start = "clamped"
+[loads]
+end_force = { type = "ramp", value = [-1.0, 0.0, 0.0], duration = 1.0 }
+[time]
+t_end = 1.0
+dt = 0.25
+[outputs]
+plots = false
+animation = false
+fields = false
+final_checkpoint = true
+"""
+WALL = """[contact]
+radius = 0.01
+[[obstacles]]
+shape = "plane"
+point = [-0.1, 0.0, 0.0]
+normal = [1.0, 0.0, 0.0]
+[initial]
+from_run = "{run}"
+[time]"""
+
+
+@pytest.mark.mpi
+def test_a_saved_state_inside_a_new_obstacle_is_refused_naming_it(tmp_path, capsys):
+    """Fifth trial, fault 11: a scene that adds a wall (x > -0.1) where the saved
+    cantilever's end lies (x = -0.31; its placement, the straight rod at x = 0, is clear
+    of it, so `check` passes) started from the state inside the wall: row 0 written with
+    min_gap -0.22 and a contact force of 3.6e9, then "failed ... SNES failed:
+    DIVERGED_MAX_IT ... apply the end motions gradually" (exit 3).  Now exit 2 naming
+    obstacles[0] and where the state cuts into it, before any row."""
+    folder = shared(tmp_path)
+    bent = write(folder / "bent.toml", BENT)
+    assert run_main(capsys, "run", bent, "--out", folder / "bent", "--quiet")[0] == 0
+    walled = write(folder / "walled.toml", BENT.replace(
+        "[time]", WALL.format(run=folder / "bent")))
+    code, _, err = run_main(capsys, "run", walled, "--out", folder / "walled", "--quiet")
+    assert code == 2
+    assert COMM.rank != 0 or ("[obstacles[0]]: the state of" in err
+                              and "s = 1 is 0.221 closer" in err), err
+    assert not (folder / "walled").exists()

@@ -242,8 +242,28 @@ def start_from(sim, previous: PreviousState, scene: Scene) -> bool:
         _read(previous.folder, meta, named, previous.run)
     except StateProblem as err:
         raise scene.error(err.key, err.reason) from None
+    _check_overlaps(sim.model, previous, scene)
     sim.restart(meta["sim"] if continues else None)
     return continues
+
+
+def _check_overlaps(model, previous: PreviousState, scene: Scene) -> None:
+    """Collective: a SceneError naming the obstacle (or contact key) that the state read
+    cuts into (a scene adding an obstacle where the saved rod lies: its start diverged,
+    blamed on the loads, its row 0 inside the obstacle)."""
+    from ..rod.obstacle_shapes import InitialOverlap
+    from ..rod.segments import PairOverlap
+    check = getattr(model, "check_overlaps", None)
+    if check is None:
+        return
+    try:
+        check()
+    except InitialOverlap as err:
+        raise scene.error(f"obstacles[{err.obstacle}]", f"the state of {previous.run} at t = "
+                          f"{previous.meta['time']:g} cuts into it: {err}") from None
+    except PairOverlap as err:
+        raise scene.error(err.key, f"the state of {previous.run} at t = "
+                          f"{previous.meta['time']:g}: {err}") from None
 
 
 def model_functions(model) -> dict:

@@ -852,21 +852,31 @@ class RodModel(FEModel):
         self._starting_accelerations("balance" if start is None else start.acceleration)
         initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
         self.problem.unset_state = ""
+        self.check_overlaps()
         if self.contact:
-            self.contact.check_initial()
             self.contact.update_normal_forces()
             self.contact.commit()
+        if self.obstacle_segments:
+            self.obstacle_segments.commit()
+        if self.segment_contact:
+            self.segment_contact.commit()
+
+    def check_overlaps(self) -> None:
+        """Collective: InitialOverlap if the state has a node within r of an obstacle
+        (or a segment within R + r of a thin one), PairOverlap (segments.py) if two
+        segments' capsules overlap: the start's check, also of a state read from a run
+        (output/from_run.py)."""
+        if self.contact:
+            self.contact.check_initial()
         if self.obstacle_segments:
             g, s, k = self.obstacle_segments.closest()
             if g <= 0:
                 raise InitialOverlap.at("segment", s, g, k, self.obstacle_segments.law.gap,
                                         self.contact.obstacles[k].shape)
-            self.obstacle_segments.commit()
         if self.segment_contact:
             overlap = self.segment_contact.initial_overlap()
             if overlap:
                 raise overlap
-            self.segment_contact.commit()
 
     def _starting_accelerations(self, how: str) -> None:
         """The integrator's start (StartingState.acceleration) on the problem; "zero"
