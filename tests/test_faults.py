@@ -1298,3 +1298,18 @@ def test_a_saved_state_inside_a_new_obstacle_is_refused_naming_it(tmp_path, caps
     assert COMM.rank != 0 or ("[obstacles[0]]: the state of" in err
                               and "s = 1 is 0.221 closer" in err), err
     assert not (folder / "walled").exists()
+
+
+def test_fit_into_a_folder_that_is_not_empty_offers_what_fit_has(tmp_path, capsys):
+    """Fifth trial, fault 12: `dolfin-rod fit ... --out FOLDER` (not empty) answered
+    "pass --resume to continue its run or --overwrite to replace it": fit has neither
+    option (argparse then refused both).  The user's files are kept."""
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "fit.json").write_text("precious")
+    code, _, err = run_main(capsys, "fit", ROOT / "examples" / "fit" / "creep.toml",
+                            ROOT / "examples" / "fit" / "creep.csv", "--params", "alpha_d",
+                            "--out", out, "--quiet")
+    assert code == 2 and "give a new or empty folder" in err and "--resume" not in \
+        err.replace("has no --resume", ""), err
+    assert (out / "fit.json").read_text() == "precious"

@@ -81,10 +81,13 @@ def is_run_folder(folder: Path) -> bool:
     return not folder.is_symlink() and marker.is_file() and not marker.is_symlink()
 
 
-def prepare_run_folder(folder: Path, resume: bool, overwrite: bool) -> None:
+def prepare_run_folder(folder: Path, resume: bool, overwrite: bool,
+                       remedy: str = "pass --resume to continue its run or --overwrite "
+                                     "to replace it") -> None:
     """Rank 0: make ``folder`` ready; a non-empty folder is reused only to resume, or
     replaced with ``overwrite`` if this program made it (its marker; never any other
-    folder, never through a symbolic link)."""
+    folder, never through a symbolic link); ``remedy``: what the command offers for a
+    folder that is not empty."""
     problem = folder_problem(folder)
     if problem:
         raise OutputError(f"--out {problem}")
@@ -94,8 +97,7 @@ def prepare_run_folder(folder: Path, resume: bool, overwrite: bool) -> None:
         return
     if folder.is_dir() and any(folder.iterdir()):
         if not overwrite:
-            raise OutputError(f"{folder} is not empty: pass --resume to continue its run or "
-                              "--overwrite to replace it")
+            raise OutputError(f"{folder} is not empty: {remedy}")
         if folder.is_symlink():
             raise OutputError(f"--overwrite: {folder} is a symbolic link (to "
                               f"{os.readlink(folder)}); give the run folder itself, "
