@@ -140,3 +140,53 @@ def pulled_ring(n_cells: int, pull: float, stiff: float = 1e7, steps: int = 4,
     dt = 1.0 / steps
     stepper.run(0.0, 1.0 + hold * dt, dt, record)
     return changes, floors
+
+
+def mechanism(n_cells: int, A: tuple = (BEND, BEND, TWIST)) -> dict:
+    """The ring clamped at its weld, closed untwisted with bending stiffnesses A: the two
+    lowest eigenvalues of its tangent stiffness (K v = lambda G v, LowestEigenvalues'
+    metric) and, for the lowest, the largest difference of its mode from the mechanism
+    of rod/ring.py (the rigid turn about the weld's tangent e_3, dx = e_3 x r, each
+    section spinning back, material rotation R^T e_3 - E_3), both scaled to a largest
+    displacement of 1 (on every rank)."""
+    from dolfin_rod.analysis.eigen import eigenpairs
+    from dolfin_rod.analysis.stability import LowestEigenvalues, TangentStiffness
+    from dolfin_rod.rod.ring import Ring
+    from dolfin_rod.theory.quaternions import np_rotation_matrix
+    model = RodModel(RodParameters(length=LENGTH, A=A, B=(STIFF, STIFF, STIFF)), n_cells,
+                     model="hyperelastic", closed=True, comm=MPI.COMM_WORLD)
+    model.set_initial_state()
+    tangent = TangentStiffness(model)
+    K = tangent.matrix(0.0)
+    pairs = eigenpairs(K, LowestEigenvalues(tangent).G, 2, target=0.0)
+    K.destroy()
+    shape = tangent.mode_shapes(pairs.vectors[:1])[0]
+    s = model.f["displacement"].function_space.tabulate_dof_coordinates()[:, 0]
+    r, q = Ring(0.0).frames(s, LENGTH, n_cells)
+    e3 = np.array([0.0, 0.0, 1.0])
+    dx = np.cross(e3, r)
+    turn = np.array([np_rotation_matrix(qi).T @ e3 for qi in q]) - e3
+    size = model.mesh.comm.allreduce(float(np.abs(dx).max(initial=0.0)), op=MPI.MAX)
+    got_x = shape["displacement"].reshape(-1, 3)[:len(s)]
+    got_t = shape["rotation"].reshape(-1, 3)[:len(s)]
+    sign = np.sign(model.mesh.comm.allreduce(float(np.sum(got_x * dx)), op=MPI.SUM))
+    misfit = max(float(np.abs(sign * got_x - dx / size).max(initial=0.0)),
+                 float(np.abs(sign * got_t - turn / size).max(initial=0.0)))
+    return {"values": sorted(float(v) for v in pairs.values),
+            "misfit": model.mesh.comm.allreduce(misfit, op=MPI.MAX)}
+
+
+def swinging_ring(n_cells: int, direction: int, drag: float, t_end: float = 4.0,
+                  dt: float = 0.1, comm=MPI.COMM_WORLD) -> list:
+    """The quasi-static ring clamped at its weld (B = 1e5, untwisted), pulled at s = L/2
+    by the dead force e_direction (EI/L^2), with linear drag ``drag`` (0: none), run to
+    t_end: the node at s = L/2 at the end (on every rank)."""
+    from dolfin_rod.rod.external_forces import PointLoad
+    force = np.eye(3)[direction]
+    model = RodModel(RodParameters(length=LENGTH, A=(BEND, BEND, TWIST),
+                                   B=(STIFF, STIFF, STIFF), drag=drag), n_cells,
+                     model="hyperelastic", closed=True, comm=comm,
+                     point_loads=[PointLoad("force", force, 0.5 * LENGTH)])
+    model.set_initial_state()
+    TimeStepper(model.problem).run(0.0, t_end, dt)
+    return ring_fields(model)["centre"][n_cells // 2]

@@ -13,7 +13,8 @@ import math
 import numpy as np
 import pytest
 from rings import (BEND, LENGTH, MICHELL, RADIUS, RING, TWIST, critical_link, free_ring,
-                   michell_count, pulled_ring, ring, ring_fields, writhing_ring)
+                   mechanism, michell_count, pulled_ring, ring, ring_fields, swinging_ring,
+                   writhing_ring)
 from serial_reference import serial
 
 from dolfin_rod import RodModel, RodParameters, Rod, RodSystem, StartingState
@@ -159,6 +160,80 @@ def test_a_clamped_ring_pulled_quasi_statically_stretches_as_the_closed_form():
         errors.append(abs(0.5 * (pulled[-1] - pushed[-1]) / closed_form - 1))
     assert errors[1] < 7.5e-3, errors
     assert abs(orders(errors)[0] - 2) < 0.05, errors
+
+
+def turning_stiffness(difference: float) -> float:
+    """The Rayleigh quotient of the mechanism (rings.mechanism) with A_1 - A_2 =
+    ``difference``: spinning the sections back by alpha turns the curvature 1/R from d2
+    towards d1, psi = (A_1 sin^2 alpha + A_2 cos^2 alpha)/(2 R^2) per length, so
+    v^T K v = (A_1 - A_2) L/R^2; v^T G v = int |e_3 x r|^2 + L^2 |e_3 - d_3|^2 ds =
+    3 pi R^3 + 4 pi R L^2.  The lowest eigenvalue lies at or below it."""
+    return difference * LENGTH / RADIUS ** 2 / (3 * math.pi * RADIUS ** 3
+                                                 + 4 * math.pi * RADIUS * LENGTH ** 2)
+
+
+@pytest.mark.mpi
+def test_a_clamped_isotropic_ring_is_a_mechanism():
+    """The untwisted ring clamped at its weld, isotropic (A_1 = A_2) and straight when
+    stress-free: its tangent stiffness has an exact zero eigenvalue (measured 2.5e-11,
+    -6.9e-11 at 16, 32 cells against the next, 15.7: round-off of B = 1e5), whose mode
+    is the rigid turn about the weld's tangent with every section spinning back
+    (rod/ring.py; measured 2e-11 from it, scaled to a displacement of 1).  A section
+    stiffer about d1 by 1 % (A_1 = 1.01) holds it: the lowest eigenvalue is positive and
+    at most the mechanism's Rayleigh quotient 0.1937 (measured 0.19); softer (A_2 =
+    1.01, the axis the ring bends about) the ring flips its sections: at most -0.1937
+    (measured -0.1962).  2 ranks: the same numbers (one eigen-solve, MUMPS)."""
+    quotient = turning_stiffness(0.01)
+    for n in (16, 32):
+        isotropic = mechanism(n)
+        zero, next_one = isotropic["values"]
+        assert abs(zero) < 1e-9 * next_one and next_one > 15.0, isotropic
+        assert isotropic["misfit"] < 1e-9, isotropic       # measured 2e-11
+    stiff, soft = mechanism(16, (1.01, 1.0, TWIST)), mechanism(16, (1.0, 1.01, TWIST))
+    assert 0.5 * quotient < stiff["values"][0] <= quotient * (1 + 1e-9), stiff
+    assert soft["values"][0] <= -quotient * (1 - 1e-9), soft
+    assert soft["values"][0] > -1.1 * quotient, soft
+
+
+def test_a_load_turning_a_clamped_ring_is_refused_naming_its_support():
+    """A quasi-static load with a moment about the weld's tangent on the mechanism (a
+    force out of the ring's plane at s = L/2: Q = 2 R F; Newton diverged at t = 0,
+    DIVERGED_DTOL) is refused when the model is made, naming ``start``; a symmetric pair
+    (Q = R F - R F), an in-plane pull (Q = 0), a dynamic ring and a section stiffer about
+    d1 are not."""
+    from dolfin_rod.rod.external_forces import DistributedLoad, PointLoad
+    out_of_plane = PointLoad("force", (0.0, 1.0, 0.0), 0.5)
+    with pytest.raises(ValueError, match=r"start: a quasi-static ring clamped at its weld "
+                       r".* point_loads\[0\] \(force at s = 0.5\) has a moment 0.31831"):
+        RodModel(RING, 16, model="hyperelastic", closed=True, point_loads=[out_of_plane])
+    with pytest.raises(ValueError, match=r"distributed_loads\[0\] \(force\) has a moment"):
+        RodModel(RING, 16, model="hyperelastic", closed=True,
+                 distributed_loads=[DistributedLoad("force", (0.0, -1.0, 0.0))])
+    pair = [PointLoad("force", (0.0, 1.0, 0.0), 0.25), PointLoad("force", (0.0, -1.0, 0.0), 0.75)]
+    RodModel(RING, 16, model="hyperelastic", closed=True, point_loads=pair)
+    RodModel(RING, 16, model="hyperelastic", closed=True, distributed_loads=[
+        DistributedLoad("force", (0.0, 0.0, -1.0))])                  # gravity in its plane
+    stiff = RodParameters(length=LENGTH, A=(1.01, 1.0, TWIST), B=(1e5, 1e5, 1e5))
+    RodModel(stiff, 16, model="hyperelastic", closed=True, point_loads=[out_of_plane])
+    dynamic = RodParameters(length=LENGTH, B=(1e5, 1e5, 1e5), density=1.0)
+    RodModel(dynamic, 16, model="hyperelastic", closed=True, point_loads=[out_of_plane])
+
+
+@pytest.mark.mpi
+def test_drag_lets_a_clamped_ring_swing_to_its_equilibrium():
+    """The regularised mechanism: with drag (c = 1) the quasi-static clamped ring pulled
+    out of its plane at s = L/2 turns at a viscous rate about the weld's tangent to the
+    pendulum's equilibrium, hanging along the force: at t = 4 its loaded node is the
+    in-plane pulled ring's (no drag, an equilibrium at the first solve) turned by a
+    quarter turn about e_3 (measured 2.6e-14 off the plane x = 0, the diameter equal
+    to 1e-13).  2 ranks = serial to 1e-9."""
+    pulled = swinging_ring(16, 0, 0.0, t_end=1.0, dt=1.0)
+    with pytest.warns(RuntimeWarning, match="cut"):                 # the swing's steps
+        swung = swinging_ring(16, 1, 1.0)
+    assert pulled[1] == 0.0 and pulled[0] > 2 * RADIUS
+    assert np.allclose(swung, [0.0, pulled[0], pulled[2]], rtol=0, atol=1e-10 * LENGTH), \
+        (swung, pulled)
+    assert np.allclose(swung, serial("swinging_ring", 16, 1, 1.0), rtol=0, atol=1e-9)
 
 
 @pytest.mark.mpi

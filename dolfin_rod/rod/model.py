@@ -184,6 +184,8 @@ class RodModel(FEModel):
         rod with corners in its stress-free polyline as the pieces between them, joined
         rigidly (kinks.py)."""
         joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
+        if not obstacles:       # (an obstacle may hold a ring's mechanism)
+            ring.check_mechanism(self.user_rods, self.dynamic)
         # rods welded into one body, pinned at two ends: its spin held (welded_spin_end)
         self.welded_spin = None if self.dynamic else welded_spin_end(
             self.rods, [joint.kind for joint in joints])

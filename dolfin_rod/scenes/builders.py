@@ -17,6 +17,7 @@ from typing import Callable, NamedTuple, Protocol
 import numpy as np
 
 from ..checks import ENDS, NEWTON_ATOL
+from ..rod.ring import MECHANISM
 from ..rod.start import curve
 from .contact import (contact_law, contact_solver_options, obstacles, segment_pairs,
                       touching)
@@ -318,6 +319,8 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
         else:
             model = RodModel(params, **rod_arguments(scene), **common)
     except ValueError as err:
+        if str(err).startswith(MECHANISM):      # a clamped ring that turns: its weld's
+            raise scene.error("boundary.start", str(err).removeprefix("start: ")) from err
         key = "material.energy" if str(err).startswith("energy") else "scene.model"
         raise scene.error(key, f"the 'rod' model rejected the scene: {err}") from err
     def initial_state():
