@@ -453,24 +453,17 @@ class LieGeneralizedAlpha:
         own increment, which the chart bounds by a quarter turn).  Then the loads are
         whole."""
         p = self.problem
-        unknowns = self._unknowns_at_start()
 
         def part(factor: float) -> None:
             p.set_loads(t0)
             p.scale_loads(factor)
-            state = [a.x.array.copy() for a in unknowns]
-            try:
-                self._initial_solver.solve()
-                self._checked(p)
-            except SolverError:
-                for a, array in zip(unknowns, state):
-                    a.x.array[:] = array
-                raise
+            self._initial_solver.solve()
+            self._checked(p)
             if factor < 1.0:
                 p.after_step()
 
         try:
-            load_path(part, self.max_cuts)
+            load_path(part, self.max_cuts, self._unknowns_at_start())
         finally:
             p.set_loads(t0)
 

@@ -244,6 +244,7 @@ def start_from(sim, previous: PreviousState, scene: Scene) -> bool:
         raise scene.error(err.key, err.reason) from None
     _check_overlaps(sim.model, previous, scene)
     sim.restart(meta["sim"] if continues else None)
+    sim.model.problem.start_loaded = True   # an equilibrium with the run's loads
     return continues
 
 
@@ -303,4 +304,5 @@ def load_state(model, run: str | Path, time: float | None = None) -> float:
         raise ValueError(err.reason) from None
     if hasattr(model, "hold_ends"):
         model.hold_ends()
+    model.problem.start_loaded = True       # an equilibrium with the run's loads
     return float(meta["time"])
