@@ -184,8 +184,10 @@ class RodModel(FEModel):
         rod with corners in its stress-free polyline as the pieces between them, joined
         rigidly (kinks.py)."""
         joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
-        if not obstacles:       # (an obstacle may hold a ring's mechanism)
-            ring.check_mechanism(self.user_rods, self.dynamic)
+        if not obstacles:       # (an obstacle or a joint may hold a ring's mechanism)
+            joined = {name for joint in joints for name in joint.rods}
+            ring.check_mechanism([rod for rod in self.user_rods if rod.name not in joined],
+                                 self.dynamic)
         # rods welded into one body, pinned at two ends: its spin held (welded_spin_end)
         self.welded_spin = None if self.dynamic else welded_spin_end(
             self.rods, [joint.kind for joint in joints])
@@ -846,9 +848,11 @@ class RodModel(FEModel):
                 start = ring.closed_start(self.rods[0], start)
         if len(self.splits) == 1 and self.kinked and start is not None:
             start = RodStarts(piece_starts(start, self.splits[0]), self.rods, self.layout)
-        elif start is not None and len(self.splits) > 1:     # pieces: each its share
-            check_rod_starts(start, self.user_rods, self.dynamic, supported=held)
-            start = system_starts(start, self.splits)
+        elif len(self.splits) > 1 and (start is not None or any(
+                rod.closed for rod in self.user_rods)):     # pieces: each its share
+            if start is not None:
+                check_rod_starts(start, self.user_rods, self.dynamic, supported=held)
+            start = system_starts(ring.closed_starts(self.user_rods, start), self.splits)
             check_joints_at_start(self.rods, self.joints, start)
             start = RodStarts(start, self.rods, self.layout)
         self._starting_accelerations("balance" if start is None else start.acceleration)

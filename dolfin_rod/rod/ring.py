@@ -30,7 +30,9 @@ The weld is the start's support: the rod's two end nodes are the same material p
   tangent has no equilibrium near the start (the ring swings like a pendulum until the
   moment vanishes): ``check_mechanism`` refuses it.
 
-A closed rod is the only rod of its model, its end is free (the weld is its support),
+A closed rod may be one of a system's rods (rod/system.RodSystem: it starts as its
+ring where it is placed, ``closed_starts``; joints join it at any node but its weld,
+located on that ring, ``initial_shape``).  Its end is free (the weld is its support),
 its ends have no prescribed motion, slide, turn or spring, and its stress-free shape
 has no corners; a quasi-static closed rod is clamped at its weld (a free ring is not
 held against rigid motions); it starts as its ring (a starting state's position,
@@ -47,6 +49,7 @@ from ..checks import MAX_CELL_TURN
 from ..theory.quaternions import CONJ, np_qmul, np_quaternion_from_rotation_vector, \
     np_rotation_matrix
 from .linking import twist, writhe
+from .placement import place, placed_shape
 from .start import StartingState
 
 WELD_SUPPORTS = ("clamped", "free")
@@ -133,9 +136,6 @@ def check_closed(rods: list, dynamic: bool) -> None:
                 raise ValueError("excess_link: the turns a ring is closed with; the rod is "
                                  "not closed (closed = true)")
             continue
-        if len(rods) > 1:
-            raise ValueError(f"closed: rod {rod.name!r} of a system: a closed rod is the "
-                             "only rod of its model (RodModel; rings in systems: not yet)")
         if rod.start not in WELD_SUPPORTS:
             raise ValueError(f"start: a closed rod's start is its weld: {' or '.join(WELD_SUPPORTS)}"
                              f" (the weld point held or a free ring), got {rod.start!r}")
@@ -313,6 +313,31 @@ def weld_links(model) -> list:
                   NodeLink(blocks.index(model.unknowns.rotation), s_a, s_b,
                            tuple(map(tuple, relative.T)))]
     return links
+
+
+def initial_shape(rod, s) -> tuple[np.ndarray, np.ndarray]:
+    """(r, q) at a rod's own nodes' arc lengths s where it starts unless a starting
+    state moves it (rods.Rod or placement.PlacedRod): a closed rod's ring, another rod's
+    stress-free shape; placed (joint_points: a joint at a ring's node)."""
+    if not getattr(rod, "closed", False):
+        return placed_shape(rod, s)
+    return place(rod, *ring_of(rod).frames(s, float(rod.params.length), rod.n_cells))
+
+
+def closed_starts(rods, starts: dict | None) -> dict | None:
+    """A system's starting states (rod/start.RodStarts' {rod name: StartingState}, or
+    None) with each closed rod's its ring (closed_start); a ValueError naming
+    ``start['<rod>'].shape`` if one gives a curve."""
+    closed = [rod for rod in rods if rod.closed]
+    if not closed:
+        return starts
+    starts = dict(starts or {})
+    for rod in closed:
+        try:
+            starts[rod.name] = closed_start(rod, starts.get(rod.name))
+        except ValueError as err:
+            raise ValueError(f"start[{rod.name!r}]" + str(err).removeprefix("start")) from None
+    return starts
 
 
 def closed_start(rod, start):

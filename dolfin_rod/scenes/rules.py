@@ -430,7 +430,8 @@ def _check_closed(scene: Scene) -> None:
         return
     if geo["closed"] and scene.in_system:
         raise scene.error("geometry.closed", "a closed rod is the only rod of its scene "
-                                             "(rings in [[rods]]: not yet)")
+                                             "(rings in [[rods]]: not yet; a RodSystem in "
+                                             "Python has them)")
     if geo["closed"] and "shape" in scene.given["initial"]:
         raise scene.error("initial.shape", "a closed rod starts as its ring (geometry."
                                            "closed, excess_link); give no starting curve")
