@@ -386,3 +386,17 @@ def test_excess_link_of_an_open_rod_scene_is_refused(tmp_path, capsys):
     assert "[geometry.excess_link]: the turns a ring is closed with" in capsys.readouterr().err
     scene.write_text(RING_SCENE)
     assert main(["check", str(scene)]) == 0
+
+
+def test_a_scene_turning_a_clamped_ring_is_refused_naming_boundary_start(tmp_path):
+    """The scene of a quasi-static ring clamped at its weld, pulled out of its plane at
+    s = L/2 (its mechanism, rod/ring.check_mechanism): a SceneError naming
+    [boundary.start] before any solve (it diverged at t = 0 with DIVERGED_DTOL)."""
+    from dolfin_rod import SceneError, run
+    scene = tmp_path / "turn.toml"
+    scene.write_text(RING_SCENE.replace("excess_link = 1.0\n", "") + (
+        "\n[loads]\npoint_force = { s = 0.5, type = \"ramp\", value = [0.0, 1.0, 0.0], "
+        "duration = 1.0 }\n"))
+    with pytest.raises(SceneError, match=r"\[boundary.start\]: a quasi-static ring clamped "
+                                         r"at its weld .* is a mechanism"):
+        run(str(scene), {"outputs.directory": str(tmp_path / "out")})
