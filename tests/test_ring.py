@@ -400,3 +400,81 @@ def test_a_scene_turning_a_clamped_ring_is_refused_naming_boundary_start(tmp_pat
     with pytest.raises(SceneError, match=r"\[boundary.start\]: a quasi-static ring clamped "
                                          r"at its weld .* is a mechanism"):
         run(str(scene), {"outputs.directory": str(tmp_path / "out")})
+
+
+# a free ring (weight 1) hanging by a ball joint at its node s = L/2 from a cantilever
+# (weight 1) pointing down: the n-gon's diameter 2 L/(2 n sin(pi/n)) below the hook
+HANGING_SCENE = """[scene]
+name = "hanging_ring"
+units = "dimensionless"
+
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 0.7692307692307692], B = [1e4, 1e4, 1e4] }
+density = 1.0
+section_inertia = 1e-4
+drag = 1.0
+
+[loads]
+gravity = [0.0, 0.0, -1.0]
+
+[boundary]
+end = "free"
+
+[[rods]]
+name = "beam"
+orientation = [3.141592653589793, 0.0, 0.0]
+geometry = { length = 1.0, n_cells = 8 }
+boundary = { start = "clamped" }
+initial = { equilibrium = true }
+
+[[rods]]
+name = "ring"
+position = [0.0, 0.0, -1.3203644309676883]
+orientation = [0.0, -1.5707963267948966, 0.0]
+geometry = { length = 1.0, n_cells = 16, closed = true }
+boundary = { start = "free" }
+
+[[joints]]
+kind = "ball"
+rods = ["beam", "ring"]
+point = [0.0, 0.0, -1.0]
+name = "hook"
+
+[time]
+t_end = 0.1
+dt = 0.01
+
+[outputs]
+animation = false
+plots = false
+fields = false
+"""
+
+
+@pytest.mark.mpi
+def test_a_scene_ring_hangs_from_a_rod_by_a_ball_joint(tmp_path, capsys):
+    """A ring in a scene's [[rods]] (geometry.closed), joined by a ball joint at its node
+    s = L/2 to a cantilever's tip, the system settled (initial.equilibrium) and run 10
+    steps: the joint carries the ring's weight (0, 0, 1) and the clamp both rods' (0, 0,
+    2), to the settle's Newton tolerance (1e-8; measured 2.5e-10); the ball no couple.
+    The same ring joined at its weld is refused by `dolfin-rod check` naming
+    [joints[0]]."""
+    from dolfin_rod import run
+    from dolfin_rod.cli import main
+    scene = tmp_path / "hanging_ring.toml"
+    scene.write_text(HANGING_SCENE)
+    result = run(str(scene), {"outputs.directory": str(tmp_path / "out")})
+    assert result.status == "completed", result.status
+    series = result.series
+    for key, value in (("joint_hook_force", (0.0, 0.0, 1.0)),
+                       ("beam.reaction_force_start", (0.0, 0.0, 2.0))):
+        got = [series[f"{key}_{c}"][-1] for c in "xyz"]
+        assert np.allclose(got, value, rtol=0, atol=1e-8), (key, got)
+    assert max(abs(series[f"joint_hook_couple_{c}"][-1]) for c in "xyz") < 1e-10
+    weld = tmp_path / "weld.toml"      # the ring's weld (s = 0) at the hook
+    weld.write_text(HANGING_SCENE.replace("[0.0, 0.0, -1.3203644309676883]", "[0.0, 0.0, -1.0]")
+                    .replace("[0.0, -1.5707963267948966, 0.0]", "[0.0, 1.5707963267948966, 0.0]"))
+    assert main(["check", str(weld)]) == 2
+    assert "[joints[0]]: the node of rod 'ring' at the point is its weld" in \
+        capsys.readouterr().err

@@ -445,7 +445,8 @@ def placed_rods(scene: Scene) -> list:
             entry.name, Geometry(geo["length"], geo["reference_curvature"],
                                  geo["reference_stretch"], curve(geo["reference_shape"])),
             geo["n_cells"], (boundary["start"], boundary["end"]), motions["displacement"],
-            motions["rotation"], entry.position, entry.orientation))
+            motions["rotation"], entry.position, entry.orientation, geo["closed"],
+            geo["excess_link"]))
     return rods
 
 
@@ -463,7 +464,8 @@ class CentreLine(NamedTuple):
 
 class StartLines(NamedTuple):
     """The rods' centre lines at t = 0 (one per piece, in the model's order), the joints'
-    nodes (piece, node, piece, node; the corners' rigid joints included) and whether a
+    nodes (piece, node, piece, node; the corners' rigid joints and each ring's weld, its
+    nodes 0 and n, included: neighbours through them) and whether a
     start is settled in static equilibrium before t = 0 (initial.equilibrium: the points
     are where the settling starts, the rod's start known after that solve only)."""
 
@@ -479,6 +481,7 @@ def initial_centre_lines(scene: Scene) -> StartLines:
     from ..rod.joint_points import locate
     from ..rod.kinks import attach, split_placed, system_starts
     from ..rod.placement import Geometry, PlacedRod
+    from ..rod.ring import closed_starts
     from ..rod.start import RodStarts
     if scene.rods:
         rods, starts = placed_rods(scene), rod_starts(scene) or {}
@@ -487,9 +490,11 @@ def initial_centre_lines(scene: Scene) -> StartLines:
         rods = [PlacedRod("rod", Geometry(geo["length"], geo["reference_curvature"],
                                           geo["reference_stretch"],
                                           curve(geo["reference_shape"])),
-                          geo["n_cells"], (boundary["start"], boundary["end"]))]
+                          geo["n_cells"], (boundary["start"], boundary["end"]),
+                          closed=geo["closed"], excess_link=geo["excess_link"])]
         start = starting_state(scene)
         starts = {} if start is None else {"rod": start}
+    starts = closed_starts(rods, starts)      # a ring starts as its ring
     splits = [split_placed(rod) for rod in rods]
     pieces = [piece for split in splits for piece in split.rods]
     state = RodStarts(system_starts(starts, splits), pieces)
@@ -501,7 +506,9 @@ def initial_centre_lines(scene: Scene) -> StartLines:
             lines.append(CentreLine(name, s + offset, state.rod_state(piece, s)[0],
                                     piece.params.length))
     joints = locate(pieces, attach(scene_joints(scene) if scene.rods else [], splits))
-    return StartLines(lines, joints, any(start.equilibrium for start in starts.values()))
+    welds = [(k, 0, k, piece.n_cells) for k, piece in enumerate(pieces) if piece.closed]
+    return StartLines(lines, joints + welds,
+                      any(start.equilibrium for start in starts.values()))
 
 
 def rods_and_joints(scene: Scene) -> tuple[list, list]:

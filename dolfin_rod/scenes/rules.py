@@ -424,14 +424,10 @@ def _check_rod_inertia(scene: Scene) -> None:
 
 def _check_closed(scene: Scene) -> None:
     """A closed rod (geometry.closed, rod/ring.py): its rules, each error naming the
-    scene key; one rod only; its start is its ring (no initial.shape)."""
+    scene key; its start is its ring (no initial.shape)."""
     geo, bnd = scene["geometry"], scene["boundary"]
     if not (geo["closed"] or "excess_link" in scene.given["geometry"]):
         return
-    if geo["closed"] and scene.in_system:
-        raise scene.error("geometry.closed", "a closed rod is the only rod of its scene "
-                                             "(rings in [[rods]]: not yet; a RodSystem in "
-                                             "Python has them)")
     if geo["closed"] and "shape" in scene.given["initial"]:
         raise scene.error("initial.shape", "a closed rod starts as its ring (geometry."
                                            "closed, excess_link); give no starting curve")

@@ -262,10 +262,12 @@ def _check_joint_points(scene: Scene) -> None:
     model splits them (rod/kinks.py)."""
     from ..rod.joint_points import check_joints_at_start, locate
     from ..rod.kinks import attach, split_placed, system_starts
+    from ..rod.ring import closed_starts
     from .builders import placed_rods, rod_starts, scene_joints
     if not scene.joints:
         return
-    splits = [split_placed(rod) for rod in placed_rods(scene)]   # the model's pieces
+    placed = placed_rods(scene)
+    splits = [split_placed(rod) for rod in placed]                # the model's pieces
     rods = [piece for split in splits for piece in split.rods]
     joints = attach(scene_joints(scene), splits)
     try:
@@ -274,6 +276,7 @@ def _check_joint_points(scene: Scene) -> None:
         key = str(err).partition(" ")[0].rstrip(":")
         raise SceneError(scene.source, key, str(err).partition(" ")[2]) from None
     try:
-        check_joints_at_start(rods, joints, system_starts(rod_starts(scene) or {}, splits))
+        check_joints_at_start(rods, joints, system_starts(
+            closed_starts(placed, rod_starts(scene)) or {}, splits))
     except ValueError as err:
         raise SceneError(scene.source, "initial", str(err)) from None
