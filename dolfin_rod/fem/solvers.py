@@ -226,31 +226,15 @@ class NewtonTest:
     are read, and the relative and divergence thresholds computed, once per solve (at
     its first residual: BlockSNES's own Newton loop tests every iteration with one
     object); a call tests iteration ``it``'s residual norm ``fnorm`` and takes the step
-    test's norms (|y|, |dy|) from ``step_norms()`` only when that test is reached.
-
-    ``floor``: the residual's round-off floor (BlockSNES.round_off_floor), asked only
-    when Newton stalls above snes_atol (an iteration raises the norm: at the floor it
-    fluctuates; stalls at half the last norm, with settles ended at the floor too, left
-    rods joined in line 1.8e-10 m off the one rod, tests/test_settle.py)
-    at most NEWTON_FORCE_CAP times the force scale: a stalled residual at most the floor
-    is CONVERGED_FNORM_ABS (the absolute tolerance raised to what round-off lets the
-    residual reach, not lower; ``floor_value`` then holds it).  A floor above that cap
-    is no round-off level of the forces (|J| of a barrier at an iterate deep in it:
-    9e6 N against a 0.05 N force scale, tests/test_thin_obstacle.py) and counts 0, as
-    it does without a force scale.  A solve whose residual falls below snes_atol never
-    asks, so its iterates and result are as without it; a stall above the floor
-    iterates on."""
+    test's norms (|y|, |dy|) from ``step_norms()`` only when that test is reached."""
 
     def __init__(self, snes, fnorm0: float, step_scale: float = 0.0,
-                 force_scale: float = 0.0, static: bool = False,
-                 floor: Callable[[], float] | None = None):
+                 force_scale: float = 0.0, static: bool = False):
         rtol, self.atol, self.stol, self.max_it = snes.getTolerances()
         self.relative = relative_tolerance(rtol, fnorm0, force_scale, static)
         divtol = snes.getDivergenceTolerance()
         self.divergence = divtol * max(fnorm0, force_scale) if divtol > 0 else math.inf
         self.step_scale = step_scale
-        self.floor, self.floor_value, self.last = floor, None, fnorm0
-        self.floor_cap = NEWTON_FORCE_CAP * force_scale
 
     def __call__(self, it: int, fnorm: float, step_norms) -> int:
         reasons = PETSc.SNES.ConvergedReason
@@ -258,13 +242,10 @@ class NewtonTest:
             return compat.NONFINITE_NORM
         if fnorm < self.atol:
             return reasons.CONVERGED_FNORM_ABS
-        last, self.last = self.last, fnorm
         if it == 0:
             return reasons.ITERATING
         if fnorm <= self.relative:
             return reasons.CONVERGED_FNORM_RELATIVE
-        if last < fnorm <= self.floor_cap and fnorm <= self.round_off_floor():
-            return reasons.CONVERGED_FNORM_ABS
         xnorm, ynorm = step_norms()
         if ynorm < self.stol * (xnorm + self.step_scale):
             return reasons.CONVERGED_SNORM_RELATIVE
@@ -272,35 +253,28 @@ class NewtonTest:
             return reasons.DIVERGED_DTOL
         return reasons.ITERATING
 
-    def round_off_floor(self) -> float:
-        """``floor()``, asked once per solve; 0 without one or above the cap."""
-        if self.floor_value is None:
-            floor = self.floor() if self.floor is not None else 0.0
-            self.floor_value = floor if floor <= self.floor_cap else 0.0
-        return self.floor_value
-
 
 def residual_problem(snes, reason: int, norm: float, initial: float,
                      floor: float = 0.0, force_scale: float = 0.0,
                      static: bool = False) -> str | None:
     """Why a solve SNES reports as converged (``reason``) is not one, or None: the
-    residual ``norm`` at the solution must meet snes_atol, the round-off ``floor`` (0:
-    not estimated; NewtonTest's after a stall, or after the step test where the residual
-    grew: Newton stopped moving there) or the relative test's tolerance
-    (relative_tolerance: snes_rtol times the ``initial`` norm, at most ``force_scale``
-    if ``static``, at most NEWTON_FORCE_CAP times it); after the step test it may also
-    not have grown."""
+    residual ``norm`` at the solution must meet snes_atol or the relative test's
+    tolerance (relative_tolerance: snes_rtol times the ``initial`` norm, at most
+    ``force_scale`` if ``static``, at most NEWTON_FORCE_CAP times it); after the step
+    test it must not have grown (or be at most the round-off ``floor``: Newton stopped
+    moving there)."""
     rtol, atol, _, _ = snes.getTolerances()
-    tolerance = max(atol, floor, relative_tolerance(rtol, initial, force_scale, static))
+    tolerance = max(atol, relative_tolerance(rtol, initial, force_scale, static))
     if norm <= tolerance:
         return None
-    if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and norm <= initial:
+    if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and \
+            norm <= max(initial, floor):
         return None
     reference = "the initial norm, at most the force scale" if static else "the initial norm"
     return (f"{_REASONS.get(reason, reason)} but the residual norm at the solution is "
-            f"{norm:.3g}, above the tolerance {tolerance:.3g} (snes_atol, the round-off "
-            f"floor, or snes_rtol times {reference}, at most {NEWTON_FORCE_CAP:g} times "
-            "the force scale; check the solver options)")
+            f"{norm:.3g}, above the tolerance {tolerance:.3g} (snes_atol, or snes_rtol "
+            f"times {reference}, at most {NEWTON_FORCE_CAP:g} times the force scale; "
+            "check the solver options)")
 
 
 class ForceScale:
@@ -513,7 +487,6 @@ class BlockSNES:
         if self._plain:     # (SNES sets the same operators at each of its iterations)
             self._ksp.setOperators(self.system.A, self.system.A)
         self._update = None       # _plain_newton's update, made at its first solve
-        self._test = None         # the convergence test of the last solve (NewtonTest)
         self.step_scale = step_scale
         if step_scale > 0.0 or self.scale is not None:
             self.snes.setConvergenceTest(self._converged)
@@ -599,15 +572,10 @@ class BlockSNES:
         return it == 0 or norm > self.reuse_ratio * last
 
     def _converged(self, snes, it: int, norms) -> int:
-        xnorm, ynorm, fnorm = norms
         if it == 0:
-            self._test = self._newton_test(fnorm)
-        return self._test(it, fnorm, lambda: (xnorm, ynorm))
-
-    def _newton_test(self, fnorm0: float) -> NewtonTest:
-        """The convergence test of a solve whose first residual norm is ``fnorm0``."""
-        return NewtonTest(self.snes, fnorm0, self.step_scale, *scale_terms(self.scale),
-                          floor=self.round_off_floor)
+            self._fnorm0 = norms[2]
+        return default_test(snes, it, norms, self._fnorm0, self.step_scale,
+                            *scale_terms(self.scale))
 
     def _set_persists(self, flags) -> None:
         opts = PETSc.Options()
@@ -723,7 +691,7 @@ class BlockSNES:
         self._initial_norm = None
         self._residual(snes, x, b)
         fnorm = self._residual_norm
-        test = self._test = self._newton_test(fnorm)
+        test = NewtonTest(snes, fnorm, self.step_scale, *scale_terms(self.scale))
 
         def step_norms():
             return x.norm(), dx.norm()
@@ -763,12 +731,6 @@ class BlockSNES:
         snes.setIterationNumber(it)
         snes.setFunctionNorm(fnorm)
         self._outcome(reason, at_solution=True)
-
-    def floor_estimate(self) -> float:
-        """The round-off floor the last solve's convergence test estimated after a stall
-        (NewtonTest), 0 if it did not: the absolute tolerance of its solution is
-        max(snes_atol, this)."""
-        return (self._test.floor_value or 0.0) if self._test is not None else 0.0
 
     def round_off_floor(self) -> float:
         """The order of the residual norm's round-off floor, eps || |J| (|y| + h) ||: a
@@ -823,10 +785,8 @@ class BlockSNES:
         if not at_solution and not self.x.equal(self._x_at_residual):
             self.snes.computeFunction(self.x, self._r)   # -> _snes_residual at the solution
         norm, initial = self._residual_norm, self._initial_norm
-        floor = self.floor_estimate()
-        if not floor and norm > initial and \
-                reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE:
-            floor = self.round_off_floor()
+        floor = self.round_off_floor() if norm > initial and \
+            reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE else 0.0
         problem = residual_problem(self.snes, reason, norm, initial, floor,
                                    *scale_terms(self.scale))
         if problem is not None:

@@ -477,9 +477,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                     f"{NEWTON_FORCE_TOL:g} times the 3-D rod's force scale at each step's "
                     "time (its largest load, at least the force max |A| / L^2 that bends "
                     "it by a radian; docs/rod.md), else (torsion) "
-                    f"{NEWTON_ATOL:g}; given: exactly that (a 3-D rod's Newton stalled "
-                    "above it at the residual's round-off floor stops there: docs/rod.md) "
-                    "and, 3-D rod, below 1e-6 of the "
+                    f"{NEWTON_ATOL:g}; given: exactly that, above the residual's round-off "
+                    "floor (~1e-12 fails at 64 cells) and, 3-D rod, below 1e-6 of the "
                     "scene's forces (`check` warns: Newton would pass its first guess "
                     "unchanged)"),
         "max_step_cuts": Key(integer(0, 30), MAX_STEP_CUTS, "step halvings before giving up"),
