@@ -305,7 +305,8 @@ def mesh_file(scene: Scene, ob: dict) -> str | None:
     """A mesh obstacle's file, relative to the scene's folder (None: not given)."""
     if ob["file"] is None:
         return None
-    return str((scene.folder or Path()) / ob["file"])
+    folder = Path(scene.source).parent if Path(scene.source).is_file() else Path()
+    return str(folder / ob["file"])
 
 
 def contact_lines(scene: Scene, start) -> list[str]:
