@@ -13,11 +13,12 @@
 3. Process start to exit: ``python3 -c "import dolfin_rod"`` (a lazy package: it
    imports no DOLFINx), the import of the finite-element stack a run makes
    (``run.import_finite_elements``), ``python3 -c "import dolfin_rod, dolfinx.fem.petsc"``
-   (the compute stack: the honest baseline of target 3), ``dolfin-rod
-   check`` and ``dolfin-rod run scenes/gravity_cantilever.toml`` (into a temporary
-   folder; its timings.json gives the run's integration and pictures), median of
-   --repeats each, for this tree and the --baseline alternating; target 3's ratio
-   run / (2 import + integration) with each import.
+   (the compute stack: the honest baseline of target 3), ``dolfin-rod --help``,
+   ``dolfin-rod check`` and ``dolfin-rod run scenes/gravity_cantilever.toml`` (into a
+   temporary folder; its timings.json gives the run's integration and pictures), median
+   of --repeats each, for this tree and the --baseline alternating; target 3's ratio
+   run / (2 import + integration) with each import; with --baseline, the paired ratios
+   (this tree over the baseline, repeat by repeat, median) of wall and CPU time.
 
 Prints the medians and the machine's load, writes results/bench/setup_cost.json.
 
@@ -175,6 +176,7 @@ COMMANDS = {
         "-c", "import basix.ufl, dolfinx.fem.petsc, ufl"],   # run.py's (no checkpoints)
     "python3 -c 'import dolfin_rod, dolfinx.fem.petsc'": [      # the compute stack: the
         "-c", "import dolfin_rod, dolfinx.fem.petsc"],            # honest baseline
+    "dolfin-rod --help": ["-m", "dolfin_rod", "--help"],
     "dolfin-rod check": ["-m", "dolfin_rod", "check", str(SCENE)],
     "dolfin-rod run gravity_cantilever": ["-m", "dolfin_rod", "run", str(SCENE), "--quiet",
                                           "--out"],
@@ -218,6 +220,8 @@ def processes_of(variants: dict, repeats: int) -> dict:
                      "run_over_2_compute_stack_plus_integration": run_s / (
                          2 * med["python3 -c 'import dolfin_rod, dolfinx.fem.petsc'"]
                          + integration)}
+        if name != "baseline" and "baseline" in variants:
+            out[name]["paired_over_baseline"] = paired_ratios(seconds, cpu, name)
         print(f"{name}: " + ", ".join(f"{c} {v:.2f} s (CPU {med_cpu[c]:.2f} s)"
                                       for c, v in med.items()))
         print(f"  run: integration {integration:.2f} s, pictures {pictures:.2f} s; "
@@ -227,6 +231,20 @@ def processes_of(variants: dict, repeats: int) -> dict:
               f"{out[name]['run_over_2_stack_import_plus_integration']:.2f}, run / (2 "
               f"import dolfin_rod, dolfinx.fem.petsc + integration) = "
               f"{out[name]['run_over_2_compute_stack_plus_integration']:.2f} (target <= 1)")
+    return out
+
+
+def paired_ratios(seconds: dict, cpu: dict, name: str) -> dict:
+    """Per command, the median over the repeats of ``name``'s wall and CPU seconds over
+    the baseline's of the same repeat (run next to each other: a load that drifts over
+    the benchmark cancels)."""
+    out = {}
+    for c in COMMANDS:
+        ratios = {kind: statistics.median(a / b for a, b in zip(of[name][c], of["baseline"][c]))
+                  for kind, of in (("wall", seconds), ("cpu", cpu))}
+        out[c] = ratios
+        print(f"  {c}: {name} / baseline, paired medians: wall {ratios['wall']:.3f}, "
+              f"CPU {ratios['cpu']:.3f}")
     return out
 
 

@@ -11,8 +11,8 @@
 #
 #     F h^2 / B = eps^4 / 2,   eps = sqrt(h / R),   i.e.  F R^2 / B = 1/2,
 #
-# R the radius of curvature where the rope leaves the braid (the knot's tightest bend),
-# h the rod's radius (with friction mu: + mu sigma eps^3, sigma = 0.492).  The end
+# R the knot's tightest radius of curvature (as DisMech's example measures it), h the
+# rod's radius (with friction mu: + mu sigma eps^3, sigma = 0.492).  The end
 # shortening e = L - |x(L) - x(0)| measures how tight the knot is.
 #
 # Measured at each output of the pull: F the mean of the two supports' reactions along
@@ -24,7 +24,8 @@
 #     holds (pairs in contact at every output);
 #   - F R^2 / B stays constant as the knot tightens (F ~ R^-2, the published scaling):
 #     the exponent of a fit F ~ R^p within 0.3 of -2.
-#   The prefactor: F R^2 / B = 0.28-0.34 at 100 cells against the published 1/2 (docs).
+#   The prefactor: F R^2 / B = 0.28-0.34 at 100 cells against the published 1/2: this
+#   knot is not a loose one (in contact along most of it; docs/contact.md).
 #
 # Run: `./rodenv python3 demos/overhand_knot.py` (~5 min at load 15 on 2 cores), also
 # under `mpirun -n 2`.

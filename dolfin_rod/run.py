@@ -286,7 +286,7 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
         print_on_root(comm, f"model: {choice.model} ({choice.reason})")
     scene_warnings(scene, comm)
     from .output.drawing import painting
-    from .output.notices import noticed
+    from .output.notices import listed, noticed
     with painting(draws_alone(scene, comm)) as painter, noticed(comm) as seen:
         try:
             outs = scene["outputs"]
@@ -297,6 +297,8 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
             continued = None if previous is None else start_from(sim, previous, scene)
             if previous is not None:     # the impulse of a step at t = 0 from rest: not
                 impulse = None           # this start's (a saved state, not rest)
+                if previous.unfinished:
+                    warnings.warn(previous.unfinished, stacklevel=1)
         except BaseException:
             if made and comm.rank == 0:          # nothing half-written: no empty folder
                 _remove_if_empty(folder)
@@ -337,6 +339,7 @@ def _run(scene: Scene, out: Path | None, comm, resume: bool, overwrite: bool, qu
             t_analysis = time.perf_counter()
             try:
                 summary.update(analysis(sim, t, folder))
+                summary["warnings"] = listed(seen)      # with the analysis's
             except AnalysisError as err:    # the run's files kept and closed, its summary
                 status, message = "failed", str(err)
                 summary.update(status=status, message=message)
@@ -599,7 +602,8 @@ def _summary(scene, choice, sim, writer, comm, status, message, t, impulse,
              seen: list[str]) -> dict:
     from .output.notices import listed
     summary = {
-        "scene": scene.name, "source": scene.source, "model": choice.model,
+        "scene": scene.name, "source": scene.source,
+        "scene_folder": str((scene.folder or Path()).resolve()), "model": choice.model,
         "reason": choice.reason, "method": getattr(sim, "describe", lambda: "")(),
         "status": status, "message": message, "t_end_reached": t,
         "steps": len(writer.rows) - 1 if comm.rank == 0 else None,

@@ -74,3 +74,9 @@ def writhing_ring(n_cells: int, link: float, comm=MPI.COMM_WORLD) -> list:
     """A pushed free ring's (Tw, Wr) step by step (tests/test_ring.py)."""
     from rings import writhing_ring as run
     return run(n_cells, link, comm)
+
+
+def swinging_ring(n_cells: int, direction: int, drag: float, comm=MPI.COMM_WORLD) -> list:
+    """The clamped ring pulled by a force, its node at s = L/2 (tests/test_ring.py)."""
+    from rings import swinging_ring as run
+    return run(n_cells, direction, drag, comm=comm)

@@ -9,9 +9,11 @@ reproduce to the Newton tolerance.
 
 from __future__ import annotations
 
+import dolfinx
 import dolfinx.fem as fem
 import numpy as np
 import pytest
+import ufl
 
 from dolfin_rod import loads
 from dolfin_rod.fem.assembly import BlockedSystem, MonolithicSystem, block_system
@@ -176,6 +178,24 @@ def _random_state(model, seed):
         f.x.scatter_forward()
 
 
+def _kelvin_voigt_with_drag():
+    """Rotation vectors, Kelvin-Voigt viscosity and drag: dissipation on the 1-point and
+    the 2-point rule (on main before the fix: the fused kinetic energy 26 % off)."""
+    return RodModel(RodParameters(length=1.0, A=(0.3, 0.4, 0.2), B=(1e2, 1e2, 3e2),
+                                  M=(0.1, 0.2, 0.3), N=(1.0, 2.0, 3.0), density=2.0,
+                                  section_inertia=1e-3, drag=0.3),
+                    n_cells=4, model="kelvin_voigt", rotations="rotation_vector",
+                    distributed_loads=[DistributedLoad("force", (-5.0, 0.0, 1.0))])
+
+
+def _integral_by_integral(form, comm) -> float:
+    """A scalar form as the sum of its integrals assembled one at a time (one quadrature
+    rule per kernel: quadrature_rules.py), MPI-summed."""
+    from mpi4py import MPI
+    return comm.allreduce(sum(fem.assemble_scalar(fem.form(ufl.Form([itg])))
+                              for itg in form.integrals()), op=MPI.SUM)
+
+
 @pytest.mark.mpi
 @pytest.mark.parametrize("build", [
     creeping_cantilever,
@@ -183,24 +203,48 @@ def _random_state(model, seed):
                                    density=2.0, section_inertia=(1e-3, 2e-3), drag=0.3), n_cells=4,
                      model="hyperelastic", end_loads=[EndLoad("force", (0.0, 1.0, -2.0))],
                      distributed_loads=[DistributedLoad("force", (-5.0, 0.0, 1.0))]),
+    _kelvin_voigt_with_drag,
     lambda: TorsionModel(TorsionParameters(mu=0.1, mu_d=0.5, nu=0.2), n_cells=4,
                          variant="uniform", end_torsion=loads.constant(1.0))],
-    ids=["quaternions, creep", "rotation vectors, drag", "torsion, uniform variant"])
+    ids=["quaternions, creep", "rotation vectors, drag", "rotation vectors, Kelvin-Voigt",
+         "torsion, uniform variant"])
 def test_diagnostics_in_one_assembly_equal_the_forms_one_by_one(build):
-    """model_base.FormSums (all diagnostic forms in one vector assembly) against DOLFINx's
-    scalar assembly of each form, MPI-summed: the same sums of the same quadrature
-    points, so equal to round-off (1e-12 relative to the largest value)."""
-    from mpi4py import MPI
+    """model_base.FormSums (all diagnostic forms in one vector assembly per quadrature
+    rule) against DOLFINx's scalar assembly of each integral of each form, MPI-summed:
+    the same sums of the same quadrature points, so equal to round-off (1e-12 relative to
+    the largest value).  Each integral alone: a form's own scalar assembly can be wrong
+    (FFCx, a kernel with the 1-point rule and another: quadrature_rules.py; the
+    Kelvin-Voigt rod's dissipation rate)."""
     model = build()
     _random_state(model, seed=4)
     fused = model.assembled_diagnostics(0.2)
-    one_by_one = {key: model.mesh.comm.allreduce(fem.assemble_scalar(fem.form(form)),
-                                                 op=MPI.SUM)
+    one_by_one = {key: _integral_by_integral(form, model.mesh.comm)
                   for key, form in model.diagnostic_forms.items()}
     scale = max(abs(v) for v in one_by_one.values())
     assert scale > 1e-3
     for key, value in one_by_one.items():
         assert fused[key] == pytest.approx(value, rel=0, abs=1e-12 * scale), key
+
+
+def test_one_kernel_per_quadrature_rule():
+    """FormSums of e = u sin(u) on the 1-point rule, e on the degree-4 rule (3 Gauss
+    points) and their sum, u = s on one cell [0, 1]: the midpoint value 0.5 sin(0.5), the
+    3-point Gauss-Legendre sum (0.30117) and their sum, to round-off.  One FFCx kernel
+    with both rules gives the midpoint value 0.23971 for the second too
+    (quadrature_rules.py)."""
+    from mpi4py import MPI
+
+    from dolfin_rod.fem.fe_model import FormSums
+    mesh = dolfinx.mesh.create_unit_interval(MPI.COMM_SELF, 1)
+    u = fem.Function(fem.functionspace(mesh, ("Lagrange", 1)))
+    u.interpolate(lambda x: x[0])
+    e = ufl.sin(u) * u
+    dx = {k: ufl.dx(domain=mesh, metadata={"quadrature_degree": k}) for k in (1, 4)}
+    points, weights = np.polynomial.legendre.leggauss(3)
+    s = (points + 1) / 2
+    midpoint, gauss = 0.5 * np.sin(0.5), np.sum(weights / 2 * s * np.sin(s))
+    fused = FormSums(mesh, [e * dx[1], e * dx[4], e * dx[1] + e * dx[4]])()
+    assert fused == pytest.approx([midpoint, gauss, midpoint + gauss], rel=1e-14)
 
 
 @pytest.mark.mpi

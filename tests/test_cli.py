@@ -60,6 +60,23 @@ def test_check_prints_model_and_reason(name):
     assert "model: ode" in out.stdout and "why: quasi-static" in out.stdout
 
 
+def test_help_and_usage_errors_end_before_mpi_init():
+    """``--help``, ``--version`` and a usage error are answered before MPI_Init (0.15-0.2 s
+    of their time, issue 30): MPI stays uninitialised, the exit statuses are argparse's."""
+    code = ("import sys; from dolfin_rod.cli import main\n"
+            "for argv in (['--help'], ['--version'], ['run', '--help'], ['no-such']):\n"
+            "    try:\n"
+            "        main(argv)\n"
+            "    except SystemExit as done:\n"
+            "        print('status', done.code, file=sys.stderr)\n"
+            "print('mpi4py.MPI' in sys.modules, file=sys.stderr)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=CLI_TIMEOUT, cwd=ROOT)
+    assert out.stderr.split("\n")[-2] == "False", out.stderr
+    assert re.findall(r"status (\d)", out.stderr) == ["0", "0", "0", "2"], out.stderr
+    assert "usage: dolfin-rod" in out.stdout and "dolfin-rod 0." in out.stdout
+
+
 def test_bad_scene_exits_2_without_traceback(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[material]\nalpha = -1.0\n[time]\nt_end = 1.0\ndt = 0.1\n")

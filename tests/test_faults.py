@@ -19,6 +19,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -955,3 +956,360 @@ def test_a_lock_left_by_a_killed_compile_is_removed_once_it_is_stale(tmp_path):
     lock = _kill_mid_compile(tmp_path, age=-60.0)
     waited = run()
     assert waited.returncode != 0 and "TimeoutError" in waited.stderr and lock.is_file()
+
+
+# --- fifth user trial ---------------------------------------------------------------------
+
+# two rods, the second welded to the first's tip (quasi-static, 2 steps)
+JOINED = """
+[scene]
+name = "joined"
+units = "SI"
+[material]
+model = "hyperelastic"
+stiffness = {{ A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0] }}
+[boundary]
+end = "free"
+[[rods]]
+name = "a"
+geometry = {{ length = 1.0, n_cells = 4 }}
+boundary = {{ start = "clamped" }}
+[[rods]]
+name = "b"
+position = [0.0, 0.0, 1.0]
+orientation = [0.0, 1.5707963267948966, 0.0]
+geometry = {{ length = 1.0, n_cells = 4 }}
+boundary = {{ start = "free" }}
+loads = {{ end_force = {{ type = "ramp", value = [0.0, 0.0, -0.5], duration = 1.0 }} }}
+{joints}
+[time]
+t_end = 0.5
+dt = 0.25
+[outputs]
+plots = false
+animation = false
+fields = false
+final_checkpoint = true
+"""
+WELD = '[[joints]]\nkind = "rigid"\nrods = ["a", "b"]\npoint = [0.0, 0.0, 1.0]\n'
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("joints, units, words", [
+    (WELD.replace('"rigid"', '"ball"'), "SI", "joints[0].kind ('rigid' there, 'ball' here)"),
+    ("", "SI", "joints[0] ({'kind': 'rigid'"),        # b then clamped where the joint was
+    (WELD, "mm-N-s", "its numbers are in SI, this scene's in mm-N-s"),
+])
+def test_a_state_starts_no_scene_whose_joints_or_units_differ(tmp_path, capsys, joints,
+                                                               units, words):
+    """Fifth trial, fault 1: a double pendulum's state (ball joint at the elbow) started
+    a scene whose elbow was welded (rigid): the rigid joint's relative rotation is taken
+    at the placement (joints.node_links), not at the state, so the rods kept turning
+    against each other (rel. rotation's 13 entry -0.171 -> 0.035 in 0.1 s) and exit 0.
+    A joint added where the state's rods are apart would snap them together; one removed
+    or changed is another model.  Now check and run refuse it naming the joint.  Fault 6:
+    a state saved in SI started a scene in mm-N-s (a 1 m rod read as 1 mm, its length
+    left at 1.0), silently; another scene.units is now refused too."""
+    folder = shared(tmp_path)
+    first = write(folder / "first.toml", JOINED.format(joints=WELD))
+    assert run_main(capsys, "run", first, "--out", folder / "first", "--quiet")[0] == 0
+    second = write(folder / "second.toml", JOINED.format(joints=joints).replace(
+        "[time]", f'[initial]\nfrom_run = "{folder / "first"}"\n[time]').replace(
+        '{ start = "free" }', '{ start = "free" }' if joints else '{ start = "clamped" }')
+        .replace('"SI"', f'"{units}"'))
+    for command in ("check", "run"):
+        code, _, err = run_main(capsys, command, second, "--out", folder / "second")
+        assert code == 2
+        assert COMM.rank != 0 or ("initial.from_run" in err and words in err), err
+    same = write(folder / "same.toml", JOINED.format(joints=WELD).replace(
+        "[time]", f'[initial]\nfrom_run = "{folder / "first"}"\n[time]'))
+    assert run_main(capsys, "check", same)[0] == 0
+
+
+@pytest.mark.parametrize("name, words", [
+    ("geometry.n_cells", "would not reach rods[0].geometry.n_cells"),
+    ("boundary.start", "would not reach rods[0].boundary.start"),
+    ("section.radius", "would not reach rods[1].section"),     # a section of its own shape
+    ("rods[1].geometry.n_cells", "cannot index an array of tables"),
+    ("joints[0].kind", "cannot index an array of tables"),
+])
+def test_an_override_that_a_rod_would_shadow_is_refused(name, words):
+    """Fifth trial, faults 2 and 3: `--set geometry.n_cells=4` on
+    scenes/double_pendulum.toml (each rod gives its own n_cells = 8) was accepted and
+    changed nothing (a convergence study by --set gave the same numbers at every "n");
+    `--set rods[1].geometry.n_cells=4` was refused as "[rods[1]]: (rod 0) unknown table".
+    Keys no rod gives (material.density) still reach every rod."""
+    text = (ROOT / "scenes" / "double_pendulum.toml").read_text().replace(
+        'geometry = { length = 0.7, n_cells = 8 }',
+        'geometry = { length = 0.7, n_cells = 8 }\n'
+        'section = { shape = "circle", radius = 0.004 }')
+    value = {"geometry.n_cells": 4, "boundary.start": "clamped"}.get(name.split("[")[0], 4)
+    with pytest.raises(SceneError, match=re.escape(words)) as err:
+        parse_scene(text, overrides={name: value})
+    assert err.value.key == name
+    scene = parse_scene(text, overrides={"material.density": 1000.0})
+    assert [r.scene["material"]["density"].constant for r in scene.rods] == pytest.approx(
+        [1000.0 * math.pi * 0.005 ** 2, 1000.0 * math.pi * 0.004 ** 2], rel=1e-15)
+
+
+# a quasi-static cantilever beside a tetrahedron read from a file next to the scene
+MESHED = """
+[scene]
+name = "meshed"
+[geometry]
+n_cells = 4
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0] }
+[boundary]
+start = "clamped"
+[loads]
+end_force = { type = "ramp", value = [0.01, 0.0, 0.0], duration = 1.0 }
+[contact]
+radius = 0.01
+[[obstacles]]
+shape = "mesh"
+file = "shapes/tetrahedron.stl"
+centre = [2.0, 0.0, 0.5]
+[time]
+t_end = 0.5
+dt = 0.25
+[outputs]
+animation = false
+final_checkpoint = true
+"""
+TETRAHEDRON = [(0, 0, 0), (0.1, 0, 0), (0, 0.1, 0), (0, 0, 0.1)]
+
+
+def _stl(vertices, faces) -> str:
+    rows = []
+    for face in faces:
+        a, b, c = (np.array(vertices[i], float) for i in face)
+        n = np.cross(b - a, c - a)
+        rows += [f"facet normal {' '.join(map(str, n / np.linalg.norm(n)))}", "outer loop",
+                 *(f"vertex {' '.join(map(str, v))}" for v in (a, b, c)), "endloop",
+                 "endfacet"]
+    return "solid t\n" + "\n".join(rows) + "\nendsolid t\n"
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="the plot is drawn by one process")
+def test_a_run_of_a_scene_with_a_mesh_file_is_plotted_and_started_from(tmp_path, capsys):
+    """Fifth trial, fault 4: scene.toml in a run folder names a mesh obstacle's file
+    relative to the scene's folder, so `dolfin-rod plot RUN` ("its scene.toml cannot be
+    read: ... RUN/meshes/boulder.stl: No such file") and `[initial] from_run = RUN`
+    ("its scene.toml is not a valid scene") failed for every run of
+    scenes/rope_over_boulder.toml.  summary.json's scene_folder names the folder."""
+    scenes = tmp_path / "scenes"
+    (scenes / "shapes").mkdir(parents=True)
+    (scenes / "shapes" / "tetrahedron.stl").write_text(
+        _stl(TETRAHEDRON, [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]))
+    (scenes / "first.toml").write_text(MESHED)
+    (scenes / "second.toml").write_text(MESHED.replace(
+        "[time]", f'[initial]\nfrom_run = "{tmp_path / "first"}"\n[time]'))
+    assert run_main(capsys, "run", scenes / "first.toml", "--out", tmp_path / "first",
+                    "--quiet")[0] == 0
+    code, out, err = run_main(capsys, "check", scenes / "second.toml")
+    assert code == 0 and "starts from" in out, err
+    code, out, err = run_main(capsys, "plot", tmp_path / "first")
+    assert code == 0 and "histories.png" in out, err
+
+
+def _double_pendulum(hanging: bool, settled: bool = False) -> str:
+    """scenes/double_pendulum.toml (released 0.6 and 1.1 rad off the vertical) or its
+    rods hanging straight down at rest (``settled``: in static equilibrium), two steps."""
+    text = (ROOT / "scenes" / "double_pendulum.toml").read_text()
+    if hanging:
+        for old in ("[0.0, 2.541592653589793, 0.0]", "[0.0, 2.041592653589793, 0.0]"):
+            text = text.replace(old, f"[0.0, {math.pi!r}, 0.0]")
+        text = text.replace("[0.5646424733950354, 0.0, -0.8253356149096783]",
+                            "[0.0, 0.0, -1.0]")
+    if settled:
+        text = text.replace("[time]", "[initial]\nequilibrium = true\n[time]")
+    return text.replace("t_end = 1.5 ", "t_end = 0.004 ").replace(
+        "[outputs]", "[outputs]\nplots = false\nanimation = false\nfields = false")
+
+
+@pytest.mark.mpi
+def test_modes_warn_about_a_state_out_of_equilibrium_and_a_settled_pendulum_has_its_own(
+        tmp_path, capsys):
+    """Fifth trial, fault 5: `dolfin-rod modes scenes/double_pendulum.toml` (released 0.6
+    rad off the vertical, analysed at t = 0.004) printed six "natural frequencies" and
+    "completed" without a word that the state is no equilibrium (its forces at rest out
+    of balance by 0.70 N): the linearisation about a moving state has no modes.  The
+    same pendulum hanging straight down from a stress-free start is no equilibrium
+    either (the rods' tension under their weight is not there yet, 0.57 N out of
+    balance): its swing frequencies came out 2.053, 5.476 rad/s against the compound
+    double pendulum's 2.912, 7.577 (uniform rods of mass m_i, length L_i, pinned and
+    ball-jointed: M = [[(m1/3 + m2) L1^2, m2 L1 L2/2], [m2 L1 L2/2, m2 L2^2/3]], K = g
+    diag((m1/2 + m2) L1, m2 L2/2)), 30 % off.  Both now warn (stderr, summary.json).
+    Fault 10: the hanging pendulum could not be settled first (initial.equilibrium:
+    "(rod 1) the static problem needs a supported end", the lower rod held by its joint
+    only, though the model's static problem is the system's); settled, it warns not and
+    has the closed form's 2.91196, 7.57698 rad/s: the rods' rotary inertia rho I L adds
+    4e-5 to their inertia, their bending (first clamped-free frequency 591 rad/s) lowers
+    the second by (7.6/591)^2 ~ 2e-4: asserted 1e-4 and 1e-3."""
+    folder = shared(tmp_path)
+    rho_a = 7850.0 * math.pi * 0.005 ** 2
+    (m1, l1), (m2, l2), g = (rho_a * 1.0, 1.0), (rho_a * 0.7, 0.7), 9.81
+    mass = np.array([[(m1 / 3 + m2) * l1 ** 2, m2 * l1 * l2 / 2],
+                     [m2 * l1 * l2 / 2, m2 * l2 ** 2 / 3]])
+    stiffness = g * np.diag([(m1 / 2 + m2) * l1, m2 * l2 / 2])
+    swing = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(mass, stiffness)).real))
+    for name, hanging, settled in [("released", False, False), ("hanging", True, False),
+                                   ("settled", True, True)]:
+        scene = write(folder / f"{name}.toml", _double_pendulum(hanging, settled))
+        warns = not settled
+        code, _, err = run_main(capsys, "modes", scene, "--out", folder / name, "--quiet")
+        assert code == 0, err
+        summary = json.loads((folder / name / "summary.json").read_text())
+        unbalanced = [w for w in summary["warnings"] if "not an equilibrium" in w]
+        assert bool(unbalanced) == warns, summary["warnings"]
+        assert COMM.rank != 0 or ("not an equilibrium" in err) == warns, err
+    omega = np.array([row["omega"] for row in summary["modes"]["modes"]])   # settled
+    assert list(omega[:2]) == [0.0, 0.0]              # the rods' spins about their axes
+    for pair in (omega[2::2], omega[3::2]):
+        assert abs(pair[0] / swing[0] - 1) < 1e-4 and abs(pair[1] / swing[1] - 1) < 1e-3, \
+            (omega, swing)
+    hanging = json.loads((folder / "hanging" / "summary.json").read_text())
+    omega = np.array([row["omega"] for row in hanging["modes"]["modes"]])
+    assert np.all(np.abs(omega[2::2] / swing - 1) > 0.25), (omega, swing)
+
+
+def test_fit_refuses_a_scene_of_several_rods(tmp_path, capsys):
+    """Fifth trial, fault 7: `dolfin-rod fit` of a [[rods]] scene ended in a traceback
+    (KeyError: 'tip_position_x', after building the model: two cantilevers, one loaded)
+    or in an error about another rod (scenes/crossing_rods.toml: "(rod 1) acts where the
+    position is prescribed", the data's load written where every rod inherits it).  Now
+    exit 2 naming [rods] before any model."""
+    scene = (ROOT / "scenes" / "crossing_rods.toml")
+    data = tmp_path / "data.csv"
+    data.write_text("time,load,response\n" + "".join(f"{t},50.0,{0.01 * t}\n"
+                                                     for t in (0.0, 0.25, 0.5, 0.75, 1.0)))
+    code, _, err = run_main(capsys, "fit", scene, data, "--params",
+                            "material.youngs_modulus", "--out", tmp_path / "fit")
+    assert code == 2 and "[rods]: a fit drives one rod" in err, err
+    assert not (tmp_path / "fit").exists()
+
+
+@pytest.mark.mpi
+def test_a_start_from_a_run_that_did_not_end_warns(tmp_path, capsys):
+    """Fifth trial, fault 8: `[initial] from_run` takes the run's last saved state; of a
+    run stopped (Ctrl-C, a failure, stop_after) it is a state before the run's t_end, and
+    the new run started from it without a word (run A stopped after 5 steps of 8, its
+    checkpoint at step 3: run B "completed" from t = 0.03).  Now check and run warn
+    (stderr, summary.json); a run that ended with its final checkpoint does not."""
+    folder = shared(tmp_path)
+    creep = parse_scene(QUIET_CREEP)
+    stopped = run_scene(creep, folder / "stopped", stop_after=5, quiet=True)
+    assert stopped["status"] == "stopped"
+    ended = parse_scene(QUIET_CREEP.replace("checkpoint_every = 3", "final_checkpoint = true"))
+    assert run_scene(ended, folder / "ended", quiet=True)["status"] == "completed"
+    for previous, warns in (("stopped", True), ("ended", False)):
+        scene = write(folder / f"from_{previous}.toml", QUIET_CREEP.replace(
+            "[time]", f'[initial]\nfrom_run = "{folder / previous}"\n[time]'))
+        code, out, _ = run_main(capsys, "check", scene)
+        assert code == 0
+        assert COMM.rank != 0 or ("is not its end state" in out) == warns, out
+        summary = run_scene(load_scene(scene), folder / f"B_{previous}", quiet=True)
+        assert summary["from_run"]["time"] == pytest.approx(0.03 if warns else 0.08)
+        assert any("is not its end state" in w for w in summary["warnings"]) == warns
+
+
+@pytest.mark.parametrize("row, words", [
+    ("0.5,1,1,000.5", "row 4 has 4 values, the header 3: a thousands separator"),
+    ("0.5,1", "row 4 has 2 values, the header 3: a value is missing"),
+])
+def test_fit_data_with_a_row_of_another_length_is_refused(tmp_path, row, words):
+    """Fifth trial, fault 9: numpy reads the named columns only, so a row with a value
+    more than the header ("0.5,1,1,000.5": response 1000.5 with a thousands separator)
+    was read as response 1 and fitted, silently.  Blank lines, a trailing comma on every
+    row and quoted values still read."""
+    from dolfin_rod.fit.inputs import FitInputError, read_series
+    rows = ["time,load,response", "0,1,0", "0.25,1,0.5", row, "0.75,1,0.8"]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(rows) + "\n")
+    with pytest.raises(FitInputError, match=re.escape(words)):
+        read_series(bad)
+    good = tmp_path / "good.csv"
+    good.write_text('time,load,response,\n0,1,0,\n\n"0.25",1,0.5,\n0.5,1,0.7,\n')
+    assert list(read_series(good).response) == [0.0, 0.5, 0.7]
+
+
+def test_a_system_settled_in_equilibrium_needs_a_support_somewhere():
+    """Fault 10's other side: the rods of a system with initial.equilibrium need no
+    support of their own when a joint holds them, but the system needs one (the pendulum
+    unpinned: exit 2 naming initial.equilibrium, as for a single free rod)."""
+    held = parse_scene(_double_pendulum(True, settled=True))
+    assert [r.scene["initial"]["equilibrium"] for r in held.rods] == [True, True]
+    with pytest.raises(SceneError, match="the static problem needs a supported end") as err:
+        parse_scene(_double_pendulum(True, settled=True).replace(
+            'boundary = { start = "pinned" }', 'boundary = { start = "free" }'))
+    assert err.value.key == "initial.equilibrium"
+
+
+# a cantilever bent towards -x by a tip force (quasi-static; its end at x = -0.31)
+BENT = """
+[scene]
+name = "bent"
+[geometry]
+n_cells = 8
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 1.0], B = [100.0, 100.0, 100.0] }
+[boundary]
+start = "clamped"
+[loads]
+end_force = { type = "ramp", value = [-1.0, 0.0, 0.0], duration = 1.0 }
+[time]
+t_end = 1.0
+dt = 0.25
+[outputs]
+plots = false
+animation = false
+fields = false
+final_checkpoint = true
+"""
+WALL = """[contact]
+radius = 0.01
+[[obstacles]]
+shape = "plane"
+point = [-0.1, 0.0, 0.0]
+normal = [1.0, 0.0, 0.0]
+[initial]
+from_run = "{run}"
+[time]"""
+
+
+@pytest.mark.mpi
+def test_a_saved_state_inside_a_new_obstacle_is_refused_naming_it(tmp_path, capsys):
+    """Fifth trial, fault 11: a scene that adds a wall (x > -0.1) where the saved
+    cantilever's end lies (x = -0.31; its placement, the straight rod at x = 0, is clear
+    of it, so `check` passes) started from the state inside the wall: row 0 written with
+    min_gap -0.22 and a contact force of 3.6e9, then "failed ... SNES failed:
+    DIVERGED_MAX_IT ... apply the end motions gradually" (exit 3).  Now exit 2 naming
+    obstacles[0] and where the state cuts into it, before any row."""
+    folder = shared(tmp_path)
+    bent = write(folder / "bent.toml", BENT)
+    assert run_main(capsys, "run", bent, "--out", folder / "bent", "--quiet")[0] == 0
+    walled = write(folder / "walled.toml", BENT.replace(
+        "[time]", WALL.format(run=folder / "bent")))
+    code, _, err = run_main(capsys, "run", walled, "--out", folder / "walled", "--quiet")
+    assert code == 2
+    assert COMM.rank != 0 or ("[obstacles[0]]: the state of" in err
+                              and "s = 1 is 0.221 closer" in err), err
+    assert not (folder / "walled").exists()
+
+
+def test_fit_into_a_folder_that_is_not_empty_offers_what_fit_has(tmp_path, capsys):
+    """Fifth trial, fault 12: `dolfin-rod fit ... --out FOLDER` (not empty) answered
+    "pass --resume to continue its run or --overwrite to replace it": fit has neither
+    option (argparse then refused both).  The user's files are kept."""
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "fit.json").write_text("precious")
+    code, _, err = run_main(capsys, "fit", ROOT / "examples" / "fit" / "creep.toml",
+                            ROOT / "examples" / "fit" / "creep.csv", "--params", "alpha_d",
+                            "--out", out, "--quiet")
+    assert code == 2 and "give a new or empty folder" in err and "--resume" not in \
+        err.replace("has no --resume", ""), err
+    assert (out / "fit.json").read_text() == "precious"

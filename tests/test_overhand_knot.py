@@ -37,9 +37,12 @@ def test_overhand_knot_tightens_with_the_published_scaling():
     slope_r = np.polyfit(np.log(knot["R"]), np.log(knot["F"]), 1)[0]
     slope_e = np.polyfit(np.log(knot["e"]), np.log(knot["F"]), 1)[0]
     assert abs(slope_r + 2.0) < 0.3 and abs(slope_e + 2.0) < 0.3
-    # The prefactor F R^2 / B: the published 1/2 is the loose limit eps -> 0; measured
-    # 0.28-0.34 at eps = 0.29-0.43 on 100 cells (0.296 at 150 cells; docs/contact.md): the
-    # same order, not the published value (open, docs/contact.md); asserted as that order
-    # only: between 1/4 and 1/2.
+    # The prefactor F R^2 / B: the published 1/2 is the loose limit eps -> 0 (a
+    # contact-free loop closed by a short braid); measured 0.28-0.34 at eps = 0.29-0.43 on
+    # 100 cells (0.296 at 150 cells).  Not a test of the 1/2: this knot is not loose
+    # (contact on 57-82 % of its nodes, the free rod's first integral B kappa^2/2 - F (1 -
+    # t.e) swinging by +-1.1 F along the knot where a loose loop keeps it constant;
+    # docs/contact.md), and where R is taken moves it (the loop's apex: 0.32-0.41); so
+    # asserted as the published value's order only: between 1/4 and 1/2.
     ratio = knot["FR2_over_B"]
     assert np.all((ratio > 0.25) & (ratio < 0.5))

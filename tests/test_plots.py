@@ -235,13 +235,15 @@ def test_a_tip_displacement_is_said_once():
 
 def test_rates_are_labelled_as_powers():
     """Dissipation rates and powers are W (J/s), the integrated dissipation J; contact
-    forces N, gaps m (the time-series columns of docs/outputs.md and docs/contact.md)."""
+    forces N, gaps m, momenta N s and N m s (the time-series columns of docs/outputs.md and
+    docs/contact.md)."""
     from dolfin_rod.output.plots import axis_label, column_kind
     labels = {name: axis_label(name, column_kind(name), "SI") for name in (
         "dissipation_rate", "friction_dissipation", "load_power", "total_dissipation",
-        "contact_energy", "pair_friction_force", "contact_force_x", "min_pair_gap")}
+        "contact_energy", "pair_friction_force", "contact_force_x", "min_pair_gap",
+        "momentum_x", "angular_momentum_z")}
     assert [v.split("[")[1] for v in labels.values()] == \
-        ["W]", "W]", "W]", "J]", "J]", "N]", "N]", "m]"]
+        ["W]", "W]", "W]", "J]", "J]", "N]", "N]", "m]", "N s]", "N m s]"]
 
 
 def test_closing_values_of_a_self_contact_rod_give_twist_and_writhe():

@@ -287,3 +287,36 @@ def test_the_45_degree_bend_benchmark():
     assert abs(out[1] / 53.4 - 1) < 3e-3 and abs(inplane[1] / 27.08 - 1) < 1e-2, (out, inplane)
     order = np.log2((out[1] - out[0]) / (out[2] - out[1]))
     assert 1.8 < order < 2.2, (out, order)
+
+
+def _settled_cantilever(t: float) -> RodModel:
+    """A quasi-static cantilever (L = 1, EI = 1, B = 1e3, 16 cells) under the tip force
+    (5 + t) EI/L^2 across it, settled at t (rod/initial_state.settle): a large deflection
+    (tip at x = 0.72 at t = 0)."""
+    from dolfin_rod.rod.initial_state import settle
+    rod = RodModel(RodParameters(length=1.0, A=(1.0, 1.0, 1.0), B=(1e3, 1e3, 1e3)), 16,
+                   model="hyperelastic",
+                   end_loads=[EndLoad("force", (1.0, 0.0, 0.0), history=lambda t: 5.0 + t)])
+    rod.set_initial_state()
+    settle(rod, t)
+    return rod
+
+
+@pytest.mark.mpi
+def test_a_settled_start_takes_its_first_step_on_a_load_path_from_its_loads():
+    """A quasi-static first step whose Newton fails (backward Euler, snes_max_it = 4, the
+    force from 5 to 6 in one step) goes on a load path (integrators/step_control.py);
+    from a settled start (problem.start_loaded) the path starts at the loads the state
+    holds, 5, not at none: the step is taken whole (measured 1 step, 64 Newton
+    iterations) and ends at the equilibrium settled at t = 1 directly (to 1e-8 L:
+    Newton's tolerances; measured 2e-12).  Taking the settled state as unloaded, the
+    path's first part (3: half of 6) unbent the rod and failed down to its smallest
+    part: the step was cut, 5 steps."""
+    rod = _settled_cantilever(0.0)
+    stepper = TimeStepper(rod.problem, scheme="backward_euler",
+                          solver_options={"snes_max_it": 4})
+    stepper.run(0.0, 1.0, 1.0)
+    assert stepper.stats.steps == 1, stepper.stats
+    tip = [rod.diagnostics(1.0)[f"tip_position_{c}"] for c in "xyz"]
+    settled = _settled_cantilever(1.0).diagnostics(1.0)
+    assert np.allclose(tip, [settled[f"tip_position_{c}"] for c in "xyz"], rtol=0, atol=1e-8)

@@ -15,6 +15,7 @@ from PIL import Image
 
 from dolfin_rod import run
 from dolfin_rod.cli import main
+from dolfin_rod.output import vtk_xml
 from dolfin_rod.output.vtk_xml import LineVTU, read_pvd, read_vtu
 from dolfin_rod.output.vtx import read_vtx
 from quick_scenes import ROOT, quick_scene
@@ -78,15 +79,20 @@ def test_the_series_as_a_table():
     assert all(table[c].tolist() == v for c, v in series.items())
 
 
-def test_a_vtu_round_trip_and_a_resumed_collection(tmp_path):
+def test_a_vtu_round_trip_and_a_resumed_collection(tmp_path, monkeypatch):
     """Known arrays come back exactly; a resume keeps the steps up to its time and
-    replaces the later ones (the .pvd lists only files that exist)."""
+    replaces the later ones (the .pvd lists only files that exist).  The .pvd is
+    rewritten after the first step, then at most every PVD_EVERY seconds and at flush (a
+    checkpoint, where a resume starts) and close."""
     points = np.array([[0.0, 0.0, 0.0], [0.1, 0.2, 0.3], [1.0 / 3.0, -2.5e-17, 7.0]])
     d1 = np.arange(9.0).reshape(3, 3) / 7.0
     u = np.array([[1e-300, 2.0, -3.0], [np.pi, 0.0, 1e300]])
+    monkeypatch.setattr(vtk_xml, "PVD_EVERY", 1e9)     # (no rewrite after a slow step)
     writer = LineVTU(tmp_path / "rod.pvd")
     for t in (0.0, 0.5, 1.0):
         writer.write(t, points + t, {"s": [0.0, 0.5, 1.0], "d1": d1}, {"u": u, "xi": [1, 2]})
+    assert [s["time"] for s in read_pvd(tmp_path / "rod.pvd")] == [0.0]
+    writer.flush()
     step = read_vtu(tmp_path / "rod/step-00001.vtu")
     np.testing.assert_array_equal(step["points"], points + 0.5)
     np.testing.assert_array_equal(step["point"]["d1"], d1)
@@ -94,6 +100,7 @@ def test_a_vtu_round_trip_and_a_resumed_collection(tmp_path):
     np.testing.assert_array_equal(step["cells"], [[0, 1], [1, 2]])
     resumed = LineVTU(tmp_path / "rod.pvd", keep_until=0.5)
     resumed.write(0.75, points, {"s": [0.0, 0.5, 1.0]}, {"xi": [3, 4]})
+    resumed.close()
     steps = read_pvd(tmp_path / "rod.pvd")
     assert [s["time"] for s in steps] == [0.0, 0.5, 0.75]
     assert sorted(p.name for p in (tmp_path / "rod").iterdir()) == [

@@ -9,11 +9,14 @@ The rings are tests/rings.py's: L = 1, A = 1, C = A/1.3, B = 1e5 (A/(B R^2) = 4e
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from rings import (BEND, LENGTH, MICHELL, RADIUS, RING, TWIST, critical_link, free_ring,
-                   michell_count, pulled_ring, ring, ring_fields, writhing_ring)
+                   free_ring_in_system, hanging_ring, mechanism, michell_count,
+                   pinched_in_system, pulled_ring, ring, ring_fields, swinging_ring,
+                   writhing_ring)
 from serial_reference import serial
 
 from dolfin_rod import RodModel, RodParameters, Rod, RodSystem, StartingState
@@ -161,6 +164,80 @@ def test_a_clamped_ring_pulled_quasi_statically_stretches_as_the_closed_form():
     assert abs(orders(errors)[0] - 2) < 0.05, errors
 
 
+def turning_stiffness(difference: float) -> float:
+    """The Rayleigh quotient of the mechanism (rings.mechanism) with A_1 - A_2 =
+    ``difference``: spinning the sections back by alpha turns the curvature 1/R from d2
+    towards d1, psi = (A_1 sin^2 alpha + A_2 cos^2 alpha)/(2 R^2) per length, so
+    v^T K v = (A_1 - A_2) L/R^2; v^T G v = int |e_3 x r|^2 + L^2 |e_3 - d_3|^2 ds =
+    3 pi R^3 + 4 pi R L^2.  The lowest eigenvalue lies at or below it."""
+    return difference * LENGTH / RADIUS ** 2 / (3 * math.pi * RADIUS ** 3
+                                                 + 4 * math.pi * RADIUS * LENGTH ** 2)
+
+
+@pytest.mark.mpi
+def test_a_clamped_isotropic_ring_is_a_mechanism():
+    """The untwisted ring clamped at its weld, isotropic (A_1 = A_2) and straight when
+    stress-free: its tangent stiffness has an exact zero eigenvalue (measured 2.5e-11,
+    -6.9e-11 at 16, 32 cells against the next, 15.7: round-off of B = 1e5), whose mode
+    is the rigid turn about the weld's tangent with every section spinning back
+    (rod/ring.py; measured 2e-11 from it, scaled to a displacement of 1).  A section
+    stiffer about d1 by 1 % (A_1 = 1.01) holds it: the lowest eigenvalue is positive and
+    at most the mechanism's Rayleigh quotient 0.1937 (measured 0.19); softer (A_2 =
+    1.01, the axis the ring bends about) the ring flips its sections: at most -0.1937
+    (measured -0.1962).  2 ranks: the same numbers (one eigen-solve, MUMPS)."""
+    quotient = turning_stiffness(0.01)
+    for n in (16, 32):
+        isotropic = mechanism(n)
+        zero, next_one = isotropic["values"]
+        assert abs(zero) < 1e-9 * next_one and next_one > 15.0, isotropic
+        assert isotropic["misfit"] < 1e-9, isotropic       # measured 2e-11
+    stiff, soft = mechanism(16, (1.01, 1.0, TWIST)), mechanism(16, (1.0, 1.01, TWIST))
+    assert 0.5 * quotient < stiff["values"][0] <= quotient * (1 + 1e-9), stiff
+    assert soft["values"][0] <= -quotient * (1 - 1e-9), soft
+    assert soft["values"][0] > -1.1 * quotient, soft
+
+
+def test_a_load_turning_a_clamped_ring_is_refused_naming_its_support():
+    """A quasi-static load with a moment about the weld's tangent on the mechanism (a
+    force out of the ring's plane at s = L/2: Q = 2 R F; Newton diverged at t = 0,
+    DIVERGED_DTOL) is refused when the model is made, naming ``start``; a symmetric pair
+    (Q = R F - R F), an in-plane pull (Q = 0), a dynamic ring and a section stiffer about
+    d1 are not."""
+    from dolfin_rod.rod.external_forces import DistributedLoad, PointLoad
+    out_of_plane = PointLoad("force", (0.0, 1.0, 0.0), 0.5)
+    with pytest.raises(ValueError, match=r"start: a quasi-static ring clamped at its weld "
+                       r".* point_loads\[0\] \(force at s = 0.5\) has a moment 0.31831"):
+        RodModel(RING, 16, model="hyperelastic", closed=True, point_loads=[out_of_plane])
+    with pytest.raises(ValueError, match=r"distributed_loads\[0\] \(force\) has a moment"):
+        RodModel(RING, 16, model="hyperelastic", closed=True,
+                 distributed_loads=[DistributedLoad("force", (0.0, -1.0, 0.0))])
+    pair = [PointLoad("force", (0.0, 1.0, 0.0), 0.25), PointLoad("force", (0.0, -1.0, 0.0), 0.75)]
+    RodModel(RING, 16, model="hyperelastic", closed=True, point_loads=pair)
+    RodModel(RING, 16, model="hyperelastic", closed=True, distributed_loads=[
+        DistributedLoad("force", (0.0, 0.0, -1.0))])                  # gravity in its plane
+    stiff = RodParameters(length=LENGTH, A=(1.01, 1.0, TWIST), B=(1e5, 1e5, 1e5))
+    RodModel(stiff, 16, model="hyperelastic", closed=True, point_loads=[out_of_plane])
+    dynamic = RodParameters(length=LENGTH, B=(1e5, 1e5, 1e5), density=1.0)
+    RodModel(dynamic, 16, model="hyperelastic", closed=True, point_loads=[out_of_plane])
+
+
+@pytest.mark.mpi
+def test_drag_lets_a_clamped_ring_swing_to_its_equilibrium():
+    """The regularised mechanism: with drag (c = 1) the quasi-static clamped ring pulled
+    out of its plane at s = L/2 turns at a viscous rate about the weld's tangent to the
+    pendulum's equilibrium, hanging along the force: at t = 4 its loaded node is the
+    in-plane pulled ring's (no drag, an equilibrium at the first solve) turned by a
+    quarter turn about e_3 (measured 2.6e-14 off the plane x = 0, the diameter equal
+    to 1e-13).  2 ranks = serial to 1e-9."""
+    pulled = swinging_ring(16, 0, 0.0, t_end=1.0, dt=1.0)
+    with pytest.warns(RuntimeWarning, match="cut"):                 # the swing's steps
+        swung = swinging_ring(16, 1, 1.0)
+    assert pulled[1] == 0.0 and pulled[0] > 2 * RADIUS
+    assert np.allclose(swung, [0.0, pulled[0], pulled[2]], rtol=0, atol=1e-10 * LENGTH), \
+        (swung, pulled)
+    assert np.allclose(swung, serial("swinging_ring", 16, 1, 1.0), rtol=0, atol=1e-9)
+
+
 @pytest.mark.mpi
 def test_free_ring_weld_holds_the_ring_at_rest():
     """A free dynamic ring (start = "free": its end node tied to its start node by the
@@ -193,6 +270,51 @@ def test_writhing_ring_keeps_its_link():
     assert np.allclose(pairs, reference, rtol=0, atol=1e-9)
 
 
+@pytest.mark.mpi
+def test_a_pinched_ring_inside_a_system_is_the_ring_alone():
+    """Rings in a RodSystem: the pinched ring (tests/test_pinched_ring.py's, clamped at
+    its weld, stress-free as its circle) as the second rod of a system, after a loaded
+    cantilever, placed at (3, 0, 0): delta/P = 0.1449296 at 32 cells, the ring alone's to
+    round-off (measured 1.5e-12 relative; the system's dofs are numbered otherwise), and
+    the closed form 0.149087 P R^3/EI to the 32-cell error of the pinched ring's test
+    (-2.789e-2)."""
+    from test_pinched_ring import flexibility
+    alone, inside = pinched_in_system(32, False), pinched_in_system(32, True)
+    assert inside == pytest.approx(alone, rel=1e-10)
+    assert inside / flexibility() - 1 == pytest.approx(-2.789e-2, abs=1e-5)
+
+
+@pytest.mark.mpi
+def test_a_free_ring_inside_a_system_moves_as_alone():
+    """A free ring (its weld's exact links, on the nodes at its offset in the system's
+    layout) closed with 1 turn and pushed, as the second rod of a system after a
+    cantilever at rest, placed at (2, 0, 0): after 20 steps its energies and weld point
+    are the ring alone's (rings.free_ring) to round-off (measured 7e-15 of the energy
+    35.79, 5e-14 of the positions), the cantilever at rest."""
+    alone, inside = free_ring(16, 1.0, push=1e-3), free_ring_in_system(16, 1.0, 1e-3)
+    for key in ("free_energy", "kinetic_energy"):
+        assert inside[key] == pytest.approx(alone[key], rel=1e-12), key
+    for c, shift in zip("xyz", (2.0, 0.0, 0.0)):
+        assert inside[f"ring.tip_position_{c}"] == pytest.approx(
+            alone[f"tip_position_{c}"] + shift, abs=1e-12), c
+    assert inside["beam.tip_position_z"] == 1.0 and inside["beam.tip_position_x"] == 0.0
+
+
+@pytest.mark.mpi
+def test_a_ring_hanging_by_a_ball_joint_carries_its_weight():
+    """A free ring of weight 1 hanging by a ball joint at its node s = L/2 from a
+    cantilever's tip, settled and run 10 steps: the joint carries the weight (global
+    equilibrium of the ring: force (0, 0, 1), no couple at a ball joint) and so does the
+    cantilever's clamp, to the settle's Newton tolerance (measured 2.5e-10)."""
+    d = hanging_ring(16)
+    force = [d[f"joint_hook_force_{c}"] for c in "xyz"]
+    clamp = [d[f"beam.reaction_force_start_{c}"] for c in "xyz"]
+    assert np.allclose(force, (0.0, 0.0, 1.0), rtol=0, atol=1e-8), force
+    assert np.allclose(clamp, (0.0, 0.0, 1.0), rtol=0, atol=1e-8), clamp
+    assert np.abs([d[f"joint_hook_couple_{c}"] for c in "xyz"]).max() < 1e-10
+    assert d["kinetic_energy"] < 1e-20
+
+
 @pytest.mark.parametrize("keywords, start, message", [
     (dict(end="clamped"), None, "end: a closed rod's end is welded"),
     (dict(start="pinned"), None, "start: a closed rod's start is its weld"),
@@ -209,12 +331,16 @@ def test_bad_closed_rods_are_refused_naming_the_key(keywords, start, message):
         model.set_initial_state(start=start)
 
 
-def test_excess_link_of_an_open_rod_and_rings_in_systems_are_refused():
+def test_excess_link_of_an_open_rod_and_a_joint_at_a_weld_are_refused():
+    from dolfin_rod.rod.joint_points import Joint
     with pytest.raises(ValueError, match="excess_link: the turns a ring is closed with"):
         RodModel(RING, 8, model="hyperelastic", excess_link=1.0)
-    with pytest.raises(ValueError, match="closed: rod 'a' of a system"):
-        RodSystem([Rod(RING, 8, name="a", closed=True), Rod(RING, 8, name="b")],
-                  model="hyperelastic")
+    with pytest.raises(ValueError, match=r"joints\[0\]: the node of rod 'a' at the point "
+                                         "is its weld"):
+        p = RodParameters(length=LENGTH, density=1.0, section_inertia=1e-4)
+        RodSystem([Rod(p, 8, name="a", closed=True, start="free"),
+                   Rod(p, 8, name="b", position=(0.0, 0.0, -1.0))],
+                  [Joint("ball", ("a", "b"), (0.0, 0.0, 0.0))], model="hyperelastic")
     p = RodParameters(length=LENGTH, density=1.0)
     with pytest.raises(ValueError, match="free ring's weld"):
         RodModel(p, 8, closed=True, start="free", rotations="quaternion")
@@ -261,3 +387,101 @@ def test_excess_link_of_an_open_rod_scene_is_refused(tmp_path, capsys):
     assert "[geometry.excess_link]: the turns a ring is closed with" in capsys.readouterr().err
     scene.write_text(RING_SCENE)
     assert main(["check", str(scene)]) == 0
+
+
+def test_a_scene_turning_a_clamped_ring_is_refused_naming_boundary_start(tmp_path):
+    """The scene of a quasi-static ring clamped at its weld, pulled out of its plane at
+    s = L/2 (its mechanism, rod/ring.check_mechanism): a SceneError naming
+    [boundary.start] before any solve (it diverged at t = 0 with DIVERGED_DTOL)."""
+    from dolfin_rod import SceneError, run
+    scene = tmp_path / "turn.toml"
+    scene.write_text(RING_SCENE.replace("excess_link = 1.0\n", "") + (
+        "\n[loads]\npoint_force = { s = 0.5, type = \"ramp\", value = [0.0, 1.0, 0.0], "
+        "duration = 1.0 }\n"))
+    with pytest.raises(SceneError, match=r"\[boundary.start\]: a quasi-static ring clamped "
+                                         r"at its weld .* is a mechanism"):
+        run(str(scene), {"outputs.directory": str(tmp_path / "out")})
+
+
+# a free ring (weight 1) hanging by a ball joint at its node s = L/2 from a cantilever
+# (weight 1) pointing down: the n-gon's diameter 2 L/(2 n sin(pi/n)) below the hook
+HANGING_SCENE = """[scene]
+name = "hanging_ring"
+units = "dimensionless"
+
+[material]
+model = "hyperelastic"
+stiffness = { A = [1.0, 1.0, 0.7692307692307692], B = [1e4, 1e4, 1e4] }
+density = 1.0
+section_inertia = 1e-4
+drag = 1.0
+
+[loads]
+gravity = [0.0, 0.0, -1.0]
+
+[boundary]
+end = "free"
+
+[[rods]]
+name = "beam"
+orientation = [3.141592653589793, 0.0, 0.0]
+geometry = { length = 1.0, n_cells = 8 }
+boundary = { start = "clamped" }
+initial = { equilibrium = true }
+
+[[rods]]
+name = "ring"
+position = [0.0, 0.0, -1.3203644309676883]
+orientation = [0.0, -1.5707963267948966, 0.0]
+geometry = { length = 1.0, n_cells = 16, closed = true }
+boundary = { start = "free" }
+
+[[joints]]
+kind = "ball"
+rods = ["beam", "ring"]
+point = [0.0, 0.0, -1.0]
+name = "hook"
+
+[time]
+t_end = 0.1
+dt = 0.01
+
+[outputs]
+animation = false
+plots = false
+fields = false
+"""
+
+
+@pytest.mark.mpi
+def test_a_scene_ring_hangs_from_a_rod_by_a_ball_joint(tmp_path, capsys):
+    """A ring in a scene's [[rods]] (geometry.closed), joined by a ball joint at its node
+    s = L/2 to a cantilever's tip, the system settled (initial.equilibrium) and run 10
+    steps: the joint carries the ring's weight (0, 0, 1) and the clamp both rods' (0, 0,
+    2), to the settle's Newton tolerance (1e-8; measured 2.5e-10); the ball no couple.
+    The same ring joined at its weld is refused by `dolfin-rod check` naming
+    [joints[0]]."""
+    from mpi4py import MPI
+    from dolfin_rod import run
+    from dolfin_rod.cli import main
+    comm = MPI.COMM_WORLD
+    folder = Path(comm.bcast(str(tmp_path), root=0))       # rank 0's, on every rank
+    scene, weld = folder / "hanging_ring.toml", folder / "weld.toml"
+    if comm.rank == 0:
+        scene.write_text(HANGING_SCENE)
+        weld.write_text(HANGING_SCENE      # the ring's weld (s = 0) at the hook
+                        .replace("[0.0, 0.0, -1.3203644309676883]", "[0.0, 0.0, -1.0]")
+                        .replace("[0.0, -1.5707963267948966, 0.0]", "[0.0, 1.5707963267948966, 0.0]"))
+    comm.barrier()
+    result = run(str(scene), {"outputs.directory": str(folder / "out")})
+    assert result.status == "completed", result.status
+    series = result.series
+    for key, value in (("joint_hook_force", (0.0, 0.0, 1.0)),
+                       ("beam.reaction_force_start", (0.0, 0.0, 2.0))):
+        got = [series[f"{key}_{c}"][-1] for c in "xyz"]
+        assert np.allclose(got, value, rtol=0, atol=1e-8), (key, got)
+    assert max(abs(series[f"joint_hook_couple_{c}"][-1]) for c in "xyz") < 1e-10
+    assert main(["check", str(weld)]) == 2
+    if comm.rank == 0:                                   # errors are printed on rank 0
+        assert "[joints[0]]: the node of rod 'ring' at the point is its weld" in \
+            capsys.readouterr().err

@@ -12,6 +12,8 @@ from dolfin_rod import (Arc, Helix, Polyline, RodModel, RodParameters, StartingS
                         Straight, TimeStepper)
 from dolfin_rod.rod import EndLoad
 from dolfin_rod.theory.rotations import np_quaternion_from_rotation_vector, np_rotation_matrix
+from test_settle_contact import SLOPE
+from test_starting_accelerations import FALLING
 
 EA, RHO_A, I11, I22 = 50.0, 2.0, 0.03, 0.02
 PLACE = {"position": (0.4, -1.0, 2.5), "orientation": (0.3, -0.7, 1.1)}
@@ -413,9 +415,10 @@ def test_unstable_equilibrium_start_is_said(tmp_path, ranks, factor):
 def test_unstable_equilibrium_start_with_contact_is_said_once(tmp_path):
     """scenes/supercoiled_minicircle.toml clamped at its weld and settled planar
     (initial.equilibrium): twisted by Delta Lk = 2 turns, past Michell's sqrt(3) A/C =
-    0.87, the planar ring is unstable.  A scene with contact starts twice (the first
-    start looks for overlaps while the scene is built): the terminal said the warning
-    twice (summary.json once); now once."""
+    0.87, the planar ring is unstable.  A scene with contact started twice (the first
+    start looked for overlaps while the scene was built): the terminal said the warning
+    twice (summary.json once); now once (the scene starts once:
+    test_a_scene_with_contact_starts_and_settles_once)."""
     import json
     from test_cli import cli
     from quick_scenes import ROOT
@@ -456,3 +459,78 @@ def test_a_ring_whose_stress_free_circle_is_not_its_start_is_warned_of(
     said = f"warning: {scene}: [geometry.reference_curvature]: a closed rod starts as the " \
         "circle bending towards d1, its curvature 1 about d2"
     assert (said in out.stderr) == warned, out.stderr
+
+
+# a free rod above a plane, its weight towards it, settled onto it (tests/test_settle_contact.py)
+RESTING = SLOPE.replace("gravity = [-8.5, 0.0, -4.9]", "gravity = [-9.81, 0.0, 0.0]")
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("given, settles", [("crossing_rods.toml", 0), (RESTING, 1)])
+def test_a_scene_with_contact_starts_and_settles_once(given, settles, tmp_path, monkeypatch):
+    """A scene with contact makes its start while it is built (a rod starting inside an
+    obstacle or another rod is refused before the integrator is compiled); the run then
+    made it again, and settled again where initial.equilibrium is set (found by a user
+    trial).  Counted through the model's set_initial_state and rod/initial_state.settle
+    over a whole run: scenes/crossing_rods.toml (two rods, contact between them) starts
+    once, a free rod settled on a plane below it (initial.equilibrium) starts and
+    settles once.  The run's numbers are the same as with the doubled start (bit for bit:
+    docs/contact.md, "A start in contact")."""
+    import dolfin_rod
+    from dolfin_rod.rod import initial_state
+    from dolfin_rod.scenes import parse_scene
+    from quick_scenes import ROOT, quick_scene
+    calls = {"start": 0, "settle": 0}
+
+    def counted(name, function):
+        def count(*args, **kwargs):
+            calls[name] += 1
+            return function(*args, **kwargs)
+        return count
+
+    monkeypatch.setattr(RodModel, "set_initial_state",
+                        counted("start", RodModel.set_initial_state))
+    monkeypatch.setattr(initial_state, "settle", counted("settle", initial_state.settle))
+    scene = quick_scene(ROOT / "scenes" / given, steps=1, outputs__fields=False,
+                        outputs__animation=False, outputs__plots=False) if given.endswith(".toml") \
+        else parse_scene(given)
+    from mpi4py import MPI
+    out = MPI.COMM_WORLD.bcast(str(tmp_path / "out"), root=0)
+    result = dolfin_rod.run(scene, out=out, quiet=True)
+    assert result.status == "completed", result.summary
+    assert calls == {"start": 1, "settle": settles}
+
+
+# a quasi-static cantilever, unloaded, started as a polyline of four right-angle corners
+ZIGZAG = (FALLING.replace("density = 1.0\nsection_inertia = 1e-5\n", "")
+          .replace("n_cells = 4", "length = 1.25\nn_cells = 16")
+          .replace('start = "free"', 'start = "clamped"')
+          .replace("[loads]\ngravity = [-9.81, 0.0, 0.0]\n", "")
+          + '[initial.shape]\ntype = "polyline"\npoints = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.25], '
+            '[0.25, 0.0, 0.25], [0.25, 0.0, 0.5], [0.5, 0.0, 0.5], [0.5, 0.0, 0.75]]\n')
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("settled", [False, True])
+def test_a_quasi_static_polyline_start_settles_first(tmp_path, settled):
+    """A quasi-static cantilever, stress-free straight and unloaded, started as a polyline
+    of four right-angle corners (as a knotted polyline: far from its equilibrium): the
+    start's solve from that shape fails (DIVERGED_LINEAR_SOLVE), the message naming the
+    remedy, initial.equilibrium = true, which a quasi-static rod was refused ("in
+    equilibrium at every step"): with it the start settles in pseudo-time to the
+    equilibrium, straight along the clamp's tangent e3, the tip at (0, 0, L).  Measured
+    6.3e-11 m (the settle's residual over EI = 10); asserted 1e-9 m."""
+    from mpi4py import MPI
+
+    import dolfin_rod
+    from dolfin_rod.scenes import parse_scene
+    folder = MPI.COMM_WORLD.bcast(str(tmp_path / "run"), root=0)
+    text = ZIGZAG + ("[initial]\nequilibrium = true\n" if settled else "")
+    result = dolfin_rod.run(parse_scene(text), out=folder, quiet=True)
+    if not settled:
+        assert result.status == "failed"
+        assert "settle the start first (initial.equilibrium = true" in result.summary["message"]
+        return
+    assert result.status == "completed", result.summary["message"]
+    tip = [result.series[f"tip_position_{c}"][-1] for c in "xyz"]
+    assert np.max(np.abs(np.array(tip) - (0.0, 0.0, 1.25))) < 1e-9

@@ -193,6 +193,14 @@ class TangentStiffness:
             return A.copy()
         return symmetric_part(A, self.fixed, 1.0)
 
+    def unbalanced(self) -> float:
+        """The largest entry of the residual at rest (rates and accelerations zero) at
+        the current state and loads (after ``matrix``), on the free dofs (joints: P^T
+        F): the force by which the state misses an equilibrium."""
+        system = self.system
+        system.residual(system.x, system.b)
+        return system.b.norm(PETSc.NormType.INFINITY)
+
     def _assemble(self, t: float | None) -> PETSc.Mat:
         """K at the current state and time t's loads (None: as set), in the system's own
         matrix."""

@@ -25,6 +25,7 @@ joints: K and M on the free dofs, P^T K P and P^T M P (fem/multipoint.py).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import dolfinx.fem as fem
@@ -79,6 +80,7 @@ def vibration_modes(model, t: float, count: int = 6) -> VibrationModes:
     tangent = TangentStiffness(model)
     general = non_conservative(model)
     K = tangent.matrix(t, symmetric=not general)
+    _warn_unless_equilibrium(tangent.unbalanced(), model.problem.force_scale(), t)
     M = _mass(tangent)
     scale = K.norm(PETSc.NormType.INFINITY) / M.norm(PETSc.NormType.INFINITY)
     pairs = eigenpairs(K, M, count, target=-1e-8 * scale,
@@ -96,6 +98,21 @@ def vibration_modes(model, t: float, count: int = 6) -> VibrationModes:
                           [shapes[k] for k in order], pairs.residuals[order],
                           np.where(complex_pair, pairs.imaginary, 0.0)[order],
                           growth[order])
+
+
+UNBALANCED = 1e-6    # of the force scale: a run settled at rest is within Newton's 1e-10
+
+
+def _warn_unless_equilibrium(unbalanced: float, scale: float, t: float) -> None:
+    """A warning if the state's forces at rest are out of balance by more than UNBALANCED
+    times the force scale (a moving rod: the modes are of no motion about it)."""
+    if unbalanced > UNBALANCED * scale:
+        warnings.warn(f"vibration modes at t = {t:g}: the state is not an equilibrium (its "
+                      f"forces at rest are out of balance by {unbalanced:.3g}, "
+                      f"{unbalanced / scale:.2g} of the force scale {scale:.3g}): small "
+                      "motions about it are not the modes computed; run the scene until "
+                      "it is at rest (damping, or a quasi-static start: initial.equilibrium)",
+                      stacklevel=3)
 
 
 def _mass(tangent: TangentStiffness) -> PETSc.Mat:

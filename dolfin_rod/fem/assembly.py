@@ -272,7 +272,8 @@ class MonolithicSystem(_System):
         # One kernel per quadrature rule: FFCx 0.9 miscompiles mixed-element kernels that
         # combine the vertex rule with Gauss rules (wrong vertex-rule terms, measured), and
         # also some that combine the 1- and 2-point Gauss rules (the prototype's earlier
-        # strain formula: a wrong Jacobian, Newton stalls; measured 2026-11-23).
+        # strain formula: a wrong Jacobian, Newton stalls; measured 2026-11-23).  The cause:
+        # fem/quadrature_rules.py (midpoint values of sub-expressions the 1-point rule shares).
         residuals, jacobians = [], []
         for part in _split_by_rule(F_mixed):
             residuals.append(part)

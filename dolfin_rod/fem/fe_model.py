@@ -15,7 +15,7 @@ import ufl
 from mpi4py import MPI
 
 from ..checks import ENDS
-from . import form_cache, shared_mesh
+from . import form_cache, quadrature_rules, shared_mesh
 
 _TAGS = {"start": 1, "end": 2}
 
@@ -95,34 +95,40 @@ class NodeValues:
 
 class FormSums:
     """Scalar forms assembled together: form k's integrands times component k of a DG0
-    test function, so one vector assembly gives every cell's contributions to every
-    form; the owned cells' sums, reduced over the ranks in one call (k separate scalar
-    assemblies: k coefficient packings, kernel calls and reductions; the rod's four at
-    16 cells after a step: 105 -> 86 us)."""
+    test function, so one vector assembly per quadrature rule gives every cell's
+    contributions to every form; the owned cells' sums, reduced over the ranks in one
+    call (k separate scalar assemblies: k coefficient packings, kernel calls and
+    reductions; the rod's four at 16 cells after a step: 105 -> 86 us).  One kernel per
+    rule (quadrature_rules.py): FFCx's kernel with the 1-point and another rule gave
+    the other rule's terms midpoint values."""
 
     def __init__(self, mesh, forms: list[ufl.Form], key: str | None = None):
-        """``key`` (form_cache.py): the kernel is compiled once per key and bound to the
-        data of each later model of the key."""
+        """``key`` (form_cache.py): the kernels are compiled once per key and bound to
+        the data of each later model of the key."""
         V = fem.functionspace(mesh, ("DG", 0, (max(1, len(forms)),)))
         entry = form_cache.lookup(key)
         objects = form_cache.registry(forms) if key else []
         if entry is not None:
-            self.form = form_cache.bind(entry, objects, V, mesh)[0]
+            self.forms = form_cache.bind(entry, objects, V, mesh)
         else:
             w = ufl.TestFunction(V)
-            integrals = [itg.reconstruct(integrand=itg.integrand() * w[k])
-                         for k, form in enumerate(forms) for itg in form.integrals()]
-            summed = ufl.Form(integrals) if integrals else None
-            self.form = form_cache.jit_form(summed) if summed else None
-            if key and summed:
-                form_cache.store(key, [self.form], [summed], objects)
+            parts = quadrature_rules.one_rule_per_kernel(
+                itg.reconstruct(integrand=itg.integrand() * w[k])
+                for k, form in enumerate(forms) for itg in form.integrals())
+            self.forms = form_cache.jit_form(parts) if parts else []
+            if key and parts:
+                form_cache.store(key, self.forms, parts, objects)
         self.n, self.comm = len(forms), mesh.comm
         self.owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+        self.vector = la.vector(V.dofmap.index_map, V.dofmap.index_map_bs)
 
     def __call__(self) -> np.ndarray:
         local = np.zeros(self.n)
-        if self.form is not None:
-            b = fem.assemble_vector(self.form)
+        if self.forms:
+            b = self.vector
+            b.array[:] = 0.0
+            for form in self.forms:
+                fem.assemble_vector(b.array, form)
             b.scatter_reverse(la.InsertMode.add)     # facet terms of ghost cells
             local += b.array[:self.owned].reshape(-1, self.n).sum(axis=0)
         total = np.empty_like(local)

@@ -74,6 +74,11 @@ class SemiDiscreteProblem:
                  its units (a rod's: rod/force_scale.py), 0 if unknown: Newton's absolute
                  tolerance is checks.NEWTON_FORCE_TOL times it unless snes_atol is given
                  (solvers.BlockSNES); 0: snes_atol's default, checks.NEWTON_ATOL.
+    start_loaded: the fields hold an equilibrium with the loads at their time, not a
+                 state given unloaded: a settled start (rod/initial_state.settle), a state
+                 read from a run (output/from_run.py).  A quasi-static stepper's first step
+                 then approaches its loads on a load path from those at its start, not
+                 from none (integrators/stepper.py); the state's setters set it.
     inertia:     the residual has a mass term (a dynamic body; the default).  False (a
                  quasi-static rod): the step's Newton is static, snes_rtol relative to
                  at most force_scale (solvers.relative_reference: a first residual
@@ -96,6 +101,7 @@ class SemiDiscreteProblem:
     where_failed: Callable[[], str | None] = lambda: None
     force_scale: Callable[[], float] = lambda: 0.0
     inertia: bool = True
+    start_loaded: bool = False
 
     def __post_init__(self):
         if not (len(self.fields) == len(self.rates) == len(self.residual)):

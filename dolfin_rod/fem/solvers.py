@@ -62,7 +62,8 @@ JACOBIAN_REUSE = {
     "snes_lag_preconditioner_persists": True,
 }
 # BlockSNES's Jacobian rule (option jacobian_reuse_ratio): a new Jacobian and LU at each
-# solve's first iteration, kept while every iteration reduces the residual norm 10-fold.
+# solve's first iteration, kept while every iteration reduces the residual norm 10-fold
+# (a kept one's step to a residual above the solve's highest is taken again with a new one).
 # Dynamic rods: 1.0-1.5 Jacobians per step instead of 1.9-2.6; quasi-static roll-up in
 # 10 load steps: 15-20 % less time than full Newton (docs/performance.md).
 REUSE_RATIO = 0.1
@@ -418,9 +419,22 @@ class BlockSNES:
     Option ``jacobian_reuse_ratio`` r (not a PETSc option; default REUSE_RATIO, 0: a new
     Jacobian every iteration): each solve starts with a new Jacobian and LU and keeps
     them while every Newton iteration reduces the residual norm by at least the factor
-    r; after a slower iteration the next one builds a new one.  A solve's result depends
-    on its start only (a resumed run equals an uninterrupted one).  Given PETSc
-    snes_lag_* options (e.g. JACOBIAN_REUSE) replace the rule.
+    r; after a slower iteration the next one builds a new one.  A step on a kept
+    Jacobian whose residual norm is above the highest of the solve so far (its start's,
+    as a rule) or not finite is taken back and taken again from its start with a new Jacobian (in
+    BlockSNES's own loop, _plain_newton: the default options; under SNESSolve it stays):
+    from a far start a kept Jacobian's step can leave the basin of convergence for good
+    (Kirchhoff's helix held by a wrench at 32 cells, scenes/helix_wrench.toml: 256 ->
+    10.6 -> 719, above the start, and DIVERGED_MAX_IT; tests/test_helices.py).  A
+    step that raises the residual less is kept, as full Newton keeps its own (the same
+    helix: 10.6 -> 24.6 -> 1.64 -> 18.3 -> ... converges): a non-monotone acceptance
+    test (Grippo, Lampariello and Lucidi, SIAM J. Numer. Anal. 23, 1986, with the whole
+    solve as its memory), which leaves a solve whose kept Jacobians never lose its
+    progress unchanged, bit for bit (taking back every step that raised the residual
+    moved the unstable crossing ropes of tests/test_cosseratbench.py to another settled
+    state).  A solve's result depends on its start only (a resumed run equals an
+    uninterrupted one).  Given PETSc snes_lag_* options (e.g. JACOBIAN_REUSE) replace
+    the rule.
 
     A solve SNES reports as converged is checked against the residual at the solution
     (_verify_residual): it must meet snes_atol or snes_rtol (times the initial norm),
@@ -666,11 +680,14 @@ class BlockSNES:
         (NewtonTest: PETSc's default with the step scale), snes_max_it
         (DIVERGED_MAX_IT), a failed linear solve (DIVERGED_LINEAR_SOLVE) or a non-finite
         residual norm (compat.NONFINITE_NORM) stops it; SNES's reason, iteration count
-        and residual norm are then set as SNESSolve leaves them."""
+        and residual norm are then set as SNESSolve leaves them.  Unlike SNESSolve, a
+        step on a kept Jacobian to a residual norm above the solve's highest is taken
+        back and taken again with a new Jacobian (not counted as an iteration; the
+        Jacobian rule)."""
         snes, ksp, x, b = self.snes, self._ksp, self.x, self.system.b
         if self._update is None:
-            self._update = x.duplicate()
-        dx, limits = self._update, self._limits_step()
+            self._update, self._step_start = x.duplicate(), x.duplicate()
+        dx, start, limits = self._update, self._step_start, self._limits_step()
         self._initial_norm = None
         self._residual(snes, x, b)
         fnorm = self._residual_norm
@@ -679,14 +696,17 @@ class BlockSNES:
         def step_norms():
             return x.norm(), dx.norm()
 
-        it, reason = 0, test(0, fnorm, step_norms)
+        it, reason, retake, highest = 0, test(0, fnorm, step_norms), False, fnorm
         reasons = PETSc.SNES.ConvergedReason
         while not reason:
             if it == test.max_it:
                 reason = reasons.DIVERGED_MAX_IT
                 break
-            if self._new_jacobian_needed(it, fnorm):
+            fresh = self._new_jacobian_needed(it, fnorm) or retake
+            if fresh:
                 self._assemble_jacobian()
+            else:
+                x.copy(start)
             ksp.solve(b, dx)
             if ksp.getConvergedReason() < 0:
                 reason = reasons.DIVERGED_LINEAR_SOLVE
@@ -695,7 +715,13 @@ class BlockSNES:
                 self._limit_step(x, dx)
             x.axpy(-1.0, dx)
             self._residual(snes, x, b)
+            retake = not fresh and not self._residual_norm <= highest
+            if retake:      # the kept Jacobian lost the solve's progress: the step taken
+                start.copy(x)               # back, and taken again with a new one
+                self._residual(snes, x, b)  # (b and the forms' state at its start)
+                continue
             fnorm = self._residual_norm
+            highest = max(highest, fnorm)
             if not math.isfinite(fnorm):
                 reason = compat.NONFINITE_NORM
                 break

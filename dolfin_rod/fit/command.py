@@ -90,7 +90,9 @@ def _fit_folder(scene, out: Path | None, comm) -> Path:
         parent = Path(scene["outputs"]["directory"])
         return Path(on_root(comm, lambda: str(new_run_folder(parent, f"fit-{scene.name}")),
                             f"cannot create a results folder in {parent}"))
-    on_root(comm, lambda: prepare_run_folder(out, False, False), f"cannot use --out {out}")
+    on_root(comm, lambda: prepare_run_folder(out, False, False, "give a new or empty folder "
+                                             "(fit has no --resume or --overwrite)"),
+            f"cannot use --out {out}")
     return out
 
 

@@ -96,6 +96,7 @@ def read_series(path: str | Path) -> MeasuredSeries:
         raise FitInputError(f"{path}: column {twice[0]!r} appears {header.count(twice[0])} "
                             "times in the header: which one is meant?")
     index = [header.index(c) for c in COLUMNS]
+    _check_row_lengths(path, body, len(header))
     try:
         with warnings.catch_warnings():          # no rows: check_series says so
             warnings.simplefilter("ignore", UserWarning)
@@ -105,6 +106,27 @@ def read_series(path: str | Path) -> MeasuredSeries:
         table = _rows_one_by_one(path, body, index)
     columns = dict(zip(COLUMNS, table.T))
     return check_series(MeasuredSeries(**columns, source=str(path)))
+
+
+def _check_row_lengths(path: Path, body: str, width: int) -> None:
+    """Every row has the header's number of values (numpy reads the named columns only:
+    "0.5,1,1,000.5", a thousands separator, was read as response 1): FitInputError at the
+    first row that has another.  The commas counted first (one pass in C); rows parsed
+    one by one only where they do not add up (quoted commas, or such a row)."""
+    commas, lines = body.count(","), body.count("\n") + (not body.endswith("\n"))
+    if commas != (width - 1) * lines:      # blank lines, quoted commas or a row at fault
+        lines -= sum(1 for line in body.splitlines() if not line.strip())
+    if commas == (width - 1) * lines:
+        return
+    try:
+        for k, row in enumerate(csv.reader(io.StringIO(body, newline=""))):
+            if any(x.strip() for x in row) and len(row) != width:
+                hint = ("a thousands separator or a decimal comma? (commas separate values)"
+                        if len(row) > width else "a value is missing")
+                raise FitInputError(f"{path}: row {k + 2} has {len(row)} values, the header "
+                                    f"{width}: {hint}")
+    except csv.Error as err:
+        raise _unreadable(path, err) from None
 
 
 def _unreadable(path: Path, err: Exception) -> FitInputError:

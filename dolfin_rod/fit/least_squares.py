@@ -277,6 +277,10 @@ def prepare_fit(scene: Scene, data: MeasuredSeries, params: list[str] | str,
         raise scene.error("initial.from_run", "a fit runs its trials from the scene's own "
                           "initial state; a saved state was computed with the saved run's "
                           "parameters, not the trial's")
+    if scene.rods:
+        raise scene.error("rods", "a fit drives one rod by the data's load and compares its "
+                                  "tip: a scene of [[rods]] is not fitted (the load would "
+                                  "reach every rod that inherits [loads])")
     parameters = parse_parameters(names, scene, raw_scene(scene))
     problem = FitProblem(scene, data, parameters, choice, comm or MPI.COMM_WORLD)
     for p in parameters:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
 from ..fem.solvers import SolverError
 from ..loads import resolution_problem
@@ -32,20 +32,24 @@ class IntegrationError(RuntimeError):
         self.t = t
 
 
-def load_path(solve: Callable[[float], None], max_cuts: int) -> None:
+def load_path(solve: Callable[[float], None], max_cuts: int, unknowns: Sequence) -> None:
     """A static problem's loads approached on a load path, where Newton failed under all
     of them at once and a smaller step would not lessen them (a load constant in time is
     all on the start of a quasi-static run): ``solve(factor)`` solves with that part of
-    them (0 < factor <= 1) from the last part's state, or raises SolverError with its
-    state undone.  The first part is a half, the next twice as large after a success,
-    half as large after a failure; SolverError when a part would be halved below
+    them (0 < factor <= 1) from the last part's state in ``unknowns`` (Functions), or
+    raises SolverError; a failed part's unknowns are set back to the last part's state
+    here.  The first part is a half, the next twice as large after a success, half as
+    large after a failure; SolverError when a part would be halved below
     1/2^(max_cuts + 1) of the loads."""
     done, part = 0.0, 0.5
     while done < 1.0:
         factor = min(done + part, 1.0)
+        state = [u.x.array.copy() for u in unknowns]
         try:
             solve(factor)
         except SolverError:
+            for u, array in zip(unknowns, state):
+                u.x.array[:] = array
             part /= 2
             if part < 0.5 ** (max_cuts + 1):
                 raise

@@ -234,7 +234,7 @@ class SchemeStepper:
         except SolverError:
             self._restore()
             if self.problem.inertia or not self._residual(scheme).loads_change(
-                    t, dt, unloaded=self.stats.steps == 0):
+                    t, dt, unloaded=self._unloaded()):
                 raise
             its, jump = self._on_load_path(scheme, t, dt), True
         if not all(np.isfinite(f.x.array).all() for f in self.problem.fields):
@@ -262,27 +262,26 @@ class SchemeStepper:
         """A static step (no inertia: a quasi-static rod) whose Newton failed under its
         loads, which a smaller step would not lessen (a load constant in time is all on
         the first step): the step's loads approached from the last accepted state's (none
-        before the first step: the given state is unloaded) on a load path
+        before the first step from a given state, which is unloaded: _unloaded) on a load path
         (step_control.load_path), each part solved from the last; SolverError (state
         restored) if that fails.  The step then took a load it does not resolve (a jump):
         step() starts the rates (0) and the history (the startup scheme) after it."""
-        residual, first, its = self._residual(scheme), self.stats.steps == 0, [0]
+        residual, first, its = self._residual(scheme), self._unloaded(), [0]
 
         def part(factor: float) -> None:
-            state = self._state()
-            try:
-                its[0] += residual.solve(t, dt, self._sub_solves, factor, unloaded=first)
-            except SolverError:
-                for f, array in zip(self.problem.fields, state):
-                    f.x.array[:] = array
-                raise
+            its[0] += residual.solve(t, dt, self._sub_solves, factor, unloaded=first)
 
         try:
-            load_path(part, self.max_cuts)
+            load_path(part, self.max_cuts, self.problem.fields)
         except SolverError:
             self._restore()
             raise
         return its[0]
+
+    def _unloaded(self) -> bool:
+        """Whether the state holds none of the loads: the given state before the first
+        step, unless it was settled or read from a run (problem.start_loaded)."""
+        return self.stats.steps == 0 and not self.problem.start_loaded
 
     def _after_step(self) -> None:
         """problem.after_step, and the history moved with what it changes: a rotation

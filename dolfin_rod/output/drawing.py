@@ -14,6 +14,7 @@ not pickle (a function made in a test) are drawn in the run's process as before.
 
 from __future__ import annotations
 
+import functools
 import os
 import pickle
 import signal
@@ -62,11 +63,13 @@ def draw_pictures(pictures: list[Picture], folder: Path, side_by_side: bool,
     return seconds, _collect(child, seconds) if child else []
 
 
+@functools.cache
 def _warm_matplotlib() -> None:
-    """Import pyplot and lay out one text and one power of ten (mathtext, as a log axis'
-    labels: its parser is built at its first use, 0.1-0.2 s) before the fork: the child
-    inherits them instead of importing and loading the fonts a second time (0.3-0.5 s of
-    CPU).  Pillow's image writers (PNG, GIF: loaded at the first save) and its drawing
+    """Once per process (a Painter's drawing then does not lay its text out again: 5 ms
+    of CPU): import pyplot and lay out one text and one power of ten (mathtext, as a log
+    axis' labels: its parser is built at its first use, 0.1-0.2 s) before the fork: the
+    child inherits them instead of importing and loading the fonts a second time (0.3-0.5
+    s of CPU).  Pillow's image writers (PNG, GIF: loaded at the first save) and its drawing
     modules (the GIF's frames) too: 5-15 ms that each process paid when it drew."""
     import matplotlib
     matplotlib.use("Agg")

@@ -36,6 +36,7 @@ class FieldOutputs:
             self.sampler = LineSampler(model.mesh, model.observables(), self.POINT)
         self.keep_until: float | None = None     # resume: steps of rod.bp kept up to here
         self.writers: list = []           # rod.bp (vtx.py), rod.pvd (vtk_xml.py)
+        self.listing = None               # the rod.pvd writer (LineVTU)
         self.frames = None
 
     def write(self, t: float) -> None:
@@ -61,7 +62,8 @@ class FieldOutputs:
         self.frames = FrameStore()
         if self.outputs["fields"]:
             vtx = LineVTX(self.folder / "rod.bp", keep_until=self.keep_until)
-            self.writers = [vtx, LineVTU(self.folder / "rod.pvd", keep_until=self.keep_until)]
+            self.listing = LineVTU(self.folder / "rod.pvd", keep_until=self.keep_until)
+            self.writers = [vtx, self.listing]
             for step in vtx.kept:   # resume: earlier frames come back from rod.bp
                 self.frames.add(step["time"], sample_from_steps(step))
 
@@ -78,8 +80,17 @@ class FieldOutputs:
         for _, draw in self.pictures(title):
             draw()
 
+    def flush(self) -> None:
+        """Rank 0: rod.pvd listing every step written (it is rewritten at most every
+        vtk_xml.PVD_EVERY seconds otherwise): at a checkpoint, whose resume keeps the
+        steps the listing has."""
+        if self.comm.rank == 0 and self.listing is not None:
+            self.listing.flush()
+
     def close(self) -> None:
-        """Rank 0: close rod.bp (every sample written is then readable)."""
+        """Rank 0: close rod.bp and rod.pvd (every sample written is then readable;
+        rod.pvd first, whatever rod.bp's close says)."""
+        self.flush()
         if self.comm.rank == 0:
             for writer in self.writers:
                 writer.close()

@@ -7,7 +7,9 @@ one for ``from_time``).  :func:`previous_state` picks it and checks it before an
 built (rank 0 reads, every rank raises the same SceneError naming initial.from_run): the
 folder, its scene.toml and checkpoint exist and are intact, and the previous scene has
 this scene's discretisation and model (:func:`structure`: the model, the rods and their
-names, geometry, material model and variant, constraints, rotation unknowns, inertia).
+names, their joints, geometry, material model and variant, constraints, rotation
+unknowns, inertia: a rigid joint keeps the angle its rods have at the placement, and a
+joint's node links snap a state whose rods were not joined there).
 :func:`start_from` reads it into the built model (any number of ranks, either way):
 the unknowns (positions, rotations, velocities, natural strains, a uniform model's
 global unknowns), the stored rotations of rotation vectors and the integrator's rates;
@@ -30,6 +32,7 @@ from pathlib import Path
 from ..scenes.scene import Scene, SceneError
 from .checkpoints import (content_problem, differences, global_size, integrity_problem,
                           read_functions)
+from .run_folders import scene_folder
 
 KEY = "initial.from_run"
 
@@ -41,6 +44,19 @@ class PreviousState:
     folder: Path
     meta: dict
     run: Path
+    t_end: float | None = None     # the previous scene's, if the state was not picked
+
+    @property
+    def unfinished(self) -> str | None:
+        """Why the state is not the previous run's end state (its last saved one, taken
+        by default, lies before its t_end: the run was interrupted, stopped or failed, or
+        saved no state at its end), None if it is or ``from_time`` picked it."""
+        if self.t_end is None or self.meta["time"] >= self.t_end * (1 - 1e-12):
+            return None
+        return (f"the last state {self.run} saved, at t = {self.meta['time']:g}, is not its "
+                f"end state (t_end = {self.t_end:g}: the run was interrupted, stopped or "
+                "failed, or saved no state at its end, outputs.final_checkpoint); "
+                "initial.from_time picks a state without this warning")
 
     def summary(self, continued: bool) -> dict:
         """summary.json's ``from_run`` entry."""
@@ -71,7 +87,10 @@ def structure(scene: Scene, model: str) -> dict:
         return {**data, **rod(scene)}
     rods = {r.name: {**rod(r.scene), "position": r.position, "orientation": r.orientation}
             for r in scene.rods}
-    data |= {"rods": list(rods), **{f"rods.{name}": value for name, value in rods.items()}}
+    joints = {f"joints[{k}]": {"kind": j.kind, "rods": list(j.rods), "point": j.point,
+                               "axis": j.axis} for k, j in enumerate(scene.joints)}
+    data |= {"rods": list(rods), **{f"rods.{name}": value for name, value in rods.items()},
+             **joints}
     return json.loads(json.dumps(data, default=list))
 
 
@@ -87,11 +106,11 @@ def previous_state(scene: Scene, model: str, comm,
     if missing_ok and not comm.bcast(run.exists() if comm.rank == 0 else None, root=0):
         return None
     try:
-        folder, meta = _on_root(comm, lambda: _saved_state(scene, model, run,
-                                                           ini["from_time"]))
+        folder, meta, t_end = _on_root(comm, lambda: _saved_state(scene, model, run,
+                                                                  ini["from_time"]))
     except StateProblem as err:
         raise scene.error(err.key, err.reason) from None
-    return PreviousState(folder, meta, run)
+    return PreviousState(folder, meta, run, t_end if ini["from_time"] is None else None)
 
 
 def check_out(scene: Scene, previous: PreviousState | None, out: Path | None) -> None:
@@ -168,13 +187,15 @@ def _checkpoint(run: Path, at: float | None) -> tuple[Path, dict]:
 
 
 def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
-    """Rank 0: (checkpoint folder, meta) of ``run`` at time ``at`` (None: the last),
+    """Rank 0: (checkpoint folder, meta, its scene's t_end) of ``run`` at time ``at``
+    (None: the last),
     checked against ``scene`` run by ``model``; StateProblem naming the key otherwise
     (previous_state raises it on every rank as a SceneError)."""
     from ..scenes import parse_scene
     folder, meta = _checkpoint(run, at)
     try:
-        theirs = parse_scene((run / "scene.toml").read_text(), str(run / "scene.toml"))
+        theirs = parse_scene((run / "scene.toml").read_text(), str(run / "scene.toml"),
+                             files=scene_folder(run))
     except (OSError, SceneError) as err:
         raise StateProblem(KEY, f"{run}: its scene.toml is not a valid scene ({err})") from None
     diffs = differences(structure(theirs, meta["model"]), structure(scene, model))
@@ -184,13 +205,18 @@ def _saved_state(scene: Scene, model: str, run: Path, at: float | None):
                 "loads" if path == "rotations" else "")
         raise StateProblem(KEY, f"{run}: it has another {path} ({_shown(a)} there, "
                                 f"{_shown(b)} here{hint}); a state starts only a scene of "
-                                "the same rods, discretisation and model")
+                                "the same rods, joints, discretisation and model")
+    units = (theirs["scene"]["units"], scene["scene"]["units"])
+    if None not in units and units[0] != units[1]:
+        raise StateProblem(KEY, f"{run}: its numbers are in {units[0]}, this scene's in "
+                                f"{units[1]} (scene.units): a state is read as it was "
+                                "saved, so a scene starting from it keeps its units")
     dt = (meta.get("integrator") or {}).get("dt")
     if scene["initial"]["continue_integration"] and dt != scene["time"]["dt"]:
         raise StateProblem("initial.continue_integration", (
             f"{run} was integrated with time.dt = {_shown(dt)}, this scene has "
             f"{scene['time']['dt']:g}: a continued integration keeps the step"))
-    return folder, meta
+    return folder, meta, theirs["time"]["t_end"]
 
 
 def _shown(value) -> str:
@@ -216,8 +242,29 @@ def start_from(sim, previous: PreviousState, scene: Scene) -> bool:
         _read(previous.folder, meta, named, previous.run)
     except StateProblem as err:
         raise scene.error(err.key, err.reason) from None
+    _check_overlaps(sim.model, previous, scene)
     sim.restart(meta["sim"] if continues else None)
+    sim.model.problem.start_loaded = True   # an equilibrium with the run's loads
     return continues
+
+
+def _check_overlaps(model, previous: PreviousState, scene: Scene) -> None:
+    """Collective: a SceneError naming the obstacle (or contact key) that the state read
+    cuts into (a scene adding an obstacle where the saved rod lies: its start diverged,
+    blamed on the loads, its row 0 inside the obstacle)."""
+    from ..rod.obstacle_shapes import InitialOverlap
+    from ..rod.segments import PairOverlap
+    check = getattr(model, "check_overlaps", None)
+    if check is None:
+        return
+    try:
+        check()
+    except InitialOverlap as err:
+        raise scene.error(f"obstacles[{err.obstacle}]", f"the state of {previous.run} at t = "
+                          f"{previous.meta['time']:g} cuts into it: {err}") from None
+    except PairOverlap as err:
+        raise scene.error(err.key, f"the state of {previous.run} at t = "
+                          f"{previous.meta['time']:g}: {err}") from None
 
 
 def model_functions(model) -> dict:
@@ -257,4 +304,5 @@ def load_state(model, run: str | Path, time: float | None = None) -> float:
         raise ValueError(err.reason) from None
     if hasattr(model, "hold_ends"):
         model.hold_ends()
+    model.problem.start_loaded = True       # an equilibrium with the run's loads
     return float(meta["time"])

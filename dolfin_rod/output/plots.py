@@ -394,7 +394,8 @@ def _power_residual(ax, col, units, scene):
 def column_kind(name: str) -> str | None:
     """The quantity kind of a time-series column by its name (None: no unit known);
     the dissipation rates and powers are powers, total_dissipation an energy."""
-    for stem, kind in (("reaction_force", "force"), ("reaction_couple", "moment"),
+    for stem, kind in (("angular_momentum", "angular_momentum"), ("momentum", "momentum"),
+                       ("reaction_force", "force"), ("reaction_couple", "moment"),
                        ("tip_position", "length"), ("energy", "energy"),
                        ("total_dissipation", "energy"), ("dissipation", "power"),
                        ("power", "power"), ("contact_force", "force"),

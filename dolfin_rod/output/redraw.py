@@ -23,7 +23,7 @@ from pathlib import Path
 
 from ..checks import new_column
 from ..scenes.schema import COLOURS, PANELS
-from .run_folders import OutputError
+from .run_folders import OutputError, scene_folder
 
 __all__ = ["redraw", "read_rows", "RedrawError"]
 
@@ -117,7 +117,7 @@ def redraw(folder: Path | str, quantities: list[str] | None = None, colour: str 
     if colour not in COLOURS:
         raise RedrawError(f"--color {colour!r}: one of {', '.join(COLOURS)}")
     try:
-        scene = load_scene(folder / "scene.toml")
+        scene = load_scene(folder / "scene.toml", files=scene_folder(folder))
     except SceneError as err:
         raise RedrawError(f"{folder}: its scene.toml cannot be read: {err}") from None
     summary = folder / "summary.json"

@@ -1,6 +1,6 @@
 """Run folders: where a run may write (``folder_problem``), a fresh or resumed results
 folder (``prepare_run_folder``, ``new_run_folder``), the files it holds (``files_in``),
-and file-system errors raised on every rank (``on_root``, :class:`OutputError`), so no
+the folder of the files its scene.toml names (``scene_folder``), and file-system errors raised on every rank (``on_root``, :class:`OutputError`), so no
 rank waits in a collective call for one that failed.
 
 Every folder made here carries the marker file ``.dolfin-rod-run``; ``--overwrite``
@@ -81,10 +81,13 @@ def is_run_folder(folder: Path) -> bool:
     return not folder.is_symlink() and marker.is_file() and not marker.is_symlink()
 
 
-def prepare_run_folder(folder: Path, resume: bool, overwrite: bool) -> None:
+def prepare_run_folder(folder: Path, resume: bool, overwrite: bool,
+                       remedy: str = "pass --resume to continue its run or --overwrite "
+                                     "to replace it") -> None:
     """Rank 0: make ``folder`` ready; a non-empty folder is reused only to resume, or
     replaced with ``overwrite`` if this program made it (its marker; never any other
-    folder, never through a symbolic link)."""
+    folder, never through a symbolic link); ``remedy``: what the command offers for a
+    folder that is not empty."""
     problem = folder_problem(folder)
     if problem:
         raise OutputError(f"--out {problem}")
@@ -94,8 +97,7 @@ def prepare_run_folder(folder: Path, resume: bool, overwrite: bool) -> None:
         return
     if folder.is_dir() and any(folder.iterdir()):
         if not overwrite:
-            raise OutputError(f"{folder} is not empty: pass --resume to continue its run or "
-                              "--overwrite to replace it")
+            raise OutputError(f"{folder} is not empty: {remedy}")
         if folder.is_symlink():
             raise OutputError(f"--overwrite: {folder} is a symbolic link (to "
                               f"{os.readlink(folder)}); give the run folder itself, "
@@ -167,3 +169,14 @@ def files_in(folder: Path) -> list[str]:
         elif path.is_file():
             out.add(str(rel))
     return sorted(out)
+
+
+def scene_folder(run: Path) -> str | None:
+    """The folder of the files that ``run``'s scene.toml names by relative paths (a mesh
+    obstacle's file, an energy module): summary.json's ``scene_folder``, the scene's
+    folder when it ran (None: no summary, or that folder is gone; then the run folder)."""
+    try:
+        folder = json.loads((Path(run) / "summary.json").read_bytes()).get("scene_folder")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return folder if isinstance(folder, str) and Path(folder).is_dir() else None

@@ -252,6 +252,8 @@ class RunWriter:
     def checkpoint(self, step: int, t: float) -> None:
         """Collective: the state after ``step``, for ``--resume``."""
         t0 = time.perf_counter()
+        if self.lines is not None:
+            on_root(self.comm, self.lines.flush, f"cannot write {self.folder / 'rod.pvd'}")
         self.checkpoints.write(step, t, self.balance.state())
         self.timings["output"] += time.perf_counter() - t0
 

@@ -11,7 +11,7 @@ import ufl
 
 from ..theory.dissipation import dissipation_rate
 from ..fem.fe_model import NodeValues
-from ..theory.rotations import np_qmul, np_rotation_angle
+from ..theory.rotations import np_qmul, np_rotation_angle, rotation_matrix
 from .rotation_vector import np_cayley
 
 
@@ -27,13 +27,30 @@ def dissipation_density(resp, c: dict, natural_pairs: list):
 def energy_forms(resp, xi, c: dict, unk, disc, power, drag_dissipation,
                  support_energy=0) -> dict:
     """free_energy (with the springs' energy of compliant supports), dissipation_rate,
-    kinetic_energy, load_power."""
+    kinetic_energy, load_power; a dynamic rod's momenta too (momentum_forms)."""
     dx_r = disc.dx_r
     forms = {"free_energy": resp.psi * dx_r + support_energy,
              "dissipation_rate": xi * dx_r + drag_dissipation,
              "kinetic_energy": _kinetic(resp, c, unk, disc),
              "load_power": 0 * resp.psi * dx_r + power}
+    if unk.dynamic:
+        forms.update(momentum_forms(c, unk, disc))
     return forms
+
+
+def momentum_forms(c: dict, unk, disc) -> dict:
+    """The rod's linear momentum p = int rhoA r_t ds (momentum_{xyz}) and angular momentum
+    about the origin h = int (r x rhoA r_t + R (rho J) w) ds (angular_momentum_{xyz}),
+    spatial components: r = s e_3 + x the centre line, r_t = V, w = W the angular
+    velocity in the material frame; the inertia's measure (eqs. linmom, angmom: p_t and
+    h_t are the resultant force and moment of the loads about the origin)."""
+    V, W = unk.V, unk.W
+    s = ufl.SpatialCoordinate(disc.mesh)[0]
+    r = ufl.as_vector((0.0, 0.0, s)) + unk.f["displacement"]
+    p = c["rho_A"] * V
+    h = ufl.cross(r, p) + ufl.dot(rotation_matrix(unk.q), ufl.dot(c["J"], W))
+    return {**{f"momentum_{a}": p[i] * disc.dx for i, a in enumerate("xyz")},
+            **{f"angular_momentum_{a}": h[i] * disc.dx for i, a in enumerate("xyz")}}
 
 
 def _kinetic(resp, c: dict, unk, disc, chi=None):

@@ -45,6 +45,7 @@ def set_initial_state(model, natural_curvature=None, natural_stretch=None,
     """See RodModel.set_initial_state; ``start`` a rod.start.StartingState or None."""
     unk = model.unknowns
     f = unk.f
+    model.problem.start_loaded = False      # given, unloaded (settle: in equilibrium)
     for g in [*f.values(), *unk.r.values(), *unk.acc.values()]:
         g.x.array[:] = 0.0
     _set_configuration(model, lambda s: stress_free(model, s))
@@ -238,6 +239,7 @@ def settle(model, t: float) -> None:
             g.x.array[:] = array
     if unk.chart is not None:
         model.commit_rotations()
+    problem.start_loaded = True
 
 
 def supported(model) -> bool:

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..checks import ENDS
 from ..theory.quaternions import CONJ, np_qmul, np_rotation_matrix
-from .placement import placed_shape
+from .ring import initial_shape
 from .start import RodStarts
 
 KINDS = ("rigid", "ball", "hinge")
@@ -90,7 +90,7 @@ def locate(rods, joints: list[Joint]) -> list[tuple[int, int, int, int]]:
             i = names.index(name)
             rod = rods[i]
             s = np.linspace(0.0, rod.params.length, rod.n_cells + 1)
-            r = placed_shape(rod, s)[0]
+            r = initial_shape(rod, s)[0]
             distance = np.linalg.norm(r - np.asarray(joint.point, float), axis=1)
             node = int(np.argmin(distance))
             if distance[node] > tol:
@@ -98,6 +98,10 @@ def locate(rods, joints: list[Joint]) -> list[tuple[int, int, int, int]]:
                     f"joints[{k}].point {list(joint.point)} is not on rod {name!r}: its "
                     f"nearest node is at {r[node].round(12).tolist()} ({distance[node]:.3g} "
                     "away); a joint is at a node of both rods")
+            if getattr(rod, "closed", False) and node in (0, rod.n_cells):
+                raise ValueError(f"joints[{k}]: the node of rod {name!r} at the point is its "
+                                 "weld (a closed rod's s = 0 and s = L): join the ring at "
+                                 "another node")
             for end, end_node, kind in zip(ENDS, (0, rod.n_cells), rod.ends):
                 held = kind != "free" or end in (rod.end_displacement or {}) or \
                     end in (rod.end_rotation or {})
@@ -140,7 +144,7 @@ def check_joints_at_start(rods, joints: list[Joint], starts: dict) -> None:
                                                            rods[m].n_cells]))
             for m, node in ((i, node_a), (j, node_b)))
         R_a, R_b = np_rotation_matrix(q_a), np_rotation_matrix(q_b)
-        q_a0, q_b0 = (placed_shape(rods[m], [node * rods[m].params.length / rods[m].n_cells])[1][0]
+        q_a0, q_b0 = (initial_shape(rods[m], [node * rods[m].params.length / rods[m].n_cells])[1][0]
                       for m, node in ((i, node_a), (j, node_b)))
         relative = np_rotation_matrix(np_qmul(q_a0 * CONJ, q_b0))
         scale_v = max(1.0, np.abs([*v_a, *v_b]).max() + scale_r * np.abs([*w_a, *w_b]).max())

@@ -184,6 +184,10 @@ class RodModel(FEModel):
         rod with corners in its stress-free polyline as the pieces between them, joined
         rigidly (kinks.py)."""
         joints = self._check_and_lay_out(rods, model, variant, constraint, joints, comm)
+        if not obstacles:       # (an obstacle or a joint may hold a ring's mechanism)
+            joined = {name for joint in joints for name in joint.rods}
+            ring.check_mechanism([rod for rod in self.user_rods if rod.name not in joined],
+                                 self.dynamic)
         # rods welded into one body, pinned at two ends: its spin held (welded_spin_end)
         self.welded_spin = None if self.dynamic else welded_spin_end(
             self.rods, [joint.kind for joint in joints])
@@ -844,29 +848,41 @@ class RodModel(FEModel):
                 start = ring.closed_start(self.rods[0], start)
         if len(self.splits) == 1 and self.kinked and start is not None:
             start = RodStarts(piece_starts(start, self.splits[0]), self.rods, self.layout)
-        elif start is not None and len(self.splits) > 1:     # pieces: each its share
-            check_rod_starts(start, self.user_rods, self.dynamic, supported=held)
-            start = system_starts(start, self.splits)
+        elif len(self.splits) > 1 and (start is not None or any(
+                rod.closed for rod in self.user_rods)):     # pieces: each its share
+            if start is not None:
+                check_rod_starts(start, self.user_rods, self.dynamic, supported=held)
+            start = system_starts(ring.closed_starts(self.user_rods, start), self.splits)
             check_joints_at_start(self.rods, self.joints, start)
             start = RodStarts(start, self.rods, self.layout)
         self._starting_accelerations("balance" if start is None else start.acceleration)
         initial_state.set_initial_state(self, natural_curvature, natural_stretch, start)
         self.problem.unset_state = ""
+        self.check_overlaps()
         if self.contact:
-            self.contact.check_initial()
             self.contact.update_normal_forces()
             self.contact.commit()
+        if self.obstacle_segments:
+            self.obstacle_segments.commit()
+        if self.segment_contact:
+            self.segment_contact.commit()
+
+    def check_overlaps(self) -> None:
+        """Collective: InitialOverlap if the state has a node within r of an obstacle
+        (or a segment within R + r of a thin one), PairOverlap (segments.py) if two
+        segments' capsules overlap: the start's check, also of a state read from a run
+        (output/from_run.py)."""
+        if self.contact:
+            self.contact.check_initial()
         if self.obstacle_segments:
             g, s, k = self.obstacle_segments.closest()
             if g <= 0:
                 raise InitialOverlap.at("segment", s, g, k, self.obstacle_segments.law.gap,
                                         self.contact.obstacles[k].shape)
-            self.obstacle_segments.commit()
         if self.segment_contact:
             overlap = self.segment_contact.initial_overlap()
             if overlap:
                 raise overlap
-            self.segment_contact.commit()
 
     def _starting_accelerations(self, how: str) -> None:
         """The integrator's start (StartingState.acceleration) on the problem; "zero"
@@ -884,7 +900,8 @@ class RodModel(FEModel):
         point loads (point{j}_position_{xyz}), free and kinetic energy, dissipation rate
         (incl. drag), power of the applied loads and of the reactions at ends with a
         prescribed motion (load_power; the latter also alone as reaction_power),
-        reactions at supported ends."""
+        reactions at supported ends; dynamic: momentum_{xyz}, angular_momentum_{xyz}
+        (diagnostics.momentum_forms)."""
         d = self.assembled_diagnostics(t)
         d.update(self.tips[-1]())        # a rod split at its kinks: of its last piece
         d.update(self.point_positions())

@@ -38,6 +38,8 @@ class PlacedRod:
     end_rotation: dict | None = None
     position: Sequence[float] = (0.0, 0.0, 0.0)
     orientation: Sequence[float] = (0.0, 0.0, 0.0)
+    closed: bool = False                 # a ring (rod/ring.py): it starts as its ring
+    excess_link: float = 0.0
 
 
 def helix(s, u0, v0):

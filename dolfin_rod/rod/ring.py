@@ -21,10 +21,18 @@ The weld is the start's support: the rod's two end nodes are the same material p
   by phi(L) about d3; this keeps q(L) = q(0) R_rel exactly, no penalty;
 * ``start = "clamped"`` (the weld point held, quasi-static or dynamic): both end nodes
   are held where the ring starts, the same point and frame up to R_rel; no link is
-  needed.  Held at one point, a ring keeps the stability of the free ring: any motion
-  is one with the weld point at rest plus a rigid motion, which costs no energy.
+  needed.  Held at one point, a ring is as stable as the free ring less its rigid
+  motions; of the free ring's zero modes one stays: an isotropic ring (A_1 = A_2,
+  B_1 = B_2) that is straight when stress-free is a **mechanism**, turning rigidly about
+  the weld's tangent with every section spinning back about its own tangent by the same
+  angle (strains unchanged, the weld's frame too): the tangent stiffness's exact zero
+  eigenvalue (tests/test_ring.py).  A quasi-static load with a moment about that
+  tangent has no equilibrium near the start (the ring swings like a pendulum until the
+  moment vanishes): ``check_mechanism`` refuses it.
 
-A closed rod is the only rod of its model, its end is free (the weld is its support),
+A closed rod may be one of a system's rods (rod/system.RodSystem: it starts as its
+ring where it is placed, ``closed_starts``; joints join it at any node but its weld,
+located on that ring, ``initial_shape``).  Its end is free (the weld is its support),
 its ends have no prescribed motion, slide, turn or spring, and its stress-free shape
 has no corners; a quasi-static closed rod is clamped at its weld (a free ring is not
 held against rigid motions); it starts as its ring (a starting state's position,
@@ -41,6 +49,7 @@ from ..checks import MAX_CELL_TURN
 from ..theory.quaternions import CONJ, np_qmul, np_quaternion_from_rotation_vector, \
     np_rotation_matrix
 from .linking import twist, writhe
+from .placement import place, placed_shape
 from .start import StartingState
 
 WELD_SUPPORTS = ("clamped", "free")
@@ -127,9 +136,6 @@ def check_closed(rods: list, dynamic: bool) -> None:
                 raise ValueError("excess_link: the turns a ring is closed with; the rod is "
                                  "not closed (closed = true)")
             continue
-        if len(rods) > 1:
-            raise ValueError(f"closed: rod {rod.name!r} of a system: a closed rod is the "
-                             "only rod of its model (RodModel; rings in systems: not yet)")
         if rod.start not in WELD_SUPPORTS:
             raise ValueError(f"start: a closed rod's start is its weld: {' or '.join(WELD_SUPPORTS)}"
                              f" (the weld point held or a free ring), got {rod.start!r}")
@@ -156,6 +162,125 @@ def check_closed(rods: list, dynamic: bool) -> None:
         if rod.params.reference_shape is not None:
             raise ValueError("reference_shape: a closed rod's stress-free shape is that of "
                              "its reference strains (reference_curvature), not a curve")
+
+
+# the generalized force of the mechanism below this fraction of its loads' size is 0
+# (a symmetric pair of loads: round-off of the quadrature's sum, ~1e-16)
+MECHANISM_ROUND_OFF = 1e-9
+MECHANISM = "start: a quasi-static ring clamped at its weld"
+
+
+def is_mechanism(rod) -> bool:
+    """Whether a closed rod (rods.Rod) clamped at its weld is a mechanism (module
+    docstring): quasi-static with its positions and rotations free of any rate (no
+    drag), its section isotropic in bending and shear (constant A_1 = A_2, B_1 = B_2, no
+    coupling of d1, d2 with the other axes) and straight and unsheared when
+    stress-free.  A function of s, an energy psi or a rate is not proven one: False."""
+    p = rod.params
+    if not (rod.closed and rod.start == "clamped") or p.energy is not None or any(
+            _rate(v) for v in (p.drag, p.rotational_drag, p.spatial_rotational_drag)):
+        return False
+    if any(callable(v) for v in (p.A, p.B, p.reference_curvature, p.reference_stretch)):
+        return False
+    straight = not np.any(np.asarray(p.reference_curvature, float)[:2]) and not np.any(
+        np.asarray(p.reference_stretch, float)[:2])
+    return straight and all(_isotropic(np.asarray(v, float)) for v in (p.A, p.B))
+
+
+def _rate(value) -> bool:
+    return value is not None and (callable(value) or bool(np.any(np.asarray(value, float))))
+
+
+def _isotropic(tensor: np.ndarray) -> bool:
+    """A stiffness (3 diagonal entries or 3x3) equal in d1 and d2, not coupling them."""
+    t = np.diag(tensor) if tensor.ndim == 1 else tensor
+    return t[0, 0] == t[1, 1] and not np.any(t[:2, :2] - t[0, 0] * np.eye(2)) \
+        and not np.any(t[:2, 2]) and not np.any(t[2, :2])
+
+
+def mechanism_forces(rod, points: int = 4096) -> dict:
+    """The generalized force of each load of a closed rod along its mechanism (module
+    docstring), by the load's history (the loads of one history add; each history's
+    loads as a list of (name, Q, size)): the continuous ring of radius R = L/(2 pi) in
+    its own frame, turned rigidly by d alpha about e_3 at the weld (dx = e_3 x r) with
+    every section spinning back (the rotation e_3 - d_3 ), Q = F . (e_3 x r) for a force,
+    C . (e_3 - d_3) for a couple; distributed loads by the midpoint rule on ``points``
+    cells; an active moment ("moment" kind) on the material curvature's change
+    E_3 x u.  A profile of s numpy cannot evaluate is left out.  ``size``: the load's
+    largest Q (|F| 2R, 2 |C|, |m|/R per length): the scale of Q's round-off."""
+    length = float(rod.params.length)
+    radius = length / (2.0 * np.pi)
+    spin = ring_of(rod).twist
+    turn = np_rotation_matrix(np_quaternion_from_rotation_vector(
+        np.asarray(rod.orientation, float)))
+    groups: dict = {}
+
+    def frames(s):
+        phi = np.atleast_1d(np.asarray(s, float)) / radius
+        c, si, ct, st = np.cos(phi), np.sin(phi), np.cos(spin * radius * phi), \
+            np.sin(spin * radius * phi)
+        r = radius * np.stack([1.0 - c, 0.0 * c, si], axis=1)
+        d3 = np.stack([si, 0.0 * c, c], axis=1)
+        e1 = np.stack([c, 0.0 * c, -si], axis=1)
+        d1 = ct[:, None] * e1 + st[:, None] * E2
+        return r, np.stack([d1, np.cross(d3, d1), d3], axis=2)   # columns d1, d2, d3
+
+    def add(load, name, s, values, weights):
+        r, R = frames(s)
+        local = np.einsum("nij,nj->ni", R, values) if load.follower else values @ turn
+        if load.kind == "force":
+            work, size = np.cross(E3, r), 2 * radius
+        elif load.kind == "couple":
+            work, size = E3 - R[:, :, 2], 2.0
+        else:                             # an active moment, material: E_3 x u
+            local = np.einsum("nji,nj->ni", R, local)
+            work, size = np.tile(np.cross(E3, [0.0, 1 / radius, spin]), (len(s), 1)), \
+                np.hypot(1 / radius, spin)
+        q = float(np.sum(weights * np.einsum("ni,ni->n", local, work)))
+        bound = float(np.sum(weights * np.linalg.norm(values, axis=1))) * size
+        groups.setdefault(id(load.history), []).append((name, q, bound))
+
+    for k, load in enumerate(rod.point_loads):
+        add(load, f"point_loads[{k}] ({load.kind} at s = {load.s:g})", [load.s],
+            np.atleast_2d(np.asarray(load.value, float)), np.ones(1))
+    s = (np.arange(points) + 0.5) * length / points
+    for k, load in enumerate(rod.distributed_loads):
+        try:
+            values = np.stack(np.broadcast_arrays(
+                *(load.value(s) if callable(load.value) else load.value), s)[:3], axis=1)
+        except Exception:  # noqa: BLE001 - a UFL profile: not evaluated here
+            continue
+        add(load, f"distributed_loads[{k}] ({load.kind})", s, values.astype(float),
+            np.full(points, length / points))
+    return groups
+
+
+def check_mechanism(rods: list, dynamic: bool) -> None:
+    """A quasi-static clamped ring that is a mechanism (is_mechanism) under loads whose
+    generalized force along it does not vanish (mechanism_forces; the loads of one
+    history together): a ValueError naming the weld's support, its key ``start``, and
+    what holds such a ring (Newton would diverge at the first load, DIVERGED_DTOL)."""
+    if dynamic:
+        return
+    for rod in filter(is_mechanism, rods):
+        for loads in mechanism_forces(rod).values():
+            q, bound = sum(q for _, q, _ in loads), sum(b for *_, b in loads)
+            if abs(q) <= MECHANISM_ROUND_OFF * bound:
+                continue
+            names = ", ".join(name for name, *_ in loads)
+            raise ValueError(
+                f"{MECHANISM} (start = 'clamped') with an isotropic section (A_1 = A_2, "
+                f"B_1 = B_2) and a straight stress-free shape is a mechanism: it turns "
+                f"freely about the weld's tangent, every section spinning back about its "
+                f"own (the tangent stiffness's zero eigenvalue); {names} "
+                f"{'has' if len(loads) == 1 else 'have'} a moment {q:.6g} about that "
+                f"tangent, which no equilibrium near the start balances (the ring would "
+                f"swing like a pendulum).  Hold it: drag (material.drag or "
+                f"rotational_drag: the quasi-static ring then turns at a viscous rate to "
+                f"its equilibrium), a section stiffer about d1 than about d2 (A_1 > A_2: "
+                f"the ring bends about d2), a stress-free curvature (reference_curvature), "
+                f"a dynamic run (material.density), or loads without a moment about the "
+                f"weld's tangent")
 
 
 def welded_ends(rod):
@@ -188,6 +313,31 @@ def weld_links(model) -> list:
                   NodeLink(blocks.index(model.unknowns.rotation), s_a, s_b,
                            tuple(map(tuple, relative.T)))]
     return links
+
+
+def initial_shape(rod, s) -> tuple[np.ndarray, np.ndarray]:
+    """(r, q) at a rod's own nodes' arc lengths s where it starts unless a starting
+    state moves it (rods.Rod or placement.PlacedRod): a closed rod's ring, another rod's
+    stress-free shape; placed (joint_points: a joint at a ring's node)."""
+    if not getattr(rod, "closed", False):
+        return placed_shape(rod, s)
+    return place(rod, *ring_of(rod).frames(s, float(rod.params.length), rod.n_cells))
+
+
+def closed_starts(rods, starts: dict | None) -> dict | None:
+    """A system's starting states (rod/start.RodStarts' {rod name: StartingState}, or
+    None) with each closed rod's its ring (closed_start); a ValueError naming
+    ``start['<rod>'].shape`` if one gives a curve."""
+    closed = [rod for rod in rods if rod.closed]
+    if not closed:
+        return starts
+    starts = dict(starts or {})
+    for rod in closed:
+        try:
+            starts[rod.name] = closed_start(rod, starts.get(rod.name))
+        except ValueError as err:
+            raise ValueError(f"start[{rod.name!r}]" + str(err).removeprefix("start")) from None
+    return starts
 
 
 def closed_start(rod, start):

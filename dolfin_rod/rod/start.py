@@ -292,9 +292,8 @@ def check_start(start: StartingState | None, length: float, dynamic: bool,
         _vector(f"start.{name}", getattr(start, name))
     if start.rotation_centre is not None:
         _vector("start.rotation_centre", start.rotation_centre)
-    if not dynamic and (start.moving or start.equilibrium or start.acceleration == "zero"):
-        name = ("equilibrium" if start.equilibrium else "velocity" if start.moving
-                else "acceleration")
+    if not dynamic and (start.moving or start.acceleration == "zero"):
+        name = "velocity" if start.moving else "acceleration"
         raise ValueError(f"start.{name}: the rod is quasi-static (density = 0): it has no "
                          "velocities and is in equilibrium at every step")
     problem = shape_problem(start.shape, length)

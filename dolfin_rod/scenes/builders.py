@@ -12,12 +12,12 @@ torsion/ode.py.  The integrator of an FE model is picked in integrators/choice.p
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
 from ..checks import ENDS, NEWTON_ATOL
+from ..rod.ring import MECHANISM
 from ..rod.start import curve
 from .contact import (contact_law, contact_solver_options, obstacles, segment_pairs,
                       touching)
@@ -87,7 +87,11 @@ def build_ode(scene: Scene, comm=None):
 class FESimulation:
     """A model with ``.problem`` advanced by TimeStepper (or the PETSc TS integrator)."""
 
-    def __init__(self, name: str, model, scene: Scene, initial_state: Callable[[], float]):
+    def __init__(self, name: str, model, scene: Scene, initial_state: Callable[[], float],
+                 started: bool = False):
+        """``started``: ``initial_state`` already ran (a scene with contact checks its start
+        for overlaps at build): the first ``start()`` keeps that state, without a second
+        start (and a second settle)."""
         from ..fem.problem import SecondOrderProblem
         from ..integrators.choice import choose_integrator
         tim = scene["time"]
@@ -96,6 +100,7 @@ class FESimulation:
         self.comm = self.problem.comm
         self.fields = list(self.problem.fields)
         self._initial_state = initial_state
+        self._started = started
         self.continued = False      # the integrator continues a saved history (restart)
         lie = isinstance(self.problem, SecondOrderProblem)   # rotation vectors (rules.py)
         options = solver_options(scene, second_order=lie)
@@ -179,6 +184,9 @@ class FESimulation:
         self.ts.run(t0, t_end, dt, observer=lambda t, _: on_step(t) if t > t0 else None)
 
     def start(self) -> float:
+        if self._started:           # made at build (a rod's start returns no impulse)
+            self._started = False
+            return 0.0
         return float(self._initial_state() or 0.0)
 
     def begin(self, t0: float) -> None:
@@ -311,12 +319,10 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
         else:
             model = RodModel(params, **rod_arguments(scene), **common)
     except ValueError as err:
+        if str(err).startswith(MECHANISM):      # a clamped ring that turns: its weld's
+            raise scene.error("boundary.start", str(err).removeprefix("start: ")) from err
         key = "material.energy" if str(err).startswith("energy") else "scene.model"
         raise scene.error(key, f"the 'rod' model rejected the scene: {err}") from err
-    initial = scene["initial"]
-
-    checked = []        # the start's stability: said once (a touching scene starts twice)
-
     def initial_state():
         try:
             model.set_initial_state(**natural_strains(scene), start=rod_starts(scene)
@@ -326,11 +332,10 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
             if not (colon and field.startswith("start.")):
                 raise
             raise scene.error(f"initial.{field.removeprefix('start.')}", reason) from None
-        if not checked:
-            warn_unstable_start(scene, model)
-            checked.append(True)
+        warn_unstable_start(scene, model)
 
-    if touching(scene):    # an obstacle or a segment cutting the rod at t = 0: no solve
+    if touching(scene):    # an obstacle or a segment cutting the rod at t = 0: refused
+        # before the integrator is built; the start made here is the run's (started=True)
         from ..rod.obstacle_shapes import InitialOverlap
         from ..rod.segments import PairOverlap
         try:
@@ -339,7 +344,7 @@ def build_rod(scene: Scene, comm=None) -> FESimulation:
             raise scene.error(f"obstacles[{err.obstacle}]", str(err)) from None
         except PairOverlap as err:
             raise scene.error(err.key, str(err)) from None
-    return FESimulation("rod", model, scene, initial_state)
+    return FESimulation("rod", model, scene, initial_state, started=touching(scene))
 
 
 def warn_unstable_start(scene: Scene, model) -> None:
@@ -348,9 +353,11 @@ def warn_unstable_start(scene: Scene, model) -> None:
     loads, whose stability the energy criterion decides).  A dynamic run stays on such a
     start while nothing perturbs it (a column settled straight above Euler's load stays
     straight to round-off), where any real rod leaves it."""
-    from ..analysis.stability import StabilityMonitor, non_conservative
     entries = [rod.scene for rod in scene.rods] if scene.rods else [scene]
-    if not any(e["initial"]["equilibrium"] for e in entries) or non_conservative(model):
+    if not any(e["initial"]["equilibrium"] for e in entries):
+        return               # (before the import: the check's scipy, 0.13 s of CPU)
+    from ..analysis.stability import StabilityMonitor, non_conservative
+    if non_conservative(model):
         return
     negative = StabilityMonitor(model).count(0.0)      # settled with the loads at t = 0
     if negative:
@@ -438,7 +445,8 @@ def placed_rods(scene: Scene) -> list:
             entry.name, Geometry(geo["length"], geo["reference_curvature"],
                                  geo["reference_stretch"], curve(geo["reference_shape"])),
             geo["n_cells"], (boundary["start"], boundary["end"]), motions["displacement"],
-            motions["rotation"], entry.position, entry.orientation))
+            motions["rotation"], entry.position, entry.orientation, geo["closed"],
+            geo["excess_link"]))
     return rods
 
 
@@ -456,7 +464,8 @@ class CentreLine(NamedTuple):
 
 class StartLines(NamedTuple):
     """The rods' centre lines at t = 0 (one per piece, in the model's order), the joints'
-    nodes (piece, node, piece, node; the corners' rigid joints included) and whether a
+    nodes (piece, node, piece, node; the corners' rigid joints and each ring's weld, its
+    nodes 0 and n, included: neighbours through them) and whether a
     start is settled in static equilibrium before t = 0 (initial.equilibrium: the points
     are where the settling starts, the rod's start known after that solve only)."""
 
@@ -472,6 +481,7 @@ def initial_centre_lines(scene: Scene) -> StartLines:
     from ..rod.joint_points import locate
     from ..rod.kinks import attach, split_placed, system_starts
     from ..rod.placement import Geometry, PlacedRod
+    from ..rod.ring import closed_starts
     from ..rod.start import RodStarts
     if scene.rods:
         rods, starts = placed_rods(scene), rod_starts(scene) or {}
@@ -480,9 +490,11 @@ def initial_centre_lines(scene: Scene) -> StartLines:
         rods = [PlacedRod("rod", Geometry(geo["length"], geo["reference_curvature"],
                                           geo["reference_stretch"],
                                           curve(geo["reference_shape"])),
-                          geo["n_cells"], (boundary["start"], boundary["end"]))]
+                          geo["n_cells"], (boundary["start"], boundary["end"]),
+                          closed=geo["closed"], excess_link=geo["excess_link"])]
         start = starting_state(scene)
         starts = {} if start is None else {"rod": start}
+    starts = closed_starts(rods, starts)      # a ring starts as its ring
     splits = [split_placed(rod) for rod in rods]
     pieces = [piece for split in splits for piece in split.rods]
     state = RodStarts(system_starts(starts, splits), pieces)
@@ -494,7 +506,9 @@ def initial_centre_lines(scene: Scene) -> StartLines:
             lines.append(CentreLine(name, s + offset, state.rod_state(piece, s)[0],
                                     piece.params.length))
     joints = locate(pieces, attach(scene_joints(scene) if scene.rods else [], splits))
-    return StartLines(lines, joints, any(start.equilibrium for start in starts.values()))
+    welds = [(k, 0, k, piece.n_cells) for k, piece in enumerate(pieces) if piece.closed]
+    return StartLines(lines, joints + welds,
+                      any(start.equilibrium for start in starts.values()))
 
 
 def rods_and_joints(scene: Scene) -> tuple[list, list]:
@@ -524,8 +538,7 @@ def rod_parameters(scene: Scene):
     scalars = {k: mat[k].value() for k in ("density", "drag") if mat[k] is not None}
     energy = None
     if mat["energy"] is not None:
-        folder = Path(scene.source).parent if Path(scene.source).is_file() else None
-        energy = load_entry_point(mat["energy"], folder)
+        energy = load_entry_point(mat["energy"], scene.folder)
     if mat["rotational_drag"] is not None:
         frame = "" if mat["rotational_drag_frame"] == "material" else "spatial_"
         tensors[frame + "rotational_drag"] = mat["rotational_drag"].value()

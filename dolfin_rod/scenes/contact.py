@@ -305,8 +305,7 @@ def mesh_file(scene: Scene, ob: dict) -> str | None:
     """A mesh obstacle's file, relative to the scene's folder (None: not given)."""
     if ob["file"] is None:
         return None
-    folder = Path(scene.source).parent if Path(scene.source).is_file() else Path()
-    return str(folder / ob["file"])
+    return str((scene.folder or Path()) / ob["file"])
 
 
 def contact_lines(scene: Scene, start) -> list[str]:

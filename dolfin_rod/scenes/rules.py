@@ -5,7 +5,6 @@ options, torsion boundary conditions, 3-D rod material, inertia and ends."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -348,9 +347,8 @@ def _check_rod_material(scene: Scene) -> None:
     _check_rod_inertia(scene)
     _check_rod_start(scene)
     if mat["energy"] is not None:
-        folder = Path(scene.source).parent if Path(scene.source).is_file() else None
         try:
-            psi = load_entry_point(mat["energy"], folder)
+            psi = load_entry_point(mat["energy"], scene.folder)
         except BadValue as bad:
             raise err("material.energy", bad.reason) from None
         problem = _start_state_problem(scene, psi)
@@ -426,13 +424,10 @@ def _check_rod_inertia(scene: Scene) -> None:
 
 def _check_closed(scene: Scene) -> None:
     """A closed rod (geometry.closed, rod/ring.py): its rules, each error naming the
-    scene key; one rod only; its start is its ring (no initial.shape)."""
+    scene key; its start is its ring (no initial.shape)."""
     geo, bnd = scene["geometry"], scene["boundary"]
     if not (geo["closed"] or "excess_link" in scene.given["geometry"]):
         return
-    if geo["closed"] and scene.in_system:
-        raise scene.error("geometry.closed", "a closed rod is the only rod of its scene "
-                                             "(rings in [[rods]]: not yet)")
     if geo["closed"] and "shape" in scene.given["initial"]:
         raise scene.error("initial.shape", "a closed rod starts as its ring (geometry."
                                            "closed, excess_link); give no starting curve")
@@ -456,7 +451,7 @@ def _check_rod_start(scene: Scene) -> None:
     """The starting state ([initial] START_KEYS) against the rod."""
     ini, err = scene["initial"], scene.error
     if not scene["material"]["dynamic"]:
-        for k in ("velocity", "angular_velocity", "equilibrium"):
+        for k in ("velocity", "angular_velocity"):
             if ini[k]:
                 raise err(f"initial.{k}", "a quasi-static rod (density 0) has no velocities "
                                           "and is in equilibrium at every step")
@@ -466,11 +461,8 @@ def _check_rod_start(scene: Scene) -> None:
                                           "unknowns (generalized-alpha starts from the "
                                           "accelerations; quasi-static rods and quaternions' "
                                           "schemes start from the state alone)")
-    bnd = scene["boundary"]
-    if ini["equilibrium"] and not scene["obstacles"] and not any(
-            bnd[end] != "free" or bnd[f"{end}_rotation"] or bnd[f"{end}_spring"]
-            for end in ("start", "end")):
-        raise err("initial.equilibrium", EQUILIBRIUM_NEEDS)
+    if ini["equilibrium"] and not scene.joined and not held_at_rest(scene):
+        raise err("initial.equilibrium", EQUILIBRIUM_NEEDS)   # a joined rod: its system's
     if ini["rotation_centre"] is not None and ini["angular_velocity"] is None:
         raise err("initial.rotation_centre", "needs initial.angular_velocity (the rigid "
                                              "rotation about it)")
@@ -510,6 +502,16 @@ def _check_kinked_start(scene: Scene) -> None:
         except ValueError as bad:
             raise scene.error("initial.shape", str(bad).removeprefix("start.shape: ")) \
                 from None
+
+
+def held_at_rest(scene: Scene) -> bool:
+    """Whether something holds the rod of ``scene`` against rigid motions, as its static
+    equilibrium (initial.equilibrium) needs: an end support, rotation or spring, or
+    obstacles to rest on (the model's rod/initial_state.supported)."""
+    bnd = scene["boundary"]
+    return bool(scene["obstacles"]) or any(
+        bnd[end] != "free" or bnd[f"{end}_rotation"] or bnd[f"{end}_spring"]
+        for end in ("start", "end"))
 
 
 def _check_curve(scene: Scene, key: str, shape: dict | None) -> None:

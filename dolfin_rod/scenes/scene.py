@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -38,6 +39,7 @@ class Scene:
     joints: list = field(default_factory=list)   # [[joints]]: systems.JointEntry
     joined: bool = False      # a rod of [[rods]] held by a joint (its supports may be free)
     in_system: bool = False   # a rod of [[rods]]: the continuation parameter is the system's
+    files: str | None = None  # the folder of the files it names (None: its source's)
 
     def __getitem__(self, table: str) -> dict[str, Any]:
         return self.data[table]
@@ -50,6 +52,15 @@ class Scene:
     def is_rod_material(self) -> bool:
         return any(self.data["material"][k] is not None for k in ROD_KEYS) or \
             self.data["section"]["shape"] is not None
+
+    @property
+    def folder(self) -> Path | None:
+        """The folder of the files the scene names (a mesh obstacle's file, an energy
+        module): ``files`` (a run folder's scene.toml read again: its scene's folder,
+        summary.json's scene_folder), else its source's folder (None: no file)."""
+        if self.files is not None:
+            return Path(self.files)
+        return Path(self.source).parent if Path(self.source).is_file() else None
 
     def error(self, key: str, reason: str) -> SceneError:
         return SceneError(self.source, key, reason)

@@ -21,6 +21,7 @@ across keys in ``scenes/rules.py``; this module holds the table and the entry po
 
 from __future__ import annotations
 
+import functools
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,7 +39,7 @@ from .contact import check_initial_contact, touching
 from .histories import HistorySpec, distributed, history, muscle
 from .rules import check_combinations
 from .scene import Scene, SceneError
-from .systems import validate_system
+from .systems import shadowing_rod, validate_system
 from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient,
                      friction_coefficients,
                      names_or_boolean, damping_tensor, drag, entry_point, integer,
@@ -47,7 +48,7 @@ from .values import (BadValue, Coefficient, Tensor, boolean, choice, coefficient
                      section_inertia, spring_table, starting_shape, string, tensor_table,
                      toml_value,
                      ts_type_name,
-                     type_name, vector3)
+                     type_name, vector3, velocity_field)
 
 __all__ = ["SceneError", "Scene", "Coefficient", "HistorySpec", "Tensor", "load_scene",
            "parse_scene", "load_entry_point", "SCHEMA", "SCHEMA_NOTES", "MODEL_NAMES",
@@ -67,21 +68,25 @@ PANELS = ("tip_deflection", "tip_rotation", "end_torque", "force_extension", "re
           "contact", "stability", "twist", "energy", "power_residual")
 
 # quantity kind -> unit per unit system
-UNITS = {
+UNITS = {       # momentum: force x time; angular momentum: moment x time
     "SI": {"length": "m", "time": "s", "force": "N", "moment": "N m", "energy": "J",
-           "power": "W", "angle": "rad"},
+           "power": "W", "angle": "rad", "momentum": "N s", "angular_momentum": "N m s"},
     "pN-nm-s": {"length": "nm", "time": "s", "force": "pN", "moment": "pN nm",
-                "energy": "pN nm", "power": "pN nm/s", "angle": "rad"},
+                "energy": "pN nm", "power": "pN nm/s", "angle": "rad",
+                "momentum": "pN s", "angular_momentum": "pN nm s"},
     # molecular dynamics' nanoseconds (mass unit pN ns^2/nm = 1e-21 kg)
     "pN-nm-ns": {"length": "nm", "time": "ns", "force": "pN", "moment": "pN nm",
-                 "energy": "pN nm", "power": "pN nm/ns", "angle": "rad"},
+                 "energy": "pN nm", "power": "pN nm/ns", "angle": "rad",
+                 "momentum": "pN ns", "angular_momentum": "pN nm ns"},
     # engineering's millimetres (stress N/mm^2 = MPa; mass t, or g with ms)
     "mm-N-s": {"length": "mm", "time": "s", "force": "N", "moment": "N mm",
-               "energy": "N mm", "power": "N mm/s", "angle": "rad"},
+               "energy": "N mm", "power": "N mm/s", "angle": "rad",
+               "momentum": "N s", "angular_momentum": "N mm s"},
     "mm-N-ms": {"length": "mm", "time": "ms", "force": "N", "moment": "N mm",
-                "energy": "N mm", "power": "N mm/ms", "angle": "rad"},
+                "energy": "N mm", "power": "N mm/ms", "angle": "rad",
+                "momentum": "N ms", "angular_momentum": "N mm ms"},
     "dimensionless": dict.fromkeys(("length", "time", "force", "moment", "energy",
-                                    "power"), "1")
+                                    "power", "momentum", "angular_momentum"), "1")
     | {"angle": "rad"},       # the torsion scenes' Section 5.1 variables
 }
 
@@ -324,17 +329,21 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      "L] (default: the polyline's own arc length, which must be L), normal = "
                      "[1, 0, 0] (gives d1)}; stretch, rest_arc_length: a pre-stretched start "
                      "(default: the stress-free shape)"),
-        "velocity": Key(vector3(), None, R + "velocity at t = 0 (length/time; dynamic rods; "
-                        "held ends stay at rest)"),
+        "velocity": Key(velocity_field, None, R + "velocity at t = 0 (length/time; dynamic "
+                        "rods; held ends stay at rest): [x, y, z], or along the rod {value = "
+                        "[x, y, z], profile = {polynomial = [c0, c1, ...]}} (value times "
+                        "c0 + c1 s + ..., s the arc length from the start: a mode shape)"),
         "angular_velocity": Key(vector3(), None, R + "spatial angular velocity w at t = 0 "
                                 "(rad/time; dynamic rods)"),
         "rotation_centre": Key(vector3(), None, R + "with angular_velocity: the rod starts "
                                "as a rigid body turning about this point, velocity + w x "
                                "(r - rotation_centre)"),
-        "equilibrium": Key(boolean, False, R + "dynamic rods: settle the positions and "
-                           "rotations in static equilibrium with the loads at t = 0 from "
-                           "the starting shape before the dynamics (quasi-static "
-                           "pre-loading; natural strains kept): one Newton solve, and "
+        "equilibrium": Key(boolean, False, R + "settle the positions and rotations in "
+                           "static equilibrium with the loads at t = 0 from the starting "
+                           "shape before the run (dynamic rods: quasi-static pre-loading; "
+                           "quasi-static rods: a start far from equilibrium, such as a "
+                           "knotted polyline of a straight rod, whose first solve fails; "
+                           "natural strains kept): one Newton solve, and "
                            "where that fails (a large deflection) or no end holds the "
                            "rotation, in pseudo-time (docs/rod.md); needs an end support "
                            "(clamped, pinned, end rotation or spring) or obstacles to rest "
@@ -634,11 +643,14 @@ RENAMED = {("geometry", "reference_twist"): "initial.natural_twist (u_d at t = 0
                                             "initial natural strain, not a reference shape)"}
 
 
-def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
+def load_scene(path: str | Path, overrides: dict[str, Any] | None = None,
+               files: str | None = None) -> Scene:
     """Read and validate a scene file; every failure is a SceneError.  ``overrides``
     {"table.key": value} (None: remove the key; "table.key.subkey" a key of an inline
     table such as loads.end_force.value) change the file's values first, e.g.
-    ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``."""
+    ``load_scene("scenes/torsion_creep.toml", {"material.variant": "uniform"})``.
+    ``files``: the folder of the files the scene names (mesh files, energy modules),
+    default the scene file's (a run folder's scene.toml: its scene's, scene_folder)."""
     path = Path(path)
     try:
         raw = read_regular_file(path, SCENE_BYTES)
@@ -649,11 +661,12 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
         text = raw.decode("utf-8-sig")   # a UTF-8 byte-order mark is allowed
     except UnicodeDecodeError as err:
         raise SceneError(str(path), "", f"not UTF-8 text: {err.reason} at byte {err.start}") from None
-    return parse_scene(text, source=str(path), default_name=path.stem, overrides=overrides)
+    return parse_scene(text, source=str(path), default_name=path.stem, overrides=overrides,
+                       files=files)
 
 
 def parse_scene(text: str, source: str = "<string>", default_name: str = "scene",
-                overrides: dict[str, Any] | None = None) -> Scene:
+                overrides: dict[str, Any] | None = None, files: str | None = None) -> Scene:
     """Parse and validate TOML text (with ``overrides``, see load_scene); every failure
     is a SceneError.  ``scene.text`` is the scene as run (the overridden values in)."""
     try:
@@ -666,7 +679,7 @@ def parse_scene(text: str, source: str = "<string>", default_name: str = "scene"
         for name, value in overrides.items():
             _override(raw, name, value, source)
         text = f"# {source} with overrides {overrides}\n" + to_toml(raw)
-    scene = validate(raw, source, default_name)
+    scene = validate(raw, source, default_name, files)
     scene.text = text
     return scene
 
@@ -680,6 +693,14 @@ def _override(raw: dict, name: str, value: Any, source: str) -> None:
     if not path or not all(path):
         raise SceneError(source, name, "an override is named \"table.key\" (or "
                                        "\"table.key.subkey\")")
+    if "[" in table:
+        raise SceneError(source, name, f"override {name!r}: an override cannot index an "
+                                       "array of tables ([[rods]], [[joints]], "
+                                       "[[obstacles]]): edit the scene file")
+    shadow = shadowing_rod(raw, table, path[0])
+    if shadow is not None and value is not None:
+        raise SceneError(source, name, f"override {name!r} would not reach {shadow}, "
+                                       "which gives its own value: edit the scene file")
     if value is None and table not in raw:
         return
     section, where = raw.setdefault(table, {}), table
@@ -713,24 +734,26 @@ def to_toml(raw: dict) -> str:
     return "\n".join(out)
 
 
-def validate(raw: Any, source: str = "<dict>", default_name: str = "scene") -> Scene:
+def validate(raw: Any, source: str = "<dict>", default_name: str = "scene",
+             files: str | None = None) -> Scene:
     """Validate an already-parsed scene dict; every failure is a SceneError.  A scene
     with ``[[rods]]`` is a rod system (scenes/systems.py)."""
     if not isinstance(raw, dict):
         raise SceneError(source, "", f"a scene must be a table, got {type_name(raw)}")
     if "rods" in raw:
-        scene = validate_system(dict(raw), source, default_name, _validate_tables)
+        scene = validate_system(dict(raw), source, default_name,
+                                functools.partial(_validate_tables, files=files))
     elif "joints" in raw:
         raise SceneError(source, "joints", "joints join the rods of [[rods]] tables")
     else:
-        scene = _validate_tables(raw, source, default_name)
+        scene = _validate_tables(raw, source, default_name, files=files)
     if scene.is_rod_material and touching(scene):    # contact at t = 0: the rods placed
         check_initial_contact(scene, initial_centre_lines(scene))
     return scene
 
 
 def _validate_tables(raw: dict, source: str, default_name: str,
-                     joined: bool | None = None) -> Scene:
+                     joined: bool | None = None, files: str | None = None) -> Scene:
     """The tables of one scene (of one rod; ``joined``: of a rod of [[rods]], None for
     a scene of one rod, whether a joint holds it)."""
     for table in raw:
@@ -759,7 +782,7 @@ def _validate_tables(raw: dict, source: str, default_name: str,
     if data["scene"]["name"] is None:
         data["scene"]["name"] = safe_name(default_name)
     scene = Scene(data, source, given=given, joined=bool(joined),
-                  in_system=joined is not None)
+                  in_system=joined is not None, files=files)
     check_combinations(scene)
     return scene
 

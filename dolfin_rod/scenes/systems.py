@@ -91,7 +91,33 @@ def validate_system(raw: dict, source: str, default_name: str,
     _check_continuation(scene)
     _check_joint_points(scene)
     _check_rotation_held(scene)
+    _check_equilibrium_held(scene)
     return scene
+
+
+def _check_equilibrium_held(scene: Scene) -> None:
+    """A system started in static equilibrium (initial.equilibrium) is held somewhere, as
+    the model's static problem needs (rod/initial_state.supported); a rod held by joints
+    only needs no support of its own (rules: each unjoined rod is checked alone)."""
+    from ..checks import EQUILIBRIUM_NEEDS
+    from .rules import held_at_rest
+    settled = any(r.scene["initial"]["equilibrium"] for r in scene.rods)
+    if settled and not any(held_at_rest(r.scene) for r in scene.rods):
+        raise scene.error("initial.equilibrium", EQUILIBRIUM_NEEDS)
+
+
+def shadowing_rod(raw: dict, table: str, key: str) -> str | None:
+    """The first key of a [[rods]] table in ``raw`` that gives its own ``table.key`` (a
+    rod's section with a shape: every section key), over which the scene's value of it
+    is not used; None if no rod does."""
+    rods = raw.get("rods")
+    if table not in ROD_TABLES or not isinstance(rods, list):
+        return None
+    for k, entry in enumerate(rods):
+        own = entry.get(table) if isinstance(entry, dict) else None
+        if isinstance(own, dict) and (key in own or (table == "section" and "shape" in own)):
+            return f"rods[{k}].{table}" + (f".{key}" if key in own else "")
+    return None
 
 
 def _check_rotation_held(scene: Scene) -> None:
@@ -236,10 +262,12 @@ def _check_joint_points(scene: Scene) -> None:
     model splits them (rod/kinks.py)."""
     from ..rod.joint_points import check_joints_at_start, locate
     from ..rod.kinks import attach, split_placed, system_starts
+    from ..rod.ring import closed_starts
     from .builders import placed_rods, rod_starts, scene_joints
     if not scene.joints:
         return
-    splits = [split_placed(rod) for rod in placed_rods(scene)]   # the model's pieces
+    placed = placed_rods(scene)
+    splits = [split_placed(rod) for rod in placed]                # the model's pieces
     rods = [piece for split in splits for piece in split.rods]
     joints = attach(scene_joints(scene), splits)
     try:
@@ -248,6 +276,7 @@ def _check_joint_points(scene: Scene) -> None:
         key = str(err).partition(" ")[0].rstrip(":")
         raise SceneError(scene.source, key, str(err).partition(" ")[2]) from None
     try:
-        check_joints_at_start(rods, joints, system_starts(rod_starts(scene) or {}, splits))
+        check_joints_at_start(rods, joints, system_starts(
+            closed_starts(placed, rod_starts(scene)) or {}, splits))
     except ValueError as err:
         raise SceneError(scene.source, "initial", str(err)) from None

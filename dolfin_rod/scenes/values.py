@@ -266,6 +266,40 @@ def profile(v):
 
 
 @dataclass(frozen=True)
+class VelocityProfile:
+    """A starting velocity along the rod, value profile(s) (s the arc length from the
+    rod's start, length units): a mode shape's, DisMech's cantilever's."""
+
+    value: tuple[float, float, float]
+    profile: Coefficient
+
+    def __call__(self, s) -> np.ndarray:
+        """(len(s), 3) velocities at the arc lengths s."""
+        s = np.asarray(s, dtype=float)
+        return np.outer(self.profile.values(s), self.value)
+
+
+def velocity_field(v):
+    """[x, y, z], or {value = [x, y, z], profile = {polynomial = [c0, c1, ...]}} (the
+    distributed loads' profile along s)."""
+    if not isinstance(v, dict):
+        return vector3()(v)
+    refuse_unknown(v, {"value", "profile"})
+    for key in ("value", "profile"):
+        if key not in v:
+            raise BadValue("missing required key", key)
+    try:
+        value = vector3()(v["value"])
+    except BadValue as bad:
+        raise BadValue(bad.reason, "value") from None
+    try:
+        shape = profile(v["profile"])
+    except BadValue as bad:
+        raise BadValue(bad.reason, f"profile.{bad.key}" if bad.key else "profile") from None
+    return VelocityProfile(value, shape)
+
+
+@dataclass(frozen=True)
 class Tensor:
     """A 3x3 material tensor T(s) = T_0 + T_1 s + T_2 s^2 + ... (s in [0, L]); each T_k
     written as 3 diagonal entries or a 3x3 array."""
