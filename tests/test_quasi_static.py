@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from mpi4py import MPI
 
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
@@ -197,7 +198,7 @@ def test_cached_step_forms_of_end_loads_give_the_fresh_forms_results(rotations, 
                           N_d=(1.0, 1.0, 1.0))
     form_cache.clear()
     _, key = _creep_tip(other, 6, rotations, scheme)           # compiles; other data
-    assert form_cache.lookup(key) is not None                  # remembered ...
+    assert form_cache.lookup(key, MPI.COMM_WORLD) is not None    # remembered ...
     cached, same_key = _creep_tip(PARAMS, 5, rotations, scheme)   # ... and bound here
     assert same_key == key
     form_cache.clear()

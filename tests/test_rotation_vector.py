@@ -301,7 +301,7 @@ def test_step_forms_from_the_disk_cache_give_the_fresh_forms_results():
     form_cache.clear(disk=False)                # as a new process: memory empty
     # serial: the entry comes from disk; under MPI the disk cache is off (a rank's miss
     # would deadlock the collective JIT of the others' hit), so nothing is found
-    assert (form_cache.lookup(key) is not None) == (rod.mesh.comm.size == 1)
+    assert (form_cache.lookup(key, rod.mesh.comm) is not None) == (rod.mesh.comm.size == 1)
     form_cache.clear(disk=False)
     from_disk = _three_steps(PARAMS, 5)
     # the same kernels on the same data: equal to round-off (see the test above)
@@ -329,12 +329,12 @@ def test_step_kernels_are_kept_apart_per_cpu_and_flags(monkeypatch):
     form_cache.store(key, [here], [form], [f])
     form_cache.clear(disk=False)                    # as a new process on this CPU ...
     # ... finds its entry on disk (serial; see test_step_forms_from_the_disk_cache_...)
-    assert (form_cache.lookup(key) is not None) == (domain.comm.size == 1)
+    assert (form_cache.lookup(key, domain.comm) is not None) == (domain.comm.size == 1)
     flags = [x for x in form_cache.KERNEL_FLAGS if not x.startswith("-DDOLFIN_ROD_HOST_CPU=")]
     assert len(flags) == len(form_cache.KERNEL_FLAGS) - 1      # the CPU is named
     monkeypatch.setattr(form_cache, "KERNEL_FLAGS", [*flags, "-DDOLFIN_ROD_HOST_CPU=other"])
     form_cache.clear(disk=False)                    # a process on another CPU ...
-    assert form_cache.lookup(key) is None           # ... does not find this CPU's entry
+    assert form_cache.lookup(key, domain.comm) is None           # ... does not find this CPU's entry
     there = form_cache.compile_forms(form)          # and compiles its own module
     assert there.module.__file__ != here.module.__file__
     assert np.isclose(fem.assemble_scalar(there), fem.assemble_scalar(here))

@@ -62,14 +62,14 @@ VALUES = (dict(A=(2.0, 3.0, 4.0), B=(50.0, 60.0, 70.0)),
 
 
 def make(case: str, values: dict = VALUES[0], n_cells: int = 4, loads=None,
-         **changes) -> RodModel:
+         comm: MPI.Comm = MPI.COMM_WORLD, **changes) -> RodModel:
     """The model of a case with material numbers ``values`` and ``changes``."""
     spec = CASES[case]
     params = RodParameters(**values, **{**spec["params"], **changes})
     loads = loads or dict(distributed_loads=[DistributedLoad("force", (1.0, 0.0, 0.0))])
     return RodModel(params, n_cells=n_cells, model=spec["model"],
                     variant=spec.get("variant", "local"), constraints=spec.get("constraints"),
-                    rotations=spec.get("rotations", "auto"), comm=MPI.COMM_WORLD, **loads)
+                    rotations=spec.get("rotations", "auto"), comm=comm, **loads)
 
 
 def signatures(model) -> str:
@@ -248,7 +248,7 @@ def test_a_second_models_diagnostics_and_reactions_are_its_own(case, monkeypatch
     monkeypatch.setattr(form_cache, "bind", counted)
     bound = diagnostics(VALUES[1], 6)
     assert len(binds) >= 3          # the step kernels, the diagnostics, a reaction block
-    monkeypatch.setattr(form_cache, "lookup", lambda key: None)
+    monkeypatch.setattr(form_cache, "lookup", lambda *args, **kwargs: None)
     fresh = diagnostics(VALUES[1], 6)
     assert bound.keys() == fresh.keys() and "reaction_force_start_x" in fresh
     size = max(abs(v) for v in fresh.values())
@@ -379,6 +379,38 @@ def test_a_second_stepper_duplicates_the_first_ones_matrix_and_vectors():
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("case", ["dynamic, rotation vectors", "quasi-static creep, quaternions"])
+def test_kernels_remembered_on_one_rank_only_are_compiled_on_every_rank(case):
+    """A model on rank 0's own communicator (MPI.COMM_SELF, as a test or a user's script
+    may build) remembers its step kernels on rank 0 alone; a model of the same structure
+    on every rank then finds them on rank 0 only.  form_cache.lookup agrees over the
+    model's ranks, so every rank compiles: a hit on rank 0 against a miss on rank 1 left
+    rank 1 in DOLFINx's collective JIT and rank 0 past it (the MPI suite hung at
+    tests/test_snake.py).  Both models' steps give the serial run's tip to 1e-12 (a
+    parallel solve's other rounding: 1e-17 measured, test_rotation_vector)."""
+    from dolfin_rod import TimeStepper
+
+    def tip(comm: MPI.Comm) -> tuple[np.ndarray, str]:
+        model = make(case, comm=comm)
+        model.set_initial_state()
+        stepper = TimeStepper(model.problem)
+        stepper.run(0.0, 0.02, 0.01)
+        d = model.diagnostics(0.02)
+        return np.array([d[f"tip_position_{c}"] for c in "xyz"]), stepper.structure_key
+
+    world = MPI.COMM_WORLD
+    form_cache.clear(disk=False)
+    alone = tip(MPI.COMM_SELF) if world.rank == 0 else None
+    key = world.bcast(alone[1] if world.rank == 0 else None)
+    known = world.allgather(form_cache.lookup(key, MPI.COMM_SELF) is not None)
+    assert known == [True] + [False] * (world.size - 1)     # the situation of the hang
+    together = tip(world)
+    assert together[1] == key                   # the same kernels
+    if world.rank == 0:
+        assert np.allclose(together[0], alone[0], rtol=0, atol=1e-12)
+
+
+@pytest.mark.mpi
 def test_a_second_model_with_a_real_space_unknown_binds_its_step_blocks(monkeypatch):
     """The uniform variant's natural strains are real-space unknowns: its step system is
     assembled in blocks (fem/assembly.BlockedSystem).  A second model of its structure
@@ -402,7 +434,7 @@ def test_a_second_model_with_a_real_space_unknown_binds_its_step_blocks(monkeypa
                                     wraps=assembly.jacobian_blocks)
     with derivatives as bound_calls:
         bound = state(VALUES[1], 6)
-    monkeypatch.setattr(form_cache, "lookup", lambda key: None)
+    monkeypatch.setattr(form_cache, "lookup", lambda *args, **kwargs: None)
     with derivatives as fresh_calls:
         fresh = state(VALUES[1], 6)
     assert bound_calls.call_count == 0 < fresh_calls.call_count

@@ -105,7 +105,7 @@ class TangentStiffness:
         # (a fit's trial) binds the kernels without building the forms (issue 30)
         key = form_cache.structure_key(residuals, "tangent", names) \
             if monolithic_layout(fields) else None
-        forms = None if form_cache.lookup(key) else \
+        forms = None if form_cache.lookup(key, model.mesh.comm) else \
             [ufl.replace(F, at_rest) for F in residuals]
         objects = [*form_cache.registry(residuals), *at_rest.values()]
         self.system = block_system(forms, [fields], bcs=bcs, cache=(key, objects))

@@ -128,7 +128,7 @@ def _mass(tangent: TangentStiffness) -> PETSc.Mat:
     fields = [model.f[n] for n in tangent.names]
     key = form_cache.structure_key(residuals, "mass", tangent.names) \
         if monolithic_layout(fields) else None
-    forms = None if form_cache.lookup(key) else \
+    forms = None if form_cache.lookup(key, model.mesh.comm) else \
         [ufl.replace(F, {**at_rest, **swap}) for F in residuals]
     objects = [*form_cache.registry(residuals), *at_rest.values()]
     bcs = [bc for n in tangent.names for bc in model.bcs_of(n)]

@@ -227,7 +227,7 @@ class MonolithicSystem(_System):
         self._ghosted = mesh.comm.size > 1
         key, objects = cache if cache else (None, ())
         objects = [*objects, *self.w]
-        entry = form_cache.lookup(key)
+        entry = form_cache.lookup(key, mesh.comm)
         if entry is None:
             self.F, self.J, ufl_forms = self._compile(F, groups, jacobian_terms)
             if key:
@@ -363,7 +363,8 @@ class BlockedSystem(_System):
         key, objects = cache if cache else (None, ())
         zero = fem.Constant(y[0].function_space.mesh, 0.0)    # the empty diagonal blocks'
         objects = [*objects, zero]
-        entry = form_cache.lookup(key) if key in _BLOCK_LAYOUTS else None
+        entry = form_cache.lookup(key, y[0].function_space.mesh.comm,
+                                  usable=key in _BLOCK_LAYOUTS)
         if entry is None:
             terms = [(c, jacobian_blocks(F, y, wrt=groups[k], zero=zero))
                      for c, k in jacobian_terms]

@@ -106,7 +106,7 @@ class FormSums:
         """``key`` (form_cache.py): the kernels are compiled once per key and bound to
         the data of each later model of the key."""
         V = fem.functionspace(mesh, ("DG", 0, (max(1, len(forms)),)))
-        entry = form_cache.lookup(key)
+        entry = form_cache.lookup(key, mesh.comm)
         objects = form_cache.registry(forms) if key else []
         if entry is not None:
             self.forms = form_cache.bind(entry, objects, V, mesh)
@@ -165,7 +165,7 @@ def compiled_near_nodes(form: ufl.Form, mesh, s_nodes, key: str | None = None) -
             if itg.integral_type() == "cell"]
     if restricted is form or not tags:        # no cells of its own to bind: compiled
         key = None
-    entry = form_cache.lookup(key)
+    entry = form_cache.lookup(key, mesh.comm)
     objects = form_cache.registry([form])
     if entry is None:
         compiled = form_cache.jit_form(restricted)

@@ -295,9 +295,23 @@ def clear(disk: bool = True) -> None:
         path.unlink(missing_ok=True)
 
 
-def lookup(key: str | None):
+def lookup(key: str | None, comm: MPI.Comm, usable: bool = True):
+    """The entry of ``key`` (None: none, without communication), or None if any rank of
+    ``comm`` (the model's communicator; collective for a key) has none or cannot use it
+    (not ``usable``: the caller keeps more than the kernels, such as a blocked system's
+    layout of blocks, and has not that): the ranks that missed compile, and DOLFINx's
+    JIT is collective on ``comm``.  An entry can be on some ranks only: one stored by a
+    model on a communicator of its own (a rank's serial model in an MPI job)."""
     if not key:
         return None
+    entry = _entry(key) if usable else None
+    if comm.size > 1 and not comm.allreduce(entry is not None, op=MPI.LAND):
+        return None
+    return entry
+
+
+def _entry(key: str):
+    """This process's entry of ``key``, loaded from disk in serial runs."""
     if key not in _ENTRIES and MPI.COMM_WORLD.size == 1:
         entry = _load(key)
         if entry is not None:

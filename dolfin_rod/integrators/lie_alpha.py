@@ -231,7 +231,7 @@ class LieGeneralizedAlpha:
                                                       rho_inf, structure=problem.structure)
         objects = [*self._model_objects, *self.y_n, *self.v_n,
                    *(a for a in self.acc_n if a is not None), *self.alg_n, self.dt]
-        F = None if form_cache.lookup(self.structure_key) else self._step_forms()
+        F = None if form_cache.lookup(self.structure_key, mesh.comm) else self._step_forms()
         self.options = options = solver_settings(mesh.comm, solver_options, 2 in self.order,
                                                  direct=bool(problem.terms))
         self.solver = BlockSNES(F, y, problem.bcs, options, cache=(self.structure_key, objects),
@@ -359,7 +359,7 @@ class LieGeneralizedAlpha:
         before timing a run."""
         if self._initial_solver is None:
             key = self.structure_key + "initial"
-            F = None if form_cache.lookup(key) else self.problem.residual
+            F = None if form_cache.lookup(key, self.problem.comm) else self.problem.residual
             self._initial_solver = BlockSNES(F, self._unknowns_at_start(), self.problem.bcs,
                                              self.options, cache=(key, self._model_objects),
                                              step_scale=self.problem.configuration_norm(),
@@ -506,7 +506,7 @@ class LieGeneralizedAlpha:
         unknowns = [f if k == 2 else u
                     for f, u, k in zip(p.fields, self._unknowns_at_start(), self.order)]
         key = self.structure_key + "equilibrium"
-        solver = BlockSNES(None if form_cache.lookup(key) else p.residual, unknowns, p.bcs,
+        solver = BlockSNES(None if form_cache.lookup(key, p.comm) else p.residual, unknowns, p.bcs,
                            self.options, cache=(key, self._model_objects),
                            step_scale=p.configuration_norm(), links=p.links,
                            terms=p.terms, force_scale=p.force_scale,

@@ -69,7 +69,7 @@ class _StepResidual:
                                                        structure=problem.structure)
         objects = [*form_cache.registry(problem.residual), *(f for h in history for f in h), dt,
                    *(c for _, stage in self.stage_loads for c, _ in stage)]
-        F = None if form_cache.lookup(key) else step_forms(
+        F = None if form_cache.lookup(key, problem.comm) else step_forms(
             problem, scheme, history, dt, self.stage_loads)[0]
         stages = [(st.w, st.a) for st in scheme.stages]      # terms: a rod's segment contact
         terms = [term.for_step(stages, problem.fields, *history[:2]) for term in problem.terms]
