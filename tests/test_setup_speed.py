@@ -383,10 +383,9 @@ def test_a_second_stepper_duplicates_the_first_ones_matrix_and_vectors():
 def test_kernels_remembered_on_one_rank_only_are_compiled_on_every_rank(case):
     """A model on rank 0's own communicator (MPI.COMM_SELF, as a test or a user's script
     may build) remembers its step kernels on rank 0 alone; a model of the same structure
-    on every rank then finds them on rank 0 only (the disk entry removed by another rank,
-    as another process may do).  form_cache.lookup agrees over the model's ranks, so
-    every rank compiles: a hit on rank 0 against a miss on rank 1 left rank 1 in
-    DOLFINx's collective JIT and rank 0 past it (the MPI suite hung at
+    on every rank then finds them on rank 0 only.  form_cache.lookup agrees over the
+    model's ranks, so every rank compiles: a hit on rank 0 against a miss on rank 1 left
+    rank 1 in DOLFINx's collective JIT and rank 0 past it (the MPI suite hung at
     tests/test_snake.py).  Both models' steps give the serial run's tip to 1e-12 (a
     parallel solve's other rounding: 1e-17 measured, test_rotation_vector)."""
     from dolfin_rod import TimeStepper
@@ -402,10 +401,6 @@ def test_kernels_remembered_on_one_rank_only_are_compiled_on_every_rank(case):
     world = MPI.COMM_WORLD
     form_cache.clear(disk=False)
     alone = tip(MPI.COMM_SELF) if world.rank == 0 else None
-    world.barrier()
-    if world.rank > 0:       # the disk entry gone too (the other ranks would load it)
-        form_cache.clear()
-    world.barrier()
     key = world.bcast(alone[1] if world.rank == 0 else None)
     known = world.allgather(form_cache.lookup(key, MPI.COMM_SELF) is not None)
     assert known == [True] + [False] * (world.size - 1)     # the situation of the hang

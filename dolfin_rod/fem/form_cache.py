@@ -24,9 +24,9 @@ Entries are also kept on disk (a small JSON file per key naming the FFCx module 
 its form, beside FFCx's own cache), so that the first model of a structure in a new
 process skips the UFL processing too (1.7 s -> ~0.1 s at 32 cells, warm FFCx cache).
 The disk key adds the DOLFINx/FFCx versions and a hash of this package's source: any
-change of the code that builds forms invalidates it.  Under MPI each rank reads the
-folder, and the ranks agree on a hit (``lookup``): a rank that missed (another process
-writing or clearing the folder between their reads) makes every rank compile.
+change of the code that builds forms invalidates it.  Serial runs only: under MPI the
+ranks could disagree on a hit (another process writing or clearing the folder between
+their reads) and then deadlock in the collective JIT of the ones that missed.
 """
 
 from __future__ import annotations
@@ -311,8 +311,8 @@ def lookup(key: str | None, comm: MPI.Comm, usable: bool = True):
 
 
 def _entry(key: str):
-    """This process's entry of ``key``, loaded from disk if it has none."""
-    if key not in _ENTRIES:
+    """This process's entry of ``key``, loaded from disk in serial runs."""
+    if key not in _ENTRIES and MPI.COMM_WORLD.size == 1:
         entry = _load(key)
         if entry is not None:
             _ENTRIES[key] = entry
@@ -324,7 +324,7 @@ def store(key: str, compiled: list[fem.Form], ufl_forms: list[ufl.Form], objects
     """Remember compiled forms with the registry positions of their data (skipped when a
     form integrates over tagged subdomains, whose tags are not in the registry, unless
     ``tagged``: the caller gives their integration entities to ``bind``); on disk too
-    unless not ``disk`` (an entry whose caller keeps more than the kernels,
+    (serial runs) unless not ``disk`` (an entry whose caller keeps more than the kernels,
     such as a blocked system's layout of blocks, in this process only)."""
     if not tagged and any(itg.subdomain_data() is not None for form in ufl_forms
                           for itg in form.integrals()):
@@ -340,7 +340,7 @@ def store(key: str, compiled: list[fem.Form], ufl_forms: list[ufl.Form], objects
                             tuple(t.name for t in form.integral_types), tuple(roles),
                             tuple(index[id(c)] for c in uform.constants())))
     _ENTRIES[key] = entry
-    if disk:
+    if disk and MPI.COMM_WORLD.size == 1:
         _save(key, entry)
 
 
